@@ -1,0 +1,124 @@
+"""The Volume: samples on a regular axis-aligned grid.
+
+Axis rule (the one used everywhere in the project): ``data`` is indexed
+``[z, y, x]`` (shape ``(nz, ny, nx)``, x varies fastest); positions,
+directions, ``spacing`` and ``origin`` are ``(x, y, z)``. Sample
+``data[k, j, i]`` sits at world ``origin + (i*sx, j*sy, k*sz)``. Samples are
+points; cell ``(i, j, k)`` is the box between samples ``i..i+1``,
+``j..j+1``, ``k..k+1`` and holds the trilinear interpolant of its corners.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import InputError
+
+#: Sample types the kernels read natively.
+SUPPORTED_DTYPES = tuple(np.dtype(t) for t in (
+    "uint8", "int8", "uint16", "int16", "uint32", "int32", "float32", "float64"))
+
+
+@dataclass(eq=False)
+class Volume:
+    """Scalar samples on a regular grid, in their native dtype.
+
+    Parameters
+    ----------
+    data : ndarray, shape (nz, ny, nx)
+        Samples, C-contiguous, native byte order (converted if not).
+    spacing : (sx, sy, sz)
+        Distance between neighbouring samples along x, y, z; positive.
+    origin : (ox, oy, oz)
+        World position of ``data[0, 0, 0]``.
+    name : str
+        Where the volume came from, for messages and reports.
+    meta : dict
+        Anything a reader wants to pass on (e.g. a note that oblique
+        NRRD ``space directions`` were reduced to their column norms).
+
+    Raises
+    ------
+    InputError
+        Not 3-D, a dimension below 2, an unsupported dtype, non-finite
+        float samples, or a spacing that is not positive and finite.
+    """
+
+    data: np.ndarray
+    spacing: tuple = (1.0, 1.0, 1.0)
+    origin: tuple = (0.0, 0.0, 0.0)
+    name: str = "volume"
+    meta: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        data = np.asarray(self.data) if not isinstance(self.data, np.memmap) else self.data
+        if data.ndim != 3:
+            raise InputError(f"{self.name}: a volume needs 3 dimensions, got shape {data.shape}")
+        if min(data.shape) < 2:
+            nz, ny, nx = data.shape
+            raise InputError(f"{self.name}: every dimension must be at least 2 samples, got {nx}x{ny}x{nz} (x×y×z)")
+        dt = data.dtype
+        if dt.byteorder not in ("=", "|") and dt.newbyteorder("=") in SUPPORTED_DTYPES:
+            data = data.astype(dt.newbyteorder("="))
+        if data.dtype not in SUPPORTED_DTYPES:
+            raise InputError(f"{self.name}: unsupported sample type {data.dtype}")
+        if not data.flags.c_contiguous:
+            data = np.ascontiguousarray(data)
+        if data.dtype.kind == "f" and not isinstance(data, np.memmap):
+            # Policy: non-finite samples have no isosurface or colour; refuse them.
+            if not np.isfinite(data).all():
+                bad = int(np.size(data) - np.count_nonzero(np.isfinite(data)))
+                raise InputError(f"{self.name}: {bad} non-finite samples (NaN or inf); replace them before rendering")
+        self.data = data
+        self.spacing = _triple(self.spacing, "spacing", self.name, positive=True)
+        self.origin = _triple(self.origin, "origin", self.name, positive=False)
+
+    @property
+    def shape(self):
+        """``(nz, ny, nx)``, as the array."""
+        return self.data.shape
+
+    @property
+    def dims(self):
+        """``(nx, ny, nz)``: sample counts in x, y, z order."""
+        nz, ny, nx = self.data.shape
+        return (nx, ny, nz)
+
+    @property
+    def dtype(self):
+        return self.data.dtype
+
+    @property
+    def extent(self):
+        """World size of the sampled box, ``(nx-1)*sx, ...``."""
+        return tuple((n - 1) * s for n, s in zip(self.dims, self.spacing))
+
+    @property
+    def bounds(self):
+        """``(lo, hi)`` world corners of the box, each ``(x, y, z)``."""
+        lo = np.array(self.origin, dtype=np.float64)
+        return lo, lo + np.array(self.extent)
+
+    @property
+    def center(self):
+        lo, hi = self.bounds
+        return 0.5 * (lo + hi)
+
+    def value_range(self):
+        """``(min, max)`` of the samples, computed once and kept."""
+        if "_range" not in self.meta:
+            self.meta["_range"] = (float(self.data.min()), float(self.data.max()))
+        return self.meta["_range"]
+
+
+def _triple(value, what, name, *, positive):
+    try:
+        t = tuple(float(v) for v in value)
+    except (TypeError, ValueError):
+        raise InputError(f"{name}: {what} must be three numbers, got {value!r}") from None
+    if len(t) != 3 or not all(np.isfinite(t)):
+        raise InputError(f"{name}: {what} must be three finite numbers, got {value!r}")
+    if positive and min(t) <= 0:
+        raise InputError(f"{name}: {what} must be positive, got {t}")
+    return t

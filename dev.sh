@@ -1,0 +1,29 @@
+#!/usr/bin/env bash
+# Run a command inside the project's virtual environment, creating and
+# filling it first when it is missing or pyproject.toml has changed.
+#   ./dev.sh parc render -o parc.png     render the built-in volume
+#   ./dev.sh test                        run the test suite
+set -euo pipefail
+root="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
+venv="$root/.venv"
+stamp="$venv/.installed"
+python="${PYTHON:-python3}"
+
+if [ ! -x "$venv/bin/python" ] || [ ! -f "$stamp" ] || [ "$root/pyproject.toml" -nt "$stamp" ]; then
+    echo "dev.sh: setting up $venv (first run only)" >&2
+    "$python" -m venv "$venv"
+    "$venv/bin/python" -m pip install --quiet --upgrade pip >&2
+    "$venv/bin/python" -m pip install --quiet -e "$root[test]" >&2
+    touch "$stamp"
+fi
+
+# Compiled Numba kernels are cached outside the package, shared by runs.
+export NUMBA_CACHE_DIR="${NUMBA_CACHE_DIR:-$root/.numba_cache}"
+export PATH="$venv/bin:$PATH"
+
+if [ "${1:-}" = "test" ]; then
+    shift
+    cd "$root"
+    exec python -m pytest -q "$@"
+fi
+exec "$@"

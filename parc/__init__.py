@@ -1,0 +1,10 @@
+"""PARC: polygon-assisted ray casting of 3D scalar volumes (public API)."""
+from data_tools import InputError, Volume
+from data_tools.io import load_volume, save_volume
+
+from .camera import Camera
+from .renderer import RenderResult, render
+from .scene import Isosurface, Scene
+
+__all__ = ["Camera", "InputError", "Isosurface", "RenderResult", "Scene", "Volume",
+           "load_volume", "render", "save_volume"]

@@ -1,0 +1,157 @@
+"""The camera: one object yields both the caster's rays and OpenGL's matrices.
+
+Conventions (DESIGN.md): VTK-style ``eye``, ``look_at``, ``up``; vertical
+``fov`` in degrees, or a parallel projection with ``parallel_scale`` (half
+the view height in world units). With ``f = normalize(look_at - eye)``,
+``r = normalize(f x up)``, ``u = r x f``, pixel ``(x, y)`` (y down) of a
+``W x H`` image has ``sx = (2 (x + 0.5) / W - 1) W/H``,
+``sy = 1 - 2 (y + 0.5) / H``; perspective rays start at the eye with
+direction ``normalize(f + tan(fov/2) (sx r + sy u))``; parallel rays start at
+``eye + parallel_scale (sx r + sy u)`` with direction ``f``.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from data_tools import InputError
+
+
+@dataclass(frozen=True)
+class Camera:
+    """A pinhole or parallel camera.
+
+    Parameters
+    ----------
+    eye, look_at, up : (x, y, z)
+        Position, point looked at, and the up hint (need not be orthogonal
+        to the view direction, but must not be parallel to it).
+    fov : float, default 30
+        Vertical field of view in degrees, in (0, 180); perspective only.
+    parallel_scale : float or None
+        Half the view height in world units; when given, the projection is
+        parallel and ``fov`` is ignored.
+
+    Raises
+    ------
+    InputError
+        ``eye`` equal to ``look_at``, ``up`` parallel to the view direction,
+        a field of view outside (0, 180), a non-positive parallel scale.
+    """
+
+    eye: tuple = (0.0, 0.0, 1.0)
+    look_at: tuple = (0.0, 0.0, 0.0)
+    up: tuple = (0.0, 1.0, 0.0)
+    fov: float = 30.0
+    parallel_scale: float | None = None
+
+    def __post_init__(self):
+        for name in ("eye", "look_at", "up"):
+            v = np.asarray(getattr(self, name), dtype=np.float64)
+            if v.shape != (3,) or not np.isfinite(v).all():
+                raise InputError(f"camera {name} must be three finite numbers, got {getattr(self, name)!r}")
+            object.__setattr__(self, name, tuple(float(c) for c in v))
+        f = np.subtract(self.look_at, self.eye)
+        if np.linalg.norm(f) == 0.0:
+            raise InputError(f"camera eye equals look-at {self.look_at}: no view direction")
+        f = f / np.linalg.norm(f)
+        up = np.asarray(self.up)
+        if np.linalg.norm(up) == 0.0 or np.linalg.norm(np.cross(f, up / np.linalg.norm(up))) < 1e-9:
+            raise InputError(f"camera up {self.up} is parallel to the view direction {tuple(np.round(f, 6))}")
+        if self.parallel_scale is None:
+            if not 0.0 < float(self.fov) < 180.0:
+                raise InputError(f"field of view must be between 0 and 180 degrees, got {self.fov}")
+        elif not (math.isfinite(self.parallel_scale) and self.parallel_scale > 0.0):
+            raise InputError(f"parallel scale must be positive, got {self.parallel_scale}")
+
+    @property
+    def parallel(self) -> bool:
+        return self.parallel_scale is not None
+
+    def basis(self):
+        """Orthonormal ``(f, r, u)``: forward, right, up, each shape (3,)."""
+        f = np.subtract(self.look_at, self.eye)
+        f = f / np.linalg.norm(f)
+        r = np.cross(f, self.up)
+        r = r / np.linalg.norm(r)
+        u = np.cross(r, f)
+        return f, r, u
+
+    def as_array(self):
+        """The kernels' camera: ``[eye, f, r, u, tan(fov/2), parallel_scale, parallel]``."""
+        f, r, u = self.basis()
+        th = math.tan(math.radians(self.fov) / 2.0)
+        ps = self.parallel_scale or 0.0
+        return np.concatenate([self.eye, f, r, u, [th, ps, 1.0 if self.parallel else 0.0]]).astype(np.float64)
+
+    def rays(self, width, height):
+        """World rays through every pixel centre: origins, directions, each ``(H, W, 3)``.
+
+        Vectorized NumPy version of `raycast.rays.camera_ray`, for tests and tools.
+        """
+        f, r, u = self.basis()
+        x = np.arange(width) + 0.5
+        y = np.arange(height) + 0.5
+        sx = (2.0 * x / width - 1.0) * (width / height)
+        sy = 1.0 - 2.0 * y / height
+        sx, sy = np.meshgrid(sx, sy)
+        off = sx[..., None] * r + sy[..., None] * u
+        if self.parallel:
+            o = np.asarray(self.eye) + self.parallel_scale * off
+            d = np.broadcast_to(f, o.shape).copy()
+        else:
+            d = f + math.tan(math.radians(self.fov) / 2.0) * off
+            d /= np.linalg.norm(d, axis=-1, keepdims=True)
+            o = np.broadcast_to(np.asarray(self.eye, dtype=np.float64), d.shape).copy()
+        return o, d
+
+    def view_matrix(self):
+        """World -> eye 4x4 (OpenGL convention: the camera looks down -z)."""
+        f, r, u = self.basis()
+        m = np.eye(4)
+        m[0, :3], m[1, :3], m[2, :3] = r, u, -f
+        m[:3, 3] = -m[:3, :3] @ np.asarray(self.eye)
+        return m
+
+    def projection_matrix(self, width, height, near, far):
+        """Eye -> clip 4x4 for an image of ``width x height`` and depth range [near, far]."""
+        a = width / height
+        m = np.zeros((4, 4))
+        if self.parallel:
+            h = self.parallel_scale
+            m[0, 0] = 1.0 / (h * a)
+            m[1, 1] = 1.0 / h
+            m[2, 2] = -2.0 / (far - near)
+            m[2, 3] = -(far + near) / (far - near)
+            m[3, 3] = 1.0
+        else:
+            th = math.tan(math.radians(self.fov) / 2.0)
+            m[0, 0] = 1.0 / (th * a)
+            m[1, 1] = 1.0 / th
+            m[2, 2] = -(far + near) / (far - near)
+            m[2, 3] = -2.0 * far * near / (far - near)
+            m[3, 2] = -1.0
+        return m
+
+    @classmethod
+    def framing(cls, lo, hi, *, fov=30.0, azimuth=35.0, elevation=25.0, up=(0.0, 0.0, 1.0),
+                parallel=False, zoom=1.0):
+        """A three-quarter view that frames the box ``[lo, hi]`` whole.
+
+        The eye looks at the box centre from ``azimuth`` degrees around +z
+        (0 = from -y) and ``elevation`` degrees above the xy-plane, far
+        enough that the bounding sphere fits the vertical field of view.
+        """
+        lo = np.asarray(lo, dtype=np.float64)
+        hi = np.asarray(hi, dtype=np.float64)
+        c = 0.5 * (lo + hi)
+        radius = 0.5 * float(np.linalg.norm(hi - lo)) / zoom
+        az, el = math.radians(azimuth), math.radians(elevation)
+        back = np.array([math.cos(el) * math.sin(az), -math.cos(el) * math.cos(az), math.sin(el)])
+        if parallel:
+            return cls(eye=tuple(c + back * radius * 3.0), look_at=tuple(c), up=up,
+                       parallel_scale=radius * 1.02)
+        dist = radius / math.sin(math.radians(fov) / 2.0) * 1.02
+        return cls(eye=tuple(c + back * dist), look_at=tuple(c), up=up, fov=fov)

@@ -1,0 +1,316 @@
+"""The `parc` command line: render, info, make.
+
+Every user mistake ends in one line on stderr (``parc: error: ...``) and
+exit status 2: no traceback, and no output file, complete or partial.
+Outputs are written to a temporary file beside the target and renamed into
+place only once whole.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from data_tools import InputError
+
+EXIT_USAGE = 2
+
+EPILOG = """\
+examples:
+  parc render -o out.png                      render the built-in volume
+  parc render head.nrrd --iso 600 -o skin.png --size 800 600
+  parc render bucky_32x32x32_uint8.raw --iso 128 --eye 60,-40,50 -o bucky.png
+  parc info CThead.nrrd                       dims, spacing, histogram, isovalues
+  parc make ct_phantom --size 128 -o ct.nrrd  a synthetic volume
+
+Axis order: positions, spacing and origin are x,y,z; arrays are [z,y,x].
+"""
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse that reports errors as one line with status 2, like the rest of parc."""
+
+    def error(self, message):
+        raise InputError(message)
+
+
+def _floats(n, what):
+    def parse(text):
+        try:
+            vals = tuple(float(v) for v in text.replace(" ", "").split(","))
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{what} must be {n} comma-separated numbers, got {text!r}")
+        if len(vals) != n or not all(np.isfinite(vals)):
+            raise argparse.ArgumentTypeError(f"{what} must be {n} comma-separated finite numbers, got {text!r}")
+        return vals
+    return parse
+
+
+def _ints(n, what):
+    def parse(text):
+        try:
+            vals = tuple(int(v) for v in text.replace("x", ",").split(","))
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{what} must be {n} integers like 64,64,32, got {text!r}")
+        if len(vals) != n:
+            raise argparse.ArgumentTypeError(f"{what} must be {n} integers, got {text!r}")
+        return vals
+    return parse
+
+
+def _add_volume_options(p):
+    g = p.add_argument_group("reading the volume (headerless raw files need shape and dtype "
+                             "unless the name says, e.g. bucky_32x32x32_uint8.raw)")
+    g.add_argument("--shape", type=_ints(3, "--shape"), metavar="NX,NY,NZ", help="raw: samples along x, y, z")
+    g.add_argument("--dtype", metavar="TYPE", help="raw: sample type, e.g. uint8, int16, uint16, float32")
+    g.add_argument("--byte-order", choices=("little", "big"), help="raw: byte order (default little)")
+    g.add_argument("--spacing", type=_floats(3, "--spacing"), metavar="SX,SY,SZ",
+                   help="sample spacing; replaces what the file says")
+    g.add_argument("--origin", type=_floats(3, "--origin"), metavar="OX,OY,OZ",
+                   help="world position of the first sample; replaces what the file says")
+
+
+def _add_view_options(p):
+    g = p.add_argument_group("view (default: a three-quarter view framing the whole volume)")
+    g.add_argument("--eye", type=_floats(3, "--eye"), metavar="X,Y,Z", help="camera position")
+    g.add_argument("--look-at", type=_floats(3, "--look-at"), metavar="X,Y,Z",
+                   help="point looked at (default: the volume's centre)")
+    g.add_argument("--up", type=_floats(3, "--up"), metavar="X,Y,Z", help="up direction (default 0,0,1)")
+    g.add_argument("--fov", type=float, default=30.0, metavar="DEG",
+                   help="vertical field of view in degrees (default 30)")
+    g.add_argument("--parallel", type=float, metavar="SCALE",
+                   help="parallel projection; SCALE is half the view height in world units")
+    g.add_argument("--size", type=int, nargs=2, default=(512, 512), metavar=("W", "H"),
+                   help="image size in pixels (default 512 512)")
+
+
+def build_parser():
+    p = _Parser(prog="parc", description="Ray cast 3D scalar volumes, exactly, with OpenGL-assisted acceleration.",
+                epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+
+    r = sub.add_parser("render", help="render a volume to an image",
+                       description="Render the isosurface of a volume. Without a volume, renders a built-in "
+                                   "synthetic one. Without --iso, uses a level suggested from the histogram.",
+                       epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    r.add_argument("volume", nargs="?", help="volume file: .nrrd .nhdr .mhd .mha .vtk .slc .npy .raw")
+    r.add_argument("--iso", type=float, metavar="V", help="isovalue (default: suggested from the histogram)")
+    r.add_argument("-o", "--output", required=True, metavar="OUT",
+                   help="image: .png (8-bit RGBA) or .npy (float32 RGBA array)")
+    r.add_argument("--depth", metavar="D.npy", help="also write the float64 depth image (inf = no hit)")
+    r.add_argument("--stats", metavar="S.json", help="also write timings and counts as JSON")
+    r.add_argument("--method", default="brute", choices=("brute",),
+                   help="brute: unaccelerated casting (default)")
+    r.add_argument("--background", type=_floats(3, "--background"), metavar="R,G,B",
+                   help="opaque background colour in [0,1] (default transparent)")
+    r.add_argument("--quiet", action="store_true", help="no progress or notes on stderr")
+    _add_view_options(r)
+    _add_volume_options(r)
+
+    i = sub.add_parser("info", help="describe a volume and suggest isovalues")
+    i.add_argument("volume")
+    _add_volume_options(i)
+
+    from data_tools.synthetic import DESCRIPTIONS
+    m = sub.add_parser("make", help="write a synthetic volume",
+                       description="Write a synthetic volume.\n\n" + "\n".join(
+                           f"  {k:16s} {v}" for k, v in DESCRIPTIONS.items()),
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    m.add_argument("name", choices=sorted(DESCRIPTIONS), metavar="NAME", help="which volume (see above)")
+    m.add_argument("-o", "--output", required=True, metavar="OUT", help="output file: .nrrd or .npy")
+    m.add_argument("--size", type=int, metavar="N", help="samples per axis (default depends on the volume)")
+    m.add_argument("--seed", type=int, help="random seed, for the random volumes")
+    return p
+
+
+def main(argv=None):
+    """Entry point of the `parc` console script; returns the exit status."""
+    try:
+        args = build_parser().parse_args(argv)
+        if args.command is None:
+            build_parser().print_help()
+            return EXIT_USAGE
+        return {"render": cmd_render, "info": cmd_info, "make": cmd_make}[args.command](args)
+    except InputError as exc:
+        print(f"parc: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        print("parc: interrupted", file=sys.stderr)
+        return 130
+
+
+# --- commands -----------------------------------------------------------
+
+def _load(args):
+    from data_tools.io import load_volume
+    return load_volume(args.volume, shape=args.shape, dtype=args.dtype, byte_order=args.byte_order,
+                       spacing=args.spacing, origin=args.origin)
+
+
+def cmd_info(args):
+    from data_tools.info import format_info, volume_info
+    vol = _load(args)
+    print(format_info(volume_info(vol)))
+    return 0
+
+
+def cmd_make(args):
+    from data_tools.io import save_volume
+    from data_tools.synthetic import make_synthetic
+    out = _check_output(args.output, (".nrrd", ".nhdr", ".npy", ".mhd", ".mha", ".vtk", ".raw"))
+    kwargs = {} if args.seed is None else {"seed": args.seed}
+    if args.size is not None and args.size < 2:
+        raise InputError(f"--size must be at least 2, got {args.size}")
+    try:
+        vol = make_synthetic(args.name, args.size, **kwargs)
+    except TypeError:
+        raise InputError(f"{args.name} takes no --seed") from None
+    _atomic_write(out, lambda tmp: save_volume(vol, tmp))
+    print(f"wrote {out} ({'x'.join(map(str, vol.dims))} {vol.dtype})")
+    return 0
+
+
+def cmd_render(args):
+    import parc
+    from data_tools.synthetic import builtin_volume
+
+    out = _check_output(args.output, (".png", ".npy"))
+    depth_out = _check_output(args.depth, (".npy",)) if args.depth else None
+    stats_out = _check_output(args.stats, (".json",)) if args.stats else None
+    w, h = args.size
+    if w < 1 or h < 1:
+        raise InputError(f"image size must be positive, got {w} {h}")
+    say = (lambda *a: None) if args.quiet else (lambda msg: print(f"parc: {msg}", file=sys.stderr))
+
+    if args.volume is None:
+        vol = builtin_volume()
+        iso = vol.meta["iso"] if args.iso is None else args.iso
+    else:
+        vol = _load(args)
+        iso = args.iso
+    if iso is None:
+        from data_tools.info import suggest_isovalues
+        levels = suggest_isovalues(vol)
+        iso = levels[len(levels) // 2]
+        say(f"no --iso given; using {iso:g}, suggested from the histogram "
+            f"(others: {', '.join(f'{v:g}' for v in levels if v != iso) or 'none'})")
+    if "note" in vol.meta:
+        say(vol.meta["note"])
+
+    scene = parc.Scene(camera=_camera(args, vol), size=(w, h),
+                       volumes=[parc.Isosurface(vol, iso)],
+                       background=args.background)
+    progress = None if args.quiet else _Progress(f"rendering {w}x{h}")
+    result = parc.render(scene, method=args.method, progress=progress)
+    if progress is not None:
+        progress.done()
+
+    if out.suffix.lower() == ".png":
+        _atomic_write(out, lambda tmp: _write_png(result.image, tmp))
+    else:
+        _atomic_write(out, lambda tmp: np.save(tmp, result.image))
+    if depth_out:
+        _atomic_write(depth_out, lambda tmp: np.save(tmp, result.depth))
+    if stats_out:
+        _atomic_write(stats_out, lambda tmp: tmp.write_text(json.dumps(result.stats, indent=2) + "\n"))
+    s = result.stats
+    say(f"wrote {out}: {s['hits']} of {s['pixels']} pixels hit the isosurface {iso:g}; "
+        f"{s['seconds']['total']:.3f} s, {s['cells_visited']:,} cells visited, {s['cubic_solves']:,} cubics")
+    return 0
+
+
+# --- helpers ------------------------------------------------------------
+
+def _camera(args, vol):
+    import parc
+    lo, hi = vol.bounds
+    up = args.up or (0.0, 0.0, 1.0)
+    if args.eye is None and args.look_at is None:
+        cam = parc.Camera.framing(lo, hi, fov=args.fov, up=up, parallel=args.parallel is not None)
+        if args.parallel is not None:
+            cam = parc.Camera(eye=cam.eye, look_at=cam.look_at, up=up, parallel_scale=args.parallel)
+        return cam
+    look_at = args.look_at or tuple(vol.center)
+    if args.eye is None:
+        framed = parc.Camera.framing(lo, hi, fov=args.fov, up=up)
+        eye = tuple(np.asarray(look_at) + np.subtract(framed.eye, framed.look_at))
+    else:
+        eye = args.eye
+    if args.up is None:
+        # The default up must not be parallel to the view: fall back to +y.
+        f = np.subtract(look_at, eye)
+        n = np.linalg.norm(f)
+        if n > 0 and np.linalg.norm(np.cross(f / n, up)) < 1e-6:
+            up = (0.0, 1.0, 0.0)
+    return parc.Camera(eye=eye, look_at=look_at, up=up, fov=args.fov, parallel_scale=args.parallel)
+
+
+def _check_output(path, allowed):
+    """Refuse an output path before any work: wrong extension, missing or unwritable folder."""
+    path = Path(path)
+    if path.suffix.lower() not in allowed:
+        raise InputError(f"{path}: output must end in {' or '.join(allowed)}")
+    folder = path.parent if str(path.parent) else Path(".")
+    if not folder.is_dir():
+        raise InputError(f"{path}: folder {folder} does not exist")
+    if path.is_dir():
+        raise InputError(f"{path}: is a folder")
+    if not os.access(folder, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
+        raise InputError(f"{path}: not writable")
+    return path
+
+
+def _atomic_write(path, write):
+    """Write through a temporary file in the same folder, then rename: never a half-written file."""
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=path.parent or ".")
+    os.close(fd)
+    tmp = Path(tmp)
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    except OSError as exc:
+        raise InputError(f"{path}: cannot write ({exc.strerror or exc})") from None
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+
+
+def _write_png(image, path):
+    from PIL import Image
+    rgba = np.clip(np.rint(np.asarray(image) * 255.0), 0, 255).astype(np.uint8)
+    # PNG stores straight alpha; our images are premultiplied.
+    a = rgba[..., 3:4].astype(np.float64)
+    rgb = np.where(a > 0, np.clip(np.rint(rgba[..., :3] * 255.0 / np.maximum(a, 1)), 0, 255), 0)
+    Image.fromarray(np.concatenate([rgb.astype(np.uint8), rgba[..., 3:4]], axis=-1), "RGBA").save(path, format="PNG")
+
+
+class _Progress:
+    """Progress on stderr: a live percentage on a terminal, a few lines otherwise."""
+
+    def __init__(self, what):
+        self.what = what
+        self.tty = sys.stderr.isatty()
+        self.start = time.perf_counter()
+        self.last = -1
+
+    def __call__(self, fraction):
+        pct = int(100 * fraction)
+        if self.tty:
+            print(f"\rparc: {self.what}: {pct:3d}%", end="", file=sys.stderr, flush=True)
+        elif pct // 25 > self.last // 25 and pct < 100:
+            print(f"parc: {self.what}: {pct}%", file=sys.stderr, flush=True)
+        self.last = pct
+
+    def done(self):
+        if self.tty and self.last >= 0:
+            print(f"\rparc: {self.what}: done in {time.perf_counter() - self.start:.1f} s", file=sys.stderr)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

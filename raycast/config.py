@@ -1,0 +1,36 @@
+"""Tunables and JIT flags for every kernel in `raycast`, in one place."""
+import os
+
+# Compiled kernels are cached outside the package (set before numba is
+# imported anywhere); `dev.sh` points this at the checkout's .numba_cache.
+os.environ.setdefault(
+    "NUMBA_CACHE_DIR", os.path.join(os.path.expanduser("~"), ".cache", "parc", "numba"))
+
+import numba  # noqa: E402
+
+#: Flags shared by all kernels. fastmath stays off: PARC and the
+#: unaccelerated caster must round identically, and the root finder relies
+#: on IEEE comparisons with inf.
+JIT = dict(cache=True, nogil=True, fastmath=False, error_model="numpy")
+
+#: Image tiles, as in Parker et al. §2.2: 32 pixels wide (a cache line of
+#: float32 per row) and 4 high.
+TILE_W = 32
+TILE_H = 4
+
+#: Tiles handed to a thread at a time. Small chunks let threads that drew
+#: cheap tiles (empty sky) take more work: dynamic load balancing.
+TILE_CHUNK = 2
+
+#: Root finder: bisection/Newton stops when the bracket is this small
+#: relative to the cell's t-interval (well below the 1e-9-of-a-cell target).
+ROOT_REL_TOL = 1e-15
+ROOT_MAX_ITER = 100
+
+
+def kernel(fn=None, **extra):
+    """Decorate a kernel with the project's JIT flags."""
+    flags = dict(JIT, **extra)
+    if fn is None:
+        return lambda f: numba.njit(**flags)(f)
+    return numba.njit(**flags)(fn)

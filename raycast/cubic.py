@@ -1,0 +1,161 @@
+"""The ray/trilinear-cell intersection: a cubic in t per cell, and its first root.
+
+About this technique (Parker et al. 1998, Appendix A). Inside a cell the
+field is the trilinear interpolant of the eight corners. Along a ray the
+local coordinates are linear in the ray parameter, ``u = u0 + s du`` (same
+for v, w), so ``rho(s) - iso`` is a cubic ``A s^3 + B s^2 + C s + D``. We
+write the interpolant in its monomial form
+
+    rho = a0 + ax u + ay v + az w + axy uv + ayz vw + azx wu + axyz uvw,
+
+which expands to the same cubic as Parker's ``sum u_i v_j w_k rho_ijk`` form
+but is cheaper to set up, and measure ``s`` from the ray's entry into the
+cell so the coefficients stay small (no ``t^3`` with ``t`` in the hundreds)
+whatever the cell's distance from the eye or the origin.
+
+The first root in ``[0, L]`` is found robustly rather than in closed form:
+the derivative's roots split the interval into pieces on which the cubic is
+monotone; the first piece whose ends differ in sign (or end on zero) holds
+the first root, found by safeguarded Newton iteration. This handles a
+leading coefficient near zero (the derivative's roots use the stable
+quadratic formula, so a tiny ``A`` sends one root far away instead of
+dividing by it), roots on faces, edges and vertices (an exact zero at an end
+is taken), and close root pairs (each lies in its own monotone piece).
+A double root (a grazing ray) touches zero without a sign change; it counts
+as a hit only when rounding puts the extremum at or below zero.
+"""
+import math
+
+from .config import ROOT_MAX_ITER, ROOT_REL_TOL, kernel
+
+
+@kernel
+def trilinear_coefficients(v000, v100, v010, v110, v001, v101, v011, v111):
+    """Monomial coefficients (a0, ax, ay, az, axy, ayz, azx, axyz) of a cell.
+
+    Corner ``vIJK`` is the sample at local ``(u, v, w) = (I, J, K)``.
+    """
+    a0 = v000
+    ax = v100 - v000
+    ay = v010 - v000
+    az = v001 - v000
+    axy = v110 - v100 - v010 + v000
+    ayz = v011 - v010 - v001 + v000
+    azx = v101 - v100 - v001 + v000
+    axyz = (v111 - v011) - (v110 - v010) - (v101 - v001) + (v100 - v000)
+    return a0, ax, ay, az, axy, ayz, azx, axyz
+
+
+@kernel
+def cubic_along_ray(a0, ax, ay, az, axy, ayz, azx, axyz, u0, v0, w0, du, dv, dw):
+    """Coefficients (A, B, C, D) of rho(u0 + s du, v0 + s dv, w0 + s dw)."""
+    d_ = (a0 + ax * u0 + ay * v0 + az * w0 + axy * u0 * v0 + ayz * v0 * w0
+          + azx * w0 * u0 + axyz * u0 * v0 * w0)
+    c_ = (ax * du + ay * dv + az * dw
+          + axy * (u0 * dv + du * v0) + ayz * (v0 * dw + dv * w0) + azx * (w0 * du + dw * u0)
+          + axyz * (du * v0 * w0 + u0 * dv * w0 + u0 * v0 * dw))
+    b_ = (axy * du * dv + ayz * dv * dw + azx * dw * du
+          + axyz * (du * dv * w0 + du * v0 * dw + u0 * dv * dw))
+    a_ = axyz * du * dv * dw
+    return a_, b_, c_, d_
+
+
+@kernel
+def eval_cubic(a, b, c, d, s):
+    return ((a * s + b) * s + c) * s + d
+
+
+@kernel
+def _bracketed_root(a, b, c, d, lo, hi, flo):
+    """Root of a cubic monotone on [lo, hi] whose ends differ in sign."""
+    tol = ROOT_REL_TOL * (hi - lo)
+    if tol <= 0.0:
+        return lo
+    # Orient so that f(xl) < 0 < f(xh).
+    if flo < 0.0:
+        xl, xh = lo, hi
+    else:
+        xl, xh = hi, lo
+    s = 0.5 * (lo + hi)
+    dx_old = hi - lo
+    dx = dx_old
+    f = eval_cubic(a, b, c, d, s)
+    df = (3.0 * a * s + 2.0 * b) * s + c
+    for _ in range(ROOT_MAX_ITER):
+        # Newton when it stays inside the bracket and halves the step, else bisect.
+        if (((s - xh) * df - f) * ((s - xl) * df - f) > 0.0
+                or abs(2.0 * f) > abs(dx_old * df)):
+            dx_old = dx
+            dx = 0.5 * (xh - xl)
+            s = xl + dx
+            if s == xl:
+                return s
+        else:
+            dx_old = dx
+            dx = f / df
+            prev = s
+            s -= dx
+            if s == prev:
+                return s
+        if abs(dx) < tol:
+            return s
+        f = eval_cubic(a, b, c, d, s)
+        if f == 0.0:
+            return s
+        df = (3.0 * a * s + 2.0 * b) * s + c
+        if f < 0.0:
+            xl = s
+        else:
+            xh = s
+    return s
+
+
+@kernel
+def first_root(a, b, c, d, length):
+    """Smallest root of ``a s^3 + b s^2 + c s + d`` in ``[0, length]``, or -1.
+
+    See the module docstring for how the hard cases are handled.
+    """
+    if not length >= 0.0:
+        return -1.0
+    if d == 0.0:
+        return 0.0
+    # Critical points in (0, length) from 3a s^2 + 2b s + c = 0.
+    qa = 3.0 * a
+    qb = 2.0 * b
+    qc = c
+    e1 = math.inf
+    e2 = math.inf
+    if qa == 0.0:
+        if qb != 0.0:
+            e1 = -qc / qb
+    else:
+        disc = qb * qb - 4.0 * qa * qc
+        if disc >= 0.0:
+            q = -0.5 * (qb + math.copysign(math.sqrt(disc), qb))
+            if q != 0.0:
+                e1 = q / qa
+                e2 = qc / q
+            else:
+                e1 = 0.0
+    if e2 < e1:
+        e1, e2 = e2, e1
+    lo = 0.0
+    flo = d
+    for piece in range(3):
+        if piece == 0:
+            hi = e1
+        elif piece == 1:
+            hi = e2
+        else:
+            hi = length
+        if not (hi > lo and hi < length) and piece < 2:
+            continue
+        fhi = eval_cubic(a, b, c, d, hi)
+        if fhi == 0.0:
+            return hi
+        if (flo < 0.0) != (fhi < 0.0):
+            return _bracketed_root(a, b, c, d, lo, hi, flo)
+        lo = hi
+        flo = fhi
+    return -1.0

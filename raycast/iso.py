@@ -1,0 +1,162 @@
+"""Isosurface casting: walk the cells along a ray, solve the cubic where the range holds the isovalue.
+
+Three layers, as in every caster here: `cast_iso_ray` follows one ray over
+one segment; `cast_iso_image` (camera rays, image tiles) and
+`cast_iso_rays` (any rays, for tests and shadow work) run it in parallel.
+PARC and the unaccelerated caster call the same `cast_iso_ray`; PARC only
+passes the ray segment ``[seg0, seg1]`` its OpenGL pass found, the
+unaccelerated caster ``[-inf, inf]``.
+"""
+import math
+
+import numpy as np
+from numba import prange
+
+from .config import TILE_H, TILE_W, kernel
+from .cubic import cubic_along_ray, first_root, trilinear_coefficients
+from .rays import camera_ray
+from .traverse import axis_state, clip_box, next_exit, start_index, step_axis, to_index_space
+
+
+@kernel
+def cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, seg0, seg1):
+    """First isosurface hit along an index-space ray, within ``[seg0, seg1]``.
+
+    Returns ``(t, i, j, k, u, v, w, cells, solves)``: the hit's ray
+    parameter (``inf`` if none), its cell and local coordinates, the cells
+    visited and the cubics solved.
+    """
+    nz, ny, nx = data.shape
+    t_in, t_out = clip_box(Ox, Oy, Oz, Dx, Dy, Dz, nx, ny, nz)
+    t_start = max(t_in, seg0)
+    t_end = min(t_out, seg1)
+    if not t_start <= t_end:
+        return math.inf, -1, -1, -1, 0.0, 0.0, 0.0, 0, 0
+    i = start_index(Ox, Dx, t_start, nx)
+    j = start_index(Oy, Dy, t_start, ny)
+    k = start_index(Oz, Dz, t_start, nz)
+    sx, ix, tx0, tx1 = axis_state(Ox, Dx, i)
+    sy, iy, ty0, ty1 = axis_state(Oy, Dy, j)
+    sz, iz, tz0, tz1 = axis_state(Oz, Dz, k)
+    cells = 0
+    solves = 0
+    while True:
+        cells += 1
+        c0 = max(t_in, max(tx0, max(ty0, tz0)))
+        c1 = min(t_out, min(tx1, min(ty1, tz1)))
+        v000 = float(data[k, j, i]) - iso
+        v100 = float(data[k, j, i + 1]) - iso
+        v010 = float(data[k, j + 1, i]) - iso
+        v110 = float(data[k, j + 1, i + 1]) - iso
+        v001 = float(data[k + 1, j, i]) - iso
+        v101 = float(data[k + 1, j, i + 1]) - iso
+        v011 = float(data[k + 1, j + 1, i]) - iso
+        v111 = float(data[k + 1, j + 1, i + 1]) - iso
+        lo = min(min(min(v000, v100), min(v010, v110)), min(min(v001, v101), min(v011, v111)))
+        hi = max(max(max(v000, v100), max(v010, v110)), max(max(v001, v101), max(v011, v111)))
+        if lo <= 0.0 and hi >= 0.0 and c0 <= c1:
+            solves += 1
+            a0, ax, ay, az, axy, ayz, azx, axyz = trilinear_coefficients(
+                v000, v100, v010, v110, v001, v101, v011, v111)
+            u0 = (Ox - i) + c0 * Dx
+            v0 = (Oy - j) + c0 * Dy
+            w0 = (Oz - k) + c0 * Dz
+            A, B, C, D = cubic_along_ray(a0, ax, ay, az, axy, ayz, azx, axyz,
+                                         u0, v0, w0, Dx, Dy, Dz)
+            s = first_root(A, B, C, D, c1 - c0)
+            if s >= 0.0:
+                return (c0 + s, i, j, k, u0 + s * Dx, v0 + s * Dy, w0 + s * Dz,
+                        cells, solves)
+        if c1 >= t_end:
+            break
+        axis = step_axis(tx1, ty1, tz1)
+        if axis == 0:
+            i += sx
+            if i < 0 or i > nx - 2:
+                break
+            tx0 = tx1
+            tx1 = next_exit(Ox, ix, sx, i)
+        elif axis == 1:
+            j += sy
+            if j < 0 or j > ny - 2:
+                break
+            ty0 = ty1
+            ty1 = next_exit(Oy, iy, sy, j)
+        else:
+            k += sz
+            if k < 0 or k > nz - 2:
+                break
+            tz0 = tz1
+            tz1 = next_exit(Oz, iz, sz, k)
+    return math.inf, -1, -1, -1, 0.0, 0.0, 0.0, cells, solves
+
+
+@kernel
+def _store(n, res, t, cell, uvw, counts):
+    t[n] = res[0]
+    cell[n, 0] = res[1]
+    cell[n, 1] = res[2]
+    cell[n, 2] = res[3]
+    uvw[n, 0] = res[4]
+    uvw[n, 1] = res[5]
+    uvw[n, 2] = res[6]
+    counts[n, 0] = res[7]
+    counts[n, 1] = res[8]
+
+
+@kernel(parallel=True)
+def cast_iso_image(data, org, spc, cam, width, height, iso, seg, use_seg,
+                   t, cell, uvw, counts, row0, row1):
+    """Cast every pixel of a ``width x height`` image, tile by tile.
+
+    Outputs are flat per pixel (index ``y * width + x``): ``t``, ``cell``
+    (i, j, k), ``uvw`` (local hit coordinates), ``counts`` (cells, solves).
+    With ``use_seg``, ``seg[y, x] = (near, far)`` bounds each ray and a
+    pixel with ``near > far`` costs nothing. Only rows ``row0 <= y < row1``
+    are cast, so a driver can report progress band by band.
+    """
+    tiles_x = (width + TILE_W - 1) // TILE_W
+    tiles_y = (row1 - row0 + TILE_H - 1) // TILE_H
+    for tile in prange(tiles_x * tiles_y):
+        ty = tile // tiles_x
+        tx = tile - ty * tiles_x
+        y_lo = row0 + ty * TILE_H
+        for y in range(y_lo, min(row1, y_lo + TILE_H)):
+            for x in range(tx * TILE_W, min(width, tx * TILE_W + TILE_W)):
+                n = y * width + x
+                s0 = -math.inf
+                s1 = math.inf
+                if use_seg:
+                    s0 = seg[y, x, 0]
+                    s1 = seg[y, x, 1]
+                    if not s0 <= s1:
+                        t[n] = math.inf
+                        cell[n, 0] = -1
+                        counts[n, 0] = 0
+                        counts[n, 1] = 0
+                        continue
+                ox, oy, oz, dx, dy, dz = camera_ray(cam, width, height, x, y)
+                Ox, Oy, Oz, Dx, Dy, Dz = to_index_space(ox, oy, oz, dx, dy, dz, org, spc)
+                res = cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, s0, s1)
+                _store(n, res, t, cell, uvw, counts)
+
+
+@kernel(parallel=True)
+def cast_iso_rays(data, org, spc, origins, dirs, iso, seg, use_seg, t, cell, uvw, counts):
+    """Cast arbitrary world rays ``origins[n] + t dirs[n]`` (``|dirs[n]| = 1``)."""
+    for n in prange(origins.shape[0]):
+        s0 = -math.inf
+        s1 = math.inf
+        if use_seg:
+            s0 = seg[n, 0]
+            s1 = seg[n, 1]
+        Ox, Oy, Oz, Dx, Dy, Dz = to_index_space(
+            origins[n, 0], origins[n, 1], origins[n, 2], dirs[n, 0], dirs[n, 1], dirs[n, 2], org, spc)
+        res = cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, s0, s1)
+        _store(n, res, t, cell, uvw, counts)
+
+
+def empty_outputs(n):
+    """Per-ray output arrays for `n` rays."""
+    return (np.full(n, np.inf), np.full((n, 3), -1, np.int32),
+            np.zeros((n, 3)), np.zeros((n, 2), np.int64))

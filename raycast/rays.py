@@ -1,0 +1,30 @@
+"""Primary rays from the camera, one pixel at a time.
+
+The camera is unpacked at the boundary (`parc.camera.Camera.as_array`) into
+``cam = [eye(3), f(3), r(3), u(3), tan(fov/2), parallel_scale, parallel]``;
+this is DESIGN's ray formula, written once.
+"""
+import math
+
+from .config import kernel
+
+CAM_SIZE = 15
+
+
+@kernel
+def camera_ray(cam, width, height, x, y):
+    """World ray ``(ox, oy, oz, dx, dy, dz)`` through the centre of pixel (x, y), y down."""
+    sx = (2.0 * (x + 0.5) / width - 1.0) * (width / height)
+    sy = 1.0 - 2.0 * (y + 0.5) / height
+    if cam[14] != 0.0:
+        ps = cam[13]
+        ox = cam[0] + ps * (sx * cam[6] + sy * cam[9])
+        oy = cam[1] + ps * (sx * cam[7] + sy * cam[10])
+        oz = cam[2] + ps * (sx * cam[8] + sy * cam[11])
+        return ox, oy, oz, cam[3], cam[4], cam[5]
+    th = cam[12]
+    dx = cam[3] + th * (sx * cam[6] + sy * cam[9])
+    dy = cam[4] + th * (sx * cam[7] + sy * cam[10])
+    dz = cam[5] + th * (sx * cam[8] + sy * cam[11])
+    inv = 1.0 / math.sqrt(dx * dx + dy * dy + dz * dz)
+    return cam[0], cam[1], cam[2], dx * inv, dy * inv, dz * inv

@@ -1,0 +1,81 @@
+"""Shading of isosurface hits: analytic trilinear gradient normals, two-sided Blinn-Phong."""
+import math
+
+from numba import prange
+
+from .config import kernel
+from .rays import camera_ray
+
+
+@kernel
+def trilinear_gradient(data, i, j, k, u, v, w, spc):
+    """World-space gradient of the trilinear interpolant of cell (i, j, k) at local (u, v, w).
+
+    Parker et al. Appendix A: the derivative of each corner weight, divided
+    by the cell's size along that axis.
+    """
+    v000 = float(data[k, j, i])
+    v100 = float(data[k, j, i + 1])
+    v010 = float(data[k, j + 1, i])
+    v110 = float(data[k, j + 1, i + 1])
+    v001 = float(data[k + 1, j, i])
+    v101 = float(data[k + 1, j, i + 1])
+    v011 = float(data[k + 1, j + 1, i])
+    v111 = float(data[k + 1, j + 1, i + 1])
+    gu = ((1 - v) * (1 - w) * (v100 - v000) + v * (1 - w) * (v110 - v010)
+          + (1 - v) * w * (v101 - v001) + v * w * (v111 - v011))
+    gv = ((1 - u) * (1 - w) * (v010 - v000) + u * (1 - w) * (v110 - v100)
+          + (1 - u) * w * (v011 - v001) + u * w * (v111 - v101))
+    gw = ((1 - u) * (1 - v) * (v001 - v000) + u * (1 - v) * (v101 - v100)
+          + (1 - u) * v * (v011 - v010) + u * v * (v111 - v110))
+    return gu / spc[0], gv / spc[1], gw / spc[2]
+
+
+@kernel
+def blinn_phong(nx, ny, nz, vx, vy, vz, lx, ly, lz, material):
+    """Scalar Blinn-Phong terms (diffuse, specular) for unit n, v (to eye), l (to light).
+
+    Two-sided: the normal is flipped to face the viewer, so a surface seen
+    from inside the object is lit like one seen from outside.
+    ``material = [ambient, diffuse, specular, shininess]``.
+    """
+    if nx * vx + ny * vy + nz * vz < 0.0:
+        nx, ny, nz = -nx, -ny, -nz
+    ndl = nx * lx + ny * ly + nz * lz
+    if ndl <= 0.0:
+        return 0.0, 0.0
+    hx, hy, hz = lx + vx, ly + vy, lz + vz
+    hl = math.sqrt(hx * hx + hy * hy + hz * hz)
+    spec = 0.0
+    if hl > 0.0:
+        ndh = (nx * hx + ny * hy + nz * hz) / hl
+        if ndh > 0.0:
+            spec = material[2] * ndh ** material[3]
+    return material[1] * ndl, spec
+
+
+@kernel(parallel=True)
+def shade_headlight(data, spc, cam, width, height, t, cell, uvw, color, material, image):
+    """Colour every hit pixel, lit by a light at the eye (the default headlight).
+
+    ``image`` is ``(height, width, 4)`` float32, premultiplied RGBA; misses
+    stay transparent.
+    """
+    for n in prange(width * height):
+        if not t[n] < math.inf:
+            continue
+        y = n // width
+        x = n - y * width
+        ox, oy, oz, dx, dy, dz = camera_ray(cam, width, height, x, y)
+        gx, gy, gz = trilinear_gradient(data, cell[n, 0], cell[n, 1], cell[n, 2],
+                                        uvw[n, 0], uvw[n, 1], uvw[n, 2], spc)
+        gl = math.sqrt(gx * gx + gy * gy + gz * gz)
+        if gl > 0.0:
+            gx, gy, gz = gx / gl, gy / gl, gz / gl
+        else:
+            # A flat cell (all corners at the isovalue) has no gradient: face the viewer.
+            gx, gy, gz = -dx, -dy, -dz
+        diff, spec = blinn_phong(gx, gy, gz, -dx, -dy, -dz, -dx, -dy, -dz, material)
+        for c in range(3):
+            image[y, x, c] = min(1.0, color[c] * (material[0] + diff) + spec)
+        image[y, x, 3] = 1.0

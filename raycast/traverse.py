@@ -1,0 +1,98 @@
+"""Rays in index space, ray/box clipping and Amanatides–Woo cell traversal.
+
+Index space: a world point ``p`` has index coordinates ``(p - origin) / spacing``
+(x, y, z), so sample ``data[k, j, i]`` sits at ``(i, j, k)`` and every cell
+boundary is an integer plane. The ray ``o + t d`` becomes ``O + t D`` with
+the same ``t`` (a world distance), so depths need no conversion.
+
+Why the traversal is written the way it is: the unaccelerated caster starts
+at the ray's entry into the volume, PARC somewhere later, and both must
+see each cell with the very same t-interval so the cubic is solved on the
+same numbers. Each crossing time is therefore computed directly from the
+integer plane, ``(plane - O) * invD``, never accumulated; a cell's interval
+is ``[max(t_in, entry planes), min(t_out, exit planes)]``, a function of the
+ray and the cell alone, whichever cell the walk started from.
+"""
+import math
+
+from .config import kernel
+
+#: Below this an index-space direction component counts as zero: its
+#: reciprocal would overflow, and the ray moves less than 1e-200 cells per
+#: unit of t along that axis.
+TINY_DIRECTION = 1e-200
+
+
+@kernel
+def to_index_space(ox, oy, oz, dx, dy, dz, org, spc):
+    """World ray -> index-space ray (O, D); ``org``/``spc`` are (x, y, z)."""
+    return ((ox - org[0]) / spc[0], (oy - org[1]) / spc[1], (oz - org[2]) / spc[2],
+            dx / spc[0], dy / spc[1], dz / spc[2])
+
+
+@kernel
+def _slab(o, d, hi):
+    if abs(d) < TINY_DIRECTION:
+        if o < 0.0 or o > hi:
+            return math.inf, -math.inf
+        return -math.inf, math.inf
+    inv = 1.0 / d
+    t0 = (0.0 - o) * inv
+    t1 = (hi - o) * inv
+    if t0 > t1:
+        return t1, t0
+    return t0, t1
+
+
+@kernel
+def clip_box(Ox, Oy, Oz, Dx, Dy, Dz, nx, ny, nz):
+    """``(t_in, t_out)`` of the ray inside the sample box, ``t_in >= 0``.
+
+    A miss gives ``t_in > t_out``.
+    """
+    ax, bx = _slab(Ox, Dx, nx - 1.0)
+    ay, by = _slab(Oy, Dy, ny - 1.0)
+    az, bz = _slab(Oz, Dz, nz - 1.0)
+    t_in = max(0.0, max(ax, max(ay, az)))
+    t_out = min(bx, min(by, bz))
+    return t_in, t_out
+
+
+@kernel
+def start_index(O, D, t, n):
+    """Index along one axis of the cell holding ``O + t D``, clamped to the grid."""
+    i = int(math.floor(O + t * D))
+    if i < 0:
+        return 0
+    if i > n - 2:
+        return n - 2
+    return i
+
+
+@kernel
+def axis_state(O, D, i):
+    """``(step, invD, t_enter, t_exit)`` of cell index ``i`` along one axis."""
+    if abs(D) < TINY_DIRECTION:
+        return 0, 0.0, -math.inf, math.inf
+    inv = 1.0 / D
+    if D > 0.0:
+        return 1, inv, (i - O) * inv, (i + 1.0 - O) * inv
+    return -1, inv, (i + 1.0 - O) * inv, (i - O) * inv
+
+
+@kernel
+def next_exit(O, inv, step, i):
+    """Exit time of cell ``i`` along an axis walked in direction ``step``."""
+    if step > 0:
+        return (i + 1.0 - O) * inv
+    return (i - O) * inv
+
+
+@kernel
+def step_axis(tx1, ty1, tz1):
+    """Axis (0, 1, 2) whose boundary the ray crosses first; ties go to x, then y."""
+    if tx1 <= ty1 and tx1 <= tz1:
+        return 0
+    if ty1 <= tz1:
+        return 1
+    return 2
