@@ -1,0 +1,82 @@
+"""Camera: DESIGN's ray formula, its OpenGL matrices, and its errors.
+
+Truth: the formula written out independently here, and geometric facts
+(the centre ray looks at look_at, parallel rays share one direction).
+"""
+import math
+
+import numpy as np
+import pytest
+
+from parc import Camera, InputError
+from raycast.rays import camera_ray
+
+
+def test_kernel_rays_match_numpy_rays():
+    cam = Camera(eye=(3.0, -7.0, 2.0), look_at=(0.5, 0.25, -1.0), up=(0.0, 0.0, 1.0), fov=40.0)
+    o, d = cam.rays(7, 5)
+    arr = cam.as_array()
+    for y in range(5):
+        for x in range(7):
+            r = camera_ray(arr, 7, 5, x, y)
+            np.testing.assert_allclose(r[:3], o[y, x], rtol=0, atol=1e-12)
+            np.testing.assert_allclose(r[3:], d[y, x], rtol=0, atol=1e-12)
+
+
+def test_perspective_rays_follow_the_design_formula():
+    cam = Camera(eye=(1.0, 2.0, 3.0), look_at=(4.0, 2.0, 3.0), up=(0.0, 0.0, 1.0), fov=90.0)
+    o, d = cam.rays(4, 2)
+    # f = +x, r = f x up = -y, u = r x f = +z; tan(45 deg) = 1; aspect 2.
+    x, y = 3, 0
+    sx = (2 * (x + 0.5) / 4 - 1) * 2.0
+    sy = 1 - 2 * (y + 0.5) / 2
+    want = np.array([1.0, -sx, sy])
+    np.testing.assert_allclose(d[y, x], want / np.linalg.norm(want), atol=1e-15)
+    assert np.allclose(o, (1.0, 2.0, 3.0))
+
+
+def test_centre_ray_hits_look_at_and_parallel_rays_share_direction():
+    cam = Camera(eye=(0.0, -10.0, 0.0), look_at=(0.0, 0.0, 0.0), up=(0.0, 0.0, 1.0), fov=30.0)
+    o, d = cam.rays(5, 5)
+    np.testing.assert_allclose(d[2, 2], (0.0, 1.0, 0.0), atol=1e-15)
+    par = Camera(eye=(0.0, -10.0, 0.0), look_at=(0.0, 0.0, 0.0), up=(0.0, 0.0, 1.0), parallel_scale=2.0)
+    o, d = par.rays(4, 4)
+    assert np.allclose(d, (0.0, 1.0, 0.0))
+    # Top row is parallel_scale * (1 - 1/4) above the eye; left column at -(1 - 1/4) * 2.
+    np.testing.assert_allclose(o[0, 0], (-1.5, -10.0, 1.5), atol=1e-14)
+
+
+def test_projection_puts_pixel_centres_where_the_rays_go():
+    cam = Camera(eye=(2.0, -6.0, 3.0), look_at=(0.5, 0.5, 0.5), up=(0.0, 0.0, 1.0), fov=35.0)
+    w, h = 8, 6
+    o, d = cam.rays(w, h)
+    mvp = cam.projection_matrix(w, h, 0.1, 100.0) @ cam.view_matrix()
+    p = np.concatenate([o[2, 5] + 4.0 * d[2, 5], [1.0]])
+    clip = mvp @ p
+    ndc = clip[:3] / clip[3]
+    px = (ndc[0] + 1) / 2 * w
+    py_down = h - (ndc[1] + 1) / 2 * h
+    assert abs(px - 5.5) < 1e-9 and abs(py_down - 2.5) < 1e-9
+
+
+@pytest.mark.parametrize("kwargs, words", [
+    (dict(eye=(1, 1, 1), look_at=(1, 1, 1)), "eye equals look-at"),
+    (dict(eye=(0, 0, 5), look_at=(0, 0, 0), up=(0, 0, 2)), "parallel"),
+    (dict(eye=(0, 0, 5), look_at=(0, 0, 0), fov=0.0), "field of view"),
+    (dict(eye=(0, 0, 5), look_at=(0, 0, 0), fov=180.0), "field of view"),
+    (dict(eye=(0, 0, 5), look_at=(0, 0, 0), parallel_scale=-1.0), "parallel scale"),
+    (dict(eye=(0, 0, math.nan), look_at=(0, 0, 0)), "finite"),
+])
+def test_bad_cameras_are_refused(kwargs, words):
+    with pytest.raises(InputError, match=words):
+        Camera(**kwargs)
+
+
+def test_framing_keeps_the_whole_box_in_view():
+    lo, hi = np.array([-3.0, 2.0, 10.0]), np.array([40.0, 30.0, 25.0])
+    cam = Camera.framing(lo, hi)
+    w = h = 64
+    mvp = cam.projection_matrix(w, h, 0.01, 1e4) @ cam.view_matrix()
+    for corner in np.array(np.meshgrid(*zip(lo, hi))).T.reshape(-1, 3):
+        clip = mvp @ np.append(corner, 1.0)
+        assert np.all(np.abs(clip[:2] / clip[3]) <= 1.0)

@@ -1,0 +1,147 @@
+"""The command line: good runs write what they say; bad input gets one line, status 2, no file."""
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from data_tools import Volume
+from data_tools.io import save_volume
+from parc.cli import main
+
+
+@pytest.fixture
+def vol_file(tmp_path):
+    k, j, i = np.mgrid[0:12, 0:12, 0:12]
+    data = (((i - 5.5) ** 2 + (j - 5.5) ** 2 + (k - 5.5) ** 2) ** 0.5).astype(np.float32)
+    return save_volume(Volume(data), tmp_path / "ball.nrrd")
+
+
+def _run(argv, capsys):
+    rc = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return rc, out, err
+
+
+def test_render_writes_png_depth_and_stats(vol_file, tmp_path, capsys):
+    out, dep, st = tmp_path / "a.png", tmp_path / "d.npy", tmp_path / "s.json"
+    rc, _, err = _run(["render", vol_file, "--iso", 4.0, "--size", 40, 30, "-o", out,
+                       "--depth", dep, "--stats", st], capsys)
+    assert rc == 0, err
+    from PIL import Image
+    img = Image.open(out)
+    assert img.size == (40, 30) and img.mode == "RGBA"
+    depth = np.load(dep)
+    assert depth.shape == (30, 40) and np.isfinite(depth).any() and np.isinf(depth).any()
+    stats = json.loads(st.read_text())
+    assert stats["method"] == "brute" and stats["hits"] == int(np.isfinite(depth).sum())
+
+
+def test_render_npy_matches_the_library(vol_file, tmp_path, capsys):
+    import parc
+    out = tmp_path / "a.npy"
+    eye = "20,-15,9"
+    rc, _, err = _run(["render", vol_file, "--iso", 3.5, "--size", 16, 12, "--eye", eye, "-o", out], capsys)
+    assert rc == 0, err
+    vol = parc.load_volume(vol_file)
+    cam = parc.Camera(eye=(20, -15, 9), look_at=tuple(vol.center), up=(0, 0, 1))
+    ref = parc.render(parc.Scene(camera=cam, size=(16, 12), volumes=[parc.Isosurface(vol, 3.5)]))
+    np.testing.assert_array_equal(np.load(out), ref.image)
+
+
+def test_render_without_iso_suggests_one(vol_file, tmp_path, capsys):
+    rc, _, err = _run(["render", vol_file, "--size", 8, 8, "-o", tmp_path / "a.png"], capsys)
+    assert rc == 0 and "suggested from the histogram" in err
+
+
+def test_render_builtin_volume(tmp_path, capsys):
+    rc, _, err = _run(["render", "--size", 24, 24, "-o", tmp_path / "b.png"], capsys)
+    assert rc == 0, err
+    assert (tmp_path / "b.png").stat().st_size > 0
+
+
+def test_info_and_make(tmp_path, capsys):
+    rc, out, _ = _run(["make", "blobs", "--size", 20, "-o", tmp_path / "b.nrrd"], capsys)
+    assert rc == 0
+    rc, out, _ = _run(["info", tmp_path / "b.nrrd"], capsys)
+    assert rc == 0 and "20" in out and "uint8" in out
+
+
+def _bad_files(tmp_path):
+    """(name, argv maker) for each kind of bad input file."""
+    files = {}
+    (tmp_path / "garbage.nrrd").write_bytes(bytes(range(256)) * 4)
+    files["garbage header"] = tmp_path / "garbage.nrrd"
+    (tmp_path / "short.raw").write_bytes(b"\0" * 100)
+    files["size mismatch"] = tmp_path / "short_8x8x8_uint8.raw"
+    (tmp_path / "short_8x8x8_uint8.raw").write_bytes(b"\0" * 100)
+    mhd = tmp_path / "trunc.mhd"
+    mhd.write_text("NDims = 3\nDimSize = 8 8 8\nElementType = MET_SHORT\nElementDataFile = trunc.dat\n")
+    (tmp_path / "trunc.dat").write_bytes(b"\0" * 600)
+    files["truncated data"] = mhd
+    np.save(tmp_path / "flat.npy", np.zeros((1, 5, 5), np.float32))
+    files["dimension below 2"] = tmp_path / "flat.npy"
+    nan = np.zeros((4, 4, 4), np.float32)
+    nan[1, 2, 3] = np.nan
+    np.save(tmp_path / "nan.npy", nan)
+    files["non-finite samples"] = tmp_path / "nan.npy"
+    (tmp_path / "vol.xyz").write_bytes(b"\0" * 64)
+    files["unknown extension"] = tmp_path / "vol.xyz"
+    files["missing file"] = tmp_path / "nope.nrrd"
+    return files
+
+
+BAD_FILE_KINDS = ["garbage header", "size mismatch", "truncated data", "dimension below 2",
+                  "non-finite samples", "unknown extension", "missing file"]
+
+
+@pytest.mark.parametrize("kind", BAD_FILE_KINDS)
+def test_bad_volume_files(kind, tmp_path, capsys):
+    path = _bad_files(tmp_path)[kind]
+    out = tmp_path / "out.png"
+    rc, _, err = _run(["render", path, "--iso", 0.5, "-o", out], capsys)
+    assert rc == 2
+    # The message names the file at fault (a detached header's data file counts).
+    assert err.count("\n") == 1 and err.startswith("parc: error: ") and path.stem in err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("extra, words", [
+    (["--iso", 1000], "outside the data range"),
+    (["--iso", 4, "--eye", "1,2,3", "--look-at", "1,2,3"], "eye equals look-at"),
+    (["--iso", 4, "--eye", "5.5,5.5,40", "--look-at", "5.5,5.5,0", "--up", "0,0,1"], "parallel"),
+    (["--iso", 4, "--size", 0, 10], "size"),
+    (["--iso", 4, "--size", 10, -3], "size"),
+    (["--iso", 4, "--fov", 200], "field of view"),
+    (["--iso", 4, "--eye", "1,2"], "--eye"),
+    (["--iso", "abc"], "--iso"),
+    (["--iso", 4, "--method", "magic"], "method"),
+])
+def test_bad_arguments(extra, words, vol_file, tmp_path, capsys):
+    out = tmp_path / "out.png"
+    rc, _, err = _run(["render", vol_file, "-o", out] + extra, capsys)
+    assert rc == 2 and err.count("\n") == 1 and words in err, err
+    assert not out.exists()
+
+
+def test_iso_outside_range_names_the_range(vol_file, tmp_path, capsys):
+    rc, _, err = _run(["render", vol_file, "--iso", -1, "-o", tmp_path / "o.png"], capsys)
+    d = np.sqrt(3 * 0.5 ** 2), np.sqrt(3 * 5.5 ** 2)  # the ball's nearest and farthest samples
+    assert rc == 2 and f"[{d[0]:g}, {d[1]:g}]" in err
+
+
+@pytest.mark.parametrize("target", ["missing_dir/out.png", "out.jpg", "."])
+def test_unwritable_outputs(target, vol_file, tmp_path, capsys):
+    out = tmp_path / target
+    rc, _, err = _run(["render", vol_file, "--iso", 4, "-o", out], capsys)
+    assert rc == 2 and err.count("\n") == 1
+    assert not (tmp_path / "missing_dir").exists() and not (tmp_path / "out.jpg").exists()
+
+
+def test_console_script_prints_no_traceback(tmp_path):
+    out = tmp_path / "o.png"
+    p = subprocess.run([sys.executable, "-m", "parc.cli", "render", str(tmp_path / "nothing.nrrd"), "-o", str(out)],
+                       capture_output=True, text=True)
+    assert p.returncode == 2 and "Traceback" not in p.stderr and p.stderr.startswith("parc: error:")
+    assert not out.exists()

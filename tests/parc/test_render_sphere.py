@@ -1,0 +1,77 @@
+"""The unaccelerated caster on a sphere's distance field, against the analytic sphere.
+
+Truth: the sphere |p - c| = r. The trilinear interpolant of the distance
+field differs from the true distance by at most ``h^2 / (8 rho)`` per axis
+summed (second derivatives of |p - c| are below ``1 / rho`` at distance
+``rho`` from the centre), so a hit point's distance from the centre is
+within ``BOUND`` of r, and only rays passing within ``BOUND`` of the sphere
+may disagree on hit or miss.
+"""
+import numpy as np
+import pytest
+
+from data_tools import Volume
+from parc import Camera, Isosurface, Scene, render
+
+
+def _sphere(n, spacing, origin, radius_cells):
+    spacing = np.asarray(spacing)
+    origin = np.asarray(origin)
+    ext = (n - 1) * spacing
+    c = origin + ext / 2
+    r = radius_cells * spacing.min()
+    k, j, i = np.mgrid[0:n, 0:n, 0:n]
+    p = np.stack([origin[0] + i * spacing[0], origin[1] + j * spacing[1], origin[2] + k * spacing[2]], -1)
+    data = np.linalg.norm(p - c, axis=-1) - r
+    return Volume(data.astype(np.float64), spacing=tuple(spacing), origin=tuple(origin)), c, r
+
+
+@pytest.mark.parametrize("parallel", [False, True])
+@pytest.mark.parametrize("spacing, origin", [((1, 1, 1), (0, 0, 0)), ((0.5, 0.7, 0.9), (-3.0, 12.0, 5.5))])
+def test_sphere_silhouette_and_depth(parallel, spacing, origin):
+    vol, c, r = _sphere(40, spacing, origin, radius_cells=13.0)
+    rho_min = r - 2.0 * max(spacing)
+    bound = 3 * max(spacing) ** 2 / (8 * rho_min)
+    cam = Camera.framing(*vol.bounds, azimuth=28.0, elevation=17.0, parallel=parallel, zoom=1.6)
+    scene = Scene(camera=cam, size=(96, 80), volumes=[Isosurface(vol, 0.0)])
+    res = render(scene, method="brute")
+    o, d = cam.rays(96, 80)
+
+    hit = np.isfinite(res.depth)
+    # Analytic ray/sphere: distance of closest approach tells hit or miss.
+    oc = o - c
+    b = (oc * d).sum(-1)
+    closest = np.sqrt(np.maximum((oc * oc).sum(-1) - b * b, 0.0))
+    sure_hit = closest < r - bound
+    sure_miss = closest > r + bound
+    assert hit[sure_hit].all(), "rays clearly through the sphere missed it"
+    assert not hit[sure_miss].any(), "rays clearly past the sphere hit something"
+    assert sure_hit.sum() > 500
+
+    p = o[hit] + res.depth[hit][:, None] * d[hit]
+    dist = np.linalg.norm(p - c, axis=-1)
+    assert np.abs(dist - r).max() <= bound
+    # The first hit, not a later one: the near side of the sphere (a hit point
+    # may sit past the silhouette plane only by the grazing slack sqrt(2 r bound)).
+    assert ((p - c) * d[hit]).sum(-1).max() <= np.sqrt(2 * r * bound)
+    # Depth against the analytic near root, where the ray meets the sphere at
+    # a slope: a surface error of `bound` moves t by at most bound / cos(angle).
+    steep = sure_hit & (closest < 0.8 * r)
+    t_true = -b - np.sqrt(np.maximum(r * r - closest ** 2, 0.0))
+    cos = np.sqrt(np.maximum(1 - (closest / r) ** 2, 1e-12))
+    assert (np.abs(res.depth - t_true)[steep] <= (bound / cos)[steep]).all()
+
+
+def test_sphere_image_is_lit_where_it_is_hit():
+    vol, c, r = _sphere(24, (1, 1, 1), (0, 0, 0), radius_cells=8.0)
+    cam = Camera.framing(*vol.bounds, zoom=1.5)
+    res = render(Scene(camera=cam, size=(48, 48), volumes=[Isosurface(vol, 0.0)]))
+    hit = np.isfinite(res.depth)
+    assert res.image.dtype == np.float32 and res.image.shape == (48, 48, 4)
+    assert (res.image[..., 3][hit] == 1.0).all() and (res.image[~hit] == 0).all()
+    # Headlight: the pixel nearest the sphere's centre faces the eye, so it is brightest.
+    lum = res.image[..., :3].sum(-1)
+    y, x = np.unravel_index(np.argmax(np.where(hit, -res.depth, -np.inf)), hit.shape)
+    assert lum[y, x] >= np.percentile(lum[hit], 95)
+    s = res.stats
+    assert s["cells_visited"] > s["cubic_solves"] >= s["hits"] == hit.sum() > 0
