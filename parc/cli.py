@@ -171,7 +171,7 @@ def cmd_make(args):
         vol = make_synthetic(args.name, args.size, **kwargs)
     except TypeError:
         raise InputError(f"{args.name} takes no --seed") from None
-    _atomic_write(out, lambda tmp: save_volume(vol, tmp))
+    save_volume(vol, out)  # all-or-nothing itself, and keeps sidecar names right
     print(f"wrote {out} ({'x'.join(map(str, vol.dims))} {vol.dtype})")
     return 0
 
@@ -197,6 +197,9 @@ def cmd_render(args):
     if iso is None:
         from data_tools.info import suggest_isovalues
         levels = suggest_isovalues(vol)
+        if not levels:
+            lo, hi = vol.value_range()
+            raise InputError(f"{vol.name}: every sample is {lo:g}; there is no isosurface to show")
         iso = levels[len(levels) // 2]
         say(f"no --iso given; using {iso:g}, suggested from the histogram "
             f"(others: {', '.join(f'{v:g}' for v in levels if v != iso) or 'none'})")

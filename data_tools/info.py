@@ -1,0 +1,194 @@
+"""Summaries of a volume (``parc info``): sizes, value statistics and suggested isovalues."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .volume import Volume
+
+PERCENTILES = (1, 5, 25, 50, 75, 95, 99)
+#: Statistics beyond min/max and zeros use a strided subsample of at most this many samples.
+SAMPLE_LIMIT = 1 << 21
+
+
+def _subsample(data: np.ndarray, limit: int = SAMPLE_LIMIT) -> np.ndarray:
+    """A regular strided view with at most about ``limit`` samples (the data itself when small)."""
+    if data.size <= limit:
+        return data
+    step = math.ceil((data.size / limit) ** (1.0 / 3.0))
+    return data[::step, ::step, ::step]
+
+
+def volume_info(vol: Volume) -> dict:
+    """Facts about a volume for ``parc info`` and reports.
+
+    Parameters
+    ----------
+    vol : Volume
+
+    Returns
+    -------
+    dict
+        ``name``, ``dims`` (nx, ny, nz), ``dtype``, ``spacing``, ``origin``,
+        ``extent``, ``nbytes``, ``min``, ``max``, ``mean``, ``percentiles``
+        ({1: v, 5: v, ..., 99: v}), ``zero_fraction``, ``sampled`` (how many
+        samples the percentiles and mean came from), ``suggested_isovalues``
+        and, when the reader left one, ``note``.
+    """
+    lo, hi = vol.value_range()
+    sample = _subsample(vol.data)
+    flat = sample.reshape(-1)
+    pct = np.percentile(flat, PERCENTILES)
+    info = {
+        "name": vol.name,
+        "dims": vol.dims,
+        "dtype": vol.dtype.name,
+        "spacing": vol.spacing,
+        "origin": vol.origin,
+        "extent": vol.extent,
+        "nbytes": int(vol.data.nbytes),
+        "min": lo,
+        "max": hi,
+        "mean": float(flat.mean(dtype=np.float64)),
+        "percentiles": {p: float(v) for p, v in zip(PERCENTILES, pct)},
+        "zero_fraction": 1.0 - np.count_nonzero(vol.data) / vol.data.size,
+        "sampled": int(flat.size),
+        "suggested_isovalues": suggest_isovalues(vol),
+    }
+    for key in ("format", "note"):
+        if key in vol.meta:
+            info[key] = vol.meta[key]
+    return info
+
+
+def _fmt(v) -> str:
+    return f"{v:.6g}" if isinstance(v, float) else str(v)
+
+
+def format_info(info: dict) -> str:
+    """Human-readable multi-line text of a :func:`volume_info` dict."""
+    nx, ny, nz = info["dims"]
+    triple = lambda t: ", ".join(_fmt(float(v)) for v in t)  # noqa: E731
+    lines = [
+        f"volume:      {info['name']}" + (f" ({info['format']})" if "format" in info else ""),
+        f"dimensions:  {nx} x {ny} x {nz} (x, y, z), {nx * ny * nz} samples",
+        f"type:        {info['dtype']}, {info['nbytes'] / 2**20:.1f} MiB",
+        f"spacing:     {triple(info['spacing'])}",
+        f"origin:      {triple(info['origin'])}",
+        f"extent:      {triple(info['extent'])}",
+        f"range:       {_fmt(info['min'])} .. {_fmt(info['max'])}, mean {_fmt(info['mean'])}",
+        "percentiles: " + ", ".join(f"{p}%: {_fmt(v)}" for p, v in info["percentiles"].items()),
+        f"zeros:       {100 * info['zero_fraction']:.1f}%",
+        "suggested isovalues: " + (", ".join(_fmt(v) for v in info["suggested_isovalues"]) or "none (constant volume)"),
+    ]
+    if info["sampled"] < nx * ny * nz:
+        lines.append(f"(mean and percentiles from a subsample of {info['sampled']} samples)")
+    if "note" in info:
+        lines.append(f"note:        {info['note']}")
+    return "\n".join(lines)
+
+
+def _histogram(values: np.ndarray, lo: float, hi: float, integer: bool, bins: int):
+    """Counts and bin edges; integer data get integer-wide bins with edges at x.5."""
+    if integer:
+        width = max(1, math.ceil((hi - lo + 1) / bins))
+        nb = math.ceil((hi - lo + 1) / width)
+        edges = lo - 0.5 + width * np.arange(nb + 1, dtype=np.float64)
+        idx = ((values.astype(np.int64) - int(lo)) // width)
+        counts = np.bincount(idx, minlength=nb)[:nb]
+    else:
+        with np.errstate(all="ignore"):
+            edges = np.linspace(lo, hi, bins + 1)
+        if not (np.isfinite(edges).all() and np.all(np.diff(edges) > 0)):
+            return None, None
+        counts, edges = np.histogram(values, bins=edges)
+    return counts.astype(np.float64), edges
+
+
+def _multi_otsu(counts: np.ndarray, centers: np.ndarray, k: int) -> list:
+    """Edge indices of the ``k`` thresholds maximising between-class variance (non-empty classes)."""
+    nb = counts.size
+    p0 = np.concatenate(([0.0], np.cumsum(counts)))
+    s0 = np.concatenate(([0.0], np.cumsum(counts * centers)))
+    # gain[i, j]: the class holding bins i..j-1 contributes S^2 / P; empty classes are forbidden.
+    dp_ = p0[None, :] - p0[:, None]
+    ds_ = s0[None, :] - s0[:, None]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        gain = np.where(dp_ > 0, ds_ * ds_ / np.where(dp_ > 0, dp_, 1.0), -np.inf)
+    gain[np.tril_indices(nb + 1)] = -np.inf
+    best = gain[0].copy()            # best[j]: one class over bins 0..j-1
+    choice = []
+    for _ in range(k):
+        total = best[:, None] + gain  # last class i..j-1 after the best split of 0..i-1
+        arg = np.argmax(total, axis=0)
+        best = total[arg, np.arange(nb + 1)]
+        choice.append(arg)
+    cuts, j = [], nb
+    for arg in reversed(choice):
+        j = int(arg[j])
+        cuts.append(j)
+    return sorted(cuts)
+
+
+def suggest_isovalues(vol: Volume, k: int = 3, *, bins: int = 256) -> list:
+    """Isovalues likely to show distinct surfaces, from the value histogram.
+
+    Multi-level Otsu thresholds (``k`` thresholds, ``k + 1`` non-empty
+    classes) on a subsample of the volume, leaving out samples equal to the
+    minimum (padding and clipped air would otherwise dominate). A threshold
+    that falls in a gap of the histogram moves to the gap's middle. For
+    integer data every value is at ``x.5``, so it never equals a sample.
+
+    Parameters
+    ----------
+    vol : Volume
+    k : int
+        How many values to suggest at most.
+    bins : int
+        Histogram resolution.
+
+    Returns
+    -------
+    list of float
+        Sorted, distinct, strictly between the data minimum and maximum;
+        fewer than ``k`` when the data have too few distinct levels, empty
+        for a constant volume.
+    """
+    lo, hi = vol.value_range()
+    if not hi > lo or k < 1:
+        return []
+    values = _subsample(vol.data).reshape(-1)
+    fg = values[values != vol.data.dtype.type(lo)]
+    if fg.size == 0 or fg.min() == fg.max():
+        fg = values  # background removal left one level: split the full data instead
+    integer = vol.dtype.kind in "iu"
+    counts, edges = _histogram(fg, lo, hi, integer, bins)
+    if counts is None:
+        # A float range too narrow (or too wide) to split into bins: offer its middle.
+        mid = float(0.5 * lo + 0.5 * hi)
+        return [mid] if lo < mid < hi else []
+    nonempty = int(np.count_nonzero(counts))
+    if nonempty < 2:
+        counts, edges = _histogram(values, lo, hi, integer, bins)
+        nonempty = int(np.count_nonzero(counts))
+    k = min(k, nonempty - 1)
+    if k < 1:
+        return []
+    centers = 0.5 * (edges[:-1] + edges[1:])
+    cuts = _multi_otsu(counts, centers, k)
+    result = []
+    for j in cuts:
+        left, right = j, j
+        while left > 0 and counts[left - 1] == 0:
+            left -= 1
+        while right < counts.size and counts[right] == 0:
+            right += 1
+        j_mid = (left + right) // 2
+        j_mid = min(max(j_mid, 1), counts.size - 1)
+        v = float(edges[j_mid])
+        if integer:
+            v = math.floor(v) + 0.5
+        if lo < v < hi:
+            result.append(v)
+    return sorted(set(result))

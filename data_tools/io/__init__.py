@@ -1,0 +1,143 @@
+"""Volume files in and out: ``load_volume`` and ``save_volume`` dispatch on the extension."""
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+from ..errors import InputError
+from ..volume import Volume
+from . import metaimage, npy, nrrd_format, raw, slc, vtk_legacy
+from ._common import check_file, reading
+
+_READERS = {}
+for _mod, _fn in ((nrrd_format, nrrd_format.read_nrrd), (metaimage, metaimage.read_metaimage),
+                  (vtk_legacy, vtk_legacy.read_vtk), (slc, slc.read_slc),
+                  (npy, npy.read_npy), (raw, raw.read_raw)):
+    for _ext in _mod.EXTENSIONS:
+        _READERS[_ext] = _fn
+
+#: Extensions ``load_volume`` reads (lower case; matching ignores case).
+READ_EXTENSIONS = tuple(_READERS)
+#: Extensions ``save_volume`` writes.
+WRITE_EXTENSIONS = (".nrrd", ".nhdr", ".npy", ".mhd", ".mha", ".vtk", ".raw")
+#: Options only a headerless raw file takes.
+RAW_ONLY_OPTIONS = ("shape", "dtype", "byte_order", "offset")
+
+
+def load_volume(path, **options) -> Volume:
+    """Read a volume file, choosing the reader by extension (case-insensitive).
+
+    Parameters
+    ----------
+    path : str or Path
+        ``.nrrd``/``.nhdr``, ``.mhd``/``.mha``, ``.vtk``, ``.slc``, ``.npy``,
+        or headerless ``.raw``/``.bin``/``.dat``.
+    **options
+        For raw files: ``shape=(nx, ny, nz)``, ``dtype``, ``byte_order``,
+        ``offset`` (see :func:`data_tools.io.raw.read_raw`). ``spacing`` and
+        ``origin`` apply to every format and replace what the file says.
+        Options that are ``None`` are ignored.
+
+    Returns
+    -------
+    Volume
+        ``data`` indexed ``[z, y, x]`` in the file's sample type.
+
+    Raises
+    ------
+    InputError
+        One line naming the file: missing, unknown extension, bad header,
+        size mismatch, truncated or corrupt data, unsupported type.
+    TypeError
+        An option name that no reader takes (a programming error, not bad input).
+    """
+    path = Path(path)
+    unknown = set(options) - set(RAW_ONLY_OPTIONS) - {"spacing", "origin"}
+    if unknown:
+        raise TypeError(f"load_volume() got unexpected options {sorted(unknown)}")
+    options = {k: v for k, v in options.items() if v is not None}
+    ext = path.suffix.lower()
+    if ext not in _READERS:
+        if not path.exists():
+            raise InputError(f"{path}: no such file")
+        kind = f"type '{path.suffix}'" if path.suffix else "type (no extension)"
+        raise InputError(f"{path}: unknown volume file {kind}; "
+                         f"supported: {', '.join(READ_EXTENSIONS)}")
+    check_file(path)
+    if path.stat().st_size == 0:
+        raise InputError(f"{path}: file is empty")
+    reader = _READERS[ext]
+    if reader is raw.read_raw:
+        with reading(path, "raw"):
+            return raw.read_raw(path, **options)
+    extra = sorted(set(options) - {"spacing", "origin"})
+    if extra:
+        flags = ", ".join("--" + k.replace("_", "-") for k in extra)
+        raise InputError(f"{path}: {flags} apply only to headerless raw files; this file has a header")
+    with reading(path, ext.lstrip(".").upper()):
+        vol = reader(path)
+    if "spacing" in options or "origin" in options:
+        vol = Volume(vol.data, spacing=options.get("spacing", vol.spacing),
+                     origin=options.get("origin", vol.origin), name=vol.name, meta=vol.meta)
+    return vol
+
+
+def save_volume(volume: Volume, path, **options) -> Path:
+    """Write ``volume`` to ``path`` in the format its extension names, all or nothing.
+
+    Files are written in a temporary folder beside ``path`` and moved into
+    place at the end (companion files first, ``path`` last), so a failure
+    leaves no half-written output and companions keep their final names.
+
+    Parameters
+    ----------
+    volume : Volume
+    path : str or Path
+        ``.nrrd`` (gzip; ``compress=False`` for raw encoding), ``.nhdr``
+        (+ ``.raw``), ``.npy`` (+ ``.npy.json`` sidecar for spacing and
+        origin when they are not the defaults or a sidecar exists), ``.mhd``
+        (+ ``.raw``), ``.mha``, ``.vtk``, ``.raw`` (samples only).
+    **options
+        Passed to the writer: ``compress`` (NRRD), ``byte_order`` (MetaImage,
+        raw), ``ascii`` (VTK).
+
+    Returns
+    -------
+    Path
+        The file written.
+
+    Raises
+    ------
+    InputError
+        Unknown extension, or the file cannot be written.
+    """
+    path = Path(path)
+    ext = path.suffix.lower()
+    writers = {".nrrd": nrrd_format.write_nrrd, ".nhdr": nrrd_format.write_nrrd, ".npy": npy.write_npy,
+               ".mhd": metaimage.write_metaimage, ".mha": metaimage.write_metaimage,
+               ".vtk": vtk_legacy.write_vtk, ".raw": raw.write_raw}
+    if ext not in writers:
+        kind = f"'{path.suffix}' files" if path.suffix else "files without an extension"
+        raise InputError(f"{path}: cannot write {kind}; "
+                         f"supported: {', '.join(WRITE_EXTENSIONS)}")
+    if ext == ".npy" and npy.sidecar_path(path).exists():
+        options.setdefault("sidecar", True)  # rewrite it, or it would go stale
+    tmpdir = None
+    try:
+        tmpdir = Path(tempfile.mkdtemp(prefix=f".{path.name}.", dir=path.parent))
+        writers[ext](volume, tmpdir / path.name, **options)
+        for f in sorted(tmpdir.iterdir()):
+            if f.name != path.name:
+                os.replace(f, path.parent / f.name)
+        os.replace(tmpdir / path.name, path)
+    except OSError as exc:
+        raise InputError(f"{path}: cannot write: {exc.strerror or exc}") from None
+    finally:
+        if tmpdir is not None:
+            shutil.rmtree(tmpdir, ignore_errors=True)
+    return path
+
+
+__all__ = ["load_volume", "save_volume", "READ_EXTENSIONS", "WRITE_EXTENSIONS"]

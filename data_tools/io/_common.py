@@ -1,0 +1,121 @@
+"""Helpers shared by the format readers: file checks, error wrapping, sample reading."""
+from __future__ import annotations
+
+import contextlib
+import os
+import struct
+import zlib
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+
+#: Exceptions a reader may meet on bad input; all become one-line InputErrors.
+READ_ERRORS = (OSError, ValueError, TypeError, KeyError, IndexError, EOFError,
+               OverflowError, UnicodeError, struct.error, zlib.error)
+
+
+def one_line(text) -> str:
+    """Collapse a message to a single line (library messages may hold newlines)."""
+    return " ".join(str(text).split())
+
+
+def check_file(path: Path, what: str = "file") -> Path:
+    """Return ``path`` if it is a readable regular file, else raise InputError."""
+    if not path.exists():
+        raise InputError(f"{path}: no such {what}")
+    if path.is_dir():
+        raise InputError(f"{path}: is a directory, not a volume {what}")
+    if not os.access(path, os.R_OK):
+        raise InputError(f"{path}: permission denied")
+    return path
+
+
+@contextlib.contextmanager
+def reading(path, kind: str):
+    """Turn any low-level failure while reading ``path`` into one InputError line."""
+    try:
+        yield
+    except InputError:
+        raise
+    except MemoryError:
+        raise InputError(f"{path}: not enough memory to load this {kind} volume") from None
+    except READ_ERRORS as exc:
+        detail = one_line(exc) or type(exc).__name__
+        raise InputError(f"{path}: cannot read {kind} file: {detail}") from None
+
+
+def file_order_dtype(dtype, big_endian: bool) -> np.dtype:
+    """``dtype`` with the byte order of the file."""
+    dt = np.dtype(dtype)
+    if dt.itemsize == 1:
+        return dt
+    return dt.newbyteorder(">" if big_endian else "<")
+
+
+def to_native(arr: np.ndarray) -> np.ndarray:
+    """Swap to native byte order, in place when the array allows it (no extra copy)."""
+    dt = arr.dtype
+    if dt.isnative or dt.itemsize == 1:
+        return arr
+    if arr.flags.writeable:
+        arr.byteswap(inplace=True)
+        return arr.view(dt.newbyteorder("="))
+    return arr.astype(dt.newbyteorder("="))
+
+
+def read_samples(path: Path, offset: int, dims, dtype, big_endian: bool, *,
+                 exact: bool = True, kind: str = "raw") -> np.ndarray:
+    """Read ``nx*ny*nz`` samples from ``path`` at byte ``offset`` as ``[z, y, x]``.
+
+    With ``exact`` the data must end the file; otherwise trailing bytes
+    (a final newline, further sections) are ignored. A short file is an
+    InputError stating the expected and actual byte counts.
+    """
+    nx, ny, nz = (int(n) for n in dims)
+    dt = file_order_dtype(dtype, big_endian)
+    count = nx * ny * nz
+    expected = count * dt.itemsize
+    actual = path.stat().st_size - offset
+    if actual < expected or (exact and actual != expected):
+        where = f" after a {offset}-byte header" if offset else ""
+        state = "truncated" if actual < expected else "too long"
+        raise InputError(
+            f"{path}: {kind} data {state}: {nx}x{ny}x{nz} {np.dtype(dtype).name} needs "
+            f"{expected} bytes{where}, the file has {max(actual, 0)}")
+    arr = np.fromfile(path, dtype=dt, count=count, offset=offset)
+    return to_native(arr).reshape(nz, ny, nx)
+
+
+def decompress(blob: bytes, expected: int, path, kind: str) -> bytes:
+    """Inflate zlib or gzip data and check it yields exactly ``expected`` bytes."""
+    dec = zlib.decompressobj(zlib.MAX_WBITS | 32)  # 32: accept zlib and gzip headers
+    try:
+        out = dec.decompress(blob, expected + 1)
+    except zlib.error as exc:
+        raise InputError(f"{path}: corrupt compressed {kind} data ({one_line(exc)})") from None
+    if len(out) < expected:
+        raise InputError(
+            f"{path}: compressed {kind} data truncated: expected {expected} bytes, inflated {len(out)}")
+    if len(out) > expected:
+        raise InputError(f"{path}: compressed {kind} data holds more than the {expected} bytes the header states")
+    return out
+
+
+def parse_numbers(words, count: int, cast, path, what: str):
+    """``count`` numbers from ``words`` (strings), or InputError naming ``what``."""
+    if len(words) < count:
+        raise InputError(f"{path}: {what} needs {count} numbers, got {' '.join(words)!r}")
+    try:
+        return tuple(cast(w) for w in words[:count])
+    except ValueError:
+        raise InputError(f"{path}: {what} is not {count} numbers: {' '.join(words)!r}") from None
+
+
+def parse_dims(words, path, what: str):
+    """Three positive integer sample counts ``(nx, ny, nz)``."""
+    dims = parse_numbers(words, 3, int, path, what)
+    if min(dims) < 1:
+        raise InputError(f"{path}: {what} must be positive, got {dims}")
+    return dims

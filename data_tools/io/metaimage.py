@@ -1,0 +1,162 @@
+"""MetaImage volumes: ``.mhd`` with a detached data file, ``.mha`` with the data attached."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from ..volume import Volume
+from ._common import decompress, parse_dims, parse_numbers, read_samples, reading, to_native
+
+EXTENSIONS = (".mhd", ".mha")
+
+ELEMENT_TYPES = {
+    "MET_UCHAR": "uint8", "MET_CHAR": "int8", "MET_USHORT": "uint16", "MET_SHORT": "int16",
+    "MET_UINT": "uint32", "MET_INT": "int32", "MET_FLOAT": "float32", "MET_DOUBLE": "float64",
+}
+_TRUE = {"true", "1", "yes"}
+_MAX_HEADER = 1 << 16
+
+
+def _parse_header(path: Path):
+    """Key/value pairs up to ElementDataFile, and the byte offset just after that line."""
+    with open(path, "rb") as f:
+        head = f.read(_MAX_HEADER)
+    fields, pos = {}, 0
+    while True:
+        end = head.find(b"\n", pos)
+        if end < 0:
+            end = len(head)
+        raw = head[pos:end]
+        try:
+            line = raw.decode("ascii").strip()
+        except UnicodeDecodeError:
+            raise InputError(f"{path}: not a MetaImage header (binary bytes before ElementDataFile)") from None
+        pos = end + 1
+        if line and not line.startswith("#"):
+            key, eq, value = line.partition("=")
+            if not eq:
+                raise InputError(f"{path}: not a MetaImage header: expected 'Key = Value', got {line[:60]!r}")
+            fields[key.strip()] = value.strip()
+            # The data file entry ends the header; binary data may follow (LOCAL).
+            if key.strip() == "ElementDataFile":
+                return fields, pos
+        if end >= len(head):
+            raise InputError(f"{path}: MetaImage header has no ElementDataFile line")
+
+
+def read_metaimage(path) -> Volume:
+    """Read a 3-D scalar MetaImage volume.
+
+    Handles ``DimSize``, ``ElementType`` (MET_UCHAR ... MET_DOUBLE),
+    ``ElementSpacing`` (or ``ElementSize``), ``Offset``/``Origin``/``Position``,
+    ``BinaryDataByteOrderMSB``/``ElementByteOrderMSB``, ``HeaderSize`` and
+    zlib ``CompressedData``. The data file is ``LOCAL`` (attached) or a
+    path relative to the header.
+
+    Parameters
+    ----------
+    path : str or Path
+
+    Returns
+    -------
+    Volume
+    """
+    path = Path(path)
+    with reading(path, "MetaImage"):
+        fields, data_start = _parse_header(path)
+        return _build(path, fields, data_start)
+
+
+def _build(path, fields, data_start):
+    def get(*keys):
+        for k in keys:
+            if k in fields:
+                return fields[k]
+        return None
+
+    ndims = get("NDims")
+    if ndims is None or get("DimSize") is None or get("ElementType") is None:
+        raise InputError(f"{path}: MetaImage header lacks NDims, DimSize or ElementType")
+    if ndims.strip() != "3":
+        raise InputError(f"{path}: MetaImage has NDims = {ndims}, expected a 3-D volume")
+    dims = parse_dims(get("DimSize").split(), path, "DimSize")
+    etype = get("ElementType").upper()
+    if etype not in ELEMENT_TYPES:
+        raise InputError(f"{path}: unsupported ElementType {etype} (supported: {', '.join(ELEMENT_TYPES)})")
+    dtype = ELEMENT_TYPES[etype]
+    channels = get("ElementNumberOfChannels")
+    if channels is not None and channels.strip() != "1":
+        raise InputError(f"{path}: {channels} channels per sample; only scalar volumes are supported")
+    spacing = get("ElementSpacing", "ElementSize")
+    spacing = parse_numbers(spacing.split(), 3, float, path, "ElementSpacing") if spacing else (1.0, 1.0, 1.0)
+    origin = get("Offset", "Origin", "Position")
+    origin = parse_numbers(origin.split(), 3, float, path, "Offset") if origin else (0.0, 0.0, 0.0)
+    big = (get("BinaryDataByteOrderMSB", "ElementByteOrderMSB") or "false").lower() in _TRUE
+    compressed = (get("CompressedData") or "false").lower() in _TRUE
+    header_size = int(get("HeaderSize") or 0)
+    meta = {"format": "metaimage", "byte_order": "big" if big else "little"}
+    matrix = get("TransformMatrix", "Rotation", "Orientation")
+    if matrix:
+        m = np.asarray(parse_numbers(matrix.split(), 9, float, path, "TransformMatrix"))
+        if np.abs(m - np.eye(3).ravel()).max() > 1e-6:
+            meta["note"] = "non-identity TransformMatrix ignored: the volume is read on an axis-aligned grid"
+
+    data_name = get("ElementDataFile")
+    if data_name.upper() == "LOCAL":
+        data_path, offset = path, data_start
+    else:
+        if data_name.split()[0].upper() == "LIST" or "%" in data_name:
+            raise InputError(f"{path}: ElementDataFile {data_name!r}: slice lists and patterns are not supported")
+        data_path = Path(data_name)
+        if not data_path.is_absolute():
+            data_path = path.parent / data_path
+        if not data_path.is_file():
+            raise InputError(f"{path}: data file {data_path} (ElementDataFile) not found")
+        offset = 0
+    nx, ny, nz = dims
+    itemsize = np.dtype(dtype).itemsize
+    if compressed:
+        with open(data_path, "rb") as f:
+            f.seek(offset + max(header_size, 0))
+            blob = f.read()
+        raw = decompress(blob, nx * ny * nz * itemsize, data_path, "MetaImage")
+        dt = np.dtype(dtype).newbyteorder(">" if big else "<") if itemsize > 1 else np.dtype(dtype)
+        data = to_native(np.frombuffer(raw, dtype=dt).copy()).reshape(nz, ny, nx)
+    else:
+        if header_size == -1:
+            # -1: the data are the last bytes of the file, whatever precedes them.
+            offset = data_path.stat().st_size - nx * ny * nz * itemsize
+            offset = max(offset, 0)
+        else:
+            offset += max(header_size, 0)
+        exact = data_path != path
+        data = read_samples(data_path, offset, dims, dtype, big, exact=exact, kind="MetaImage")
+    return Volume(data, spacing=spacing, origin=origin, name=str(path), meta=meta)
+
+
+def write_metaimage(volume: Volume, path, *, byte_order: str = "little") -> Path:
+    """Write ``.mha`` (data attached) or ``.mhd`` plus a ``.raw`` beside it."""
+    path = Path(path)
+    etype = {v: k for k, v in ELEMENT_TYPES.items()}[volume.dtype.name]
+    big = byte_order == "big"
+    local = path.suffix.lower() == ".mha"
+    data_file = path.with_suffix(".raw")
+    lines = [
+        "ObjectType = Image", "NDims = 3", "BinaryData = True",
+        f"BinaryDataByteOrderMSB = {'True' if big else 'False'}", "CompressedData = False",
+        "Offset = " + " ".join(repr(v) for v in volume.origin),
+        "ElementSpacing = " + " ".join(repr(v) for v in volume.spacing),
+        "DimSize = " + " ".join(str(n) for n in volume.dims),
+        f"ElementType = {etype}",
+        f"ElementDataFile = {'LOCAL' if local else data_file.name}",
+    ]
+    samples = volume.data.astype(volume.dtype.newbyteorder(">" if big else "<"), copy=False)
+    with open(path, "wb") as f:
+        f.write(("\n".join(lines) + "\n").encode("ascii"))
+        if local:
+            samples.tofile(f)
+    if not local:
+        samples.tofile(data_file)
+    return path

@@ -1,0 +1,75 @@
+"""NumPy ``.npy`` volumes, with an optional JSON sidecar for spacing and origin."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from ..volume import Volume
+from ._common import one_line, reading
+
+EXTENSIONS = (".npy",)
+
+
+def sidecar_path(path) -> Path:
+    """Where the spacing/origin sidecar of ``path`` lives: ``vol.npy`` → ``vol.npy.json``."""
+    path = Path(path)
+    return path.with_name(path.name + ".json")
+
+
+def read_npy(path) -> Volume:
+    """Read a 3-D ``.npy`` array indexed ``[z, y, x]``.
+
+    Spacing and origin come from ``<path>.json`` (keys ``spacing``,
+    ``origin``, each ``[x, y, z]``) when it exists, else ``(1, 1, 1)`` and
+    ``(0, 0, 0)``.
+
+    Parameters
+    ----------
+    path : str or Path
+
+    Returns
+    -------
+    Volume
+    """
+    path = Path(path)
+    with reading(path, "NumPy"):
+        with open(path, "rb") as f:
+            if f.read(6) != b"\x93NUMPY":
+                raise InputError(f"{path}: not a NumPy .npy file (bad magic bytes)")
+        try:
+            data = np.load(path, allow_pickle=False)
+        except ValueError as exc:
+            if "pickle" in str(exc):
+                raise InputError(f"{path}: holds Python objects, not a numeric array") from None
+            raise InputError(f"{path}: not a valid .npy array file ({one_line(exc)})") from None
+    if not isinstance(data, np.ndarray):
+        raise InputError(f"{path}: holds several arrays (.npz?), expected one 3-D array")
+    spacing, origin, meta = (1.0, 1.0, 1.0), (0.0, 0.0, 0.0), {"format": "npy"}
+    side = sidecar_path(path)
+    if side.is_file():
+        try:
+            info = json.loads(side.read_text(encoding="utf-8"))
+            spacing = info.get("spacing", spacing)
+            origin = info.get("origin", origin)
+        except (OSError, ValueError, AttributeError) as exc:
+            raise InputError(f"{side}: bad sidecar ({one_line(exc)}); expected JSON with spacing and origin") from None
+        meta["sidecar"] = str(side)
+    return Volume(data, spacing=spacing, origin=origin, name=str(path), meta=meta)
+
+
+def write_npy(volume: Volume, path, *, sidecar=None) -> Path:
+    """Write the array, and a ``.json`` sidecar with spacing and origin.
+
+    ``sidecar=None`` writes it only when they are not the defaults;
+    ``True`` always (so an existing sidecar cannot go stale).
+    """
+    path = Path(path)
+    np.save(path, volume.data, allow_pickle=False)
+    plain = volume.spacing == (1.0, 1.0, 1.0) and volume.origin == (0.0, 0.0, 0.0)
+    if sidecar or not plain:
+        sidecar_path(path).write_text(
+            json.dumps({"spacing": list(volume.spacing), "origin": list(volume.origin)}) + "\n", encoding="utf-8")
+    return path

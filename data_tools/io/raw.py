@@ -1,0 +1,137 @@
+"""Headerless raw volumes: shape and type from options or the file name."""
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from ..volume import Volume
+from ._common import read_samples, reading
+
+EXTENSIONS = (".raw", ".bin", ".dat")
+
+#: Type words seen in raw file names (Open SciVis: ``name_NxNxN_uint8.raw``).
+DTYPE_WORDS = {
+    "uint8": "uint8", "int8": "int8", "uint16": "uint16", "int16": "int16",
+    "uint32": "uint32", "int32": "int32", "float32": "float32", "float64": "float64",
+    "uchar": "uint8", "ubyte": "uint8", "byte": "uint8", "char": "int8",
+    "ushort": "uint16", "short": "int16", "uint": "uint32", "int": "int32",
+    "float": "float32", "double": "float64",
+}
+
+_SHAPE_RE = re.compile(r"(?<![0-9])(\d+)x(\d+)x(\d+)(?![0-9])", re.IGNORECASE)
+_ENDIAN_WORDS = {"be": "big", "bigendian": "big", "msb": "big",
+                 "le": "little", "littleendian": "little", "lsb": "little"}
+
+
+def guess_from_name(path) -> dict:
+    """Shape, dtype and byte order that a file name like ``bucky_32x32x32_uint8.raw`` states.
+
+    Parameters
+    ----------
+    path : str or Path
+
+    Returns
+    -------
+    dict
+        Any of ``shape`` ``(nx, ny, nz)``, ``dtype`` (numpy name) and
+        ``byte_order`` found in the name; empty when the name says nothing.
+    """
+    stem = Path(path).stem
+    found = {}
+    m = _SHAPE_RE.search(stem)
+    if m:
+        found["shape"] = tuple(int(g) for g in m.groups())
+    for word in re.split(r"[^A-Za-z0-9]+", stem.lower()):
+        if word in DTYPE_WORDS and "dtype" not in found:
+            found["dtype"] = DTYPE_WORDS[word]
+        elif word in _ENDIAN_WORDS:
+            found["byte_order"] = _ENDIAN_WORDS[word]
+    return found
+
+
+def _parse_shape(shape, path):
+    if isinstance(shape, str):
+        shape = [s for s in re.split(r"[x,\s]+", shape.strip().lower()) if s]
+    try:
+        dims = tuple(int(s) for s in shape)
+    except (TypeError, ValueError):
+        raise InputError(f"{path}: shape must be three integers nx,ny,nz, got {shape!r}") from None
+    if len(dims) != 3 or min(dims) < 1:
+        raise InputError(f"{path}: shape must be three positive integers nx,ny,nz, got {shape!r}")
+    return dims
+
+
+def _parse_dtype(dtype, path):
+    key = str(np.dtype(dtype).name if isinstance(dtype, (type, np.dtype)) else dtype).lower()
+    name = DTYPE_WORDS.get(key)
+    if name is None:
+        raise InputError(f"{path}: unsupported sample type {dtype!r} "
+                         f"(use one of uint8, int8, uint16, int16, uint32, int32, float32, float64)")
+    return name
+
+
+def read_raw(path, *, shape=None, dtype=None, byte_order=None, offset=0,
+             spacing=None, origin=None) -> Volume:
+    """Read a headerless raw volume, x varying fastest.
+
+    Parameters
+    ----------
+    path : str or Path
+    shape : (nx, ny, nz) or str like ``"256,256,113"``, optional
+        Sample counts; taken from the file name when not given.
+    dtype : str, optional
+        numpy type name (``uint8``, ``int16``, ``float32``...); from the name
+        when not given.
+    byte_order : {'little', 'big'}, optional
+        Of multi-byte samples; default little (or what the name says).
+    offset : int
+        Header bytes to skip before the samples.
+    spacing, origin : (x, y, z), optional
+        Default ``(1, 1, 1)`` and ``(0, 0, 0)``.
+
+    Returns
+    -------
+    Volume
+
+    Raises
+    ------
+    InputError
+        Shape or type unknown, or the file size is not ``offset`` plus
+        ``nx*ny*nz*itemsize``.
+    """
+    path = Path(path)
+    guess = guess_from_name(path)
+    shape = shape if shape is not None else guess.get("shape")
+    dtype = dtype if dtype is not None else guess.get("dtype")
+    byte_order = byte_order if byte_order is not None else guess.get("byte_order", "little")
+    missing = [flag for flag, v in (("--shape NX,NY,NZ", shape), ("--dtype TYPE", dtype)) if v is None]
+    if missing:
+        raise InputError(
+            f"{path}: a raw file has no header; give {' and '.join(missing)} "
+            f"(and --byte-order, --spacing if needed), or name it like vol_64x64x64_uint8.raw")
+    dims = _parse_shape(shape, path)
+    dtype = _parse_dtype(dtype, path)
+    if str(byte_order).lower() not in ("little", "big"):
+        raise InputError(f"{path}: byte order must be 'little' or 'big', got {byte_order!r}")
+    try:
+        offset = int(offset)
+    except (TypeError, ValueError):
+        raise InputError(f"{path}: offset must be a byte count, got {offset!r}") from None
+    if offset < 0:
+        raise InputError(f"{path}: offset must not be negative, got {offset}")
+    with reading(path, "raw"):
+        data = read_samples(path, offset, dims, dtype, str(byte_order).lower() == "big")
+    return Volume(data, spacing=spacing if spacing is not None else (1.0, 1.0, 1.0),
+                  origin=origin if origin is not None else (0.0, 0.0, 0.0),
+                  name=str(path), meta={"format": "raw", "byte_order": str(byte_order).lower()})
+
+
+def write_raw(volume: Volume, path, *, byte_order: str = "little") -> Path:
+    """Write the samples alone, x fastest; shape, type and spacing are not stored."""
+    path = Path(path)
+    dt = volume.data.dtype.newbyteorder("<" if byte_order == "little" else ">")
+    volume.data.astype(dt, copy=False).tofile(path)
+    return path

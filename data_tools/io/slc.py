@@ -1,0 +1,133 @@
+"""VolVis ``.slc`` volumes: ASCII header, RGB icon, then raw or run-length 8-bit slices."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from ..volume import Volume
+from ._common import reading
+
+EXTENSIONS = (".slc",)
+MAGIC = b"11111"
+_WS = b" \t\r\n"
+
+
+class _Cursor:
+    """Walks the file bytes: ASCII tokens in the header, raw runs after each ``X``."""
+
+    def __init__(self, buf: bytes, path):
+        self.buf, self.pos, self.path = buf, 0, path
+
+    def token(self, what: str) -> bytes:
+        buf, n = self.buf, len(self.buf)
+        while self.pos < n and buf[self.pos] in _WS:
+            self.pos += 1
+        start = self.pos
+        while self.pos < n and buf[self.pos] not in _WS and self.pos - start < 32:
+            self.pos += 1
+        if start == self.pos:
+            raise InputError(f"{self.path}: SLC file ends before {what}")
+        return buf[start:self.pos]
+
+    def number(self, cast, what: str):
+        tok = self.token(what)
+        try:
+            return cast(tok.decode("ascii"))
+        except (UnicodeDecodeError, ValueError):
+            raise InputError(f"{self.path}: bad SLC header: {what} should be a number, got {tok[:20]!r}") from None
+
+    def marker(self, what: str):
+        """Skip whitespace and the ``X`` that precedes binary bytes."""
+        buf, n = self.buf, len(self.buf)
+        while self.pos < n and buf[self.pos] in _WS:
+            self.pos += 1
+        if self.pos >= n or buf[self.pos] != ord("X"):
+            raise InputError(f"{self.path}: bad SLC file: expected 'X' before {what}")
+        self.pos += 1
+
+    def take(self, count: int, what: str) -> bytes:
+        if count < 0 or self.pos + count > len(self.buf):
+            raise InputError(f"{self.path}: SLC data truncated in {what}: {count} bytes needed, "
+                             f"{len(self.buf) - self.pos} left")
+        out = self.buf[self.pos:self.pos + count]
+        self.pos += count
+        return out
+
+
+def read_slc(path) -> Volume:
+    """Read a VolVis SLC volume (8-bit samples, raw or run-length slices).
+
+    Layout: ``11111``; ``nx ny nz bits``; ``sx sy sz``; ``unit_type
+    data_origin data_modification compression``; ``icon_w icon_h X`` then
+    ``3*icon_w*icon_h`` icon bytes (R, G, B planes); then ``nz`` slices of
+    ``nx*ny`` bytes, x fastest. With compression 1 each slice is
+    ``size X`` followed by ``size`` run-length bytes.
+
+    Parameters
+    ----------
+    path : str or Path
+
+    Returns
+    -------
+    Volume
+    """
+    path = Path(path)
+    with reading(path, "SLC"):
+        buf = path.read_bytes()
+    cur = _Cursor(buf, path)
+    if cur.token("the magic number") != MAGIC:
+        raise InputError(f"{path}: not an SLC file (it must start with the magic number 11111)")
+    nx, ny, nz, bits = (cur.number(int, w) for w in ("xsize", "ysize", "zsize", "bits"))
+    spacing = tuple(cur.number(float, w) for w in ("x spacing", "y spacing", "z spacing"))
+    unit, data_origin, modification, compression = (
+        cur.number(int, w) for w in ("unit type", "data origin", "data modification", "compression"))
+    if bits != 8:
+        raise InputError(f"{path}: SLC with {bits}-bit samples is not supported (only 8)")
+    if min(nx, ny, nz) < 1:
+        raise InputError(f"{path}: bad SLC size {nx}x{ny}x{nz}")
+    if compression not in (0, 1):
+        raise InputError(f"{path}: unknown SLC compression {compression} (0 raw, 1 run-length)")
+    icon_w, icon_h = cur.number(int, "icon width"), cur.number(int, "icon height")
+    cur.marker("the icon")
+    cur.take(3 * icon_w * icon_h, "the icon")
+    plane = nx * ny
+    data = np.empty((nz, ny, nx), dtype=np.uint8)
+    flat = data.reshape(nz, plane)
+    for k in range(nz):
+        what = f"slice {k}"
+        if compression:
+            size = cur.number(int, f"the size of {what}")
+            cur.marker(what)
+            flat[k] = np.frombuffer(_rle_decode(cur.take(size, what), plane, path, k), dtype=np.uint8)
+        else:
+            flat[k] = np.frombuffer(cur.take(plane, what), dtype=np.uint8)
+    meta = {"format": "slc", "compression": "rle" if compression else "raw",
+            "unit_type": unit, "data_origin": data_origin, "data_modification": modification}
+    return Volume(data, spacing=spacing, origin=(0.0, 0.0, 0.0), name=str(path), meta=meta)
+
+
+def _rle_decode(src: bytes, size: int, path, k: int) -> bytes:
+    """VolVis 8-bit run-length: count byte with high bit = literal run, else repeat next byte; 0 ends."""
+    out = bytearray()
+    pos, n = 0, len(src)
+    while pos < n:
+        code = src[pos]
+        pos += 1
+        count = code & 0x7F
+        if count == 0:
+            break
+        if code & 0x80:
+            out += src[pos:pos + count]
+            pos += count
+        else:
+            if pos >= n:
+                break
+            out += bytes((src[pos],)) * count
+            pos += 1
+        if len(out) > size:
+            raise InputError(f"{path}: SLC slice {k} decodes to more than its {size} samples")
+    if len(out) != size:
+        raise InputError(f"{path}: SLC slice {k} decodes to {len(out)} samples, expected {size} (corrupt or truncated)")
+    return bytes(out)

@@ -1,0 +1,125 @@
+"""Speed against error: each method's median time and its image error against `brute`, in one run."""
+from __future__ import annotations
+
+import statistics
+import time
+
+import numpy as np
+
+from data_tools import InputError
+
+from .renderer import render
+
+
+def image_error(result, reference, cell_size):
+    """Error of one render against the reference render of the same scene.
+
+    Returns a dict: ``hit_mismatches`` (pixels hit in one and not the
+    other), ``max_depth_cells`` (largest |Δdepth| over pixels hit in both,
+    in units of ``cell_size``), ``max_color`` (largest |Δ| over RGBA
+    channels), ``rmse`` and ``psnr`` (dB, ``inf`` when identical) over RGBA.
+    """
+    a, b = result.depth, reference.depth
+    hit_a, hit_b = np.isfinite(a), np.isfinite(b)
+    both = hit_a & hit_b
+    dd = np.abs(a[both] - b[both]) / cell_size
+    diff = result.image.astype(np.float64) - reference.image.astype(np.float64)
+    rmse = float(np.sqrt(np.mean(diff * diff)))
+    return {
+        "hit_mismatches": int((hit_a != hit_b).sum()),
+        "max_depth_cells": float(dd.max()) if dd.size else 0.0,
+        "max_color": float(np.abs(diff).max()) if diff.size else 0.0,
+        "rmse": rmse,
+        "psnr": float("inf") if rmse == 0.0 else float(20 * np.log10(1.0 / rmse)),
+    }
+
+
+def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=None, progress=None):
+    """Render a scene with each method; report speed against `brute` and error against its image.
+
+    Parameters
+    ----------
+    scene : Scene
+    methods : sequence of str
+        Methods to run; ``"brute"`` is always run (first) as the reference.
+    repeats : int, default 3
+        Timed renders per method; the median total time is reported.
+    warmup : int, default 1
+        Untimed renders first (JIT compilation, OpenGL context, caches).
+    options : dict of method -> dict, optional
+        Keyword arguments for `render` per method, e.g.
+        ``{"parc": {"supercell": 4}}``. A method name may carry a label after
+        a colon (``"parc:4"``) so one method appears with several options.
+    progress : callable(str) or None
+        Told which method is running.
+
+    Returns
+    -------
+    list of dict
+        One row per method: ``method``, ``seconds`` (median total),
+        ``phases`` (median seconds per phase), ``speedup`` against brute,
+        the `image_error` fields, ``cells_visited``, ``cubic_solves``,
+        ``hits``, ``polygons``, ``supercell``, ``pixels``.
+    """
+    if repeats < 1 or warmup < 0:
+        raise InputError("repeats must be at least 1 and warmup at least 0")
+    options = dict(options or {})
+    names = ["brute"] + [m for m in methods if m != "brute"]
+    vol = scene.volumes[0].volume
+    cell = float(min(vol.spacing))
+    rows = []
+    reference = None
+    for name in names:
+        method = name.split(":")[0]
+        kwargs = options.get(name, {})
+        if progress:
+            progress(name)
+        for _ in range(warmup):
+            render(scene, method=method, **kwargs)
+        runs = []
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            res = render(scene, method=method, **kwargs)
+            res.stats["seconds"]["wall"] = time.perf_counter() - t0
+            runs.append(res)
+        med = statistics.median(r.stats["seconds"]["wall"] for r in runs)
+        phases = {k: statistics.median(r.stats["seconds"].get(k, 0.0) for r in runs)
+                  for k in runs[0].stats["seconds"] if k != "wall"}
+        res = runs[0]
+        if reference is None:
+            reference = res
+        s = res.stats
+        row = {"method": name, "seconds": med, "phases": phases,
+               "cells_visited": s["cells_visited"], "cubic_solves": s["cubic_solves"],
+               "hits": s["hits"], "pixels": s["pixels"], "polygons": s.get("polygons", 0),
+               "supercell": s.get("supercell")}
+        row.update(image_error(res, reference, cell))
+        rows.append(row)
+    base = rows[0]["seconds"]
+    for row in rows:
+        row["speedup"] = base / row["seconds"] if row["seconds"] > 0 else float("inf")
+    return rows
+
+
+def format_table(rows):
+    """A readable terminal table of `compare` rows."""
+    head = ("method", "time s", "speedup", "cells/px", "cubics/px", "hits/px", "polygons",
+            "hit≠", "max Δdepth", "max Δcolour", "PSNR")
+    lines = []
+    for r in rows:
+        px = max(r["pixels"], 1)
+        lines.append((r["method"], f"{r['seconds']:.4f}", f"{r['speedup']:.2f}x",
+                      f"{r['cells_visited'] / px:.1f}", f"{r['cubic_solves'] / px:.2f}",
+                      f"{r['hits'] / px:.3f}", f"{r['polygons']:,}", str(r["hit_mismatches"]),
+                      f"{r['max_depth_cells']:.2e}", f"{r['max_color']:.2e}",
+                      "inf" if r["psnr"] == float("inf") else f"{r['psnr']:.1f}"))
+    widths = [max(len(h), *(len(l[i]) for l in lines)) for i, h in enumerate(head)]
+    fmt = "  ".join(("{:<%d}" if i == 0 else "{:>%d}") % w for i, w in enumerate(widths))
+    out = [fmt.format(*head), fmt.format(*("-" * w for w in widths))]
+    out += [fmt.format(*l) for l in lines]
+    phases = sorted({k for r in rows for k in r["phases"]})
+    out.append("")
+    out.append("seconds per phase (median): " + ", ".join(phases))
+    for r in rows:
+        out.append(f"  {r['method']:<10} " + "  ".join(f"{k}={r['phases'].get(k, 0.0):.4f}" for k in phases))
+    return "\n".join(out)

@@ -1,0 +1,353 @@
+"""Bad input of every kind raises InputError with one line naming the file, never a raw exception."""
+from __future__ import annotations
+
+import nrrd
+import numpy as np
+import pytest
+
+from data_tools import InputError, Volume
+from data_tools.io import READ_EXTENSIONS, load_volume, save_volume
+
+SMALL = np.arange(4 * 5 * 6, dtype=np.uint8).reshape(4, 5, 6)
+
+
+def fails(path, match=None, **options):
+    """Load ``path`` expecting InputError; the message is one line that names the file."""
+    with pytest.raises(InputError) as info:
+        load_volume(path, **options)
+    msg = str(info.value)
+    assert "\n" not in msg
+    assert str(path) in msg
+    if match:
+        assert match.lower() in msg.lower(), msg
+    return msg
+
+
+@pytest.mark.parametrize("ext", READ_EXTENSIONS)
+def test_missing_file(tmp_path, ext):
+    fails(tmp_path / f"nothere{ext}", "no such file")
+
+
+def test_unknown_extension_lists_supported(tmp_path):
+    p = tmp_path / "v.tiff"
+    p.write_bytes(b"II*\x00")
+    msg = fails(p, "unknown")
+    assert ".nrrd" in msg and ".slc" in msg and ".raw" in msg
+
+
+def test_directory(tmp_path):
+    d = tmp_path / "dir.nrrd"
+    d.mkdir()
+    fails(d, "directory")
+
+
+@pytest.mark.parametrize("ext", [".nrrd", ".nhdr", ".mhd", ".mha", ".vtk", ".slc", ".npy"])
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_random_bytes_with_a_volume_extension(tmp_path, ext, seed):
+    p = tmp_path / f"garbage{ext}"
+    p.write_bytes(np.random.default_rng(seed).integers(0, 256, 3000, dtype=np.uint8).tobytes())
+    fails(p)
+
+
+@pytest.mark.parametrize("ext", [".nrrd", ".mhd", ".vtk", ".slc", ".npy"])
+def test_empty_file(tmp_path, ext):
+    p = tmp_path / f"empty{ext}"
+    p.write_bytes(b"")
+    fails(p)
+
+
+@pytest.mark.parametrize("ext", [".nrrd", ".mhd", ".vtk", ".slc"])
+def test_text_that_is_not_the_format(tmp_path, ext):
+    p = tmp_path / f"prose{ext}"
+    p.write_text("This is a letter, not a volume.\nRegards.\n")
+    fails(p)
+
+
+# --- raw ---------------------------------------------------------------------
+
+def test_raw_without_shape_or_type_names_the_flags(tmp_path):
+    p = tmp_path / "plain.raw"
+    p.write_bytes(bytes(64))
+    msg = fails(p)
+    assert "--shape" in msg and "--dtype" in msg
+    msg = fails(p, shape=(4, 4, 4))
+    assert "--dtype" in msg and "--shape NX" not in msg
+
+
+def test_raw_size_mismatch_states_both_sizes(tmp_path):
+    p = tmp_path / "v_4x4x4_uint16.raw"
+    p.write_bytes(bytes(100))
+    msg = fails(p, "truncated")
+    assert "128" in msg and "100" in msg
+    p.write_bytes(bytes(130))
+    msg = fails(p, "too long")
+    assert "128" in msg and "130" in msg
+
+
+@pytest.mark.parametrize("opts,match", [({"dtype": "complex64"}, "unsupported"), ({"dtype": "int64"}, "unsupported"),
+                                        ({"shape": (4, 4)}, "three"), ({"shape": "4,x,4"}, "three"),
+                                        ({"shape": (0, 4, 4)}, "positive"), ({"byte_order": "middle"}, "byte order"),
+                                        ({"offset": -3}, "offset")])
+def test_raw_bad_options(tmp_path, opts, match):
+    p = tmp_path / "v_4x4x4_uint8.raw"
+    p.write_bytes(bytes(64))
+    fails(p, match, **opts)
+
+
+def test_raw_nonfinite_floats_refused(tmp_path):
+    a = np.ones((3, 3, 3), dtype=np.float32)
+    a[1, 1, 1] = np.nan
+    p = tmp_path / "n_3x3x3_float32.raw"
+    a.tofile(p)
+    fails(p, "non-finite")
+
+
+def test_dimension_below_two(tmp_path):
+    p = tmp_path / "flat_4x4x1_uint8.raw"
+    p.write_bytes(bytes(16))
+    fails(p, "at least 2")
+
+
+def test_raw_only_options_rejected_for_headed_formats(tmp_path):
+    p = save_volume(Volume(SMALL), tmp_path / "v.nrrd")
+    fails(p, "raw", dtype="uint8")
+
+
+# --- npy -------------------------------------------------------------------
+
+def test_npy_nan_and_wrong_rank(tmp_path):
+    a = np.zeros((3, 3, 3))
+    a[0, 0, 0] = np.inf
+    np.save(tmp_path / "inf.npy", a)
+    fails(tmp_path / "inf.npy", "non-finite")
+    np.save(tmp_path / "flat.npy", np.zeros((3, 3)))
+    fails(tmp_path / "flat.npy", "3 dimensions")
+    np.save(tmp_path / "obj.npy", np.array([{"a": 1}], dtype=object), allow_pickle=True)
+    fails(tmp_path / "obj.npy")
+
+
+def test_npy_bad_sidecar(tmp_path):
+    np.save(tmp_path / "s.npy", SMALL)
+    (tmp_path / "s.npy.json").write_text("{not json")
+    with pytest.raises(InputError, match="s.npy.json"):
+        load_volume(tmp_path / "s.npy")
+
+
+# --- NRRD ------------------------------------------------------------------
+
+def test_nrrd_truncated_gzip(tmp_path):
+    p = save_volume(Volume(np.random.default_rng(0).integers(0, 255, (20, 20, 20), dtype=np.uint8)),
+                    tmp_path / "t.nrrd")
+    p.write_bytes(p.read_bytes()[:-500])
+    fails(p)
+
+
+def test_nrrd_truncated_raw(tmp_path):
+    p = save_volume(Volume(SMALL), tmp_path / "t.nrrd", compress=False)
+    p.write_bytes(p.read_bytes()[:-7])
+    fails(p, "truncated")
+
+
+def test_nrrd_detached_data_missing(tmp_path):
+    p = save_volume(Volume(SMALL), tmp_path / "d.nhdr")
+    for f in tmp_path.iterdir():
+        if f.name != "d.nhdr":
+            f.unlink()
+    fails(p)
+
+
+def test_nrrd_2d_and_4d(tmp_path):
+    nrrd.write(str(tmp_path / "two.nrrd"), np.zeros((4, 5), np.uint8), index_order="C")
+    fails(tmp_path / "two.nrrd", "3-D")
+    nrrd.write(str(tmp_path / "four.nrrd"), np.zeros((2, 3, 4, 5), np.uint8), index_order="C")
+    fails(tmp_path / "four.nrrd", "3-D")
+
+
+def test_nrrd_unsupported_type(tmp_path):
+    nrrd.write(str(tmp_path / "i64.nrrd"), np.zeros((3, 3, 3), np.int64), index_order="C")
+    fails(tmp_path / "i64.nrrd", "unsupported")
+
+
+def test_nrrd_corrupt_header_field(tmp_path):
+    p = tmp_path / "h.nrrd"
+    p.write_bytes(b"NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 two 2\nencoding: raw\n\n" + bytes(8))
+    fails(p)
+
+
+# --- MetaImage -------------------------------------------------------------
+
+def test_mhd_data_file_missing(tmp_path, writers):
+    p = writers.mhd(tmp_path / "m.mhd", SMALL)
+    (tmp_path / "m_data.raw").unlink()
+    fails(p, "not found")
+
+
+@pytest.mark.parametrize("delta", [-1, 5])
+def test_mhd_data_size_mismatch(tmp_path, writers, delta):
+    p = writers.mhd(tmp_path / "m.mhd", SMALL)
+    data = tmp_path / "m_data.raw"
+    data.write_bytes(data.read_bytes()[:SMALL.size + delta] + bytes(max(delta, 0)))
+    msg = str(pytest.raises(InputError, load_volume, p).value)
+    assert str(SMALL.size) in msg and "m_data.raw" in msg
+
+
+def test_mha_truncated(tmp_path, writers):
+    p = writers.mhd(tmp_path / "m.mha", SMALL.astype(np.int16))
+    p.write_bytes(p.read_bytes()[:-10])
+    fails(p, "truncated")
+
+
+@pytest.mark.parametrize("cut", [True, False])
+def test_mha_compressed_truncated_or_corrupt(tmp_path, writers, cut):
+    arr = np.random.default_rng(1).integers(0, 255, (10, 10, 10), dtype=np.uint8)
+    p = writers.mhd(tmp_path / "c.mha", arr, compressed=True)
+    raw = bytearray(p.read_bytes())
+    if cut:
+        raw = raw[:-100]
+    else:
+        start = raw.index(b"LOCAL\n") + 6
+        raw[start + 20:start + 40] = b"\xff" * 20
+    p.write_bytes(bytes(raw))
+    fails(p)
+
+
+@pytest.mark.parametrize("line,match", [("NDims = 2", "NDims"), ("ElementType = MET_LONG_LONG", "ElementType"),
+                                        ("DimSize = 6 5", "DimSize"), ("ElementSpacing = 1 x 1", "ElementSpacing"),
+                                        ("ElementNumberOfChannels = 3", "channels")])
+def test_mhd_bad_fields(tmp_path, writers, line, match):
+    p = writers.mhd(tmp_path / "m.mha", SMALL)
+    key = line.split(" =")[0]
+    text = p.read_bytes()
+    head, _, data = text.partition(b"ElementDataFile = LOCAL\n")
+    lines = [ln for ln in head.decode().splitlines() if not ln.startswith(key)] + [line]
+    p.write_bytes(("\n".join(lines) + "\nElementDataFile = LOCAL\n").encode() + data)
+    fails(p, match)
+
+
+def test_mhd_without_data_file_line(tmp_path):
+    p = tmp_path / "n.mhd"
+    p.write_text("NDims = 3\nDimSize = 2 2 2\nElementType = MET_UCHAR\n")
+    fails(p, "ElementDataFile")
+
+
+def test_mhd_missing_required(tmp_path):
+    p = tmp_path / "n.mhd"
+    p.write_text("NDims = 3\nElementDataFile = x.raw\n")
+    fails(p, "DimSize")
+
+
+# --- VTK -------------------------------------------------------------------
+
+def test_vtk_other_dataset(tmp_path, writers):
+    p = writers.vtk(tmp_path / "u.vtk", SMALL, dataset="UNSTRUCTURED_GRID")
+    fails(p, "UNSTRUCTURED_GRID")
+
+
+def test_vtk_vector_data(tmp_path, writers):
+    p = writers.vtk(tmp_path / "v.vtk", SMALL, ncomp=3)
+    fails(p, "components")
+
+
+@pytest.mark.parametrize("ascii", [False, True])
+def test_vtk_truncated(tmp_path, writers, ascii):
+    p = writers.vtk(tmp_path / "t.vtk", SMALL.astype(np.float32), ascii=ascii)
+    p.write_bytes(p.read_bytes()[:-60])
+    fails(p, "truncated")
+
+
+def test_vtk_ascii_junk_value(tmp_path, writers):
+    p = writers.vtk(tmp_path / "j.vtk", SMALL, ascii=True)
+    p.write_bytes(p.read_bytes().replace(b" 7 ", b" seven "))
+    fails(p, "not a uint8")
+
+
+def test_vtk_ascii_out_of_range(tmp_path, writers):
+    p = writers.vtk(tmp_path / "r.vtk", SMALL, ascii=True)
+    p.write_bytes(p.read_bytes().replace(b" 7 ", b" 700 "))
+    fails(p, "range")
+
+
+def test_vtk_point_count_mismatch(tmp_path, writers):
+    p = writers.vtk(tmp_path / "c.vtk", SMALL)
+    p.write_bytes(p.read_bytes().replace(b"POINT_DATA 120", b"POINT_DATA 121"))
+    fails(p, "POINT_DATA")
+
+
+def test_vtk_unknown_type(tmp_path, writers):
+    p = writers.vtk(tmp_path / "b.vtk", SMALL)
+    p.write_bytes(p.read_bytes().replace(b"unsigned_char", b"bit"))
+    fails(p, "type")
+
+
+def test_vtk_dimension_one(tmp_path, writers):
+    p = writers.vtk(tmp_path / "d.vtk", SMALL[:1])
+    fails(p, "at least 2")
+
+
+# --- SLC -------------------------------------------------------------------
+
+def test_slc_truncated(tmp_path, writers):
+    p = writers.slc(tmp_path / "t.slc", SMALL)
+    p.write_bytes(p.read_bytes()[: len(p.read_bytes()) // 2])
+    fails(p)
+
+
+def test_slc_raw_truncated(tmp_path, writers):
+    p = writers.slc(tmp_path / "t.slc", SMALL, compression=0)
+    p.write_bytes(p.read_bytes()[:-3])
+    fails(p, "truncated")
+
+
+def test_slc_bad_magic_and_bits(tmp_path, writers):
+    p = writers.slc(tmp_path / "m.slc", SMALL)
+    good = p.read_bytes()
+    p.write_bytes(b"22222" + good[5:])
+    fails(p, "magic")
+    p.write_bytes(good.replace(b" 4 8\n", b" 4 16\n", 1))
+    fails(p, "16-bit")
+
+
+def test_slc_corrupt_runs(tmp_path, writers):
+    p = writers.slc(tmp_path / "c.slc", np.zeros((4, 5, 6), np.uint8))
+    # Every slice is "3 X" + (30 zeros as one run) + end; claim 31 repeats instead.
+    data = p.read_bytes()
+    assert data.count(b"3 X\x1e\x00\x00") == 4
+    p.write_bytes(data.replace(b"3 X\x1e\x00\x00", b"3 X\x1f\x00\x00", 1))
+    fails(p, "slice 0")
+
+
+# --- nothing but InputError, whatever the damage ---------------------------
+
+@pytest.mark.parametrize("name", ["v.nrrd", "v.nhdr", "v.mhd", "v.mha", "v.vtk", "a.vtk", "v.slc", "r.slc",
+                                  "c.mha", "v.npy"])
+def test_damaged_files_give_only_input_errors(tmp_path, writers, name):
+    arr = np.random.default_rng(3).integers(0, 40, (4, 5, 6), dtype=np.uint8)
+    p = tmp_path / name
+    if name in ("v.nrrd", "v.nhdr", "v.npy"):
+        save_volume(Volume(arr), p)
+    elif name.endswith(".vtk"):
+        writers.vtk(p, arr, ascii=name.startswith("a"))
+    elif name.endswith(".slc"):
+        writers.slc(p, arr, compression=0 if name.startswith("r") else 1)
+    else:
+        writers.mhd(p, arr, compressed=name.startswith("c"))
+    good = p.read_bytes()
+    rng = np.random.default_rng(7)
+    cuts = sorted(set(np.linspace(0, len(good) - 1, 25).astype(int)) | {1, 10, 30})
+    variants = [good[:c] for c in cuts]
+    for _ in range(25):
+        bad = bytearray(good)
+        pos = int(rng.integers(0, len(good)))
+        bad[pos] = int(rng.integers(0, 256))
+        variants.append(bytes(bad))
+    outcomes = set()
+    for v in variants:
+        p.write_bytes(v)
+        try:
+            vol = load_volume(p)
+            outcomes.add("ok")
+            assert vol.data.shape[0] >= 2
+        except InputError as exc:
+            outcomes.add("error")
+            assert "\n" not in str(exc)
+    assert "error" in outcomes

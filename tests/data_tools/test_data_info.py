@@ -1,0 +1,86 @@
+"""volume_info, format_info and suggest_isovalues."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from data_tools import Volume
+from data_tools.info import PERCENTILES, format_info, suggest_isovalues, volume_info
+from data_tools.synthetic import blobs, ct_phantom, sphere
+
+
+def test_volume_info_fields():
+    data = np.zeros((4, 5, 6), dtype=np.uint16)
+    data[:2] = 1000
+    data[0, 0, 0] = 3000
+    vol = Volume(data, spacing=(1, 2, 3), origin=(0, 0, 5), name="test")
+    info = volume_info(vol)
+    assert info["dims"] == (6, 5, 4) and info["dtype"] == "uint16"
+    assert info["spacing"] == (1, 2, 3) and info["origin"] == (0, 0, 5)
+    assert info["extent"] == (5, 8, 9)
+    assert info["min"] == 0 and info["max"] == 3000
+    assert info["zero_fraction"] == pytest.approx(0.5)
+    assert list(info["percentiles"]) == list(PERCENTILES)
+    assert info["percentiles"][25] == 0 and info["percentiles"][75] == 1000
+    assert info["nbytes"] == data.nbytes
+    text = format_info(info)
+    assert "6 x 5 x 4" in text and "uint16" in text and "50.0%" in text
+    assert len(text.splitlines()) >= 9
+
+
+def test_percentiles_monotone_and_subsampled_for_large():
+    vol = ct_phantom(160)
+    info = volume_info(vol)
+    p = list(info["percentiles"].values())
+    assert p == sorted(p)
+    assert info["sampled"] < 160 ** 3
+    assert "subsample" in format_info(info)
+    assert info["min"] == float(vol.data.min())   # the range stays exact
+
+
+@pytest.mark.parametrize("make", [lambda: blobs(40), lambda: sphere(30), lambda: ct_phantom(40)])
+def test_suggestions_inside_range_sorted(make):
+    vol = make()
+    lo, hi = vol.value_range()
+    iso = suggest_isovalues(vol, k=3)
+    assert 1 <= len(iso) <= 3
+    assert iso == sorted(set(iso))
+    assert all(lo < v < hi for v in iso)
+    if vol.dtype.kind in "iu":
+        assert all(v % 1 == 0.5 for v in iso)
+
+
+def test_ct_phantom_suggestions_find_skin_and_bone():
+    iso = suggest_isovalues(ct_phantom(64))
+    assert any(100 < v < 1000 for v in iso)       # between air and tissue
+    assert any(1000 < v < 2200 for v in iso)      # between tissue and bone
+
+
+def test_two_level_data_gives_the_gap_middle():
+    data = np.full((6, 6, 6), 10, dtype=np.uint8)
+    data[2:4, 2:4, 2:4] = 200
+    iso = suggest_isovalues(Volume(data), k=3)
+    assert len(iso) == 1 and abs(iso[0] - 105) == 0.5   # x.5 next to the middle of 10..200
+
+
+def test_constant_volume_has_no_suggestion():
+    assert suggest_isovalues(Volume(np.full((3, 3, 3), 7, np.int16))) == []
+    assert "none" in format_info(volume_info(Volume(np.zeros((3, 3, 3), np.float32))))
+
+
+def test_large_uint8_volume():
+    rng = np.random.default_rng(0)
+    data = rng.integers(0, 50, (256, 256, 256), dtype=np.uint8)
+    data[100:150, 100:150, 100:150] += 150
+    iso = suggest_isovalues(Volume(data))
+    assert any(49 < v < 150 for v in iso)
+    assert all(v % 1 == 0.5 for v in iso)
+
+
+def test_extreme_float_ranges_do_not_break():
+    wide = np.zeros((3, 3, 3))
+    wide[0, 0, 0], wide[1, 1, 1] = 1.7e308, -1.7e308
+    assert suggest_isovalues(Volume(wide)) == [0.0]
+    narrow = np.ones((3, 3, 3))
+    narrow[0, 0, 0] = np.nextafter(1.0, 2.0)
+    assert suggest_isovalues(Volume(narrow)) == []     # no float lies strictly between

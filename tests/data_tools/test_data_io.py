@@ -1,0 +1,281 @@
+"""Every reader reads back what was written: values, dtype, [z, y, x] order, spacing and origin."""
+from __future__ import annotations
+
+import json
+
+import nrrd
+import numpy as np
+import pytest
+
+from data_tools import InputError, Volume
+from data_tools.io import load_volume, save_volume
+from data_tools.io.raw import guess_from_name
+
+DTYPES = ["uint8", "int8", "uint16", "int16", "uint32", "int32", "float32", "float64"]
+
+
+def make_array(dtype, shape=(3, 4, 5), seed=0):
+    """Distinct values in every sample (so axis mix-ups show), spanning the type's sign."""
+    rng = np.random.default_rng(seed)
+    dt = np.dtype(dtype)
+    n = int(np.prod(shape))
+    if dt.kind == "f":
+        vals = rng.normal(0, 1000, n)
+    else:
+        info = np.iinfo(dt)
+        vals = rng.integers(info.min, info.max, n, endpoint=True)
+    return vals.astype(dt).reshape(shape)
+
+
+def check(vol, arr, spacing=(1, 1, 1), origin=(0, 0, 0)):
+    assert isinstance(vol, Volume)
+    assert vol.data.dtype == arr.dtype and vol.data.dtype.isnative
+    assert vol.shape == arr.shape
+    np.testing.assert_array_equal(vol.data, arr)
+    assert vol.spacing == pytest.approx(tuple(map(float, spacing)))
+    assert vol.origin == pytest.approx(tuple(map(float, origin)))
+
+
+def test_index_order_is_z_y_x(tmp_path, writers):
+    # x varies fastest in the file: byte n sits at x = n % nx.
+    arr = np.arange(2 * 3 * 4, dtype=np.uint8).reshape(2, 3, 4)
+    p = writers.raw(tmp_path / "v.raw", arr)
+    vol = load_volume(p, shape=(4, 3, 2), dtype="uint8")
+    assert vol.dims == (4, 3, 2)
+    assert vol.data[1, 2, 3] == 1 * 12 + 2 * 4 + 3
+
+
+# --- npy -------------------------------------------------------------------
+
+def test_npy_without_sidecar(tmp_path):
+    arr = make_array("int16")
+    np.save(tmp_path / "a.npy", arr)
+    check(load_volume(tmp_path / "a.npy"), arr)
+
+
+def test_npy_roundtrip_with_sidecar(tmp_path):
+    arr = make_array("float32")
+    p = save_volume(Volume(arr, spacing=(0.5, 1, 2), origin=(-1, 2, 3)), tmp_path / "b.npy")
+    assert json.loads((tmp_path / "b.npy.json").read_text())["spacing"] == [0.5, 1.0, 2.0]
+    check(load_volume(p), arr, (0.5, 1, 2), (-1, 2, 3))
+
+
+# --- raw -------------------------------------------------------------------
+
+@pytest.mark.parametrize("dtype", DTYPES)
+@pytest.mark.parametrize("order", ["little", "big"])
+def test_raw_roundtrip(tmp_path, writers, dtype, order):
+    arr = make_array(dtype, seed=hash((dtype, order)) % 1000)
+    p = writers.raw(tmp_path / "vol.bin", arr, big=order == "big")
+    vol = load_volume(p, shape=(5, 4, 3), dtype=dtype, byte_order=order, spacing=(1, 2, 3), origin=(4, 5, 6))
+    check(vol, arr, (1, 2, 3), (4, 5, 6))
+
+
+@pytest.mark.parametrize("name,dtype", [("bucky_5x4x3_uint8.raw", "uint8"), ("ct-5x4x3-int16.DAT", "int16"),
+                                        ("field_5x4x3_float.raw", "float32"), ("m_5x4x3_ushort.bin", "uint16"),
+                                        ("d_5x4x3_double.raw", "float64")])
+def test_raw_shape_and_type_from_name(tmp_path, writers, name, dtype):
+    arr = make_array(dtype)
+    p = writers.raw(tmp_path / name, arr)
+    check(load_volume(p), arr)
+
+
+def test_raw_name_can_state_byte_order(tmp_path, writers):
+    assert guess_from_name("x_8x8x8_int16_be.raw") == {"shape": (8, 8, 8), "dtype": "int16", "byte_order": "big"}
+    arr = make_array("int16")
+    check(load_volume(writers.raw(tmp_path / "x_5x4x3_int16_be.raw", arr, big=True)), arr)
+
+
+def test_raw_options_override_name_and_accept_strings(tmp_path, writers):
+    arr = make_array("uint16", shape=(2, 3, 10))
+    p = writers.raw(tmp_path / "wrong_5x4x3_uint8.raw", arr)
+    check(load_volume(p, shape="10,3,2", dtype="uint16"), arr)
+
+
+def test_raw_offset(tmp_path, writers):
+    arr = make_array("int32")
+    p = writers.raw(tmp_path / "h.raw", arr, header=b"HEADER!!")
+    check(load_volume(p, shape=(5, 4, 3), dtype="int32", offset=8), arr)
+
+
+def test_raw_writer_roundtrip(tmp_path):
+    arr = make_array("float64")
+    p = save_volume(Volume(arr), tmp_path / "w_5x4x3_float64.raw")
+    check(load_volume(p), arr)
+
+
+# --- NRRD ------------------------------------------------------------------
+
+@pytest.mark.parametrize("dtype", DTYPES)
+@pytest.mark.parametrize("compress", [True, False])
+def test_nrrd_roundtrip(tmp_path, dtype, compress):
+    arr = make_array(dtype)
+    vol = Volume(arr, spacing=(0.25, 0.5, 3.0), origin=(-10.0, 0.5, 7.0))
+    p = save_volume(vol, tmp_path / "v.nrrd", compress=compress)
+    check(load_volume(p), arr, vol.spacing, vol.origin)
+
+
+def test_nhdr_detached_roundtrip(tmp_path):
+    arr = make_array("int16")
+    p = save_volume(Volume(arr, spacing=(1, 1, 2)), tmp_path / "d.nhdr")
+    assert any(f.name != "d.nhdr" for f in tmp_path.iterdir())  # a separate data file
+    check(load_volume(p), arr, (1, 1, 2))
+
+
+@pytest.mark.parametrize("encoding", ["raw", "gzip"])
+def test_nrrd_big_endian_and_spacings_field(tmp_path, encoding):
+    arr = make_array("int16")
+    header = {"spacings": [0.5, 0.75, 2.0], "endian": "big", "encoding": encoding}
+    nrrd.write(str(tmp_path / "b.nrrd"), arr.astype(">i2"), header, index_order="C")
+    check(load_volume(tmp_path / "b.nrrd"), arr, (0.5, 0.75, 2.0))
+
+
+def test_nrrd_oblique_directions_become_norms_with_note(tmp_path):
+    arr = make_array("uint8")
+    c, s = np.cos(0.3), np.sin(0.3)
+    dirs = np.array([[2 * c, 2 * s, 0], [-s, c, 0], [0, 0, 3]])
+    nrrd.write(str(tmp_path / "o.nrrd"), arr, {"space": "left-posterior-superior", "space directions": dirs,
+                                               "space origin": [1, 2, 3]}, index_order="C")
+    vol = load_volume(tmp_path / "o.nrrd")
+    check(vol, arr, (2, 1, 3), (1, 2, 3))
+    assert "oblique" in vol.meta["note"]
+
+
+def test_nrrd_axis_aligned_has_no_note(tmp_path):
+    p = save_volume(Volume(make_array("uint8"), spacing=(1, 2, 3)), tmp_path / "a.nrrd")
+    assert "note" not in load_volume(p).meta
+
+
+# --- MetaImage -------------------------------------------------------------
+
+@pytest.mark.parametrize("dtype", DTYPES)
+@pytest.mark.parametrize("big", [False, True])
+@pytest.mark.parametrize("suffix", [".mhd", ".mha"])
+def test_metaimage_roundtrip(tmp_path, writers, dtype, big, suffix):
+    arr = make_array(dtype)
+    p = writers.mhd(tmp_path / f"m{suffix}", arr, spacing=(0.5, 1.5, 2.5), origin=(1, -2, 3), big=big)
+    check(load_volume(p), arr, (0.5, 1.5, 2.5), (1, -2, 3))
+
+
+@pytest.mark.parametrize("suffix", [".mhd", ".mha"])
+@pytest.mark.parametrize("dtype", ["uint8", "int16", "float32"])
+def test_metaimage_compressed(tmp_path, writers, suffix, dtype):
+    arr = make_array(dtype, shape=(6, 7, 8))
+    p = writers.mhd(tmp_path / f"c{suffix}", arr, compressed=True, big=dtype == "int16")
+    check(load_volume(p), arr)
+
+
+def test_metaimage_alternative_keys(tmp_path, writers):
+    arr = make_array("uint16")
+    p = writers.mhd(tmp_path / "k.mhd", arr, spacing=(2, 3, 4), origin=(5, 6, 7),
+                    spacing_key="ElementSize", origin_key="Position", extra=["ElementByteOrderMSB = False"])
+    check(load_volume(p), arr, (2, 3, 4), (5, 6, 7))
+
+
+@pytest.mark.parametrize("suffix", [".mhd", ".mha"])
+@pytest.mark.parametrize("order", ["little", "big"])
+def test_metaimage_writer_roundtrip(tmp_path, suffix, order):
+    arr = make_array("int16")
+    p = save_volume(Volume(arr, spacing=(1, 2, 3), origin=(0.5, 0, -1)), tmp_path / f"w{suffix}", byte_order=order)
+    check(load_volume(p), arr, (1, 2, 3), (0.5, 0, -1))
+
+
+# --- VTK legacy ------------------------------------------------------------
+
+@pytest.mark.parametrize("dtype", DTYPES)
+@pytest.mark.parametrize("ascii", [False, True])
+def test_vtk_roundtrip(tmp_path, writers, dtype, ascii):
+    arr = make_array(dtype)
+    p = writers.vtk(tmp_path / "v.vtk", arr, spacing=(0.5, 2, 3), origin=(-1, -2, -3), ascii=ascii)
+    check(load_volume(p), arr, (0.5, 2, 3), (-1, -2, -3))
+
+
+def test_vtk_aspect_ratio_and_no_lookup_table(tmp_path, writers):
+    arr = make_array("int16")
+    p = writers.vtk(tmp_path / "a.vtk", arr, spacing=(1, 1, 2), spacing_key="ASPECT_RATIO", lookup=False, ncomp=1)
+    check(load_volume(p), arr, (1, 1, 2))
+
+
+@pytest.mark.parametrize("ascii", [False, True])
+def test_vtk_writer_roundtrip(tmp_path, ascii):
+    arr = make_array("float32")
+    p = save_volume(Volume(arr, spacing=(1, 2, 3), origin=(4, 5, 6)), tmp_path / "w.vtk", ascii=ascii)
+    check(load_volume(p), arr, (1, 2, 3), (4, 5, 6))
+
+
+# --- SLC -------------------------------------------------------------------
+
+def test_rle_encoder_sanity(writers):
+    code = writers.rle(bytes([5] * 200 + [1, 2, 3]))
+    assert code == bytes([127, 5, 73, 5, 0x83, 1, 2, 3, 0])
+
+
+@pytest.mark.parametrize("compression", [0, 1])
+def test_slc_roundtrip(tmp_path, writers, compression):
+    rng = np.random.default_rng(5)
+    arr = np.zeros((7, 9, 11), dtype=np.uint8)
+    arr[2:5, 3:7, 1:9] = rng.integers(0, 256, (3, 4, 8))   # literal runs, with repeats around them
+    arr[5] = 200
+    p = writers.slc(tmp_path / "s.slc", arr, spacing=(0.5, 1.0, 2.0), compression=compression)
+    vol = load_volume(p)
+    check(vol, arr, (0.5, 1.0, 2.0))
+    assert vol.meta["compression"] == ("rle" if compression else "raw")
+
+
+# --- dispatch --------------------------------------------------------------
+
+def test_extension_is_case_insensitive(tmp_path):
+    arr = make_array("uint8")
+    p = save_volume(Volume(arr), tmp_path / "UPPER.nrrd")
+    upper = p.rename(tmp_path / "UPPER.NRRD")
+    check(load_volume(upper), arr)
+    check(load_volume(str(upper)), arr)
+
+
+def test_spacing_and_origin_options_override_any_format(tmp_path):
+    p = save_volume(Volume(make_array("uint8"), spacing=(1, 1, 1)), tmp_path / "s.nrrd")
+    vol = load_volume(p, spacing=(2, 3, 4), origin=(1, 1, 1), shape=None)
+    assert vol.spacing == (2, 3, 4) and vol.origin == (1, 1, 1)
+
+
+def test_save_unknown_extension(tmp_path):
+    with pytest.raises(InputError, match="supported"):
+        save_volume(Volume(make_array("uint8")), tmp_path / "v.tiff")
+
+
+def test_unknown_option_is_a_programming_error(tmp_path):
+    with pytest.raises(TypeError):
+        load_volume(tmp_path / "v.raw", shpae=(2, 2, 2))
+
+
+def test_save_leaves_final_names_and_no_temporaries(tmp_path):
+    vol = Volume(make_array("int16"), spacing=(1, 2, 3))
+    save_volume(vol, tmp_path / "m.mhd")
+    save_volume(vol, tmp_path / "n.nhdr")
+    save_volume(vol, tmp_path / "a.npy")
+    names = sorted(f.name for f in tmp_path.iterdir())
+    assert names == ["a.npy", "a.npy.json", "m.mhd", "m.raw", "n.nhdr", "n.raw"]
+    assert "ElementDataFile = m.raw" in (tmp_path / "m.mhd").read_text()
+    for name in ("m.mhd", "n.nhdr", "a.npy"):
+        check(load_volume(tmp_path / name), vol.data, (1, 2, 3))
+
+
+def test_save_npy_rewrites_an_existing_sidecar(tmp_path):
+    save_volume(Volume(make_array("uint8"), spacing=(2, 2, 2)), tmp_path / "s.npy")
+    save_volume(Volume(make_array("uint8")), tmp_path / "s.npy")
+    assert load_volume(tmp_path / "s.npy").spacing == (1, 1, 1)
+
+
+def test_failed_save_writes_nothing(tmp_path, monkeypatch):
+    from data_tools.io import nrrd_format
+
+    def broken(volume, path, **kw):
+        path.write_bytes(b"NRRD0004\npartial")
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(nrrd_format, "write_nrrd", broken)
+    with pytest.raises(InputError, match="No space left"):
+        save_volume(Volume(make_array("uint8")), tmp_path / "x.nrrd")
+    assert list(tmp_path.iterdir()) == []
+    with pytest.raises(InputError, match="cannot write"):
+        save_volume(Volume(make_array("uint8")), tmp_path / "no" / "such" / "dir.npy")
