@@ -52,6 +52,16 @@ def _floats(n, what):
     return parse
 
 
+def _supercell(text):
+    try:
+        vals = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        vals = ()
+    if len(vals) not in (1, 3) or not all(np.isfinite(vals)) or min(vals) <= 0:
+        raise argparse.ArgumentTypeError(f"supercell size must be M or M,N,P positive numbers, got {text!r}")
+    return vals[0] if len(vals) == 1 else vals
+
+
 def _ints(n, what):
     def parse(text):
         try:
@@ -105,13 +115,37 @@ def build_parser():
                    help="image: .png (8-bit RGBA) or .npy (float32 RGBA array)")
     r.add_argument("--depth", metavar="D.npy", help="also write the float64 depth image (inf = no hit)")
     r.add_argument("--stats", metavar="S.json", help="also write timings and counts as JSON")
-    r.add_argument("--method", default="brute", choices=("brute",),
-                   help="brute: unaccelerated casting (default)")
+    r.add_argument("--method", default="brute", choices=("brute", "parc"),
+                   help="brute: unaccelerated casting (default); parc: walk only the ray segments "
+                        "OpenGL finds from a polygon proxy of the possibly contributing supercells "
+                        "(same image, faster)")
+    r.add_argument("--supercell", type=_supercell, metavar="M[,N,P]",
+                   help="parc: supercell size in cells, fractional allowed (default: chosen by a cost model)")
     r.add_argument("--background", type=_floats(3, "--background"), metavar="R,G,B",
                    help="opaque background colour in [0,1] (default transparent)")
     r.add_argument("--quiet", action="store_true", help="no progress or notes on stderr")
     _add_view_options(r)
     _add_volume_options(r)
+
+    c = sub.add_parser("compare", help="time PARC against unaccelerated casting, with image errors",
+                       description="Render one scene with each method (after a warm-up), report the median "
+                                   "time, speedup against brute, and the image error against brute's image: "
+                                   "hit-mask mismatches, max |depth difference| in cells, max |colour "
+                                   "difference|, RMSE, PSNR; with cells visited, cubic solves, polygons and "
+                                   "seconds per phase.",
+                       epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    c.add_argument("volume", nargs="?", help="volume file (default: the built-in volume)")
+    c.add_argument("--iso", type=float, metavar="V", help="isovalue (default: suggested from the histogram)")
+    c.add_argument("--methods", default="brute,parc", metavar="LIST",
+                   help="comma-separated methods (default brute,parc; brute always runs as the reference)")
+    c.add_argument("--supercell", type=_supercell, metavar="M[,N,P]",
+                   help="parc's supercell size (default: chosen by the cost model)")
+    c.add_argument("--sweep-supercell", metavar="LIST",
+                   help="run parc once per supercell size, e.g. 0.5,1,2,4,8: speed against error")
+    c.add_argument("--repeats", type=int, default=3, help="timed renders per method; the median is reported")
+    c.add_argument("--json", action="store_true", help="print the rows as JSON instead of a table")
+    _add_view_options(c)
+    _add_volume_options(c)
 
     i = sub.add_parser("info", help="describe a volume and suggest isovalues")
     i.add_argument("volume")
@@ -136,7 +170,8 @@ def main(argv=None):
         if args.command is None:
             build_parser().print_help()
             return EXIT_USAGE
-        return {"render": cmd_render, "info": cmd_info, "make": cmd_make}[args.command](args)
+        commands = {"render": cmd_render, "compare": cmd_compare, "info": cmd_info, "make": cmd_make}
+        return commands[args.command](args)
     except InputError as exc:
         print(f"parc: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
@@ -176,18 +211,14 @@ def cmd_make(args):
     return 0
 
 
-def cmd_render(args):
+def _scene(args, say):
+    """The volume, isovalue and camera the flags describe, as a Scene."""
     import parc
     from data_tools.synthetic import builtin_volume
 
-    out = _check_output(args.output, (".png", ".npy"))
-    depth_out = _check_output(args.depth, (".npy",)) if args.depth else None
-    stats_out = _check_output(args.stats, (".json",)) if args.stats else None
     w, h = args.size
     if w < 1 or h < 1:
         raise InputError(f"image size must be positive, got {w} {h}")
-    say = (lambda *a: None) if args.quiet else (lambda msg: print(f"parc: {msg}", file=sys.stderr))
-
     if args.volume is None:
         vol = builtin_volume()
         iso = vol.meta["iso"] if args.iso is None else args.iso
@@ -205,12 +236,25 @@ def cmd_render(args):
             f"(others: {', '.join(f'{v:g}' for v in levels if v != iso) or 'none'})")
     if "note" in vol.meta:
         say(vol.meta["note"])
+    return parc.Scene(camera=_camera(args, vol), size=(w, h), volumes=[parc.Isosurface(vol, iso)],
+                      background=getattr(args, "background", None))
 
-    scene = parc.Scene(camera=_camera(args, vol), size=(w, h),
-                       volumes=[parc.Isosurface(vol, iso)],
-                       background=args.background)
+
+def cmd_render(args):
+    import parc
+
+    out = _check_output(args.output, (".png", ".npy"))
+    depth_out = _check_output(args.depth, (".npy",)) if args.depth else None
+    stats_out = _check_output(args.stats, (".json",)) if args.stats else None
+    say = (lambda *a: None) if args.quiet else (lambda msg: print(f"parc: {msg}", file=sys.stderr))
+    scene = _scene(args, say)
+    w, h = scene.size
+    iso = scene.volumes[0].value
     progress = None if args.quiet else _Progress(f"rendering {w}x{h}")
-    result = parc.render(scene, method=args.method, progress=progress)
+    kwargs = {"supercell": args.supercell} if args.method == "parc" else {}
+    if args.supercell is not None and args.method != "parc":
+        raise InputError("--supercell applies to --method parc")
+    result = parc.render(scene, method=args.method, progress=progress, **kwargs)
     if progress is not None:
         progress.done()
 
@@ -226,6 +270,44 @@ def cmd_render(args):
     say(f"wrote {out}: {s['hits']} of {s['pixels']} pixels hit the isosurface {iso:g}; "
         f"{s['seconds']['total']:.3f} s, {s['cells_visited']:,} cells visited, {s['cubic_solves']:,} cubics")
     return 0
+
+
+def cmd_compare(args):
+    from .compare import compare, format_table
+
+    say = lambda msg: print(f"parc: {msg}", file=sys.stderr)  # noqa: E731
+    methods = [m.strip() for m in args.methods.split(",") if m.strip()]
+    unknown = sorted(set(methods) - {"brute", "parc"})
+    if unknown:
+        raise InputError(f"unknown method {unknown[0]!r} in --methods; choose from brute, parc")
+    if args.repeats < 1:
+        raise InputError(f"--repeats must be at least 1, got {args.repeats}")
+    scene = _scene(args, say)
+    options = {}
+    if args.sweep_supercell:
+        sizes = [_supercell_or_error(v) for v in args.sweep_supercell.split(";" if ";" in args.sweep_supercell else ",")]
+        methods = ["brute"] + [f"parc:{s:g}" for s in sizes]
+        options = {f"parc:{s:g}": {"supercell": s} for s in sizes}
+    elif args.supercell is not None:
+        options = {"parc": {"supercell": args.supercell}}
+    rows = compare(scene, methods=methods, repeats=args.repeats, options=options,
+                   progress=None if args.json else (lambda m: say(f"timing {m} ...")))
+    if args.json:
+        print(json.dumps(rows, indent=2, default=float))
+    else:
+        w, h = scene.size
+        vol = scene.volumes[0].volume
+        print(f"{vol.name}: {'x'.join(map(str, vol.dims))} {vol.dtype}, isovalue {scene.volumes[0].value:g}, "
+              f"{w}x{h} pixels, median of {args.repeats} after a warm-up")
+        print(format_table(rows))
+    return 0
+
+
+def _supercell_or_error(text):
+    try:
+        return _supercell(text)
+    except argparse.ArgumentTypeError as exc:
+        raise InputError(f"--sweep-supercell: {exc}") from None
 
 
 # --- helpers ------------------------------------------------------------

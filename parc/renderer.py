@@ -12,7 +12,11 @@ from raycast.shade import shade_headlight
 
 from .scene import Isosurface, Scene
 
-METHODS = ("brute",)
+METHODS = ("brute", "parc")
+
+#: Proxies kept per volume (isovalue, supercell size) so that only a camera
+#: change re-rasterizes; a few entries cover flipping between skin and bone.
+PROXY_CACHE_SIZE = 4
 
 
 @dataclass
@@ -35,15 +39,21 @@ class RenderResult:
     stats: dict
 
 
-def render(scene: Scene, method: str = "brute", *, progress=None) -> RenderResult:
+def render(scene: Scene, method: str = "brute", *, supercell=None, progress=None) -> RenderResult:
     """Ray cast a scene.
 
     Parameters
     ----------
     scene : Scene
-    method : {"brute"}
+    method : {"brute", "parc"}
         ``"brute"`` walks every cell along every ray inside the volume
-        (the unaccelerated reference).
+        (the unaccelerated reference). ``"parc"`` rasterizes the outer faces
+        of the possibly contributing supercells with OpenGL and walks only
+        each ray's ``[near, far]`` segment, with the same traversal and
+        intersection code, so the images are the same.
+    supercell : float or (m, n, p), optional
+        PARC's supercell size in cells (fractional and below 1 allowed).
+        Default: chosen by `parc.classify.choose_supercell`'s cost model.
     progress : callable(done_fraction) or None
         Called as bands of image rows finish, for long renders.
 
@@ -58,7 +68,8 @@ def render(scene: Scene, method: str = "brute", *, progress=None) -> RenderResul
 
     References
     ----------
-    Parker et al. 1998, §2 and Appendix A (traversal, intersection, normals).
+    Parker et al. 1998, §2 and Appendix A (traversal, intersection, normals);
+    Sobierajski & Avila 1995, §3 (depth-buffer PARC).
     """
     if method not in METHODS:
         raise InputError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
@@ -73,14 +84,17 @@ def render(scene: Scene, method: str = "brute", *, progress=None) -> RenderResul
     org = np.array(vol.origin)
     spc = np.array(vol.spacing)
     t, cell, uvw, counts = empty_outputs(w * h)
-    no_seg = np.empty((1, 1, 2))
+    seg = np.empty((1, 1, 2))
     timings["setup"] = time.perf_counter() - t0
+    extra = {}
+    if method == "parc":
+        seg, extra = _parc_segments(scene, iso, supercell, timings)
 
     t0 = time.perf_counter()
     bands = _row_bands(h, w, progress)
     for n, (y0, y1) in enumerate(bands):
         cast_iso_image(vol.data, org, spc, cam, w, h, iso.value,
-                       no_seg, False, t, cell, uvw, counts, y0, y1)
+                       seg, method == "parc", t, cell, uvw, counts, y0, y1)
         if progress is not None:
             progress((n + 1) / len(bands))
     timings["cast"] = time.perf_counter() - t0
@@ -106,7 +120,56 @@ def render(scene: Scene, method: str = "brute", *, progress=None) -> RenderResul
         "parameters": {"isovalue": iso.value, "size": [w, h], "volume": vol.name,
                        "dims": list(vol.dims), "dtype": str(vol.dtype)},
     }
+    stats.update(extra)
     return RenderResult(image=image, depth=t.reshape(h, w), stats=stats)
+
+
+def _parc_segments(scene, iso, supercell, timings):
+    """Classify, build (or reuse) the proxy and rasterize it: the per-pixel segments and stats."""
+    from .classify import VolumeIndex, _size_triple, choose_supercell
+    from .proxy import build_proxy
+    from .raster import raster_segments
+
+    vol = iso.volume
+    w, h = scene.size
+    t0 = time.perf_counter()
+    index = VolumeIndex.of(vol)
+    extra = {}
+    if supercell is None:
+        # The model classifies every candidate size: do it once per isovalue and image size.
+        chosen = index.__dict__.setdefault("_chosen", {})
+        if (iso.value, w * h) not in chosen:
+            chosen[(iso.value, w * h)] = choose_supercell(index, iso.value, pixels=w * h)
+        supercell, table = chosen[(iso.value, w * h)]
+        extra["supercell_model"] = table
+    size = _size_triple(supercell)
+    key = (size, iso.value)
+    proxies = index.__dict__.setdefault("_proxies", {})
+    proxy = proxies.get(key)
+    if proxy is None:
+        pc = index.classify(iso.value, size)
+        timings["classify"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        grid = index.grid(size)
+        proxy = build_proxy(grid, pc, grid.world_edges(vol))
+        if len(proxies) >= PROXY_CACHE_SIZE:
+            proxies.pop(next(iter(proxies)))
+        proxies[key] = proxy
+        timings["proxy"] = time.perf_counter() - t0
+    else:
+        timings["classify"] = time.perf_counter() - t0
+        timings["proxy"] = 0.0
+    segs = raster_segments(scene.camera, w, h, proxy)
+    timings["raster"] = segs.seconds["total"]
+    extra.update({
+        "supercell": list(size),
+        "polygons": segs.polygons,
+        "pc_supercells": int(proxy.pc.sum()),
+        "supercells": int(proxy.pc.size),
+        "segment_pixels": int((segs.near <= segs.far).sum()),
+        "raster_seconds": dict(segs.seconds),
+    })
+    return segs.seg, extra
 
 
 def _row_bands(h, w, progress):

@@ -1,0 +1,125 @@
+"""Depth-buffer PARC's OpenGL pass: time per polygon, and what the segments save the caster.
+
+For each supercell size: proxy build time, polygons, rasterization time
+(best of several; upload, draw + ctx.finish(), read-back, post-processing),
+then the Numba caster over the segments: cells walked and time, against
+the unaccelerated caster, whose hits and depths the segments must not
+change. The last lines fit the constants of `parc.classify`'s cost model.
+
+Run: ./dev.sh python benchmarks/raster_speed.py [--size 512] [--volume PATH --iso V | --synthetic NAME --n N]
+Without --volume: CThead skin (../shared/data) when present, else a CT-like phantom.
+"""
+import argparse
+import os
+import time
+from pathlib import Path
+
+import numba
+import numpy as np
+
+from parc.camera import Camera
+from parc.classify import VolumeIndex, count_outer_faces
+from parc.proxy import build_proxy
+from parc.raster import get_context, raster_segments
+from raycast.iso import cast_iso_image, empty_outputs
+
+SIZES = (1, 2, 3, 4, 6, 8)
+CTHEAD = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "CThead.nrrd"
+
+
+def _volume(args):
+    if args.synthetic:
+        from data_tools.synthetic import make_synthetic
+        vol = make_synthetic(args.synthetic, args.n)
+        return vol, args.iso if args.iso is not None else vol.meta.get("iso", 0.0)
+    if args.volume:
+        from data_tools.io import load_volume
+        return load_volume(args.volume), args.iso
+    if CTHEAD.exists():
+        from data_tools.io import load_volume
+        return load_volume(str(CTHEAD)), 600.5
+    from data_tools.synthetic import ct_phantom
+    return ct_phantom(192), 600.5
+
+
+def cast(vol, cam, w, h, iso, seg=None):
+    t, cell, uvw, counts = empty_outputs(w * h)
+    s = seg if seg is not None else np.empty((1, 1, 2))
+    t0 = time.perf_counter()
+    cast_iso_image(vol.data, np.array(vol.origin), np.array(vol.spacing), cam.as_array(), w, h, iso,
+                   s, seg is not None, t, cell, uvw, counts, 0, h)
+    return time.perf_counter() - t0, t, counts
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--size", type=int, default=512)
+    ap.add_argument("--volume")
+    ap.add_argument("--iso", type=float)
+    ap.add_argument("--synthetic", help="a data_tools synthetic volume name (sphere, torus, ...)")
+    ap.add_argument("--n", type=int, default=256, help="synthetic volume size")
+    ap.add_argument("--zoom", type=float, default=1.6)
+    ap.add_argument("--repeats", type=int, default=5)
+    args = ap.parse_args()
+    vol, iso = _volume(args)
+    w = h = args.size
+    ctx = get_context()
+    print(f"{vol.name} {vol.dims} {vol.dtype}, iso {iso}, {w}x{h}, GL: {ctx.info['GL_RENDERER']}, "
+          f"caster threads {numba.get_num_threads()}, load {os.getloadavg()[0]:.2f}")
+    cam = Camera.framing(*vol.bounds, azimuth=30, elevation=20, zoom=args.zoom)
+    idx = VolumeIndex.of(vol)
+    t0 = time.perf_counter()
+    idx.cell_minmax()
+    print(f"cell min/max: {time.perf_counter() - t0:.3f} s")
+
+    cast(vol, cam, 8, 8, iso)  # compile
+    tb, tbrute, cbrute = min((cast(vol, cam, w, h, iso) for _ in range(2)), key=lambda r: r[0])
+    hits = np.isfinite(tbrute)
+    print(f"brute: {tb:.3f} s, {cbrute[:, 0].sum() / 1e6:.2f} M cells, {hits.sum()} hits")
+    rows = []
+    for m in SIZES:
+        for merge in (False, True):
+            t0 = time.perf_counter()
+            grid = idx.grid(m)
+            idx.ranges(m)
+            t_ranges = time.perf_counter() - t0
+            t0 = time.perf_counter()
+            pc = idx.classify(iso, m)
+            t_class = time.perf_counter() - t0
+            t0 = time.perf_counter()
+            proxy = build_proxy(grid, pc, grid.world_edges(vol), merge=merge)
+            t_proxy = time.perf_counter() - t0
+            runs = [raster_segments(cam, w, h, proxy) for _ in range(args.repeats)]
+            best = min(runs[1:] or runs, key=lambda s: s.seconds["draw"])
+            seg = best.seg
+            tc, tpar, cpar = min((cast(vol, cam, w, h, iso, seg) for _ in range(2)), key=lambda r: r[0])
+            same = np.array_equal(np.isfinite(tpar), hits) and np.array_equal(tpar[hits], tbrute[hits])
+            s = best.seconds
+            rows.append(dict(m=m, merge=merge, polys=proxy.n_polygons, unit=count_outer_faces(pc),
+                             draw=s["draw"], total=s["total"], cells=cpar[:, 0].sum(), cast=tc,
+                             px=best.info["pixels"]))
+            print(f"m={m} merge={merge!s:5}: ranges {t_ranges * 1e3:6.1f} ms, classify {t_class * 1e3:5.1f} ms, "
+                  f"proxy {t_proxy * 1e3:6.1f} ms, {proxy.n_polygons:7d} polys | raster: upload "
+                  f"{runs[0].seconds['upload'] * 1e3:5.1f} draw {s['draw'] * 1e3:6.1f} read "
+                  f"{s['readback'] * 1e3:4.1f} post {s['post'] * 1e3:4.1f} prep {s['prepare'] * 1e3:4.1f} ms "
+                  f"| cast {tc:.3f} s, {cpar[:, 0].sum() / 1e6:6.2f} M cells, "
+                  f"{cpar[:, 0].sum() / max(1, best.info['pixels']):5.1f} cells/px | same as brute: {same}")
+    # Cost model fit (merged proxies: what the renderer uses).
+    mr = [r for r in rows if r["merge"]]
+    a = np.array([[1.0, r["polys"]] for r in mr])
+    fixed, per_poly = np.linalg.lstsq(a, np.array([r["draw"] for r in mr]), rcond=None)[0]
+    b = np.array([[1.0, r["unit"]] for r in mr if r["m"] >= 2])
+    fixed_u, per_face = np.linalg.lstsq(b, np.array([r["draw"] for r in mr if r["m"] >= 2]), rcond=None)[0]
+    walk = np.array([r["cells"] / max(1, r["px"]) for r in mr])
+    base, per_cell = np.polyfit([r["m"] for r in mr], walk, 1)
+    c = np.array([[r["px"], r["cells"]] for r in mr], float)
+    per_ray_s, per_cell_s = np.linalg.lstsq(c, np.array([r["cast"] for r in mr]), rcond=None)[0]
+    cores = numba.get_num_threads()
+    print(f"fit: draw = {fixed * 1e3:.1f} ms + {per_poly * 1e6:.2f} us/merged polygon "
+          f"= {fixed_u * 1e3:.1f} ms + {per_face * 1e6:.2f} us/unit face (m >= 2)")
+    print(f"fit: cells per covered pixel = {base:.2f} + {per_cell:.2f} m; cast = "
+          f"{per_ray_s * cores * 1e6:.2f} us/ray + {per_cell_s * cores * 1e9:.1f} ns/cell, per core")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,240 @@
+"""Proxy geometry: the outer faces of the possibly contributing supercells.
+
+About this technique
+--------------------
+Depth-buffer PARC (Sobierajski & Avila 1995, §3) rasterizes "the
+rectangular polygons representing the outer faces of the possibly
+contributing cells": faces shared between a PC supercell and an empty one,
+or lying on the volume boundary. They bound exactly the union of the PC
+supercells (a closed, axis-aligned polyhedral surface), so along any ray
+the first and last crossings of these faces are where the ray enters the
+union first and leaves it last.
+
+Faces are found without a loop over faces: pad the PC mask with empty
+supercells and take ``mask[a] != mask[a+1]`` along each axis; every
+``True`` is one face, and which side is PC gives the outward normal.
+Coplanar neighbours may be merged into rectangles (`merge=True`), which
+cuts the polygon count without changing the covered surface: llvmpipe
+pays per polygon (geometry shader, triangle setup) as well as per pixel.
+
+Each face is stored by grid indices (`Proxy.faces`) -- what the OpenGL
+pass uploads, with the boundary coordinates in float64 beside it -- and is
+available as world-space quads (`Proxy.quads`) for tests and tools.
+
+Axis rule: axis numbers 0, 1, 2 are x, y, z; a face perpendicular to axis
+``a`` spans axes ``u = (a+1) % 3`` and ``v = (a+2) % 3`` (so ``e_u x e_v =
+e_a``, right-handed). Mask arrays are ``[z, y, x]``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .classify import SupercellGrid
+
+
+@dataclass(eq=False)
+class Proxy:
+    """Outer faces of the PC supercells of one grid.
+
+    Attributes
+    ----------
+    grid : SupercellGrid
+    pc : ndarray of bool, shape ``grid.shape`` ([z, y, x])
+        The possibly contributing supercells.
+    faces : ndarray of int32, shape (Q, 6)
+        ``(axis, plane, u0, u1, v0, v1)``: the face lies in the plane
+        ``edges[axis][plane]`` and spans ``edges[u][u0]..edges[u][u1]`` and
+        ``edges[v][v0]..edges[v][v1]`` (supercell boundary indices).
+    outward : ndarray of int8, shape (Q,)
+        +1 where the outward normal (away from the PC side) is ``+e_axis``.
+    world_edges : tuple of three float64 arrays
+        Supercell boundaries in world coordinates along x, y, z.
+    """
+
+    grid: SupercellGrid
+    pc: np.ndarray = field(repr=False)
+    faces: np.ndarray = field(repr=False)
+    outward: np.ndarray = field(repr=False)
+    world_edges: tuple = field(repr=False)
+
+    @property
+    def n_polygons(self):
+        """Number of quads."""
+        return int(self.faces.shape[0])
+
+    @property
+    def axis(self):
+        """Axis (0, 1, 2 = x, y, z) each quad is perpendicular to, shape (Q,)."""
+        return self.faces[:, 0].astype(np.int64)
+
+    @property
+    def plane(self):
+        """World coordinate of each quad's plane along its axis, float64 (Q,)."""
+        out = np.empty(self.n_polygons)
+        for a in range(3):
+            sel = self.faces[:, 0] == a
+            out[sel] = self.world_edges[a][self.faces[sel, 1]]
+        return out
+
+    @property
+    def bounds(self):
+        """World box ``(lo, hi)`` of the whole grid (the volume's box), each (x, y, z)."""
+        lo = np.array([e[0] for e in self.world_edges])
+        hi = np.array([e[-1] for e in self.world_edges])
+        return lo, hi
+
+    def quads(self):
+        """World corners of every quad, float64 (Q, 4, 3).
+
+        Counter-clockwise seen from outside (right-hand rule gives the
+        outward normal).
+        """
+        q = np.empty((self.n_polygons, 4, 3))
+        for a in range(3):
+            sel = np.flatnonzero(self.faces[:, 0] == a)
+            f = self.faces[sel]
+            u, v = (a + 1) % 3, (a + 2) % 3
+            eu, ev = self.world_edges[u], self.world_edges[v]
+            u0, u1, v0, v1 = eu[f[:, 2]], eu[f[:, 3]], ev[f[:, 4]], ev[f[:, 5]]
+            q[sel, :, a] = self.world_edges[a][f[:, 1]][:, None]
+            q[sel, :, u] = np.stack([u0, u1, u1, u0], axis=1)
+            q[sel, :, v] = np.stack([v0, v0, v1, v1], axis=1)
+        flip = self.outward < 0
+        q[flip] = q[flip][:, ::-1]
+        return q
+
+    def unit_faces(self):
+        """Faces split back into single supercell faces: (axis, plane, u, v, outward), (N, 5) int64."""
+        f = self.faces.astype(np.int64)
+        nu = f[:, 3] - f[:, 2]
+        nv = f[:, 5] - f[:, 4]
+        rep = nu * nv
+        idx = np.repeat(np.arange(len(f)), rep)
+        k = np.arange(rep.sum()) - np.repeat(np.cumsum(rep) - rep, rep)
+        g = f[idx]
+        return np.stack([g[:, 0], g[:, 1], g[:, 2] + k % nu[idx], g[:, 4] + k // nu[idx],
+                         self.outward[idx].astype(np.int64)], axis=1)
+
+
+def build_proxy(grid, pc, world_edges, *, merge=True):
+    """The outer faces of the PC supercells.
+
+    Parameters
+    ----------
+    grid : SupercellGrid
+    pc : ndarray of bool, shape ``grid.shape``
+        Possibly contributing supercells ([z, y, x]).
+    world_edges : tuple of three float64 arrays
+        ``grid.world_edges(volume)``.
+    merge : bool, default True
+        Merge coplanar, equally oriented neighbour faces into rectangles:
+        runs along ``u`` into strips, then strips with the same extent
+        along ``v``. The surface is unchanged; the polygon count drops
+        about 3x on smooth surfaces (CT head skin, 1-cell supercells:
+        496k faces -> 163k rectangles).
+
+    Returns
+    -------
+    Proxy
+
+    Notes
+    -----
+    A face is emitted wherever a supercell and its neighbour (or the
+    outside, through the padding) differ in PC-ness, so the faces are
+    closed (every edge shared by an even number of faces) and bound
+    exactly the union of PC supercells.
+    """
+    pc = np.asarray(pc, dtype=bool)
+    if pc.shape != grid.shape:
+        raise ValueError(f"PC mask shape {pc.shape} does not match the grid {grid.shape}")
+    padded = np.pad(pc, 1)
+    rows = []
+    for a in range(3):
+        arr_axis = 2 - a   # array axes are [z, y, x]
+        hi = padded[tuple(slice(1, None) if d == arr_axis else slice(1, -1) for d in range(3))]
+        lo = padded[tuple(slice(None, -1) if d == arr_axis else slice(1, -1) for d in range(3))]
+        iz, iy, ix = np.nonzero(hi != lo)
+        # hi[..., p] is the supercell above boundary p: PC there means the
+        # empty side (and the outward normal) is towards -axis.
+        sign = np.where(hi[iz, iy, ix], -1, 1).astype(np.int8)
+        idx = (ix, iy, iz)
+        plane, u, v = idx[a], idx[(a + 1) % 3], idx[(a + 2) % 3]
+        rows.append((np.full(len(plane), a), plane, u, v, sign))
+    axis, plane, u, v, sign = (np.concatenate(c) for c in zip(*rows))
+    if merge and len(axis):
+        faces, outward = _merge_runs(axis, plane, u, v, sign)
+    else:
+        faces = np.stack([axis, plane, u, u + 1, v, v + 1], axis=1).astype(np.int32)
+        outward = sign
+    return Proxy(grid=grid, pc=pc, faces=faces, outward=outward.astype(np.int8),
+                 world_edges=tuple(np.asarray(e, dtype=np.float64) for e in world_edges))
+
+
+def _merge_runs(axis, plane, u, v, sign):
+    """Merge unit faces into rectangles: runs along u into strips, then equal strips along v."""
+    n = [int(x.max()) + 2 for x in (plane, u, v)]
+    # Strips: sort by (axis, sign, plane, v, u), merge consecutive u.
+    key = _pack((axis, sign + 1, plane, v, u), (3, 3) + (n[0], n[2], n[1]))
+    order = np.argsort(key, kind="stable")
+    axis, plane, u, v, sign = axis[order], plane[order], u[order], v[order], sign[order]
+    first, last = _runs((axis, sign, plane, v), u, u + 1)
+    axis, plane, sign, v = axis[first], plane[first], sign[first], v[first]
+    u0, u1 = u[first], u[last] + 1
+    # Rectangles: sort strips by (axis, sign, plane, u0, u1, v), merge consecutive v.
+    key = _pack((axis, sign + 1, plane, u0, u1, v), (3, 3, n[0], n[1], n[1], n[2]))
+    order = np.argsort(key, kind="stable")
+    axis, plane, sign, v, u0, u1 = (x[order] for x in (axis, plane, sign, v, u0, u1))
+    first, last = _runs((axis, sign, plane, u0, u1), v, v + 1)
+    faces = np.stack([axis[first], plane[first], u0[first], u1[first], v[first], v[last] + 1],
+                     axis=1).astype(np.int32)
+    return faces, sign[first]
+
+
+def _pack(cols, sizes):
+    """One sortable int64 key from small non-negative integer columns (lexicographic order)."""
+    if np.prod([float(s) for s in sizes]) >= 2.0 ** 62:
+        # Too many supercells for one int64: rank lexicographically instead.
+        order = np.lexsort(cols[::-1])
+        key = np.empty(len(order), np.int64)
+        key[order] = np.arange(len(order))
+        return key
+    key = np.zeros(len(cols[0]), np.int64)
+    for c, n in zip(cols, sizes):
+        key = key * n + c
+    return key
+
+
+def _runs(group, pos, nxt):
+    """First and last index of each run: same ``group`` columns and ``pos`` continuing the previous ``nxt``."""
+    same = pos[1:] == nxt[:-1]
+    for g in group:
+        same &= g[1:] == g[:-1]
+    first = np.flatnonzero(np.concatenate([[True], ~same]))
+    last = np.concatenate([first[1:], [len(pos)]]) - 1
+    return first, last
+
+
+def proxy_for_iso(volume, iso, size, *, merge=True):
+    """Classify, then build the proxy: the one-call path from a volume and isovalue.
+
+    Parameters
+    ----------
+    volume : Volume
+    iso : float
+    size : float or (m, n, p)
+        Supercell size in cells.
+    merge : bool, default True
+
+    Returns
+    -------
+    Proxy
+    """
+    from .classify import VolumeIndex
+    index = VolumeIndex.of(volume)
+    grid = index.grid(size)
+    return build_proxy(grid, index.classify(iso, size), grid.world_edges(volume), merge=merge)
+
+
+__all__ = ["Proxy", "SupercellGrid", "build_proxy", "proxy_for_iso"]

@@ -1,0 +1,209 @@
+"""Cell ranges, supercell grids and ranges, isovalue classification, the size chooser.
+
+Truth: slow loops over cells, and an exact per-piece reference for
+supercell ranges (`parc_reference.box_range`: the interpolant's extremes
+over the part of a cell a box overlaps are at the part's corners).
+Tolerances: whole-cell ranges are compared exactly (native dtype);
+ranges that interpolate are float64 widened by `RANGE_PAD` of the data's
+magnitude, and must contain the reference and exceed it by no more than
+that pad plus rounding.
+"""
+import math
+
+import numpy as np
+import pytest
+
+from data_tools import InputError, Volume
+from parc.classify import (RANGE_PAD, VolumeIndex, cell_minmax, choose_supercell, classify_iso,
+                           count_outer_faces, supercell_grid, supercell_ranges)
+from parc_reference import box_range, cell_minmax_loop
+
+DTYPES = ["uint8", "int16", "uint16", "float32", "float64"]
+
+
+def _random(shape, dtype, seed):
+    rng = np.random.default_rng(seed)
+    if np.dtype(dtype).kind == "f":
+        return (rng.standard_normal(shape) * 100).astype(dtype)
+    info = np.iinfo(dtype)
+    return rng.integers(max(info.min, -30000), min(info.max, 30000), shape, endpoint=True).astype(dtype)
+
+
+@pytest.mark.parametrize("dtype", DTYPES)
+@pytest.mark.parametrize("shape", [(2, 2, 2), (3, 5, 4), (7, 6, 9)])
+def test_cell_minmax_matches_loop(dtype, shape):
+    data = _random(shape, dtype, seed=sum(shape))
+    mn, mx = cell_minmax(data)
+    rmn, rmx = cell_minmax_loop(data)
+    assert mn.dtype == data.dtype and mn.shape == rmn.shape
+    np.testing.assert_array_equal(mn, rmn)
+    np.testing.assert_array_equal(mx, rmx)
+
+
+def test_cell_minmax_in_slabs(monkeypatch):
+    """Slab processing (forced tiny) gives the same as one slab."""
+    import parc.classify as cl
+    data = _random((9, 7, 8), "int16", seed=3)
+    whole = cell_minmax(data)
+    monkeypatch.setattr(cl, "CHUNK_VALUES", 1)
+    sliced = cell_minmax(data)
+    for a, b in zip(whole, sliced):
+        np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.parametrize("dtype", DTYPES)
+def test_classify_matches_per_cell_loop(dtype):
+    data = _random((6, 7, 8), dtype, seed=11)
+    mn, mx = cell_minmax(data)
+    # Isovalues at sample values (boundaries of ranges), between them, outside.
+    isos = [float(data.flat[5]), float(data.flat[77]), float(np.median(data)) + 0.5,
+            float(data.min()), float(data.max()), float(data.max()) + 1.0]
+    for iso in isos:
+        pc = classify_iso(mn, mx, iso)
+        nz, ny, nx = data.shape
+        for k in range(nz - 1):
+            for j in range(ny - 1):
+                for i in range(nx - 1):
+                    c = data[k:k + 2, j:j + 2, i:i + 2].astype(np.float64) - iso
+                    assert pc[k, j, i] == (c.min() <= 0.0 <= c.max()), (iso, k, j, i)
+
+
+def test_classify_compares_in_float64():
+    """A float32 range that ends between float32(iso) and iso must follow the float64 comparison."""
+    mn = np.array([0.1], np.float32)        # float32(0.1) = 0.10000000149... > 0.1
+    mx = np.array([0.2], np.float32)
+    assert not classify_iso(mn, mx, 0.1)[0]
+    assert classify_iso(mn, mx, float(np.float32(0.1)))[0]
+
+
+def test_grid_edges_and_counts():
+    g = supercell_grid((10, 7, 5), (3, 2.5, 0.5))
+    assert g.counts == (3, 3, 8)
+    np.testing.assert_array_equal(g.edges[0], [0, 3, 6, 9])
+    np.testing.assert_array_equal(g.edges[1], [0, 2.5, 5, 6])
+    np.testing.assert_array_equal(g.edges[2], np.arange(9) * 0.5)
+    assert g.shape == (8, 3, 3)
+    assert not g.integral and supercell_grid((10, 7, 5), 2).integral
+    # A size larger than the volume: one supercell.
+    assert supercell_grid((4, 4, 4), 10).counts == (1, 1, 1)
+    # A last supercell thinner than SNAP joins its neighbour (no zero-width box).
+    g = supercell_grid((2, 2, 2), 1.0 / (3 + 2e-9))
+    assert g.counts == (3, 3, 3) and np.all(np.diff(g.edges[0]) > 0.3)
+    # 10 * 0.1 is 1.0000000000000002: snapped, no sliver supercell.
+    g = supercell_grid((2, 2, 2), 0.1)
+    assert g.counts == (10, 10, 10)
+    assert g.edges[0][-1] == 1.0 and np.all(np.diff(g.edges[0]) > 0.09)
+
+
+def test_near_integer_size_is_that_integer():
+    """3 - 1e-10 cells per supercell: the same boundaries and ranges as 3 (no sliver)."""
+    data = _random((5, 8, 7), "int16", seed=8)
+    a = supercell_grid((7, 8, 5), 3 - 1e-10)
+    b = supercell_grid((7, 8, 5), 3)
+    for ea, eb in zip(a.edges, b.edges):
+        np.testing.assert_array_equal(ea, eb)
+    cells = cell_minmax(data)
+    for x, y in zip(supercell_ranges(data, a, cell_ranges=cells), supercell_ranges(data, b)):
+        np.testing.assert_array_equal(x, y)
+
+
+@pytest.mark.parametrize("size", [0, -1, math.inf, math.nan, "x", (1, 2)])
+def test_grid_rejects_bad_sizes(size):
+    with pytest.raises(InputError):
+        supercell_grid((5, 5, 5), size)
+
+
+def test_grid_rejects_too_many_supercells():
+    with pytest.raises(InputError, match="supercells"):
+        supercell_grid((512, 512, 512), 0.01)
+
+
+@pytest.mark.parametrize("size", [1, 2, 3, 4.0, (2, 3, 1), (5, 1, 2)])
+@pytest.mark.parametrize("dtype", ["uint8", "int16", "float32"])
+def test_whole_cell_ranges_exact(size, dtype):
+    data = _random((7, 8, 9), dtype, seed=5)
+    grid = supercell_grid((9, 8, 7), size)
+    mn, mx = supercell_ranges(data, grid)
+    mn2, mx2 = supercell_ranges(data, grid, cell_ranges=cell_minmax(data))
+    assert mn.dtype == data.dtype and mn2.dtype == data.dtype
+    ex, ey, ez = grid.edges
+    for c in range(grid.shape[0]):
+        for b in range(grid.shape[1]):
+            for a in range(grid.shape[2]):
+                block = data[int(ez[c]):int(ez[c + 1]) + 1, int(ey[b]):int(ey[b + 1]) + 1,
+                             int(ex[a]):int(ex[a + 1]) + 1]
+                assert mn[c, b, a] == block.min() == mn2[c, b, a]
+                assert mx[c, b, a] == block.max() == mx2[c, b, a]
+
+
+@pytest.mark.parametrize("size", [0.5, 1.5, 4.5, 0.3, 2.25, (2, 3, 1.5), (0.5, 1, 2.5), (1.5, 1.5, 1)])
+@pytest.mark.parametrize("dtype", ["uint8", "float64"])
+def test_fractional_ranges_against_exact_reference(size, dtype):
+    data = _random((6, 7, 8), dtype, seed=17)
+    grid = supercell_grid((8, 7, 6), size)
+    mn, mx = supercell_ranges(data, grid)
+    assert mn.dtype == np.float64
+    pad = RANGE_PAD * float(np.abs(data.astype(np.float64)).max())
+    slack = pad + 1e-13 * float(np.abs(data.astype(np.float64)).max())
+    ex, ey, ez = grid.edges
+    for c in range(grid.shape[0]):
+        for b in range(grid.shape[1]):
+            for a in range(grid.shape[2]):
+                rmn, rmx = box_range(data, (ex[a], ey[b], ez[c]), (ex[a + 1], ey[b + 1], ez[c + 1]))
+                assert mn[c, b, a] <= rmn <= mn[c, b, a] + 2 * slack, (size, c, b, a)
+                assert mx[c, b, a] - 2 * slack <= rmx <= mx[c, b, a], (size, c, b, a)
+
+
+def test_fractional_ranges_in_slabs(monkeypatch):
+    import parc.classify as cl
+    data = _random((9, 6, 7), "int16", seed=2)
+    grid = supercell_grid((7, 6, 9), (1.5, 0.5, 2.5))
+    whole = supercell_ranges(data, grid)
+    monkeypatch.setattr(cl, "CHUNK_VALUES", 1)
+    sliced = supercell_ranges(data, grid)
+    for a, b in zip(whole, sliced):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_subcell_ranges_tighter_than_cells():
+    """Sub-cells of a linear ramp: each half-cell sees half the cell's range."""
+    x = np.arange(5, dtype=np.float64)
+    data = np.broadcast_to(x * 10.0, (3, 3, 5)).copy()
+    grid = supercell_grid((5, 3, 3), 0.5)
+    mn, mx = supercell_ranges(data, grid)
+    np.testing.assert_allclose(mn[0, 0, :], np.arange(8) * 5.0, atol=1e-9)
+    np.testing.assert_allclose(mx[0, 0, :], np.arange(1, 9) * 5.0, atol=1e-9)
+
+
+def test_volume_index_caches():
+    vol = Volume(_random((6, 7, 8), "int16", seed=9))
+    idx = VolumeIndex.of(vol)
+    assert VolumeIndex.of(vol) is idx
+    assert idx.cell_minmax() is idx.cell_minmax()
+    assert idx.ranges(2) is idx.ranges((2, 2, 2))
+    assert idx.ranges(1) is idx.cell_minmax()
+    pc = idx.classify(float(np.median(vol.data)), 2)
+    assert pc.shape == idx.grid(2).shape and pc.dtype == bool
+
+
+def test_choose_supercell_reports_its_model():
+    from data_tools.synthetic import sphere
+    vol = sphere(40)
+    size, table = choose_supercell(VolumeIndex.of(vol), 0.0, rays=200 * 200, cores=2)
+    assert size in [r["size"] for r in table]
+    best = min(table, key=lambda r: r["total_s"])
+    assert best["size"] == size
+    polys = [r["faces"] for r in table]
+    assert polys[0] > polys[-1] > 0
+    for r in table:
+        assert r["total_s"] == pytest.approx(r["raster_s"] + r["cast_s"])
+
+
+def test_count_outer_faces():
+    pc = np.zeros((3, 4, 5), bool)
+    assert count_outer_faces(pc) == 0
+    pc[1, 1, 1] = True
+    assert count_outer_faces(pc) == 6
+    pc[1, 1, 2] = True
+    assert count_outer_faces(pc) == 10
+    assert count_outer_faces(np.ones((2, 3, 4), bool)) == 2 * (6 + 8 + 12)

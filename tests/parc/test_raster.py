@@ -1,0 +1,290 @@
+"""The OpenGL pass: per-pixel near/far ray distances must be conservative.
+
+Truth: `parc_reference.segments_reference`, the caster's float64 ray of
+every pixel against every PC supercell box by the slab test on closed
+boxes (rays within 1e-12 of the scene scale of touching a box count as
+touching it). Assertion, for every pixel whose ray meets a PC box:
+``0 <= near <= first entry`` and ``far >= last exit``. How much looser
+than the reference the segments are (in cells) is reported at the end of
+the run, not asserted.
+"""
+
+import numpy as np
+import pytest
+
+from data_tools import Volume
+from parc.camera import Camera
+from parc.classify import VolumeIndex
+from parc.proxy import build_proxy
+from parc.raster import Segments, margin, raster_segments
+from parc_reference import segments_reference
+
+SIZES = [1, 0.5, 1.5, (2, 3, 1.5)]
+
+
+def _volume(seed, dims=(9, 8, 7), spacing=(1.0, 1.0, 1.0), origin=(0.0, 0.0, 0.0)):
+    """A smooth random field: PC regions are blobs with holes, not noise."""
+    rng = np.random.default_rng(seed)
+    nx, ny, nz = dims
+    data = rng.standard_normal((nz, ny, nx))
+    for axis in range(3):
+        data = (np.roll(data, 1, axis) + 2 * data + np.roll(data, -1, axis)) / 4
+    return Volume(data.astype(np.float32), spacing=spacing, origin=origin)
+
+
+def _proxy(vol, size, frac=0.35):
+    idx = VolumeIndex.of(vol)
+    mn, mx = idx.ranges(size)
+    iso = float(np.quantile(np.asarray(mx, np.float64), 1 - frac))
+    grid = idx.grid(size)
+    pc = idx.classify(iso, size)
+    assert pc.any() and not pc.all()
+    return build_proxy(grid, pc, grid.world_edges(vol), merge=True)
+
+
+def _check(camera, proxy, width, height, label, report, *, cell=1.0):
+    seg = raster_segments(camera, width, height, proxy)
+    assert isinstance(seg, Segments)
+    assert seg.near.shape == seg.far.shape == (height, width)
+    assert seg.near.dtype == seg.far.dtype == np.float64
+    near_ref, far_ref = segments_reference(camera, width, height, proxy,
+                                           touch=1e-12 * seg.info["scale"])
+    meet = np.isfinite(near_ref)
+    assert meet.any(), "test camera sees no PC supercell"
+    bad_near = meet & ~(seg.near <= near_ref)
+    bad_far = meet & ~(seg.far >= far_ref)
+    assert not bad_near.any(), (
+        f"{label}: near too large at {np.argwhere(bad_near)[:5].tolist()}: "
+        f"{seg.near[bad_near][:5]} > {near_ref[bad_near][:5]}")
+    assert not bad_far.any(), (
+        f"{label}: far too small at {np.argwhere(bad_far)[:5].tolist()}: "
+        f"{seg.far[bad_far][:5]} < {far_ref[bad_far][:5]}")
+    assert (seg.near[meet] >= 0).all()
+    extra = (seg.near <= seg.far) & ~meet
+    slack = np.concatenate([near_ref[meet] - seg.near[meet], seg.far[meet] - far_ref[meet]]) / cell
+    report(f"{label:<44} px {meet.sum():5d}  loose max {slack.max():.2e} mean {slack.mean():.2e} cells"
+           f"  extra px {extra.sum():3d}  polys {seg.polygons}")
+    return seg, near_ref, far_ref
+
+
+@pytest.mark.parametrize("size", SIZES, ids=str)
+@pytest.mark.parametrize("seed", [0, 1, 2])
+@pytest.mark.parametrize("parallel", [False, True], ids=["persp", "parallel"])
+def test_random_views(gl, looseness, size, seed, parallel):
+    vol = _volume(seed, spacing=(1.0, 0.8, 1.3), origin=(2.0, -1.0, 0.5))
+    proxy = _proxy(vol, size)
+    rng = np.random.default_rng(100 + seed)
+    cam = Camera.framing(*vol.bounds, azimuth=rng.uniform(0, 360), elevation=rng.uniform(-80, 80),
+                         parallel=parallel, zoom=rng.uniform(0.8, 1.6), fov=rng.uniform(20, 70))
+    _check(cam, proxy, 48, 36, f"random {'par' if parallel else 'per'} s={size} seed={seed}", looseness)
+
+
+AXES = [((0, 0, -1), (0, 1, 0)), ((0, 0, 1), (0, 1, 0)), ((-1, 0, 0), (0, 0, 1)),
+        ((1, 0, 0), (0, 0, 1)), ((0, -1, 0), (1, 0, 0)), ((0, 1, 0), (0, 0, 1))]
+
+
+@pytest.mark.parametrize("size", [1, 2, 0.5], ids=str)
+@pytest.mark.parametrize("view", AXES, ids=lambda v: "f=" + ",".join(map(str, v[0])))
+def test_axis_aligned_parallel_rays_on_grid_edges(gl, looseness, size, view):
+    """Parallel rays along grid lines: every other pixel's ray runs exactly along cell edges."""
+    vol = _volume(7, dims=(9, 9, 9))
+    proxy = _proxy(vol, size, frac=0.5)
+    f, up = np.array(view[0], float), view[1]
+    # With 32 pixels and scale 8, ray origins step by 0.5 from 4.25 -+ 8, so
+    # half the rays lie on integer lines (see the module notes).
+    eye = np.full(3, 4.25) - 20.0 * f
+    cam = Camera(eye=tuple(eye), look_at=tuple(eye + f), up=up, parallel_scale=8.0)
+    o = _origins(cam, 32, 32)
+    on_lines = np.all(np.abs(o - np.round(o)) * (f == 0) == 0, axis=-1)
+    assert on_lines.sum() >= 200
+    _check(cam, proxy, 32, 32, f"axis par f={view[0]} s={size}", looseness)
+
+
+def _origins(cam, w, h):
+    from parc_reference import caster_rays
+    return caster_rays(cam, w, h)[0]
+
+
+@pytest.mark.parametrize("size", [1, 1.5], ids=str)
+@pytest.mark.parametrize("view", AXES, ids=lambda v: "f=" + ",".join(map(str, v[0])))
+def test_axis_aligned_perspective(gl, looseness, size, view):
+    """Eye on a grid line looking along an axis: the centre ray runs along cell edges."""
+    vol = _volume(8, dims=(9, 9, 9))
+    proxy = _proxy(vol, size, frac=0.5)
+    f, up = np.array(view[0], float), view[1]
+    eye = np.full(3, 4.0) - 14.0 * f
+    cam = Camera(eye=tuple(eye), look_at=tuple(eye + f), up=up, fov=50.0)
+    _check(cam, proxy, 31, 31, f"axis per f={view[0]} s={size}", looseness)
+
+
+@pytest.mark.parametrize("size", SIZES, ids=str)
+@pytest.mark.parametrize("seed", [0, 1])
+def test_eye_inside_volume_empty_supercell(gl, looseness, size, seed):
+    vol = _volume(seed)
+    proxy = _proxy(vol, size)
+    rng = np.random.default_rng(seed)
+    kz, ky, kx = _pick(rng, ~proxy.pc)
+    eye = _centre(proxy, kx, ky, kz)
+    cam = Camera(eye=tuple(eye), look_at=tuple(eye + rng.standard_normal(3)), up=(0.3, 0.2, 1.0), fov=100.0)
+    seg, _, _ = _check(cam, proxy, 40, 32, f"eye in empty s={size} seed={seed}", looseness)
+    assert not seg.info["eye_inside"] and seg.info["d_min"] > 0
+
+
+def _pick(rng, mask):
+    """A random ``(kz, ky, kx)`` where ``mask`` is true."""
+    cand = np.argwhere(mask)
+    return cand[rng.integers(len(cand))]
+
+
+def _centre(proxy, kx, ky, kz):
+    ex, ey, ez = proxy.world_edges
+    return np.array([(ex[kx] + ex[kx + 1]) / 2, (ey[ky] + ey[ky + 1]) / 2, (ez[kz] + ez[kz + 1]) / 2])
+
+
+@pytest.mark.parametrize("size", SIZES, ids=str)
+@pytest.mark.parametrize("where", ["centre", "corner", "face"])
+def test_eye_inside_pc_supercell(gl, looseness, size, where):
+    """The paper's special case: every ray starts inside, so near is 0 for every pixel."""
+    vol = _volume(3)
+    proxy = _proxy(vol, size)
+    rng = np.random.default_rng(5)
+    kz, ky, kx = _pick(rng, proxy.pc)
+    ex, ey, ez = proxy.world_edges
+    eye = _centre(proxy, kx, ky, kz)
+    if where == "corner":
+        eye = np.array([ex[kx + 1], ey[ky], ez[kz + 1]])
+    elif where == "face":
+        eye[0] = ex[kx]
+    cam = Camera(eye=tuple(eye), look_at=tuple(eye + rng.standard_normal(3)), up=(0.1, 1.0, 0.3), fov=120.0)
+    seg, _, far_ref = _check(cam, proxy, 40, 32, f"eye in PC ({where}) s={size}", looseness)
+    assert seg.info["eye_inside"]
+    assert (seg.near == 0).all() and (seg.far >= seg.near).all()
+
+
+@pytest.mark.parametrize("gap", [1e-9, 1e-4, 0.3])
+def test_eye_just_outside_pc(gl, looseness, gap):
+    """A PC box a hair in front of the eye: the clip plane must sit below it."""
+    vol = _volume(4)
+    data = vol.data.copy()
+    data[:2, :2, :2] = 0.0
+    data[0, 0, 0] = 10.0          # cell (0, 0, 0) spans the isovalue
+    vol = Volume(data)
+    idx = VolumeIndex.of(vol)
+    grid = idx.grid(1)
+    pc = idx.classify(5.0, 1)
+    assert pc[0, 0, 0]
+    proxy = build_proxy(grid, pc, grid.world_edges(vol))
+    eye = np.array([-gap, 0.5, 0.5])
+    cam = Camera(eye=tuple(eye), look_at=(4.0, 0.9, 0.7), up=(0, 0, 1), fov=90.0)
+    seg, near_ref, _ = _check(cam, proxy, 33, 33, f"eye {gap:g} outside PC", looseness)
+    assert not seg.info["eye_inside"] and seg.info["d_min"] == pytest.approx(gap)
+    assert np.nanmin(np.where(np.isfinite(near_ref), near_ref, np.nan)) < 2 * gap + 1e-12
+
+
+@pytest.mark.parametrize("size", SIZES, ids=str)
+def test_parallel_view_plane_through_volume(gl, looseness, size):
+    """Parallel rays start on the view plane: inside a PC box some start at t = 0."""
+    vol = _volume(6)
+    proxy = _proxy(vol, size, frac=0.5)
+    c = vol.center
+    cam = Camera(eye=tuple(c), look_at=tuple(c + np.array([0.3, -0.5, 0.8])), up=(0, 1, 0),
+                 parallel_scale=6.0)
+    seg, near_ref, _ = _check(cam, proxy, 40, 40, f"parallel plane through s={size}", looseness)
+    starts_inside = near_ref == 0
+    assert starts_inside.any()
+    assert (seg.near[starts_inside] == 0).all()
+
+
+@pytest.mark.parametrize("parallel", [False, True], ids=["persp", "parallel"])
+def test_far_from_origin_anisotropic(gl, looseness, parallel):
+    """Coordinates ~1e4 with small cells: the margins scale with the scene, not with 1."""
+    spacing = (0.05, 0.07, 0.2)
+    vol = _volume(9, dims=(10, 9, 8), spacing=spacing, origin=(1.0e4, -2.5e3, 7.7e3))
+    proxy = _proxy(vol, 1.5)
+    cam = Camera.framing(*vol.bounds, azimuth=200, elevation=35, parallel=parallel, zoom=1.3)
+    _check(cam, proxy, 48, 40, f"far origin {'par' if parallel else 'per'}", looseness, cell=min(spacing))
+
+
+def test_wide_fov_eye_inside_volume(gl, looseness):
+    vol = _volume(11, dims=(12, 10, 9))
+    proxy = _proxy(vol, 1)
+    idx = np.argwhere(~proxy.pc)[len(np.argwhere(~proxy.pc)) // 2]
+    eye = _centre(proxy, idx[2], idx[1], idx[0])
+    cam = Camera(eye=tuple(eye), look_at=tuple(eye + np.array([1.0, 0.2, -0.1])), up=(0, 0, 1), fov=160.0)
+    _check(cam, proxy, 64, 24, "wide fov 160 inside volume", looseness)
+
+
+def test_empty_proxy_has_no_segments(gl):
+    vol = _volume(1)
+    idx = VolumeIndex.of(vol)
+    grid = idx.grid(2)
+    pc = idx.classify(1e9, 2)
+    proxy = build_proxy(grid, pc, grid.world_edges(vol))
+    assert proxy.n_polygons == 0
+    seg = raster_segments(Camera.framing(*vol.bounds), 16, 12, proxy)
+    assert (seg.near > seg.far).all()
+
+
+def test_reuses_upload_and_reports_timing(gl):
+    vol = _volume(2)
+    proxy = _proxy(vol, 1)
+    cam = Camera.framing(*vol.bounds)
+    a = raster_segments(cam, 20, 10, proxy)
+    b = raster_segments(cam, 20, 10, proxy)
+    assert b.seconds["upload"] == 0.0
+    for key in ("prepare", "upload", "draw", "readback", "post", "total"):
+        assert key in a.seconds and a.seconds[key] >= 0
+    np.testing.assert_array_equal(a.near, b.near)
+    np.testing.assert_array_equal(a.far, b.far)
+    assert a.polygons == proxy.n_polygons
+    assert a.seg.shape == (10, 20, 2)
+
+
+def test_margin_is_small_against_cells():
+    """The read-back margin is ~1e-6 of the scene scale: far below a cell for sane volumes."""
+    assert margin(100.0, 300.0) < 1e-3
+    assert margin(1.0, 1.0) > 2.0 ** -24
+
+
+def test_opengl_unavailable_is_an_input_error(monkeypatch):
+    """No EGL: a distinct InputError with one clear line (no GL needed for this test)."""
+    import moderngl
+
+    from data_tools import InputError
+    from parc import raster
+
+    def fail(**kwargs):
+        raise Exception("eglGetDisplay failed\nsecond line of driver noise")
+
+    monkeypatch.setattr(raster, "_CONTEXT", None)
+    monkeypatch.setattr(moderngl, "create_standalone_context", fail)
+    with pytest.raises(raster.OpenGLUnavailable) as err:
+        raster.get_context()
+    assert issubclass(raster.OpenGLUnavailable, InputError)
+    msg = str(err.value)
+    assert "\n" not in msg and "OpenGL is not available" in msg and "eglGetDisplay failed" in msg
+
+
+@pytest.mark.parametrize("w, h", [(1, 1), (3, 61), (57, 2)])
+def test_extreme_image_shapes(gl, looseness, w, h):
+    vol = _volume(5)
+    proxy = _proxy(vol, 1, frac=0.6)
+    cam = Camera.framing(*vol.bounds, azimuth=10, elevation=30, zoom=3.0)
+    seg = raster_segments(cam, w, h, proxy)
+    near_ref, far_ref = segments_reference(cam, w, h, proxy, touch=1e-12 * seg.info["scale"])
+    meet = np.isfinite(near_ref)
+    assert (seg.near[meet] <= near_ref[meet]).all() and (seg.far[meet] >= far_ref[meet]).all()
+
+
+def test_parallel_inside_in_bands(gl, monkeypatch):
+    """The CPU test of parallel ray origins gives the same answer band by band."""
+    from parc import raster
+    vol = _volume(6)
+    proxy = _proxy(vol, 1.5, frac=0.5)
+    c = vol.center
+    cam = Camera(eye=tuple(c), look_at=tuple(c + np.array([0.3, -0.5, 0.8])), up=(0, 1, 0),
+                 parallel_scale=6.0)
+    whole = raster._parallel_inside(cam, 37, 29, proxy)
+    monkeypatch.setattr(raster, "_BAND_PIXELS", 40)
+    banded = raster._parallel_inside(cam, 37, 29, proxy)
+    assert whole.any() and np.array_equal(whole, banded)
