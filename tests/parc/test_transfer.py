@@ -1,0 +1,586 @@
+"""Transfer functions: lookups, the kernel, the range query, presets and files.
+
+Truth: ``np.interp`` and a scalar ``bisect`` reference written out here for
+the lookups; for `nonzero_in`, a brute-force search of each range (every
+control point in it, the midpoints between them, and the floats just
+outside each end), which no interval table is involved in.
+"""
+import bisect
+import json
+import math
+from fractions import Fraction
+
+import numba
+import numpy as np
+import pytest
+
+from parc import InputError
+from parc import transfer as T
+from parc.transfer import (PRESET_DESCRIPTIONS, PRESETS, TransferFunction, correct_opacity,
+                           load_transfer_function, preset, save_transfer_function, tf_lookup,
+                           tf_opacity)
+
+
+# --------------------------------------------------------------------------
+# Helpers
+# --------------------------------------------------------------------------
+
+def random_tf(rng, *, steps=True, zero_prob=0.5, n_max=8, scale=1000.0):
+    """A random TF: values with occasional jumps, many zero opacities."""
+    def values(n):
+        x = np.sort(rng.uniform(-scale, scale, n))
+        if steps:
+            for i in range(1, n):
+                if rng.random() < 0.2 and (i < 2 or x[i - 2] != x[i - 1]):
+                    x[i] = x[i - 1]            # a jump; never three equal values
+        return x
+
+    n = int(rng.integers(1, n_max + 1))
+    m = int(rng.integers(1, n_max + 1))
+    ox = values(n)
+    oy = np.where(rng.random(n) < zero_prob, 0.0, rng.random(n))
+    cx = values(m)
+    return TransferFunction(np.column_stack([ox, oy]), np.column_stack([cx, rng.random((m, 3))]))
+
+
+def scalar_reference(x, y, v):
+    """Straight-line reference: bisect for the segment, then the same formula."""
+    if math.isnan(v):
+        return 0.0
+    if v >= x[-1]:
+        return y[-1]
+    if v < x[0]:
+        return y[0]
+    i = bisect.bisect_right(list(x), v) - 1
+    t = (v - x[i]) / (x[i + 1] - x[i])
+    return y[i] + t * (y[i + 1] - y[i])
+
+
+def probe_values(tf, rng, n=2000):
+    """Random values, every control point and its float neighbours, and the specials."""
+    op_x, _, col_x, _ = tf.arrays()
+    pts = np.concatenate([op_x, col_x])
+    lo, hi = pts.min(), pts.max()
+    span = max(hi - lo, 1.0)
+    v = [rng.uniform(lo - 0.2 * span, hi + 0.2 * span, n), pts,
+         np.nextafter(pts, -np.inf), np.nextafter(pts, np.inf),
+         [np.nan, np.inf, -np.inf, 0.0, -0.0, 1e300, -1e300]]
+    return np.concatenate([np.asarray(a, dtype=np.float64) for a in v])
+
+
+@numba.njit(cache=True)
+def kernel_lookup_all(op_x, op_y, col_x, col_rgb, values):
+    out = np.empty((values.shape[0], 4))
+    for k in range(values.shape[0]):
+        r, g, b, a = tf_lookup(op_x, op_y, col_x, col_rgb, values[k])
+        out[k, 0] = r
+        out[k, 1] = g
+        out[k, 2] = b
+        out[k, 3] = a
+    return out
+
+
+@numba.njit(cache=True)
+def kernel_opacity_all(op_x, op_y, values):
+    out = np.empty(values.shape[0])
+    for k in range(values.shape[0]):
+        out[k] = tf_opacity(op_x, op_y, values[k])
+    return out
+
+
+def exact_opacity(xs, ys, v):
+    """The piecewise-linear opacity in exact rational arithmetic (``xs``, ``ys``, ``v``: Fractions)."""
+    if v < xs[0]:
+        return ys[0]
+    if v >= xs[-1]:
+        return ys[-1]
+    i = bisect.bisect_right(xs, v) - 1            # last point at or below v; xs[i + 1] > v
+    return ys[i] + (v - xs[i]) / (xs[i + 1] - xs[i]) * (ys[i + 1] - ys[i])
+
+
+def brute_nonzero(tf, mn, mx):
+    """Does [mn, mx] meet the closure of {v : opacity(v) > 0}? Exact search, no interval table.
+
+    Between consecutive control points the opacity is linear and >= 0, so it
+    is positive somewhere on such an open stretch exactly when it is positive
+    at its midpoint. Probes: the ends, the control points inside, midpoints
+    between all of these, and the midpoints of the stretches just outside
+    each end (positive there means the end is in the closure).
+    """
+    if math.isnan(mn) or math.isnan(mx):
+        return len(tf.support()) > 0
+    if mn > mx:
+        return False
+    op_x, op_y = tf.arrays()[:2]
+    xs = [Fraction(x) for x in op_x]
+    ys = [Fraction(y) for y in op_y]
+    lo, hi = Fraction(mn), Fraction(mx)
+    cps = sorted(set(xs))
+    pts = sorted({lo, hi} | {c for c in cps if lo <= c <= hi})
+    below = [c for c in cps if c < lo]
+    above = [c for c in cps if c > hi]
+    left = below[-1] if below else lo - 1
+    right = above[0] if above else hi + 1
+    probes = pts + [(a + b) / 2 for a, b in zip(pts, pts[1:])] + [(left + lo) / 2, (hi + right) / 2]
+    return any(exact_opacity(xs, ys, p) > 0 for p in probes)
+
+
+def random_ranges(tf, rng, n=400):
+    """Ranges that start and end on control points, next to them, at random, and degenerate."""
+    op_x = tf.arrays()[0]
+    span = max(op_x[-1] - op_x[0], 1.0)
+
+    def pick(k):
+        kind = rng.integers(0, 4, k)
+        cp = rng.choice(op_x, k)
+        out = np.where(kind == 0, rng.uniform(op_x[0] - 0.3 * span, op_x[-1] + 0.3 * span, k), cp)
+        out = np.where(kind == 1, np.nextafter(cp, -np.inf), out)
+        out = np.where(kind == 2, np.nextafter(cp, np.inf), out)
+        return out
+
+    a, b = pick(n), pick(n)
+    mn, mx = np.minimum(a, b), np.maximum(a, b)
+    same = rng.random(n) < 0.25
+    mx[same] = mn[same]
+    return mn, mx
+
+
+# --------------------------------------------------------------------------
+# Lookups
+# --------------------------------------------------------------------------
+
+def test_lookups_match_np_interp():
+    rng = np.random.default_rng(1)
+    for _ in range(200):
+        tf = random_tf(rng, steps=False)
+        op_x, op_y, col_x, col_rgb = tf.arrays()
+        v = probe_values(tf, rng)
+        v = v[np.isfinite(v)]
+        got_a = tf.opacity(v)
+        got_c = tf.color(v)
+        want_a = np.interp(v, op_x, op_y)
+        want_c = np.stack([np.interp(v, col_x, col_rgb[:, c]) for c in range(3)], axis=-1)
+        np.testing.assert_allclose(got_a, want_a, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(got_c, want_c, rtol=0, atol=1e-12)
+        # At control points and outside the points np.interp does no arithmetic: exact.
+        for x, y, got in ((op_x, op_y, got_a), (col_x, col_rgb, got_c)):
+            exact = np.isin(v, x) | (v < x[0]) | (v > x[-1])
+            want = np.interp(v[exact], x, y) if y.ndim == 1 else \
+                np.stack([np.interp(v[exact], x, y[:, c]) for c in range(3)], axis=-1)
+            np.testing.assert_array_equal(got[exact], want)
+
+
+def test_lookups_with_jumps_match_the_scalar_reference():
+    rng = np.random.default_rng(2)
+    for _ in range(200):
+        tf = random_tf(rng, steps=True)
+        op_x, op_y, col_x, col_rgb = tf.arrays()
+        v = probe_values(tf, rng, n=300)
+        want_a = np.array([scalar_reference(op_x, op_y, x) for x in v])
+        np.testing.assert_array_equal(tf.opacity(v), want_a)
+        for c in range(3):
+            want = np.array([scalar_reference(col_x, col_rgb[:, c], x) for x in v])
+            np.testing.assert_array_equal(tf.color(v)[:, c], np.where(np.isnan(v), 0.0, want))
+
+
+def test_jump_is_continuous_from_the_right():
+    tf = TransferFunction([[0.0, 0.0], [1.0, 0.0], [1.0, 0.8], [2.0, 0.8]])
+    assert tf.opacity(1.0) == 0.8
+    assert tf.opacity(np.nextafter(1.0, 0.0)) == 0.0
+    down = TransferFunction([[0.0, 0.5], [1.0, 0.5], [1.0, 0.0]])
+    assert down.opacity(1.0) == 0.0 and down.opacity(0.999) == 0.5
+    np.testing.assert_array_equal(down.support(), [[-np.inf, 1.0]])
+
+
+def test_constant_outside_and_nan_is_transparent_black():
+    tf = TransferFunction([[10.0, 0.2], [20.0, 0.6]], [[15.0, 0.1, 0.2, 0.3]])
+    np.testing.assert_array_equal(tf.opacity([-1e300, 5.0, 10.0, 20.0, 1e300, np.inf, -np.inf]),
+                                  [0.2, 0.2, 0.2, 0.6, 0.6, 0.6, 0.2])
+    np.testing.assert_array_equal(tf.color([0.0, 100.0]), [[0.1, 0.2, 0.3]] * 2)
+    np.testing.assert_array_equal(tf.lookup(np.nan), [0.0, 0.0, 0.0, 0.0])
+    assert tf_lookup(*tf.arrays(), np.nan) == (0.0, 0.0, 0.0, 0.0)
+    assert tf.opacity(np.int16(15)) == 0.4
+    assert tf.lookup(np.zeros((2, 3))).shape == (2, 3, 4)
+
+
+def test_kernel_equals_numpy_bit_for_bit():
+    rng = np.random.default_rng(3)
+    for _ in range(300):
+        tf = random_tf(rng, steps=bool(rng.random() < 0.5))
+        v = probe_values(tf, rng)
+        got = kernel_lookup_all(*tf.arrays(), v)
+        want = tf.lookup(v)
+        np.testing.assert_array_equal(got.view(np.int64), want.view(np.int64))
+        op_x, op_y = tf.arrays()[:2]
+        np.testing.assert_array_equal(kernel_opacity_all(op_x, op_y, v).view(np.int64),
+                                      want[:, 3].view(np.int64))
+
+
+def test_arrays_are_float64_contiguous_and_read_only():
+    tf = preset("ct_skin_bone")
+    op_x, op_y, col_x, col_rgb = tf.arrays()
+    assert col_rgb.shape == (len(col_x), 3) and op_y.shape == op_x.shape
+    for a in tf.arrays():
+        assert a.dtype == np.float64 and a.flags.c_contiguous and not a.flags.writeable
+
+
+def test_correct_opacity():
+    a = np.array([0.0, 1e-12, 0.01, 0.3, 0.9, 0.999999, 1.0])
+    for ratio in (0.1, 0.5, 1.0, 2.0, 4.0, 37.5):
+        got = np.array([correct_opacity(x, ratio) for x in a])
+        np.testing.assert_allclose(got, 1.0 - (1.0 - a) ** ratio, rtol=1e-12, atol=1e-15)
+    assert correct_opacity(0.3, 1.0) == 0.3
+    assert correct_opacity(0.0, 3.0) == 0.0 and correct_opacity(1.0, 0.25) == 1.0
+    # Two half steps are one whole step.
+    half = correct_opacity(0.4, 0.5)
+    assert abs(1 - (1 - half) ** 2 - 0.4) < 1e-15
+    assert T.reference_step((1.0, 0.5, 2.0)) == 0.125
+
+
+# --------------------------------------------------------------------------
+# The range query
+# --------------------------------------------------------------------------
+
+def test_nonzero_in_matches_brute_force_on_random_functions():
+    rng = np.random.default_rng(4)
+    for _ in range(150):
+        tf = random_tf(rng, steps=bool(rng.random() < 0.5), zero_prob=0.6)
+        mn, mx = random_ranges(tf, rng, n=150)
+        got = tf.nonzero_in(mn, mx)
+        want = np.array([brute_nonzero(tf, a, b) for a, b in zip(mn, mx)])
+        bad = np.flatnonzero(got != want)
+        assert len(bad) == 0, (tf.opacity_points, mn[bad[0]], mx[bad[0]], got[bad[0]])
+
+
+def test_nonzero_in_is_conservative_against_the_kernel():
+    # Every float the kernel gives opacity > 0 lies in the support, so a
+    # range holding it is never classified empty.
+    rng = np.random.default_rng(5)
+    for _ in range(200):
+        tf = random_tf(rng, zero_prob=0.7)
+        v = probe_values(tf, rng)
+        a = kernel_opacity_all(*tf.arrays()[:2], v)
+        pos = v[a > 0]
+        assert tf.nonzero_in(pos, pos).all()
+        sup = tf.support()
+        inside = ((pos[:, None] >= sup[:, 0]) & (pos[:, None] <= sup[:, 1])).any(axis=1)
+        assert inside.all()
+
+
+@pytest.mark.parametrize("width", [1e-6, 1e-9, 2.0 ** -30])
+def test_narrow_spike(width):
+    c = 600.5
+    tf = TransferFunction([[c, 0.0], [c + width / 2, 0.7], [c + width, 0.0]])
+    np.testing.assert_array_equal(tf.support(), [[c, c + width]])
+    e = c + width
+    cases = [
+        ((c - 10, c + 10), True),                   # contains it
+        ((c - 10, c), True),                        # touches the left end
+        ((e, e + 10), True),                        # touches the right end
+        ((c, c), True), ((e, e), True),             # degenerate, on the ends
+        ((c + width / 2, c + width / 2), True),     # degenerate, at the peak
+        ((c - 10, np.nextafter(c, 0)), False),
+        ((np.nextafter(e, np.inf), e + 10), False),
+        ((e + 1, e + 1), False),
+    ]
+    mn = np.array([a for (a, _), _ in cases])
+    mx = np.array([b for (_, b), _ in cases])
+    np.testing.assert_array_equal(tf.nonzero_in(mn, mx), [w for _, w in cases])
+    # A dense sweep of the floats between the ends finds opacity only inside.
+    v = np.linspace(c - width, e + width, 10001)
+    pos = v[tf.opacity(v) > 0]
+    assert pos.min() > c and pos.max() < e
+    assert tf.nonzero_in(pos, pos).all()
+
+
+def test_isolated_triangle_and_boundary_ranges():
+    tf = TransferFunction([[0, 0.0], [10, 0.0], [11, 0.5], [12, 0.0], [100, 0.0], [100, 0.3]])
+    np.testing.assert_array_equal(tf.support(), [[10, 12], [100, np.inf]])
+    mn = np.array([0, 0, 12, 12.5, 13, 50, 100, 99, 200, 5, 11, -np.inf, 13])
+    mx = np.array([9.99, 10, 12, 13, 99, 99.999, 100, 99.5, 300, 4, 11, np.inf, np.inf])
+    want = [False, True, True, False, False, False, True, False, True, False, True, True, True]
+    np.testing.assert_array_equal(tf.nonzero_in(mn, mx), want)
+
+
+def test_nonzero_in_dtypes_shapes_and_chunks(monkeypatch):
+    tf = TransferFunction([[500.0, 0.0], [600.0, 0.5], [700.0, 0.0]])
+    mn = np.array([[0, 450], [700, 650]], dtype=np.int16)
+    mx = np.array([[500, 499], [800, 651]], dtype=np.int16)
+    np.testing.assert_array_equal(tf.nonzero_in(mn, mx), [[True, False], [True, True]])
+    np.testing.assert_array_equal(tf.nonzero_in(mn.astype(np.uint16), mx.astype(np.float32)),
+                                  [[True, False], [True, True]])
+    assert tf.nonzero_in(np.zeros((3, 1)), np.full((1, 4), 550.0)).shape == (3, 4)
+    assert tf.nonzero_in(550, 560).shape == ()
+    assert not tf.nonzero_in(650.0, 550.0)          # reversed: empty
+    assert tf.nonzero_in(np.nan, 1.0)               # unknown: conservative
+    assert not TransferFunction([[0, 0.0]]).nonzero_in(np.nan, 1.0)
+    assert TransferFunction([[0, 0.1]]).nonzero_in(-1e300, -1e300)
+    # Chunked evaluation gives the same answer.
+    rng = np.random.default_rng(6)
+    a = rng.uniform(300, 900, 10007)
+    b = a + rng.uniform(0, 50, a.size)
+    whole = tf.nonzero_in(a, b)
+    monkeypatch.setattr(T, "_CHUNK", 1000)
+    np.testing.assert_array_equal(tf.nonzero_in(a, b), whole)
+
+
+def test_nonzero_in_on_cell_ranges_matches_sampling():
+    """Cells classified empty really get opacity 0 at every sample of their interpolant."""
+    from parc.classify import cell_minmax
+    rng = np.random.default_rng(7)
+    k, j, i = np.mgrid[0:6, 0:7, 0:8]
+    data = (40 * i + 30 * j + 20 * k + rng.integers(-15, 16, i.shape)).astype(np.int16)
+    tf = TransferFunction([[480, 0.0], [500, 0.3], [520, 0.0]])
+    mn, mx = cell_minmax(data)
+    pc = tf.nonzero_in(mn, mx)
+    u = np.linspace(0, 1, 9)
+    for k, j, i in zip(*np.nonzero(~pc)):
+        c = data[k:k + 2, j:j + 2, i:i + 2].astype(np.float64)
+        w = np.stack(np.meshgrid(u, u, u, indexing="ij"), -1)
+        z, y, x = w[..., 0], w[..., 1], w[..., 2]
+        val = sum(c[a, b, d] * (z if a else 1 - z) * (y if b else 1 - y) * (x if d else 1 - x)
+                  for a in (0, 1) for b in (0, 1) for d in (0, 1))
+        assert not (tf.opacity(val) > 0).any()
+    assert 0 < pc.sum() < pc.size
+
+
+# --------------------------------------------------------------------------
+# Presets
+# --------------------------------------------------------------------------
+
+def test_presets_are_valid_and_described():
+    assert set(PRESETS) == set(PRESET_DESCRIPTIONS) == {"ct_skin", "ct_bone", "ct_skin_bone",
+                                                         "greyscale", "viridis"}
+    for name in PRESETS:
+        tf = preset(name, (0.0, 3272.0))
+        assert isinstance(tf, TransferFunction) and tf.name == name
+        assert "\n" not in PRESET_DESCRIPTIONS[name] and PRESET_DESCRIPTIONS[name]
+        v = np.linspace(-100, 4000, 4101)
+        rgba = tf.lookup(v)
+        assert ((rgba >= 0) & (rgba <= 1)).all()
+        assert tf.opacity(0.0) == 0.0                 # air / background is empty
+        assert len(tf.support()) > 0
+
+
+def test_ct_presets_classify_the_expected_tissues():
+    skin, bone, both = preset("ct_skin"), preset("ct_bone"), preset("ct_skin_bone")
+    air, skin_v, tissue, bone_v = 200.0, 700.0, 1050.0, 1800.0
+    assert skin.opacity(skin_v) > 0 and skin.opacity(air) == 0 and skin.opacity(tissue) == 0
+    assert bone.opacity(bone_v) > 0 and bone.opacity(1150.0) == 0 and bone.opacity(skin_v) == 0
+    assert 0 < both.opacity(skin_v) < skin.opacity(skin_v) < both.opacity(bone_v)
+    assert both.opacity(tissue) == 0
+    r, g, b = skin.color(skin_v)
+    assert r > g > b                                  # a warm skin tone
+    assert bone.color(bone_v).min() > 0.85            # whitish
+    assert not both.nonzero_in(1001, 1199)            # soft tissue interior stays empty
+    assert both.nonzero_in(1001, 1200)                # touching the bone's start counts
+
+
+def test_ramp_presets_follow_the_data_range():
+    for name in ("greyscale", "viridis"):
+        tf = preset(name, (-50.0, 150.0))
+        assert tf.opacity(-50.0) == 0.0 and tf.opacity(-30.0) == 0.0
+        assert tf.opacity(150.0) == T.RAMP_OPACITY and tf.opacity(100.0) > tf.opacity(50.0) > 0
+        with pytest.raises(InputError, match="data range"):
+            preset(name)
+    grey = preset("greyscale", (0, 10))
+    np.testing.assert_array_equal(grey.color([0, 10]), [[0, 0, 0], [1, 1, 1]])
+    vir = preset("viridis", (0, 255))
+    np.testing.assert_array_equal(vir.color([0, 255]), [T.VIRIDIS[0][1:], T.VIRIDIS[-1][1:]])
+    # Perceptual: luminance rises monotonically along viridis.
+    rgb = vir.color(np.linspace(0, 255, 200))
+    lum = rgb @ [0.2126, 0.7152, 0.0722]
+    assert (np.diff(lum) > 0).all()
+    # A one-value range still gives a valid function.
+    assert preset("viridis", (7, 7)).opacity(7) == 0.0
+
+
+# --------------------------------------------------------------------------
+# Files
+# --------------------------------------------------------------------------
+
+@pytest.mark.parametrize("ext", [".toml", ".json"])
+def test_round_trip(tmp_path, ext):
+    rng = np.random.default_rng(8)
+    for k in range(20):
+        tf = random_tf(rng)
+        tf.name = f"random \"{k}\" é"
+        path = tmp_path / f"tf{k}{ext}"
+        save_transfer_function(tf, path)
+        back = load_transfer_function(path)
+        assert back == tf and back.name == tf.name
+    for name in PRESETS:
+        tf = preset(name, (0, 3272))
+        save_transfer_function(tf, tmp_path / f"p{ext}")
+        assert load_transfer_function(str(tmp_path / f"p{ext}")) == tf
+
+
+def test_our_format_by_hand(tmp_path):
+    p = tmp_path / "skin.toml"
+    p.write_text('name = "skin"\nopacity = [[500, 0.0], [650, 0.05], [1000, 0]]\n'
+                 'color = [[500, 0.8, 0.5, 0.4], [1000, 1, 0.9, 0.8]]\n')
+    tf = load_transfer_function(str(p))
+    assert tf.name == "skin" and tf.opacity(650) == 0.05
+    np.testing.assert_allclose(tf.color(750), [0.9, 0.7, 0.6], rtol=0, atol=1e-15)
+    q = tmp_path / "white.json"
+    q.write_text(json.dumps({"opacity": [[3, 0.5]]}))
+    np.testing.assert_array_equal(load_transfer_function(q).color([0, 9]), [[1, 1, 1]] * 2)
+    n = tmp_path / "norm.toml"
+    n.write_text('space = "normalized"\nopacity = [[0, 0], [0.5, 0.2], [1, 0.4]]\n'
+                 'color = [[0, 0, 0, 0], [1, 1, 1, 1]]\n')
+    tf = load_transfer_function(n, data_range=(100, 300))
+    np.testing.assert_array_equal(tf.arrays()[0], [100, 200, 300])
+    assert tf.opacity(200) == 0.2
+
+
+PARAVIEW = [{
+    "ColorSpace": "Diverging", "Name": "Cool to Warm", "NanColor": [1, 1, 0],
+    "RGBPoints": [0.0, 0.23, 0.299, 0.754, 0.5, 0.865, 0.865, 0.865, 1.0, 0.706, 0.016, 0.15],
+    "Points": [0.0, 0.0, 0.5, 0.0, 0.25, 0.0, 0.5, 0.0, 1.0, 0.8, 0.5, 0.0],
+}]
+
+
+def test_paraview_json(tmp_path):
+    p = tmp_path / "cool_warm.json"
+    p.write_text(json.dumps(PARAVIEW))
+    raw = load_transfer_function(p)
+    assert raw.name == "Cool to Warm"
+    np.testing.assert_array_equal(raw.opacity_points, [[0, 0], [0.25, 0], [1, 0.8]])
+    np.testing.assert_array_equal(raw.color(0.5), [0.865, 0.865, 0.865])
+    # Normalized span: stretched onto the data range.
+    tf = load_transfer_function(p, data_range=(1000, 2000))
+    np.testing.assert_array_equal(tf.arrays()[2], [1000, 1500, 2000])
+    np.testing.assert_array_equal(tf.arrays()[0], [1000, 1250, 2000])
+    np.testing.assert_allclose(tf.color(1500), [0.865] * 3, atol=1e-15)
+    # One object, no opacity points, absolute values: a ramp, not stretched.
+    q = tmp_path / "abs.json"
+    q.write_text(json.dumps({"Name": "abs", "RGBPoints": [-1000, 0, 0, 0, 3000, 1, 1, 1]}))
+    tf = load_transfer_function(q, data_range=(0, 10))
+    np.testing.assert_array_equal(tf.arrays()[2], [-1000, 3000])
+    assert tf.opacity(-1000) == 0 and tf.opacity(3000) == T.RAMP_OPACITY
+    # [-1, 1] is stretched too.
+    r = tmp_path / "sym.json"
+    r.write_text(json.dumps([{"RGBPoints": [-1, 0, 0, 1, 0, 1, 1, 1, 1, 1, 0, 0]}]))
+    tf = load_transfer_function(r, data_range=(-5, 5))
+    np.testing.assert_array_equal(tf.arrays()[2], [-5, 0, 5])
+
+
+def test_presets_by_name_and_passthrough():
+    assert load_transfer_function("ct_bone") == preset("ct_bone")
+    tf = preset("ct_skin")
+    assert load_transfer_function(tf) is tf
+
+
+def _check_error(exc, *parts):
+    msg = str(exc.value)
+    assert "\n" not in msg, msg
+    for p in parts:
+        assert p in msg, (p, msg)
+
+
+BAD_FILES = [
+    # (file name, content, parts the message must contain)
+    ("bad.toml", "opacity = [[0, 0]", ["bad.toml", "malformed TOML"]),
+    ("bad.json", '{"opacity": [[0, 0]', ["bad.json", "malformed JSON"]),
+    ("keys.toml", 'opacty = [[0, 0.1]]\ncolour = [[0, 1, 1, 1]]\nopacity = [[0, 0]]',
+     ["keys.toml", "'colour'", "'opacty'", "unknown keys"]),
+    ("missing.toml", 'color = [[0, 1, 1, 1]]', ["missing.toml", "opacity", "missing"]),
+    ("str.toml", 'opacity = "ramp"', ["str.toml", "opacity:", "list"]),
+    ("type.toml", 'opacity = [[0, "a"]]', ["type.toml", "opacity[0]", "alpha", "number"]),
+    ("bool.json", '{"opacity": [[0, true]]}', ["bool.json", "opacity[0]", "number"]),
+    ("name.toml", 'name = 3\nopacity = [[0, 0]]', ["name.toml", "name", "string"]),
+    ("short.toml", 'opacity = [[0, 0]]\ncolor = [[0, 1, 1, 1], [1, 1, 1]]',
+     ["short.toml", "color[1]", "[value, r, g, b]"]),
+    ("order.toml", 'opacity = [[0, 0], [5, 0.1], [4, 0.2]]', ["order.toml", "opacity[2]", "ascend"]),
+    ("triple.toml", 'opacity = [[1, 0], [1, 0.1], [1, 0.2]]', ["triple.toml", "opacity[2]", "third"]),
+    ("alpha.toml", 'opacity = [[0, 0], [1, 1.5]]', ["alpha.toml", "opacity[1]", "alpha", "[0, 1]"]),
+    ("rgb.json", '{"opacity": [[0, 0]], "color": [[0, 0.5, -0.1, 0]]}',
+     ["rgb.json", "color[0]", "g", "[0, 1]"]),
+    ("empty.toml", 'opacity = []', ["empty.toml", "opacity", "empty"]),
+    ("nan.json", '{"opacity": [[0, NaN]]}', ["nan.json", "opacity[0]", "finite"]),
+    ("huge.json", '{"opacity": [[1' + "0" * 400 + ', 0.5]]}', ["huge.json", "opacity[0]", "finite"]),
+    ("space.toml", 'space = "log"\nopacity = [[0, 0]]', ["space.toml", "space"]),
+    ("normout.toml", 'space = "normalized"\nopacity = [[0, 0], [1.5, 0.1]]',
+     ["normout.toml", "opacity[1]", "normalized"]),
+    ("top.json", '[1, 2, 3]', ["top.json", "[0]"]),
+    ("scalar.json", '3', ["scalar.json", "object"]),
+    ("pv_len.json", '[{"RGBPoints": [0, 1, 1]}]', ["pv_len.json", "RGBPoints", "multiple of 4"]),
+    ("pv_rgb.json", '[{"RGBPoints": [0, 0, 0, 0, 1, 1, 2, 1]}]', ["pv_rgb.json", "RGBPoints[6]", "[0, 1]"]),
+    ("pv_order.json", '[{"RGBPoints": [0, 0, 0, 0, 1, 1, 1, 1], "Points": [0, 0, 0.5, 0, -1, 1, 0.5, 0]}]',
+     ["pv_order.json", "Points[4]", "ascend"]),
+    ("pv_alpha.json", '[{"RGBPoints": [0, 0, 0, 0], "Points": [0, 2, 0.5, 0]}]',
+     ["pv_alpha.json", "Points[1]", "alpha"]),
+    ("pv_type.json", '[{"RGBPoints": [0, 0, "x", 0]}]', ["pv_type.json", "RGBPoints[2]", "number"]),
+    ("pv_none.json", '[{"Name": "x", "IndexedColors": [1, 0, 0]}]', ["pv_none.json", "RGBPoints", "missing"]),
+    ("pv_empty.json", '[]', ["pv_empty.json", "empty"]),
+    ("pv_name.json", '[{"Name": 5, "RGBPoints": [0, 0, 0, 0]}]', ["pv_name.json", "Name"]),
+    ("tf.yaml", "opacity: []", ["tf.yaml", ".yaml", ".toml or .json"]),
+]
+
+
+@pytest.mark.parametrize("name,content,parts", BAD_FILES, ids=[b[0] for b in BAD_FILES])
+def test_bad_files(tmp_path, name, content, parts):
+    p = tmp_path / name
+    p.write_text(content)
+    with pytest.raises(InputError) as exc:
+        load_transfer_function(str(p))
+    _check_error(exc, *parts)
+
+
+def test_missing_file_unknown_preset_and_needed_range(tmp_path):
+    with pytest.raises(InputError) as exc:
+        load_transfer_function(str(tmp_path / "nope.toml"))
+    _check_error(exc, "nope.toml", "not found")
+    with pytest.raises(InputError) as exc:
+        load_transfer_function("ct_skinbone")
+    _check_error(exc, "'ct_skinbone'", "ct_skin_bone", "viridis")
+    p = tmp_path / "norm.toml"
+    p.write_text('space = "normalized"\nopacity = [[0, 0], [1, 0.1]]')
+    with pytest.raises(InputError) as exc:
+        load_transfer_function(p)
+    _check_error(exc, "norm.toml", "space", "data range")
+    with pytest.raises(InputError) as exc:
+        load_transfer_function("greyscale")
+    _check_error(exc, "greyscale", "data range")
+    with pytest.raises(InputError) as exc:
+        load_transfer_function(tmp_path)
+    _check_error(exc, str(tmp_path))
+
+
+def test_constructor_errors_name_key_and_index():
+    cases = [
+        (dict(opacity=[]), ["opacity", "empty"]),
+        (dict(opacity=[[0, 0], [1, np.nan]]), ["opacity[1]", "finite"]),
+        (dict(opacity=[[0, 0], [-1, 0]]), ["opacity[1]", "ascend"]),
+        (dict(opacity=[[0, -0.1]]), ["opacity[0]", "[0, 1]"]),
+        (dict(opacity=[[0, 0]], color=[[0, 1, 1]]), ["color[0]"]),
+        (dict(opacity=[[-1e308, 0], [1e308, 0]]), ["opacity[1]", "overflow"]),
+        (dict(opacity=None), ["opacity"]),
+    ]
+    for kwargs, parts in cases:
+        with pytest.raises(InputError) as exc:
+            TransferFunction(**kwargs)
+        _check_error(exc, "transfer function", *parts)
+
+
+@pytest.mark.parametrize("dtype", [np.uint8, np.int8, np.uint16, np.int16])
+def test_nonzero_in_small_integer_table_equals_float_path(dtype):
+    rng = np.random.default_rng(9)
+    info = np.iinfo(dtype)
+    for _ in range(30):
+        tf = random_tf(rng, zero_prob=0.6, scale=float(info.max) * 1.2)
+        if rng.random() < 0.5:      # control points on integers, to hit the touching case
+            op = tf.opacity_points
+            op[:, 0] = np.round(op[:, 0])
+            op[1:, 0] = np.maximum.accumulate(op[1:, 0])
+            try:
+                tf = TransferFunction(op)
+            except InputError:      # rounding made three equal values
+                continue
+        a = rng.integers(info.min, info.max + 1, 5000, endpoint=False).astype(dtype)
+        b = rng.integers(info.min, info.max + 1, 5000, endpoint=False).astype(dtype)
+        a[:50] = b[:50]
+        a[50:60] = [info.min, info.max] * 5
+        got = tf.nonzero_in(a, b)
+        want = tf.nonzero_in(a.astype(np.float64), b.astype(np.float64))
+        np.testing.assert_array_equal(got, want)
