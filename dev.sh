@@ -17,13 +17,14 @@ if [ ! -x "$venv/bin/python" ] || [ ! -f "$stamp" ] || [ "$root/pyproject.toml" 
     touch "$stamp"
 fi
 
-# Compiled Numba kernels are cached outside the package, shared by runs.
-export NUMBA_CACHE_DIR="${NUMBA_CACHE_DIR:-$root/.numba_cache}"
+# Compiled Numba kernels are cached outside the package, shared by runs
+# (in a subfolder per version of the kernel sources; see raycast/config.py).
+export PARC_CACHE_DIR="${PARC_CACHE_DIR:-$root/.cache}"
 export PATH="$venv/bin:$PATH"
 
 if [ "${1:-}" = "test" ]; then
     shift
     cd "$root"
-    exec python -m pytest -q "$@"
+    exec python -m pytest "$@"
 fi
 exec "$@"

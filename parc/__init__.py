@@ -4,7 +4,8 @@ from data_tools.io import load_volume, save_volume
 
 from .camera import Camera
 from .renderer import RenderResult, render
-from .scene import Isosurface, Scene
+from .scene import Isosurface, Scene, Translucent
+from .transfer import TransferFunction, load_transfer_function
 
-__all__ = ["Camera", "InputError", "Isosurface", "RenderResult", "Scene", "Volume",
-           "load_volume", "render", "save_volume"]
+__all__ = ["Camera", "InputError", "Isosurface", "RenderResult", "Scene", "TransferFunction", "Translucent",
+           "Volume", "load_transfer_function", "load_volume", "render", "save_volume"]

@@ -486,14 +486,18 @@ def count_outer_faces(pc):
     return int(sum(np.count_nonzero(np.diff(p, axis=a)) for a in range(3)))
 
 
-def choose_supercell(index, iso, *, pixels=512 * 512, rays=None, cores=None,
-                     candidates=CANDIDATE_SIZES):
-    """Pick a supercell size for an isovalue by estimated render time.
+def choose_supercell(index, iso=None, *, pixels=512 * 512, rays=None, cores=None,
+                     candidates=CANDIDATE_SIZES, classify=None):
+    """Pick a supercell size for an isovalue (or any classification) by estimated render time.
 
     Parameters
     ----------
     index : VolumeIndex
-    iso : float
+    iso : float, optional
+        The isovalue; or give ``classify``.
+    classify : callable(size) -> bool array, optional
+        The possibly contributing supercells of a size (e.g. for a transfer
+        function), used instead of ``index.classify(iso, size)``.
     pixels : int, default 512*512
         Image size in pixels.
     rays : int or None
@@ -530,7 +534,7 @@ def choose_supercell(index, iso, *, pixels=512 * 512, rays=None, cores=None,
     rays = pixels // 2 if rays is None else rays
     table = []
     for m in candidates:
-        pc = index.classify(iso, m)
+        pc = classify(m) if classify is not None else index.classify(iso, m)
         faces = count_outer_faces(pc)
         raster = RASTER_FIXED_S * pixels / (512 * 512) + RASTER_PER_FACE_S * faces
         cells = rays * (WALK_BASE + WALK_PER_CELL * float(np.mean(_size_triple(m))))

@@ -91,6 +91,7 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
         s = res.stats
         row = {"method": name, "seconds": med, "phases": phases,
                "cells_visited": s["cells_visited"], "cubic_solves": s["cubic_solves"],
+               "samples": s.get("samples", 0),
                "hits": s["hits"], "pixels": s["pixels"], "polygons": s.get("polygons", 0),
                "supercell": s.get("supercell")}
         row.update(image_error(res, reference, cell))

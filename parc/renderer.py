@@ -1,4 +1,10 @@
-"""Render a scene: cast every pixel (unaccelerated, or over PARC's ray segments), then shade."""
+"""Render a scene: cast every pixel (unaccelerated, or over PARC's ray segments), then shade.
+
+One driver per kind of volume: `_render_iso` (opaque isosurface, first hit,
+then shading) and `_render_translucent` (accumulation). Both get their
+ray segments from `_parc_segments` when the method is ``"parc"``; the
+casting kernels are the same for both methods.
+"""
 from __future__ import annotations
 
 import time
@@ -7,16 +13,20 @@ from dataclasses import dataclass
 import numpy as np
 
 from data_tools import InputError
+from raycast.composite import (MODE_AVERAGE, MODE_COMPOSITE, MODE_MIP, N_PARAMS, P_AMBIENT, P_HI, P_LO,
+                               P_MODE, P_RATIO, P_SHADE, P_STEP, P_THRESHOLD, cast_accumulate_image)
 from raycast.iso import cast_iso_image, empty_outputs
 from raycast.shade import shade_headlight
 
-from .scene import Isosurface, Scene
+from .scene import Isosurface, Scene, Translucent
 
 METHODS = ("brute", "parc")
 
-#: Proxies kept per volume (isovalue, supercell size) so that only a camera
-#: change re-rasterizes; a few entries cover flipping between skin and bone.
+#: Proxies kept per volume (classification, supercell size) so that only a
+#: camera change re-rasterizes; a few entries cover flipping between skin and bone.
 PROXY_CACHE_SIZE = 4
+
+_MODES = {"composite": MODE_COMPOSITE, "mip": MODE_MIP, "average": MODE_AVERAGE}
 
 
 @dataclass
@@ -31,7 +41,7 @@ class RenderResult:
         World distance ``t`` along each pixel's ray to the first opaque hit, ``inf`` where none.
     stats : dict
         ``method``, ``seconds`` per phase, ``pixels``, ``rays``, ``cells_visited``,
-        ``cubic_solves``, ``hits`` and the parameters used.
+        ``cubic_solves``, ``samples``, ``hits``, ``polygons`` and the parameters used.
     """
 
     image: np.ndarray
@@ -46,11 +56,11 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, progress=None
     ----------
     scene : Scene
     method : {"brute", "parc"}
-        ``"brute"`` walks every cell along every ray inside the volume
-        (the unaccelerated reference). ``"parc"`` rasterizes the outer faces
-        of the possibly contributing supercells with OpenGL and walks only
-        each ray's ``[near, far]`` segment, with the same traversal and
-        intersection code, so the images are the same.
+        ``"brute"`` casts every ray through the whole volume (the
+        unaccelerated reference). ``"parc"`` rasterizes the outer faces of
+        the possibly contributing supercells with OpenGL and casts only each
+        ray's ``[near, far]`` segment, with the same traversal, intersection
+        and sampling code, so the images are the same.
     supercell : float or (m, n, p), optional
         PARC's supercell size in cells (fractional and below 1 allowed).
         Default: chosen by `parc.classify.choose_supercell`'s cost model.
@@ -65,36 +75,71 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, progress=None
     ------
     InputError
         An unknown method or a scene this renderer cannot show.
+    OpenGLUnavailable
+        ``method="parc"`` without an OpenGL context.
 
     References
     ----------
     Parker et al. 1998, §2 and Appendix A (traversal, intersection, normals);
-    Sobierajski & Avila 1995, §3 (depth-buffer PARC).
+    Sobierajski & Avila 1995, §3 (depth-buffer PARC) and §4 (accumulation).
     """
     if method not in METHODS:
         raise InputError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
-    if len(scene.volumes) != 1 or not isinstance(scene.volumes[0], Isosurface):
-        raise InputError("this renderer shows one isosurface per scene")
-    iso = scene.volumes[0]
+    if len(scene.volumes) != 1:
+        raise InputError("this renderer shows one volume per scene")
+    vis = scene.volumes[0]
+    timings = {}
+    t0 = time.perf_counter()
+    seg = np.empty((1, 1, 2))
+    extra = {}
+    if method == "parc":
+        seg, extra = _parc_segments(scene, vis, supercell, timings)
+    if isinstance(vis, Isosurface):
+        image, depth, counts = _render_iso(scene, vis, seg, method == "parc", timings, progress)
+    elif isinstance(vis, Translucent):
+        image, depth, counts = _render_translucent(scene, vis, seg, method == "parc", timings, progress)
+    else:
+        raise InputError(f"cannot render a {type(vis).__name__}; give an Isosurface or a Translucent")
+    if scene.background is not None:
+        image += (1.0 - image[..., 3:4]) * np.asarray(scene.background, np.float32)
+    timings["total"] = time.perf_counter() - t0
+    w, h = scene.size
+    vol = vis.volume
+    stats = {
+        "method": method,
+        "seconds": timings,
+        "pixels": w * h,
+        "rays": w * h,
+        "hits": int(np.isfinite(depth).sum()),
+        "cells_visited": counts.get("cells", 0),
+        "cubic_solves": counts.get("solves", 0),
+        "samples": counts.get("samples", 0),
+        "parameters": {"size": [w, h], "volume": vol.name, "dims": list(vol.dims), "dtype": str(vol.dtype)},
+    }
+    if isinstance(vis, Isosurface):
+        stats["parameters"]["isovalue"] = vis.value
+    else:
+        stats["parameters"].update({"mode": vis.mode, "step": vis.step, "threshold": vis.threshold,
+                                    "transfer_function": vis.tf.name or "custom"})
+    stats.update(extra)
+    return RenderResult(image=image, depth=depth, stats=stats)
+
+
+def _render_iso(scene, iso, seg, use_seg, timings, progress):
     vol = iso.volume
     w, h = scene.size
-    timings = {}
     t0 = time.perf_counter()
     cam = scene.camera.as_array()
     org = np.array(vol.origin)
     spc = np.array(vol.spacing)
     t, cell, uvw, counts = empty_outputs(w * h)
-    seg = np.empty((1, 1, 2))
     timings["setup"] = time.perf_counter() - t0
-    extra = {}
-    if method == "parc":
-        seg, extra = _parc_segments(scene, iso, supercell, timings)
 
     t0 = time.perf_counter()
     bands = _row_bands(h, w, progress)
     for n, (y0, y1) in enumerate(bands):
-        cast_iso_image(vol.data, org, spc, cam, w, h, iso.value,
-                       seg, method == "parc", t, cell, uvw, counts, y0, y1)
+        cast_iso_image(vol.data, org, spc, cam, w, h, iso.value, seg, use_seg,
+                       t, cell, uvw, counts, y0, y1)
         if progress is not None:
             progress((n + 1) / len(bands))
     timings["cast"] = time.perf_counter() - t0
@@ -103,58 +148,92 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, progress=None
     image = np.zeros((h, w, 4), np.float32)
     shade_headlight(vol.data, spc, cam, w, h, t, cell, uvw,
                     np.array(iso.color), np.array(iso.material, dtype=np.float64), image)
-    if scene.background is not None:
-        bg = np.asarray(scene.background, np.float32)
-        image += (1.0 - image[..., 3:4]) * bg
     timings["shade"] = time.perf_counter() - t0
-    timings["total"] = sum(timings.values())
-
-    stats = {
-        "method": method,
-        "seconds": timings,
-        "pixels": w * h,
-        "rays": w * h,
-        "hits": int(np.isfinite(t).sum()),
-        "cells_visited": int(counts[:, 0].sum()),
-        "cubic_solves": int(counts[:, 1].sum()),
-        "parameters": {"isovalue": iso.value, "size": [w, h], "volume": vol.name,
-                       "dims": list(vol.dims), "dtype": str(vol.dtype)},
-    }
-    stats.update(extra)
-    return RenderResult(image=image, depth=t.reshape(h, w), stats=stats)
+    sums = counts.sum(axis=0)
+    return image, t.reshape(h, w), {"cells": int(sums[0]), "solves": int(sums[1])}
 
 
-def _parc_segments(scene, iso, supercell, timings):
+def accumulation_params(vis):
+    """The ``params`` array of `raycast.composite` for a Translucent volume."""
+    from .transfer import reference_step
+    p = np.zeros(N_PARAMS)
+    p[P_STEP] = vis.step
+    p[P_MODE] = _MODES[vis.mode]
+    p[P_THRESHOLD] = vis.threshold
+    p[P_RATIO] = vis.step / reference_step(vis.volume.spacing)
+    p[P_SHADE] = 1.0 if vis.shade else 0.0
+    p[P_LO], p[P_HI] = vis.volume.value_range()
+    p[P_AMBIENT:P_AMBIENT + 4] = vis.material
+    return p
+
+
+def _render_translucent(scene, vis, seg, use_seg, timings, progress, bits=None):
+    vol = vis.volume
+    w, h = scene.size
+    t0 = time.perf_counter()
+    cam = scene.camera.as_array()
+    org = np.array(vol.origin)
+    spc = np.array(vol.spacing)
+    params = accumulation_params(vis)
+    op_x, op_y, col_x, col_rgb = vis.tf.arrays()
+    image = np.empty((h, w, 4), np.float32)
+    counts = np.empty(w * h, np.int64)
+    use_bits = bits is not None
+    if bits is None:
+        bits = np.zeros((1, 1, 1), np.uint32)
+    timings["setup"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    bands = _row_bands(h, w, progress)
+    for n, (y0, y1) in enumerate(bands):
+        cast_accumulate_image(vol.data, org, spc, cam, w, h, params, op_x, op_y, col_x, col_rgb,
+                              seg, use_seg, bits, use_bits, image, counts, y0, y1)
+        if progress is not None:
+            progress((n + 1) / len(bands))
+    timings["cast"] = time.perf_counter() - t0
+    return image, np.full((h, w), np.inf), {"samples": int(counts.sum())}
+
+
+def _classifier(index, vis):
+    """``(key, classify(size) -> bool array)`` of the possibly contributing supercells."""
+    if isinstance(vis, Isosurface):
+        return ("iso", vis.value), lambda size: index.classify(vis.value, size)
+    op_x, op_y, _, _ = vis.tf.arrays()
+    return (("tf", op_x.tobytes(), op_y.tobytes()),
+            lambda size: vis.tf.nonzero_in(*index.ranges(size)))
+
+
+def _parc_segments(scene, vis, supercell, timings):
     """Classify, build (or reuse) the proxy and rasterize it: the per-pixel segments and stats."""
     from .classify import VolumeIndex, _size_triple, choose_supercell
     from .proxy import build_proxy
     from .raster import raster_segments
 
-    vol = iso.volume
+    vol = vis.volume
     w, h = scene.size
     t0 = time.perf_counter()
     index = VolumeIndex.of(vol)
+    what, classify = _classifier(index, vis)
     extra = {}
     if supercell is None:
-        # The model classifies every candidate size: do it once per isovalue and image size.
+        # The model classifies every candidate size: do it once per classification and image size.
         chosen = index.__dict__.setdefault("_chosen", {})
-        if (iso.value, w * h) not in chosen:
-            chosen[(iso.value, w * h)] = choose_supercell(index, iso.value, pixels=w * h)
-        supercell, table = chosen[(iso.value, w * h)]
+        if (what, w * h) not in chosen:
+            chosen[(what, w * h)] = choose_supercell(index, classify=classify, pixels=w * h)
+        supercell, table = chosen[(what, w * h)]
         extra["supercell_model"] = table
     size = _size_triple(supercell)
-    key = (size, iso.value)
     proxies = index.__dict__.setdefault("_proxies", {})
-    proxy = proxies.get(key)
+    proxy = proxies.get((size, what))
     if proxy is None:
-        pc = index.classify(iso.value, size)
+        pc = classify(size)
         timings["classify"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         grid = index.grid(size)
         proxy = build_proxy(grid, pc, grid.world_edges(vol))
         if len(proxies) >= PROXY_CACHE_SIZE:
             proxies.pop(next(iter(proxies)))
-        proxies[key] = proxy
+        proxies[(size, what)] = proxy
         timings["proxy"] = time.perf_counter() - t0
     else:
         timings["classify"] = time.perf_counter() - t0

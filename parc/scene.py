@@ -53,6 +53,67 @@ class Isosurface:
         self.color = _unit_triple(self.color, "surface colour")
 
 
+MODES = ("composite", "mip", "average")
+
+
+@dataclass(eq=False)
+class Translucent:
+    """A volume shown through a transfer function: composite, maximum or average intensity.
+
+    Parameters
+    ----------
+    volume : Volume
+    tf : TransferFunction or str
+        A transfer function, a preset name or a file (see
+        `parc.transfer.load_transfer_function`).
+    mode : {"composite", "mip", "average"}, default "composite"
+    step : float or None
+        World distance between samples; default a quarter of the smallest
+        spacing (Sobierajski & Avila 1995, §6).
+    threshold : float, default 0.99
+        Early ray termination once the accumulated opacity reaches it (composite).
+    shade : bool, default False
+        Shade composite samples with the gradient (headlight, Blinn-Phong).
+    material : (ambient, diffuse, specular, shininess)
+
+    Raises
+    ------
+    InputError
+        An unknown mode, a step or threshold out of range, a bad transfer function.
+    """
+
+    volume: Volume
+    tf: object = "greyscale"
+    mode: str = "composite"
+    step: float | None = None
+    threshold: float = 0.99
+    shade: bool = False
+    material: tuple = DEFAULT_MATERIAL
+
+    def __post_init__(self):
+        from .transfer import TransferFunction, load_transfer_function, reference_step
+        if not isinstance(self.volume, Volume):
+            raise InputError(f"Translucent needs a Volume, got {type(self.volume).__name__}")
+        if not isinstance(self.tf, TransferFunction):
+            self.tf = load_transfer_function(self.tf, data_range=self.volume.value_range())
+        if self.mode not in MODES:
+            raise InputError(f"unknown mode {self.mode!r}; choose one of {', '.join(MODES)}")
+        if self.step is None:
+            self.step = reference_step(self.volume.spacing)
+        try:
+            self.step = float(self.step)
+        except (TypeError, ValueError):
+            raise InputError(f"step must be a number, got {self.step!r}") from None
+        if not (math.isfinite(self.step) and self.step > 0.0):
+            raise InputError(f"step must be positive, got {self.step}")
+        if self.step < 1e-4 * min(self.volume.spacing):
+            raise InputError(f"step {self.step:g} is below 1e-4 of the smallest spacing; "
+                             f"that is too many samples per ray")
+        if not 0.0 < float(self.threshold) <= 1.0:
+            raise InputError(f"opacity threshold must be in (0, 1], got {self.threshold}")
+        self.threshold = float(self.threshold)
+
+
 @dataclass(eq=False)
 class Scene:
     """A camera, an image size and what to show.
@@ -62,7 +123,7 @@ class Scene:
     camera : Camera
     size : (width, height)
         Image size in pixels, both at least 1.
-    volumes : list of Isosurface
+    volumes : list of Isosurface or Translucent
     lights : list
         Light sources; empty means a headlight at the eye.
     background : (r, g, b, a) or None

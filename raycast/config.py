@@ -1,10 +1,26 @@
 """Tunables and JIT flags for every kernel in `raycast`, in one place."""
+import hashlib
 import os
+from pathlib import Path
+
+
+def _source_digest():
+    """Digest of every kernel source file in this package."""
+    h = hashlib.sha1()
+    for f in sorted(Path(__file__).parent.glob("*.py")):
+        h.update(f.name.encode())
+        h.update(f.read_bytes())
+    return h.hexdigest()[:12]
+
 
 # Compiled kernels are cached outside the package (set before numba is
-# imported anywhere); `dev.sh` points this at the checkout's .numba_cache.
-os.environ.setdefault(
-    "NUMBA_CACHE_DIR", os.path.join(os.path.expanduser("~"), ".cache", "parc", "numba"))
+# imported anywhere), in a folder named for the kernels' sources: Numba
+# checks only the timestamp of the file that defines a kernel, so an edit
+# to a function it inlines from another module would otherwise leave a
+# stale compiled kernel in use. `dev.sh` puts the cache in the checkout.
+os.environ.setdefault("NUMBA_CACHE_DIR", os.path.join(
+    os.environ.get("PARC_CACHE_DIR", os.path.join(os.path.expanduser("~"), ".cache", "parc")),
+    "numba-" + _source_digest()))
 
 import numba  # noqa: E402
 

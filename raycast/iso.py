@@ -13,9 +13,58 @@ import numpy as np
 from numba import prange
 
 from .config import TILE_H, TILE_W, kernel
-from .cubic import cubic_along_ray, first_root, trilinear_coefficients
+from .cubic import cubic_along_ray, eval_cubic, first_root, trilinear_coefficients
 from .rays import camera_ray
 from .traverse import axis_state, clip_box, next_exit, start_index, step_axis, to_index_space
+
+
+@kernel
+def corners(data, iso, i, j, k):
+    """The eight corner samples of cell ``(i, j, k)`` minus ``iso``, and their min and max."""
+    v000 = float(data[k, j, i]) - iso
+    v100 = float(data[k, j, i + 1]) - iso
+    v010 = float(data[k, j + 1, i]) - iso
+    v110 = float(data[k, j + 1, i + 1]) - iso
+    v001 = float(data[k + 1, j, i]) - iso
+    v101 = float(data[k + 1, j, i + 1]) - iso
+    v011 = float(data[k + 1, j + 1, i]) - iso
+    v111 = float(data[k + 1, j + 1, i + 1]) - iso
+    lo = min(min(min(v000, v100), min(v010, v110)), min(min(v001, v101), min(v011, v111)))
+    hi = max(max(max(v000, v100), max(v010, v110)), max(max(v001, v101), max(v011, v111)))
+    return v000, v100, v010, v110, v001, v101, v011, v111, lo, hi
+
+
+@kernel
+def cell_cubic(v000, v100, v010, v110, v001, v101, v011, v111,
+               Ox, Oy, Oz, Dx, Dy, Dz, i, j, k, c0):
+    """The cubic ``(A, B, C, D)`` of cell ``(i, j, k)`` along the ray, ``s``
+    measured from ``t = c0``, and the local coordinates ``(u0, v0, w0)`` there."""
+    a0, ax, ay, az, axy, ayz, azx, axyz = trilinear_coefficients(
+        v000, v100, v010, v110, v001, v101, v011, v111)
+    u0 = (Ox - i) + c0 * Dx
+    v0 = (Oy - j) + c0 * Dy
+    w0 = (Oz - k) + c0 * Dz
+    A, B, C, D = cubic_along_ray(a0, ax, ay, az, axy, ayz, azx, axyz, u0, v0, w0, Dx, Dy, Dz)
+    return A, B, C, D, u0, v0, w0
+
+
+@kernel
+def exit_sign(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, i, j, k, c0, c1):
+    """Sign of the field minus ``iso`` where the ray leaves cell ``(i, j, k)``
+    (interval ``[c0, c1]``), computed exactly as the walk does; 0 if zero."""
+    v000, v100, v010, v110, v001, v101, v011, v111, lo, hi = corners(data, iso, i, j, k)
+    if lo > 0.0:
+        return 1.0
+    if hi < 0.0:
+        return -1.0
+    A, B, C, D, u0, v0, w0 = cell_cubic(v000, v100, v010, v110, v001, v101, v011, v111,
+                                        Ox, Oy, Oz, Dx, Dy, Dz, i, j, k, c0)
+    f = eval_cubic(A, B, C, D, c1 - c0)
+    if f > 0.0:
+        return 1.0
+    if f < 0.0:
+        return -1.0
+    return 0.0
 
 
 @kernel
@@ -25,6 +74,16 @@ def cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, seg0, seg1):
     Returns ``(t, i, j, k, u, v, w, cells, solves)``: the hit's ray
     parameter (``inf`` if none), its cell and local coordinates, the cells
     visited and the cubics solved.
+
+    Each cell's cubic is evaluated in that cell's own frame, so where the
+    ray crosses from one cell into the next exactly on the isosurface, the
+    two cells' rounded values at the shared point can disagree in sign:
+    the first cell ends on the near side, the second starts on the far
+    side, and neither sees a root. So a cell whose value at its entry has
+    the opposite sign from its predecessor's value there (the cell the ray
+    leaves through that face, on the same numbers) is hit at its entry.
+    The walk carries that sign from cell to cell; for the first cell of a
+    segment it is recomputed, so any start gives the same answers.
     """
     nz, ny, nx = data.shape
     t_in, t_out = clip_box(Ox, Oy, Oz, Dx, Dy, Dz, nx, ny, nz)
@@ -38,35 +97,50 @@ def cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, seg0, seg1):
     sx, ix, tx0, tx1 = axis_state(Ox, Dx, i)
     sy, iy, ty0, ty1 = axis_state(Oy, Dy, j)
     sz, iz, tz0, tz1 = axis_state(Oz, Dz, k)
+    # Sign at the end of the previous cell (0: none). The walk's previous
+    # cell is the neighbour across the face of the latest entry time (ties:
+    # the last axis, as `step_axis` steps x, then y, then z).
+    prev = 0.0
+    c0 = max(t_in, max(tx0, max(ty0, tz0)))
+    if c0 > t_in:
+        pi, pj, pk = i, j, k
+        px0, py0, pz0, px1, py1, pz1 = tx0, ty0, tz0, tx1, ty1, tz1
+        if tz0 == c0:
+            pk = k - sz
+            _, _, pz0, pz1 = axis_state(Oz, Dz, pk)
+        elif ty0 == c0:
+            pj = j - sy
+            _, _, py0, py1 = axis_state(Oy, Dy, pj)
+        else:
+            pi = i - sx
+            _, _, px0, px1 = axis_state(Ox, Dx, pi)
+        prev = exit_sign(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, pi, pj, pk,
+                         max(t_in, max(px0, max(py0, pz0))),
+                         min(t_out, min(px1, min(py1, pz1))))
     cells = 0
     solves = 0
     while True:
         cells += 1
         c0 = max(t_in, max(tx0, max(ty0, tz0)))
         c1 = min(t_out, min(tx1, min(ty1, tz1)))
-        v000 = float(data[k, j, i]) - iso
-        v100 = float(data[k, j, i + 1]) - iso
-        v010 = float(data[k, j + 1, i]) - iso
-        v110 = float(data[k, j + 1, i + 1]) - iso
-        v001 = float(data[k + 1, j, i]) - iso
-        v101 = float(data[k + 1, j, i + 1]) - iso
-        v011 = float(data[k + 1, j + 1, i]) - iso
-        v111 = float(data[k + 1, j + 1, i + 1]) - iso
-        lo = min(min(min(v000, v100), min(v010, v110)), min(min(v001, v101), min(v011, v111)))
-        hi = max(max(max(v000, v100), max(v010, v110)), max(max(v001, v101), max(v011, v111)))
-        if lo <= 0.0 and hi >= 0.0 and c0 <= c1:
+        v000, v100, v010, v110, v001, v101, v011, v111, lo, hi = corners(data, iso, i, j, k)
+        if lo > 0.0:
+            prev = 1.0
+        elif hi < 0.0:
+            prev = -1.0
+        elif c0 <= c1:
             solves += 1
-            a0, ax, ay, az, axy, ayz, azx, axyz = trilinear_coefficients(
-                v000, v100, v010, v110, v001, v101, v011, v111)
-            u0 = (Ox - i) + c0 * Dx
-            v0 = (Oy - j) + c0 * Dy
-            w0 = (Oz - k) + c0 * Dz
-            A, B, C, D = cubic_along_ray(a0, ax, ay, az, axy, ayz, azx, axyz,
-                                         u0, v0, w0, Dx, Dy, Dz)
-            s = first_root(A, B, C, D, c1 - c0)
+            A, B, C, D, u0, v0, w0 = cell_cubic(v000, v100, v010, v110, v001, v101, v011, v111,
+                                                Ox, Oy, Oz, Dx, Dy, Dz, i, j, k, c0)
+            if c0 > t_in and prev != 0.0 and D != 0.0 and (D < 0.0) != (prev < 0.0):
+                return c0, i, j, k, u0, v0, w0, cells, solves
+            L = c1 - c0
+            s = first_root(A, B, C, D, L)
             if s >= 0.0:
                 return (c0 + s, i, j, k, u0 + s * Dx, v0 + s * Dy, w0 + s * Dz,
                         cells, solves)
+            f = eval_cubic(A, B, C, D, L)
+            prev = 1.0 if f > 0.0 else (-1.0 if f < 0.0 else 0.0)
         if c1 >= t_end:
             break
         axis = step_axis(tx1, ty1, tz1)

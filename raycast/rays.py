@@ -28,3 +28,20 @@ def camera_ray(cam, width, height, x, y):
     dz = cam[5] + th * (sx * cam[8] + sy * cam[11])
     inv = 1.0 / math.sqrt(dx * dx + dy * dy + dz * dz)
     return cam[0], cam[1], cam[2], dx * inv, dy * inv, dz * inv
+
+
+@kernel
+def tile_count(width, row0, row1, tile_w, tile_h):
+    """Tiles covering rows ``row0 <= y < row1`` of an image ``width`` wide."""
+    return ((width + tile_w - 1) // tile_w) * ((row1 - row0 + tile_h - 1) // tile_h)
+
+
+@kernel
+def tile_rect(tile, width, row0, row1, tile_w, tile_h):
+    """Pixel rectangle ``(x0, x1, y0, y1)`` (ends exclusive) of tile number ``tile``."""
+    tiles_x = (width + tile_w - 1) // tile_w
+    ty = tile // tiles_x
+    tx = tile - ty * tiles_x
+    y0 = row0 + ty * tile_h
+    x0 = tx * tile_w
+    return x0, min(width, x0 + tile_w), y0, min(row1, y0 + tile_h)

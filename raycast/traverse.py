@@ -60,12 +60,36 @@ def clip_box(Ox, Oy, Oz, Dx, Dy, Dz, nx, ny, nz):
 
 @kernel
 def start_index(O, D, t, n):
-    """Index along one axis of the cell holding ``O + t D``, clamped to the grid."""
+    """Index along one axis of the cell the walk starts in at ``t``, clamped to the grid.
+
+    ``floor(O + t D)`` alone can disagree with the crossing times the walk
+    uses (`axis_state`): near a plane, the rounded position may sit past it
+    while ``(plane - O) * invD`` is still later than ``t``; with a small
+    ``D`` that gap is long, and starting past the plane would skip it. So
+    the index is corrected until, by those same crossing times, the cell is
+    entered before ``t`` and left at or after it: where ``t`` is exactly a
+    crossing, the cell before the plane. A walk started at ``t`` then visits
+    the same cells from ``t`` on as one started earlier, including the
+    zero-length cells where the ray passes exactly through an edge.
+    """
     i = int(math.floor(O + t * D))
     if i < 0:
-        return 0
+        i = 0
     if i > n - 2:
-        return n - 2
+        i = n - 2
+    if abs(D) < TINY_DIRECTION:
+        return i
+    inv = 1.0 / D
+    if D > 0.0:
+        while i > 0 and (i - O) * inv >= t:
+            i -= 1
+        while i < n - 2 and (i + 1.0 - O) * inv < t:
+            i += 1
+    else:
+        while i < n - 2 and (i + 1.0 - O) * inv >= t:
+            i += 1
+        while i > 0 and (i - O) * inv < t:
+            i -= 1
     return i
 
 

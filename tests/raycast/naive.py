@@ -1,0 +1,638 @@
+"""Slow, obvious high-precision reference for ray/isosurface hits, and the acceptance rule.
+
+Source of truth
+---------------
+An *exact-trilinear* field (index coordinates i, j, k)
+
+    F(i, j, k) = c0 + c1 i + c2 j + c3 k + c4 ij + c5 jk + c6 ki + c7 ijk
+
+is reproduced exactly by trilinear interpolation of its samples, so the
+caster's isosurface is exactly ``{F = iso}``. With integer or dyadic
+coefficients the samples are exact in float64 (and in uint16/int16 when they
+fit), the ray ``p(t) = o + t d`` is given by float64 numbers, and along it
+
+    P(t) = F((o - origin + t d) / spacing) - iso
+
+is an exact cubic in ``t``. Everything below is computed from those exact
+inputs in mpmath at ``DPS`` = 40 digits (errors ~1e-40 relative, far below
+any tolerance used here): the box interval, every real root of ``P`` in it
+(the derivative's roots split the interval into monotone pieces; sign
+tests; a safeguarded Newton/bisection to ~1e-32; a critical point where
+``|P|`` is ~0 is reported as a touching (double) root), and ``P, P'`` at
+the caster's answer.
+
+Acceptance rule (`check_ray`)
+-----------------------------
+Notation: ``h = min(spacing)`` (world units, like ``t``); ``eps = 2**-52``;
+for a point on the ray, ``S`` = the largest ``|sample - iso|`` over the
+corners of the cell(s) holding the point (the numbers the caster's cubic
+is built from), ``g`` = grad F in index units there, and per axis
+``dpos_a = 8 eps (|O_a| + n_a + 1)`` bounds the rounding of the caster's
+index-space position along that axis (``O = (o - origin)/spacing``, the
+cell-local offset ``(O - i) + c0 D`` and ``D`` itself are rounded;
+``n_a`` = grid size; the point is in the box, so ``|c0 D_a| <= |O_a| + n_a``).
+The float evaluation error scale of the caster's cubic is
+
+    E = 64 eps S + sum_a dpos_a |g_a|.
+
+1. A true root ``r`` is *simple* when its conditioning
+   ``dt = E(r) / |P'(r)| <= 1e-10 h``. It is *required* when it is simple,
+   ``r > 1e-9 h`` (not at the ray start) and it lies in the box shrunk by
+   ``pad_a = 1e-12 + dpos_a`` index units per side (roots within rounding
+   of the box may go either way). All other roots in the box grown by
+   ``pad`` are *optional* (double and near-double roots, roots at the box
+   boundary).
+2. If a required root exists, the first one ``r*`` must be hit:
+   ``t_m`` finite and, if ``t_m >= r* - tol``, ``|t_m - r*| <= tol`` with
+   ``tol = 1e-9 h + 4 eps |r*|`` (the last term is the rounding of ``t``
+   itself; <= 1e-10 h for the distances used here). A hit later than
+   ``r* + tol`` fails (a simple root was skipped).
+3. A hit earlier than every required root (or with no required root) must
+   be explained by an optional root ``r`` -- ``|t_m - r| <= max(tol,
+   min(16 dt(r), 1e-6 h))`` -- or be rounding noise at a near-tangency:
+   ``|P(t_m)| <= 10 E(t_m) + 1e-9 h |P'(t_m)|`` (a double root, or a
+   near miss within the evaluation error, may be hit anywhere the cubic is
+   within its rounding of zero). A missed optional root is fine, so a
+   missed double root may be followed by a hit on the next root.
+4. A hit must lie in the box grown by ``pad`` (in ``t``, up to ``tol``),
+   and, when given, the reported cell and local coordinates must agree with
+   the hit point: ``uvw`` in ``[-1e-9, 1 + 1e-9]`` and
+   ``|cell + uvw - I(t_m)| <= 1e-9 + 16 dpos_a`` on axis ``a``.
+
+Why this is not weaker than "exact": a required root has a conditioning
+10x below its tolerance, so every rounding the caster legitimately does is
+covered with margin; whatever falls outside is a real miss, a skipped cell,
+a wrong interval or a wrong root. The only freedoms are where floating
+point genuinely cannot decide (tangencies, box boundary, ray start). ``S``
+is taken over ``|sample - iso|`` (the caster subtracts ``iso`` first, and
+that subtraction is correctly rounded), which is smaller, so stricter, than
+``max(|iso|, |sample|)``. The position term ``dpos`` matters only far from
+the origin of the index space (long grids, far eyes): there the caster's
+rounded index-space ray really is ~``eps |O|`` away from the exact one.
+Measured on the hard-ray suite, the caster's error on required roots stays
+below ~1.2 ``(eps S + dpos |g| / 8) / |P'(r)|``, i.e. under 0.2% of ``tol``.
+
+`exact_cell_count` is the traversal reference: the number of cells a ray
+passes through with positive length, from exact rational plane-crossing
+times (see its docstring for the allowed differences).
+"""
+import math
+import os
+from fractions import Fraction
+
+import mpmath
+import numpy as np
+
+DPS = 40
+MP = mpmath.MPContext()
+MP.dps = DPS
+mpf = MP.mpf
+ZERO = mpf(0)
+INF = mpf("inf")
+ZERO_REL = mpf(10) ** (6 - DPS)     # |P| below this (relative) at a critical point: touching
+SOLVE_REL = mpf(10) ** (8 - DPS)    # root solves stop at this relative width
+
+EPS = 2.0 ** -52
+SIMPLE_REL = 1e-10      # dt <= SIMPLE_REL * h  -> simple root
+HIT_REL = 1e-9          # |t_m - r| <= HIT_REL * h for a simple root
+BOX_PAD = 1e-12         # index units, plus dpos
+NONSIMPLE_REL = 1e-6    # cap of the conditioned tolerance of optional roots
+NOISE_FACTOR = 10.0     # |P(t_m)| <= NOISE_FACTOR * E(t_m) + ...
+
+
+# ----------------------------------------------------------------- fields
+
+def field_value(c, i, j, k):
+    """F(i, j, k) exactly for int/Fraction/float (dyadic) inputs."""
+    return (c[0] + c[1] * i + c[2] * j + c[3] * k + c[4] * i * j + c[5] * j * k
+            + c[6] * k * i + c[7] * i * j * k)
+
+
+def field_grad(c, i, j, k):
+    """Index-space gradient of F (same exact arithmetic as the inputs)."""
+    return (c[1] + c[4] * j + c[6] * k + c[7] * j * k,
+            c[2] + c[4] * i + c[5] * k + c[7] * i * k,
+            c[3] + c[5] * j + c[6] * i + c[7] * i * j)
+
+
+def field_range(c, shape):
+    """(min, max) of F over the sample box; F is multilinear, so at its corners."""
+    nz, ny, nx = shape
+    vals = [Fraction(field_value([Fraction(x) for x in c], i, j, k))
+            for i in (0, nx - 1) for j in (0, ny - 1) for k in (0, nz - 1)]
+    return min(vals), max(vals)
+
+
+def sample_field(c, shape, dtype):
+    """Samples ``data[k, j, i] = F(i, j, k)``, checked to be exact in ``dtype``.
+
+    Coefficients must be dyadic (k / 2^e): the samples times the common
+    denominator are then integers, computed exactly in int64 and required to
+    stay below 2^53 so that they are exact in float64.
+    """
+    cf = [Fraction(x) for x in c]
+    den = 1
+    for x in cf:
+        den = max(den, x.denominator)
+    if den & (den - 1) or any(den % x.denominator for x in cf):
+        raise ValueError("coefficients must be dyadic")
+    ci = [int(x * den) for x in cf]
+    nz, ny, nx = shape
+    mono = [1, nx, ny, nz, nx * ny, ny * nz, nz * nx, nx * ny * nz]
+    if sum(abs(a) * m for a, m in zip(ci, mono)) >= 2 ** 53:
+        raise ValueError("field too large to be exact in float64")
+    k, j, i = np.meshgrid(np.arange(nz, dtype=np.int64), np.arange(ny, dtype=np.int64),
+                          np.arange(nx, dtype=np.int64), indexing="ij")
+    exact = field_value(ci, i, j, k)               # int64, exact (< 2^53)
+    data = exact.astype(np.float64) / den          # exact: power-of-two divisor
+    if np.dtype(dtype) != np.float64:
+        info = np.iinfo(dtype)
+        if data.min() < info.min or data.max() > info.max or np.any(data != np.round(data)):
+            raise ValueError(f"field samples do not fit {np.dtype(dtype)}")
+    return data.astype(dtype)
+
+
+class Scene:
+    """An exact-trilinear field sampled on a grid with origin/spacing (x, y, z)."""
+
+    def __init__(self, coeffs, shape, dtype=np.float64, origin=(0.0, 0.0, 0.0),
+                 spacing=(1.0, 1.0, 1.0), name=""):
+        self.coeffs = tuple(float(x) for x in coeffs)
+        if any(Fraction(x) != Fraction(y) for x, y in zip(self.coeffs, coeffs)):
+            raise ValueError("coefficients must be exact in float64")
+        self.shape = tuple(int(s) for s in shape)
+        self.origin = np.array(origin, dtype=np.float64)
+        self.spacing = np.array(spacing, dtype=np.float64)
+        self.data = sample_field(self.coeffs, self.shape, dtype)
+        self.name = name
+
+    def mp_grid(self):
+        if getattr(self, "_mp_grid", None) is None:
+            self._mp_grid = ([mpf(float(x)) for x in self.origin],
+                             [mpf(float(x)) for x in self.spacing])
+        return self._mp_grid
+
+    def mp_coeffs(self):
+        if getattr(self, "_mp_coeffs", None) is None:
+            self._mp_coeffs = [mpf(x) for x in self.coeffs]
+        return self._mp_coeffs
+
+    def index_to_world(self, p):
+        return self.origin + np.asarray(p, dtype=np.float64) * self.spacing
+
+    @property
+    def lo_world(self):
+        return self.origin.copy()
+
+    @property
+    def hi_world(self):
+        nz, ny, nx = self.shape
+        return self.origin + np.array([nx - 1, ny - 1, nz - 1]) * self.spacing
+
+    def value_at_index(self, p):
+        """F at an index point, exactly (Fraction)."""
+        cf = [Fraction(x) for x in self.coeffs]
+        return field_value(cf, *[Fraction(float(x)) for x in p])
+
+
+# ----------------------------------------------------------- exact cubic
+
+def index_ray(scene, o, d):
+    """(O, D) of the exact ray in index space, as mpf triples."""
+    org, spc = scene.mp_grid()
+    O = [(mpf(float(o[a])) - org[a]) / spc[a] for a in range(3)]
+    D = [mpf(float(d[a])) / spc[a] for a in range(3)]
+    return O, D
+
+
+def _mul(p, q):
+    r = [ZERO] * (len(p) + len(q) - 1)
+    for a, x in enumerate(p):
+        for b, y in enumerate(q):
+            r[a + b] += x * y
+    return r
+
+
+def ray_cubic(scene, O, D, iso):
+    """Coefficients ``[p0, p1, p2, p3]`` of ``P(t) = F(O + t D) - iso``."""
+    c = scene.mp_coeffs()
+    X, Y, Z = ([O[0], D[0]], [O[1], D[1]], [O[2], D[2]])
+    XY, YZ, ZX = _mul(X, Y), _mul(Y, Z), _mul(Z, X)
+    XYZ = _mul(XY, Z)
+    p = [c[0] - mpf(float(iso)), ZERO, ZERO, ZERO]
+    for coef, poly in ((c[1], X), (c[2], Y), (c[3], Z), (c[4], XY), (c[5], YZ),
+                       (c[6], ZX), (c[7], XYZ)):
+        if coef:
+            for n, v in enumerate(poly):
+                p[n] += coef * v
+    return p
+
+
+def peval(p, t):
+    return ((p[3] * t + p[2]) * t + p[1]) * t + p[0]
+
+
+def pderiv(p, t):
+    return (3 * p[3] * t + 2 * p[2]) * t + p[1]
+
+
+def pderiv2(p, t):
+    return 6 * p[3] * t + 2 * p[2]
+
+
+def box_intervals(scene, O, D, pad):
+    """``([t_in, t_out] grown, [t_in, t_out] shrunk)``: the ray in the box grown /
+    shrunk by ``pad[a]`` index units per side of axis ``a``, as mpf, clipped
+    to ``t >= 0``. An empty interval has ``t_in > t_out``.
+    """
+    nz, ny, nx = scene.shape
+    n = (nx, ny, nz)
+    grown, shrunk = [ZERO, INF], [ZERO, INF]
+    for a in range(3):
+        pa = mpf(pad[a])
+        if D[a] == 0:
+            if O[a] < -pa or O[a] > (n[a] - 1) + pa:
+                grown = [mpf(1), mpf(-1)]
+            if O[a] < pa or O[a] > (n[a] - 1) - pa:
+                shrunk = [mpf(1), mpf(-1)]
+            continue
+        inv = 1 / D[a]
+        t0, t1 = -O[a] * inv, ((n[a] - 1) - O[a]) * inv
+        if t0 > t1:
+            t0, t1 = t1, t0
+        w = pa * abs(inv)
+        grown = [max(grown[0], t0 - w), min(grown[1], t1 + w)]
+        shrunk = [max(shrunk[0], t0 + w), min(shrunk[1], t1 - w)]
+    return grown, shrunk
+
+
+def _critical_points(p):
+    """Real roots of P' = p1 + 2 p2 t + 3 p3 t^2, sorted."""
+    a, b, c = 3 * p[3], 2 * p[2], p[1]
+    if a == 0:
+        return [] if b == 0 else [-c / b]
+    disc = b * b - 4 * a * c
+    if disc < 0:
+        return []
+    q = -(b + MP.sqrt(disc)) / 2 if b >= 0 else -(b - MP.sqrt(disc)) / 2
+    if q == 0:
+        return [ZERO]
+    return sorted([q / a, c / q])
+
+
+def _float_guess(p, a, b, fa_neg):
+    """A float64 estimate of the root of monotone P in (a, b), to start Newton."""
+    p0, p1, p2, p3 = (float(x) for x in p)
+    xl, xh = (float(a), float(b)) if fa_neg else (float(b), float(a))
+    x = 0.5 * (xl + xh)
+    for _ in range(200):
+        f = ((p3 * x + p2) * x + p1) * x + p0
+        if f == 0.0 or not math.isfinite(f):
+            break
+        if f < 0.0:
+            xl = x
+        else:
+            xh = x
+        df = (3.0 * p3 * x + 2.0 * p2) * x + p1
+        lo, hi = min(xl, xh), max(xl, xh)
+        xn = x - f / df if df != 0.0 else math.nan
+        if not lo < xn < hi:
+            xn = 0.5 * (xl + xh)
+        if xn == x:
+            break
+        x = xn
+    return x
+
+
+def _solve_monotone(p, a, b, fa):
+    """Root of P in (a, b), P monotone there with a sign change.
+
+    Safeguarded Newton in mpf (bisection whenever Newton leaves the bracket),
+    started from a float64 estimate; stops at ~1e-32 relative.
+    """
+    if fa < 0:
+        xl, xh = a, b
+    else:
+        xl, xh = b, a
+    tol = SOLVE_REL * max(1, abs(a), abs(b))
+    x = mpf(_float_guess(p, a, b, fa < 0))
+    if not min(a, b) < x < max(a, b):
+        x = (a + b) / 2
+    for _ in range(400):
+        f = peval(p, x)
+        if f == 0:
+            return x
+        if f < 0:
+            xl = x
+        else:
+            xh = x
+        df = pderiv(p, x)
+        lo, hi = min(xl, xh), max(xl, xh)
+        xn = x - f / df if df != 0 else None
+        if xn is None or not (lo < xn < hi):
+            xn = (xl + xh) / 2
+        if abs(xn - x) <= tol or hi - lo <= tol:
+            return xn
+        x = xn
+    return x
+
+
+def real_roots(p, lo, hi):
+    """All real roots of P in ``[lo, hi]`` (sorted), each ``(t, touching)``.
+
+    The critical points split ``[lo, hi]`` into pieces on which P is
+    monotone. A piece end where P is exactly 0 is a root; an interior
+    critical point where ``|P|`` is ~0 (at the 1e-34 level of the
+    polynomial's scale) is a *touching* (double or triple) root; a piece
+    whose ends differ in sign holds one root, solved to ~1e-32.
+    """
+    if not lo <= hi:
+        return []
+    if p[3] == 0 and p[2] == 0 and p[1] == 0:
+        return [(lo, True)] if p[0] == 0 else []
+    ztol = max(abs(x) for x in p) * max(1, abs(lo), abs(hi)) ** 3 * ZERO_REL
+    pts = [lo] + [e for e in _critical_points(p) if lo < e < hi] + [hi]
+    vals = [peval(p, x) for x in pts]
+    interior = [0 < n < len(pts) - 1 for n in range(len(pts))]
+    zero = [f == 0 or (inner and abs(f) <= ztol) for f, inner in zip(vals, interior)]
+    roots = [(x, inner) for x, z, inner in zip(pts, zero, interior) if z]
+    for n in range(len(pts) - 1):
+        if not zero[n] and not zero[n + 1] and (vals[n] < 0) != (vals[n + 1] < 0):
+            roots.append((_solve_monotone(p, pts[n], pts[n + 1], vals[n]), False))
+    roots.sort(key=lambda r: r[0])
+    return roots
+
+
+# ------------------------------------------------------- acceptance rule
+
+def _cell_span(x, n):
+    """Sample-index range [a, b] covering the cell(s) that hold index coordinate x."""
+    m = int(math.floor(x))
+    cells = {m}
+    if x - m < 1e-6:
+        cells.add(m - 1)
+    if m + 1 - x < 1e-6:
+        cells.add(m + 1)
+    cells = {min(max(c, 0), n - 2) for c in cells}
+    return min(cells), max(cells) + 1
+
+
+def _local_scale(scene, iso, I):
+    """(S, g): largest |sample - iso| over the cell(s) holding index point I, grad F there."""
+    nz, ny, nx = scene.shape
+    x0, x1 = _cell_span(I[0], nx)
+    y0, y1 = _cell_span(I[1], ny)
+    z0, z1 = _cell_span(I[2], nz)
+    block = scene.data[z0:z1 + 1, y0:y1 + 1, x0:x1 + 1].astype(np.float64)
+    S = float(np.max(np.abs(block - iso)))
+    return S, field_grad(scene.coeffs, *I)
+
+
+class Truth:
+    """Reference facts about one ray; see the module docstring for the rule."""
+
+    def __init__(self, scene, o, d, iso):
+        self.scene, self.iso = scene, float(iso)
+        self.h = float(min(scene.spacing))
+        O, D = index_ray(scene, o, d)
+        self.O, self.D = O, D
+        nz, ny, nx = scene.shape
+        self.dpos = [8 * EPS * (abs(float(O[a])) + n + 1) for a, n in enumerate((nx, ny, nz))]
+        self.pad = [BOX_PAD + x for x in self.dpos]
+        self.p = ray_cubic(scene, O, D, iso)
+        self.outer, self.inner = box_intervals(scene, O, D, self.pad)
+        self.roots = []   # (t, dt, required, tol) as floats, t ascending
+        for r, touching in real_roots(self.p, *self.outer):
+            rf = float(r)
+            E = self.error_scale(rf)
+            dP = abs(float(pderiv(self.p, r)))
+            dt = math.inf if touching or dP == 0 else E / dP
+            tol = HIT_REL * self.h + 4 * EPS * abs(rf)
+            required = (dt <= SIMPLE_REL * self.h and rf > HIT_REL * self.h
+                        and self.inner[0] <= r <= self.inner[1])
+            if not required:
+                tol = max(tol, min(16 * dt, NONSIMPLE_REL * self.h))
+            self.roots.append((rf, dt, required, tol))
+
+    def point(self, t):
+        return [float(self.O[a] + mpf(t) * self.D[a]) for a in range(3)]
+
+    def error_scale(self, t):
+        """E(t) = 64 eps S + sum_a dpos_a |dF/dI_a| at the ray point of parameter t."""
+        S, g = _local_scale(self.scene, self.iso, self.point(t))
+        return 64 * EPS * S + sum(p * abs(x) for p, x in zip(self.dpos, g))
+
+    def first_required(self):
+        for r in self.roots:
+            if r[2]:
+                return r
+        return None
+
+
+def classify(scene, o, d, iso, t_m, cell=None, uvw=None):
+    """``(outcome, reason)``: outcome 'hit', 'miss', 'optional', 'noise' or 'FAIL'.
+
+    'hit'/'miss': agrees with a required root / with no root at all;
+    'optional': hit or missed an optional (double, near-double, boundary)
+    root; 'noise': a hit explained only as rounding at a near-tangency.
+    """
+    tr = Truth(scene, o, d, iso)
+    req = tr.first_required()
+    if not math.isfinite(t_m):
+        if req is not None:
+            return "FAIL", f"missed simple root r={req[0]!r} (dt={req[1]:.3g})"
+        return ("optional" if tr.roots else "miss"), None
+    lo_box, hi_box = float(tr.outer[0]), float(tr.outer[1])
+    tol0 = HIT_REL * tr.h + 4 * EPS * abs(t_m)
+    if not (lo_box - tol0 <= t_m <= hi_box + tol0):
+        return "FAIL", f"hit t={t_m!r} outside box interval [{lo_box!r}, {hi_box!r}]"
+    outcome = None
+    if req is not None and t_m >= req[0] - req[3]:
+        if abs(t_m - req[0]) <= req[3]:
+            outcome = "hit"
+        else:
+            return "FAIL", (f"hit t={t_m!r} but the first simple root is r={req[0]!r} "
+                            f"(err {t_m - req[0]:.3g}, tol {req[3]:.3g})")
+    if outcome is None:
+        for r, dt, required, tol in tr.roots:
+            if not required and abs(t_m - r) <= tol:
+                outcome = "optional"
+                break
+    if outcome is None:
+        P = abs(float(peval(tr.p, mpf(t_m))))
+        dP = abs(float(pderiv(tr.p, mpf(t_m))))
+        bound = NOISE_FACTOR * tr.error_scale(t_m) + HIT_REL * tr.h * dP
+        if P <= bound:
+            outcome = "noise"
+        else:
+            roots = ", ".join(f"{r[0]!r}{'*' if r[2] else ''}" for r in tr.roots) or "none"
+            return "FAIL", (f"spurious hit t={t_m!r}: |P|={P:.3g} > {bound:.3g}; "
+                            f"true roots: {roots}")
+    if cell is not None and uvw is not None:
+        I = tr.point(t_m)
+        for a in range(3):
+            ctol = 1e-9 + 16 * tr.dpos[a]
+            if not (-1e-9 <= uvw[a] <= 1 + 1e-9):
+                return "FAIL", f"local coordinate {uvw[a]!r} outside the cell (axis {a})"
+            if abs(cell[a] + uvw[a] - I[a]) > ctol:
+                return "FAIL", (f"cell {tuple(cell)} + uvw {tuple(uvw)} != hit point {I} "
+                                f"(axis {a})")
+    return outcome, None
+
+
+def check_ray(scene, o, d, iso, t_m, cell=None, uvw=None):
+    """None if the caster's answer ``t_m`` (inf = miss) passes the rule, else the reason."""
+    outcome, reason = classify(scene, o, d, iso, t_m, cell, uvw)
+    return reason if outcome == "FAIL" else None
+
+
+# ------------------------------------------------------- batch checking
+# Checks run in a pool of worker processes (one per available core, at most
+# 8; set PARC_TEST_WORKERS to override, 1 for none).
+
+def _check_chunk(args):
+    scene, origins, dirs, isos, t, cell, uvw = args
+    return [classify(scene, origins[n], dirs[n], isos[n], float(t[n]), cell[n], uvw[n])
+            for n in range(len(t))]
+
+
+def _workers():
+    env = os.environ.get("PARC_TEST_WORKERS")
+    if env:
+        return max(1, int(env))
+    try:
+        return max(1, min(len(os.sched_getaffinity(0)), 8))
+    except AttributeError:
+        return 1
+
+
+_POOL = None
+
+
+def _pool():
+    """A process pool shared by all checks of a test session (spawned: the
+    parent has Numba threads, which must not be forked)."""
+    global _POOL
+    if _POOL is None and _workers() > 1:
+        import atexit
+        import multiprocessing as mpc
+        _POOL = mpc.get_context("spawn").Pool(_workers())
+        atexit.register(_POOL.terminate)
+    return _POOL
+
+
+def check_batches(batches, chunk=500):
+    """Check many rays. ``batches``: list of (scene, origins, dirs, isos, t, cell, uvw).
+
+    Returns a list, per batch, of per-ray ``(outcome, reason)``. Rays of the
+    same scene are pooled into chunks for the worker processes.
+    """
+    by_scene = {}
+    for b, batch in enumerate(batches):
+        by_scene.setdefault(id(batch[0]), []).append(b)
+    jobs, where = [], []
+    for members in by_scene.values():
+        scene = batches[members[0]][0]
+        cols = [np.concatenate([np.asarray(batches[b][c]) for b in members])
+                for c in range(1, 7)]
+        owner = [(b, m) for b in members for m in range(len(batches[b][4]))]
+        for s in range(0, len(owner), chunk):
+            jobs.append((scene,) + tuple(x[s:s + chunk] for x in cols))
+            where.append(owner[s:s + chunk])
+    pool = _pool()
+    results = pool.map(_check_chunk, jobs, chunksize=1) if pool else map(_check_chunk, jobs)
+    out = [[None] * len(b[4]) for b in batches]
+    for owners, res in zip(where, results):
+        for (b, m), r in zip(owners, res):
+            out[b][m] = r
+    return out
+
+
+# ----------------------------------------------------- traversal reference
+
+def exact_cell_count(scene, o, d, near=1e-12):
+    """Cells a ray passes through, from exact rational plane-crossing times.
+
+    Returns ``(n_cells, n_steps, n_uncertain)``:
+
+    * ``n_cells`` = cells the ray passes through with positive length:
+      ``1 +`` the number of *distinct* crossing times of integer planes
+      strictly inside the box interval ``(t_in, t_out)`` (0 if it is empty);
+    * ``n_steps`` = ``1 +`` the number of plane crossings counted once per
+      plane. An axis-by-axis walk (Amanatides-Woo) visits one cell per plane
+      crossed whatever their order, so it visits ``n_steps`` cells; where the
+      ray passes exactly through an edge or vertex it visits a zero-length
+      cell, and ``n_steps - n_cells`` is the number of such coincidences;
+    * ``n_uncertain`` = plane crossings that floating point may put on
+      either side of a box end, each of which may add or remove one visited
+      cell. The caster computes a crossing time as ``(m - O') / D'`` from its
+      rounded index-space ray ``O' = fl((o - origin) / spacing)``,
+      ``D' = fl(d / spacing)``; against the exact ``O, D`` that time is off by
+      at most ``w_a(t) = |O' - O| / |D| + |t| |D' - D| / |D| + 4 eps |t|``,
+      plus ``near / max|D|`` (``near`` index units along the ray). The box
+      ends are slab crossings too, so the caster's ``t_in`` / ``t_out`` lie in
+      windows (max / min over the axes of each slab end +- its ``w``). A
+      plane crossing within ``2 w`` of such a window is uncertain; if the two
+      windows overlap, or a ray parallel to a box face lies in it up to
+      rounding, or a direction component is below the caster's
+      ``TINY_DIRECTION`` while not zero, anything goes (``n_uncertain``
+      infinite).
+    """
+    from raycast.traverse import TINY_DIRECTION
+    nz, ny, nx = scene.shape
+    n = (nx, ny, nz)
+    o64, d64 = np.asarray(o, np.float64), np.asarray(d, np.float64)
+    Ok = (o64 - scene.origin) / scene.spacing          # as the caster rounds them
+    Dk = d64 / scene.spacing
+    O = [(Fraction(float(o64[a])) - Fraction(float(scene.origin[a])))
+         / Fraction(float(scene.spacing[a])) for a in range(3)]
+    D = [Fraction(float(d64[a])) / Fraction(float(scene.spacing[a])) for a in range(3)]
+    errO = [float(abs(Fraction(float(Ok[a])) - O[a])) for a in range(3)]
+    errD = [float(abs(Fraction(float(Dk[a])) - D[a])) for a in range(3)]
+    speed = max(abs(float(x)) for x in D)
+
+    def wobble(a, t):
+        t = abs(float(t))
+        return (errO[a] + t * errD[a]) / abs(float(D[a])) + 4 * EPS * t + near / speed
+
+    # Exact box interval, and the windows the caster's rounded t_in / t_out
+    # may fall in (each slab end moves by its own axis's wobble).
+    t_in, t_out = Fraction(0), None
+    in_lo = in_hi = 0.0
+    out_lo = out_hi = math.inf
+    for a in range(3):
+        if D[a] != 0 and abs(Dk[a]) < TINY_DIRECTION:
+            return 0, 0, math.inf
+        if D[a] == 0:
+            inside = 0 <= O[a] <= n[a] - 1
+            if inside != (0 <= Ok[a] <= n[a] - 1):
+                return 0, 0, math.inf
+            if not inside:
+                return 0, 0, 0
+            continue
+        t0, t1 = (0 - O[a]) / D[a], (n[a] - 1 - O[a]) / D[a]
+        t0, t1 = min(t0, t1), max(t0, t1)
+        t_in = max(t_in, t0)
+        t_out = t1 if t_out is None else min(t_out, t1)
+        w0, w1 = wobble(a, t0), wobble(a, t1)
+        in_lo, in_hi = max(in_lo, float(t0) - w0), max(in_hi, float(t0) + w0)
+        out_lo, out_hi = min(out_lo, float(t1) - w1), min(out_hi, float(t1) + w1)
+    if out_hi < in_lo:
+        return 0, 0, 0
+    if out_lo <= in_hi:
+        return 0, 0, math.inf
+    times, uncertain = [], 0
+    for a in range(3):
+        if D[a] == 0:
+            continue
+        for lo_t, hi_t in ((in_lo, in_hi), (out_lo, out_hi)):
+            w = 2 * wobble(a, hi_t)
+            x0 = O[a] + Fraction(lo_t - w) * D[a]
+            x1 = O[a] + Fraction(hi_t + w) * D[a]
+            # interior planes only: the walk never steps across a box face
+            top, bottom = min(math.floor(max(x0, x1)), n[a] - 2), max(math.ceil(min(x0, x1)), 1)
+            uncertain += max(0, top - bottom + 1)
+        x0, x1 = O[a] + t_in * D[a], O[a] + t_out * D[a]
+        lo, hi = min(x0, x1), max(x0, x1)
+        times.extend((m - O[a]) / D[a] for m in range(math.floor(lo) + 1, math.ceil(hi)))
+    return 1 + len(set(times)), 1 + len(times), uncertain

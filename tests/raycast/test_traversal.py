@@ -1,0 +1,91 @@
+"""Cell traversal: the caster visits exactly the cells the ray passes through.
+
+Source of truth: `naive.exact_cell_count` -- the box interval and every
+integer-plane crossing time of the ray, in exact rational arithmetic from
+the float64 inputs. The caster is run with an isovalue above all data (it
+does not validate it), so no cell can hold a root, every cell is walked and
+``counts[:, 0]`` is the number of cells visited.
+
+Tolerance: an axis-by-axis walk takes one step per plane crossed, so it must
+visit exactly ``1 + (plane crossings inside the box)`` cells. That equals the
+number of cells passed with positive length, except where the ray passes
+exactly through an edge or vertex (the walk then visits a zero-length cell:
+the count exceeds the positive-length count by the number of such
+coincidences, checked to happen only on rays built to do so). The only
+allowed differences: one cell per crossing within rounding (1e-12 plus the
+rounding of the index-space ray) of the box ends, where floating point
+decides whether the crossing is inside the box.
+"""
+import numpy as np
+import pytest
+
+from hard_rays import (ANISO, DYADIC, UNIT, axis_rays, cast, diagonal_vertex_rays, in_plane_rays,
+                       long_scenes, near_axis_rays, parallel_rays, perspective_rays,
+                       plane_hugging_rays, random_scene)
+from naive import exact_cell_count
+
+KINDS = ["persp-outside", "persp-inside", "parallel", "axis", "near-axis", "plane-hugging",
+         "in-plane", "diag-vertex"]
+
+
+def scenes():
+    rng = np.random.default_rng(11)
+    return [random_scene(rng, (6, 7, 9), grid=ANISO, name="aniso"),
+            random_scene(rng, (7, 6, 8), grid=DYADIC, name="dyadic"),
+            random_scene(rng, (6, 6, 6), np.uint16, grid=UNIT, name="unit")]
+
+
+def check_counts(scene, o, d, label):
+    iso = float(scene.data.max()) + 1e6
+    t, _, _, counts = cast(scene, o, d, iso)
+    assert np.all(np.isinf(t)) and np.all(counts[:, 1] == 0)
+    bad, ties = [], 0
+    for m in range(len(o)):
+        n_cells, n_steps, uncertain = exact_cell_count(scene, o[m], d[m])
+        got = int(counts[m, 0])
+        ties += n_steps != n_cells
+        if abs(got - n_steps) > uncertain:
+            bad.append((label, o[m].tolist(), d[m].tolist(), got, n_cells, n_steps, uncertain))
+    return bad, ties
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_cells_visited_match_exact_enumeration(kind):
+    rng = np.random.default_rng(KINDS.index(kind))
+    bad, ties = [], 0
+    for scene in scenes():
+        if kind == "diag-vertex" and not (np.all(scene.spacing == 1) and np.all(scene.origin == 0)):
+            continue
+        gen = {
+            "persp-outside": lambda: perspective_rays(rng, scene, 400),
+            "persp-inside": lambda: perspective_rays(rng, scene, 400, inside=True),
+            "parallel": lambda: parallel_rays(rng, scene, 400),
+            "axis": lambda: axis_rays(rng, scene, 400),
+            "near-axis": lambda: near_axis_rays(rng, scene, 400),
+            "plane-hugging": lambda: plane_hugging_rays(rng, scene, 400),
+            "in-plane": lambda: in_plane_rays(rng, scene, 400),
+            "diag-vertex": lambda: diagonal_vertex_rays(rng, scene, 400),
+        }[kind]
+        o, d = gen()
+        b, t = check_counts(scene, o, d, f"{kind}/{scene.name}")
+        bad += b
+        ties += t
+    assert not bad, f"{len(bad)} rays with a wrong cell count " \
+        f"(label, o, d, visited, cells, steps, uncertain), e.g. {bad[:5]}"
+    if kind in ("persp-outside", "persp-inside", "parallel"):
+        assert ties == 0       # generic rays never pass exactly through an edge
+    if kind == "diag-vertex":
+        assert ties > 0        # ...and these always do
+
+
+def test_cells_visited_on_a_long_grid():
+    rng = np.random.default_rng(3)
+    scene = long_scenes(rng)[0]
+    h = scene.hi_world - scene.lo_world
+    eyes = scene.lo_world + h * rng.uniform([-0.1, -0.5, -0.5], [1.1, 1.5, 1.5], (60, 3))
+    tgt = scene.lo_world + h * rng.uniform(0, 1, (60, 3))
+    d = tgt - eyes
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    o2, d2 = near_axis_rays(rng, scene, 40)
+    bad, _ = check_counts(scene, np.concatenate([eyes, o2]), np.concatenate([d, d2]), "long")
+    assert not bad, bad[:5]
