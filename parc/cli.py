@@ -86,6 +86,21 @@ def _add_volume_options(p):
                    help="world position of the first sample; replaces what the file says")
 
 
+def _add_look_options(p):
+    g = p.add_argument_group("what to show (an isosurface, or with --tf a translucent volume)")
+    g.add_argument("--iso", type=float, metavar="V", help="isovalue (default: suggested from the histogram)")
+    g.add_argument("--tf", metavar="FILE|PRESET",
+                   help="transfer function: a .toml/.json file, a ParaView colour-map .json, or a preset "
+                        "(ct_skin, ct_bone, ct_skin_bone, greyscale, viridis); renders a translucent volume")
+    g.add_argument("--mode", choices=("composite", "mip", "average"), default="composite",
+                   help="with --tf: front-to-back compositing (default), maximum or average intensity")
+    g.add_argument("--step", type=float, metavar="S",
+                   help="with --tf: world distance between samples (default a quarter of the smallest spacing)")
+    g.add_argument("--threshold", type=float, default=0.99, metavar="A",
+                   help="with --tf: stop a ray once its opacity reaches A (default 0.99)")
+    g.add_argument("--shade", action="store_true", help="with --tf: shade samples with the gradient")
+
+
 def _add_view_options(p):
     g = p.add_argument_group("view (default: a three-quarter view framing the whole volume)")
     g.add_argument("--eye", type=_floats(3, "--eye"), metavar="X,Y,Z", help="camera position")
@@ -110,7 +125,6 @@ def build_parser():
                                    "synthetic one. Without --iso, uses a level suggested from the histogram.",
                        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     r.add_argument("volume", nargs="?", help="volume file: .nrrd .nhdr .mhd .mha .vtk .slc .npy .raw")
-    r.add_argument("--iso", type=float, metavar="V", help="isovalue (default: suggested from the histogram)")
     r.add_argument("-o", "--output", required=True, metavar="OUT",
                    help="image: .png (8-bit RGBA) or .npy (float32 RGBA array)")
     r.add_argument("--depth", metavar="D.npy", help="also write the float64 depth image (inf = no hit)")
@@ -124,6 +138,7 @@ def build_parser():
     r.add_argument("--background", type=_floats(3, "--background"), metavar="R,G,B",
                    help="opaque background colour in [0,1] (default transparent)")
     r.add_argument("--quiet", action="store_true", help="no progress or notes on stderr")
+    _add_look_options(r)
     _add_view_options(r)
     _add_volume_options(r)
 
@@ -135,15 +150,18 @@ def build_parser():
                                    "seconds per phase.",
                        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     c.add_argument("volume", nargs="?", help="volume file (default: the built-in volume)")
-    c.add_argument("--iso", type=float, metavar="V", help="isovalue (default: suggested from the histogram)")
     c.add_argument("--methods", default="brute,parc", metavar="LIST",
                    help="comma-separated methods (default brute,parc; brute always runs as the reference)")
     c.add_argument("--supercell", type=_supercell, metavar="M[,N,P]",
                    help="parc's supercell size (default: chosen by the cost model)")
     c.add_argument("--sweep-supercell", metavar="LIST",
                    help="run parc once per supercell size, e.g. 0.5,1,2,4,8: speed against error")
+    c.add_argument("--sweep-step", metavar="LIST",
+                   help="with --tf: run brute and parc once per sample step, e.g. 1,0.5,0.25, against a "
+                        "reference at the finest step / 4: speed against error")
     c.add_argument("--repeats", type=int, default=3, help="timed renders per method; the median is reported")
     c.add_argument("--json", action="store_true", help="print the rows as JSON instead of a table")
+    _add_look_options(c)
     _add_view_options(c)
     _add_volume_options(c)
 
@@ -221,10 +239,22 @@ def _scene(args, say):
         raise InputError(f"image size must be positive, got {w} {h}")
     if args.volume is None:
         vol = builtin_volume()
-        iso = vol.meta["iso"] if args.iso is None else args.iso
+        iso = vol.meta["iso"] if args.iso is None and args.tf is None else args.iso
     else:
         vol = _load(args)
         iso = args.iso
+    if "note" in vol.meta:
+        say(vol.meta["note"])
+    if args.tf is not None:
+        if args.iso is not None:
+            raise InputError("give --iso (an isosurface) or --tf (a translucent volume), not both")
+        vis = parc.Translucent(vol, args.tf, mode=args.mode, step=args.step, threshold=args.threshold,
+                               shade=args.shade)
+        return parc.Scene(camera=_camera(args, vol), size=(w, h), volumes=[vis],
+                          background=getattr(args, "background", None))
+    for flag in ("step", "shade"):
+        if getattr(args, flag):
+            raise InputError(f"--{flag} applies to translucent volumes (--tf)")
     if iso is None:
         from data_tools.info import suggest_isovalues
         levels = suggest_isovalues(vol)
@@ -234,8 +264,6 @@ def _scene(args, say):
         iso = levels[len(levels) // 2]
         say(f"no --iso given; using {iso:g}, suggested from the histogram "
             f"(others: {', '.join(f'{v:g}' for v in levels if v != iso) or 'none'})")
-    if "note" in vol.meta:
-        say(vol.meta["note"])
     return parc.Scene(camera=_camera(args, vol), size=(w, h), volumes=[parc.Isosurface(vol, iso)],
                       background=getattr(args, "background", None))
 
@@ -249,7 +277,6 @@ def cmd_render(args):
     say = (lambda *a: None) if args.quiet else (lambda msg: print(f"parc: {msg}", file=sys.stderr))
     scene = _scene(args, say)
     w, h = scene.size
-    iso = scene.volumes[0].value
     progress = None if args.quiet else _Progress(f"rendering {w}x{h}")
     kwargs = {"supercell": args.supercell} if args.method == "parc" else {}
     if args.supercell is not None and args.method != "parc":
@@ -267,8 +294,13 @@ def cmd_render(args):
     if stats_out:
         _atomic_write(stats_out, lambda tmp: tmp.write_text(json.dumps(result.stats, indent=2) + "\n"))
     s = result.stats
-    say(f"wrote {out}: {s['hits']} of {s['pixels']} pixels hit the isosurface {iso:g}; "
-        f"{s['seconds']['total']:.3f} s, {s['cells_visited']:,} cells visited, {s['cubic_solves']:,} cubics")
+    vis = scene.volumes[0]
+    if isinstance(vis, parc.Isosurface):
+        say(f"wrote {out}: {s['hits']} of {s['pixels']} pixels hit the isosurface {vis.value:g}; "
+            f"{s['seconds']['total']:.3f} s, {s['cells_visited']:,} cells visited, {s['cubic_solves']:,} cubics")
+    else:
+        say(f"wrote {out}: {vis.mode} of {vis.tf.name or 'the transfer function'}, step {vis.step:g}; "
+            f"{s['seconds']['total']:.3f} s, {s['samples']:,} samples")
     return 0
 
 
@@ -283,6 +315,16 @@ def cmd_compare(args):
     if args.repeats < 1:
         raise InputError(f"--repeats must be at least 1, got {args.repeats}")
     scene = _scene(args, say)
+    if args.sweep_step:
+        from .compare import format_step_table, step_sweep
+        try:
+            steps = [float(v) for v in args.sweep_step.split(",")]
+        except ValueError:
+            raise InputError(f"--sweep-step must be comma-separated numbers, got {args.sweep_step!r}") from None
+        rows = step_sweep(scene, steps, repeats=args.repeats,
+                          progress=None if args.json else (lambda m: say(f"timing {m} ...")))
+        print(json.dumps(rows, indent=2, default=float) if args.json else format_step_table(rows))
+        return 0
     options = {}
     if args.sweep_supercell:
         sizes = [_supercell_or_error(v) for v in args.sweep_supercell.split(";" if ";" in args.sweep_supercell else ",")]
@@ -296,8 +338,10 @@ def cmd_compare(args):
         print(json.dumps(rows, indent=2, default=float))
     else:
         w, h = scene.size
-        vol = scene.volumes[0].volume
-        print(f"{vol.name}: {'x'.join(map(str, vol.dims))} {vol.dtype}, isovalue {scene.volumes[0].value:g}, "
+        vis = scene.volumes[0]
+        what = (f"isovalue {vis.value:g}" if hasattr(vis, "value")
+                else f"{vis.mode} of {vis.tf.name or 'transfer function'}, step {vis.step:g}")
+        print(f"{vis.volume.name}: {'x'.join(map(str, vis.volume.dims))} {vis.volume.dtype}, {what}, "
               f"{w}x{h} pixels, median of {args.repeats} after a warm-up")
         print(format_table(rows))
     return 0

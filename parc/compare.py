@@ -104,13 +104,14 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
 
 def format_table(rows):
     """A readable terminal table of `compare` rows."""
-    head = ("method", "time s", "speedup", "cells/px", "cubics/px", "hits/px", "polygons",
+    head = ("method", "time s", "speedup", "cells/px", "cubics/px", "samples/px", "hits/px", "polygons",
             "hit≠", "max Δdepth", "max Δcolour", "PSNR")
     lines = []
     for r in rows:
         px = max(r["pixels"], 1)
         lines.append((r["method"], f"{r['seconds']:.4f}", f"{r['speedup']:.2f}x",
                       f"{r['cells_visited'] / px:.1f}", f"{r['cubic_solves'] / px:.2f}",
+                      f"{r.get('samples', 0) / px:.1f}",
                       f"{r['hits'] / px:.3f}", f"{r['polygons']:,}", str(r["hit_mismatches"]),
                       f"{r['max_depth_cells']:.2e}", f"{r['max_color']:.2e}",
                       "inf" if r["psnr"] == float("inf") else f"{r['psnr']:.1f}"))
@@ -123,4 +124,72 @@ def format_table(rows):
     out.append("seconds per phase (median): " + ", ".join(phases))
     for r in rows:
         out.append(f"  {r['method']:<10} " + "  ".join(f"{k}={r['phases'].get(k, 0.0):.4f}" for k in phases))
+    return "\n".join(out)
+
+
+def step_sweep(scene, steps, *, repeats=3, warmup=1, progress=None):
+    """Speed against error over sample steps, for a translucent volume.
+
+    Each step is rendered with ``brute`` and ``parc``; the error is taken
+    against ``brute`` at a quarter of the finest step (the reference), and
+    ``parc`` is also compared with ``brute`` at the same step (expected: 0).
+
+    Returns
+    -------
+    list of dict
+        Per step: ``step``, ``brute_seconds``, ``parc_seconds``, ``speedup``,
+        ``brute_samples``, ``parc_samples``, ``max_color`` / ``rmse`` / ``psnr``
+        against the reference, and ``parc_vs_brute`` (max |Δcolour|).
+    """
+    from dataclasses import replace
+
+    from .scene import Scene, Translucent
+    vis = scene.volumes[0]
+    if not isinstance(vis, Translucent):
+        raise InputError("a step sweep needs a translucent volume (--tf)")
+    steps = sorted({float(s) for s in steps}, reverse=True)
+    if not steps or min(steps) <= 0:
+        raise InputError("sweep steps must be positive numbers")
+
+    def at(step):
+        return Scene(camera=scene.camera, size=scene.size, background=scene.background,
+                     volumes=[replace(vis, step=step, tf=vis.tf)])
+
+    if progress:
+        progress(f"reference at step {min(steps) / 4:g}")
+    reference = render(at(min(steps) / 4), method="brute")
+    cell = float(min(vis.volume.spacing))
+    rows = []
+    for step in steps:
+        if progress:
+            progress(f"step {step:g}")
+        row = {"step": step}
+        results = {}
+        for method in ("brute", "parc"):
+            for _ in range(warmup):
+                render(at(step), method=method)
+            times = []
+            for _ in range(repeats):
+                t0 = time.perf_counter()
+                results[method] = render(at(step), method=method)
+                times.append(time.perf_counter() - t0)
+            row[f"{method}_seconds"] = statistics.median(times)
+            row[f"{method}_samples"] = results[method].stats["samples"]
+        err = image_error(results["brute"], reference, cell)
+        row.update({k: err[k] for k in ("max_color", "rmse", "psnr")})
+        row["parc_vs_brute"] = image_error(results["parc"], results["brute"], cell)["max_color"]
+        row["speedup"] = row["brute_seconds"] / row["parc_seconds"]
+        rows.append(row)
+    return rows
+
+
+def format_step_table(rows):
+    """A terminal table of `step_sweep` rows."""
+    out = [f"{'step':>8}  {'brute s':>8}  {'parc s':>8}  {'speedup':>7}  {'samples brute':>13}  "
+           f"{'samples parc':>12}  {'max Δ vs fine':>13}  {'PSNR':>6}  {'parc≠brute':>10}"]
+    for r in rows:
+        psnr = "inf" if r["psnr"] == float("inf") else f"{r['psnr']:.1f}"
+        out.append(f"{r['step']:>8g}  {r['brute_seconds']:>8.4f}  {r['parc_seconds']:>8.4f}  "
+                   f"{r['speedup']:>6.2f}x  {r['brute_samples']:>13,}  {r['parc_samples']:>12,}  "
+                   f"{r['max_color']:>13.2e}  {psnr:>6}  {r['parc_vs_brute']:>10.1e}")
     return "\n".join(out)

@@ -145,3 +145,46 @@ def test_console_script_prints_no_traceback(tmp_path):
                        capture_output=True, text=True)
     assert p.returncode == 2 and "Traceback" not in p.stderr and p.stderr.startswith("parc: error:")
     assert not out.exists()
+
+
+def test_render_translucent(vol_file, tmp_path, capsys):
+    out = tmp_path / "t.png"
+    rc, _, err = _run(["render", vol_file, "--tf", "viridis", "--mode", "mip", "--size", 20, 16, "-o", out,
+                       "--method", "parc"], capsys)
+    assert rc == 0, err
+    assert "samples" in err and out.exists()
+
+
+@pytest.mark.parametrize("content, words", [
+    ("opacity = [[1, 0.5], [0, 0.2]]\n", "ascend"),
+    ("opacity = [[0, 1.5]]\n", "opacity"),
+    ("colour = [[0, 1, 1, 1]]\nopacity = [[0, 0.1]]\n", "colour"),
+    ("opacity = [[0, 0.1]\n", "bad.toml"),
+])
+def test_bad_transfer_function_files(content, words, vol_file, tmp_path, capsys):
+    tf = tmp_path / "bad.toml"
+    tf.write_text(content)
+    out = tmp_path / "t.png"
+    rc, _, err = _run(["render", vol_file, "--tf", tf, "-o", out], capsys)
+    assert rc == 2 and err.count("\n") == 1 and words in err and "bad.toml" in err, err
+    assert not out.exists()
+
+
+def test_tf_and_iso_together_are_refused(vol_file, tmp_path, capsys):
+    rc, _, err = _run(["render", vol_file, "--tf", "greyscale", "--iso", 3, "-o", tmp_path / "t.png"], capsys)
+    assert rc == 2 and "not both" in err
+
+
+def test_compare_prints_a_table(vol_file, capsys):
+    rc, out, err = _run(["compare", vol_file, "--iso", 4, "--size", 16, 16, "--repeats", 1], capsys)
+    assert rc == 0, err
+    assert "brute" in out and "parc" in out and "speedup" in out
+
+
+def test_compare_json_and_step_sweep(vol_file, capsys):
+    rc, out, err = _run(["compare", vol_file, "--tf", "greyscale", "--size", 12, 12, "--repeats", 1,
+                         "--sweep-step", "1,0.5", "--json"], capsys)
+    assert rc == 0, err
+    rows = json.loads(out)
+    assert [r["step"] for r in rows] == [1.0, 0.5] and all(r["parc_vs_brute"] == 0 for r in rows)
+    assert rows[1]["brute_samples"] > rows[0]["brute_samples"] > 0
