@@ -231,6 +231,6 @@ def cast_iso_rays(data, org, spc, origins, dirs, iso, seg, use_seg, t, cell, uvw
 
 
 def empty_outputs(n):
-    """Per-ray output arrays for `n` rays."""
-    return (np.full(n, np.inf), np.full((n, 3), -1, np.int32),
-            np.zeros((n, 3)), np.zeros((n, 2), np.int64))
+    """Per-ray output arrays for `n` rays, uninitialized: the drivers write every ray's ``t``,
+    ``cell[:, 0]`` and ``counts``, and the rest wherever ``t`` is finite."""
+    return np.empty(n), np.empty((n, 3), np.int32), np.empty((n, 3)), np.empty((n, 2), np.int64)
