@@ -3,9 +3,10 @@ from data_tools import InputError, Volume
 from data_tools.io import load_volume, save_volume
 
 from .camera import Camera
+from .compare import compare
 from .renderer import RenderResult, render
 from .scene import Isosurface, Scene, Translucent
 from .transfer import TransferFunction, load_transfer_function
 
-__all__ = ["Camera", "InputError", "Isosurface", "RenderResult", "Scene", "TransferFunction", "Translucent",
+__all__ = ["Camera", "compare", "InputError", "Isosurface", "RenderResult", "Scene", "TransferFunction", "Translucent",
            "Volume", "load_transfer_function", "load_volume", "render", "save_volume"]
