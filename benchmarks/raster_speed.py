@@ -6,7 +6,14 @@ then the Numba caster over the segments: cells walked and time, against
 the unaccelerated caster, whose hits and depths the segments must not
 change. The last lines fit the constants of `parc.classify`'s cost model.
 
+With --stages: only the raster pass, for the supercell size the renderer
+would choose (or --supercell), every stage's best and median over
+--repeats frames (prepare, upload, draw, readback, post, total), and the
+faces drawn (faces bordering only cavities are skipped while no ray
+starts in one). The machine's load varies: compare runs made together.
+
 Run: ./dev.sh python benchmarks/raster_speed.py [--size 512] [--volume PATH --iso V | --synthetic NAME --n N]
+     [--parallel] [--stages [--supercell M]]
 Without --volume: CThead skin (../shared/data) when present, else a CT-like phantom.
 """
 import argparse
@@ -60,14 +67,21 @@ def main():
     ap.add_argument("--n", type=int, default=256, help="synthetic volume size")
     ap.add_argument("--zoom", type=float, default=1.6)
     ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--parallel", action="store_true", help="a parallel view (default: perspective)")
+    ap.add_argument("--stages", action="store_true", help="time the raster stages only (see above)")
+    ap.add_argument("--supercell", type=float,
+                    help="with --stages: this size instead of the renderer's choice")
     args = ap.parse_args()
     vol, iso = _volume(args)
     w = h = args.size
     ctx = get_context()
     print(f"{vol.name} {vol.dims} {vol.dtype}, iso {iso}, {w}x{h}, GL: {ctx.info['GL_RENDERER']}, "
           f"caster threads {numba.get_num_threads()}, load {os.getloadavg()[0]:.2f}")
-    cam = Camera.framing(*vol.bounds, azimuth=30, elevation=20, zoom=args.zoom)
+    cam = Camera.framing(*vol.bounds, azimuth=30, elevation=20, zoom=args.zoom, parallel=args.parallel)
     idx = VolumeIndex.of(vol)
+    if args.stages:
+        stages(idx, vol, iso, cam, w, h, args)
+        return
     t0 = time.perf_counter()
     idx.cell_minmax()
     print(f"cell min/max: {time.perf_counter() - t0:.3f} s")
@@ -119,6 +133,23 @@ def main():
           f"= {fixed_u * 1e3:.1f} ms + {per_face * 1e6:.2f} us/unit face (m >= 2)")
     print(f"fit: cells per covered pixel = {base:.2f} + {per_cell:.2f} m; cast = "
           f"{per_ray_s * cores * 1e6:.2f} us/ray + {per_cell_s * cores * 1e9:.1f} ns/cell, per core")
+
+
+def stages(idx, vol, iso, cam, w, h, args):
+    """Per-stage raster times (best and median of --repeats frames after a first one)."""
+    from parc.classify import _size_triple, choose_supercell
+    size = args.supercell if args.supercell is not None else choose_supercell(idx, iso, pixels=w * h)[0]
+    size = _size_triple(size)
+    grid = idx.grid(size)
+    proxy = build_proxy(grid, idx.classify(iso, size), grid.world_edges(vol))
+    first = raster_segments(cam, w, h, proxy)
+    runs = [raster_segments(cam, w, h, proxy) for _ in range(max(1, args.repeats))]
+    print(f"supercell {size}, {proxy.n_polygons} faces, {first.info['drawn']} drawn, "
+          f"{first.info['pixels']} pixels with a segment; first frame: upload "
+          f"{first.seconds['upload'] * 1e3:.1f} ms, total {first.seconds['total'] * 1e3:.1f} ms")
+    for key in ("prepare", "draw", "readback", "post", "total"):
+        t = np.array([r.seconds[key] for r in runs]) * 1e3
+        print(f"  {key:9} best {t.min():7.2f} ms   median {np.median(t):7.2f} ms")
 
 
 if __name__ == "__main__":

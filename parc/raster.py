@@ -7,34 +7,114 @@ z-buffers, with "less than" for the near distance and "greater than" for
 the far one. This pass keeps the idea and fixes what a z-buffer gets
 wrong for an exact ray caster:
 
-- **Exact t, not interpolated depth.** The fragment shader rebuilds the
-  pixel-centre ray from ``gl_FragCoord`` with the caster's formula
-  (`raycast.rays.camera_ray`, in float64) and intersects it with the
-  face's axis-aligned plane. Depth precision, the near-plane distance and
-  perspective interpolation play no part.
-- **One pass, no depth test.** Each fragment writes ``(t, -t)`` into an
-  RG32F target under MIN blending: channel 0 ends as the nearest
-  crossing, channel 1 as minus the farthest.
+- **Bounds on the caster's own t, not interpolated depth.** For every
+  pixel a face covers, the fragment shader finds where the pixel-centre
+  ray -- the caster's (`raycast.rays.camera_ray`), whose float64 t the
+  caster will compare against -- crosses the face's axis-aligned plane,
+  and writes a float32 interval ``[t - e, t + e]`` that provably contains
+  that float64 t (see "Error bounds"). Depth precision, the near-plane
+  distance and perspective interpolation play no part, and no CPU margin
+  is needed afterwards.
+- **One pass, no depth test.** Each fragment writes ``(t - e, -(t + e))``
+  into an RG32F target under MIN blending: channel 0 ends as the nearest
+  near bound, channel 1 as minus the farthest far bound. Pixels without a
+  fragment keep the cleared ``(inf, inf)``, i.e. near inf, far -inf.
 - **Conservative coverage.** A geometry shader clips each face at the
   near distance and grows its projection, in float64, to contain the
   Minkowski sum with a square of half-size `COVERAGE_PAD_PX` (each edge
-  moved out by the square's support, mitred corners; the bounding box
-  for slivers and faces reaching off screen), so rasterization rules and
-  vertex snapping cannot drop a pixel whose centre ray crosses the face.
-  The extra pixels cost fill, not accuracy: the fragment shader discards
-  a pixel whose own ray misses the face. Measured on the CT head (skin,
-  4-cell supercells, 512x512): 1.23M fragments for 1.15M real crossings
-  (the screen bounding box alone gave 2.17M).
-- **Margins in float64 on the CPU.** After read-back, ``near -=`` and
-  ``far +=`` `margin` (see `MARGIN_T`) cover the float32 storage and
-  the float64 arithmetic; the price is at most one extra cell per ray.
+  moved out by the square's support, mitred corners; the bounding box for
+  slivers, clipped faces and faces reaching off screen), so rasterization
+  rules and vertex snapping cannot drop a pixel whose centre ray crosses
+  the face. The extra pixels cost fill, not accuracy: the fragment shader
+  discards a pixel whose ray surely misses the face. Measured on the CT
+  head (skin, 4-cell supercells, 512x512): 1.23M fragments for 1.15M real
+  crossings (the screen bounding box alone gave 2.17M).
 - **Eye inside the PC region.** Perspective: if the eye lies in (or on) a
   PC supercell, every ray starts inside, so near is 0 for every pixel
   (the paper: "start from the viewing plane"). Otherwise the faces are
   clipped at a forward distance below ``d_min cos(theta_max)``, where
   ``d_min`` is the eye's distance to the nearest PC supercell, so no
   visible part of any face is lost. Parallel: each pixel's ray starts on
-  the view plane; a pixel whose start lies in a PC supercell gets near 0.
+  the view plane; a pixel whose start lies in a PC supercell gets near 0
+  (tested on the CPU, and skipped when the view plane clears the volume).
+- **Faces parallel to the rays are skipped** (a parallel view with
+  ``f_a = 0``, or the eye in the face's plane): where a ray enters or
+  leaves the PC region it crosses a face it is not parallel to.
+- **Cavity faces are skipped** while no ray starts in a cavity (empty
+  supercells enclosed by PC ones): a ray's first entry and last exit lie
+  on faces bordering the open empty space (`_open_faces`).
+
+Error bounds
+------------
+The fragment shader works in float32 (llvmpipe emulates float64 slowly:
+the earlier float64 shader took 30 ms of a 35 ms pass on the CT head
+skin). Over the pixel indices (x, y) the caster's ray is affine: ``sx``
+and ``sy`` are affine in x and y, so the perspective direction ``d = f +
+tan(fov/2) (sx r + sy u)`` and the parallel origin are too
+(`_pixel_affine`). Per face, the geometry shader (float64) hands the
+fragment shader three affine forms ``k0 + kx x + ky y`` and bounds that
+hold for every ray that really crosses the face; a fragment of a ray that
+does not cross it may write anything finite, which can only loosen the
+result, never break it.
+
+- Rounding model: ``+ - *`` correctly rounded (2^-24 relative; fused or
+  not), division and square root within 2^-20 (GLSL allows 2.5 and about
+  4.5 ulp), float64 to float32 conversion within one ulp. An affine form
+  evaluated in float32 with rounded coefficients is off by at most
+  ``3 * 2^-24 * (|k0| + |kx| x + |ky| y)``; `AFFINE_ERR` doubles that.
+- Perspective: the shader evaluates ``d_a, d_u, d_v`` (face axis a,
+  spanning axes u, v), then ``r = w / d_a`` (``w`` = plane - eye), the
+  crossing ``p = r (d_u, d_v)`` and ``t = r |d|``. A ray crossing the face
+  at t has ``|d_a| / |d| = |w| / t >= |w| / t_max`` and ``|d| >= 1``, so
+  ``d_a``'s absolute error bound (`AFFINE_ERR` times its magnitude over
+  the image) is a relative one, ``q``, for every crossing ray; from it
+  follow relative bounds on r and t and an absolute one on p (using
+  ``|r| <= t <= t_max``). ``e = e_rel |t|`` with ``e_rel`` twice the
+  derived bound: 8e-6 to 1e-5 in the views timed below, i.e. ``e`` is
+  about 0.007 of a cell on the CT head (t ~ 860) and 0.002 on neghip;
+  the caster's cells per pixel did not change (`parc compare`).
+- Parallel: ``t = (w - o_a) / f_a`` and the crossing point are affine in
+  (x, y) themselves, so the shader evaluates them directly; ``e`` is
+  absolute, `AFFINE_ERR` times the form's magnitude.
+- The face test discards a fragment only if ``p`` lies outside the
+  face's rectangle grown by p's error bound (rounded outwards to
+  float32), or NaN; a far bound below 0 (a crossing surely behind the ray
+  start) is discarded too. `ABS_TOL` adds an absolute slack at the scale
+  of the scene (float64 roundings of the caster's ray; rays that only
+  touch a box count as meeting it), `FLUSH_TOL` one for float32
+  denormals flushed to zero.
+- A face whose bound is not tighter than its own range of t (seen nearly
+  edge-on, or face-on in a parallel view) writes that range, computed in
+  float64 and rounded outwards; a perspective face whose plane passes so
+  close to the eye that ``q > 1/4`` writes its range and discards nothing.
+
+Speed
+-----
+Measured on this project's development machine (2 cores, llvmpipe, 512x512,
+the default three-quarter view; best of 20 frames, old and new pass
+interleaved in one process, which matters: the machine's speed drifts by
+up to 1.5x; ``benchmarks/raster_speed.py --stages`` times the stages):
+
+==========================  ==========  ==========  ======================
+scene (faces)               before      after       of which draw / post
+==========================  ==========  ==========  ======================
+CT head skin, 600 (3751)    23-35 ms    9-11 ms     7-10 / 0.9 ms
+CT head bone, 1500 (6904)   26-34 ms    11-13 ms    9-12 / 1.0 ms
+neghip, 80 (2244)           14-16 ms    5 ms        3-4 / 0.9 ms
+==========================  ==========  ==========  ======================
+
+(before: draw 19-30, 21-30 and 10-12 ms, post 3.4 ms.) Parallel views
+also drop the CPU test of ray origins (15-19 ms) when the view plane
+clears the volume. What is left of draw: the geometry shader and triangle
+setup on the calling thread (~2 ms for 3.7k faces), then llvmpipe's
+rasterization (~2/3, measured with a constant fragment shader) and the
+fragment shader (~1/3) on its threads; clear and read-back take ~0.4 ms
+each, the float64 conversion ~0.9 ms. Faces bordering only cavities (bone:
+1.1k of 6.9k, neghip: 1.0k of 2.2k) are skipped while no ray starts in
+one (`_open_faces`). Looseness against the exact segments
+(tests/parc/test_raster.py reports it): ~1e-4 cells mean, ~2e-3 max,
+except a few pixels next to faces whose plane passes through or next to
+the eye (up to a few cells).
 
 The OpenGL context is created once per process (`get_context`), headless
 through EGL (llvmpipe on CPU-only machines).
@@ -68,27 +148,33 @@ COVERAGE_PAD_PX = 0.125
 #: small (float32-exact enough) without cutting anything that reaches a pixel.
 GUARD_PX = 2.0
 
-#: Margin applied after read-back: ``MARGIN_T * |t| + MARGIN_S * scale``,
+#: Margin of the CPU-side segment adjustments (eye inside the PC region,
+#: parallel rays starting inside): ``MARGIN_T * |t| + MARGIN_S * scale``,
 #: where ``scale`` bounds the scene's coordinates and distances
-#: (`_scene_scale`). Error budget of a read-back t against the exact
-#: crossing of the caster's own float64 ray with the face's float64 plane:
-#: the fragment shader forms the caster's direction bit for bit, and each
-#: of its few float64 roundings is relative to the quantity rounded
-#: (``c - o_a``, the division, the norm), ~1e-15 |t| in all, with no
-#: amplification for rays nearly parallel to the face; float32 storage then
-#: rounds t by 2^-24 |t|. MARGIN_T = 2^-21 covers that 8 times. MARGIN_S
-#: = 2^-32 (~2e-10) covers rounding at the scale of the coordinates
-#: (2^-52 scale per operation) with room for drivers whose float64
-#: division is not correctly rounded. Both are far below a cell for any
-#: sane volume, so the price is at most one extra cell at each end.
+#: (`_scene_scale`). Those t are float64 and tiny (0 or the clip distance);
+#: the margin covers their few roundings many times over. (The shader's
+#: own bounds need no CPU margin: see "Error bounds".)
 MARGIN_T = 2.0 ** -21
 MARGIN_S = 2.0 ** -32
 
-#: Face test tolerance in the fragment shader, ``TOL_REL * (scale + |t|)``:
-#: it must exceed the float64 error of the crossing point (~2e-16 scale +
-#: 4e-16 |t|, as above) so that rays through face edges and corners keep
-#: their fragment; a ray missing a face by less than it gets a harmless
-#: extra fragment.
+#: Absolute slack of the fragment bounds, times the scene scale: covers
+#: the caster's float64 roundings at the scale of the coordinates
+#: (2^-52 scale) and the tests' "touching" rays (1e-12 scale from a box)
+#: many times over; about 1e-8 of a cell on the CT head.
+ABS_TOL = 2.0 ** -36
+
+#: Absolute slack per unit of ``1 + x + y`` against float32 denormals
+#: (below 2^-126) flushed to zero in an affine form's terms.
+FLUSH_TOL = 2.0 ** -120
+
+#: Error factor of a float32 affine form ``k0 + kx x + ky y`` against its
+#: exact value: rounded coefficients and two roundings give at most
+#: ``3 * 2^-24 * (|k0| + |kx| x + |ky| y)``; this doubles it (with room for
+#: the float64 coefficients' own error, ~2^-52 of the same magnitudes).
+AFFINE_ERR = 8.0 * 2.0 ** -24
+
+#: Parallel views clip faces at ``-4 * TOL_REL * scale`` (a rounding behind
+#: the view plane), so no crossing at t >= 0 is cut away.
 TOL_REL = 2.0 ** -32
 
 #: When the eye is inside the PC region (perspective), faces are clipped at
@@ -99,8 +185,8 @@ INSIDE_CLIP_REL = 2.0 ** -30
 #: Pixels per band when parallel-view ray origins are tested on the CPU.
 _BAND_PIXELS = 1 << 18
 
-#: Cleared value: "no fragment" in both channels.
-EMPTY = float(np.finfo(np.float32).max)
+#: Cleared value: "no fragment" in both channels (near inf, far -inf).
+EMPTY = math.inf
 
 
 class OpenGLUnavailable(InputError):
@@ -111,6 +197,7 @@ _CONTEXT = None
 _PROGRAMS = {}
 _UPLOADS = weakref.WeakKeyDictionary()
 _SIZED = {}
+_FLOOD = None
 
 
 def get_context():
@@ -151,14 +238,22 @@ def load_shader(name):
     return (SHADER_DIR / name).read_text()
 
 
-def _program(ctx, name):
-    """The compiled program ``parc/shaders/<name>.{vert,geom,frag}`` (cached per context)."""
-    key = (id(ctx), name)
+def _program(ctx, name, parallel=False):
+    """The compiled program ``parc/shaders/<name>.{vert,geom,frag}`` (cached per context).
+
+    With ``parallel``, the fragment shader is compiled with ``PARALLEL``
+    defined (its parallel-view path).
+    """
+    key = (id(ctx), name, bool(parallel))
     if key not in _PROGRAMS:
+        frag = load_shader(f"{name}.frag")
+        if parallel:
+            head, _, rest = frag.partition("\n")
+            frag = f"{head}\n#define PARALLEL 1\n{rest}"
         try:
             _PROGRAMS[key] = ctx.program(vertex_shader=load_shader(f"{name}.vert"),
                                          geometry_shader=load_shader(f"{name}.geom"),
-                                         fragment_shader=load_shader(f"{name}.frag"))
+                                         fragment_shader=frag)
         except Exception as exc:
             # A driver without float64 shaders or geometry shaders ends up here.
             lines = [ln.strip() for ln in str(exc).splitlines() if "error" in ln.lower()]
@@ -168,49 +263,182 @@ def _program(ctx, name):
 
 
 def _sized(ctx, width, height):
-    """Per image size: an RG32F framebuffer and the table of screen offsets (kept for the next call).
-
-    The table holds the caster's ``sx`` per column, then ``sy`` per row, in
-    float64, computed with `raycast.rays.camera_ray`'s formula and operation
-    order so that the fragment shader's rays are the caster's bit for bit.
-    """
+    """The RG32F framebuffer for one image size (kept for the next call)."""
     key = (id(ctx), width, height)
     if key not in _SIZED:
         _SIZED.clear()   # keep one size: sizes rarely alternate
         rb = ctx.renderbuffer((width, height), components=2, dtype="f4")
-        x = np.arange(width, dtype=np.float64)
-        y = np.arange(height, dtype=np.float64)
-        sx = (2.0 * (x + 0.5) / width - 1.0) * (width / height)
-        sy = 1.0 - 2.0 * (y + 0.5) / height
-        _SIZED[key] = (ctx.framebuffer(color_attachments=[rb]),
-                       ctx.buffer(np.concatenate([sx, sy]).tobytes()))
+        _SIZED[key] = ctx.framebuffer(color_attachments=[rb])
     return _SIZED[key]
 
 
 @dataclass
 class _Upload:
-    vao: object
     faces: object
     edges: object
     offsets: tuple
-    count: int
+    count: int            # faces uploaded
+    n_open: int           # of them first: the faces on the open empty space
+    cavity_lo: np.ndarray
+    cavity_hi: np.ndarray
+    vaos: dict = field(default_factory=dict)
+
+    def vao(self, ctx, parallel):
+        """The vertex array feeding the faces to the perspective or parallel program."""
+        if parallel not in self.vaos:
+            self.vaos[parallel] = ctx.vertex_array(_program(ctx, "segments", parallel),
+                                                   [(self.faces, "4i 2i", "in_face", "in_vrange")])
+        return self.vaos[parallel]
 
 
 def _upload(ctx, proxy):
-    """Face records and boundary table of a proxy on the GPU (cached per proxy)."""
+    """Face records and boundary table of a proxy on the GPU (cached per proxy).
+
+    Faces on the open empty space (see `_open_faces`) come first, so a
+    frame whose rays all start outside the cavities draws only those.
+    """
     up = _UPLOADS.get(proxy)
-    if up is not None and up.vao.ctx is ctx:
+    if up is not None and up.faces.ctx is ctx:
         return up, False
-    faces = np.ascontiguousarray(proxy.faces, dtype=np.int32)
+    is_open, cavity = _open_faces(proxy)
+    order = np.argsort(~is_open, kind="stable")
+    faces = np.ascontiguousarray(proxy.faces[order], dtype=np.int32)
     vbo = ctx.buffer(faces.tobytes())
     edges = np.concatenate(proxy.world_edges).astype(np.float64)
     ssbo = ctx.buffer(edges.tobytes())
     n = [len(e) for e in proxy.world_edges]
     offsets = (0, n[0], n[0] + n[1])
-    vao = ctx.vertex_array(_program(ctx, "segments"), [(vbo, "4i 2i", "in_face", "in_vrange")])
-    up = _Upload(vao=vao, faces=vbo, edges=ssbo, offsets=offsets, count=len(faces))
+    kz, ky, kx = np.nonzero(cavity)
+    ex, ey, ez = proxy.world_edges
+    up = _Upload(faces=vbo, edges=ssbo, offsets=offsets, count=len(faces), n_open=int(is_open.sum()),
+                 cavity_lo=np.stack([ex[kx], ey[ky], ez[kz]], axis=1),
+                 cavity_hi=np.stack([ex[kx + 1], ey[ky + 1], ez[kz + 1]], axis=1))
     _UPLOADS[proxy] = up
     return up, True
+
+
+def _open_faces(proxy):
+    """Which faces border the open empty space; and the cavities.
+
+    The open empty space is the set of empty (not PC) supercells connected
+    to the outside of the volume through empty supercells sharing a face,
+    an edge or a corner; the other empty supercells are cavities. A ray
+    starting outside every (closed) cavity box first meets the PC region
+    at a point all of whose empty neighbour boxes are open: up to that
+    point it ran through empty boxes, each sharing at least a point with
+    the next, from an open one; and every empty box holding the entry
+    point shares that point with the last of them. So the faces there
+    border open supercells; the same holds for the last exit, after which
+    the ray runs to infinity. Faces bordering only cavities are never
+    needed for such rays (a ray merely passing within the tests' touching
+    distance of a box behaves the same: that distance is far below a
+    supercell).
+
+    Returns
+    -------
+    is_open : ndarray of bool, shape (Q,)
+        Per face of ``proxy.faces``: some unit face of it has an open
+        supercell on its empty side.
+    cavity : ndarray of bool, shape ``proxy.pc.shape``
+    """
+    padded = np.pad(proxy.pc, 1)
+    open_ = _flood_from_corner(~padded)
+    f = proxy.faces.astype(np.int64)
+    q = len(f)
+    nu = f[:, 3] - f[:, 2]
+    nv = f[:, 5] - f[:, 4]
+    rep = nu * nv
+    idx = np.repeat(np.arange(q), rep)
+    k = np.arange(int(rep.sum())) - np.repeat(np.cumsum(rep) - rep, rep)
+    a = f[idx, 0]
+    # Padded index of the empty side of each unit face: the face at
+    # boundary p lies between supercells p-1 and p, i.e. padded p and p+1.
+    side = f[idx, 1] + (proxy.outward[idx] > 0)
+    uu = f[idx, 2] + k % nu[idx] + 1
+    vv = f[idx, 4] + k // nu[idx] + 1
+    xyz = [np.where(a == ax, side, np.where((a + 1) % 3 == ax, uu, vv)) for ax in range(3)]
+    unit_open = open_[xyz[2], xyz[1], xyz[0]]
+    is_open = np.zeros(q, dtype=bool)
+    np.logical_or.at(is_open, idx, unit_open)
+    cavity = ~padded[1:-1, 1:-1, 1:-1] & ~open_[1:-1, 1:-1, 1:-1]
+    return is_open, cavity
+
+
+def _flood_from_corner(empty):
+    """Cells of ``empty`` (3-D bool) connected to ``empty[0, 0, 0]`` through 26-neighbours."""
+    global _FLOOD
+    if _FLOOD is None:
+        from raycast.config import kernel   # sets Numba's cache folder before Numba loads
+
+        @kernel
+        def flood(cells, ny, nx, start):
+            # cells: flat (z, y, x) with a border of False, so neighbours
+            # need no bounds test; cleared as they are reached. Scanline
+            # fill: clear the whole run along x around a seed, then seed
+            # every run in the 8 neighbouring rows that touches it (x - 1
+            # to x + 1: neighbours through faces, edges and corners).
+            stack = np.empty(cells.size, dtype=np.int64)
+            stack[0] = start
+            top = 1
+            while top > 0:
+                top -= 1
+                i = stack[top]
+                if not cells[i]:
+                    continue
+                lo = i
+                while cells[lo - 1]:
+                    lo -= 1
+                hi = i
+                while cells[hi + 1]:
+                    hi += 1
+                for j in range(lo, hi + 1):
+                    cells[j] = False
+                for dz in (-1, 0, 1):
+                    for dy in (-1, 0, 1):
+                        if dz == 0 and dy == 0:
+                            continue
+                        off = (dz * ny + dy) * nx
+                        inrun = False
+                        for j in range(lo - 1 + off, hi + 2 + off):
+                            if cells[j]:
+                                if not inrun:
+                                    stack[top] = j
+                                    top += 1
+                                    inrun = True
+                            else:
+                                inrun = False
+
+        _FLOOD = flood
+    nz, ny, nx = (n + 2 for n in empty.shape)
+    cells = np.pad(empty, 1).ravel()
+    start = (ny + 1) * nx + 1
+    if not cells[start]:
+        return np.zeros_like(empty)
+    left = cells.copy()
+    _FLOOD(left, ny, nx, start)
+    return (cells & ~left).reshape(nz, ny, nx)[1:-1, 1:-1, 1:-1]
+
+
+def _in_cavity(up, camera, width, height, eye):
+    """Whether a ray of this view may start in (or on) a cavity box: then every face is drawn."""
+    if not len(up.cavity_lo):
+        return False
+    if not camera.parallel:
+        return bool(np.all((up.cavity_lo <= eye) & (eye <= up.cavity_hi), axis=1).any())
+    # Parallel: ray origins lie within a rounding of the view plane; does
+    # that slab meet a cavity box?
+    f = np.asarray(camera.basis()[0], dtype=np.float64)
+    centre = (up.cavity_lo + up.cavity_hi) / 2.0
+    half = (up.cavity_hi - up.cavity_lo) / 2.0 @ np.abs(f)
+    dist = (centre - eye) @ f
+    slab = _origin_slab(camera, width, height, eye, up.cavity_lo, up.cavity_hi) + 2.0 ** -40 * half
+    return bool(np.any((dist - half <= slab) & (dist + half >= -slab)))
+
+
+def _origin_slab(camera, width, height, eye, lo, hi):
+    """Half-width around the view plane that holds every parallel ray origin as the caster rounds it."""
+    return 2.0 ** -40 * (np.abs(eye).max() + max(np.abs(lo).max(), np.abs(hi).max())
+                         + camera.parallel_scale * (width / height + 1.0))
 
 
 @dataclass
@@ -229,7 +457,8 @@ class Segments:
         ``readback``, ``post`` (margins, inside tests).
     info : dict
         ``eye_inside``, ``d_min``, ``clip_near``, ``pixels`` (with a segment),
-        ``scale``.
+        ``scale``, ``drawn`` (faces drawn: those bordering cavities are
+        skipped while no ray starts in one).
     """
 
     near: np.ndarray
@@ -237,10 +466,17 @@ class Segments:
     polygons: int
     seconds: dict = field(default_factory=dict)
     info: dict = field(default_factory=dict)
+    _seg: np.ndarray = field(default=None, repr=False)
 
     @property
     def seg(self):
-        """``(H, W, 2)`` array ``[..., 0] = near``, ``[..., 1] = far``, as the caster takes it."""
+        """``(H, W, 2)`` array ``[..., 0] = near``, ``[..., 1] = far``, as the caster takes it.
+
+        `raster_segments` builds ``near`` and ``far`` as views of this array,
+        so it is returned as is (no copy).
+        """
+        if self._seg is not None and self.near.base is self._seg and self.far.base is self._seg:
+            return self._seg
         return np.stack([self.near, self.far], axis=-1)
 
 
@@ -321,24 +557,31 @@ def raster_segments(camera, width, height, proxy, *, pad_px=COVERAGE_PAD_PX):
         seconds["upload"] = time.perf_counter() - t0 if fresh else 0.0
 
         t0 = time.perf_counter()
-        prog = _program(ctx, "segments")
+        parallel = camera.parallel
+        vao = up.vao(ctx, parallel)
+        prog = vao.program
+        aff0, affx, affy = _pixel_affine(camera, f, r, u, th, width, height)
+        flush = FLUSH_TOL * (width + height)
+        err_d = AFFINE_ERR * (np.abs(aff0) + np.abs(affx) * (width - 1) + np.abs(affy) * (height - 1)) + flush
         _set(prog, "edge_offset", up.offsets)
         _set(prog, "eye", tuple(eye))
         _set(prog, "fwd", tuple(f))
         _set(prog, "right", tuple(r))
         _set(prog, "upv", tuple(u))
-        _set(prog, "parallel", 1 if camera.parallel else 0)
+        _set(prog, "parallel", 1 if parallel else 0)
         _set(prog, "tan_half", th)
         _set(prog, "pscale", float(camera.parallel_scale or 0.0))
         _set(prog, "aspect", aspect)
         _set(prog, "clip_near", clip_near)
         _set(prog, "ndc_limit", ndc_limit)
         _set(prog, "ndc_pad", (2.0 * pad_px / width, 2.0 * pad_px / height))
-        _set(prog, "width", width)
-        _set(prog, "scale", scale)
-        _set(prog, "tol_rel", TOL_REL)
-        _set(prog, "t_min", -TOL_REL * scale)
-        fbo, offsets = _sized(ctx, width, height)
+        _set(prog, "aff0", tuple(aff0))
+        _set(prog, "affx", tuple(affx))
+        _set(prog, "affy", tuple(affy))
+        _set(prog, "err_d", tuple(err_d))
+        _set(prog, "pix_max", (width - 1.0, height - 1.0))
+        _set(prog, "abs_tol", ABS_TOL * scale + flush)
+        fbo = _sized(ctx, width, height)
         fbo.use()
         ctx.viewport = (0, 0, width, height)
         ctx.disable(_moderngl().DEPTH_TEST | _moderngl().CULL_FACE)
@@ -346,8 +589,8 @@ def raster_segments(camera, width, height, proxy, *, pad_px=COVERAGE_PAD_PX):
         ctx.blend_equation = _moderngl().MIN
         fbo.clear(EMPTY, EMPTY, 0.0, 0.0)
         up.edges.bind_to_storage_buffer(0)
-        offsets.bind_to_storage_buffer(1)
-        up.vao.render(_moderngl().POINTS, vertices=up.count)
+        drawn = up.count if _in_cavity(up, camera, width, height, eye) else up.n_open
+        vao.render(_moderngl().POINTS, vertices=drawn)
         ctx.finish()
         seconds["draw"] = time.perf_counter() - t0
 
@@ -359,29 +602,26 @@ def raster_segments(camera, width, height, proxy, *, pad_px=COVERAGE_PAD_PX):
         ctx.disable(_moderngl().BLEND)
 
         t0 = time.perf_counter()
-        # Whole-image float64 arithmetic (cheaper than gathering the hit
-        # pixels), then the empty ones reset. margin(t) = MARGIN_T |t| + MARGIN_S scale.
-        empty = rg[..., 0] == EMPTY
-        near = rg[..., 0].astype(np.float64)
-        near -= MARGIN_T * np.abs(near) + MARGIN_S * scale
-        np.maximum(near, 0.0, out=near)
-        far = rg[..., 1].astype(np.float64)
-        np.negative(far, out=far)
-        far += MARGIN_T * np.abs(far) + MARGIN_S * scale
-        near[empty] = np.inf
-        far[empty] = -np.inf
+        # The shader wrote (near, -far), already conservative and near >= 0;
+        # pixels without a fragment kept (inf, inf), i.e. near inf, far -inf.
+        seg = rg.astype(np.float64)
+        np.negative(seg[..., 1], out=seg[..., 1])
     else:
+        drawn = 0
         seconds.update(upload=0.0, draw=0.0, readback=0.0)
         t0 = time.perf_counter()
-        near = np.full((height, width), np.inf)
-        far = np.full((height, width), -np.inf)
+        seg = np.empty((height, width, 2))
+        seg[..., 0] = np.inf
+        seg[..., 1] = -np.inf
+    near, far = seg[..., 0], seg[..., 1]
 
     if camera.parallel:
-        # A ray starting inside the PC region enters it at t = 0; its far
-        # comes from the faces ahead (no face is clipped in a parallel view
-        # except a rounding's width behind the view plane).
-        near[inside_px] = 0.0
-        far[inside_px] = np.maximum(far[inside_px], margin(0.0, scale))
+        if eye_inside:
+            # A ray starting inside the PC region enters it at t = 0; its far
+            # comes from the faces ahead (no face is clipped in a parallel
+            # view except a rounding's width behind the view plane).
+            near[inside_px] = 0.0
+            far[inside_px] = np.maximum(far[inside_px], margin(0.0, scale))
     elif eye_inside:
         # Every ray starts inside. Faces were clipped at clip_near; a ray
         # leaving the PC region before then has no fragment, so raise far
@@ -391,8 +631,8 @@ def raster_segments(camera, width, height, proxy, *, pad_px=COVERAGE_PAD_PX):
     seconds["post"] = time.perf_counter() - t0
     seconds["total"] = sum(seconds.values())
     info = {"eye_inside": bool(eye_inside), "d_min": d_min, "clip_near": clip_near,
-            "pixels": int(np.count_nonzero(near <= far)), "scale": scale}
-    return Segments(near=near, far=far, polygons=proxy.n_polygons, seconds=seconds, info=info)
+            "pixels": int(np.count_nonzero(near <= far)), "scale": scale, "drawn": drawn}
+    return Segments(near=near, far=far, polygons=proxy.n_polygons, seconds=seconds, info=info, _seg=seg)
 
 
 def _moderngl():
@@ -404,6 +644,26 @@ def _set(prog, name, value):
     """Set a uniform the compiler kept (unused ones are optimized away)."""
     if name in prog:
         prog[name].value = value
+
+
+def _pixel_affine(camera, f, r, u, th, width, height):
+    """The caster's per-pixel ray as an affine map of the pixel indices, float64.
+
+    `raycast.rays.camera_ray` uses ``sx = (2 (x + 0.5) / W - 1) W / H`` and
+    ``sy = 1 - 2 (y + 0.5) / H``, both affine in (x, y). Returns ``(k0, kx,
+    ky)``, three 3-vectors with ``k0 + kx x + ky y`` = the direction ``f +
+    tan(fov/2) (sx r + sy u)`` (perspective) or the origin's offset from the
+    eye ``ps (sx r + sy u)`` (parallel).
+    """
+    aspect = width / height
+    scale, base = (float(camera.parallel_scale), 0.0) if camera.parallel else (th, 1.0)
+    r = np.asarray(r, dtype=np.float64)
+    u = np.asarray(u, dtype=np.float64)
+    k0 = (base * np.asarray(f, dtype=np.float64)
+          + scale * (r * (aspect / width - aspect) + u * (1.0 - 1.0 / height)))
+    kx = scale * r * (2.0 * aspect / width)
+    ky = scale * u * (-2.0 / height)
+    return k0, kx, ky
 
 
 def _scene_scale(camera, lo, hi, aspect):
@@ -445,9 +705,17 @@ def _parallel_inside(camera, width, height, proxy):
     f, r, u = camera.basis()
     ps = camera.parallel_scale
     eye = np.asarray(camera.eye, dtype=np.float64)
-    sx = (2.0 * (np.arange(width) + 0.5) / width - 1.0) * (width / height)
     lo, hi = proxy.bounds
     inside = np.zeros((height, width), dtype=bool)
+    # Every origin lies within a rounding of the view plane (2^-52 of the
+    # coordinates): if the volume box is clear of that slab, no origin is
+    # in it -- the usual case, a view plane in front of the volume.
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    dist = (corners - eye) @ np.asarray(f, dtype=np.float64)
+    slab = _origin_slab(camera, width, height, eye, lo, hi)
+    if (dist > slab).all() or (dist < -slab).all():
+        return inside
+    sx = (2.0 * (np.arange(width) + 0.5) / width - 1.0) * (width / height)
     band = max(1, _BAND_PIXELS // width)
     for y0 in range(0, height, band):
         sy = 1.0 - 2.0 * (np.arange(y0, min(height, y0 + band)) + 0.5) / height

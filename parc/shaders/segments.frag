@@ -1,72 +1,55 @@
 #version 430
-// Ray distance t of this pixel's centre ray to the face, in float64.
+// Conservative bounds on the ray distance t of this pixel's centre ray to
+// the face, in float32 (compiled with PARALLEL defined for parallel views).
 //
-// The ray is the caster's own (raycast/rays.py): the screen offsets sx, sy
-// come from a table computed by the caster's formula in float64, and the
-// direction D = f + tan(fov/2) (sx r + sy u) is formed in the same order,
-// `precise` so no fused multiply-add changes its rounding. The crossing
-// with the face's plane is found with the unnormalized D (same point) and
-// kept only if it lies on the face, within a tolerance far below a cell;
-// only then is t scaled to unit speed. Output (t, -t) under MIN blending
-// gives each pixel's smallest and largest t in one pass.
-layout(std430, binding = 1) readonly buffer ScreenOffsets { double sxy[]; };  // sx[0..W), sy[0..H)
-
-uniform dvec3 eye;
-uniform dvec3 fwd;
-uniform dvec3 right;
-uniform dvec3 upv;
-uniform int parallel;
-uniform double tan_half;
-uniform double pscale;
-uniform int width;
-uniform double scale;        // coordinate and distance scale of the scene
-uniform double tol_rel;      // face test tolerance: tol_rel * (scale + |t|)
-uniform double t_min;        // crossings before this are behind the ray start
-
-flat in int g_axis;
-flat in double g_plane;
-flat in dvec4 g_rect;
+// The ray is the caster's (raycast/rays.py). Over pixel indices (x, y) the
+// geometry shader hands three affine forms k0 + kx x + ky y per face:
+//   perspective: the ray direction's components d_a, d_u, d_v along the
+//     face's axis and spanning axes; the crossing is r d with r = w / d_a
+//     (w = plane - eye_a), so p = r (d_u, d_v) relative to the eye and
+//     t = r |d| at unit speed;
+//   parallel: t and the crossing point p directly (affine in a parallel
+//     view).
+// and bounds that hold for every ray really crossing the face (raster.py,
+// "Error bounds"): the rectangle, grown by p's error bound, and
+// |t32 - t| <= e_abs + e_rel |t32|. A fragment whose p is outside the
+// grown rectangle (or NaN) cannot belong to a crossing ray and is
+// discarded; otherwise it writes near t - e and far t + e. Faces flagged
+// by the geometry shader write the face's own range of t instead. Output
+// (max(near, 0), -far) under MIN blending gives each pixel's smallest near
+// and largest far in one pass; a far below 0 (a crossing behind the ray's
+// start) is discarded.
+flat in vec3 g_a;            // perspective: d_a, d_u, d_v; parallel: t, p_u, p_v
+flat in vec3 g_b;
+flat in vec3 g_c;
+flat in float g_w;           // perspective: plane - eye_a
+flat in vec4 g_rect;         // (u0, u1, v0, v1) - eye, grown
+flat in vec2 g_err;          // (e_abs, e_rel), or (-1 or -2, _): write the t range
+flat in vec2 g_trange;       // t on the face lies in [x, y]
 
 layout(location = 0) out vec2 frag;
 
 void main() {
-    int x = int(gl_FragCoord.x);
-    int y = int(gl_FragCoord.y);
-    double sx = sxy[x];
-    double sy = sxy[width + y];
-    precise dvec3 o;
-    precise dvec3 d;
-    if (parallel != 0) {
-        o = eye + pscale * (sx * right + sy * upv);
-        d = fwd;
-    } else {
-        o = eye;
-        d = fwd + tan_half * (sx * right + sy * upv);
-    }
-    // Components along the face's axis a and its spanning axes u, v
-    // (selects, not dynamic indexing: cheaper on llvmpipe).
-    int a = g_axis;
-    double da = a == 0 ? d.x : (a == 1 ? d.y : d.z);
-    double oa = a == 0 ? o.x : (a == 1 ? o.y : o.z);
-    dvec2 duv = a == 0 ? d.yz : (a == 1 ? d.zx : d.xy);
-    dvec2 ouv = a == 0 ? o.yz : (a == 1 ? o.zx : o.xy);
-    // A ray exactly parallel to the face never needs it: where such a ray
-    // enters or leaves the PC region it crosses another outer face whose
-    // axis it is not parallel to (a face perpendicular to the entering
-    // axis, or the side face where a PC neighbour meets an empty diagonal
-    // one). Nearly parallel rays need no special case: D is the caster's
-    // direction to the last bit, so the crossing is as accurate as for
-    // any ray (each rounding is relative to the quantity rounded), and a
-    // far-off crossing simply fails the face test.
-    if (da == 0.0) discard;
-    precise double s = (g_plane - oa) / da;
-    precise double t = parallel != 0 ? s : s * sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
-    if (t < t_min) discard;
-    double tol = tol_rel * (scale + abs(t));
-    precise double pu = ouv.x + s * duv.x;
-    precise double pv = ouv.y + s * duv.y;
-    // Written so that NaN or inf (a crossing at infinity) fails and discards.
-    if (!(pu >= g_rect.x - tol && pu <= g_rect.y + tol && pv >= g_rect.z - tol && pv <= g_rect.w + tol))
-        discard;
-    frag = vec2(float(t), float(-t));
+    vec2 c = floor(gl_FragCoord.xy);          // pixel indices, exact
+    precise float ka = g_a.x + g_a.y * c.x + g_a.z * c.y;
+    precise float kb = g_b.x + g_b.y * c.x + g_b.z * c.y;
+    precise float kc = g_c.x + g_c.y * c.x + g_c.z * c.y;
+#ifdef PARALLEL
+    precise float t = ka;
+    vec2 p = vec2(kb, kc);
+#else
+    precise float r = g_w / ka;
+    precise vec2 p = r * vec2(kb, kc);
+#endif
+    bool inside = p.x >= g_rect.x && p.x <= g_rect.y && p.y >= g_rect.z && p.y <= g_rect.w;
+    if (!inside && g_err.x > -1.5) discard;   // NaN is outside
+#ifndef PARALLEL
+    precise float t = r * sqrt(ka * ka + kb * kb + kc * kc);
+#endif
+    precise float e = g_err.x + g_err.y * abs(t);
+    bool range = g_err.x < 0.0;
+    float nearc = range ? g_trange.x : t - e;
+    float farc = range ? g_trange.y : t + e;
+    if (farc < 0.0) discard;
+    frag = vec2(max(nearc, 0.0), -farc);
 }

@@ -117,6 +117,28 @@ def test_axis_aligned_perspective(gl, looseness, size, view):
     _check(cam, proxy, 31, 31, f"axis per f={view[0]} s={size}", looseness)
 
 
+@pytest.mark.parametrize("parallel", [False, True], ids=["persp", "parallel"])
+@pytest.mark.parametrize("offset", [0.0, 1e-7, 1e-3], ids=str)
+@pytest.mark.parametrize("tilt", [0.0, 1e-7, 1e-3], ids=str)
+def test_grazing_views(gl, looseness, parallel, offset, tilt):
+    """Rays nearly parallel to the y faces, from an eye on, next to or near a grid plane y = 4.
+
+    The float32 bounds are weakest here (small ray components along the
+    face axis, planes through or next to the eye); they must stay
+    conservative.
+    """
+    vol = _volume(12, dims=(9, 9, 9))
+    proxy = _proxy(vol, 1, frac=0.5)
+    eye = np.array([-12.0, 4.0 + offset, 4.3])
+    look = eye + np.array([1.0, tilt, 0.02])
+    if parallel:
+        cam = Camera(eye=tuple(eye), look_at=tuple(look), up=(0, 0, 1), parallel_scale=5.0)
+    else:
+        cam = Camera(eye=tuple(eye), look_at=tuple(look), up=(0, 0, 1), fov=40.0)
+    label = f"grazing {'par' if parallel else 'per'} off={offset:g} tilt={tilt:g}"
+    _check(cam, proxy, 33, 31, label, looseness)
+
+
 @pytest.mark.parametrize("size", SIZES, ids=str)
 @pytest.mark.parametrize("seed", [0, 1])
 def test_eye_inside_volume_empty_supercell(gl, looseness, size, seed):
@@ -212,6 +234,96 @@ def test_wide_fov_eye_inside_volume(gl, looseness):
     eye = _centre(proxy, idx[2], idx[1], idx[0])
     cam = Camera(eye=tuple(eye), look_at=tuple(eye + np.array([1.0, 0.2, -0.1])), up=(0, 0, 1), fov=160.0)
     _check(cam, proxy, 64, 24, "wide fov 160 inside volume", looseness)
+
+
+def _shell_proxy(size):
+    """A hollow ball: the PC supercells form a closed shell around empty cavity supercells."""
+    n = 14
+    z, y, x = np.mgrid[:n, :n, :n].astype(float)
+    r = np.sqrt((x - 6.3) ** 2 + (y - 6.6) ** 2 + (z - 6.1) ** 2)
+    data = np.exp(-((r - 4.0) / 1.2) ** 2).astype(np.float32)
+    vol = Volume(data, spacing=(1.0, 0.9, 1.1), origin=(0.5, -2.0, 1.0))
+    idx = VolumeIndex.of(vol)
+    grid = idx.grid(size)
+    return vol, build_proxy(grid, idx.classify(0.5, size), grid.world_edges(vol))
+
+
+def _cavity_reference(pc):
+    """Empty supercells not reachable from outside through faces, edges or corners (plain BFS)."""
+    from collections import deque
+    empty = ~np.pad(pc, 1)
+    seen = np.zeros_like(empty)
+    seen[0, 0, 0] = True
+    todo = deque([(0, 0, 0)])
+    while todo:
+        z, y, x = todo.popleft()
+        for dz in (-1, 0, 1):
+            for dy in (-1, 0, 1):
+                for dx in (-1, 0, 1):
+                    q = (z + dz, y + dy, x + dx)
+                    if all(0 <= c < s for c, s in zip(q, empty.shape)) and empty[q] and not seen[q]:
+                        seen[q] = True
+                        todo.append(q)
+    return (empty & ~seen)[1:-1, 1:-1, 1:-1]
+
+
+@pytest.mark.parametrize("size", [1, 1.5, 2], ids=str)
+def test_cavity_faces_found(size):
+    """Faces bordering only cavities are told apart from the rest (no GL needed)."""
+    from parc import raster
+    _, proxy = _shell_proxy(size)
+    is_open, cavity = raster._open_faces(proxy)
+    ref = _cavity_reference(proxy.pc)
+    assert ref.any()
+    np.testing.assert_array_equal(cavity, ref)
+    # A face is open when any of its unit faces has a non-cavity empty supercell behind it.
+    shape = proxy.pc.shape
+    for q, (a, plane, u0, u1, v0, v1) in enumerate(proxy.faces):
+        side = plane if proxy.outward[q] > 0 else plane - 1
+        expect = False
+        for uu in range(u0, u1):
+            for vv in range(v0, v1):
+                xyz = [0, 0, 0]
+                xyz[a], xyz[(a + 1) % 3], xyz[(a + 2) % 3] = side, uu, vv
+                k = (xyz[2], xyz[1], xyz[0])
+                outside = not all(0 <= c < n for c, n in zip(k, shape))
+                expect |= outside or not ref[k]
+        assert is_open[q] == expect, (q, proxy.faces[q])
+
+
+@pytest.mark.parametrize("size", [1, 1.5], ids=str)
+@pytest.mark.parametrize("where", ["outside", "cavity", "cavity corner", "near cavity"])
+def test_cavity_views_perspective(gl, looseness, size, where):
+    """Cavity faces are skipped only while the eye is outside every cavity box."""
+    vol, proxy = _shell_proxy(size)
+    cav = np.argwhere(_cavity_reference(proxy.pc))
+    kz, ky, kx = cav[len(cav) // 2]
+    ex, ey, ez = proxy.world_edges
+    if where == "outside":
+        cam = Camera.framing(*vol.bounds, azimuth=40, elevation=25, zoom=1.2)
+    else:
+        eye = _centre(proxy, kx, ky, kz)
+        if where == "cavity corner":
+            eye = np.array([ex[kx], ey[ky + 1], ez[kz]])
+        elif where == "near cavity":
+            # In the PC shell a hair outside the cavity box: every ray starts inside.
+            eye = np.array([ex[kx] - 1e-9, (ey[ky] + ey[ky + 1]) / 2, (ez[kz] + ez[kz + 1]) / 2])
+        cam = Camera(eye=tuple(eye), look_at=tuple(eye + np.array([0.4, 1.0, -0.3])), up=(0, 0, 1), fov=110.0)
+    seg, _, _ = _check(cam, proxy, 40, 36, f"cavity per {where} s={size}", looseness)
+    skipped = seg.info["drawn"] < proxy.n_polygons
+    assert skipped == (where in ("outside", "near cavity"))
+
+
+@pytest.mark.parametrize("through", [False, True], ids=["before", "through"])
+def test_cavity_views_parallel(gl, looseness, through):
+    """Parallel rays start on the view plane: a plane through a cavity draws every face."""
+    vol, proxy = _shell_proxy(1)
+    c = vol.center
+    f = np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8])
+    eye = c if through else c - 30.0 * f
+    cam = Camera(eye=tuple(eye), look_at=tuple(eye + f), up=(0, 1, 0), parallel_scale=8.0)
+    seg, _, _ = _check(cam, proxy, 40, 40, f"cavity par {'through' if through else 'before'}", looseness)
+    assert (seg.info["drawn"] == proxy.n_polygons) == through
 
 
 def test_empty_proxy_has_no_segments(gl):
