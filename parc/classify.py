@@ -458,17 +458,17 @@ class VolumeIndex:
 #: (2 x86 cores, Mesa llvmpipe 22.3 / LLVM 15, 512x512 images) with
 #: ``benchmarks/raster_speed.py`` on the CT head skin (iso 600.5) and a
 #: 256^3 sphere, sizes 1-8; see `choose_supercell`.
-#: Rasterization (parc.raster, merged proxy): fixed cost per 512x512 frame
-#: (clear, fill of the surface layers, read-back, margins), then per outer
-#: face of the unmerged proxy (fitted 0.54-1.1 us over sizes 2-8; per face
-#: it falls for small faces, so this overestimates size 1, where it
-#: matters least: 500k faces took 0.46 s unmerged, 0.24 s merged).
-RASTER_FIXED_S = 22e-3
-RASTER_PER_FACE_S = 0.8e-6
+#: Rasterization (parc.raster, merged proxy, float32 fragments): fixed cost
+#: per 512x512 frame (clear, fill, read-back), then per outer face of the
+#: unmerged proxy; refitted after the float32 fragment path (draw = 8.2 ms
+#: + 0.43 us per face on the CT head skin and bone, neghip).
+RASTER_FIXED_S = 8.2e-3
+RASTER_PER_FACE_S = 0.43e-6
 #: Numba caster with segments, per core: per ray that reaches the PC
-#: region (setup, the cubic at the hit) and per cell walked.
-CAST_PER_RAY_S = 0.36e-6
-CAST_PER_CELL_S = 25e-9
+#: region (setup, the cubic at the hit) and per cell walked (refitted with
+#: the face-root sign carry in the walk).
+CAST_PER_RAY_S = 0.76e-6
+CAST_PER_CELL_S = 9.8e-9
 #: Cells walked per ray that reaches a PC supercell: ``WALK_BASE +
 #: WALK_PER_CELL * m`` for supercells of ``m`` cells: the walk from the
 #: supercell's boundary to the surface grows with the supercell. Fitted:
