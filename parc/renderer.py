@@ -10,9 +10,11 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from data_tools import InputError
+from raycast.config import TILE_CHUNK
 from raycast.composite import (MODE_AVERAGE, MODE_COMPOSITE, MODE_MIP, N_PARAMS, P_AMBIENT, P_HI, P_LO,
                                P_MODE, P_RATIO, P_SHADE, P_STEP, P_THRESHOLD, cast_accumulate_image)
 from raycast.iso import cast_iso_image, empty_outputs
@@ -137,11 +139,12 @@ def _render_iso(scene, iso, seg, use_seg, timings, progress):
 
     t0 = time.perf_counter()
     bands = _row_bands(h, w, progress)
-    for n, (y0, y1) in enumerate(bands):
-        cast_iso_image(vol.data, org, spc, cam, w, h, iso.value, seg, use_seg,
-                       t, cell, uvw, counts, y0, y1)
-        if progress is not None:
-            progress((n + 1) / len(bands))
+    with numba.parallel_chunksize(TILE_CHUNK):      # tiles handed out a few at a time
+        for n, (y0, y1) in enumerate(bands):
+            cast_iso_image(vol.data, org, spc, cam, w, h, iso.value, seg, use_seg,
+                           t, cell, uvw, counts, y0, y1)
+            if progress is not None:
+                progress((n + 1) / len(bands))
     timings["cast"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -185,11 +188,12 @@ def _render_translucent(scene, vis, seg, use_seg, timings, progress, bits=None):
 
     t0 = time.perf_counter()
     bands = _row_bands(h, w, progress)
-    for n, (y0, y1) in enumerate(bands):
-        cast_accumulate_image(vol.data, org, spc, cam, w, h, params, op_x, op_y, col_x, col_rgb,
-                              seg, use_seg, bits, use_bits, image, counts, y0, y1)
-        if progress is not None:
-            progress((n + 1) / len(bands))
+    with numba.parallel_chunksize(TILE_CHUNK):
+        for n, (y0, y1) in enumerate(bands):
+            cast_accumulate_image(vol.data, org, spc, cam, w, h, params, op_x, op_y, col_x, col_rgb,
+                                  seg, use_seg, bits, use_bits, image, counts, y0, y1)
+            if progress is not None:
+                progress((n + 1) / len(bands))
     timings["cast"] = time.perf_counter() - t0
     return image, np.full((h, w), np.inf), {"samples": int(counts.sum())}
 
