@@ -1,4 +1,4 @@
-"""Proxy geometry: the outer faces of the possibly contributing supercells.
+"""Proxy geometry: the outer faces of the possibly contributing supercells (and plane faces).
 
 About this technique
 --------------------
@@ -16,6 +16,10 @@ supercells and take ``mask[a] != mask[a+1]`` along each axis; every
 Coplanar neighbours may be merged into rectangles (`merge=True`), which
 cuts the polygon count without changing the covered surface: llvmpipe
 pays per polygon (geometry shader, triangle setup) as well as per pixel.
+
+The bit-plane pass (colour-buffer PARC, §4) also needs the faces between
+PC supercells of neighbouring planes along its axis, each labelled with
+the plane numbers of its PC sides: `build_plane_proxy`.
 
 Each face is stored by grid indices (`Proxy.faces`) -- what the OpenGL
 pass uploads, with the boundary coordinates in float64 beside it -- and is
@@ -216,6 +220,146 @@ def _runs(group, pos, nxt):
     return first, last
 
 
+@dataclass(eq=False)
+class PlaneProxy(Proxy):
+    """Faces for the bit-plane (colour-buffer) pass along one axis.
+
+    Besides the outer faces of the PC supercells (as in `Proxy`), the faces
+    perpendicular to ``plane_axis`` between two PC supercells of
+    neighbouring planes: a ray crossing one passes from the PC region of
+    one plane into that of the next.
+
+    Attributes
+    ----------
+    plane_axis : int
+        The axis (0, 1, 2 = x, y, z) along which supercells are numbered
+        into planes: plane ``p`` is supercell index ``p`` along it.
+    planes : ndarray of int32, shape (Q, 2)
+        Plane numbers of the face's PC neighbours, ascending, ``-1`` for
+        none: ``(p, -1)`` for an outer face (its one PC side lies in plane
+        ``p``), ``(b - 1, b)`` for a face between PC supercells of planes
+        ``b - 1`` and ``b`` (perpendicular to ``plane_axis`` at boundary ``b``).
+    outward : ndarray of int8, shape (Q,)
+        As in `Proxy` for outer faces; 0 for faces between two PC planes.
+    """
+
+    plane_axis: int = 0
+    planes: np.ndarray = field(default=None, repr=False)
+
+    @property
+    def outer(self):
+        """Which faces are outer faces (PC on one side only), bool (Q,)."""
+        return self.outward != 0
+
+    def unit_planes(self):
+        """``planes`` of every row of `unit_faces` (same order), (N, 2) int64."""
+        f = self.faces.astype(np.int64)
+        rep = (f[:, 3] - f[:, 2]) * (f[:, 5] - f[:, 4])
+        return np.repeat(self.planes.astype(np.int64), rep, axis=0)
+
+
+def build_plane_proxy(grid, pc, world_edges, axis, *, merge=True):
+    """Faces for the bit-plane pass: outer faces plus faces between PC planes along ``axis``.
+
+    Parameters
+    ----------
+    grid : SupercellGrid
+    pc : ndarray of bool, shape ``grid.shape``
+        Possibly contributing supercells ([z, y, x]).
+    world_edges : tuple of three float64 arrays
+        ``grid.world_edges(volume)``.
+    axis : int
+        The plane axis (0, 1, 2 = x, y, z), usually the major viewing axis
+        (`parc.bitplanes.major_axis`).
+    merge : bool, default True
+        Merge coplanar neighbour faces that carry the same planes (and, for
+        outer faces, the same orientation) into rectangles. Faces parallel
+        to ``axis`` are never merged across planes.
+
+    Returns
+    -------
+    PlaneProxy
+
+    Notes
+    -----
+    Drawn: every face between a PC supercell and an empty one or the
+    outside (the outer faces of `build_proxy`), and every face
+    perpendicular to ``axis`` between two PC supercells (necessarily of
+    planes ``b - 1`` and ``b``). Faces between two PC supercells of the
+    same plane carry nothing a ray could not learn from the outer faces and
+    are left out. Why this is enough: a ray that meets the PC region
+    ``U_p`` of plane ``p`` leaves it again at a point where some PC box of
+    plane ``p`` meets a box outside ``U_p`` across a face the ray crosses:
+    an empty box or the outside (an outer face) or a PC box of another
+    plane (a face perpendicular to ``axis``); either face carries ``p``.
+    Vectorized: pad the mask with empty supercells, compare neighbours
+    along each axis (``!=`` for outer faces, ``&`` for the plane faces).
+    """
+    pc = np.asarray(pc, dtype=bool)
+    if pc.shape != grid.shape:
+        raise ValueError(f"PC mask shape {pc.shape} does not match the grid {grid.shape}")
+    axis = int(axis)
+    if axis not in (0, 1, 2):
+        raise ValueError(f"plane axis must be 0, 1 or 2, got {axis}")
+    padded = np.pad(pc, 1)
+    rows = []
+    for a in range(3):
+        arr_axis = 2 - a   # array axes are [z, y, x]
+        hi = padded[tuple(slice(1, None) if d == arr_axis else slice(1, -1) for d in range(3))]
+        lo = padded[tuple(slice(None, -1) if d == arr_axis else slice(1, -1) for d in range(3))]
+        iz, iy, ix = np.nonzero((hi | lo) if a == axis else (hi != lo))
+        h = hi[iz, iy, ix]
+        l = lo[iz, iy, ix]
+        # Outward normal away from the PC side; 0 where both sides are PC.
+        sign = np.where(h & l, 0, np.where(h, -1, 1)).astype(np.int8)
+        idx = (ix, iy, iz)
+        plane, u, v = idx[a], idx[(a + 1) % 3], idx[(a + 2) % 3]
+        if a == axis:
+            # Boundary ``plane`` lies between planes plane-1 (below) and plane (above).
+            p0 = np.where(l, plane - 1, plane)
+            p1 = np.where(l & h, plane, -1)
+        else:
+            p0 = idx[axis]          # the supercell index along the plane axis
+            p1 = np.full(len(p0), -1)
+        rows.append((np.full(len(plane), a), plane, u, v, sign, p0, p1))
+    a_, plane, u, v, sign, p0, p1 = (np.concatenate(c).astype(np.int64) for c in zip(*rows))
+    if merge and len(a_):
+        faces, (sign, p0, p1) = _merge_grouped(a_, plane, u, v, (sign + 1, p0 + 1, p1 + 1))
+        sign, p0, p1 = sign - 1, p0 - 1, p1 - 1
+    else:
+        faces = np.stack([a_, plane, u, u + 1, v, v + 1], axis=1).astype(np.int32)
+    return PlaneProxy(grid=grid, pc=pc, faces=faces, outward=sign.astype(np.int8),
+                      world_edges=tuple(np.asarray(e, dtype=np.float64) for e in world_edges),
+                      plane_axis=axis, planes=np.stack([p0, p1], axis=1).astype(np.int32))
+
+
+def _merge_grouped(axis, plane, u, v, groups):
+    """Merge unit faces with equal ``groups`` columns (small non-negative ints) into rectangles.
+
+    As `_merge_runs`: runs along u into strips, then strips with the same
+    extent along v. Returns the faces (Q, 6) int32 and the group columns
+    of each rectangle.
+    """
+    n = [int(x.max()) + 2 for x in (plane, u, v)]
+    gs = tuple(int(g.max()) + 1 for g in groups)
+    key = _pack((axis,) + tuple(groups) + (plane, v, u), (3,) + gs + (n[0], n[2], n[1]))
+    order = np.argsort(key, kind="stable")
+    axis, plane, u, v = axis[order], plane[order], u[order], v[order]
+    groups = tuple(g[order] for g in groups)
+    first, last = _runs((axis,) + groups + (plane, v), u, u + 1)
+    axis, plane, v = axis[first], plane[first], v[first]
+    groups = tuple(g[first] for g in groups)
+    u0, u1 = u[first], u[last] + 1
+    key = _pack((axis,) + groups + (plane, u0, u1, v), (3,) + gs + (n[0], n[1], n[1], n[2]))
+    order = np.argsort(key, kind="stable")
+    axis, plane, v, u0, u1 = (x[order] for x in (axis, plane, v, u0, u1))
+    groups = tuple(g[order] for g in groups)
+    first, last = _runs((axis,) + groups + (plane, u0, u1), v, v + 1)
+    faces = np.stack([axis[first], plane[first], u0[first], u1[first], v[first], v[last] + 1],
+                     axis=1).astype(np.int32)
+    return faces, tuple(g[first] for g in groups)
+
+
 def proxy_for_iso(volume, iso, size, *, merge=True):
     """Classify, then build the proxy: the one-call path from a volume and isovalue.
 
@@ -237,4 +381,4 @@ def proxy_for_iso(volume, iso, size, *, merge=True):
     return build_proxy(grid, index.classify(iso, size), grid.world_edges(volume), merge=merge)
 
 
-__all__ = ["Proxy", "SupercellGrid", "build_proxy", "proxy_for_iso"]
+__all__ = ["PlaneProxy", "Proxy", "SupercellGrid", "build_plane_proxy", "build_proxy", "proxy_for_iso"]

@@ -88,13 +88,45 @@ def sample_value(data, x, y, z):
     return c0 + w * (c1 - c0), i, j, k, u, v, w
 
 
+#: A sample this close (in planes) to a boundary between planes of
+#: supercells tests the bits of both: its float position may round to
+#: either side of where the OpenGL pass saw the ray cross.
+PLANE_TOL = 1e-6
+
+
 @kernel
-def plane_bit(bits, py, px, pos, params):
-    """Whether the bit of the supercell plane holding index coordinate ``pos`` is set."""
-    q = int(math.floor(pos / params[P_PLANE_SIZE])) - int(params[P_PLANE_FIRST])
+def _bit(bits, py, px, q, params):
+    q -= int(params[P_PLANE_FIRST])
     if q < 0 or q >= int(params[P_PLANE_COUNT]):
         return False
     return (bits[py, px, q >> 5] >> (q & 31)) & 1 != 0
+
+
+@kernel
+def plane_bit(bits, py, px, pos, params):
+    """Whether a bit is set for the supercell plane holding index coordinate ``pos``."""
+    f = pos / params[P_PLANE_SIZE]
+    lo = int(math.floor(f - PLANE_TOL))
+    hi = int(math.floor(f + PLANE_TOL))
+    return _bit(bits, py, px, lo, params) or (hi != lo and _bit(bits, py, px, hi, params))
+
+
+@kernel
+def next_plane_sample(n, t_in, step, O, D, pos, params):
+    """A lattice index safely before the ray leaves the plane holding ``pos``.
+
+    The samples skipped up to it lie strictly inside that plane (two steps
+    of slack absorb the rounding of the crossing time), so when the plane's
+    bit is clear they are all transparent.
+    """
+    if D == 0.0:
+        return 1 << 62
+    m = params[P_PLANE_SIZE]
+    q = math.floor(pos / m)
+    b = (q + 1.0) * m if D > 0.0 else q * m
+    t_b = (b - O) / D
+    target = int(math.floor((t_b - t_in) / step)) - 2
+    return max(n + 1, target)
 
 
 @kernel
@@ -131,14 +163,24 @@ def accumulate_ray(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, seg0, seg1, pa
     vmax = -math.inf
     total = 0.0
     samples = 0
-    for n in range(n0, n1 + 1):
+    if axis == 0:
+        Oa, Da = Ox, Dx
+    elif axis == 1:
+        Oa, Da = Oy, Dy
+    else:
+        Oa, Da = Oz, Dz
+    n = n0 - 1
+    while n < n1:
+        n += 1
         t = t_in + n * step
         x = Ox + t * Dx
         y = Oy + t * Dy
         z = Oz + t * Dz
         if use_bits:
-            pos = x if axis == 0 else (y if axis == 1 else z)
+            pos = Oa + t * Da
             if not plane_bit(bits, py, px, pos, params):
+                # Skip the rest of this plane: its samples are all transparent.
+                n = max(n, min(n1, next_plane_sample(n, t_in, step, Oa, Da, pos, params)) - 1)
                 continue
         samples += 1
         v, i, j, k, u, vv, w = sample_value(data, x, y, z)

@@ -1,7 +1,8 @@
 """Translucent volumes: PARC against the unaccelerated caster, and accumulation against a slow reference.
 
-Truth: ``method="brute"`` on the same scene (every pixel within 1e-6; PARC
-skips only samples of exactly zero opacity, so equality is expected), and a
+Truth: ``method="brute"`` on the same scene (every pixel within 1e-6; PARC,
+with depth bounds, bit planes or both, skips only samples of exactly zero
+opacity, so equality is expected), and a
 plain-Python reimplementation of the sample lattice and compositing for a
 handful of rays.
 """
@@ -17,6 +18,7 @@ from parc import Camera, Scene, TransferFunction, Translucent, render
 MODES = ("composite", "mip", "average")
 SUPERCELLS = (0.5, 1, 2, 3, 4.5, 8, (2, 3, 1.5))
 SIZE = (36, 28)
+BUFFERS = (("depth",), ("bits",), ("depth", "bits"))
 
 
 def _random_tf(rng, lo, hi):
@@ -84,8 +86,9 @@ def test_parc_equals_brute_translucent(seed, gl):
     scene = Scene(camera=_camera(rng, vol, seed), size=SIZE, volumes=[vis])
     supercell = SUPERCELLS[seed % len(SUPERCELLS)]
     ref = render(scene, method="brute")
-    res = render(scene, method="parc", supercell=supercell)
-    where = f"{mode} supercell={supercell} seed={seed}"
+    buffers = BUFFERS[(seed // 3) % len(BUFFERS)]
+    res = render(scene, method="parc", supercell=supercell, buffers=buffers)
+    where = f"{mode} supercell={supercell} buffers={buffers} seed={seed}"
     assert np.abs(res.image - ref.image).max() <= 1e-6, where
     assert res.stats["samples"] <= ref.stats["samples"], where
 

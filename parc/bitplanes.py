@@ -1,0 +1,601 @@
+"""OpenGL pass of colour-buffer PARC: per-pixel bits of the supercell planes each ray meets.
+
+About this technique
+--------------------
+Sobierajski & Avila (1995, §4) number the planes of (super)cells along the
+major viewing axis, draw each possibly contributing (PC) cell of plane
+``i`` in colour ``2^i`` with a bitwise-OR logic op, and read the colour
+buffer back ``P`` bits at a time: bit ``i`` of a pixel tells whether its
+ray meets a PC cell of plane ``i``, and the caster skips the samples of
+planes whose bit is clear. This pass keeps the idea and makes it exact
+for this project's caster:
+
+- **One pass for any number of planes.** The fragment shader ORs its bits
+  with ``atomicOr`` into a shader storage buffer laid out exactly as the
+  caster reads them, ``bits[y, x, word]`` (uint32 words, bit ``q & 31`` of
+  word ``q >> 5`` for plane ``first + q``), so the read-back is the
+  caster's array with no reordering. (An ``imageAtomicOr`` into a
+  ``uimage2DArray`` works too but needs a transpose after read-back.)
+  OpenGL 4.3; a memory barrier before the read-back.
+- **Faces, not boxes.** A ray that meets the PC region ``U_p`` of plane
+  ``p`` (at ``t >= 0``) leaves it again at some ``t* >= 0``: at that point
+  some PC box of plane ``p`` borders, across a face the ray crosses
+  properly (the ray's component along the face's axis is non-zero), a box
+  outside ``U_p`` -- empty, outside the volume, or PC in another plane.
+  So it suffices to draw the outer faces (carrying their PC side's plane)
+  and the faces perpendicular to the plane axis between PC supercells of
+  two planes (carrying both): `parc.proxy.build_plane_proxy`. Faces
+  inside one plane's PC region are not drawn. This holds wherever the ray
+  starts, so the eye inside the volume or inside a PC supercell needs no
+  special case beyond the near-plane clipping below.
+- **Conservative coverage and face test**, exactly as the depth pass
+  (`parc.raster`, whose geometry shader `bitplanes.geom` follows): faces
+  clipped at a near distance, their projection grown by `COVERAGE_PAD_PX`,
+  and per fragment the pixel-centre ray (the caster's, as affine forms of
+  the pixel indices) tested against the face's rectangle grown by the
+  float32 error bound of the crossing point; borderline fragments are
+  kept. No ``t`` is needed: a crossing behind the ray start can only add
+  bits, and the clipping keeps every crossing at ``t >= 0``.
+- **Clipping.** Perspective, eye outside the PC region: faces are clipped
+  below ``d_min cos(theta_max) / 2`` as in the depth pass; every face lies
+  at least ``d_min`` from the eye, so nothing visible is cut. Eye inside
+  (or on) a PC supercell: faces are clipped a tiny distance in front of
+  the eye and every pixel gets the bits of the planes whose slabs come
+  within that distance (plus the boundary band) of the eye: the only
+  crossings the clip can cut lie there. Parallel: faces are clipped a
+  little behind the view plane (a rounding, plus the band's width over
+  ``|f_a|`` in halo mode, see below).
+
+Boundaries (halo mode, the default)
+-----------------------------------
+The caster (`raycast.composite.plane_bit`) maps a sample at index
+coordinate ``pos`` to plane ``floor(pos / m_a)``. The grid's boundaries
+are ``s m_a`` snapped to integers within `parc.classify.SNAP`, and the
+division rounds, so a sample *strictly inside* a PC box of plane ``p`` but
+within ``delta`` (about 1e-9 cells) of its boundary with plane ``p + 1``
+may be mapped to ``p + 1`` (and likewise to ``p - 1``); the sample can
+have non-zero opacity while the box across is empty, so bit ``p + 1``
+must be set too. A sample exactly on the boundary of two boxes is safe
+(the empty box's closed range holds its value). Halo mode therefore sets,
+besides the PC planes:
+
+- for a face perpendicular to the plane axis at boundary ``b``, both
+  planes ``b - 1`` and ``b`` (whichever side is PC);
+- for a face parallel to it (plane ``p``), plane ``p - 1`` / ``p + 1``
+  when the crossing's coordinate along the axis comes within `BAND_CELLS`
+  (in world units, plus its float32 error bound) of the slab's ends.
+
+A ray holding such a sample runs, inside ``U_p``, through the band along
+the boundary; where it enters or leaves that band inside ``U_p`` it either
+crosses the boundary face (first rule) or an outer face parallel to the
+axis within the band (second rule), or starts there (the eye rule above,
+or, parallel, a crossing at most ``band / |f_a|`` behind the view plane,
+which the parallel clip keeps). ``first`` and ``count`` then cover one
+plane beyond the PC planes at each end (``pos`` a rounding below 0 gives
+plane -1). The price is that each run of PC planes along a ray is
+sampled one plane further at each end. With a caster that tests the
+neighbouring bit for samples within ``delta`` of a boundary (``strict``
+mode, ``halo=False``), the bits are exactly the planes whose PC boxes the
+ray meets (closed boxes, ``t >= 0``), plus the float32 margins.
+
+Cost
+----
+Measured on this project's development machine (2 cores, llvmpipe,
+512x512, shared with other work, so +-30%): CT head (256x256x113),
+``ct_skin_bone``, 4-cell supercells, three-quarter view: plane axis y, 65
+planes (3 words), 11.3k faces drawn (14.9k in the plane proxy, 9.7k outer
+faces), 33-49 ms (draw ~all of it; read-back 0.6 ms; proxy build 11-15 ms
+once) against 13-17 ms for the depth pass. 2-cell: 56k faces, 127 planes,
+106-136 ms; 6-cell: 4.5k, 23-25 ms; 8-cell: 2.3k, 18-20 ms. Fragments are
+about one per PC plane a pixel's ray crosses (1.4M at 4 cells), and
+llvmpipe runs fragment shaders with storage-buffer side effects on a slow
+path: the same shader writing a colour instead takes ~40% less, and
+OR-ing ``uvec4`` colours into an RGBA32UI target with ``glLogicOp(GL_OR)``
+(reachable through ``eglGetProcAddress``; moderngl has no setting) was
+~15% faster than the atomics, for a ctypes dependency; not used.
+
+The OpenGL context is `parc.raster.get_context`'s. Helpers copied from
+`parc.raster` (private there): `_pixel_affine`, `_scene_scale`,
+`_distance_to_pc`, `_set`, `_program`.
+"""
+from __future__ import annotations
+
+import math
+import time
+import weakref
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from data_tools import InputError
+
+from .raster import (ABS_TOL, AFFINE_ERR, COVERAGE_PAD_PX, FLUSH_TOL, GUARD_PX, INSIDE_CLIP_REL, TOL_REL,
+                     OpenGLUnavailable, get_context, load_shader)
+
+#: Width of the boundary band (halo mode), in cells along the plane axis:
+#: far above the caster's mismatch between ``floor(pos / m)`` and the
+#: grid's boundaries (`parc.classify.SNAP` = 1e-9 cells, plus roundings),
+#: far below a sample step.
+BAND_CELLS = 1e-7
+
+#: Proxies kept by `plane_buffers` (grid, classification, axis).
+PROXY_CACHE_SIZE = 4
+
+_PROGRAMS = {}
+_UPLOADS = weakref.WeakKeyDictionary()
+_BUFFERS = {}
+_FBOS = {}
+_PROXIES = []
+
+
+def major_axis(camera, volume_box):
+    """The volume axis most aligned with the viewing direction: 0, 1 or 2 (x, y, z).
+
+    Parameters
+    ----------
+    camera : Camera
+    volume_box : (lo, hi)
+        World corners of the volume (``volume.bounds``).
+
+    Returns
+    -------
+    int
+
+    Notes
+    -----
+    Parallel views: the view direction ``f``. Perspective: the direction
+    from the eye to the box centre when the eye is outside the box (the
+    rays that matter point roughly that way), else ``f``. The choice only
+    affects efficiency (how many samples share a plane bit), never
+    correctness: every sample tests its own plane's bit. Ties go to the
+    lower axis.
+    """
+    f = np.asarray(camera.basis()[0], dtype=np.float64)
+    lo, hi = (np.asarray(b, dtype=np.float64) for b in volume_box)
+    if not camera.parallel:
+        eye = np.asarray(camera.eye, dtype=np.float64)
+        centre = 0.5 * (lo + hi)
+        if not np.all((lo <= eye) & (eye <= hi)) and np.any(centre != eye):
+            f = centre - eye
+    return int(np.argmax(np.abs(f)))
+
+
+@dataclass
+class PlaneBits:
+    """Per-pixel plane bits for the caster.
+
+    Attributes
+    ----------
+    bits : ndarray (H, W, nwords) uint32
+        Bit ``q & 31`` of word ``q >> 5``: the pixel's ray may have a
+        sample of non-zero opacity in plane ``first + q``.
+    axis : int
+        The plane axis (0, 1, 2 = x, y, z).
+    size_along_axis : float
+        Supercell size along it, in cells (``m_a``).
+    first, count : int
+        Plane number of bit 0, and the number of bits. ``count = 0`` when
+        nothing is possibly contributing (every sample is skipped).
+    polygons : int
+        Faces drawn (the plane proxy's, re-merged for the mode).
+    seconds : dict
+        ``proxy`` (0 when cached), then `raster_bits`' ``prepare``,
+        ``upload``, ``draw``, ``readback``, ``post``, ``total``.
+    info : dict
+        `raster_bits`' info, plus ``halo``.
+    """
+
+    bits: np.ndarray
+    axis: int
+    size_along_axis: float
+    first: int
+    count: int
+    polygons: int
+    seconds: dict = field(default_factory=dict)
+    info: dict = field(default_factory=dict)
+
+    def set_params(self, params):
+        """Write ``P_PLANE_AXIS``, ``P_PLANE_SIZE``, ``P_PLANE_FIRST``, ``P_PLANE_COUNT`` into ``params``."""
+        from raycast.composite import P_PLANE_AXIS, P_PLANE_COUNT, P_PLANE_FIRST, P_PLANE_SIZE
+        params[P_PLANE_AXIS] = self.axis
+        params[P_PLANE_SIZE] = self.size_along_axis
+        params[P_PLANE_FIRST] = self.first
+        params[P_PLANE_COUNT] = self.count
+        return params
+
+
+def plane_range(pc, axis):
+    """``(lo, hi)``: the first and last plane along ``axis`` holding a PC supercell, or None."""
+    arr_axis = 2 - int(axis)
+    other = tuple(d for d in range(3) if d != arr_axis)
+    occupied = np.flatnonzero(np.asarray(pc, dtype=bool).any(axis=other))
+    if not len(occupied):
+        return None
+    return int(occupied[0]), int(occupied[-1])
+
+
+def plane_buffers(camera, width, height, volume, pc, grid, *, axis=None, halo=False):
+    """Choose the axis, build (or reuse) the plane proxy and rasterize the bits.
+
+    Parameters
+    ----------
+    camera : Camera
+    width, height : int
+    volume : Volume
+    pc : ndarray of bool, ``grid.shape``
+        The possibly contributing supercells.
+    grid : SupercellGrid
+    axis : int or None
+        The plane axis; default `major_axis`.
+    halo : bool, default True
+        Bits for the caster as it is (see "Boundaries"); False for the
+        strict bits (a caster tolerant at plane boundaries).
+
+    Returns
+    -------
+    PlaneBits
+        Pass ``bits`` and, through `PlaneBits.set_params`, ``P_PLANE_AXIS``,
+        ``P_PLANE_SIZE``, ``P_PLANE_FIRST``, ``P_PLANE_COUNT`` to
+        `raycast.composite`.
+    """
+    from .proxy import build_plane_proxy
+    if axis is None:
+        axis = major_axis(camera, volume.bounds)
+    axis = int(axis)
+    m_a = float(grid.size[axis])
+    span = plane_range(pc, axis)
+    if span is None:
+        bits = np.zeros((int(height), int(width), 1), np.uint32)
+        return PlaneBits(bits=bits, axis=axis, size_along_axis=m_a, first=0, count=0, polygons=0,
+                         seconds={"proxy": 0.0, "total": 0.0}, info={"halo": bool(halo)})
+    t0 = time.perf_counter()
+    proxy = None
+    for entry in _PROXIES:
+        if entry[0] is grid and entry[1] is pc and entry[2] == axis and entry[3] is volume:
+            proxy = entry[4]
+            break
+    if proxy is None:
+        proxy = build_plane_proxy(grid, pc, grid.world_edges(volume), axis)
+        if len(_PROXIES) >= PROXY_CACHE_SIZE:
+            _PROXIES.pop(0)
+        _PROXIES.append((grid, pc, axis, volume, proxy))
+        t_proxy = time.perf_counter() - t0
+    else:
+        t_proxy = 0.0
+    lo, hi = span
+    first, count = (lo - 1, hi - lo + 3) if halo else (lo, hi - lo + 1)
+    bits, info = raster_bits(camera, width, height, proxy, first=first, count=count, halo=halo,
+                             spacing=volume.spacing)
+    seconds = {"proxy": t_proxy, **info["seconds"]}
+    seconds["total"] = t_proxy + info["seconds"]["total"]
+    return PlaneBits(bits=bits, axis=axis, size_along_axis=m_a, first=first, count=count,
+                     polygons=info["polygons"], seconds=seconds, info={**info, "halo": bool(halo)})
+
+
+def raster_bits(camera, width, height, plane_proxy, *, first, count, halo=True, spacing=None,
+                pad_px=COVERAGE_PAD_PX):
+    """OR every plane bit of every pixel in one OpenGL pass.
+
+    Parameters
+    ----------
+    camera : Camera
+    width, height : int
+    plane_proxy : PlaneProxy
+        From `parc.proxy.build_plane_proxy`; its GPU buffers are uploaded
+        on the first call and reused for later cameras.
+    first, count : int
+        Bit ``q`` stands for plane ``first + q``, ``0 <= q < count``;
+        planes outside are dropped.
+    halo : bool, default True
+        Also the neighbour planes of slab boundaries (module notes).
+    spacing : (sx, sy, sz) or None
+        The volume's spacing, for the boundary band's world width; default
+        the supercell boundaries' own scale (the band is then wider than
+        needed, never narrower, unless supercells are far larger than cells:
+        pass it).
+    pad_px : float
+        Coverage growth in pixels (as `parc.raster.raster_segments`).
+
+    Returns
+    -------
+    bits : ndarray (H, W, nwords) uint32, ``nwords = max(1, ceil(count / 32))``
+        For every pixel whose centre ray (`raycast.rays.camera_ray`) meets
+        a PC supercell of plane ``p`` (closed box, ``t >= 0``), bit
+        ``p - first`` is set (if in range); in halo mode also the boundary
+        neighbours (module notes).
+    info : dict
+        ``seconds`` (``prepare``, ``upload`` (0 when cached), ``draw``
+        (render + ``ctx.finish()``), ``readback`` (barrier + read),
+        ``post``, ``total``), ``polygons`` (faces drawn: the proxy's,
+        re-merged for the mode), ``proxy_faces``, ``nwords``,
+        ``eye_inside``, ``d_min``, ``clip_near``, ``eye_planes`` (set for
+        every pixel), ``scale``, ``band``.
+
+    Raises
+    ------
+    OpenGLUnavailable
+    InputError
+        An image larger than the GL viewport limit.
+    """
+    width, height = int(width), int(height)
+    first, count = int(first), int(count)
+    nwords = max(1, -(-count // 32))
+    ctx = get_context()
+    max_w, max_h = ctx.info["GL_MAX_VIEWPORT_DIMS"]
+    if width > max_w or height > max_h:
+        raise InputError(f"image {width}x{height} exceeds this OpenGL's limit {max_w}x{max_h}")
+    seconds = {}
+    t0 = time.perf_counter()
+    proxy = plane_proxy
+    axis = int(proxy.plane_axis)
+    lo, hi = proxy.bounds
+    eye = np.asarray(camera.eye, dtype=np.float64)
+    f, r, u = camera.basis()
+    th = math.tan(math.radians(camera.fov) / 2.0)
+    aspect = width / height
+    scale = _scene_scale(camera, lo, hi, aspect)
+    if spacing is None:
+        e = proxy.world_edges[axis]
+        spacing_a = float(np.max(np.abs(np.diff(e)))) if len(e) > 1 else 1.0
+    else:
+        spacing_a = abs(float(spacing[axis]))
+    band = BAND_CELLS * spacing_a + ABS_TOL * scale if halo else 0.0
+    ndc_limit = (1.0 + 2.0 * GUARD_PX / width, 1.0 + 2.0 * GUARD_PX / height)
+    d_min = None
+    eye_inside = False
+    cos_max = 1.0
+    if camera.parallel:
+        # Keep crossings a rounding behind the view plane, and in halo mode
+        # those up to band / |f_a| behind (a ray starting in the band).
+        back = 4.0 * TOL_REL * scale
+        if halo and f[axis] != 0.0:
+            back += 4.0 * band / abs(f[axis])
+        clip_near = -back
+    else:
+        d_min = _distance_to_pc(eye, proxy)
+        eye_inside = d_min == 0.0
+        cos_max = 1.0 / math.sqrt(1.0 + th * th * ((aspect * ndc_limit[0]) ** 2 + ndc_limit[1] ** 2))
+        clip_near = INSIDE_CLIP_REL * scale if eye_inside else 0.5 * d_min * cos_max
+    seconds["prepare"] = time.perf_counter() - t0
+
+    bits = np.zeros((height, width, nwords), np.uint32)
+    drawn = 0
+    if proxy.n_polygons and count > 0:
+        t0 = time.perf_counter()
+        up, fresh = _upload(ctx, proxy, halo)
+        if fresh:
+            ctx.finish()
+        seconds["upload"] = time.perf_counter() - t0 if fresh else 0.0
+
+        t0 = time.perf_counter()
+        parallel = camera.parallel
+        vao = up.vao(ctx, parallel)
+        prog = vao.program
+        aff0, affx, affy = _pixel_affine(camera, f, r, u, th, width, height)
+        flush = FLUSH_TOL * (width + height)
+        err_d = AFFINE_ERR * (np.abs(aff0) + np.abs(affx) * (width - 1) + np.abs(affy) * (height - 1)) + flush
+        _set(prog, "edge_offset", up.offsets)
+        _set(prog, "eye", tuple(eye))
+        _set(prog, "fwd", tuple(f))
+        _set(prog, "right", tuple(r))
+        _set(prog, "upv", tuple(u))
+        _set(prog, "parallel", 1 if parallel else 0)
+        _set(prog, "tan_half", th)
+        _set(prog, "pscale", float(camera.parallel_scale or 0.0))
+        _set(prog, "aspect", aspect)
+        _set(prog, "clip_near", clip_near)
+        _set(prog, "ndc_limit", ndc_limit)
+        _set(prog, "ndc_pad", (2.0 * pad_px / width, 2.0 * pad_px / height))
+        _set(prog, "aff0", tuple(aff0))
+        _set(prog, "affx", tuple(affx))
+        _set(prog, "affy", tuple(affy))
+        _set(prog, "err_d", tuple(err_d))
+        _set(prog, "pix_max", (width - 1.0, height - 1.0))
+        _set(prog, "abs_tol", ABS_TOL * scale + flush)
+        _set(prog, "plane_axis", axis)
+        _set(prog, "first", first)
+        _set(prog, "halo", 1 if halo else 0)
+        _set(prog, "band", band)
+        _set(prog, "width", width)
+        _set(prog, "nwords", nwords)
+        _set(prog, "count", count)
+        fbo, out = _sized(ctx, width, height, nwords)
+        out.clear()
+        fbo.use()
+        ctx.viewport = (0, 0, width, height)
+        mgl = _moderngl()
+        ctx.disable(mgl.DEPTH_TEST | mgl.CULL_FACE | mgl.BLEND)
+        up.edges.bind_to_storage_buffer(0)
+        out.bind_to_storage_buffer(1)
+        drawn = up.count
+        vao.render(mgl.POINTS, vertices=drawn)
+        ctx.finish()
+        seconds["draw"] = time.perf_counter() - t0
+
+        t0 = time.perf_counter()
+        ctx.memory_barrier(mgl.SHADER_STORAGE_BARRIER_BIT | mgl.BUFFER_UPDATE_BARRIER_BIT)
+        out.read_into(bits)
+        seconds["readback"] = time.perf_counter() - t0
+    else:
+        seconds.update(upload=0.0, draw=0.0, readback=0.0)
+
+    t0 = time.perf_counter()
+    eye_planes = []
+    if eye_inside and count > 0:
+        # Crossings cut by the clip lie within rho of the eye: set, for
+        # every pixel, the planes whose slabs come that close (plus the band).
+        rho = 2.0 * clip_near / cos_max + ABS_TOL * scale
+        reach = rho + (band if halo else 0.0)
+        # Planes -1 and n (beyond the volume, [-inf, e_0] and [e_n, inf])
+        # stand for samples a rounding outside it (halo mode).
+        e = np.concatenate([[-np.inf], proxy.world_edges[axis], [np.inf]])
+        near = np.flatnonzero((e[:-1] <= eye[axis] + reach) & (e[1:] >= eye[axis] - reach)) - 1
+        q = near - first
+        q = q[(q >= 0) & (q < count)]
+        for qq in q:
+            bits[..., qq >> 5] |= np.uint32(1 << (int(qq) & 31))
+        eye_planes = [int(p) for p in q + first]
+    seconds["post"] = time.perf_counter() - t0
+    seconds["total"] = sum(seconds.values())
+    info = {"seconds": seconds, "polygons": drawn, "proxy_faces": proxy.n_polygons, "nwords": nwords,
+            "eye_inside": bool(eye_inside), "d_min": d_min, "clip_near": clip_near,
+            "eye_planes": eye_planes, "scale": scale, "band": band}
+    return bits, info
+
+
+# --------------------------------------------------------------------------
+# GPU resources
+# --------------------------------------------------------------------------
+
+@dataclass
+class _Upload:
+    faces: object
+    edges: object
+    offsets: tuple
+    count: int
+    vaos: dict = field(default_factory=dict)
+
+    def vao(self, ctx, parallel):
+        if parallel not in self.vaos:
+            self.vaos[parallel] = ctx.vertex_array(
+                _program(ctx, "bitplanes", parallel),
+                [(self.faces, "4i 2i 2i", "in_face", "in_vrange", "in_bits")])
+        return self.vaos[parallel]
+
+
+def _face_records(proxy, halo):
+    """Per face ``(axis, plane, u0, u1, v0, v1, base, strict_mask)``, int32 (Q, 8).
+
+    ``base`` is the absolute plane number of bit 0 of the face's
+    three-plane window (boundary ``b``: ``b - 1``; a face parallel to the
+    plane axis in plane ``p``: ``p - 1``); ``strict_mask`` the window bits
+    of the face's PC neighbours. The proxy's faces are re-merged by what
+    the pass draws: in halo mode every face at one boundary carries the
+    same bits, whichever side is PC (CT head skin and bone, 4-cell
+    supercells: 14.9k faces -> 11.3k); faces parallel to the axis merge
+    within their plane whatever their orientation.
+    """
+    from .proxy import _merge_grouped
+    uf = proxy.unit_faces()
+    up = proxy.unit_planes()
+    a, p, u, v = (uf[:, k] for k in range(4))
+    perp = a == proxy.plane_axis
+    base = np.where(perp, p - 1, up[:, 0] - 1)
+    mask = np.where(perp, 0, 2)
+    for q in (up[:, 0], up[:, 1]):
+        mask = np.where(perp & (q >= 0), mask | (1 << np.clip(q - base, 0, 2)), mask)
+    if halo:
+        mask = np.where(perp, 3, mask)
+    if not len(a):
+        return np.zeros((0, 8), np.int32)
+    faces, (base1, mask) = _merge_grouped(a, p, u, v, (base + 1, mask))
+    return np.ascontiguousarray(np.column_stack([faces, base1 - 1, mask]), dtype=np.int32)
+
+
+def _upload(ctx, proxy, halo):
+    """Face records and boundary table of a plane proxy on the GPU (cached per proxy and mode)."""
+    ups = _UPLOADS.setdefault(proxy, {})
+    up = ups.get(bool(halo))
+    if up is not None and up.faces.ctx is ctx:
+        return up, False
+    recs = _face_records(proxy, halo)
+    vbo = ctx.buffer(recs.tobytes())
+    edges = np.concatenate(proxy.world_edges).astype(np.float64)
+    ssbo = ctx.buffer(edges.tobytes())
+    n = [len(e) for e in proxy.world_edges]
+    up = _Upload(faces=vbo, edges=ssbo, offsets=(0, n[0], n[0] + n[1]), count=len(recs))
+    ups[bool(halo)] = up
+    return up, True
+
+
+def _sized(ctx, width, height, nwords):
+    """An attachment-less framebuffer of the image size and the bits buffer (kept for the next call).
+
+    Framebuffers are kept per size (they hold no memory; releasing the
+    bound one makes moderngl's next framebuffer creation fail); the bits
+    buffer only for the last size.
+    """
+    fkey = (id(ctx), width, height)
+    if fkey not in _FBOS:
+        _FBOS[fkey] = ctx.empty_framebuffer((width, height))
+    key = (id(ctx), width, height, nwords)
+    if key not in _BUFFERS:
+        for buf in _BUFFERS.values():
+            buf.release()
+        _BUFFERS.clear()
+        _BUFFERS[key] = ctx.buffer(reserve=width * height * nwords * 4)
+    return _FBOS[fkey], _BUFFERS[key]
+
+
+def _program(ctx, name, parallel=False):
+    """``parc/shaders/<name>.{vert,geom,frag}``, compiled once per context (copied from parc.raster)."""
+    key = (id(ctx), name, bool(parallel))
+    if key not in _PROGRAMS:
+        frag = load_shader(f"{name}.frag")
+        if parallel:
+            head, _, rest = frag.partition("\n")
+            frag = f"{head}\n#define PARALLEL 1\n{rest}"
+        try:
+            _PROGRAMS[key] = ctx.program(vertex_shader=load_shader(f"{name}.vert"),
+                                         geometry_shader=load_shader(f"{name}.geom"),
+                                         fragment_shader=frag)
+        except Exception as exc:
+            lines = [ln.strip() for ln in str(exc).splitlines() if "error" in ln.lower()]
+            raise OpenGLUnavailable(f"OpenGL {ctx.info['GL_VERSION']} cannot compile PARC's "
+                                    f"{name} shaders: {(lines or [str(exc)])[-1]}") from None
+    return _PROGRAMS[key]
+
+
+def _moderngl():
+    import moderngl
+    return moderngl
+
+
+def _set(prog, name, value):
+    """Set a uniform the compiler kept (copied from parc.raster)."""
+    if name in prog:
+        prog[name].value = value
+
+
+def _pixel_affine(camera, f, r, u, th, width, height):
+    """The caster's per-pixel ray as an affine map of the pixel indices (copied from parc.raster)."""
+    aspect = width / height
+    scale, base = (float(camera.parallel_scale), 0.0) if camera.parallel else (th, 1.0)
+    r = np.asarray(r, dtype=np.float64)
+    u = np.asarray(u, dtype=np.float64)
+    k0 = base * np.asarray(f, dtype=np.float64) + scale * (r * (aspect / width - aspect) + u * (1.0 - 1.0 / height))
+    kx = scale * r * (2.0 * aspect / width)
+    ky = scale * u * (-2.0 / height)
+    return k0, kx, ky
+
+
+def _scene_scale(camera, lo, hi, aspect):
+    """A bound on coordinates and distances in this view (copied from parc.raster)."""
+    eye = np.asarray(camera.eye, dtype=np.float64)
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    s = max(np.abs(eye).max(), np.abs(corners).max(), np.linalg.norm(corners - eye, axis=1).max())
+    if camera.parallel:
+        s += camera.parallel_scale * math.hypot(aspect, 1.0)
+    return float(s)
+
+
+def _distance_to_pc(point, proxy):
+    """Distance from ``point`` to the nearest PC supercell box, 0 if in or on one (copied from parc.raster)."""
+    ex, ey, ez = proxy.world_edges
+    if not proxy.pc.any():
+        return math.inf
+
+    def axis_gap(e, p):
+        return np.maximum(np.maximum(e[:-1] - p, 0.0), p - e[1:])
+
+    gx, gy, gz = (axis_gap(e, p) ** 2 for e, p in zip((ex, ey, ez), point))
+    plane = gy[:, None] + gx[None, :]
+    best = math.inf
+    for k in np.flatnonzero(proxy.pc.any(axis=(1, 2))):
+        best = min(best, gz[k] + float(plane[proxy.pc[k]].min()))
+        if best == 0.0:
+            break
+    return math.sqrt(best)
+
+
+__all__ = ["BAND_CELLS", "PlaneBits", "major_axis", "plane_buffers", "plane_range", "raster_bits"]

@@ -1,0 +1,594 @@
+"""Colour-buffer PARC: the plane proxy, the per-pixel plane bits, and the caster using them.
+
+Truths:
+
+- Plane proxy: the mask itself. Every drawn unit face separates a PC
+  supercell from an empty one or the outside, or (perpendicular to the
+  plane axis) PC supercells of two planes; it carries exactly its PC
+  neighbours' planes; every such pair has its face once; the outer faces
+  are `build_proxy`'s.
+- Bits, geometric: for every pixel, the caster's float64 ray against every
+  PC supercell box by the slab test on closed boxes (t >= 0, rays within
+  1e-12 of the scene scale of touching count); the planes met must be a
+  subset of the pixel's bits (strict and halo mode). How many extra bits
+  are set is reported at the end of the run, not asserted.
+- Bits, the caster's contract: for every sample of the caster's lattice
+  (index space, as `raycast.composite.accumulate_ray` computes it) that
+  lies in a closed PC box, the bit ``floor(pos / m_a) - first`` must be in
+  range and set (halo mode, the renderer's default); with strict bits, the
+  bit of ``floor(pos / m_a -+ 1e-6)`` (one of them) must be set: what a
+  caster tolerant at plane boundaries would test.
+- End to end: `raycast.composite.cast_accumulate_image` with bits (and
+  with bits and segments) against the unaccelerated caster: identical
+  images. (Strict bits with today's caster are reported, not asserted:
+  they lose samples on the volume's faces and plane boundaries.)
+"""
+import numpy as np
+import pytest
+
+from data_tools import Volume
+from parc.bitplanes import PlaneBits, major_axis, plane_buffers, plane_range, raster_bits
+from parc.camera import Camera
+from parc.classify import VolumeIndex, supercell_grid
+from parc.proxy import build_plane_proxy, build_proxy
+from parc_reference import caster_rays
+
+SIZES = [1, 2, 1.5, 3, (2, 3, 1.5), 0.5]
+
+
+# --------------------------------------------------------------------------
+# Plane proxy
+# --------------------------------------------------------------------------
+
+def _masks():
+    rng = np.random.default_rng(4)
+    yield "random30", rng.random((5, 6, 7)) < 0.3
+    yield "random70", rng.random((4, 5, 3)) < 0.7
+    yield "full", np.ones((3, 4, 5), bool)
+    one = np.zeros((3, 3, 3), bool)
+    one[1, 1, 1] = True
+    yield "single", one
+    corner = np.zeros((2, 2, 2), bool)
+    corner[0, 0, 0] = corner[1, 1, 1] = True
+    yield "corner-touch", corner
+    yield "line", np.ones((1, 1, 6), bool)
+    yield "column", np.ones((6, 1, 1), bool)
+
+
+MASKS = list(_masks())
+
+
+def _grid_for(mask, size=(1.5, 2, 1)):
+    az, ay, ax = mask.shape
+    dims = tuple(int(np.floor(n * s)) + 1 for n, s in zip((ax, ay, az), size))
+    g = supercell_grid(dims, size)
+    assert g.shape == mask.shape
+    return g
+
+
+def _world(grid):
+    return tuple(o + e * s for o, e, s in zip((10.0, -3.0, 0.5), grid.edges, (0.7, 1.0, 1.3)))
+
+
+@pytest.mark.parametrize("merge", [False, True], ids=["unit", "merged"])
+@pytest.mark.parametrize("axis", [0, 1, 2])
+@pytest.mark.parametrize("name,mask", MASKS, ids=[m[0] for m in MASKS])
+def test_plane_proxy_faces(name, mask, axis, merge):
+    grid = _grid_for(mask)
+    pp = build_plane_proxy(grid, mask, _world(grid), axis, merge=merge)
+    assert pp.plane_axis == axis
+    assert pp.planes.shape == (pp.n_polygons, 2)
+    uf = pp.unit_faces()
+    up = pp.unit_planes()
+    padded = np.pad(mask, 1)
+    seen = set()
+    for (a, p, u, v, out), (q0, q1) in zip(uf.tolist(), up.tolist()):
+        idx_hi = [0, 0, 0]
+        idx_hi[a], idx_hi[(a + 1) % 3], idx_hi[(a + 2) % 3] = p, u, v
+        idx_lo = list(idx_hi)
+        idx_lo[a] -= 1
+        # Padded [z, y, x] of the boxes below and above the face.
+        below = bool(padded[idx_lo[2] + 1, idx_lo[1] + 1, idx_lo[0] + 1])
+        above = bool(padded[idx_hi[2] + 1, idx_hi[1] + 1, idx_hi[0] + 1])
+        key = (a, p, u, v)
+        assert key not in seen, f"face {key} twice"
+        seen.add(key)
+        if a == axis:
+            assert below or above
+            expect = sorted(x for x, pc in ((p - 1, below), (p, above)) if pc)
+            assert [q for q in (q0, q1) if q >= 0] == expect
+            assert out == (0 if below and above else (1 if below else -1))
+        else:
+            assert below != above, f"face {key} between two boxes of one kind"
+            assert (q0, q1) == (idx_hi[axis], -1)
+            assert out == (1 if below else -1)
+        if q1 >= 0:
+            assert q0 < q1
+    # Completeness: every pair that should have a face has one.
+    want = 0
+    for a in range(3):
+        d = np.diff(padded.astype(np.int8), axis=2 - a)
+        both = padded[tuple(slice(1, None) if k == 2 - a else slice(None) for k in range(3))] & \
+            padded[tuple(slice(None, -1) if k == 2 - a else slice(None) for k in range(3))]
+        sl = tuple(slice(None) if k == 2 - a else slice(1, -1) for k in range(3))
+        want += int(np.count_nonzero(d[sl]))
+        if a == axis:
+            want += int(np.count_nonzero(both[sl]))
+    assert len(seen) == want
+    # The outer faces are build_proxy's.
+    ref = build_proxy(grid, mask, _world(grid), merge=False).unit_faces()
+    outer = uf[uf[:, 4] != 0]
+    assert sorted(map(tuple, outer.tolist())) == sorted(map(tuple, ref.tolist()))
+
+
+def test_plane_proxy_merge_keeps_planes():
+    rng = np.random.default_rng(9)
+    mask = rng.random((6, 7, 8)) < 0.5
+    grid = _grid_for(mask)
+    for axis in range(3):
+        a = build_plane_proxy(grid, mask, _world(grid), axis, merge=False)
+        b = build_plane_proxy(grid, mask, _world(grid), axis, merge=True)
+        assert b.n_polygons < a.n_polygons
+        rows_a = sorted(map(tuple, np.column_stack([a.unit_faces(), a.unit_planes()]).tolist()))
+        rows_b = sorted(map(tuple, np.column_stack([b.unit_faces(), b.unit_planes()]).tolist()))
+        assert rows_a == rows_b
+
+
+# --------------------------------------------------------------------------
+# References
+# --------------------------------------------------------------------------
+
+def _volume(seed, dims=(9, 8, 7), spacing=(1.0, 1.0, 1.0), origin=(0.0, 0.0, 0.0)):
+    """A smooth random field: PC regions are blobs with holes, not noise."""
+    rng = np.random.default_rng(seed)
+    nx, ny, nz = dims
+    data = rng.standard_normal((nz, ny, nx))
+    for axis in range(3):
+        data = (np.roll(data, 1, axis) + 2 * data + np.roll(data, -1, axis)) / 4
+    return Volume(data.astype(np.float32), spacing=spacing, origin=origin)
+
+
+def _classify(vol, size, frac=0.35):
+    """PC supercells for an isovalue band: the top ``frac`` of supercell maxima."""
+    idx = VolumeIndex.of(vol)
+    mn, mx = idx.ranges(size)
+    iso = float(np.quantile(np.asarray(mx, np.float64), 1 - frac))
+    pc = idx.classify(iso, size)
+    assert pc.any() and not pc.all()
+    return idx.grid(size), pc
+
+
+def planes_met(camera, width, height, proxy, *, touch=0.0):
+    """Per pixel, the planes whose PC boxes the ray meets (closed, t >= 0): bool (H, W, planes)."""
+    o, d = caster_rays(camera, width, height)
+    o = o.reshape(-1, 1, 3)
+    d = d.reshape(-1, 1, 3)
+    ex, ey, ez = proxy.world_edges
+    kz, ky, kx = np.nonzero(proxy.pc)
+    lo = np.stack([ex[kx], ey[ky], ez[kz]], axis=1)
+    hi = np.stack([ex[kx + 1], ey[ky + 1], ez[kz + 1]], axis=1)
+    plane = (kx, ky, kz)[proxy.plane_axis]
+    n_planes = len(proxy.world_edges[proxy.plane_axis]) - 1
+    out = np.zeros((o.shape[0], n_planes), bool)
+    for b0 in range(0, len(lo), 256):
+        blo, bhi = lo[None, b0:b0 + 256], hi[None, b0:b0 + 256]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t0 = (blo - o) / d
+            t1 = (bhi - o) / d
+        par = d == 0.0
+        ins = (o >= blo) & (o <= bhi)
+        tmin = np.where(par, np.where(ins, -np.inf, np.inf), np.minimum(t0, t1))
+        tmax = np.where(par, np.where(ins, np.inf, -np.inf), np.maximum(t0, t1))
+        enter = np.maximum(tmin.max(axis=2), 0.0)
+        leave = tmax.min(axis=2)
+        meet = enter <= leave + touch
+        for j, p in enumerate(plane[b0:b0 + 256]):
+            out[:, p] |= meet[:, j]
+    return out.reshape(height, width, n_planes)
+
+
+def _bit_array(bits, first, n_planes):
+    """(H, W, n_planes) bool from the packed bits (planes outside the range: False)."""
+    h, w, nwords = bits.shape
+    out = np.zeros((h, w, n_planes), bool)
+    for p in range(n_planes):
+        q = p - first
+        if 0 <= q < 32 * nwords:
+            out[..., p] = (bits[..., q >> 5] >> np.uint32(q & 31)) & 1 != 0
+    return out
+
+
+def caster_required(camera, width, height, vol, grid, pc, axis, step):
+    """The caster's samples in closed PC boxes: pixel and ``pos / m_a`` along the plane axis.
+
+    The sample lattice is `accumulate_ray`'s: index-space ray, ``t_in``,
+    ``t_out`` from `clip_box`, ``t = t_in + n step``. Returns arrays
+    ``(y, x, f)``, one row per sample that may have non-zero opacity; the
+    caster tests the bit of plane ``floor(f)``.
+    """
+    o, d = caster_rays(camera, width, height)
+    org = np.asarray(vol.origin, np.float64)
+    spc = np.asarray(vol.spacing, np.float64)
+    O = (o - org) / spc
+    D = d / spc
+    n = np.array(vol.dims, np.float64) - 1.0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = 1.0 / D
+        ta = (0.0 - O) * inv
+        tb = (n - O) * inv
+    tiny = np.abs(D) < 1e-200
+    inside = (O >= 0) & (O <= n)
+    t0 = np.where(tiny, np.where(inside, -np.inf, np.inf), np.minimum(ta, tb))
+    t1 = np.where(tiny, np.where(inside, np.inf, -np.inf), np.maximum(ta, tb))
+    t_in = np.maximum(0.0, t0.max(axis=-1))
+    t_out = t1.min(axis=-1)
+    hit = t_in <= t_out
+    ys, xs = np.nonzero(hit)
+    t_in, t_out = t_in[hit], t_out[hit]
+    count = np.floor((t_out - t_in) / step).astype(np.int64) + 1
+    rows = np.repeat(np.arange(len(ys)), count)
+    k = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+    t = t_in[rows] + k * step
+    pos = O[ys[rows], xs[rows]] + t[:, None] * D[ys[rows], xs[rows]]
+    # Closed boxes holding each sample (clamped to the grid: a rounding
+    # outside the volume samples the boundary cell).
+    cand = []
+    for a in range(3):
+        e = grid.edges[a]
+        c = np.clip(pos[:, a], 0.0, e[-1])
+        left = np.clip(np.searchsorted(e, c, "left") - 1, 0, len(e) - 2)
+        right = np.clip(np.searchsorted(e, c, "right") - 1, 0, len(e) - 2)
+        cand.append((left, right))
+    need = np.zeros(len(pos), bool)
+    for zz in cand[2]:
+        for yy in cand[1]:
+            for xx in cand[0]:
+                need |= pc[zz, yy, xx]
+    return ys[rows][need], xs[rows][need], pos[need, axis] / grid.size[axis]
+
+
+# --------------------------------------------------------------------------
+# Bits against the references
+# --------------------------------------------------------------------------
+
+def _check_bits(camera, vol, grid, pc, width, height, label, report, *, axis=None, steps=(0.25,)):
+    """Both modes against the geometric reference; halo mode against the caster's samples."""
+    results = {}
+    for halo in (True, False):
+        pb = plane_buffers(camera, width, height, vol, pc, grid, axis=axis, halo=halo)
+        assert isinstance(pb, PlaneBits)
+        assert pb.bits.dtype == np.uint32 and pb.bits.shape[:2] == (height, width)
+        assert pb.bits.shape[2] == max(1, -(-pb.count // 32))
+        proxy = build_plane_proxy(grid, pc, grid.world_edges(vol), pb.axis)
+        n_planes = grid.counts[pb.axis]
+        met = planes_met(camera, width, height, proxy, touch=1e-12 * pb.info["scale"])
+        assert met.any(), "test camera sees no PC supercell"
+        have = _bit_array(pb.bits, pb.first, n_planes)
+        missing = met & ~have
+        assert not missing.any(), (
+            f"{label} halo={halo}: plane bits missing at (y, x, plane) "
+            f"{np.argwhere(missing)[:5].tolist()}")
+        extra = int((have & ~met).sum())
+        results[halo] = pb
+        report(f"{label:<44} {'halo  ' if halo else 'strict'} planes {pb.count:3d} "
+               f"bits {int(met.sum()):6d} extra {extra:5d}  polys {pb.polygons}")
+    for step in steps:
+        ys, xs, f = caster_required(camera, width, height, vol, grid, pc, results[True].axis, step)
+        # Halo bits: the caster as it is tests plane floor(f).
+        pb = results[True]
+        plane = np.floor(f).astype(np.int64)
+        ok = _bit_set(pb, ys, xs, plane)
+        assert ok.all(), (f"{label}: caster sample in a PC box with a clear bit at (y, x, plane) "
+                          f"{np.column_stack([ys, xs, plane])[~ok][:5].tolist()}")
+        # Strict bits: enough for a caster that also tests the neighbouring
+        # plane's bit within TOLERANT_CASTER of a boundary.
+        pb = results[False]
+        ok = _bit_set(pb, ys, xs, np.floor(f - TOLERANT_CASTER).astype(np.int64)) | \
+            _bit_set(pb, ys, xs, np.floor(f + TOLERANT_CASTER).astype(np.int64))
+        assert ok.all(), (f"{label}: strict bits, tolerant caster: sample in a PC box with clear bits at "
+                          f"(y, x, f) {np.column_stack([ys, xs, f])[~ok][:5].tolist()}")
+    return results
+
+
+#: Plane units within which a boundary-tolerant caster tests both neighbouring bits.
+TOLERANT_CASTER = 1e-6
+
+
+def _bit_set(pb, ys, xs, plane):
+    q = plane - pb.first
+    inside = (q >= 0) & (q < pb.count)
+    qc = np.clip(q, 0, max(pb.count - 1, 0))
+    return inside & ((pb.bits[ys, xs, qc >> 5] >> (qc & 31).astype(np.uint32)) & 1 != 0)
+
+
+@pytest.fixture
+def planes_report(looseness):
+    """Lines for the end-of-run report (conftest's), marked as this module's."""
+    return lambda line: looseness("bitplanes: " + line)
+
+
+@pytest.mark.parametrize("size", SIZES, ids=str)
+@pytest.mark.parametrize("seed", [0, 1])
+@pytest.mark.parametrize("parallel", [False, True], ids=["persp", "parallel"])
+def test_random_views(gl, planes_report, size, seed, parallel):
+    vol = _volume(seed, spacing=(1.0, 0.8, 1.3), origin=(2.0, -1.0, 0.5))
+    grid, pc = _classify(vol, size)
+    rng = np.random.default_rng(100 + seed)
+    cam = Camera.framing(*vol.bounds, azimuth=rng.uniform(0, 360), elevation=rng.uniform(-80, 80),
+                         parallel=parallel, zoom=rng.uniform(0.8, 1.6), fov=rng.uniform(20, 70))
+    _check_bits(cam, vol, grid, pc, 48, 36, f"random {'par' if parallel else 'per'} s={size} seed={seed}",
+                planes_report, steps=(0.25, 0.37))
+
+
+AXES = [((0, 0, -1), (0, 1, 0)), ((0, 0, 1), (0, 1, 0)), ((-1, 0, 0), (0, 0, 1)),
+        ((1, 0, 0), (0, 0, 1)), ((0, -1, 0), (1, 0, 0)), ((0, 1, 0), (0, 0, 1))]
+
+
+@pytest.mark.parametrize("size", [1, 2, 0.5, 1.5], ids=str)
+@pytest.mark.parametrize("view", AXES, ids=lambda v: "f=" + ",".join(map(str, v[0])))
+def test_axis_aligned_parallel(gl, planes_report, size, view):
+    """Rays along grid lines, and samples exactly on plane boundaries (step 0.25 from an integer)."""
+    vol = _volume(7, dims=(9, 9, 9))
+    grid, pc = _classify(vol, size, frac=0.5)
+    f, up = np.array(view[0], float), view[1]
+    eye = np.full(3, 4.25) - 20.0 * f
+    cam = Camera(eye=tuple(eye), look_at=tuple(eye + f), up=up, parallel_scale=8.0)
+    res = _check_bits(cam, vol, grid, pc, 32, 32, f"axis par f={view[0]} s={size}", planes_report,
+                      steps=(0.25, 0.5))
+    assert res[True].axis == int(np.argmax(np.abs(f)))
+
+
+@pytest.mark.parametrize("size", [1, 1.5], ids=str)
+@pytest.mark.parametrize("view", AXES, ids=lambda v: "f=" + ",".join(map(str, v[0])))
+def test_axis_aligned_perspective(gl, planes_report, size, view):
+    vol = _volume(8, dims=(9, 9, 9))
+    grid, pc = _classify(vol, size, frac=0.5)
+    f, up = np.array(view[0], float), view[1]
+    eye = np.full(3, 4.0) - 14.0 * f
+    cam = Camera(eye=tuple(eye), look_at=tuple(eye + f), up=up, fov=50.0)
+    _check_bits(cam, vol, grid, pc, 31, 31, f"axis per f={view[0]} s={size}", planes_report)
+
+
+def _pick(rng, mask):
+    cand = np.argwhere(mask)
+    return cand[rng.integers(len(cand))]
+
+
+def _centre(vol, grid, kx, ky, kz):
+    ex, ey, ez = grid.world_edges(vol)
+    return np.array([(ex[kx] + ex[kx + 1]) / 2, (ey[ky] + ey[ky + 1]) / 2, (ez[kz] + ez[kz + 1]) / 2])
+
+
+@pytest.mark.parametrize("size", SIZES, ids=str)
+@pytest.mark.parametrize("seed", [0, 1])
+@pytest.mark.parametrize("where", ["empty", "pc", "pc_corner", "pc_face"])
+def test_eye_inside(gl, planes_report, size, seed, where):
+    """Eye inside the volume: in an empty supercell, inside a PC one, on a PC corner or face."""
+    vol = _volume(seed, spacing=(1.0, 0.8, 1.3))
+    grid, pc = _classify(vol, size)
+    rng = np.random.default_rng(seed + 7)
+    kz, ky, kx = _pick(rng, ~pc if where == "empty" else pc)
+    eye = _centre(vol, grid, kx, ky, kz)
+    ex, ey, ez = grid.world_edges(vol)
+    if where == "pc_corner":
+        eye = np.array([ex[kx], ey[ky + 1], ez[kz]])
+    elif where == "pc_face":
+        eye[0] = ex[kx + 1]
+    look = eye + rng.standard_normal(3)
+    cam = Camera(eye=tuple(eye), look_at=tuple(look), up=(0.3, 0.2, 1.0), fov=100.0)
+    res = _check_bits(cam, vol, grid, pc, 40, 32, f"eye in {where} s={size} seed={seed}", planes_report)
+    assert res[True].info["eye_inside"] == (where != "empty")
+
+
+@pytest.mark.parametrize("size", [1, 1.5, 0.5], ids=str)
+@pytest.mark.parametrize("seed", [0, 1])
+def test_parallel_view_plane_cuts_volume(gl, planes_report, size, seed):
+    """Parallel rays starting inside the volume (some inside PC supercells)."""
+    vol = _volume(seed)
+    grid, pc = _classify(vol, size)
+    rng = np.random.default_rng(seed + 30)
+    kz, ky, kx = _pick(rng, pc)
+    eye = _centre(vol, grid, kx, ky, kz)
+    cam = Camera(eye=tuple(eye), look_at=tuple(eye + rng.standard_normal(3)), up=(0.3, 0.2, 1.0),
+                 parallel_scale=3.0)
+    _check_bits(cam, vol, grid, pc, 40, 32, f"parallel inside s={size} seed={seed}", planes_report)
+
+
+@pytest.mark.parametrize("axis", [0, 1, 2])
+def test_explicit_axis(gl, planes_report, axis):
+    """Any plane axis is correct (the major one is only the efficient one)."""
+    vol = _volume(3, spacing=(1.0, 0.8, 1.3))
+    grid, pc = _classify(vol, 1.5)
+    cam = Camera.framing(*vol.bounds, azimuth=20.0, elevation=30.0)
+    res = _check_bits(cam, vol, grid, pc, 40, 32, f"axis={axis}", planes_report, axis=axis)
+    assert res[True].axis == axis
+
+
+def test_many_planes(gl, planes_report):
+    """An 80-sample axis with 1-cell supercells: 79 planes, three words."""
+    rng = np.random.default_rng(5)
+    data = rng.standard_normal((6, 7, 80))
+    for a in range(3):
+        data = (np.roll(data, 1, a) + 2 * data + np.roll(data, -1, a)) / 4
+    vol = Volume(data.astype(np.float32), spacing=(0.5, 1.0, 1.0))
+    grid, pc = _classify(vol, 1, frac=0.5)
+    for parallel in (False, True):
+        lo, hi = vol.bounds
+        c = (lo + hi) / 2
+        eye = c + np.array([-40.0, 3.0, 2.0])
+        kw = {"parallel_scale": 4.0} if parallel else {"fov": 20.0}
+        cam = Camera(eye=tuple(eye), look_at=tuple(c), up=(0, 0, 1), **kw)
+        res = _check_bits(cam, vol, grid, pc, 48, 24, f"80 planes {'par' if parallel else 'per'}",
+                          planes_report)
+        pb = res[True]
+        assert pb.axis == 0 and pb.count > 64 and pb.bits.shape[2] == 3
+        # Bits beyond the first word are really used.
+        assert (pb.bits[..., 2] != 0).any()
+
+
+def test_major_axis():
+    box = (np.zeros(3), np.array([10.0, 10.0, 10.0]))
+    assert major_axis(Camera(eye=(5, 5, -30), look_at=(5, 5, 5), up=(0, 1, 0)), box) == 2
+    assert major_axis(Camera(eye=(50, 5, 5), look_at=(5, 5, 5), up=(0, 0, 1), parallel_scale=3), box) == 0
+    # Perspective from outside: towards the box centre, not along f.
+    assert major_axis(Camera(eye=(5, -30, 5), look_at=(5, -30, 40), up=(0, 1, 0)), box) == 1
+    # Inside: along f.
+    assert major_axis(Camera(eye=(5, 5, 5), look_at=(5, 6, 40), up=(0, 1, 0)), box) == 2
+
+
+def test_plane_range_and_empty(gl):
+    vol = _volume(2)
+    grid = VolumeIndex.of(vol).grid(2)
+    pc = np.zeros(grid.shape, bool)
+    assert plane_range(pc, 0) is None
+    cam = Camera.framing(*vol.bounds)
+    pb = plane_buffers(cam, 16, 12, vol, pc, grid)
+    assert pb.count == 0 and not pb.bits.any()
+    pc[1, 2, 0] = True
+    assert plane_range(pc, 0) == (0, 0) and plane_range(pc, 1) == (2, 2) and plane_range(pc, 2) == (1, 1)
+
+
+def test_raster_bits_drops_out_of_range_planes(gl):
+    """first/count cut the bits: a window of planes gives exactly those bits of the full pass."""
+    vol = _volume(4, dims=(12, 9, 8))
+    grid, pc = _classify(vol, 1)
+    cam = Camera.framing(*vol.bounds, azimuth=80.0, elevation=10.0)
+    axis = major_axis(cam, vol.bounds)
+    proxy = build_plane_proxy(grid, pc, grid.world_edges(vol), axis)
+    full, _ = raster_bits(cam, 32, 24, proxy, first=-1, count=grid.counts[axis] + 2)
+    part, _ = raster_bits(cam, 32, 24, proxy, first=3, count=4)
+    ref = (full[..., 0] >> np.uint32(4)) & np.uint32(0xF)
+    assert np.array_equal(part[..., 0], ref)
+
+
+# --------------------------------------------------------------------------
+# End to end: the caster with bits equals the caster without
+# --------------------------------------------------------------------------
+
+def _scene_tf(vol, rng):
+    from parc.transfer import TransferFunction
+    lo, hi = vol.value_range()
+    # A band of the upper values: sparse PC supercells, so the bits matter.
+    q0 = rng.uniform(0.7, 0.9)
+    a, b = np.quantile(vol.data.astype(np.float64), [q0, min(q0 + rng.uniform(0.05, 0.15), 1.0)])
+    mid = (a + b) / 2
+    return TransferFunction(opacity=[[a, 0.0], [mid, 0.5], [b, 0.0]],
+                            color=[[lo, 1.0, 0.2, 0.1], [hi, 0.1, 0.5, 1.0]])
+
+
+def _cast(vol, tf, mode, cam, w, h, *, bits=None, seg=None, step=None):
+    from parc.renderer import accumulation_params
+    from parc.scene import Translucent
+    from raycast.composite import cast_accumulate_image
+    vis = Translucent(vol, tf, mode=mode, step=step)
+    params = accumulation_params(vis)
+    if bits is not None:
+        bits.set_params(params)
+    op_x, op_y, col_x, col_rgb = tf.arrays()
+    image = np.zeros((h, w, 4), np.float32)
+    counts = np.zeros(w * h, np.int64)
+    b = bits.bits if bits is not None else np.zeros((1, 1, 1), np.uint32)
+    s = seg if seg is not None else np.zeros((1, 1, 2))
+    cast_accumulate_image(vol.data, np.array(vol.origin, float), np.array(vol.spacing, float),
+                          cam.as_array(), w, h, params, op_x, op_y, col_x, col_rgb,
+                          s, seg is not None, b, bits is not None, image, counts, 0, h)
+    return image, int(counts.sum())
+
+
+def _e2e_cameras(vol, grid, pc, rng):
+    lo, hi = vol.bounds
+    c = (lo + hi) / 2
+    diag = float(np.linalg.norm(hi - lo))
+    yield "persp", Camera.framing(lo, hi, azimuth=rng.uniform(0, 360), elevation=rng.uniform(-60, 60))
+    yield "parallel", Camera.framing(lo, hi, azimuth=rng.uniform(0, 360), elevation=rng.uniform(-60, 60),
+                                     parallel=True)
+    # Exactly axis-aligned parallel rays from an integer start: samples on boundaries.
+    yield "axis_par", Camera(eye=(c[0], c[1], lo[2] - 2.0 * diag), look_at=(c[0], c[1], 0.0),
+                             up=(0, 1, 0), parallel_scale=0.6 * diag)
+    yield "axis_per", Camera(eye=(lo[0] - 2.0 * diag, c[1], c[2]), look_at=(c[0], c[1], c[2]),
+                             up=(0, 0, 1), fov=40.0)
+    kz, ky, kx = _pick(rng, pc)
+    e = _centre(vol, grid, kx, ky, kz)
+    yield "inside_pc", Camera(eye=tuple(e), look_at=tuple(e + rng.standard_normal(3)), up=(0.3, 0.2, 1.0),
+                              fov=90.0)
+    yield "inside_par", Camera(eye=tuple(e), look_at=tuple(e + rng.standard_normal(3)), up=(0.3, 0.2, 1.0),
+                               parallel_scale=0.3 * diag)
+
+
+@pytest.mark.parametrize("mode", ["composite", "mip", "average"])
+@pytest.mark.parametrize("size", [1, 2, 1.5, (2, 3, 1.5), 0.5], ids=str)
+@pytest.mark.parametrize("seed", [0, 1])
+def test_caster_with_bits_equals_brute(gl, planes_report, mode, size, seed):
+    from parc.raster import raster_segments
+    rng = np.random.default_rng(1000 + seed)
+    dims = tuple(int(n) for n in rng.integers(8, 14, 3))
+    spacing = (1.0, 1.0, 1.0) if seed == 0 else tuple(rng.uniform(0.6, 1.6, 3))
+    vol = _volume(seed + 50, dims=dims, spacing=spacing, origin=(0.0, 0.0, 0.0) if seed == 0 else (3.0, -2.0, 1.0))
+    tf = _scene_tf(vol, rng)
+    idx = VolumeIndex.of(vol)
+    grid = idx.grid(size)
+    pc = tf.nonzero_in(*idx.ranges(size))
+    if not pc.any():
+        pytest.skip("transfer function shows nothing")
+    w, h = 40, 32
+    for label, cam in _e2e_cameras(vol, grid, pc, rng):
+        ref, n_ref = _cast(vol, tf, mode, cam, w, h)
+        pb = plane_buffers(cam, w, h, vol, pc, grid)
+        img, n_bits = _cast(vol, tf, mode, cam, w, h, bits=pb)
+        d = float(np.abs(img - ref).max())
+        assert d <= 1e-6, f"{label}: bits only, max |diff| {d}"
+        seg = raster_segments(cam, w, h, build_proxy(grid, pc, grid.world_edges(vol))).seg
+        img2, n_both = _cast(vol, tf, mode, cam, w, h, bits=pb, seg=seg)
+        d2 = float(np.abs(img2 - ref).max())
+        assert d2 <= 1e-6, f"{label}: bits and segments, max |diff| {d2}"
+        # Strict bits are for a caster tolerant at plane boundaries: reported, not asserted.
+        strict = plane_buffers(cam, w, h, vol, pc, grid, halo=False)
+        img3, n_strict = _cast(vol, tf, mode, cam, w, h, bits=strict)
+        d3 = float(np.abs(img3 - ref).max())
+        planes_report(f"e2e {mode:<9} s={str(size):<13} seed={seed} {label:<10} |d| {d:.0e} {d2:.0e}  "
+                      f"samples brute {n_ref:6d} bits {n_bits:6d} both {n_both:6d} "
+                      f"(strict bits {n_strict:6d} |d| {d3:.0e})")
+
+
+@pytest.mark.parametrize("parallel", [False, True], ids=["persp", "parallel"])
+@pytest.mark.parametrize("offset", [0.0, 1e-7, 1e-3], ids=str)
+@pytest.mark.parametrize("tilt", [0.0, 1e-7, 1e-3], ids=str)
+def test_grazing_views(gl, planes_report, parallel, offset, tilt):
+    """Rays nearly parallel to the y faces, from an eye on, next to or near the grid plane y = 4."""
+    vol = _volume(12, dims=(9, 9, 9))
+    grid, pc = _classify(vol, 1, frac=0.5)
+    eye = np.array([-12.0, 4.0 + offset, 4.3])
+    look = eye + np.array([1.0, tilt, 0.02])
+    kw = {"parallel_scale": 5.0} if parallel else {"fov": 40.0}
+    cam = Camera(eye=tuple(eye), look_at=tuple(look), up=(0, 0, 1), **kw)
+    for axis in (0, 1):   # the major axis, and the axis the rays graze
+        _check_bits(cam, vol, grid, pc, 33, 31, f"grazing {'par' if parallel else 'per'} off={offset:g} "
+                    f"tilt={tilt:g} axis={axis}", planes_report, axis=axis)
+
+
+@pytest.mark.parametrize("size", [1, 1.5, 0.5], ids=str)
+@pytest.mark.parametrize("inside", [True, False], ids=["pc", "empty"])
+def test_eye_on_plane_boundary(gl, planes_report, size, inside):
+    """Eye exactly on a boundary plane of the plane axis, a wide view: some rays run in that plane."""
+    vol = _volume(5, spacing=(1.0, 0.8, 1.3))
+    grid, pc = _classify(vol, size)
+    rng = np.random.default_rng(11)
+    kz, ky, kx = _pick(rng, pc if inside else ~pc)
+    eye = _centre(vol, grid, kx, ky, kz)
+    eye[0] = grid.world_edges(vol)[0][kx + 1]
+    for look in (eye + np.array([1.0, 0.3, 0.2]), eye + np.array([0.0, 1.0, 0.3])):
+        cam = Camera(eye=tuple(eye), look_at=tuple(look), up=(0.3, 0.2, 1.0), fov=150.0)
+        _check_bits(cam, vol, grid, pc, 40, 32, f"eye on x boundary {'pc' if inside else 'empty'} s={size}",
+                    planes_report, axis=0)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_wide_fov_near_volume(gl, planes_report, seed):
+    """A 160-degree view from just outside the volume: rays at every angle to the plane axis."""
+    vol = _volume(seed, spacing=(1.0, 0.8, 1.3))
+    grid, pc = _classify(vol, 1.5)
+    lo, hi = vol.bounds
+    c = (lo + hi) / 2
+    eye = np.array([lo[0] - 0.3, c[1] + 0.1, c[2] - 0.2])
+    cam = Camera(eye=tuple(eye), look_at=tuple(c), up=(0, 0, 1), fov=160.0)
+    _check_bits(cam, vol, grid, pc, 48, 40, f"wide fov seed={seed}", planes_report)
