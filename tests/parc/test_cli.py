@@ -188,3 +188,16 @@ def test_compare_json_and_step_sweep(vol_file, capsys):
     rows = json.loads(out)
     assert [r["step"] for r in rows] == [1.0, 0.5] and all(r["parc_vs_brute"] == 0 for r in rows)
     assert rows[1]["brute_samples"] > rows[0]["brute_samples"] > 0
+
+
+def test_outputs_are_ordinary_files(vol_file, tmp_path, capsys):
+    import os
+    import stat
+    out = tmp_path / "p.png"
+    old = os.umask(0o022)
+    try:
+        rc, _, err = _run(["render", vol_file, "--iso", 4, "--size", 8, 8, "-o", out], capsys)
+    finally:
+        os.umask(old)
+    assert rc == 0, err
+    assert stat.S_IMODE(out.stat().st_mode) == 0o644
