@@ -94,9 +94,9 @@ OR-ing ``uvec4`` colours into an RGBA32UI target with ``glLogicOp(GL_OR)``
 (reachable through ``eglGetProcAddress``; moderngl has no setting) was
 ~15% faster than the atomics, for a ctypes dependency; not used.
 
-The OpenGL context is `parc.raster.get_context`'s. Helpers copied from
-`parc.raster` (private there): `_pixel_affine`, `_scene_scale`,
-`_distance_to_pc`, `_set`, `_program`.
+The OpenGL context is `parc.raster.get_context`'s, and the view helpers
+(the pixel rays as affine maps, the scene scale, the eye's distance to the
+PC region) are the depth pass's own, so both passes see the same rays.
 """
 from __future__ import annotations
 
@@ -110,7 +110,8 @@ import numpy as np
 from data_tools import InputError
 
 from .raster import (ABS_TOL, AFFINE_ERR, COVERAGE_PAD_PX, FLUSH_TOL, GUARD_PX, INSIDE_CLIP_REL, TOL_REL,
-                     OpenGLUnavailable, get_context, load_shader)
+                     OpenGLUnavailable, _distance_to_pc, _moderngl, _pixel_affine, _scene_scale, get_context,
+                     load_shader)
 
 #: Width of the boundary band (halo mode), in cells along the plane axis:
 #: far above the caster's mismatch between ``floor(pos / m)`` and the
@@ -546,56 +547,10 @@ def _program(ctx, name, parallel=False):
     return _PROGRAMS[key]
 
 
-def _moderngl():
-    import moderngl
-    return moderngl
-
-
 def _set(prog, name, value):
     """Set a uniform the compiler kept (copied from parc.raster)."""
     if name in prog:
         prog[name].value = value
-
-
-def _pixel_affine(camera, f, r, u, th, width, height):
-    """The caster's per-pixel ray as an affine map of the pixel indices (copied from parc.raster)."""
-    aspect = width / height
-    scale, base = (float(camera.parallel_scale), 0.0) if camera.parallel else (th, 1.0)
-    r = np.asarray(r, dtype=np.float64)
-    u = np.asarray(u, dtype=np.float64)
-    k0 = base * np.asarray(f, dtype=np.float64) + scale * (r * (aspect / width - aspect) + u * (1.0 - 1.0 / height))
-    kx = scale * r * (2.0 * aspect / width)
-    ky = scale * u * (-2.0 / height)
-    return k0, kx, ky
-
-
-def _scene_scale(camera, lo, hi, aspect):
-    """A bound on coordinates and distances in this view (copied from parc.raster)."""
-    eye = np.asarray(camera.eye, dtype=np.float64)
-    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
-    s = max(np.abs(eye).max(), np.abs(corners).max(), np.linalg.norm(corners - eye, axis=1).max())
-    if camera.parallel:
-        s += camera.parallel_scale * math.hypot(aspect, 1.0)
-    return float(s)
-
-
-def _distance_to_pc(point, proxy):
-    """Distance from ``point`` to the nearest PC supercell box, 0 if in or on one (copied from parc.raster)."""
-    ex, ey, ez = proxy.world_edges
-    if not proxy.pc.any():
-        return math.inf
-
-    def axis_gap(e, p):
-        return np.maximum(np.maximum(e[:-1] - p, 0.0), p - e[1:])
-
-    gx, gy, gz = (axis_gap(e, p) ** 2 for e, p in zip((ex, ey, ez), point))
-    plane = gy[:, None] + gx[None, :]
-    best = math.inf
-    for k in np.flatnonzero(proxy.pc.any(axis=(1, 2))):
-        best = min(best, gz[k] + float(plane[proxy.pc[k]].min()))
-        if best == 0.0:
-            break
-    return math.sqrt(best)
 
 
 __all__ = ["BAND_CELLS", "PlaneBits", "major_axis", "plane_buffers", "plane_range", "raster_bits"]
