@@ -68,6 +68,30 @@ def exit_sign(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, i, j, k, c0, c1):
 
 
 @kernel
+def _entry_sign(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, i, j, k, sx, sy, sz,
+                tx0, ty0, tz0, tx1, ty1, tz1, c0, t_in, t_out):
+    """Sign at the exit of the cell a full walk visits just before cell (i, j, k).
+
+    That cell is the neighbour across the face of the latest entry time
+    ``c0`` (ties: the last axis, as `step_axis` steps x, then y, then z).
+    """
+    pi, pj, pk = i, j, k
+    px0, py0, pz0, px1, py1, pz1 = tx0, ty0, tz0, tx1, ty1, tz1
+    if tz0 == c0:
+        pk = k - sz
+        _, _, pz0, pz1 = axis_state(Oz, Dz, pk)
+    elif ty0 == c0:
+        pj = j - sy
+        _, _, py0, py1 = axis_state(Oy, Dy, pj)
+    else:
+        pi = i - sx
+        _, _, px0, px1 = axis_state(Ox, Dx, pi)
+    return exit_sign(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, pi, pj, pk,
+                     max(t_in, max(px0, max(py0, pz0))),
+                     min(t_out, min(px1, min(py1, pz1))))
+
+
+@kernel
 def cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, seg0, seg1):
     """First isosurface hit along an index-space ray, within ``[seg0, seg1]``.
 
@@ -101,22 +125,7 @@ def cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, seg0, seg1):
     # cell is the neighbour across the face of the latest entry time (ties:
     # the last axis, as `step_axis` steps x, then y, then z).
     prev = 0.0
-    c0 = max(t_in, max(tx0, max(ty0, tz0)))
-    if c0 > t_in:
-        pi, pj, pk = i, j, k
-        px0, py0, pz0, px1, py1, pz1 = tx0, ty0, tz0, tx1, ty1, tz1
-        if tz0 == c0:
-            pk = k - sz
-            _, _, pz0, pz1 = axis_state(Oz, Dz, pk)
-        elif ty0 == c0:
-            pj = j - sy
-            _, _, py0, py1 = axis_state(Oy, Dy, pj)
-        else:
-            pi = i - sx
-            _, _, px0, px1 = axis_state(Ox, Dx, pi)
-        prev = exit_sign(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, pi, pj, pk,
-                         max(t_in, max(px0, max(py0, pz0))),
-                         min(t_out, min(px1, min(py1, pz1))))
+    first = True
     cells = 0
     solves = 0
     while True:
@@ -128,19 +137,26 @@ def cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, seg0, seg1):
             prev = 1.0
         elif hi < 0.0:
             prev = -1.0
-        elif c0 <= c1:
-            solves += 1
-            A, B, C, D, u0, v0, w0 = cell_cubic(v000, v100, v010, v110, v001, v101, v011, v111,
-                                                Ox, Oy, Oz, Dx, Dy, Dz, i, j, k, c0)
-            if c0 > t_in and prev != 0.0 and D != 0.0 and (D < 0.0) != (prev < 0.0):
-                return c0, i, j, k, u0, v0, w0, cells, solves
-            L = c1 - c0
-            s = first_root(A, B, C, D, L)
-            if s >= 0.0:
-                return (c0 + s, i, j, k, u0 + s * Dx, v0 + s * Dy, w0 + s * Dz,
-                        cells, solves)
-            f = eval_cubic(A, B, C, D, L)
-            prev = 1.0 if f > 0.0 else (-1.0 if f < 0.0 else 0.0)
+        else:
+            if first and c0 > t_in:
+                # Only a possibly contributing start cell needs the sign its
+                # predecessor ends with; most PARC segments start in empty cells.
+                prev = _entry_sign(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, i, j, k, sx, sy, sz,
+                                   tx0, ty0, tz0, tx1, ty1, tz1, c0, t_in, t_out)
+            if c0 <= c1:
+                solves += 1
+                A, B, C, D, u0, v0, w0 = cell_cubic(v000, v100, v010, v110, v001, v101, v011, v111,
+                                                    Ox, Oy, Oz, Dx, Dy, Dz, i, j, k, c0)
+                if c0 > t_in and prev != 0.0 and D != 0.0 and (D < 0.0) != (prev < 0.0):
+                    return c0, i, j, k, u0, v0, w0, cells, solves
+                L = c1 - c0
+                s = first_root(A, B, C, D, L)
+                if s >= 0.0:
+                    return (c0 + s, i, j, k, u0 + s * Dx, v0 + s * Dy, w0 + s * Dz,
+                            cells, solves)
+                f = eval_cubic(A, B, C, D, L)
+                prev = 1.0 if f > 0.0 else (-1.0 if f < 0.0 else 0.0)
+        first = False
         if c1 >= t_end:
             break
         axis = step_axis(tx1, ty1, tz1)
