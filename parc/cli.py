@@ -99,6 +99,9 @@ def _add_look_options(p):
     g.add_argument("--threshold", type=float, default=0.99, metavar="A",
                    help="with --tf: stop a ray once its opacity reaches A (default 0.99)")
     g.add_argument("--shade", action="store_true", help="with --tf: shade samples with the gradient")
+    g.add_argument("--buffers", default="depth", metavar="LIST",
+                   help="with --tf, PARC's buffers: depth (near/far, default), bits (planes of supercells), "
+                        "or depth,bits")
 
 
 def _add_view_options(p):
@@ -278,7 +281,7 @@ def cmd_render(args):
     scene = _scene(args, say)
     w, h = scene.size
     progress = None if args.quiet else _Progress(f"rendering {w}x{h}")
-    kwargs = {"supercell": args.supercell} if args.method == "parc" else {}
+    kwargs = {"supercell": args.supercell, "buffers": _buffers(args)} if args.method == "parc" else {}
     if args.supercell is not None and args.method != "parc":
         raise InputError("--supercell applies to --method parc")
     result = parc.render(scene, method=args.method, progress=progress, **kwargs)
@@ -325,13 +328,13 @@ def cmd_compare(args):
                           progress=None if args.json else (lambda m: say(f"timing {m} ...")))
         print(json.dumps(rows, indent=2, default=float) if args.json else format_step_table(rows))
         return 0
-    options = {}
+    options = {"parc": {"buffers": _buffers(args)}}
     if args.sweep_supercell:
         sizes = [_supercell_or_error(v) for v in args.sweep_supercell.split(";" if ";" in args.sweep_supercell else ",")]
         methods = ["brute"] + [f"parc:{s:g}" for s in sizes]
-        options = {f"parc:{s:g}": {"supercell": s} for s in sizes}
+        options = {f"parc:{s:g}": {"supercell": s, "buffers": _buffers(args)} for s in sizes}
     elif args.supercell is not None:
-        options = {"parc": {"supercell": args.supercell}}
+        options = {"parc": {"supercell": args.supercell, "buffers": _buffers(args)}}
     rows = compare(scene, methods=methods, repeats=args.repeats, options=options,
                    progress=None if args.json else (lambda m: say(f"timing {m} ...")))
     if args.json:
@@ -345,6 +348,13 @@ def cmd_compare(args):
               f"{w}x{h} pixels, median of {args.repeats} after a warm-up")
         print(format_table(rows))
     return 0
+
+
+def _buffers(args):
+    names = tuple(b.strip() for b in args.buffers.split(",") if b.strip())
+    if not names or set(names) - {"depth", "bits"}:
+        raise InputError(f"--buffers must be depth, bits or depth,bits, got {args.buffers!r}")
+    return names
 
 
 def _supercell_or_error(text):
