@@ -26,6 +26,9 @@ examples:
   parc render -o out.png                      render the built-in volume
   parc render head.nrrd --iso 600 -o skin.png --size 800 600
   parc render bucky_32x32x32_uint8.raw --iso 128 --eye 60,-40,50 -o bucky.png
+  parc render CThead.nrrd --iso 1500 --method parc -o bone.png   same image, faster
+  parc render CThead.nrrd --tf ct_skin_bone --up 0,0,-1 -o ct.png   translucent
+  parc compare neghip.slc --iso 80 --sweep-supercell 1,2,4,8      speed against error
   parc info CThead.nrrd                       dims, spacing, histogram, isovalues
   parc make ct_phantom --size 128 -o ct.nrrd  a synthetic volume
 
@@ -124,8 +127,9 @@ def build_parser():
     sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
 
     r = sub.add_parser("render", help="render a volume to an image",
-                       description="Render the isosurface of a volume. Without a volume, renders a built-in "
-                                   "synthetic one. Without --iso, uses a level suggested from the histogram.",
+                       description="Render the isosurface of a volume (--iso), or the volume translucent "
+                                   "through a transfer function (--tf). Without a volume, renders a built-in "
+                                   "synthetic one. Without --iso or --tf, uses a level suggested from the histogram.",
                        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     r.add_argument("volume", nargs="?", help="volume file: .nrrd .nhdr .mhd .mha .vtk .slc .npy .raw")
     r.add_argument("-o", "--output", required=True, metavar="OUT",
