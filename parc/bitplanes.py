@@ -109,9 +109,9 @@ import numpy as np
 
 from data_tools import InputError
 
-from .raster import (ABS_TOL, AFFINE_ERR, COVERAGE_PAD_PX, FLUSH_TOL, GUARD_PX, INSIDE_CLIP_REL, TOL_REL,
-                     OpenGLUnavailable, _distance_to_pc, _moderngl, _pixel_affine, _scene_scale, get_context,
-                     load_shader)
+from .raster import (ABS_TOL, COVERAGE_PAD_PX, GUARD_PX, INSIDE_CLIP_REL, TOL_REL,
+                     OpenGLUnavailable, _distance_to_pc, _moderngl, _scene_scale, _set, get_context, load_shader,
+                     set_view_uniforms)
 
 #: Width of the boundary band (halo mode), in cells along the plane axis:
 #: far above the caster's mismatch between ``floor(pos / m)`` and the
@@ -372,27 +372,8 @@ def raster_bits(camera, width, height, plane_proxy, *, first, count, halo=True, 
         parallel = camera.parallel
         vao = up.vao(ctx, parallel)
         prog = vao.program
-        aff0, affx, affy = _pixel_affine(camera, f, r, u, th, width, height)
-        flush = FLUSH_TOL * (width + height)
-        err_d = AFFINE_ERR * (np.abs(aff0) + np.abs(affx) * (width - 1) + np.abs(affy) * (height - 1)) + flush
-        _set(prog, "edge_offset", up.offsets)
-        _set(prog, "eye", tuple(eye))
-        _set(prog, "fwd", tuple(f))
-        _set(prog, "right", tuple(r))
-        _set(prog, "upv", tuple(u))
-        _set(prog, "parallel", 1 if parallel else 0)
-        _set(prog, "tan_half", th)
-        _set(prog, "pscale", float(camera.parallel_scale or 0.0))
-        _set(prog, "aspect", aspect)
-        _set(prog, "clip_near", clip_near)
-        _set(prog, "ndc_limit", ndc_limit)
-        _set(prog, "ndc_pad", (2.0 * pad_px / width, 2.0 * pad_px / height))
-        _set(prog, "aff0", tuple(aff0))
-        _set(prog, "affx", tuple(affx))
-        _set(prog, "affy", tuple(affy))
-        _set(prog, "err_d", tuple(err_d))
-        _set(prog, "pix_max", (width - 1.0, height - 1.0))
-        _set(prog, "abs_tol", ABS_TOL * scale + flush)
+        set_view_uniforms(prog, camera, width, height, up.offsets, clip_near=clip_near,
+                          ndc_limit=ndc_limit, pad_px=pad_px, scale=scale)
         _set(prog, "plane_axis", axis)
         _set(prog, "first", first)
         _set(prog, "halo", 1 if halo else 0)
@@ -546,11 +527,6 @@ def _program(ctx, name, parallel=False):
                                     f"{name} shaders: {(lines or [str(exc)])[-1]}") from None
     return _PROGRAMS[key]
 
-
-def _set(prog, name, value):
-    """Set a uniform the compiler kept (copied from parc.raster)."""
-    if name in prog:
-        prog[name].value = value
 
 
 __all__ = ["BAND_CELLS", "PlaneBits", "major_axis", "plane_buffers", "plane_range", "raster_bits"]

@@ -560,27 +560,8 @@ def raster_segments(camera, width, height, proxy, *, pad_px=COVERAGE_PAD_PX):
         parallel = camera.parallel
         vao = up.vao(ctx, parallel)
         prog = vao.program
-        aff0, affx, affy = _pixel_affine(camera, f, r, u, th, width, height)
-        flush = FLUSH_TOL * (width + height)
-        err_d = AFFINE_ERR * (np.abs(aff0) + np.abs(affx) * (width - 1) + np.abs(affy) * (height - 1)) + flush
-        _set(prog, "edge_offset", up.offsets)
-        _set(prog, "eye", tuple(eye))
-        _set(prog, "fwd", tuple(f))
-        _set(prog, "right", tuple(r))
-        _set(prog, "upv", tuple(u))
-        _set(prog, "parallel", 1 if parallel else 0)
-        _set(prog, "tan_half", th)
-        _set(prog, "pscale", float(camera.parallel_scale or 0.0))
-        _set(prog, "aspect", aspect)
-        _set(prog, "clip_near", clip_near)
-        _set(prog, "ndc_limit", ndc_limit)
-        _set(prog, "ndc_pad", (2.0 * pad_px / width, 2.0 * pad_px / height))
-        _set(prog, "aff0", tuple(aff0))
-        _set(prog, "affx", tuple(affx))
-        _set(prog, "affy", tuple(affy))
-        _set(prog, "err_d", tuple(err_d))
-        _set(prog, "pix_max", (width - 1.0, height - 1.0))
-        _set(prog, "abs_tol", ABS_TOL * scale + flush)
+        set_view_uniforms(prog, camera, width, height, up.offsets, clip_near=clip_near,
+                          ndc_limit=ndc_limit, pad_px=pad_px, scale=scale)
         fbo = _sized(ctx, width, height)
         fbo.use()
         ctx.viewport = (0, 0, width, height)
@@ -633,6 +614,34 @@ def raster_segments(camera, width, height, proxy, *, pad_px=COVERAGE_PAD_PX):
     info = {"eye_inside": bool(eye_inside), "d_min": d_min, "clip_near": clip_near,
             "pixels": int(np.count_nonzero(near <= far)), "scale": scale, "drawn": drawn}
     return Segments(near=near, far=far, polygons=proxy.n_polygons, seconds=seconds, info=info, _seg=seg)
+
+
+def set_view_uniforms(prog, camera, width, height, edge_offset, *, clip_near, ndc_limit, pad_px, scale):
+    """Uniforms of the face-growing geometry shader and the per-pixel ray test, shared by both passes."""
+    eye = np.asarray(camera.eye, dtype=np.float64)
+    f, r, u = camera.basis()
+    th = math.tan(math.radians(camera.fov) / 2.0)
+    aff0, affx, affy = _pixel_affine(camera, f, r, u, th, width, height)
+    flush = FLUSH_TOL * (width + height)
+    err_d = AFFINE_ERR * (np.abs(aff0) + np.abs(affx) * (width - 1) + np.abs(affy) * (height - 1)) + flush
+    _set(prog, "edge_offset", edge_offset)
+    _set(prog, "eye", tuple(eye))
+    _set(prog, "fwd", tuple(f))
+    _set(prog, "right", tuple(r))
+    _set(prog, "upv", tuple(u))
+    _set(prog, "parallel", 1 if camera.parallel else 0)
+    _set(prog, "tan_half", th)
+    _set(prog, "pscale", float(camera.parallel_scale or 0.0))
+    _set(prog, "aspect", width / height)
+    _set(prog, "clip_near", clip_near)
+    _set(prog, "ndc_limit", ndc_limit)
+    _set(prog, "ndc_pad", (2.0 * pad_px / width, 2.0 * pad_px / height))
+    _set(prog, "aff0", tuple(aff0))
+    _set(prog, "affx", tuple(affx))
+    _set(prog, "affy", tuple(affy))
+    _set(prog, "err_d", tuple(err_d))
+    _set(prog, "pix_max", (width - 1.0, height - 1.0))
+    _set(prog, "abs_tol", ABS_TOL * scale + flush)
 
 
 def _moderngl():

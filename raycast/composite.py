@@ -35,7 +35,7 @@ from .config import TILE_H, TILE_W, kernel
 from .rays import camera_ray, tile_count, tile_rect
 from .shade import blinn_phong, trilinear_gradient
 from .transfer import correct_opacity, tf_lookup, tf_opacity
-from .traverse import clip_box, to_index_space
+from .traverse import cell_corners, clip_box, to_index_space
 
 MODE_COMPOSITE = 0
 MODE_MIP = 1
@@ -71,14 +71,7 @@ def sample_value(data, x, y, z):
     u = x - i
     v = y - j
     w = z - k
-    v000 = float(data[k, j, i])
-    v100 = float(data[k, j, i + 1])
-    v010 = float(data[k, j + 1, i])
-    v110 = float(data[k, j + 1, i + 1])
-    v001 = float(data[k + 1, j, i])
-    v101 = float(data[k + 1, j, i + 1])
-    v011 = float(data[k + 1, j + 1, i])
-    v111 = float(data[k + 1, j + 1, i + 1])
+    v000, v100, v010, v110, v001, v101, v011, v111 = cell_corners(data, i, j, k)
     c00 = v000 + u * (v100 - v000)
     c10 = v010 + u * (v110 - v010)
     c01 = v001 + u * (v101 - v001)

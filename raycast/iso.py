@@ -15,20 +15,15 @@ from numba import prange
 from .config import TILE_H, TILE_W, kernel
 from .cubic import cubic_along_ray, eval_cubic, first_root, trilinear_coefficients
 from .rays import camera_ray
-from .traverse import axis_state, clip_box, next_exit, start_index, step_axis, to_index_space
+from .traverse import axis_state, cell_corners, clip_box, next_exit, start_index, step_axis, to_index_space
 
 
 @kernel
 def corners(data, iso, i, j, k):
     """The eight corner samples of cell ``(i, j, k)`` minus ``iso``, and their min and max."""
-    v000 = float(data[k, j, i]) - iso
-    v100 = float(data[k, j, i + 1]) - iso
-    v010 = float(data[k, j + 1, i]) - iso
-    v110 = float(data[k, j + 1, i + 1]) - iso
-    v001 = float(data[k + 1, j, i]) - iso
-    v101 = float(data[k + 1, j, i + 1]) - iso
-    v011 = float(data[k + 1, j + 1, i]) - iso
-    v111 = float(data[k + 1, j + 1, i + 1]) - iso
+    c000, c100, c010, c110, c001, c101, c011, c111 = cell_corners(data, i, j, k)
+    v000, v100, v010, v110 = c000 - iso, c100 - iso, c010 - iso, c110 - iso
+    v001, v101, v011, v111 = c001 - iso, c101 - iso, c011 - iso, c111 - iso
     lo = min(min(min(v000, v100), min(v010, v110)), min(min(v001, v101), min(v011, v111)))
     hi = max(max(max(v000, v100), max(v010, v110)), max(max(v001, v101), max(v011, v111)))
     return v000, v100, v010, v110, v001, v101, v011, v111, lo, hi

@@ -5,6 +5,7 @@ from numba import prange
 
 from .config import kernel
 from .rays import camera_ray
+from .traverse import cell_corners
 
 
 @kernel
@@ -14,14 +15,7 @@ def trilinear_gradient(data, i, j, k, u, v, w, spc):
     Parker et al. Appendix A: the derivative of each corner weight, divided
     by the cell's size along that axis.
     """
-    v000 = float(data[k, j, i])
-    v100 = float(data[k, j, i + 1])
-    v010 = float(data[k, j + 1, i])
-    v110 = float(data[k, j + 1, i + 1])
-    v001 = float(data[k + 1, j, i])
-    v101 = float(data[k + 1, j, i + 1])
-    v011 = float(data[k + 1, j + 1, i])
-    v111 = float(data[k + 1, j + 1, i + 1])
+    v000, v100, v010, v110, v001, v101, v011, v111 = cell_corners(data, i, j, k)
     gu = ((1 - v) * (1 - w) * (v100 - v000) + v * (1 - w) * (v110 - v010)
           + (1 - v) * w * (v101 - v001) + v * w * (v111 - v011))
     gv = ((1 - u) * (1 - w) * (v010 - v000) + u * (1 - w) * (v110 - v100)

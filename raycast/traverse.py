@@ -120,3 +120,15 @@ def step_axis(tx1, ty1, tz1):
     if ty1 <= tz1:
         return 1
     return 2
+
+
+@kernel
+def cell_corners(data, i, j, k):
+    """The eight corner samples of cell ``(i, j, k)`` as floats, ``vIJK`` at local ``(I, J, K)``.
+
+    Returned in the order v000, v100, v010, v110, v001, v101, v011, v111.
+    """
+    return (float(data[k, j, i]), float(data[k, j, i + 1]),
+            float(data[k, j + 1, i]), float(data[k, j + 1, i + 1]),
+            float(data[k + 1, j, i]), float(data[k + 1, j, i + 1]),
+            float(data[k + 1, j + 1, i]), float(data[k + 1, j + 1, i + 1]))
