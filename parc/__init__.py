@@ -5,8 +5,8 @@ from data_tools.io import load_volume, save_volume
 from .camera import Camera
 from .compare import compare
 from .renderer import RenderResult, render
-from .scene import Isosurface, Scene, Translucent
+from .scene import DirectionalLight, Isosurface, PointLight, Scene, Translucent
 from .transfer import TransferFunction, load_transfer_function
 
-__all__ = ["Camera", "compare", "InputError", "Isosurface", "RenderResult", "Scene", "TransferFunction", "Translucent",
+__all__ = ["Camera", "compare", "DirectionalLight", "InputError", "Isosurface", "PointLight", "RenderResult", "Scene", "TransferFunction", "Translucent",
            "Volume", "load_transfer_function", "load_volume", "render", "save_volume"]

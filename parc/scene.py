@@ -115,6 +115,67 @@ class Translucent:
 
 
 @dataclass(eq=False)
+class PointLight:
+    """A light at a point, shining equally in every direction (no fall-off with distance).
+
+    Parameters
+    ----------
+    position : (x, y, z)
+        World position; may lie inside a volume.
+    color : (r, g, b) in [0, 1]
+    intensity : float >= 0
+        Scales the colour.
+    """
+
+    position: tuple
+    color: tuple = (1.0, 1.0, 1.0)
+    intensity: float = 1.0
+
+    def __post_init__(self):
+        self.position = _finite_triple(self.position, "light position")
+        self.color = _unit_triple(self.color, "light colour")
+        self.intensity = _non_negative(self.intensity, "light intensity")
+
+    @property
+    def radiance(self):
+        return tuple(c * self.intensity for c in self.color)
+
+
+@dataclass(eq=False)
+class DirectionalLight:
+    """A light infinitely far away (the sun): parallel rays travelling along ``direction``.
+
+    Parameters
+    ----------
+    direction : (dx, dy, dz)
+        The direction the light travels in (from the light into the scene);
+        normalized here, must not be zero.
+    color : (r, g, b) in [0, 1]
+    intensity : float >= 0
+    """
+
+    direction: tuple
+    color: tuple = (1.0, 1.0, 1.0)
+    intensity: float = 1.0
+
+    def __post_init__(self):
+        d = np.asarray(_finite_triple(self.direction, "light direction"))
+        n = float(np.linalg.norm(d))
+        if not n > 0.0:
+            raise InputError(f"light direction must not be zero, got {self.direction!r}")
+        self.direction = tuple(float(c) for c in d / n)
+        self.color = _unit_triple(self.color, "light colour")
+        self.intensity = _non_negative(self.intensity, "light intensity")
+
+    @property
+    def radiance(self):
+        return tuple(c * self.intensity for c in self.color)
+
+
+LIGHTS = (PointLight, DirectionalLight)
+
+
+@dataclass(eq=False)
 class Scene:
     """A camera, an image size and what to show.
 
@@ -124,10 +185,13 @@ class Scene:
     size : (width, height)
         Image size in pixels, both at least 1.
     volumes : list of Isosurface or Translucent
-    lights : list
-        Light sources; empty means a headlight at the eye.
+    lights : list of PointLight or DirectionalLight
+        Light sources for isosurfaces; empty means a headlight at the eye.
     background : (r, g, b, a) or None
         Composited under the image; None leaves it transparent.
+    shadows : bool, default False
+        Cast shadow rays from every isosurface hit to every light: blocked
+        by any isosurface, attenuated by translucent volumes on the way.
     """
 
     camera: Camera
@@ -135,6 +199,7 @@ class Scene:
     volumes: list = field(default_factory=list)
     lights: list = field(default_factory=list)
     background: tuple | None = None
+    shadows: bool = False
 
     def __post_init__(self):
         if not isinstance(self.camera, Camera):
@@ -155,6 +220,14 @@ class Scene:
             if bg.shape not in ((3,), (4,)) or not ((bg >= 0) & (bg <= 1)).all():
                 raise InputError(f"background must be 3 or 4 numbers in [0, 1], got {self.background!r}")
             self.background = tuple(bg) + ((1.0,) if bg.shape == (3,) else ())
+        for v in self.volumes:
+            if not isinstance(v, (Isosurface, Translucent)):
+                raise InputError(f"a scene shows Isosurface or Translucent volumes, got {type(v).__name__}")
+        self.lights = list(self.lights)
+        for light in self.lights:
+            if not isinstance(light, LIGHTS):
+                raise InputError(f"a light must be a PointLight or a DirectionalLight, got {type(light).__name__}")
+        self.shadows = bool(self.shadows)
 
     @property
     def width(self):
@@ -163,6 +236,26 @@ class Scene:
     @property
     def height(self):
         return self.size[1]
+
+
+def _finite_triple(v, what):
+    try:
+        a = np.asarray(v, dtype=np.float64)
+    except (TypeError, ValueError):
+        a = np.zeros(0)
+    if a.shape != (3,) or not np.isfinite(a).all():
+        raise InputError(f"{what} must be three finite numbers, got {v!r}")
+    return tuple(float(c) for c in a)
+
+
+def _non_negative(v, what):
+    try:
+        x = float(v)
+    except (TypeError, ValueError):
+        x = math.nan
+    if not (math.isfinite(x) and x >= 0.0):
+        raise InputError(f"{what} must be a finite number >= 0, got {v!r}")
+    return x
 
 
 def _unit_triple(v, what):
