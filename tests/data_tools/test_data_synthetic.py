@@ -7,10 +7,14 @@ import pytest
 from data_tools import InputError, Volume, synthetic
 from data_tools.io import load_volume
 from data_tools.synthetic import (DESCRIPTIONS, SYNTHETIC, builtin_volume, ct_phantom, ct_phantom_to_disk,
-                                  make_synthetic, marschner_lobb, sphere, torus, trilinear_field)
+                                  floor, make_synthetic, marschner_lobb, neuron, sphere, torus,
+                                  trilinear_field)
 
 EXPECTED_DTYPE = {"sphere": "float32", "torus": "float32", "marschner_lobb": "float32", "blobs": "uint8",
-                  "ct_phantom": "int16", "trilinear_field": "float64", "builtin": "uint8"}
+                  "neuron": "uint8", "floor": "uint8", "ct_phantom": "int16", "trilinear_field": "float64",
+                  "builtin": "uint8"}
+#: An int size is a cube, except for the floor, which is thin: n x n x max(8, n // 8).
+EXPECTED_SHAPE_12 = {"floor": (8, 12, 12)}
 
 
 @pytest.mark.parametrize("name", sorted(SYNTHETIC))
@@ -18,13 +22,14 @@ def test_registry_entries(name):
     assert DESCRIPTIONS[name] and "\n" not in DESCRIPTIONS[name]
     vol = SYNTHETIC[name](size=12)
     assert isinstance(vol, Volume)
-    assert vol.shape == (12, 12, 12)
+    assert vol.shape == EXPECTED_SHAPE_12.get(name, (12, 12, 12))
     assert vol.dtype == np.dtype(EXPECTED_DTYPE[name])
     lo, hi = vol.value_range()
     assert lo < vol.meta["iso"] < hi
 
 
-@pytest.mark.parametrize("name", ["sphere", "torus", "marschner_lobb", "blobs", "ct_phantom", "builtin"])
+@pytest.mark.parametrize("name", ["sphere", "torus", "marschner_lobb", "blobs", "neuron", "floor", "ct_phantom",
+                                  "builtin"])
 def test_non_cubic_size_is_x_y_z(name):
     vol = SYNTHETIC[name](size=(10, 7, 5))
     assert vol.dims == (10, 7, 5) and vol.shape == (5, 7, 10)
@@ -89,6 +94,57 @@ def test_blobs_seeded():
     assert not np.array_equal(a.data, c.data)
     assert (a.data > 100.5).any() and (a.data < 100.5).any()
 
+
+
+def test_neuron_seeded_sparse_with_a_clean_surface():
+    a, b, c = neuron(48, seed=1), neuron(48, seed=1), neuron(48, seed=2)
+    np.testing.assert_array_equal(a.data, b.data)
+    assert not np.array_equal(a.data, c.data)
+    iso = a.meta["iso"]
+    assert a.dtype == np.uint8 and a.dims == (48, 48, 48) and iso % 1 == 0.5
+    for vol in (a, c):
+        d = vol.data
+        assert 0.001 < (d > iso).mean() < 0.05          # a thin cell in a mostly dark stack
+        x, y, z = (int(round(v)) for v in vol.meta["soma"])
+        assert d[z, y, x] > iso + 60                       # the soma is bright
+        # The background with its noise stays well below the surface level.
+        assert d[:6, :6, :6].max() < iso - 30 and d[-6:, -6:, -6:].max() < iso - 30
+        assert np.median(d) < 30
+
+
+def test_neuron_big_enough_and_quick():
+    import time
+    t = time.perf_counter()
+    vol = neuron(128)
+    assert time.perf_counter() - t < 10.0                 # ~0.6 s measured; generous for busy machines
+    d = vol.data
+    # Dendrites reach far from the soma: the bright voxels span most of the box in z.
+    z = np.nonzero((d > vol.meta["iso"]).any(axis=(1, 2)))[0]
+    assert z.max() - z.min() > 0.6 * 127
+
+
+def test_floor_is_a_thin_closed_slab_with_relief():
+    vol = floor(32)
+    d, iso = vol.data, vol.meta["iso"]
+    assert vol.dims == (32, 32, 8) and d.dtype == np.uint8
+    assert (d[0] < iso).all() and (d[-1] < iso).all()    # closed below and above
+    assert (d[:, 0] < iso).all() and (d[:, :, -1] < iso).all()   # and at the sides
+    top, relief, tile = vol.meta["top"], vol.meta["relief"], vol.meta["tile"]
+
+    def surface_z(col):                                   # upper iso crossing, linear in z
+        k = np.nonzero(col > iso)[0].max()
+        return k + (float(col[k]) - iso) / (float(col[k]) - float(col[k + 1]))
+
+    heights = np.array([[surface_z(d[:, j, i]) for i in range(4, 28)] for j in range(4, 28)])
+    # Tiles alternate between top + relief/2 and top - relief/2 (within sampling).
+    assert heights.max() == pytest.approx(top + relief / 2, abs=0.1)
+    assert heights.min() == pytest.approx(top - relief / 2, abs=0.1)
+    assert tile == pytest.approx(31 / 8)
+    flat = floor((20, 16, 10), relief=0.0).data
+    inner = flat[:, 3:-3, 3:-3]
+    assert (inner == inner[:, :1, :1]).all()              # relief 0: every inner column the same
+    with pytest.raises(InputError):
+        floor(16, tile=0)
 
 def test_ct_phantom_levels():
     vol = ct_phantom(48, spacing=(1, 1, 2))
