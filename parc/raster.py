@@ -485,7 +485,7 @@ def margin(t, scale):
     return MARGIN_T * np.abs(t) + MARGIN_S * scale
 
 
-def raster_segments(camera, width, height, proxy, *, pad_px=COVERAGE_PAD_PX):
+def raster_segments(camera, width, height, proxy, *, pad_px=COVERAGE_PAD_PX, face_range=False):
     """Near and far ray distance of every pixel to the proxy, conservatively.
 
     Parameters
@@ -499,6 +499,11 @@ def raster_segments(camera, width, height, proxy, *, pad_px=COVERAGE_PAD_PX):
     pad_px : float, default `COVERAGE_PAD_PX`
         Growth of each face's projection, pixels (keyword-only; for
         experiments: below ~1/64 rasterization rules can drop pixels).
+    face_range : bool, default False
+        Every face covering a pixel writes its whole range of ``t`` rather
+        than where the pixel's centre ray crosses it. With ``pad_px >= 0.5``
+        the bounds then hold for *every* ray through the pixel's square,
+        which the light buffers of shadow PARC need (`parc.lights`).
 
     Returns
     -------
@@ -562,6 +567,7 @@ def raster_segments(camera, width, height, proxy, *, pad_px=COVERAGE_PAD_PX):
         prog = vao.program
         set_view_uniforms(prog, camera, width, height, up.offsets, clip_near=clip_near,
                           ndc_limit=ndc_limit, pad_px=pad_px, scale=scale)
+        _set(prog, "face_range", 1 if face_range else 0)
         fbo = _sized(ctx, width, height)
         fbo.use()
         ctx.viewport = (0, 0, width, height)

@@ -28,6 +28,8 @@ METHODS = ("brute", "parc")
 #: camera change re-rasterizes; a few entries cover flipping between skin and bone.
 PROXY_CACHE_SIZE = 4
 
+_NO_STOP = np.empty((1, 1))
+
 _MODES = {"composite": MODE_COMPOSITE, "mip": MODE_MIP, "average": MODE_AVERAGE}
 
 
@@ -60,7 +62,7 @@ DEFAULT_BUFFERS = ("depth",)
 
 
 def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAULT_BUFFERS,
-           progress=None) -> RenderResult:
+           progress=None, light_buffer=None) -> RenderResult:
     """Ray cast a scene.
 
     Parameters
@@ -81,6 +83,10 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
         (color-buffer PARC, §4). Isosurfaces use the depth buffers.
     progress : callable(done_fraction) or None
         Called as bands of image rows finish, for long renders.
+    light_buffer : int, optional
+        Side in pixels of PARC's light buffers for shadow rays (default
+        `parc.lights.LIGHT_BUFFER_SIZE`). Any size gives the same image;
+        finer buffers give shorter shadow-ray segments for more raster time.
 
     Returns
     -------
@@ -100,8 +106,8 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
     """
     if method not in METHODS:
         raise InputError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
-    if len(scene.volumes) != 1:
-        raise InputError("this renderer shows one volume per scene")
+    if len(scene.volumes) != 1 or scene.lights:
+        return _render_general(scene, method, supercell, progress, light_buffer)
     vis = scene.volumes[0]
     timings = {}
     t0 = time.perf_counter()
@@ -154,6 +160,53 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
                                     "transfer_function": vis.tf.name or "custom"})
     stats.update(extra)
     return RenderResult(image=image, depth=depth, stats=stats)
+
+
+def _render_general(scene, method, supercell, progress, light_buffer):
+    """Several volumes, or lights: `parc.multivolume.render_scene`, with the same stats."""
+    from .lights import LIGHT_BUFFER_SIZE
+    from .multivolume import render_scene
+
+    n = LIGHT_BUFFER_SIZE if light_buffer is None else int(light_buffer)
+    if n < 2:
+        raise InputError(f"light buffers need at least 2x2 pixels, got {light_buffer!r}")
+    t0 = time.perf_counter()
+    image, depth, counts, timings, extra = render_scene(scene, method, supercell=supercell, progress=progress,
+                                                        light_buffer=n)
+    if scene.background is not None:
+        image += (1.0 - image[..., 3:4]) * np.asarray(scene.background, np.float32)
+    timings["total"] = time.perf_counter() - t0
+    w, h = scene.size
+    stats = {
+        "method": method,
+        "seconds": timings,
+        "pixels": w * h,
+        "rays": w * h,
+        "hits": int(np.isfinite(depth).sum()),
+        "cells_visited": counts["cells"],
+        "cubic_solves": counts["solves"],
+        "samples": counts["samples"],
+        "shadow_rays": counts["shadow_rays"],
+        "shadow_cells": counts["shadow_cells"],
+        "shadow_solves": counts["shadow_solves"],
+        "shadow_samples": counts["shadow_samples"],
+        "parameters": {"size": [w, h], "shadows": scene.shadows, "lights": len(scene.lights),
+                       "volumes": [_describe(v) for v in scene.volumes]},
+    }
+    if method == "parc":
+        stats["polygons"] = sum(v.get("polygons", 0) for v in extra["volumes"])
+    stats.update(extra)
+    return RenderResult(image=image, depth=depth, stats=stats)
+
+
+def _describe(vis):
+    vol = vis.volume
+    d = {"volume": vol.name, "dims": list(vol.dims), "dtype": str(vol.dtype)}
+    if isinstance(vis, Isosurface):
+        d["isovalue"] = vis.value
+    else:
+        d.update({"mode": vis.mode, "step": vis.step, "transfer_function": vis.tf.name or "custom"})
+    return d
 
 
 def _render_iso(scene, iso, seg, use_seg, timings, progress):
@@ -222,7 +275,7 @@ def _render_translucent(scene, vis, seg, use_seg, timings, progress, planes=None
     with numba.parallel_chunksize(TILE_CHUNK):
         for n, (y0, y1) in enumerate(bands):
             cast_accumulate_image(vol.data, org, spc, cam, w, h, params, op_x, op_y, col_x, col_rgb,
-                                  seg, use_seg, bits, use_bits, image, counts, y0, y1)
+                                  seg, use_seg, _NO_STOP, False, bits, use_bits, image, counts, y0, y1)
             if progress is not None:
                 progress((n + 1) / len(bands))
     timings["cast"] = time.perf_counter() - t0
@@ -252,8 +305,11 @@ def _parc_segments(scene, vis, supercell, timings):
     return segs.seg, extra, proxy
 
 
-def _proxy(vis, supercell, size_px, timings):
-    """Classify and build (or reuse) the outer-face proxy of the possibly contributing supercells."""
+def _proxy(vis, supercell, size_px, timings, *, merge=True):
+    """Classify and build (or reuse) the outer-face proxy of the possibly contributing supercells.
+
+    ``merge=False`` keeps one face per supercell face (the light buffers' proxy, `parc.lights`).
+    """
     from .classify import VolumeIndex, _size_triple, choose_supercell
     from .proxy import build_proxy
 
@@ -272,16 +328,16 @@ def _proxy(vis, supercell, size_px, timings):
         extra["supercell_model"] = table
     size = _size_triple(supercell)
     proxies = index.__dict__.setdefault("_proxies", {})
-    proxy = proxies.get((size, what))
+    proxy = proxies.get((size, what, merge))
     if proxy is None:
         pc = classify(size)
         timings["classify"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         grid = index.grid(size)
-        proxy = build_proxy(grid, pc, grid.world_edges(vol))
+        proxy = build_proxy(grid, pc, grid.world_edges(vol), merge=merge)
         if len(proxies) >= PROXY_CACHE_SIZE:
             proxies.pop(next(iter(proxies)))
-        proxies[(size, what)] = proxy
+        proxies[(size, what, merge)] = proxy
         timings["proxy"] = time.perf_counter() - t0
     else:
         timings["classify"] = time.perf_counter() - t0

@@ -29,6 +29,7 @@ taken; PARC never re-anchors the lattice.
 """
 import math
 
+import numpy as np
 from numba import prange
 
 from .config import TILE_H, TILE_W, kernel
@@ -123,13 +124,52 @@ def next_plane_sample(n, t_in, step, O, D, pos, params):
 
 
 @kernel
-def accumulate_ray(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, seg0, seg1, params,
+def lattice_range(t_in, t_out, step, seg0, seg1):
+    """``(n0, n1, n_last)``: the lattice points ``t_in + n step`` to take, ``n0 <= n <= n1``, of ``0 .. n_last``.
+
+    The segment bounds only pick lattice points; one extra point at each
+    end is harmless (PARC's segments end in transparent space).
+    """
+    n_last = int(math.floor((t_out - t_in) / step))
+    n0 = 0
+    n1 = n_last
+    if seg0 > t_in:
+        n0 = max(0, int(math.floor((seg0 - t_in) / step)))
+    if seg1 < t_out:
+        n1 = min(n_last, int(math.ceil((seg1 - t_in) / step)))
+    return n0, n1, n_last
+
+
+@kernel
+def composite_sample(data, spc, v, i, j, k, u, vv, w, a, dx, dy, dz, params, op_x, op_y, col_x, col_rgb):
+    """Step-corrected opacity and (shaded) colour of a composite sample of value ``v`` and opacity ``a > 0``."""
+    cr, cg, cb, _ = tf_lookup(op_x, op_y, col_x, col_rgb, v)
+    a = correct_opacity(a, params[P_RATIO])
+    if params[P_SHADE] != 0.0:
+        gx, gy, gz = trilinear_gradient(data, i, j, k, u, vv, w, spc)
+        gl = math.sqrt(gx * gx + gy * gy + gz * gz)
+        if gl > 0.0:
+            diff, spec = blinn_phong(gx / gl, gy / gl, gz / gl, -dx, -dy, -dz,
+                                     -dx, -dy, -dz, params[P_AMBIENT:P_AMBIENT + 4])
+            f = params[P_AMBIENT] + diff
+            cr = cr * f + spec
+            cg = cg * f + spec
+            cb = cb * f + spec
+        else:
+            f = params[P_AMBIENT] + params[P_AMBIENT + 1]
+            cr, cg, cb = cr * f, cg * f, cb * f
+    return a, cr, cg, cb
+
+
+@kernel
+def accumulate_ray(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, seg0, seg1, t_stop, params,
                    op_x, op_y, col_x, col_rgb, bits, py, px, use_bits):
     """Accumulate one ray (index space ``O + t D``; world direction ``d``) over ``[seg0, seg1]``.
 
     Returns premultiplied ``(r, g, b, a, samples)``; ``samples`` counts the
-    trilinear interpolations done. With ``use_bits``, samples in a plane of
-    supercells whose bit in ``bits[py, px]`` is clear are skipped.
+    trilinear interpolations done. Lattice points at ``t >= t_stop`` (an
+    opaque surface, a light) are not taken. With ``use_bits``, samples in a
+    plane of supercells whose bit in ``bits[py, px]`` is clear are skipped.
     """
     nz, ny, nx = data.shape
     t_in, t_out = clip_box(Ox, Oy, Oz, Dx, Dy, Dz, nx, ny, nz)
@@ -137,18 +177,9 @@ def accumulate_ray(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, seg0, seg1, pa
         return 0.0, 0.0, 0.0, 0.0, 0
     step = params[P_STEP]
     mode = int(params[P_MODE])
-    n_last = int(math.floor((t_out - t_in) / step))
-    n0 = 0
-    n1 = n_last
-    # The segment bounds only pick lattice points; one extra point at each end is harmless.
-    if seg0 > t_in:
-        n0 = max(0, int(math.floor((seg0 - t_in) / step)))
-    if seg1 < t_out:
-        n1 = min(n_last, int(math.ceil((seg1 - t_in) / step)))
+    n0, n1, n_last = lattice_range(t_in, t_out, step, seg0, seg1)
     axis = int(params[P_PLANE_AXIS])
     threshold = params[P_THRESHOLD]
-    ratio = params[P_RATIO]
-    shade = params[P_SHADE] != 0.0
     r = 0.0
     g = 0.0
     b = 0.0
@@ -166,6 +197,8 @@ def accumulate_ray(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, seg0, seg1, pa
     while n < n1:
         n += 1
         t = t_in + n * step
+        if t >= t_stop:
+            break
         x = Ox + t * Dx
         y = Oy + t * Dy
         z = Oz + t * Dz
@@ -181,21 +214,8 @@ def accumulate_ray(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, seg0, seg1, pa
         if not a > 0.0:
             continue
         if mode == MODE_COMPOSITE:
-            cr, cg, cb, _ = tf_lookup(op_x, op_y, col_x, col_rgb, v)
-            a = correct_opacity(a, ratio)
-            if shade:
-                gx, gy, gz = trilinear_gradient(data, i, j, k, u, vv, w, spc)
-                gl = math.sqrt(gx * gx + gy * gy + gz * gz)
-                if gl > 0.0:
-                    diff, spec = blinn_phong(gx / gl, gy / gl, gz / gl, -dx, -dy, -dz,
-                                             -dx, -dy, -dz, params[P_AMBIENT:P_AMBIENT + 4])
-                    f = params[P_AMBIENT] + diff
-                    cr = cr * f + spec
-                    cg = cg * f + spec
-                    cb = cb * f + spec
-                else:
-                    f = params[P_AMBIENT] + params[P_AMBIENT + 1]
-                    cr, cg, cb = cr * f, cg * f, cb * f
+            a, cr, cg, cb = composite_sample(data, spc, v, i, j, k, u, vv, w, a, dx, dy, dz, params,
+                                             op_x, op_y, col_x, col_rgb)
             wgt = (1.0 - acc) * a
             r += wgt * cr
             g += wgt * cg
@@ -215,24 +235,32 @@ def accumulate_ray(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, seg0, seg1, pa
             return 0.0, 0.0, 0.0, 0.0, samples
         cr, cg, cb, a = tf_lookup(op_x, op_y, col_x, col_rgb, vmax)
         return cr * a, cg * a, cb * a, a, samples
+    grey = average_grey(total, n_last + 1, params)
+    return grey, grey, grey, grey, samples
+
+
+@kernel
+def average_grey(total, count, params):
+    """The average mode's grey level: the mean of ``count`` lattice samples' values (``total``) in the data range."""
     lo = params[P_LO]
     hi = params[P_HI]
     grey = 0.0
     if hi > lo:
-        grey = min(max((total / (n_last + 1) - lo) / (hi - lo), 0.0), 1.0)
+        grey = min(max((total / count - lo) / (hi - lo), 0.0), 1.0)
     if total == 0.0:
         grey = 0.0
-    return grey, grey, grey, grey, samples
+    return grey
 
 
 @kernel(parallel=True)
 def cast_accumulate_image(data, org, spc, cam, width, height, params, op_x, op_y, col_x, col_rgb,
-                          seg, use_seg, bits, use_bits, image, counts, row0, row1):
+                          seg, use_seg, stop, use_stop, bits, use_bits, image, counts, row0, row1):
     """Accumulate every pixel of rows ``row0 <= y < row1``, tile by tile.
 
     ``image`` is ``(height, width, 4)`` float32 premultiplied RGBA,
     ``counts[y * width + x]`` the samples taken. With ``use_seg`` a pixel
-    whose ``seg[y, x]`` has ``near > far`` costs nothing.
+    whose ``seg[y, x]`` has ``near > far`` costs nothing. With ``use_stop``
+    no sample is taken at ``t >= stop[y, x]`` (an opaque surface there).
     """
     for tile in prange(tile_count(width, row0, row1, TILE_W, TILE_H)):
         x0, x1, y0, y1 = tile_rect(tile, width, row0, row1, TILE_W, TILE_H)
@@ -251,9 +279,121 @@ def cast_accumulate_image(data, org, spc, cam, width, height, params, op_x, op_y
                 ox, oy, oz, dx, dy, dz = camera_ray(cam, width, height, x, y)
                 Ox, Oy, Oz, Dx, Dy, Dz = to_index_space(ox, oy, oz, dx, dy, dz, org, spc)
                 r, g, b, a, n = accumulate_ray(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, s0, s1,
-                                               params, op_x, op_y, col_x, col_rgb, bits, y, x, use_bits)
+                                               stop[y, x] if use_stop else math.inf, params, op_x, op_y, col_x, col_rgb, bits, y, x, use_bits)
                 image[y, x, 0] = r
                 image[y, x, 1] = g
                 image[y, x, 2] = b
                 image[y, x, 3] = a
                 counts[y * width + x] = n
+
+
+@kernel
+def _next_layer(layer_t, used, y, x, before):
+    """The unused layer with the smallest ``t < before`` at pixel (y, x), or -1."""
+    best = -1
+    bt = before
+    for j in range(layer_t.shape[0]):
+        if not used[j] and layer_t[j, y, x] < bt:
+            best = j
+            bt = layer_t[j, y, x]
+    return best
+
+
+@kernel(parallel=True)
+def cast_merged_image(datas, orgs, spcs, cam, width, height, params, op_x, op_y, col_x, col_rgb, tf_len,
+                      seg, use_seg, stop, layer_t, layer_rgba, image, counts):
+    """Composite several overlapping volumes along each pixel's ray, samples merged in depth order.
+
+    ``datas`` is a tuple of K volumes of one dtype, each with its own
+    placement (``orgs[k]``, ``spcs[k]``), ``params[k]`` (composite mode),
+    transfer function (rows ``k`` of the padded tables, lengths
+    ``tf_len[k] = (opacity points, colour points)``) and PARC segments
+    ``seg[k]``. Each volume keeps its own sample lattice (anchored where the
+    ray enters it, as for one volume), so every sample is the one a
+    single-volume cast would take; the samples of all volumes are taken in
+    order of ``t`` (ties: the first volume first), composited front to
+    back, and stop at ``stop[y, x]`` (an opaque surface) or once the
+    opacity reaches the largest threshold. ``layer_t[j]``, ``layer_rgba[j]``
+    are finished per-pixel layers (maximum or average intensity of another
+    volume) composited where the ray reaches ``t = layer_t``.
+    """
+    nvol = len(datas)
+    thr = 0.0
+    for k in range(nvol):
+        thr = max(thr, params[k, P_THRESHOLD])
+    for tile in prange(tile_count(width, 0, height, TILE_W, TILE_H)):
+        x0, x1, y0, y1 = tile_rect(tile, width, 0, height, TILE_W, TILE_H)
+        st = np.empty((nvol, 9))
+        used = np.zeros(layer_t.shape[0], np.bool_)
+        for y in range(y0, y1):
+            for x in range(x0, x1):
+                ox, oy, oz, dx, dy, dz = camera_ray(cam, width, height, x, y)
+                for k in range(nvol):
+                    Ox, Oy, Oz, Dx, Dy, Dz = to_index_space(ox, oy, oz, dx, dy, dz, orgs[k], spcs[k])
+                    nz, ny, nx = datas[k].shape
+                    t_in, t_out = clip_box(Ox, Oy, Oz, Dx, Dy, Dz, nx, ny, nz)
+                    n0, n1 = 0, -1
+                    if t_in <= t_out:
+                        s0 = -math.inf
+                        s1 = math.inf
+                        if use_seg:
+                            s0 = seg[k, y, x, 0]
+                            s1 = seg[k, y, x, 1]
+                        if s0 <= s1:
+                            n0, n1, _ = lattice_range(t_in, t_out, params[k, P_STEP], s0, s1)
+                    st[k, 0], st[k, 1], st[k, 2] = Ox, Oy, Oz
+                    st[k, 3], st[k, 4], st[k, 5] = Dx, Dy, Dz
+                    st[k, 6], st[k, 7], st[k, 8] = t_in, n0, n1
+                used[:] = False
+                r = 0.0
+                g = 0.0
+                b = 0.0
+                acc = 0.0
+                samples = 0
+                t_stop = stop[y, x]
+                while True:
+                    best = -1
+                    bt = t_stop
+                    for k in range(nvol):
+                        if st[k, 7] <= st[k, 8]:
+                            t = st[k, 6] + st[k, 7] * params[k, P_STEP]
+                            if t < bt:
+                                best = k
+                                bt = t
+                    # Layers in front of the next sample (all of them at the end).
+                    while True:
+                        j = _next_layer(layer_t, used, y, x, bt if best >= 0 else math.inf)
+                        if j < 0:
+                            break
+                        used[j] = True
+                        wgt = 1.0 - acc
+                        r += wgt * layer_rgba[j, y, x, 0]
+                        g += wgt * layer_rgba[j, y, x, 1]
+                        b += wgt * layer_rgba[j, y, x, 2]
+                        acc += wgt * layer_rgba[j, y, x, 3]
+                    if best < 0 or acc >= thr:
+                        break
+                    st[best, 7] += 1.0
+                    samples += 1
+                    data = datas[best]
+                    v, i, j, k, u, vv, w = sample_value(data, st[best, 0] + bt * st[best, 3],
+                                                        st[best, 1] + bt * st[best, 4],
+                                                        st[best, 2] + bt * st[best, 5])
+                    no = int(tf_len[best, 0])
+                    nc = int(tf_len[best, 1])
+                    a = tf_opacity(op_x[best, :no], op_y[best, :no], v)
+                    if not a > 0.0:
+                        continue
+                    a, cr, cg, cb = composite_sample(data, spcs[best], v, i, j, k, u, vv, w, a, dx, dy, dz,
+                                                     params[best], op_x[best, :no], op_y[best, :no],
+                                                     col_x[best, :nc], col_rgb[best, :nc])
+                    wgt = (1.0 - acc) * a
+                    r += wgt * cr
+                    g += wgt * cg
+                    b += wgt * cb
+                    acc += wgt
+                image[y, x, 0] = min(r, 1.0)
+                image[y, x, 1] = min(g, 1.0)
+                image[y, x, 2] = min(b, 1.0)
+                image[y, x, 3] = min(acc, 1.0)
+                counts[y * width + x] = samples

@@ -59,6 +59,7 @@ uniform dvec3 affy;
 uniform dvec3 err_d;         // perspective: |d32_k - d_k| over all pixels
 uniform dvec2 pix_max;       // (width - 1, height - 1)
 uniform double abs_tol;      // absolute slack, a tiny fraction of the scene scale
+uniform int face_range;      // 1: every face writes its own range of t (light buffers)
 
 flat out vec3 g_a;           // perspective: d_a, d_u, d_v; parallel: t, p_u, p_v
 flat out vec3 g_b;
@@ -155,7 +156,7 @@ void face_constants(int a, int u, int v, double c, dvec4 rect, double tlo, doubl
     f_w = float(w);
     f_rect = vec4(down(rect.x - ep_u), up(rect.y + ep_u), down(rect.z - ep_v), up(rect.w + ep_v));
     // g_err.x: -2 range without face test, -1 range with it, else e_abs.
-    f_err = vec2(!valid ? -2.0 : (range ? -1.0 : up(e_abs)), up(e_rel));
+    f_err = vec2(!valid || face_range != 0 ? -2.0 : (range ? -1.0 : up(e_abs)), up(e_rel));
     // The face's range of t, widened by 2^-21 relative (float32 rounding is
     // 2^-24; the caster's normalization and float64 arithmetic far less)
     // plus abs_tol.

@@ -491,7 +491,7 @@ def _cast(vol, tf, mode, cam, w, h, *, bits=None, seg=None, step=None):
     s = seg if seg is not None else np.zeros((1, 1, 2))
     cast_accumulate_image(vol.data, np.array(vol.origin, float), np.array(vol.spacing, float),
                           cam.as_array(), w, h, params, op_x, op_y, col_x, col_rgb,
-                          s, seg is not None, b, bits is not None, image, counts, 0, h)
+                          s, seg is not None, np.empty((1, 1)), False, b, bits is not None, image, counts, 0, h)
     return image, int(counts.sum())
 
 

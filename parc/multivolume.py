@@ -1,0 +1,293 @@
+"""Scenes with several volumes, lights and shadows: per-volume casting, then depth-ordered compositing.
+
+How a pixel is made
+-------------------
+1. Every isosurface volume is cast on its own (`raycast.iso.cast_iso_image`,
+   over its PARC segments with ``method="parc"``); the nearest hit wins
+   (ties: the volume listed first) and gives the pixel's depth.
+2. The hit is lit by every light (the headlight when there is none):
+   ambient plus, per light, Blinn-Phong diffuse and specular times the
+   light's colour and the light's visibility. With ``scene.shadows``, a
+   shadow ray from the hit towards each light that faces it finds that
+   visibility: 0 behind any isosurface of any volume, else the product of
+   ``1 - a`` over the translucent volumes it crosses
+   (`raycast.shadow`). With ``method="parc"`` the shadow rays walk only the
+   segments the light buffers give (`parc.lights`).
+3. Translucent volumes are sampled up to the depth (nothing behind an
+   opaque surface shows): composite volumes together, their samples merged
+   in order of ``t`` so that overlapping volumes interleave
+   (`raycast.composite.cast_merged_image`); a maximum- or average-intensity
+   volume is a finished layer placed where the ray enters its box. The
+   result goes over the lit surface.
+
+Both methods run exactly this code; ``"parc"`` only narrows the segments
+(primary rays from the camera's buffers, shadow rays from the lights'),
+so the images are the same.
+"""
+from __future__ import annotations
+
+import time
+
+import numba
+import numpy as np
+
+from raycast.config import TILE_CHUNK
+from raycast.composite import N_PARAMS, cast_accumulate_image, cast_merged_image
+from raycast.iso import cast_iso_image, empty_outputs
+from raycast.shadow import (combine_lights, light_terms, shadow_accumulate, shadow_iso,
+                            surface_frames)
+
+from .lights import LIGHT_BUFFER_SIZE, N_VIEW, light_array, light_buffers
+from .scene import DirectionalLight, Isosurface
+
+#: Headlight row for `raycast.shadow.light_terms`: a white light at the eye.
+KIND_HEADLIGHT = 2
+
+#: Shadow rays start this far (times the smallest spacing in the scene) from their hit point.
+SHADOW_EPS = 1e-5
+
+_NONE_VIEWS = np.zeros((0, N_VIEW))
+_NONE_BUF = np.zeros((0, 1, 1))
+
+
+def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=LIGHT_BUFFER_SIZE):
+    """Render any scene (`parc.render` calls this for several volumes or lights).
+
+    Returns ``(image, depth, counts, timings, extra)``: the float32 RGBA
+    image (without background), the ``(H, W)`` depth, the counters
+    (cells, solves, samples, shadow_cells, shadow_solves, shadow_samples,
+    shadow_rays), seconds per phase and per-volume PARC details.
+    """
+    from .renderer import _parc_segments, _proxy, accumulation_params
+
+    w, h = scene.size
+    npx = w * h
+    cam = scene.camera.as_array()
+    timings = {"raster": 0.0, "classify": 0.0, "proxy": 0.0}
+    counts = dict.fromkeys(("cells", "solves", "samples", "shadow_cells", "shadow_solves",
+                            "shadow_samples", "shadow_rays"), 0)
+    extra = {"volumes": []}
+    parc = method == "parc"
+    report = progress or (lambda f: None)
+
+    # PARC buffers from the camera, one volume at a time.
+    segs = {}
+    sizes = {}
+    for n, vis in enumerate(scene.volumes):
+        if parc:
+            phase = {}
+            seg, info, _ = _parc_segments(scene, vis, supercell, phase)
+            for key in ("raster", "classify", "proxy"):
+                timings[key] += phase.get(key, 0.0)
+            segs[n] = seg
+            sizes[n] = info["supercell"]
+            extra["volumes"].append({k: info[k] for k in ("supercell", "polygons", "pc_supercells",
+                                                           "segment_pixels") if k in info})
+    report(0.1)
+
+    # Isosurfaces: nearest hit.
+    t0 = time.perf_counter()
+    depth = np.full(npx, np.inf)
+    winner = np.full(npx, -1, np.int64)
+    cell = np.full((npx, 3), -1, np.int32)
+    uvw = np.zeros((npx, 3))
+    isos = [(n, v) for n, v in enumerate(scene.volumes) if isinstance(v, Isosurface)]
+    for n, iso in isos:
+        vol = iso.volume
+        t, c, uv, cnt = empty_outputs(npx)
+        seg = segs.get(n, np.empty((1, 1, 2)))
+        with numba.parallel_chunksize(TILE_CHUNK):
+            cast_iso_image(vol.data, np.array(vol.origin), np.array(vol.spacing), cam, w, h, iso.value,
+                           seg, parc, t, c, uv, cnt, 0, h)
+        closer = t < depth
+        depth[closer] = t[closer]
+        winner[closer] = n
+        cell[closer] = c[closer]
+        uvw[closer] = uv[closer]
+        sums = cnt.sum(axis=0)
+        counts["cells"] += int(sums[0])
+        counts["solves"] += int(sums[1])
+    timings["cast"] = time.perf_counter() - t0
+    report(0.4)
+
+    # Lighting and shadows of the hits.
+    image = np.zeros((h, w, 4), np.float32)
+    hit = np.flatnonzero(winner >= 0)
+    timings["shade"] = 0.0
+    timings["shadow"] = 0.0
+    timings["raster_lights"] = 0.0
+    if len(hit):
+        t0 = time.perf_counter()
+        nh = len(hit)
+        points = np.empty((nh, 3))
+        normals = np.empty((nh, 3))
+        views = np.empty((nh, 3))
+        colors = np.empty((nh, 3))
+        materials = np.empty((nh, 4))
+        for n, iso in isos:
+            sel = np.flatnonzero(winner[hit] == n)
+            if not len(sel):
+                continue
+            p, q, r = np.empty((len(sel), 3)), np.empty((len(sel), 3)), np.empty((len(sel), 3))
+            surface_frames(iso.volume.data, np.array(iso.volume.spacing), cam, w, h, hit[sel], depth, cell, uvw,
+                           p, q, r)
+            points[sel], normals[sel], views[sel] = p, q, r
+            colors[sel] = iso.color
+            materials[sel] = iso.material
+        lights = light_array(scene.lights) if scene.lights else np.array([[KIND_HEADLIGHT, 0, 0, 0, 1, 1, 1.0]])
+        diffuse = np.empty((len(lights), nh))
+        specular = np.empty((len(lights), nh))
+        light_terms(points, normals, views, materials, lights, diffuse, specular)
+        vis = (diffuse > 0.0).astype(np.float64)
+        timings["shade"] = time.perf_counter() - t0
+        if scene.shadows and scene.lights:
+            _shadows(scene, method, lights, points, vis, segs, sizes, light_buffer, timings, counts, extra)
+        t0 = time.perf_counter()
+        rgb = np.empty((nh, 3))
+        combine_lights(colors, materials, lights, diffuse, specular, vis, rgb)
+        flat = image.reshape(npx, 4)
+        flat[hit, :3] = rgb
+        flat[hit, 3] = 1.0
+        timings["shade"] += time.perf_counter() - t0
+    report(0.8)
+
+    # Translucent volumes in front of the surfaces.
+    trans = [(n, v) for n, v in enumerate(scene.volumes) if not isinstance(v, Isosurface)]
+    if trans:
+        t0 = time.perf_counter()
+        stop = depth.reshape(h, w)
+        comp = [(n, v) for n, v in trans if v.mode == "composite"]
+        layers = [(n, v) for n, v in trans if v.mode != "composite"]
+        layer_t = np.empty((len(layers), h, w))
+        layer_rgba = np.empty((len(layers), h, w, 4), np.float32)
+        nobits = np.zeros((1, 1, 1), np.uint32)
+        for j, (n, v) in enumerate(layers):
+            vol = v.volume
+            op_x, op_y, col_x, col_rgb = v.tf.arrays()
+            cnt = np.empty(npx, np.int64)
+            with numba.parallel_chunksize(TILE_CHUNK):
+                cast_accumulate_image(vol.data, np.array(vol.origin), np.array(vol.spacing), cam, w, h,
+                                      accumulation_params(v), op_x, op_y, col_x, col_rgb,
+                                      segs.get(n, np.empty((1, 1, 2))), parc, stop, True, nobits, False,
+                                      layer_rgba[j], cnt, 0, h)
+            counts["samples"] += int(cnt.sum())
+            layer_t[j] = _box_entry(scene, vol)
+        front = np.zeros((h, w, 4), np.float32)
+        if comp:
+            datas, orgs, spcs, params, tables, tf_len = _packed(comp, accumulation_params)
+            seg = (np.stack([segs[n] for n, _ in comp]) if parc else np.empty((1, 1, 1, 2)))
+            cnt = np.empty(npx, np.int64)
+            with numba.parallel_chunksize(TILE_CHUNK):
+                cast_merged_image(datas, orgs, spcs, cam, w, h, params, *tables, tf_len, seg, parc, stop,
+                                  layer_t, layer_rgba, front, cnt)
+            counts["samples"] += int(cnt.sum())
+        else:
+            _composite_layers(layer_t, layer_rgba, front)
+        image = front + (1.0 - front[..., 3:4]) * image
+        timings["cast"] += time.perf_counter() - t0
+    report(1.0)
+    return image, depth.reshape(h, w), counts, timings, extra
+
+
+def _shadows(scene, method, lights, points, vis, segs, sizes, light_buffer, timings, counts, extra):
+    """Shadow rays from every hit to every light, volume by volume; ``vis`` scaled in place."""
+    from .renderer import _proxy, accumulation_params
+
+    eps = SHADOW_EPS * min(min(v.volume.spacing) for v in scene.volumes)
+    nh = len(points)
+    cnt = np.zeros((nh, 3), np.int64)
+    for l, light in enumerate(scene.lights):
+        row = lights[l]
+        v_l = vis[l]
+        counts["shadow_rays"] += int(np.count_nonzero(v_l))
+        for n, v in enumerate(scene.volumes):
+            vol = v.volume
+            views, near, far = _NONE_VIEWS, _NONE_BUF, _NONE_BUF
+            if method == "parc":
+                phase = {}
+                proxy, _ = _proxy(v, sizes[n], scene.size, phase, merge=False)
+                buf = _cached_light_buffers(light, v, proxy, sizes[n], light_buffer)
+                timings["raster_lights"] += buf.seconds
+                buf.seconds = 0.0
+                views, near, far = buf.views, buf.near, buf.far
+            t0 = time.perf_counter()
+            org = np.array(vol.origin)
+            spc = np.array(vol.spacing)
+            if isinstance(v, Isosurface):
+                shadow_iso(vol.data, org, spc, v.value, points, row, eps, views, near, far,
+                           method == "parc", v_l, cnt)
+            else:
+                op_x, op_y, col_x, col_rgb = v.tf.arrays()
+                shadow_accumulate(vol.data, org, spc, accumulation_params(v), op_x, op_y, col_x, col_rgb,
+                                  points, row, eps, views, near, far, method == "parc", v_l, cnt)
+            timings["shadow"] += time.perf_counter() - t0
+    sums = cnt.sum(axis=0)
+    counts["shadow_cells"] += int(sums[0])
+    counts["shadow_solves"] += int(sums[1])
+    counts["shadow_samples"] += int(sums[2])
+
+
+def _cached_light_buffers(light, vis, proxy, size, n):
+    """Light buffers of one volume's proxy from one light, kept while only the camera moves."""
+    from .classify import VolumeIndex
+    from .renderer import _classifier
+
+    index = VolumeIndex.of(vis.volume)
+    what, _ = _classifier(index, vis)
+    kind = "sun" if isinstance(light, DirectionalLight) else "point"
+    where = light.direction if isinstance(light, DirectionalLight) else light.position
+    key = (kind, tuple(where), what, tuple(size), n)
+    cache = index.__dict__.setdefault("_light_buffers", {})
+    buf = cache.get(key)
+    if buf is None:
+        buf = light_buffers(light, proxy, size=n)
+        if len(cache) >= 16:
+            cache.pop(next(iter(cache)))
+        cache[key] = buf
+    return buf
+
+
+def _packed(comp, accumulation_params):
+    """The merged walk's inputs: data of one dtype, placements, params and padded transfer tables."""
+    dtype = np.result_type(*(v.volume.data.dtype for _, v in comp))
+    datas = tuple(v.volume.data if v.volume.data.dtype == dtype else v.volume.data.astype(dtype)
+                  for _, v in comp)
+    orgs = np.array([v.volume.origin for _, v in comp], dtype=np.float64)
+    spcs = np.array([v.volume.spacing for _, v in comp], dtype=np.float64)
+    params = np.stack([accumulation_params(v) for _, v in comp])
+    assert params.shape[1] == N_PARAMS
+    arrs = [v.tf.arrays() for _, v in comp]
+    no = max(len(a[0]) for a in arrs)
+    nc = max(len(a[2]) for a in arrs)
+    op_x = np.zeros((len(comp), no))
+    op_y = np.zeros((len(comp), no))
+    col_x = np.zeros((len(comp), nc))
+    col_rgb = np.zeros((len(comp), nc, 3))
+    tf_len = np.zeros((len(comp), 2), np.int64)
+    for k, (ox, oy, cx, crgb) in enumerate(arrs):
+        op_x[k, :len(ox)], op_y[k, :len(oy)] = ox, oy
+        col_x[k, :len(cx)], col_rgb[k, :len(cx)] = cx, crgb
+        tf_len[k] = len(ox), len(cx)
+    return datas, orgs, spcs, params, (op_x, op_y, col_x, col_rgb), tf_len
+
+
+def _box_entry(scene, vol):
+    """Per pixel, the ray parameter where the camera ray enters the volume's sample box (inf: misses)."""
+    o, d = scene.camera.rays(*scene.size)
+    lo, hi = vol.bounds
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = 1.0 / d
+        a = (np.asarray(lo) - o) * inv
+        b = (np.asarray(hi) - o) * inv
+    t_in = np.nan_to_num(np.minimum(a, b), nan=-np.inf).max(axis=-1)
+    t_out = np.nan_to_num(np.maximum(a, b), nan=np.inf).min(axis=-1)
+    t_in = np.maximum(t_in, 0.0)
+    return np.where(t_in <= t_out, t_in, np.inf)
+
+
+def _composite_layers(layer_t, layer_rgba, out):
+    """Front-to-back ``over`` of per-pixel layers in order of ``layer_t``."""
+    order = np.argsort(layer_t, axis=0, kind="stable")
+    for j in range(layer_t.shape[0]):
+        rgba = np.take_along_axis(layer_rgba, order[j][None, ..., None], axis=0)[0]
+        out += (1.0 - out[..., 3:4]) * rgba

@@ -1,0 +1,234 @@
+"""Shadow rays and lighting of isosurface hits.
+
+A shadow ray leaves a hit point ``P`` towards a light: towards a point
+light's position (its length is the distance ``D``), or against a
+directional light's direction (unbounded). It starts ``eps`` along its
+way (``P' = P + eps l``, ``t = 0`` there), so the surface it leaves is not
+found again at ``t = 0``, with the same rounding for every method. Along
+it, each volume of the scene either blocks the light (an isosurface with
+a root on the ray: `cast_iso_ray`, the primary rays' walk) or lets
+through ``1 - a``, where ``a`` is the opacity the volume's accumulation
+mode gives the ray (`accumulate_ray`, the primary rays' sampling, on a
+lattice anchored where the shadow ray enters the volume).
+
+With PARC, each (light, volume) pair has light buffers: near/far
+distances from the light over every ray through each buffer pixel
+(`parc.lights`). `light_segment` merges the four pixels around the
+shadow ray's crossing of each view, and the shadow ray walks only
+``[D - far, D - near]`` (point light) or ``[s_P - far, s_P - near]``
+(directional; ``s_P`` the point's distance from the view plane).
+
+Lights are rows ``[kind, x, y, z, r, g, b]`` (`parc.lights.light_array`);
+views rows of `parc.lights.N_VIEW` values.
+"""
+import math
+
+import numpy as np
+from numba import prange
+
+from .composite import accumulate_ray
+from .config import kernel
+from .iso import cast_iso_ray
+from .rays import camera_ray
+from .shade import blinn_phong, trilinear_gradient
+from .traverse import to_index_space
+
+KIND_POINT = 0
+#: Relative widening of the light buffers' segments: their float32 bounds
+#: are already rounded outwards; this covers the float64 ``D - s``.
+SEGMENT_SLACK = 4e-7
+
+
+@kernel
+def to_light(light, px, py, pz):
+    """Unit direction from ``P`` to the light and the distance (``inf`` for directional)."""
+    if light[0] == KIND_POINT:
+        lx = light[1] - px
+        ly = light[2] - py
+        lz = light[3] - pz
+        d = math.sqrt(lx * lx + ly * ly + lz * lz)
+        if d == 0.0:
+            return 0.0, 0.0, 0.0, 0.0
+        return lx / d, ly / d, lz / d, d
+    return -light[1], -light[2], -light[3], math.inf
+
+
+@kernel
+def light_segment(views, near, far, px, py, pz):
+    """``(lo, hi)``: the light buffers' bounds for the light's rays through ``P``.
+
+    Over every view whose image holds ``P``'s direction (point light) or
+    position (directional), the smallest near and largest far of the four
+    pixels around the crossing. ``lo > hi`` when no possibly contributing
+    supercell lies on those rays.
+    """
+    lo = math.inf
+    hi = -math.inf
+    n = near.shape[1]
+    for v in range(views.shape[0]):
+        qx = px - views[v, 1]
+        qy = py - views[v, 2]
+        qz = pz - views[v, 3]
+        qf = qx * views[v, 4] + qy * views[v, 5] + qz * views[v, 6]
+        qr = qx * views[v, 7] + qy * views[v, 8] + qz * views[v, 9]
+        qu = qx * views[v, 10] + qy * views[v, 11] + qz * views[v, 12]
+        if views[v, 0] == 0.0:
+            if not qf > 0.0:
+                continue
+            sx = qr / (qf * views[v, 13])
+            sy = qu / (qf * views[v, 13])
+        else:
+            sx = qr / views[v, 13]
+            sy = qu / views[v, 13]
+        if not (abs(sx) <= 1.0 + 1e-7 and abs(sy) <= 1.0 + 1e-7):
+            continue
+        x = (sx + 1.0) * 0.5 * n - 0.5
+        y = (1.0 - sy) * 0.5 * n - 0.5
+        x0 = int(math.floor(x))
+        y0 = int(math.floor(y))
+        for yy in range(y0, y0 + 2):
+            yc = min(max(yy, 0), n - 1)
+            for xx in range(x0, x0 + 2):
+                xc = min(max(xx, 0), n - 1)
+                lo = min(lo, near[v, yc, xc])
+                hi = max(hi, far[v, yc, xc])
+    return lo, hi
+
+
+@kernel
+def shadow_span(light, views, near, far, use_seg, px, py, pz, eps, dist):
+    """The shadow ray's ``[s0, s1]`` (from ``P' = P + eps l``), ``s0 > s1`` if it meets nothing."""
+    s0 = 0.0
+    s1 = dist - eps
+    if not use_seg:
+        return s0, s1
+    lo, hi = light_segment(views, near, far, px, py, pz)
+    if not lo <= hi:
+        return 1.0, 0.0
+    if light[0] == KIND_POINT:
+        ref = dist
+    else:
+        # Distance of P from the view plane, along the light's direction.
+        ref = ((px - views[0, 1]) * views[0, 4] + (py - views[0, 2]) * views[0, 5]
+               + (pz - views[0, 3]) * views[0, 6])
+    a = ref - hi - eps
+    b = ref - lo - eps
+    m = SEGMENT_SLACK * (abs(ref) + abs(hi) + abs(lo)) + 4.0 * eps
+    return max(s0, a - m), min(s1, b + m)
+
+
+@kernel(parallel=True)
+def shadow_iso(data, org, spc, iso, points, light, eps, views, near, far, use_seg, vis, counts):
+    """Zero ``vis[n]`` where the isosurface blocks the shadow ray of ``points[n]``.
+
+    Rays whose ``vis`` is already 0 are skipped. ``counts[n]`` gains the
+    cells visited and cubics solved.
+    """
+    for n in prange(points.shape[0]):
+        if vis[n] == 0.0:
+            continue
+        px, py, pz = points[n, 0], points[n, 1], points[n, 2]
+        lx, ly, lz, dist = to_light(light, px, py, pz)
+        if dist <= eps:
+            continue
+        s0, s1 = shadow_span(light, views, near, far, use_seg, px, py, pz, eps, dist)
+        if not s0 <= s1:
+            continue
+        Ox, Oy, Oz, Dx, Dy, Dz = to_index_space(px + eps * lx, py + eps * ly, pz + eps * lz,
+                                                lx, ly, lz, org, spc)
+        res = cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, s0, s1)
+        counts[n, 0] += res[7]
+        counts[n, 1] += res[8]
+        if res[0] <= s1 and res[0] < math.inf:
+            vis[n] = 0.0
+
+
+@kernel(parallel=True)
+def shadow_accumulate(data, org, spc, params, op_x, op_y, col_x, col_rgb, points, light, eps,
+                      views, near, far, use_seg, vis, counts):
+    """Scale ``vis[n]`` by the light a translucent volume lets through along the shadow ray.
+
+    ``1 - a`` with ``a`` the opacity the volume's mode accumulates over the
+    ray from ``P'`` to the light (`accumulate_ray`). ``counts[n, 2]``
+    gains the samples taken.
+    """
+    nobits = np.zeros((1, 1, 1), np.uint32)
+    for n in prange(points.shape[0]):
+        if vis[n] == 0.0:
+            continue
+        px, py, pz = points[n, 0], points[n, 1], points[n, 2]
+        lx, ly, lz, dist = to_light(light, px, py, pz)
+        if dist <= eps:
+            continue
+        s0, s1 = shadow_span(light, views, near, far, use_seg, px, py, pz, eps, dist)
+        if not s0 <= s1:
+            continue
+        Ox, Oy, Oz, Dx, Dy, Dz = to_index_space(px + eps * lx, py + eps * ly, pz + eps * lz,
+                                                lx, ly, lz, org, spc)
+        r, g, b, a, samples = accumulate_ray(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, lx, ly, lz, s0, s1,
+                                             dist - eps, params, op_x, op_y, col_x, col_rgb,
+                                             nobits, 0, 0, False)
+        counts[n, 2] += samples
+        vis[n] *= 1.0 - a
+
+
+@kernel(parallel=True)
+def surface_frames(data, spc, cam, width, height, pix, t, cell, uvw, points, normals, views):
+    """Hit point, unit normal and unit direction to the eye of each hit pixel ``pix[m]``.
+
+    A flat cell (all corners at the isovalue) has no gradient: its normal
+    faces the viewer.
+    """
+    for m in prange(pix.shape[0]):
+        n = pix[m]
+        y = n // width
+        x = n - y * width
+        ox, oy, oz, dx, dy, dz = camera_ray(cam, width, height, x, y)
+        points[m, 0] = ox + t[n] * dx
+        points[m, 1] = oy + t[n] * dy
+        points[m, 2] = oz + t[n] * dz
+        gx, gy, gz = trilinear_gradient(data, cell[n, 0], cell[n, 1], cell[n, 2],
+                                        uvw[n, 0], uvw[n, 1], uvw[n, 2], spc)
+        gl = math.sqrt(gx * gx + gy * gy + gz * gz)
+        if gl > 0.0:
+            gx, gy, gz = gx / gl, gy / gl, gz / gl
+        else:
+            gx, gy, gz = -dx, -dy, -dz
+        normals[m, 0] = gx
+        normals[m, 1] = gy
+        normals[m, 2] = gz
+        views[m, 0] = -dx
+        views[m, 1] = -dy
+        views[m, 2] = -dz
+
+
+@kernel(parallel=True)
+def light_terms(points, normals, views, materials, lights, diffuse, specular):
+    """Unshadowed Blinn-Phong terms of every hit for every light: ``diffuse[l, m]``, ``specular[l, m]``.
+
+    A light on the far side of the surface (as seen from the eye) gives
+    zero: it needs no shadow ray.
+    """
+    for m in prange(points.shape[0]):
+        for k in range(lights.shape[0]):
+            lx, ly, lz, dist = to_light(lights[k], points[m, 0], points[m, 1], points[m, 2])
+            if dist == 0.0:
+                diffuse[k, m] = 0.0
+                specular[k, m] = 0.0
+                continue
+            d, s = blinn_phong(normals[m, 0], normals[m, 1], normals[m, 2],
+                               views[m, 0], views[m, 1], views[m, 2], lx, ly, lz, materials[m])
+            diffuse[k, m] = d
+            specular[k, m] = s
+
+
+@kernel(parallel=True)
+def combine_lights(colors, materials, lights, diffuse, specular, vis, rgb):
+    """``rgb[m] = colour (ambient + sum_l vis d_l c_l) + sum_l vis s_l c_l``, clamped to 1."""
+    for m in prange(colors.shape[0]):
+        for c in range(3):
+            acc = colors[m, c] * materials[m, 0]
+            for k in range(lights.shape[0]):
+                w = vis[k, m] * lights[k, 4 + c]
+                acc += w * (colors[m, c] * diffuse[k, m] + specular[k, m])
+            rgb[m, c] = min(1.0, acc)
