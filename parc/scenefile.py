@@ -1,0 +1,571 @@
+"""Scene files: a whole scene (volumes, camera, lights, image size) in one TOML file.
+
+``parc render scene.toml -o out.png`` and ``parc compare scene.toml`` read
+them; in Python, ``parc.load_scene("scene.toml")`` returns the `Scene`.
+
+Schema
+------
+Every key is optional unless marked required::
+
+    size = [600, 600]               # image width, height (default 512 x 512)
+    background = [0, 0, 0]          # r, g, b (or r, g, b, a) in [0, 1]; default transparent
+    shadows = true                  # shadow rays towards every light (default false)
+
+    [camera]                        # the whole table is optional
+    eye = [120, -90, 80]            # default: a three-quarter view framing all volumes
+    look_at = [32, 32, 32]          # default: the centre of all volumes' boxes
+    up = [0, 0, 1]                  # default +z (+y when +z is along the view)
+    fov = 30                        # vertical field of view, degrees (default 30)
+    # parallel = 40                 # instead of fov: parallel projection, half the view height
+
+    [[volume]]                      # required, one table per volume, drawn together
+    file = "neuron.nrrd"            # relative to this file's folder; or
+    # synthetic = "sphere"          #   a synthetic volume (see `parc make --help`),
+    # size = 32                     #   with its samples per axis (one or three integers)
+    # seed = 1                      #   and seed (random volumes only)
+    # shape = [64, 64, 32]          # headerless .raw/.bin/.dat files: samples along x, y, z,
+    # dtype = "uint8"               #   sample type, byte_order = "little"|"big", offset (bytes)
+    spacing = [1, 1, 2]             # placement: replaces the file's spacing and
+    origin = [0, 0, 0]              #   origin (world position of the first sample)
+    iso = 80                        # an opaque isosurface at this value, with
+    color = [0.9, 0.8, 0.7]         #   its colour in [0, 1]
+    material = [0.12, 0.78, 0.25, 40]   # ambient, diffuse, specular, shininess
+
+    [[volume]]
+    file = "ct.nrrd"
+    tf = "ct_skin_bone"             # instead of iso: a translucent volume through a transfer
+                                    #   function, a preset or a .toml/.json file (relative here)
+    mode = "composite"              # composite | mip | average
+    step = 0.25                     # world distance between samples (default: spacing / 4)
+    threshold = 0.99                # early ray termination opacity (composite)
+    shade = false                   # gradient shading of composite samples
+
+    [[light]]                       # none: a headlight at the eye
+    position = [0, -200, 150]       # a point light; or
+    # direction = [-1, 1, -1]       #   a directional light travelling along this vector
+    color = [1, 1, 1]
+    intensity = 1.0
+
+Errors
+------
+Every mistake raises `InputError` with one line naming the file and the
+key, e.g. ``scene.toml: volume[2].iso: isovalue 5000 is outside the data
+range [0, 255] of foo.nrrd`` or ``scene.toml: camera.fvo: unknown key; did
+you mean fov? (known: eye, look_at, up, fov, parallel)``. Tables of an
+array are counted from 1 in file order: ``volume[1]`` is the first
+``[[volume]]``.
+"""
+from __future__ import annotations
+
+import difflib
+import math
+import os
+import tomllib
+from contextlib import contextmanager
+from pathlib import Path
+
+import numpy as np
+
+from data_tools import InputError, Volume
+
+from .camera import Camera
+from .scene import MODES, DirectionalLight, Isosurface, PointLight, Scene, Translucent
+
+TOP_KEYS = ("size", "background", "shadows", "camera", "volume", "light")
+CAMERA_KEYS = ("eye", "look_at", "up", "fov", "parallel")
+SOURCE_KEYS = ("file", "synthetic")
+SYNTHETIC_KEYS = ("size", "seed")
+RAW_KEYS = ("shape", "dtype", "byte_order", "offset")
+PLACEMENT_KEYS = ("spacing", "origin")
+ISO_KEYS = ("iso", "color")
+TF_KEYS = ("tf", "mode", "step", "threshold", "shade")
+VOLUME_KEYS = SOURCE_KEYS + SYNTHETIC_KEYS + RAW_KEYS + PLACEMENT_KEYS + ISO_KEYS + TF_KEYS + ("material",)
+LIGHT_KEYS = ("position", "direction", "color", "intensity")
+
+#: Image size when the file (and the command line) give none, as ``parc render``.
+DEFAULT_SIZE = (512, 512)
+DEFAULT_FOV = 30.0
+DEFAULT_UP = (0.0, 0.0, 1.0)
+
+
+def load_scene(path, *, view=None, size=None) -> Scene:
+    """Read a scene file (see the module notes for the schema).
+
+    Parameters
+    ----------
+    path : str or Path
+        The TOML file. Volume and transfer-function files named in it are
+        found relative to its folder.
+    view : dict, optional
+        Camera settings that replace the file's, keyed as in ``[camera]``
+        (``eye``, ``look_at``, ``up``, ``fov``, ``parallel``); None values
+        are ignored. Giving ``parallel`` drops the file's ``fov`` and giving
+        ``fov`` drops its ``parallel``. For the command line's view flags.
+    size : (width, height), optional
+        Replaces the file's image size.
+
+    Returns
+    -------
+    Scene
+
+    Raises
+    ------
+    InputError
+        One line naming the file and the key: a missing or unreadable file,
+        malformed TOML (with its line), an unknown key, a missing required
+        key, a value of the wrong type or out of range, a missing volume or
+        transfer-function file, an isovalue outside the data range.
+    """
+    where = _Where(path)
+    doc = where.read()
+    top = _Table(where, "", doc, TOP_KEYS)
+
+    volumes = _load_volumes(where, doc.get("volume"))
+    lights = _load_lights(where, doc.get("light"))
+    camera_table = _Table(where, "camera", doc.get("camera", {}), CAMERA_KEYS)
+    camera = _load_camera(where, camera_table, volumes, {k: v for k, v in (view or {}).items() if v is not None})
+
+    if size is not None:
+        image_size = tuple(size)
+        with where.key("size (given on the command line)"):
+            _check_size(image_size)
+    else:
+        image_size = top.integers("size", 2, default=DEFAULT_SIZE, minimum=1)
+    background = top.numbers("background", (3, 4), default=None)
+    if background is not None and not all(0.0 <= c <= 1.0 for c in background):
+        raise where.error("background", f"must be numbers in [0, 1], got {list(background)}")
+    shadows = top.boolean("shadows", default=False)
+    with where.key(None):
+        return Scene(camera=camera, size=image_size, volumes=volumes, lights=lights,
+                     background=background, shadows=shadows)
+
+
+def resolve_view(lo, hi, *, eye=None, look_at=None, up=None, fov=None, parallel=None):
+    """The camera settings for a view of the box ``[lo, hi]``, with defaults filled in.
+
+    The command line and scene files frame volumes the same way: with
+    neither ``eye`` nor ``look_at``, `Camera.framing`'s three-quarter view;
+    otherwise ``look_at`` defaults to the box centre and ``eye`` to the
+    framing view's offset from it.
+
+    Parameters
+    ----------
+    lo, hi : (x, y, z)
+        World corners of the box to show.
+    eye, look_at, up : (x, y, z) or None
+    fov : float or None
+        Vertical field of view in degrees (default 30).
+    parallel : float or None
+        Parallel scale: a parallel projection when given.
+
+    Returns
+    -------
+    dict
+        `Camera`'s keyword arguments: ``eye``, ``look_at``, ``up``, ``fov``,
+        ``parallel_scale``. Not checked: `Camera` does that.
+    """
+    fov = DEFAULT_FOV if fov is None else fov
+    explicit_up = up is not None
+    up = tuple(up) if explicit_up else DEFAULT_UP
+    if eye is None and look_at is None:
+        framed = Camera.framing(lo, hi, fov=fov, up=up, parallel=parallel is not None)
+        return {"eye": framed.eye, "look_at": framed.look_at, "up": up, "fov": fov,
+                "parallel_scale": parallel}
+    look_at = tuple(look_at) if look_at is not None else tuple(0.5 * (np.asarray(lo) + np.asarray(hi)))
+    if eye is None:
+        framed = Camera.framing(lo, hi, fov=fov, up=up)
+        eye = tuple(np.asarray(look_at) + np.subtract(framed.eye, framed.look_at))
+    if not explicit_up:
+        # The default up must not be parallel to the view: fall back to +y.
+        f = np.subtract(look_at, eye)
+        n = np.linalg.norm(f)
+        if n > 0 and np.linalg.norm(np.cross(f / n, up)) < 1e-6:
+            up = (0.0, 1.0, 0.0)
+    return {"eye": tuple(eye), "look_at": look_at, "up": up, "fov": fov, "parallel_scale": parallel}
+
+
+# --- errors ---------------------------------------------------------------
+
+class _Where:
+    """The scene file being read: formats errors as ``FILE: KEY: message``."""
+
+    def __init__(self, path):
+        self.path = Path(path)
+        self.folder = self.path.parent
+
+    def error(self, key, message):
+        return InputError(f"{self.path}: {key}: {message}" if key else f"{self.path}: {message}")
+
+    @contextmanager
+    def key(self, key):
+        """Re-raise an InputError from a constructor or reader with the file and key in front."""
+        try:
+            yield
+        except InputError as exc:
+            raise self.error(key, str(exc)) from None
+
+    def read(self):
+        if not self.path.exists():
+            raise InputError(f"{self.path}: no such scene file")
+        if self.path.is_dir():
+            raise InputError(f"{self.path}: is a folder, not a scene file")
+        try:
+            text = self.path.read_text(encoding="utf-8")
+        except UnicodeDecodeError:
+            raise InputError(f"{self.path}: not a UTF-8 text file") from None
+        except OSError as exc:
+            raise InputError(f"{self.path}: cannot read: {exc.strerror or exc}") from None
+        try:
+            return tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            # tomllib's message ends with "(at line L, column C)".
+            raise InputError(f"{self.path}: malformed TOML: {exc}") from None
+
+    def resolve(self, name):
+        """A path from the file, relative to the file's folder."""
+        return self.folder / Path(name).expanduser()
+
+
+def _kind(value):
+    """What a TOML value is, in TOML's words."""
+    if isinstance(value, bool):
+        return "a boolean"
+    if isinstance(value, (int, float)):
+        return "a number"
+    if isinstance(value, str):
+        return "a string"
+    if isinstance(value, list):
+        return "an array"
+    if isinstance(value, dict):
+        return "a table"
+    return f"a {type(value).__name__}"
+
+
+def _show(value):
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _is_number(value):
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+class _Table:
+    """One TOML table: refuses unknown keys at once, and reads typed values by key."""
+
+    def __init__(self, where, prefix, raw, known):
+        self.where = where
+        self.prefix = prefix
+        if not isinstance(raw, dict):
+            raise where.error(prefix, f"must be a table, got {_kind(raw)} {_show(raw)}")
+        self.raw = raw
+        for name in raw:
+            if name not in known:
+                close = (difflib.get_close_matches(name, known, n=1, cutoff=0.5)
+                         or [k for k in known if name.startswith(k) or k.startswith(name)])
+                hint = f"; did you mean {close[0]}?" if close else ""
+                raise where.error(self.key(name), f"unknown key{hint} (known: {', '.join(known)})")
+
+    def key(self, name):
+        return f"{self.prefix}.{name}" if self.prefix else name
+
+    def __contains__(self, name):
+        return name in self.raw
+
+    def error(self, name, message):
+        return self.where.error(self.key(name), message)
+
+    def _wrong(self, name, what):
+        value = self.raw[name]
+        return self.error(name, f"must be {what}, got {_kind(value)} {_show(value)}")
+
+    def number(self, name, default=None):
+        """A finite number (TOML integer or float)."""
+        if name not in self.raw:
+            return default
+        value = self.raw[name]
+        if not _is_number(value) or not math.isfinite(value):
+            raise self._wrong(name, "a finite number")
+        return float(value)
+
+    def numbers(self, name, counts, default=None):
+        """An array of finite numbers whose length is in ``counts`` (an int or a tuple)."""
+        if name not in self.raw:
+            return default
+        counts = (counts,) if isinstance(counts, int) else tuple(counts)
+        value = self.raw[name]
+        want = " or ".join(map(str, counts)) + " finite numbers"
+        if (not isinstance(value, list) or len(value) not in counts
+                or not all(_is_number(v) and math.isfinite(v) for v in value)):
+            raise self._wrong(name, f"an array of {want}")
+        return tuple(float(v) for v in value)
+
+    def integers(self, name, count, default=None, minimum=None):
+        """An array of ``count`` integers, each at least ``minimum``."""
+        if name not in self.raw:
+            return default
+        value = self.raw[name]
+        if (not isinstance(value, list) or len(value) != count
+                or not all(isinstance(v, int) and not isinstance(v, bool) for v in value)):
+            raise self._wrong(name, f"an array of {count} integers")
+        if minimum is not None and min(value) < minimum:
+            raise self.error(name, f"must be integers of at least {minimum}, got {value}")
+        return tuple(value)
+
+    def string(self, name, default=None):
+        if name not in self.raw:
+            return default
+        value = self.raw[name]
+        if not isinstance(value, str) or not value:
+            raise self._wrong(name, "a non-empty string")
+        return value
+
+    def boolean(self, name, default=None):
+        if name not in self.raw:
+            return default
+        value = self.raw[name]
+        if not isinstance(value, bool):
+            raise self._wrong(name, "true or false")
+        return value
+
+    def material(self, name):
+        m = self.numbers(name, 4)
+        if m is not None and min(m) < 0.0:
+            raise self.error(name, f"ambient, diffuse, specular and shininess must be >= 0, got {list(m)}")
+        return m
+
+
+def _check_size(size):
+    try:
+        ok = len(size) == 2 and all(int(v) == v and v >= 1 for v in size)
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise InputError(f"image size must be two positive integers, got {size!r}")
+
+
+def _tables(where, name, raw, *, required):
+    """The tables of an array of tables ``[[name]]``, each with its key prefix ``name[i]`` (from 1)."""
+    if raw is None:
+        if required:
+            raise where.error(name, f"missing: add at least one [[{name}]] table")
+        return []
+    if not isinstance(raw, list):
+        raise where.error(name, f"must be an array of tables, written [[{name}]] (not [{name}]), "
+                                f"got {_kind(raw)}")
+    if required and not raw:
+        raise where.error(name, f"empty: add at least one [[{name}]] table")
+    return [(f"{name}[{i}]", t) for i, t in enumerate(raw, start=1)]
+
+
+def _construct(where, prefix, cls, fixed, keyed):
+    """``cls(**fixed, **keyed)``, pinning a constructor's complaint on the key that caused it.
+
+    The keyword arguments of ``keyed`` (``[(key, argument, value), ...]``,
+    the required ones first) are added one at a time, so the first
+    construction that fails is the one whose newest key is to blame.
+    """
+    kwargs = dict(fixed)
+    obj = None
+    for key, arg, value in keyed:
+        kwargs[arg] = value
+        with where.key(f"{prefix}.{key}"):
+            obj = cls(**kwargs)
+    if obj is None:
+        with where.key(prefix):
+            obj = cls(**kwargs)
+    return obj
+
+
+# --- volumes --------------------------------------------------------------
+
+def _load_volumes(where, raw):
+    # Tables naming the same data and placement share one Volume, so the
+    # renderer computes its cell min/max once and holds the samples once.
+    cache = {}
+    return [_load_volume(where, _Table(where, prefix, t, VOLUME_KEYS), cache)
+            for prefix, t in _tables(where, "volume", raw, required=True)]
+
+
+def _load_volume(where, t, cache):
+    # What to show is checked before the data is read: a typo should not wait for a large file.
+    has_iso, has_tf = "iso" in t, "tf" in t
+    if has_iso == has_tf:
+        raise where.error(t.prefix, "give iso (an isosurface) or tf (a translucent volume)"
+                          + (", not both" if has_iso else ""))
+    material = t.material("material")
+    if has_iso:
+        for name in TF_KEYS:
+            if name in t:
+                raise t.error(name, "applies to a translucent volume (tf), not to an isosurface (iso)")
+        value = t.number("iso")
+        color = t.numbers("color", 3)
+        vol = _volume_data(where, t, cache)
+        keyed = [("iso", "value", value)]
+        if color is not None:
+            keyed.append(("color", "color", color))
+        if material is not None:
+            keyed.append(("material", "material", material))
+        return _construct(where, t.prefix, Isosurface, {"volume": vol}, keyed)
+
+    if "color" in t:
+        raise t.error("color", "applies to an isosurface (iso); a translucent volume's colours "
+                               "come from its transfer function (tf)")
+    from .transfer import PRESETS, load_transfer_function
+    spec = t.string("tf")
+    mode = t.string("mode")
+    if mode is not None and mode not in MODES:
+        raise t.error("mode", f"unknown mode {mode!r}; choose one of {', '.join(MODES)}")
+    step, threshold, shade = t.number("step"), t.number("threshold"), t.boolean("shade")
+    vol = _volume_data(where, t, cache)
+    if spec not in PRESETS:
+        path = where.resolve(spec)
+        # A bare word that is no file is meant as a preset: let the loader list the presets.
+        if path.exists() or Path(spec).suffix or os.sep in spec or "/" in spec:
+            spec = os.fspath(path)
+    with where.key(t.key("tf")):
+        tf = load_transfer_function(spec, data_range=vol.value_range())
+    given = {"mode": mode, "step": step, "threshold": threshold, "shade": shade, "material": material}
+    keyed = [(name, name, value) for name, value in given.items() if value is not None]
+    return _construct(where, t.prefix, Translucent, {"volume": vol, "tf": tf}, keyed)
+
+
+def _volume_data(where, t, cache):
+    """The Volume a ``[[volume]]`` table names, placed as it says."""
+    has_file, has_synthetic = "file" in t, "synthetic" in t
+    if has_file == has_synthetic:
+        raise where.error(t.prefix, "give file (a volume file) or synthetic (a built-in volume)"
+                          + (", not both" if has_file else ""))
+    spacing = t.numbers("spacing", 3)
+    origin = t.numbers("origin", 3)
+    if has_file:
+        for name in SYNTHETIC_KEYS:
+            if name in t:
+                raise t.error(name, "applies to synthetic volumes, not to a volume file")
+        vol, source = _read_file(where, t, cache)
+    else:
+        for name in RAW_KEYS:
+            if name in t:
+                raise t.error(name, "applies to headerless raw volume files, not to synthetic volumes")
+        vol, source = _make_synthetic(where, t, cache)
+    if spacing is None and origin is None:
+        return vol
+    key = (source, spacing, origin)
+    if key not in cache:
+        with where.key(t.key("spacing" if spacing is not None else "origin")):
+            # Same samples, new placement: the array is shared, not copied.
+            cache[key] = Volume(vol.data, spacing=spacing or vol.spacing, origin=origin or vol.origin,
+                                name=vol.name, meta=dict(vol.meta))
+    return cache[key]
+
+
+def _read_file(where, t, cache):
+    from data_tools.io import load_volume, raw
+    path = where.resolve(t.string("file"))
+    options = {"shape": t.integers("shape", 3, minimum=2), "dtype": t.string("dtype"),
+               "byte_order": t.string("byte_order"), "offset": None}
+    if "offset" in t:
+        offset = t.raw["offset"]
+        if not isinstance(offset, int) or isinstance(offset, bool) or offset < 0:
+            raise t._wrong("offset", "an integer >= 0 (bytes before the samples)")
+        options["offset"] = offset
+    if options["byte_order"] not in (None, "little", "big"):
+        raise t.error("byte_order", f"must be \"little\" or \"big\", got {options['byte_order']!r}")
+    given = [name for name in RAW_KEYS if options[name] is not None]
+    if given and path.suffix.lower() not in raw.EXTENSIONS:
+        raise t.error(given[0], f"applies only to headerless raw files ({', '.join(raw.EXTENSIONS)}); "
+                                f"{path.name} has a header")
+    source = ("file", os.fspath(path)) + tuple(options[name] for name in RAW_KEYS)
+    if source not in cache:
+        with where.key(t.key("file")):
+            cache[source] = load_volume(path, **options)
+    return cache[source], source
+
+
+def _make_synthetic(where, t, cache):
+    from data_tools.synthetic import SYNTHETIC, make_synthetic
+    name = t.string("synthetic")
+    if name not in SYNTHETIC:
+        raise t.error("synthetic", f"unknown synthetic volume {name!r}; choose from {', '.join(SYNTHETIC)}")
+    size = None
+    if "size" in t:
+        size = t.raw["size"]
+        if isinstance(size, list):
+            size = t.integers("size", 3, minimum=2)
+        elif not isinstance(size, int) or isinstance(size, bool):
+            raise t._wrong("size", "an integer or an array of 3 integers (samples per axis)")
+        elif size < 2:
+            raise t.error("size", f"must be at least 2 samples per axis, got {size}")
+    kwargs = {}
+    if "seed" in t:
+        seed = t.raw["seed"]
+        if not isinstance(seed, int) or isinstance(seed, bool) or seed < 0:
+            raise t._wrong("seed", "an integer >= 0")
+        kwargs["seed"] = seed
+    source = ("synthetic", name, size, kwargs.get("seed"))
+    if source not in cache:
+        try:
+            with where.key(t.key("synthetic")):
+                cache[source] = make_synthetic(name, size, **kwargs)
+        except TypeError:
+            raise t.error("seed", f"synthetic volume {name!r} takes no seed") from None
+    return cache[source], source
+
+
+# --- lights and camera ------------------------------------------------------
+
+def _load_lights(where, raw):
+    lights = []
+    for prefix, raw_table in _tables(where, "light", raw, required=False):
+        t = _Table(where, prefix, raw_table, LIGHT_KEYS)
+        if ("position" in t) == ("direction" in t):
+            raise where.error(prefix, "give position (a point light) or direction (a directional light)"
+                              + (", not both" if "position" in t else ""))
+        where_key, cls = ("position", PointLight) if "position" in t else ("direction", DirectionalLight)
+        keyed = [(where_key, where_key, t.numbers(where_key, 3))]
+        if "color" in t:
+            keyed.append(("color", "color", t.numbers("color", 3)))
+        if "intensity" in t:
+            keyed.append(("intensity", "intensity", t.number("intensity")))
+        lights.append(_construct(where, prefix, cls, {}, keyed))
+    return lights
+
+
+def _load_camera(where, t, volumes, view):
+    settings = {"eye": t.numbers("eye", 3), "look_at": t.numbers("look_at", 3), "up": t.numbers("up", 3),
+                "fov": t.number("fov"), "parallel": t.number("parallel")}
+    if settings["fov"] is not None and settings["parallel"] is not None:
+        raise t.error("parallel", "give fov (perspective) or parallel (a parallel projection), not both")
+    # A view given on the command line wins; its projection replaces the file's.
+    if "parallel" in view:
+        settings["fov"] = None
+    if "fov" in view:
+        settings["parallel"] = None
+    settings.update(view)
+
+    def label(name):
+        return t.key(name) + (" (given on the command line)" if name in view else "")
+
+    fov, parallel = settings["fov"], settings["parallel"]
+    if fov is not None and not 0.0 < fov < 180.0:
+        raise where.error(label("fov"), f"field of view must be between 0 and 180 degrees, got {fov:g}")
+    if parallel is not None and not parallel > 0.0:
+        raise where.error(label("parallel"), f"parallel scale must be positive, got {parallel:g}")
+
+    lo = np.min([v.volume.bounds[0] for v in volumes], axis=0)
+    hi = np.max([v.volume.bounds[1] for v in volumes], axis=0)
+    cam = resolve_view(lo, hi, **settings)
+    f = np.subtract(cam["look_at"], cam["eye"])
+    if not np.linalg.norm(f) > 0.0:
+        if settings["look_at"] is None:
+            raise where.error(label("eye"), f"eye {list(cam['eye'])} is the centre of the volumes, where the "
+                                            "camera looks by default: move it or give look_at")
+        name = "eye" if settings["eye"] is not None else "look_at"
+        raise where.error(label(name), f"eye and look_at are the same point {list(cam['eye'])}: no view direction")
+    up = np.asarray(cam["up"])
+    if not np.linalg.norm(up) > 0.0 or np.linalg.norm(np.cross(f / np.linalg.norm(f), up / np.linalg.norm(up))) < 1e-9:
+        raise where.error(label("up"), f"up {list(cam['up'])} is parallel to the view direction")
+    with where.key("camera"):
+        return Camera(**cam)

@@ -1,0 +1,309 @@
+"""Scene files: a valid file gives the Scene it describes; every mistake names the file and the key."""
+import math
+import textwrap
+
+import numpy as np
+import pytest
+
+import parc
+from data_tools import InputError, Volume
+from data_tools.io import save_volume
+from data_tools.synthetic import make_synthetic
+from parc.scenefile import load_scene, resolve_view
+
+
+@pytest.fixture
+def folder(tmp_path):
+    """A scene folder with two small volumes under data/ and a transfer function file."""
+    (tmp_path / "data").mkdir()
+    save_volume(make_synthetic("sphere", 16), tmp_path / "data" / "ball.nrrd")     # float32, about [-5.3, 7.7]
+    save_volume(make_synthetic("blobs", 16), tmp_path / "data" / "blobs.nrrd")     # uint8
+    (tmp_path / "data" / "warm.toml").write_text('opacity = [[0, 0.0], [255, 0.5]]\n'
+                                                 'color = [[0, 1, 0.5, 0], [255, 1, 1, 1]]\n')
+    return tmp_path
+
+
+def write(folder, text, name="scene.toml"):
+    path = folder / name
+    path.write_text(textwrap.dedent(text))
+    return path
+
+
+TWO_VOLUMES = """\
+    size = [40, 30]
+    background = [0.1, 0.2, 0.3]
+    shadows = true
+
+    [camera]
+    eye = [60, -50, 40]
+    look_at = [12, 8, 8]
+    up = [0, 0, 1]
+    fov = 25
+
+    [[volume]]
+    file = "data/ball.nrrd"
+    iso = 0.5
+    color = [0.9, 0.8, 0.7]
+    material = [0.1, 0.7, 0.3, 20]
+
+    [[volume]]
+    file = "data/blobs.nrrd"
+    tf = "data/warm.toml"
+    mode = "composite"
+    step = 0.5
+    threshold = 0.95
+    shade = true
+    spacing = [1, 1, 2]
+    origin = [20, 0, 0]
+
+    [[light]]
+    position = [0, -40, 30]
+    color = [1, 0.9, 0.8]
+    intensity = 0.7
+
+    [[light]]
+    direction = [0, 0, -2]
+"""
+
+
+def test_two_volumes_lights_and_camera(folder, tmp_path_factory, monkeypatch):
+    path = write(folder, TWO_VOLUMES)
+    monkeypatch.chdir(tmp_path_factory.mktemp("elsewhere"))   # paths are relative to the file, not the cwd
+    scene = load_scene(path)
+
+    assert scene.size == (40, 30) and scene.background == (0.1, 0.2, 0.3, 1.0) and scene.shadows
+    assert scene.camera == parc.Camera(eye=(60, -50, 40), look_at=(12, 8, 8), up=(0, 0, 1), fov=25)
+
+    iso, tl = scene.volumes
+    assert isinstance(iso, parc.Isosurface) and isinstance(tl, parc.Translucent)
+    assert iso.value == 0.5 and iso.color == (0.9, 0.8, 0.7) and iso.material == (0.1, 0.7, 0.3, 20.0)
+    assert iso.volume.dims == (16, 16, 16) and iso.volume.dtype == np.float32
+    assert iso.volume.origin == (0.0, 0.0, 0.0) and iso.volume.spacing == (1.0, 1.0, 1.0)
+    assert tl.volume.dtype == np.uint8
+    assert tl.volume.spacing == (1.0, 1.0, 2.0) and tl.volume.origin == (20.0, 0.0, 0.0)
+    assert (tl.mode, tl.step, tl.threshold, tl.shade) == ("composite", 0.5, 0.95, True)
+    assert tl.tf.opacity(np.array([255.0]))[0] == pytest.approx(0.5)
+
+    point, sun = scene.lights
+    assert isinstance(point, parc.PointLight) and point.position == (0.0, -40.0, 30.0)
+    assert point.color == (1.0, 0.9, 0.8) and point.intensity == 0.7
+    assert isinstance(sun, parc.DirectionalLight) and sun.direction == (0.0, 0.0, -1.0) and sun.intensity == 1.0
+
+
+def test_public_api_and_defaults(folder):
+    path = write(folder, """\
+        [[volume]]
+        file = "data/ball.nrrd"
+        iso = 0
+    """)
+    scene = parc.load_scene(str(path))
+    assert scene.size == (512, 512) and scene.background is None and not scene.shadows
+    assert scene.lights == []                       # the renderer's headlight
+    vol = scene.volumes[0].volume
+    assert scene.camera == parc.Camera.framing(*vol.bounds)   # the command line's default view
+
+
+def test_default_camera_frames_all_volumes(folder):
+    path = write(folder, """\
+        [camera]
+        eye = [100, 7.5, 7.5]
+        [[volume]]
+        file = "data/ball.nrrd"
+        iso = 0
+        [[volume]]
+        file = "data/ball.nrrd"
+        iso = 1
+        origin = [0, 30, 0]
+    """)
+    scene = load_scene(path)
+    # look_at defaults to the centre of the union of the boxes: x, z 0..15, y 0..45.
+    assert scene.camera.look_at == (7.5, 22.5, 7.5) and scene.camera.eye == (100.0, 7.5, 7.5)
+    assert scene.camera.up == (0.0, 0.0, 1.0) and scene.camera.fov == 30.0
+    # The same file with the same placement is one Volume; a new placement shares its samples.
+    a, b = (v.volume for v in scene.volumes)
+    assert a is not b and a.data is b.data and b.origin == (0.0, 30.0, 0.0)
+
+
+def test_same_data_and_placement_share_one_volume(folder):
+    path = write(folder, """\
+        [[volume]]
+        file = "data/ball.nrrd"
+        iso = 0
+        [[volume]]
+        file = "data/ball.nrrd"
+        tf = "greyscale"
+    """)
+    a, b = load_scene(path).volumes
+    assert a.volume is b.volume
+
+
+def test_synthetic_parallel_and_look_at_only(folder):
+    path = write(folder, """\
+        [camera]
+        look_at = [0, 0, 0]
+        parallel = 12
+        [[volume]]
+        synthetic = "blobs"
+        size = [12, 10, 8]
+        seed = 3
+        tf = "viridis"
+        mode = "mip"
+    """)
+    scene = load_scene(path)
+    vol = scene.volumes[0].volume
+    assert vol.dims == (12, 10, 8)
+    np.testing.assert_array_equal(vol.data, make_synthetic("blobs", (12, 10, 8), seed=3).data)
+    cam = scene.camera
+    assert cam.parallel and cam.parallel_scale == 12.0 and cam.look_at == (0.0, 0.0, 0.0)
+    expected = resolve_view(*vol.bounds, look_at=(0, 0, 0), parallel=12.0)
+    assert cam.eye == pytest.approx(expected["eye"])
+
+
+def test_view_and_size_given_by_the_caller_win(folder):
+    path = write(folder, TWO_VOLUMES)
+    scene = load_scene(path, view={"eye": (0, -80, 8), "parallel": 20, "up": None}, size=(8, 6))
+    assert scene.size == (8, 6)
+    # eye replaced; look_at and up kept from the file; parallel replaces the file's fov.
+    assert scene.camera == parc.Camera(eye=(0, -80, 8), look_at=(12, 8, 8), up=(0, 0, 1), parallel_scale=20)
+
+
+def test_raw_file_options(folder):
+    data = np.arange(4 * 3 * 2, dtype=np.uint16).reshape(2, 3, 4)
+    (folder / "data" / "small.raw").write_bytes(b"\0" * 8 + data.astype(">u2").tobytes())
+    path = write(folder, """\
+        [[volume]]
+        file = "data/small.raw"
+        shape = [4, 3, 2]
+        dtype = "uint16"
+        byte_order = "big"
+        offset = 8
+        iso = 10
+    """)
+    np.testing.assert_array_equal(load_scene(path).volumes[0].volume.data, data)
+
+
+VOLUME = """\
+    [[volume]]
+    file = "data/ball.nrrd"
+    iso = 0
+"""
+
+#: (scene file text, the key named, words of the message). {V} is a valid [[volume]] table.
+BAD = [
+    ("size = [32, 32\n{V}", None, "malformed TOML", "(at line 2, column 1)"),
+    ("volumes = 1\n{V}", "volumes", "unknown key; did you mean volume?"),
+    ("[camera]\nfvo = 20\n{V}", "camera.fvo", "unknown key; did you mean fov? (known: eye, look_at, up, fov, parallel)"),
+    ("camera = 3\n{V}", "camera", "must be a table"),
+    ("size = [32, 32]", "volume", "missing: add at least one [[volume]]"),
+    ("volume = []", "volume", "empty"),
+    ("[volume]\nfile = 'data/ball.nrrd'\niso = 0", "volume", "array of tables, written [[volume]]"),
+    ("{V}[[volume]]\nfile = 'data/ball.nrrd'\nisovalue = 1", "volume[2].isovalue", "unknown key; did you mean iso?"),
+    ("[[volume]]\nfile = 'data/ball.nrrd'\niso = 0\ntf = 'greyscale'", "volume[1]", "not both"),
+    ("[[volume]]\nfile = 'data/ball.nrrd'", "volume[1]", "give iso (an isosurface) or tf"),
+    ("{V}[[volume]]\nfile = 'data/ball.nrrd'\niso = 5000", "volume[2].iso",
+     "isovalue 5000 is outside the data range"),
+    ("[[volume]]\nfile = 'data/ball.nrrd'\niso = '80'", "volume[1].iso", "must be a finite number, got a string"),
+    ("[[volume]]\nfile = 'data/ball.nrrd'\niso = nan", "volume[1].iso", "must be a finite number"),
+    ("[[volume]]\nfile = 'data/missing.nrrd'\niso = 0", "volume[1].file", "data/missing.nrrd", "no such file"),
+    ("[[volume]]\nfile = 'data/warm.toml'\niso = 0", "volume[1].file", "unknown volume file"),
+    ("[[volume]]\niso = 0", "volume[1]", "give file (a volume file) or synthetic"),
+    ("[[volume]]\nfile = 'data/ball.nrrd'\nsynthetic = 'sphere'\niso = 0", "volume[1]", "not both"),
+    ("[[volume]]\nfile = 'data/ball.nrrd'\niso = 0\ncolor = [1, 2, 0]", "volume[1].color", "[0, 1]"),
+    ("[[volume]]\nfile = 'data/ball.nrrd'\niso = 0\ncolor = [1, 0]", "volume[1].color", "an array of 3 finite numbers"),
+    ("[[volume]]\nfile = 'data/ball.nrrd'\niso = 0\nmaterial = [0.1, -1, 0, 1]", "volume[1].material", ">= 0"),
+    ("[[volume]]\nfile = 'data/ball.nrrd'\niso = 0\nmode = 'mip'", "volume[1].mode",
+     "applies to a translucent volume"),
+    ("[[volume]]\nfile = 'data/ball.nrrd'\ntf = 'greyscale'\ncolor = [1, 1, 1]", "volume[1].color",
+     "applies to an isosurface"),
+    ("[[volume]]\nfile = 'data/ball.nrrd'\ntf = 'greyscale'\nmode = 'max'", "volume[1].mode", "unknown mode 'max'"),
+    ("[[volume]]\nfile = 'data/ball.nrrd'\ntf = 'greyscale'\nstep = -1", "volume[1].step", "positive"),
+    ("[[volume]]\nfile = 'data/ball.nrrd'\ntf = 'greyscale'\nthreshold = 2", "volume[1].threshold", "(0, 1]"),
+    ("[[volume]]\nfile = 'data/ball.nrrd'\ntf = 'greyscale'\nshade = 1", "volume[1].shade", "true or false"),
+    ("[[volume]]\nfile = 'data/ball.nrrd'\ntf = 'skin'", "volume[1].tf", "unknown transfer function preset 'skin'"),
+    ("[[volume]]\nfile = 'data/ball.nrrd'\ntf = 'data/cold.toml'", "volume[1].tf", "data/cold.toml"),
+    ("[[volume]]\nfile = 'data/ball.nrrd'\niso = 0\nspacing = [1, 0, 1]", "volume[1].spacing", "spacing"),
+    ("[[volume]]\nfile = 'data/ball.nrrd'\niso = 0\norigin = [0, 0]", "volume[1].origin", "an array of 3 finite numbers"),
+    ("[[volume]]\nfile = 'data/ball.nrrd'\niso = 0\nshape = [16, 16, 16]", "volume[1].shape",
+     "only to headerless raw files"),
+    ("[[volume]]\nfile = 'data/ball.nrrd'\niso = 0\nsize = 8", "volume[1].size", "applies to synthetic volumes"),
+    ("[[volume]]\nsynthetic = 'cube'\niso = 0", "volume[1].synthetic", "unknown synthetic volume 'cube'"),
+    ("[[volume]]\nsynthetic = 'sphere'\nseed = 2\niso = 0", "volume[1].seed", "takes no seed"),
+    ("[[volume]]\nsynthetic = 'sphere'\nsize = 1\niso = 0", "volume[1].size", "at least 2"),
+    ("[[volume]]\nsynthetic = 'sphere'\ndtype = 'uint8'\niso = 0", "volume[1].dtype", "not to synthetic"),
+    ("{V}[[light]]\nposition = [0, 0, 9]\ndirection = [0, 0, -1]", "light[1]", "not both"),
+    ("{V}[[light]]\ncolor = [1, 1, 1]", "light[1]", "give position (a point light) or direction"),
+    ("{V}[[light]]\nposition = [0, 0, 9]\n[[light]]\ndirection = [0, 0, 0]", "light[2].direction", "not be zero"),
+    ("{V}[[light]]\nposition = [0, 0, 9]\nintensity = -1", "light[1].intensity", ">= 0"),
+    ("{V}[[light]]\nposition = [0, 0, 9]\ncolor = [1, 1, 1.5]", "light[1].color", "[0, 1]"),
+    ("{V}[[light]]\nposition = [0, 'a', 9]", "light[1].position", "an array of 3 finite numbers"),
+    ("{V}[[light]]\nposition = [0, 0, 9]\nradius = 2", "light[1].radius", "unknown key"),
+    ("{V}[light]\nposition = [0, 0, 9]", "light", "array of tables, written [[light]]"),
+    ("size = [0, 32]\n{V}", "size", "at least 1"),
+    ("size = [32.5, 32]\n{V}", "size", "an array of 2 integers"),
+    ("size = 32\n{V}", "size", "an array of 2 integers, got a number 32"),
+    ("background = [0, 0, 2]\n{V}", "background", "[0, 1]"),
+    ("shadows = 'yes'\n{V}", "shadows", "true or false, got a string"),
+    ("[camera]\nfov = 200\n{V}", "camera.fov", "between 0 and 180"),
+    ("[camera]\nparallel = 0\n{V}", "camera.parallel", "positive"),
+    ("[camera]\nfov = 20\nparallel = 10\n{V}", "camera.parallel", "not both"),
+    ("[camera]\neye = [1, 1, 1]\nlook_at = [1, 1, 1]\n{V}", "camera.eye", "same point"),
+    ("[camera]\neye = [7.5, 7.5, 7.5]\n{V}", "camera.eye", "centre of the volumes"),   # the default look_at
+    ("[camera]\neye = [0, 0, 50]\nlook_at = [0, 0, 0]\nup = [0, 0, 2]\n{V}", "camera.up", "parallel to the view"),
+    ("[camera]\neye = [inf, 0, 0]\n{V}", "camera.eye", "finite"),
+]
+
+
+@pytest.mark.parametrize("text, key, words", [(b[0], b[1], b[2:]) for b in BAD], ids=[f"{i}-{b[1]}" for i, b in enumerate(BAD)])
+def test_errors_name_the_file_and_the_key(text, key, words, folder):
+    path = write(folder, text.replace("{V}", textwrap.dedent(VOLUME)))
+    with pytest.raises(InputError) as info:
+        load_scene(path)
+    msg = str(info.value)
+    assert "\n" not in msg
+    prefix = f"{path}: {key}: " if key else f"{path}: "
+    assert msg.startswith(prefix), msg
+    for w in words:
+        assert w in msg, msg
+
+
+def test_missing_file_shows_the_resolved_path(folder, tmp_path_factory, monkeypatch):
+    path = write(folder, "[[volume]]\nfile = 'data/missing.nrrd'\niso = 0\n", name="s.toml")
+    monkeypatch.chdir(tmp_path_factory.mktemp("elsewhere"))
+    with pytest.raises(InputError, match="volume\\[1\\].file: .*") as info:
+        load_scene(path)
+    assert str(folder / "data" / "missing.nrrd") in str(info.value)
+
+
+def test_unreadable_scene_files(tmp_path):
+    with pytest.raises(InputError, match="no such scene file"):
+        load_scene(tmp_path / "nope.toml")
+    with pytest.raises(InputError, match="is a folder"):
+        load_scene(tmp_path)
+    (tmp_path / "latin1.toml").write_bytes(b"# caf\xe9\n")
+    with pytest.raises(InputError, match="not a UTF-8"):
+        load_scene(tmp_path / "latin1.toml")
+
+
+def test_errors_from_the_command_line_view_say_so(folder):
+    path = write(folder, TWO_VOLUMES)
+    with pytest.raises(InputError, match=r"camera.fov \(given on the command line\): .*180"):
+        load_scene(path, view={"fov": 190.0})
+    with pytest.raises(InputError, match=r"size \(given on the command line\)"):
+        load_scene(path, size=(0, 10))
+
+
+def test_resolve_view_matches_framing():
+    lo, hi = (0, 0, 0), (10, 20, 30)
+    view = resolve_view(lo, hi)
+    framed = parc.Camera.framing(lo, hi)
+    assert parc.Camera(**view) == framed
+    # Looking straight down with the default up: +y instead of the parallel +z.
+    down = resolve_view(lo, hi, eye=(5, 10, 100))
+    assert down["up"] == (0.0, 1.0, 0.0) and down["look_at"] == (5.0, 10.0, 15.0)
+    assert math.isclose(parc.Camera(**down).basis()[0][2], -1.0)
+
+
+def test_volume_placement_keeps_native_samples(folder):
+    path = write(folder, "[[volume]]\nfile = 'data/blobs.nrrd'\niso = 100\nspacing = [0.5, 0.5, 1]\n")
+    vol = load_scene(path).volumes[0].volume
+    assert isinstance(vol, Volume) and vol.dtype == np.uint8 and vol.spacing == (0.5, 0.5, 1.0)
