@@ -1,4 +1,4 @@
-"""The `parc` command line: render, info, make.
+"""The `parc` command line: render, compare, info, make.
 
 Every user mistake ends in one line on stderr (``parc: error: ...``) and
 exit status 2: no traceback, and no output file, complete or partial.
@@ -29,10 +29,16 @@ examples:
   parc render CThead.nrrd --iso 1500 --method parc -o bone.png   same image, faster
   parc render CThead.nrrd --tf ct_skin_bone --up 0,0,-1 -o ct.png   translucent
   parc compare neghip.slc --iso 80 --sweep-supercell 1,2,4,8      speed against error
+  parc render head.nrrd --iso 600 --sun -1,1,-1 --shadows -o lit.png   sunlight and shadows
+  parc render head.nrrd --iso 600 --light 0,-300,200 --light 300,0,0 -o two.png   two point lights
+  parc render scene.toml -o scene.png         a scene file: several volumes, camera, lights
+  parc compare scene.toml --size 256 256      flags override the scene file's view and size
   parc info CThead.nrrd                       dims, spacing, histogram, isovalues
   parc make ct_phantom --size 128 -o ct.nrrd  a synthetic volume
 
 Axis order: positions, spacing and origin are x,y,z; arrays are [z,y,x].
+Scene files (.toml) are described in the README ("Scene files") and in
+`python -m pydoc parc.scenefile`.
 """
 
 
@@ -79,7 +85,8 @@ def _ints(n, what):
 
 def _add_volume_options(p):
     g = p.add_argument_group("reading the volume (headerless raw files need shape and dtype "
-                             "unless the name says, e.g. bucky_32x32x32_uint8.raw)")
+                             "unless the name says, e.g. bucky_32x32x32_uint8.raw; a scene file sets "
+                             "these per volume instead)")
     g.add_argument("--shape", type=_ints(3, "--shape"), metavar="NX,NY,NZ", help="raw: samples along x, y, z")
     g.add_argument("--dtype", metavar="TYPE", help="raw: sample type, e.g. uint8, int16, uint16, float32")
     g.add_argument("--byte-order", choices=("little", "big"), help="raw: byte order (default little)")
@@ -90,16 +97,17 @@ def _add_volume_options(p):
 
 
 def _add_look_options(p):
-    g = p.add_argument_group("what to show (an isosurface, or with --tf a translucent volume)")
+    g = p.add_argument_group("what to show (an isosurface, or with --tf a translucent volume; "
+                             "a scene file sets these per volume instead)")
     g.add_argument("--iso", type=float, metavar="V", help="isovalue (default: suggested from the histogram)")
     g.add_argument("--tf", metavar="FILE|PRESET",
                    help="transfer function: a .toml/.json file, a ParaView colour-map .json, or a preset "
                         "(ct_skin, ct_bone, ct_skin_bone, greyscale, viridis); renders a translucent volume")
-    g.add_argument("--mode", choices=("composite", "mip", "average"), default="composite",
+    g.add_argument("--mode", choices=("composite", "mip", "average"),
                    help="with --tf: front-to-back compositing (default), maximum or average intensity")
     g.add_argument("--step", type=float, metavar="S",
                    help="with --tf: world distance between samples (default a quarter of the smallest spacing)")
-    g.add_argument("--threshold", type=float, default=0.99, metavar="A",
+    g.add_argument("--threshold", type=float, metavar="A",
                    help="with --tf: stop a ray once its opacity reaches A (default 0.99)")
     g.add_argument("--shade", action="store_true", help="with --tf: shade samples with the gradient")
     g.add_argument("--buffers", default="depth", metavar="LIST",
@@ -108,17 +116,33 @@ def _add_look_options(p):
 
 
 def _add_view_options(p):
-    g = p.add_argument_group("view (default: a three-quarter view framing the whole volume)")
+    g = p.add_argument_group("view (default: a three-quarter view framing the whole volume; with a scene "
+                             "file, these replace the file's camera settings and size)")
     g.add_argument("--eye", type=_floats(3, "--eye"), metavar="X,Y,Z", help="camera position")
     g.add_argument("--look-at", type=_floats(3, "--look-at"), metavar="X,Y,Z",
-                   help="point looked at (default: the volume's centre)")
+                   help="point looked at (default: the centre of the volume, or of all a scene file's)")
     g.add_argument("--up", type=_floats(3, "--up"), metavar="X,Y,Z", help="up direction (default 0,0,1)")
-    g.add_argument("--fov", type=float, default=30.0, metavar="DEG",
+    g.add_argument("--fov", type=float, metavar="DEG",
                    help="vertical field of view in degrees (default 30)")
     g.add_argument("--parallel", type=float, metavar="SCALE",
                    help="parallel projection; SCALE is half the view height in world units")
-    g.add_argument("--size", type=int, nargs=2, default=(512, 512), metavar=("W", "H"),
+    g.add_argument("--size", type=int, nargs=2, metavar=("W", "H"),
                    help="image size in pixels (default 512 512)")
+
+
+def _add_light_options(p):
+    g = p.add_argument_group(
+        "lights and shadows (default: one white headlight at the eye; lights given here are added "
+        "to a scene file's [[light]] tables; colours and intensities: use a scene file)")
+    g.add_argument("--light", type=_floats(3, "--light"), action="append", metavar="X,Y,Z",
+                   help="a white point light at X,Y,Z (world coordinates, may be inside the volume); "
+                        "repeat for several lights")
+    g.add_argument("--sun", type=_floats(3, "--sun"), action="append", metavar="DX,DY,DZ",
+                   help="a white directional light, infinitely far away, whose rays travel along "
+                        "DX,DY,DZ (0,0,-1: straight down); repeat for several")
+    g.add_argument("--shadows", action="store_true",
+                   help="cast shadow rays from every isosurface hit to every light: isosurfaces "
+                        "block them, translucent volumes dim them (the headlight casts no visible shadows)")
 
 
 def build_parser():
@@ -129,9 +153,13 @@ def build_parser():
     r = sub.add_parser("render", help="render a volume to an image",
                        description="Render the isosurface of a volume (--iso), or the volume translucent "
                                    "through a transfer function (--tf). Without a volume, renders a built-in "
-                                   "synthetic one. Without --iso or --tf, uses a level suggested from the histogram.",
+                                   "synthetic one. Without --iso or --tf, uses a level suggested from the histogram. "
+                                   "Given a scene file (SCENE.toml), renders the volumes, camera, lights and image "
+                                   "size it describes.",
                        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
-    r.add_argument("volume", nargs="?", help="volume file: .nrrd .nhdr .mhd .mha .vtk .slc .npy .raw")
+    r.add_argument("volume", nargs="?", metavar="VOLUME|SCENE.toml",
+                   help="volume file (.nrrd .nhdr .mhd .mha .vtk .slc .npy .raw), or a scene file (.toml) "
+                        "with several volumes, camera and lights")
     r.add_argument("-o", "--output", required=True, metavar="OUT",
                    help="image: .png (8-bit RGBA) or .npy (float32 RGBA array)")
     r.add_argument("--depth", metavar="D.npy", help="also write the float64 depth image (inf = no hit)")
@@ -143,10 +171,11 @@ def build_parser():
     r.add_argument("--supercell", type=_supercell, metavar="M[,N,P]",
                    help="parc: supercell size in cells, fractional allowed (default: chosen by a cost model)")
     r.add_argument("--background", type=_floats(3, "--background"), metavar="R,G,B",
-                   help="opaque background colour in [0,1] (default transparent)")
+                   help="opaque background colour in [0,1] (default transparent); replaces a scene file's")
     r.add_argument("--quiet", action="store_true", help="no progress or notes on stderr")
     _add_look_options(r)
     _add_view_options(r)
+    _add_light_options(r)
     _add_volume_options(r)
 
     c = sub.add_parser("compare", help="time PARC against unaccelerated casting, with image errors",
@@ -156,7 +185,8 @@ def build_parser():
                                    "difference|, RMSE, PSNR; with cells visited, cubic solves, polygons and "
                                    "seconds per phase.",
                        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
-    c.add_argument("volume", nargs="?", help="volume file (default: the built-in volume)")
+    c.add_argument("volume", nargs="?", metavar="VOLUME|SCENE.toml",
+                   help="volume file or scene file (.toml) (default: the built-in volume)")
     c.add_argument("--methods", default="brute,parc", metavar="LIST",
                    help="comma-separated methods (default brute,parc; brute always runs as the reference)")
     c.add_argument("--supercell", type=_supercell, metavar="M[,N,P]",
@@ -170,6 +200,7 @@ def build_parser():
     c.add_argument("--json", action="store_true", help="print the rows as JSON instead of a table")
     _add_look_options(c)
     _add_view_options(c)
+    _add_light_options(c)
     _add_volume_options(c)
 
     i = sub.add_parser("info", help="describe a volume and suggest isovalues")
@@ -236,12 +267,62 @@ def cmd_make(args):
     return 0
 
 
+#: Flags that describe the one volume on the command line; a scene file sets
+#: these per volume, in its [[volume]] tables (under the same names).
+_VOLUME_FLAGS = ("iso", "tf", "mode", "step", "threshold", "shade", "shape", "dtype", "byte_order",
+                 "spacing", "origin")
+
+
+def _is_scene_file(args):
+    return args.volume is not None and args.volume.lower().endswith(".toml")
+
+
 def _scene(args, say):
+    """The Scene the arguments describe: a scene file or one volume, with the flags' lights."""
+    scene = _file_scene(args) if _is_scene_file(args) else _volume_scene(args, say)
+    return _add_flag_lights(scene, args, say)
+
+
+def _file_scene(args):
+    """The scene file's Scene, with the view flags given replacing its camera settings and size."""
+    from dataclasses import replace
+
+    from .scenefile import load_scene
+    for name in _VOLUME_FLAGS:
+        if getattr(args, name, None) not in (None, False):
+            flag = "--" + name.replace("_", "-")
+            raise InputError(f"{flag} does not apply to a scene file ({args.volume}); "
+                             f"set {name} in its [[volume]] tables")
+    view = {"eye": args.eye, "look_at": args.look_at, "up": args.up, "fov": args.fov, "parallel": args.parallel}
+    scene = load_scene(args.volume, view=view, size=args.size)
+    if getattr(args, "background", None) is not None:
+        scene = replace(scene, background=args.background)
+    return scene
+
+
+def _add_flag_lights(scene, args, say):
+    """``scene`` with the --light and --sun lights added, and shadows on with --shadows."""
+    import parc
+    from dataclasses import replace
+    lights = [parc.PointLight(position=p) for p in args.light or ()]
+    for d in args.sun or ():
+        try:
+            lights.append(parc.DirectionalLight(direction=d))
+        except InputError as exc:
+            raise InputError(f"--sun: {exc}") from None
+    if lights or args.shadows:
+        scene = replace(scene, lights=scene.lights + lights, shadows=scene.shadows or args.shadows)
+    if scene.shadows and not scene.lights:
+        say("shadows with only the headlight show nothing (the light sits at the eye); add --light or --sun")
+    return scene
+
+
+def _volume_scene(args, say):
     """The volume, isovalue and camera the flags describe, as a Scene."""
     import parc
     from data_tools.synthetic import builtin_volume
 
-    w, h = args.size
+    w, h = args.size or (512, 512)
     if w < 1 or h < 1:
         raise InputError(f"image size must be positive, got {w} {h}")
     if args.volume is None:
@@ -255,12 +336,12 @@ def _scene(args, say):
     if args.tf is not None:
         if args.iso is not None:
             raise InputError("give --iso (an isosurface) or --tf (a translucent volume), not both")
-        vis = parc.Translucent(vol, args.tf, mode=args.mode, step=args.step, threshold=args.threshold,
-                               shade=args.shade)
+        vis = parc.Translucent(vol, args.tf, mode=args.mode or "composite", step=args.step,
+                               threshold=0.99 if args.threshold is None else args.threshold, shade=args.shade)
         return parc.Scene(camera=_camera(args, vol), size=(w, h), volumes=[vis],
                           background=getattr(args, "background", None))
-    for flag in ("step", "shade"):
-        if getattr(args, flag):
+    for flag in ("mode", "step", "threshold", "shade"):
+        if getattr(args, flag) not in (None, False):
             raise InputError(f"--{flag} applies to translucent volumes (--tf)")
     if iso is None:
         from data_tools.info import suggest_isovalues
@@ -302,13 +383,23 @@ def cmd_render(args):
         _atomic_write(stats_out, lambda tmp: tmp.write_text(json.dumps(result.stats, indent=2) + "\n"))
     s = result.stats
     vis = scene.volumes[0]
-    if isinstance(vis, parc.Isosurface):
+    if len(scene.volumes) > 1:
+        say(f"wrote {out}: {len(scene.volumes)} volumes ({'; '.join(_describe(v) for v in scene.volumes)}); "
+            f"{s['seconds']['total']:.3f} s")
+    elif isinstance(vis, parc.Isosurface):
         say(f"wrote {out}: {s['hits']} of {s['pixels']} pixels hit the isosurface {vis.value:g}; "
             f"{s['seconds']['total']:.3f} s, {s['cells_visited']:,} cells visited, {s['cubic_solves']:,} cubics")
     else:
         say(f"wrote {out}: {vis.mode} of {vis.tf.name or 'the transfer function'}, step {vis.step:g}; "
             f"{s['seconds']['total']:.3f} s, {s['samples']:,} samples")
     return 0
+
+
+def _describe(vis):
+    """One volume of a scene in a few words, for notes and table headers."""
+    what = (f"isovalue {vis.value:g}" if hasattr(vis, "value")
+            else f"{vis.mode} of {vis.tf.name or 'transfer function'}, step {vis.step:g}")
+    return f"{vis.volume.name}, {what}"
 
 
 def cmd_compare(args):
@@ -346,10 +437,15 @@ def cmd_compare(args):
     else:
         w, h = scene.size
         vis = scene.volumes[0]
-        what = (f"isovalue {vis.value:g}" if hasattr(vis, "value")
-                else f"{vis.mode} of {vis.tf.name or 'transfer function'}, step {vis.step:g}")
-        print(f"{vis.volume.name}: {'x'.join(map(str, vis.volume.dims))} {vis.volume.dtype}, {what}, "
-              f"{w}x{h} pixels, median of {args.repeats} after a warm-up")
+        if len(scene.volumes) > 1:
+            print(f"{args.volume}: {len(scene.volumes)} volumes "
+                  f"({'; '.join(_describe(v) for v in scene.volumes)}), "
+                  f"{w}x{h} pixels, median of {args.repeats} after a warm-up")
+        else:
+            what = (f"isovalue {vis.value:g}" if hasattr(vis, "value")
+                    else f"{vis.mode} of {vis.tf.name or 'transfer function'}, step {vis.step:g}")
+            print(f"{vis.volume.name}: {'x'.join(map(str, vis.volume.dims))} {vis.volume.dtype}, {what}, "
+                  f"{w}x{h} pixels, median of {args.repeats} after a warm-up")
         print(format_table(rows))
     return 0
 
@@ -372,26 +468,11 @@ def _supercell_or_error(text):
 
 def _camera(args, vol):
     import parc
+
+    from .scenefile import resolve_view
     lo, hi = vol.bounds
-    up = args.up or (0.0, 0.0, 1.0)
-    if args.eye is None and args.look_at is None:
-        cam = parc.Camera.framing(lo, hi, fov=args.fov, up=up, parallel=args.parallel is not None)
-        if args.parallel is not None:
-            cam = parc.Camera(eye=cam.eye, look_at=cam.look_at, up=up, parallel_scale=args.parallel)
-        return cam
-    look_at = args.look_at or tuple(vol.center)
-    if args.eye is None:
-        framed = parc.Camera.framing(lo, hi, fov=args.fov, up=up)
-        eye = tuple(np.asarray(look_at) + np.subtract(framed.eye, framed.look_at))
-    else:
-        eye = args.eye
-    if args.up is None:
-        # The default up must not be parallel to the view: fall back to +y.
-        f = np.subtract(look_at, eye)
-        n = np.linalg.norm(f)
-        if n > 0 and np.linalg.norm(np.cross(f / n, up)) < 1e-6:
-            up = (0.0, 1.0, 0.0)
-    return parc.Camera(eye=eye, look_at=look_at, up=up, fov=args.fov, parallel_scale=args.parallel)
+    return parc.Camera(**resolve_view(lo, hi, eye=args.eye, look_at=args.look_at, up=args.up, fov=args.fov,
+                                      parallel=args.parallel))
 
 
 def _check_output(path, allowed):

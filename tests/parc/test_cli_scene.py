@@ -1,0 +1,155 @@
+"""The command line with scene files, lights and shadows: what it builds, and one line for each mistake."""
+import json
+import textwrap
+
+import numpy as np
+import pytest
+
+import parc
+from data_tools.io import save_volume
+from data_tools.synthetic import make_synthetic
+from parc.cli import _scene, build_parser, main
+
+
+@pytest.fixture
+def scene_file(tmp_path):
+    """A single-volume scene file (sphere isosurface) with its volume beside it, under data/."""
+    (tmp_path / "data").mkdir()
+    save_volume(make_synthetic("sphere", 16), tmp_path / "data" / "ball.nrrd")
+    path = tmp_path / "scene.toml"
+    path.write_text(textwrap.dedent("""\
+        size = [24, 20]
+        background = [0, 0, 0]
+        [camera]
+        eye = [40, -30, 25]
+        [[volume]]
+        file = "data/ball.nrrd"
+        iso = 0.5
+        [[light]]
+        position = [30, -30, 30]
+    """))
+    return path
+
+
+def _run(argv, capsys):
+    rc = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return rc, out, err
+
+
+def _scene_of(argv):
+    notes = []
+    return _scene(build_parser().parse_args([str(a) for a in argv]), notes.append), notes
+
+
+def _assert_refused(rc, err, out_file, *words):
+    assert rc == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("parc: error: "), err
+    for w in words:
+        assert w in lines[0], lines[0]
+    assert not out_file.exists()
+    assert not list(out_file.parent.glob(f".{out_file.name}*"))     # no temporary left behind
+
+
+def test_render_scene_file_from_another_folder(scene_file, tmp_path_factory, monkeypatch, capsys):
+    out = tmp_path_factory.mktemp("out") / "scene.npy"
+    monkeypatch.chdir(tmp_path_factory.mktemp("elsewhere"))     # the volume is found beside the scene file
+    rc, _, err = _run(["render", scene_file, "-o", out, "--quiet"], capsys)
+    assert rc == 0, err
+    ref = parc.render(parc.load_scene(scene_file))
+    np.testing.assert_array_equal(np.load(out), ref.image)
+    assert ref.image.shape == (20, 24, 4)
+
+
+def test_view_flags_override_the_file(scene_file, tmp_path, capsys):
+    out = tmp_path / "o.npy"
+    rc, _, err = _run(["render", scene_file, "--size", 16, 12, "--eye", "0,-40,8", "--fov", 40,
+                       "-o", out, "--quiet"], capsys)
+    assert rc == 0, err
+    scene = parc.load_scene(scene_file, view={"eye": (0, -40, 8), "fov": 40.0}, size=(16, 12))
+    assert scene.camera.eye == (0.0, -40.0, 8.0) and scene.camera.fov == 40.0
+    np.testing.assert_array_equal(np.load(out), parc.render(scene).image)
+
+
+def test_flags_add_lights_and_shadows(scene_file):
+    scene, notes = _scene_of(["render", scene_file, "-o", "x.png", "--light", "1,2,3", "--sun", "0,0,-5",
+                              "--light", "4,5,6", "--shadows", "--background", "1,1,1"])
+    kinds = [type(light).__name__ for light in scene.lights]
+    # The file's lights first, then --light in order, then --sun.
+    assert kinds == ["PointLight", "PointLight", "PointLight", "DirectionalLight"]
+    assert [light.position for light in scene.lights[1:3]] == [(1.0, 2.0, 3.0), (4.0, 5.0, 6.0)]
+    assert scene.lights[3].direction == (0.0, 0.0, -1.0)
+    assert scene.shadows and scene.background == (1.0, 1.0, 1.0, 1.0) and not notes
+
+
+def test_lights_on_a_volume_file(scene_file):
+    vol = scene_file.parent / "data" / "ball.nrrd"
+    scene, _ = _scene_of(["render", vol, "--iso", 0.5, "-o", "x.png", "--sun", "1,1,-1"])
+    assert len(scene.lights) == 1 and isinstance(scene.lights[0], parc.DirectionalLight)
+    assert not scene.shadows
+    scene, _ = _scene_of(["compare", vol, "--iso", 0.5])
+    assert scene.lights == [] and not scene.shadows           # the headlight
+
+
+def test_shadows_with_only_the_headlight_get_a_note(scene_file):
+    vol = scene_file.parent / "data" / "ball.nrrd"
+    scene, notes = _scene_of(["render", vol, "--iso", 0.5, "-o", "x.png", "--shadows"])
+    assert scene.shadows and scene.lights == []
+    assert any("headlight" in n for n in notes)
+
+
+def test_multi_volume_scene_file_loads(tmp_path):
+    save_volume(make_synthetic("sphere", 16), tmp_path / "a.nrrd")
+    path = tmp_path / "two.toml"
+    path.write_text("[[volume]]\nfile = 'a.nrrd'\niso = 0\n"
+                    "[[volume]]\nfile = 'a.nrrd'\ntf = 'greyscale'\norigin = [20, 0, 0]\n"
+                    "[[light]]\ndirection = [0, 1, -1]\n")
+    scene, _ = _scene_of(["compare", path, "--parallel", 30, "--light", "0,0,50"])
+    assert len(scene.volumes) == 2 and len(scene.lights) == 2
+    assert scene.camera.parallel_scale == 30.0 and scene.size == (512, 512)
+
+
+@pytest.mark.parametrize("extra, words", [
+    (["--iso", "3"], ["--iso does not apply to a scene file", "[[volume]]"]),
+    (["--tf", "greyscale"], ["--tf does not apply to a scene file"]),
+    (["--mode", "mip"], ["--mode does not apply"]),
+    (["--spacing", "1,1,2"], ["--spacing does not apply"]),
+    (["--byte-order", "big"], ["--byte-order does not apply"]),
+    (["--sun", "0,0,0"], ["--sun: light direction must not be zero"]),
+    (["--light", "1,2"], ["--light must be 3 comma-separated finite numbers"]),
+    (["--fov", "200"], ["camera.fov (given on the command line)", "180"]),
+    (["--size", "0", "10"], ["size (given on the command line)"]),
+])
+def test_bad_flags_with_a_scene_file(extra, words, scene_file, tmp_path, capsys):
+    out = tmp_path / "o.png"
+    rc, _, err = _run(["render", scene_file, "-o", out] + extra, capsys)
+    _assert_refused(rc, err, out, *words)
+
+
+def test_bad_scene_file_is_one_line(scene_file, tmp_path, capsys):
+    scene_file.write_text(scene_file.read_text().replace("iso = 0.5", "iso = 5000"))
+    out = tmp_path / "o.png"
+    rc, _, err = _run(["render", scene_file, "-o", out], capsys)
+    _assert_refused(rc, err, out, f"{scene_file}: volume[1].iso: isovalue 5000 is outside the data range")
+    rc, _, err = _run(["render", tmp_path / "missing.toml", "-o", out], capsys)
+    _assert_refused(rc, err, out, "missing.toml: no such scene file")
+
+
+def test_compare_scene_file(scene_file, capsys):
+    rc, out, err = _run(["compare", scene_file, "--size", 12, 12, "--repeats", 1, "--json"], capsys)
+    assert rc == 0, err
+    rows = json.loads(out)
+    assert [r["method"] for r in rows] == ["brute", "parc"] and rows[0]["pixels"] == 144
+    assert rows[1]["hit_mismatches"] == 0
+
+
+def test_help_explains_scene_files_and_lights(capsys):
+    for command in ("render", "compare"):
+        with pytest.raises(SystemExit) as info:
+            main([command, "--help"])
+        assert info.value.code == 0
+        text = capsys.readouterr().out
+        for words in ("SCENE.toml", "lights and shadows", "--light X,Y,Z", "--sun DX,DY,DZ", "--shadows",
+                      "headlight", "parc render scene.toml"):
+            assert words in text, (command, words)
