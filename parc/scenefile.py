@@ -277,7 +277,7 @@ class _Table:
     def error(self, name, message):
         return self.where.error(self.key(name), message)
 
-    def _wrong(self, name, what):
+    def wrong(self, name, what):
         value = self.raw[name]
         return self.error(name, f"must be {what}, got {_kind(value)} {_show(value)}")
 
@@ -287,7 +287,7 @@ class _Table:
             return default
         value = self.raw[name]
         if not _is_number(value) or not math.isfinite(value):
-            raise self._wrong(name, "a finite number")
+            raise self.wrong(name, "a finite number")
         return float(value)
 
     def numbers(self, name, counts, default=None):
@@ -299,7 +299,7 @@ class _Table:
         want = " or ".join(map(str, counts)) + " finite numbers"
         if (not isinstance(value, list) or len(value) not in counts
                 or not all(_is_number(v) and math.isfinite(v) for v in value)):
-            raise self._wrong(name, f"an array of {want}")
+            raise self.wrong(name, f"an array of {want}")
         return tuple(float(v) for v in value)
 
     def integers(self, name, count, default=None, minimum=None):
@@ -309,7 +309,7 @@ class _Table:
         value = self.raw[name]
         if (not isinstance(value, list) or len(value) != count
                 or not all(isinstance(v, int) and not isinstance(v, bool) for v in value)):
-            raise self._wrong(name, f"an array of {count} integers")
+            raise self.wrong(name, f"an array of {count} integers")
         if minimum is not None and min(value) < minimum:
             raise self.error(name, f"must be integers of at least {minimum}, got {value}")
         return tuple(value)
@@ -319,7 +319,7 @@ class _Table:
             return default
         value = self.raw[name]
         if not isinstance(value, str) or not value:
-            raise self._wrong(name, "a non-empty string")
+            raise self.wrong(name, "a non-empty string")
         return value
 
     def boolean(self, name, default=None):
@@ -327,7 +327,7 @@ class _Table:
             return default
         value = self.raw[name]
         if not isinstance(value, bool):
-            raise self._wrong(name, "true or false")
+            raise self.wrong(name, "true or false")
         return value
 
     def material(self, name):
@@ -469,7 +469,7 @@ def _read_file(where, t, cache):
     if "offset" in t:
         offset = t.raw["offset"]
         if not isinstance(offset, int) or isinstance(offset, bool) or offset < 0:
-            raise t._wrong("offset", "an integer >= 0 (bytes before the samples)")
+            raise t.wrong("offset", "an integer >= 0 (bytes before the samples)")
         options["offset"] = offset
     if options["byte_order"] not in (None, "little", "big"):
         raise t.error("byte_order", f"must be \"little\" or \"big\", got {options['byte_order']!r}")
@@ -495,14 +495,14 @@ def _make_synthetic(where, t, cache):
         if isinstance(size, list):
             size = t.integers("size", 3, minimum=2)
         elif not isinstance(size, int) or isinstance(size, bool):
-            raise t._wrong("size", "an integer or an array of 3 integers (samples per axis)")
+            raise t.wrong("size", "an integer or an array of 3 integers (samples per axis)")
         elif size < 2:
             raise t.error("size", f"must be at least 2 samples per axis, got {size}")
     kwargs = {}
     if "seed" in t:
         seed = t.raw["seed"]
         if not isinstance(seed, int) or isinstance(seed, bool) or seed < 0:
-            raise t._wrong("seed", "an integer >= 0")
+            raise t.wrong("seed", "an integer >= 0")
         kwargs["seed"] = seed
     source = ("synthetic", name, size, kwargs.get("seed"))
     if source not in cache:
@@ -523,8 +523,8 @@ def _load_lights(where, raw):
         if ("position" in t) == ("direction" in t):
             raise where.error(prefix, "give position (a point light) or direction (a directional light)"
                               + (", not both" if "position" in t else ""))
-        where_key, cls = ("position", PointLight) if "position" in t else ("direction", DirectionalLight)
-        keyed = [(where_key, where_key, t.numbers(where_key, 3))]
+        kind, cls = ("position", PointLight) if "position" in t else ("direction", DirectionalLight)
+        keyed = [(kind, kind, t.numbers(kind, 3))]
         if "color" in t:
             keyed.append(("color", "color", t.numbers("color", 3)))
         if "intensity" in t:
