@@ -34,14 +34,11 @@ import numpy as np
 from raycast.config import TILE_CHUNK
 from raycast.composite import N_PARAMS, cast_accumulate_image, cast_merged_image
 from raycast.iso import cast_iso_image, empty_outputs
-from raycast.shadow import (combine_lights, light_terms, shadow_accumulate, shadow_iso,
+from raycast.shadow import (KIND_HEADLIGHT, combine_lights, light_terms, shadow_accumulate, shadow_iso,
                             surface_frames)
 
 from .lights import LIGHT_BUFFER_SIZE, N_VIEW, light_array, light_buffers
 from .scene import DirectionalLight, Isosurface
-
-#: Headlight row for `raycast.shadow.light_terms`: a white light at the eye.
-KIND_HEADLIGHT = 2
 
 #: Shadow rays start this far (times the smallest spacing in the scene) from their hit point.
 SHADOW_EPS = 1e-5

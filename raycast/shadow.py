@@ -34,6 +34,8 @@ from .shade import blinn_phong, trilinear_gradient
 from .traverse import to_index_space
 
 KIND_POINT = 0
+#: A light at the eye (the default with no lights): its direction is the view direction.
+KIND_HEADLIGHT = 2
 #: Relative widening of the light buffers' segments: their float32 bounds
 #: are already rounded outwards; this covers the float64 ``D - s``.
 SEGMENT_SLACK = 4e-7
@@ -206,12 +208,18 @@ def surface_frames(data, spc, cam, width, height, pix, t, cell, uvw, points, nor
 def light_terms(points, normals, views, materials, lights, diffuse, specular):
     """Unshadowed Blinn-Phong terms of every hit for every light: ``diffuse[l, m]``, ``specular[l, m]``.
 
+    A row of kind `KIND_HEADLIGHT` is a light at the eye, as for one volume
+    without lights (`raycast.shade.shade_headlight`).
+
     A light on the far side of the surface (as seen from the eye) gives
     zero: it needs no shadow ray.
     """
     for m in prange(points.shape[0]):
         for k in range(lights.shape[0]):
-            lx, ly, lz, dist = to_light(lights[k], points[m, 0], points[m, 1], points[m, 2])
+            if lights[k, 0] == KIND_HEADLIGHT:
+                lx, ly, lz, dist = views[m, 0], views[m, 1], views[m, 2], math.inf
+            else:
+                lx, ly, lz, dist = to_light(lights[k], points[m, 0], points[m, 1], points[m, 2])
             if dist == 0.0:
                 diffuse[k, m] = 0.0
                 specular[k, m] = 0.0
