@@ -1,10 +1,24 @@
-"""Scenes, ray generators and a batch runner for the isosurface correctness tests.
+"""The hard-ray suite: exact-trilinear scenes and rays aimed at the cubic's and the traversal's hard cases.
 
-Everything is seeded and deterministic. Scenes are exact-trilinear fields
-(`naive.Scene`); rays are world rays ``(origin, unit direction, iso)``. The
-caster under test is `raycast.iso.cast_iso_rays`, unaccelerated
-(``use_seg=False``) unless a segment is given; answers are judged by
-`naive.classify` (see its module docstring for the rule).
+About this suite. An *exact-trilinear* field (index coordinates i, j, k)
+
+    F(i, j, k) = c0 + c1 i + c2 j + c3 k + c4 ij + c5 jk + c6 ki + c7 ijk
+
+is reproduced exactly by trilinear interpolation of its samples, so the
+caster's isosurface is exactly ``{F = iso}``. With integer or dyadic
+coefficients the samples are exact in float64 (and in uint16/int16 when they
+fit), so the true first hit along a float64 ray is known to any precision
+(`raycast.reference` computes it in mpmath and holds the acceptance rule).
+This module only builds the inputs, with numpy and exact fractions: scenes
+(`Scene`, `random_scene`), ray generators aimed at the hard cases (axis and
+near-axis rays, grazing and near-double roots, roots on faces, edges and
+vertices, isovalues equal to samples, 16-bit magnitudes, long grids, far
+eyes), and a driver that runs the unaccelerated caster on them (`cast`).
+
+Everything is seeded and deterministic. Rays are world rays
+``(origin, unit direction, iso)`` grouped in `Batch` es; `hard_batches`
+gives one category of the suite (`CATEGORIES`). Used by the correctness
+tests (``tests/raycast``) and the root-finder study (`parc.rootstudy`).
 """
 import math
 from collections import Counter, defaultdict
@@ -13,9 +27,98 @@ from fractions import Fraction
 import numba
 import numpy as np
 
-from naive import Scene, check_batches, field_grad, field_range
-from raycast.iso import cast_iso_rays, empty_outputs
+from .iso import cast_iso_rays, empty_outputs
 
+# ----------------------------------------------------------------- fields
+
+def field_value(c, i, j, k):
+    """F(i, j, k) exactly for int/Fraction/float (dyadic) inputs."""
+    return (c[0] + c[1] * i + c[2] * j + c[3] * k + c[4] * i * j + c[5] * j * k
+            + c[6] * k * i + c[7] * i * j * k)
+
+
+def field_grad(c, i, j, k):
+    """Index-space gradient of F (same exact arithmetic as the inputs)."""
+    return (c[1] + c[4] * j + c[6] * k + c[7] * j * k,
+            c[2] + c[4] * i + c[5] * k + c[7] * i * k,
+            c[3] + c[5] * j + c[6] * i + c[7] * i * j)
+
+
+def field_range(c, shape):
+    """(min, max) of F over the sample box; F is multilinear, so at its corners."""
+    nz, ny, nx = shape
+    vals = [Fraction(field_value([Fraction(x) for x in c], i, j, k))
+            for i in (0, nx - 1) for j in (0, ny - 1) for k in (0, nz - 1)]
+    return min(vals), max(vals)
+
+
+def sample_field(c, shape, dtype):
+    """Samples ``data[k, j, i] = F(i, j, k)``, checked to be exact in ``dtype``.
+
+    Coefficients must be dyadic (k / 2^e): the samples times the common
+    denominator are then integers, computed exactly in int64 and required to
+    stay below 2^53 so that they are exact in float64.
+    """
+    cf = [Fraction(x) for x in c]
+    den = 1
+    for x in cf:
+        den = max(den, x.denominator)
+    if den & (den - 1) or any(den % x.denominator for x in cf):
+        raise ValueError("coefficients must be dyadic")
+    ci = [int(x * den) for x in cf]
+    nz, ny, nx = shape
+    mono = [1, nx, ny, nz, nx * ny, ny * nz, nz * nx, nx * ny * nz]
+    if sum(abs(a) * m for a, m in zip(ci, mono)) >= 2 ** 53:
+        raise ValueError("field too large to be exact in float64")
+    k, j, i = np.meshgrid(np.arange(nz, dtype=np.int64), np.arange(ny, dtype=np.int64),
+                          np.arange(nx, dtype=np.int64), indexing="ij")
+    exact = field_value(ci, i, j, k)               # int64, exact (< 2^53)
+    data = exact.astype(np.float64) / den          # exact: power-of-two divisor
+    if np.dtype(dtype) != np.float64:
+        info = np.iinfo(dtype)
+        if data.min() < info.min or data.max() > info.max or np.any(data != np.round(data)):
+            raise ValueError(f"field samples do not fit {np.dtype(dtype)}")
+    return data.astype(dtype)
+
+
+class Scene:
+    """An exact-trilinear field sampled on a grid with origin/spacing (x, y, z).
+
+    ``coeffs`` are ``(c0, ..., c7)`` of ``F`` (exact in float64), ``shape``
+    is ``(nz, ny, nx)``; ``data`` holds the samples in ``dtype``.
+    """
+
+    def __init__(self, coeffs, shape, dtype=np.float64, origin=(0.0, 0.0, 0.0),
+                 spacing=(1.0, 1.0, 1.0), name=""):
+        self.coeffs = tuple(float(x) for x in coeffs)
+        if any(Fraction(x) != Fraction(y) for x, y in zip(self.coeffs, coeffs)):
+            raise ValueError("coefficients must be exact in float64")
+        self.shape = tuple(int(s) for s in shape)
+        self.origin = np.array(origin, dtype=np.float64)
+        self.spacing = np.array(spacing, dtype=np.float64)
+        self.data = sample_field(self.coeffs, self.shape, dtype)
+        self.name = name
+
+    def index_to_world(self, p):
+        return self.origin + np.asarray(p, dtype=np.float64) * self.spacing
+
+    @property
+    def lo_world(self):
+        return self.origin.copy()
+
+    @property
+    def hi_world(self):
+        nz, ny, nx = self.shape
+        return self.origin + np.array([nx - 1, ny - 1, nz - 1]) * self.spacing
+
+    def value_at_index(self, p):
+        """F at an index point, exactly (Fraction)."""
+        cf = [Fraction(x) for x in self.coeffs]
+        return field_value(cf, *[Fraction(float(x)) for x in p])
+
+
+# Grids: anisotropic with an origin far from 0, dyadic (grid planes exact in
+# world coordinates), and the unit grid.
 ANISO = dict(origin=(-5.5, 3.25, 100.0), spacing=(0.7, 1.3, 2.1))
 DYADIC = dict(origin=(-4.0, 2.5, 8.0), spacing=(0.5, 1.0, 2.0))
 UNIT = dict(origin=(0.0, 0.0, 0.0), spacing=(1.0, 1.0, 1.0))
@@ -404,22 +507,6 @@ def cast_batch(batch):
         r = cast(batch.scene, batch.origins[idx], batch.dirs[idx], iso)
         t[idx], cell[idx], uvw[idx], counts[idx] = r
     return t, cell, uvw, counts
-
-
-def run_batches(batches):
-    """Cast and check every batch. Returns (outcome counts per category, failures)."""
-    results = [cast_batch(b) for b in batches]
-    checks = check_batches([(b.scene, b.origins, b.dirs, b.isos, r[0], r[1], r[2])
-                            for b, r in zip(batches, results)])
-    stats = defaultdict(Counter)
-    failures = []
-    for b, r, chk in zip(batches, results, checks):
-        for m, (outcome, reason) in enumerate(chk):
-            stats[b.category][outcome] += 1
-            if outcome == "FAIL":
-                failures.append((b.category, b.scene.name, b.origins[m].tolist(),
-                                 b.dirs[m].tolist(), float(b.isos[m]), float(r[0][m]), reason))
-    return stats, failures
 
 
 def report(stats, failures, limit=8):

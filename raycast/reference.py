@@ -1,5 +1,9 @@
 """Slow, obvious high-precision reference for ray/isosurface hits, and the acceptance rule.
 
+The truth for the hard-ray suite (`raycast.hardcases`): used by the
+correctness tests and by the root-finder study (`parc.rootstudy`). Needs
+mpmath; nothing in the renderer imports this module.
+
 Source of truth
 ---------------
 An *exact-trilinear* field (index coordinates i, j, k)
@@ -78,10 +82,13 @@ times (see its docstring for the allowed differences).
 """
 import math
 import os
+from collections import Counter, defaultdict
 from fractions import Fraction
 
 import mpmath
 import numpy as np
+
+from .hardcases import cast_batch, field_grad
 
 DPS = 40
 MP = mpmath.MPContext()
@@ -100,106 +107,26 @@ NONSIMPLE_REL = 1e-6    # cap of the conditioned tolerance of optional roots
 NOISE_FACTOR = 10.0     # |P(t_m)| <= NOISE_FACTOR * E(t_m) + ...
 
 
-# ----------------------------------------------------------------- fields
-
-def field_value(c, i, j, k):
-    """F(i, j, k) exactly for int/Fraction/float (dyadic) inputs."""
-    return (c[0] + c[1] * i + c[2] * j + c[3] * k + c[4] * i * j + c[5] * j * k
-            + c[6] * k * i + c[7] * i * j * k)
-
-
-def field_grad(c, i, j, k):
-    """Index-space gradient of F (same exact arithmetic as the inputs)."""
-    return (c[1] + c[4] * j + c[6] * k + c[7] * j * k,
-            c[2] + c[4] * i + c[5] * k + c[7] * i * k,
-            c[3] + c[5] * j + c[6] * i + c[7] * i * j)
-
-
-def field_range(c, shape):
-    """(min, max) of F over the sample box; F is multilinear, so at its corners."""
-    nz, ny, nx = shape
-    vals = [Fraction(field_value([Fraction(x) for x in c], i, j, k))
-            for i in (0, nx - 1) for j in (0, ny - 1) for k in (0, nz - 1)]
-    return min(vals), max(vals)
-
-
-def sample_field(c, shape, dtype):
-    """Samples ``data[k, j, i] = F(i, j, k)``, checked to be exact in ``dtype``.
-
-    Coefficients must be dyadic (k / 2^e): the samples times the common
-    denominator are then integers, computed exactly in int64 and required to
-    stay below 2^53 so that they are exact in float64.
-    """
-    cf = [Fraction(x) for x in c]
-    den = 1
-    for x in cf:
-        den = max(den, x.denominator)
-    if den & (den - 1) or any(den % x.denominator for x in cf):
-        raise ValueError("coefficients must be dyadic")
-    ci = [int(x * den) for x in cf]
-    nz, ny, nx = shape
-    mono = [1, nx, ny, nz, nx * ny, ny * nz, nz * nx, nx * ny * nz]
-    if sum(abs(a) * m for a, m in zip(ci, mono)) >= 2 ** 53:
-        raise ValueError("field too large to be exact in float64")
-    k, j, i = np.meshgrid(np.arange(nz, dtype=np.int64), np.arange(ny, dtype=np.int64),
-                          np.arange(nx, dtype=np.int64), indexing="ij")
-    exact = field_value(ci, i, j, k)               # int64, exact (< 2^53)
-    data = exact.astype(np.float64) / den          # exact: power-of-two divisor
-    if np.dtype(dtype) != np.float64:
-        info = np.iinfo(dtype)
-        if data.min() < info.min or data.max() > info.max or np.any(data != np.round(data)):
-            raise ValueError(f"field samples do not fit {np.dtype(dtype)}")
-    return data.astype(dtype)
-
-
-class Scene:
-    """An exact-trilinear field sampled on a grid with origin/spacing (x, y, z)."""
-
-    def __init__(self, coeffs, shape, dtype=np.float64, origin=(0.0, 0.0, 0.0),
-                 spacing=(1.0, 1.0, 1.0), name=""):
-        self.coeffs = tuple(float(x) for x in coeffs)
-        if any(Fraction(x) != Fraction(y) for x, y in zip(self.coeffs, coeffs)):
-            raise ValueError("coefficients must be exact in float64")
-        self.shape = tuple(int(s) for s in shape)
-        self.origin = np.array(origin, dtype=np.float64)
-        self.spacing = np.array(spacing, dtype=np.float64)
-        self.data = sample_field(self.coeffs, self.shape, dtype)
-        self.name = name
-
-    def mp_grid(self):
-        if getattr(self, "_mp_grid", None) is None:
-            self._mp_grid = ([mpf(float(x)) for x in self.origin],
-                             [mpf(float(x)) for x in self.spacing])
-        return self._mp_grid
-
-    def mp_coeffs(self):
-        if getattr(self, "_mp_coeffs", None) is None:
-            self._mp_coeffs = [mpf(x) for x in self.coeffs]
-        return self._mp_coeffs
-
-    def index_to_world(self, p):
-        return self.origin + np.asarray(p, dtype=np.float64) * self.spacing
-
-    @property
-    def lo_world(self):
-        return self.origin.copy()
-
-    @property
-    def hi_world(self):
-        nz, ny, nx = self.shape
-        return self.origin + np.array([nx - 1, ny - 1, nz - 1]) * self.spacing
-
-    def value_at_index(self, p):
-        """F at an index point, exactly (Fraction)."""
-        cf = [Fraction(x) for x in self.coeffs]
-        return field_value(cf, *[Fraction(float(x)) for x in p])
-
-
 # ----------------------------------------------------------- exact cubic
+
+def mp_grid(scene):
+    """``(origin, spacing)`` of a `raycast.hardcases.Scene` as mpf triples (kept on the scene)."""
+    if getattr(scene, "_mp_grid", None) is None:
+        scene._mp_grid = ([mpf(float(x)) for x in scene.origin],
+                          [mpf(float(x)) for x in scene.spacing])
+    return scene._mp_grid
+
+
+def mp_coeffs(scene):
+    """The scene's field coefficients as mpf (kept on the scene)."""
+    if getattr(scene, "_mp_coeffs", None) is None:
+        scene._mp_coeffs = [mpf(x) for x in scene.coeffs]
+    return scene._mp_coeffs
+
 
 def index_ray(scene, o, d):
     """(O, D) of the exact ray in index space, as mpf triples."""
-    org, spc = scene.mp_grid()
+    org, spc = mp_grid(scene)
     O = [(mpf(float(o[a])) - org[a]) / spc[a] for a in range(3)]
     D = [mpf(float(d[a])) / spc[a] for a in range(3)]
     return O, D
@@ -215,7 +142,7 @@ def _mul(p, q):
 
 def ray_cubic(scene, O, D, iso):
     """Coefficients ``[p0, p1, p2, p3]`` of ``P(t) = F(O + t D) - iso``."""
-    c = scene.mp_coeffs()
+    c = mp_coeffs(scene)
     X, Y, Z = ([O[0], D[0]], [O[1], D[1]], [O[2], D[2]])
     XY, YZ, ZX = _mul(X, Y), _mul(Y, Z), _mul(Z, X)
     XYZ = _mul(XY, Z)
@@ -429,30 +356,37 @@ class Truth:
         return None
 
 
-def classify(scene, o, d, iso, t_m, cell=None, uvw=None):
-    """``(outcome, reason)``: outcome 'hit', 'miss', 'optional', 'noise' or 'FAIL'.
+def judge(tr, t_m, cell=None, uvw=None):
+    """``(outcome, reason, kind)`` of the answer ``t_m`` (inf = miss) for the ray of `Truth` ``tr``.
 
+    ``outcome`` is 'hit', 'miss', 'optional', 'noise' or 'FAIL':
     'hit'/'miss': agrees with a required root / with no root at all;
     'optional': hit or missed an optional (double, near-double, boundary)
     root; 'noise': a hit explained only as rounding at a near-tangency.
+    ``reason`` explains a 'FAIL' (else None), and ``kind`` sorts it (see
+    `_hit_kind`): 'missed' (a required root, no hit), 'inaccurate' (a hit
+    within a cell of the true root nearest to it, outside its tolerance),
+    'wrong' (a hit past the first required root, within a cell of a later
+    one: the first was skipped), 'false' (a hit further than a cell from
+    every root, or outside the box), 'cell' (the cell or local coordinates
+    disagree with ``t_m``).
     """
-    tr = Truth(scene, o, d, iso)
     req = tr.first_required()
     if not math.isfinite(t_m):
         if req is not None:
-            return "FAIL", f"missed simple root r={req[0]!r} (dt={req[1]:.3g})"
-        return ("optional" if tr.roots else "miss"), None
+            return "FAIL", f"missed simple root r={req[0]!r} (dt={req[1]:.3g})", "missed"
+        return ("optional" if tr.roots else "miss"), None, None
     lo_box, hi_box = float(tr.outer[0]), float(tr.outer[1])
     tol0 = HIT_REL * tr.h + 4 * EPS * abs(t_m)
     if not (lo_box - tol0 <= t_m <= hi_box + tol0):
-        return "FAIL", f"hit t={t_m!r} outside box interval [{lo_box!r}, {hi_box!r}]"
+        return "FAIL", f"hit t={t_m!r} outside box interval [{lo_box!r}, {hi_box!r}]", "false"
     outcome = None
     if req is not None and t_m >= req[0] - req[3]:
         if abs(t_m - req[0]) <= req[3]:
             outcome = "hit"
         else:
             return "FAIL", (f"hit t={t_m!r} but the first simple root is r={req[0]!r} "
-                            f"(err {t_m - req[0]:.3g}, tol {req[3]:.3g})")
+                            f"(err {t_m - req[0]:.3g}, tol {req[3]:.3g})"), _hit_kind(tr, t_m)
     if outcome is None:
         for r, dt, required, tol in tr.roots:
             if not required and abs(t_m - r) <= tol:
@@ -467,17 +401,39 @@ def classify(scene, o, d, iso, t_m, cell=None, uvw=None):
         else:
             roots = ", ".join(f"{r[0]!r}{'*' if r[2] else ''}" for r in tr.roots) or "none"
             return "FAIL", (f"spurious hit t={t_m!r}: |P|={P:.3g} > {bound:.3g}; "
-                            f"true roots: {roots}")
+                            f"true roots: {roots}"), _hit_kind(tr, t_m)
     if cell is not None and uvw is not None:
         I = tr.point(t_m)
         for a in range(3):
             ctol = 1e-9 + 16 * tr.dpos[a]
             if not (-1e-9 <= uvw[a] <= 1 + 1e-9):
-                return "FAIL", f"local coordinate {uvw[a]!r} outside the cell (axis {a})"
+                return "FAIL", f"local coordinate {uvw[a]!r} outside the cell (axis {a})", "cell"
             if abs(cell[a] + uvw[a] - I[a]) > ctol:
                 return "FAIL", (f"cell {tuple(cell)} + uvw {tuple(uvw)} != hit point {I} "
-                                f"(axis {a})")
-    return outcome, None
+                                f"(axis {a})"), "cell"
+    return outcome, None, None
+
+
+def _hit_kind(tr, t_m):
+    """How a hit that fails rule 2 or 3 is wrong: 'inaccurate', 'wrong' or 'false'.
+
+    Measured against the true root nearest to ``t_m``, in index space: within
+    one cell of it (less than 1 on every axis) the finder found that root,
+    imprecisely ('inaccurate'), unless it lies past the first required root,
+    which was then skipped ('wrong'). Further from every root: 'false'.
+    """
+    if not tr.roots:
+        return "false"
+    r = min(tr.roots, key=lambda x: abs(t_m - x[0]))
+    if max(abs(a - b) for a, b in zip(tr.point(t_m), tr.point(r[0]))) >= 1.0:
+        return "false"
+    req = tr.first_required()
+    return "wrong" if req is not None and r[0] > req[0] else "inaccurate"
+
+
+def classify(scene, o, d, iso, t_m, cell=None, uvw=None):
+    """``(outcome, reason)`` of the caster's answer ``t_m`` for one ray; see `judge`."""
+    return judge(Truth(scene, o, d, iso), t_m, cell, uvw)[:2]
 
 
 def check_ray(scene, o, d, iso, t_m, cell=None, uvw=None):
@@ -490,10 +446,17 @@ def check_ray(scene, o, d, iso, t_m, cell=None, uvw=None):
 # Checks run in a pool of worker processes (one per available core, at most
 # 8; set PARC_TEST_WORKERS to override, 1 for none).
 
-def _check_chunk(args):
-    scene, origins, dirs, isos, t, cell, uvw = args
-    return [classify(scene, origins[n], dirs[n], isos[n], float(t[n]), cell[n], uvw[n])
-            for n in range(len(t))]
+def _judge_chunk(args):
+    """Per ray: the first required root ``(r, tol)`` or None, all roots, `judge` of each answer."""
+    scene, origins, dirs, isos, answers = args
+    out = []
+    for n in range(len(origins)):
+        tr = Truth(scene, origins[n], dirs[n], isos[n])
+        req = tr.first_required()
+        out.append(((req[0], req[3]) if req is not None else None,
+                    tuple(r[0] for r in tr.roots),
+                    [judge(tr, float(t[n]), cell[n], uvw[n]) for t, cell, uvw in answers]))
+    return out
 
 
 def _workers():
@@ -510,7 +473,7 @@ _POOL = None
 
 
 def _pool():
-    """A process pool shared by all checks of a test session (spawned: the
+    """A process pool shared by all checks of a session (spawned: the
     parent has Numba threads, which must not be forked)."""
     global _POOL
     if _POOL is None and _workers() > 1:
@@ -521,11 +484,23 @@ def _pool():
     return _POOL
 
 
-def check_batches(batches, chunk=500):
-    """Check many rays. ``batches``: list of (scene, origins, dirs, isos, t, cell, uvw).
+def judge_batches(batches, chunk=500):
+    """Judge several answers for many rays.
 
-    Returns a list, per batch, of per-ray ``(outcome, reason)``. Rays of the
-    same scene are pooled into chunks for the worker processes.
+    Parameters
+    ----------
+    batches : list of (scene, origins, dirs, isos, answers)
+        ``answers`` is a list of ``(t, cell, uvw)``, one per caster (or
+        root finder) being judged, each with one entry per ray.
+
+    Returns
+    -------
+    list, per batch, of per-ray ``(first, roots, verdicts)``: ``first`` is
+    the first required root ``(r, tol)`` or None, ``roots`` the ``t`` of
+    every true root in the box (required or optional, ascending),
+    ``verdicts`` one `judge` triple per answer. The truth of a ray is computed once whatever the
+    number of answers. Rays of the same scene are pooled into chunks for
+    the worker processes.
     """
     by_scene = {}
     for b, batch in enumerate(batches):
@@ -533,19 +508,53 @@ def check_batches(batches, chunk=500):
     jobs, where = [], []
     for members in by_scene.values():
         scene = batches[members[0]][0]
-        cols = [np.concatenate([np.asarray(batches[b][c]) for b in members])
-                for c in range(1, 7)]
-        owner = [(b, m) for b in members for m in range(len(batches[b][4]))]
+        cols = [np.concatenate([np.asarray(batches[b][c]) for b in members]) for c in (1, 2, 3)]
+        n_ans = len(batches[members[0]][4])
+        answers = [[np.concatenate([np.asarray(batches[b][4][v][c]) for b in members])
+                    for c in range(3)] for v in range(n_ans)]
+        owner = [(b, m) for b in members for m in range(len(batches[b][1]))]
         for s in range(0, len(owner), chunk):
-            jobs.append((scene,) + tuple(x[s:s + chunk] for x in cols))
-            where.append(owner[s:s + chunk])
+            part = slice(s, s + chunk)
+            jobs.append((scene,) + tuple(x[part] for x in cols)
+                        + ([tuple(x[part] for x in ans) for ans in answers],))
+            where.append(owner[part])
     pool = _pool()
-    results = pool.map(_check_chunk, jobs, chunksize=1) if pool else map(_check_chunk, jobs)
-    out = [[None] * len(b[4]) for b in batches]
+    results = pool.map(_judge_chunk, jobs, chunksize=1) if pool else map(_judge_chunk, jobs)
+    out = [[None] * len(b[1]) for b in batches]
     for owners, res in zip(where, results):
         for (b, m), r in zip(owners, res):
             out[b][m] = r
     return out
+
+
+def check_batches(batches, chunk=500):
+    """Check many rays. ``batches``: list of (scene, origins, dirs, isos, t, cell, uvw).
+
+    Returns a list, per batch, of per-ray ``(outcome, reason)``.
+    """
+    judged = judge_batches([(sc, o, d, iso, [(t, cell, uvw)]) for sc, o, d, iso, t, cell, uvw in batches],
+                           chunk)
+    return [[verdicts[0][:2] for _, _, verdicts in rays] for rays in judged]
+
+
+def run_batches(batches):
+    """Cast (unaccelerated) and check every `raycast.hardcases.Batch`.
+
+    Returns ``(stats, failures)``: outcome counts per category, and one
+    ``(category, scene name, origin, direction, iso, t, reason)`` per failure.
+    """
+    results = [cast_batch(b) for b in batches]
+    checks = check_batches([(b.scene, b.origins, b.dirs, b.isos, r[0], r[1], r[2])
+                            for b, r in zip(batches, results)])
+    stats = defaultdict(Counter)
+    failures = []
+    for b, r, chk in zip(batches, results, checks):
+        for m, (outcome, reason) in enumerate(chk):
+            stats[b.category][outcome] += 1
+            if outcome == "FAIL":
+                failures.append((b.category, b.scene.name, b.origins[m].tolist(),
+                                 b.dirs[m].tolist(), float(b.isos[m]), float(r[0][m]), reason))
+    return stats, failures
 
 
 # ----------------------------------------------------- traversal reference
@@ -578,7 +587,7 @@ def exact_cell_count(scene, o, d, near=1e-12):
       ``TINY_DIRECTION`` while not zero, anything goes (``n_uncertain``
       infinite).
     """
-    from raycast.traverse import TINY_DIRECTION
+    from .traverse import TINY_DIRECTION
     nz, ny, nx = scene.shape
     n = (nx, ny, nz)
     o64, d64 = np.asarray(o, np.float64), np.asarray(d, np.float64)

@@ -1,13 +1,13 @@
 """Hard-ray suite: 105,000 rays aimed at the cubic's and the traversal's hard cases.
 
-Source of truth: `naive` (exact cubic along each ray from the float64
-inputs, roots in mpmath at 40 digits). Tolerance: `naive`'s acceptance rule
+Source of truth: `raycast.reference` (exact cubic along each ray from the float64
+inputs, roots in mpmath at 40 digits). Tolerance: its acceptance rule
 (module docstring there): a simple first root must be hit within 1e-9 of the
 smallest spacing; double/near-double roots and roots within rounding of the
 box may go either way; a hit with no root nearby only where the cubic is
 within its float evaluation error of zero. Zero failures are allowed.
 
-Categories (generators in `hard_rays`), 10,500 rays each:
+Categories (generators in `raycast.hardcases`), 10,500 rays each:
 
 * axis              d = +-e_x, e_y, e_z exactly (A = B = 0), transverse
                     coordinates random, on grid planes/edges, or ulps off them
@@ -25,7 +25,8 @@ Categories (generators in `hard_rays`), 10,500 rays each:
 """
 import pytest
 
-from hard_rays import CATEGORIES, hard_batches, report, run_batches
+from raycast.hardcases import CATEGORIES, hard_batches, report
+from raycast.reference import run_batches
 
 RAYS_PER_CATEGORY = 10_500
 
@@ -80,7 +81,7 @@ def test_segment_start_gives_identical_hits(category):
     the hit cell's entry, is starting after the surface when the root lies
     on that entry face.)"""
     import numpy as np
-    from hard_rays import cast
+    from raycast.hardcases import cast
 
     bad, n_hits, n_seeded = [], 0, 0
     rng = np.random.default_rng(99)

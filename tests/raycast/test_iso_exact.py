@@ -1,7 +1,7 @@
 """The unaccelerated isosurface caster against exact-trilinear fields.
 
-Source of truth: `naive` -- the exact cubic along each ray from the float64
-inputs, its real roots in mpmath (40 digits). Tolerance: `naive`'s
+Source of truth: `raycast.reference` -- the exact cubic along each ray from the float64
+inputs, its real roots in mpmath (40 digits). Tolerance: its
 acceptance rule -- a simple first root (conditioning ``dt <= 1e-10 h``) must
 be hit within ``1e-9 h`` (h = smallest spacing); double/near-double roots
 and roots within rounding of the box may be hit or missed; a hit with no
@@ -22,11 +22,11 @@ does) anywhere before the hit gives bit-identical answers.
 import numpy as np
 import pytest
 
-from hard_rays import (ANISO, DYADIC, UNIT, Batch, aimed_rays, axis_rays, cast,
-                       diagonal_vertex_rays, in_plane_rays, near_axis_rays, parallel_rays,
-                       perspective_rays, plane_hugging_rays, random_dirs, random_isos,
-                       random_scene, report, run_batches, vertex_world)
-from naive import Truth
+from raycast.hardcases import (ANISO, DYADIC, UNIT, Batch, aimed_rays, axis_rays, cast,
+                               diagonal_vertex_rays, in_plane_rays, near_axis_rays, parallel_rays,
+                               perspective_rays, plane_hugging_rays, random_dirs, random_isos,
+                               random_scene, report, vertex_world)
+from raycast.reference import Truth, run_batches
 
 SCENES = [
     # (seed, shape (nz, ny, nx), dtype, terms, grid, denominator)
@@ -116,7 +116,7 @@ def test_segment_start_gives_identical_hits(spec):
 def test_truth_agrees_with_a_plain_sample_scan():
     """Guard on the reference itself: scan P(t) on a fine grid in mpmath; the
     first sign change must bracket Truth's first root."""
-    from naive import mpf, peval
+    from raycast.reference import mpf, peval
     scene = make_scene(*SCENES[0])
     rng = np.random.default_rng(5)
     iso = float(np.median(scene.data)) + 0.123

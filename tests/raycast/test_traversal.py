@@ -1,6 +1,6 @@
 """Cell traversal: the caster visits exactly the cells the ray passes through.
 
-Source of truth: `naive.exact_cell_count` -- the box interval and every
+Source of truth: `raycast.reference.exact_cell_count` -- the box interval and every
 integer-plane crossing time of the ray, in exact rational arithmetic from
 the float64 inputs. The caster is run with an isovalue above all data (it
 does not validate it), so no cell can hold a root, every cell is walked and
@@ -19,10 +19,10 @@ decides whether the crossing is inside the box.
 import numpy as np
 import pytest
 
-from hard_rays import (ANISO, DYADIC, UNIT, axis_rays, cast, diagonal_vertex_rays, in_plane_rays,
+from raycast.hardcases import (ANISO, DYADIC, UNIT, axis_rays, cast, diagonal_vertex_rays, in_plane_rays,
                        long_scenes, near_axis_rays, parallel_rays, perspective_rays,
                        plane_hugging_rays, random_scene)
-from naive import exact_cell_count
+from raycast.reference import exact_cell_count
 
 KINDS = ["persp-outside", "persp-inside", "parallel", "axis", "near-axis", "plane-hugging",
          "in-plane", "diag-vertex"]
