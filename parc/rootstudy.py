@@ -355,7 +355,7 @@ def format_table(rows):
     head = (f"{'finder':12s} {'ns/solve':>9s} {'max err':>9s} {'med err':>9s} {'fail':>6s} "
             f"{'missed':>6s} {'false':>6s} {'wrong':>6s} {'inacc':>6s} {'cell':>5s}")
     lines = [f"hard-ray suite: {rows[0]['rays']:,} rays ({rows[0]['required']:,} with a required "
-             f"root), {rows[0]['solves']:,} cubics timed; errors in cells", head]
+             f"root), {rows[0]['solves']:,} cubics timed; errors |t - r| in smallest spacings", head]
     for r in rows:
         lines.append(f"{r['name']:12s} {r['ns_per_solve']:9.1f} {r['max_err_cells']:9.2e} "
                      f"{r['median_err_cells']:9.2e} {r['failures']:6d} {r['missed']:6d} "

@@ -16,9 +16,11 @@ vertices, isovalues equal to samples, 16-bit magnitudes, long grids, far
 eyes), and a driver that runs the unaccelerated caster on them (`cast`).
 
 Everything is seeded and deterministic. Rays are world rays
-``(origin, unit direction, iso)`` grouped in `Batch` es; `hard_batches`
-gives one category of the suite (`CATEGORIES`). Used by the correctness
-tests (``tests/raycast``) and the root-finder study (`parc.rootstudy`).
+``(origin, unit direction, iso)``, grouped per scene and category in a
+`Batch`; `hard_batches` gives one category of the suite (`CATEGORIES`).
+Used by the correctness tests (``tests/raycast``) and the root-finder study
+(`parc.rootstudy`). Not a kernel module: it lives beside the caster it
+drives, and imports no mpmath.
 """
 import math
 from collections import Counter, defaultdict
@@ -497,6 +499,7 @@ def cast(scene, origins, dirs, iso, seg=None):
 
 
 def cast_batch(batch):
+    """`cast` every ray of a `Batch` (grouped by isovalue); returns (t, cell, uvw, counts)."""
     n = len(batch)
     t, cell, uvw, counts = empty_outputs(n)
     groups = defaultdict(list)
@@ -510,6 +513,7 @@ def cast_batch(batch):
 
 
 def report(stats, failures, limit=8):
+    """Text summary of `raycast.reference.run_batches`' result: counts, then the first failures."""
     lines = ["per category (outcome counts):"]
     for cat, c in sorted(stats.items()):
         lines.append(f"  {cat:>18}: {sum(c.values()):6d} rays  " + ", ".join(
