@@ -109,9 +109,8 @@ import numpy as np
 
 from data_tools import InputError
 
-from .raster import (ABS_TOL, COVERAGE_PAD_PX, GUARD_PX, INSIDE_CLIP_REL, TOL_REL,
-                     OpenGLUnavailable, _distance_to_pc, _moderngl, _scene_scale, _set, get_context, load_shader,
-                     set_view_uniforms)
+from .raster import (ABS_TOL, COVERAGE_PAD_PX, GUARD_PX, INSIDE_CLIP_REL, TOL_REL, _distance_to_pc,
+                     _moderngl, _program, _scene_scale, _set, get_context, set_view_uniforms)
 
 #: Width of the boundary band (halo mode), in cells along the plane axis:
 #: far above the caster's mismatch between ``floor(pos / m)`` and the
@@ -122,7 +121,6 @@ BAND_CELLS = 1e-7
 #: Proxies kept by `plane_buffers` (grid, classification, axis).
 PROXY_CACHE_SIZE = 4
 
-_PROGRAMS = {}
 _UPLOADS = weakref.WeakKeyDictionary()
 _BUFFERS = {}
 _FBOS = {}
@@ -507,26 +505,6 @@ def _sized(ctx, width, height, nwords):
         _BUFFERS.clear()
         _BUFFERS[key] = ctx.buffer(reserve=width * height * nwords * 4)
     return _FBOS[fkey], _BUFFERS[key]
-
-
-def _program(ctx, name, parallel=False):
-    """``parc/shaders/<name>.{vert,geom,frag}``, compiled once per context (copied from parc.raster)."""
-    key = (id(ctx), name, bool(parallel))
-    if key not in _PROGRAMS:
-        frag = load_shader(f"{name}.frag")
-        if parallel:
-            head, _, rest = frag.partition("\n")
-            frag = f"{head}\n#define PARALLEL 1\n{rest}"
-        try:
-            _PROGRAMS[key] = ctx.program(vertex_shader=load_shader(f"{name}.vert"),
-                                         geometry_shader=load_shader(f"{name}.geom"),
-                                         fragment_shader=frag)
-        except Exception as exc:
-            lines = [ln.strip() for ln in str(exc).splitlines() if "error" in ln.lower()]
-            raise OpenGLUnavailable(f"OpenGL {ctx.info['GL_VERSION']} cannot compile PARC's "
-                                    f"{name} shaders: {(lines or [str(exc)])[-1]}") from None
-    return _PROGRAMS[key]
-
 
 
 __all__ = ["BAND_CELLS", "PlaneBits", "major_axis", "plane_buffers", "plane_range", "raster_bits"]

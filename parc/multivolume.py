@@ -37,7 +37,7 @@ from raycast.iso import cast_iso_image, empty_outputs
 from raycast.shadow import (KIND_HEADLIGHT, combine_lights, light_terms, shadow_accumulate, shadow_iso,
                             surface_frames)
 
-from .lights import LIGHT_BUFFER_SIZE, N_VIEW, light_array, light_buffers
+from .lights import CACHE_SIZE, LIGHT_BUFFER_SIZE, N_VIEW, light_array, light_buffers
 from .scene import DirectionalLight, Isosurface
 
 #: Shadow rays start this far (times the smallest spacing in the scene) from their hit point.
@@ -55,7 +55,7 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
     (cells, solves, samples, shadow_cells, shadow_solves, shadow_samples,
     shadow_rays), seconds per phase and per-volume PARC details.
     """
-    from .renderer import _parc_segments, _proxy, accumulation_params
+    from .renderer import _parc_segments, accumulation_params
 
     w, h = scene.size
     npx = w * h
@@ -238,7 +238,7 @@ def _cached_light_buffers(light, vis, proxy, size, n):
     buf = cache.get(key)
     if buf is None:
         buf = light_buffers(light, proxy, size=n)
-        if len(cache) >= 16:
+        if len(cache) >= CACHE_SIZE:
             cache.pop(next(iter(cache)))
         cache[key] = buf
     return buf

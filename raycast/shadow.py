@@ -119,6 +119,22 @@ def shadow_span(light, views, near, far, use_seg, px, py, pz, eps, dist):
     return max(s0, a - m), min(s1, b + m)
 
 
+@kernel
+def shadow_ray(points, n, light, eps, views, near, far, use_seg, org, spc):
+    """Shadow ray of ``points[n]`` in a volume's index space, and the span it walks.
+
+    Returns ``(s0, s1, O, D, l, dist)``: ``s0 > s1`` when nothing needs
+    walking (the point at the light, or no PC supercell on the way).
+    """
+    px, py, pz = points[n, 0], points[n, 1], points[n, 2]
+    lx, ly, lz, dist = to_light(light, px, py, pz)
+    s0, s1 = 1.0, 0.0
+    if dist > eps:
+        s0, s1 = shadow_span(light, views, near, far, use_seg, px, py, pz, eps, dist)
+    Ox, Oy, Oz, Dx, Dy, Dz = to_index_space(px + eps * lx, py + eps * ly, pz + eps * lz, lx, ly, lz, org, spc)
+    return s0, s1, Ox, Oy, Oz, Dx, Dy, Dz, lx, ly, lz, dist
+
+
 @kernel(parallel=True)
 def shadow_iso(data, org, spc, iso, points, light, eps, views, near, far, use_seg, vis, counts):
     """Zero ``vis[n]`` where the isosurface blocks the shadow ray of ``points[n]``.
@@ -129,15 +145,10 @@ def shadow_iso(data, org, spc, iso, points, light, eps, views, near, far, use_se
     for n in prange(points.shape[0]):
         if vis[n] == 0.0:
             continue
-        px, py, pz = points[n, 0], points[n, 1], points[n, 2]
-        lx, ly, lz, dist = to_light(light, px, py, pz)
-        if dist <= eps:
-            continue
-        s0, s1 = shadow_span(light, views, near, far, use_seg, px, py, pz, eps, dist)
+        s0, s1, Ox, Oy, Oz, Dx, Dy, Dz, lx, ly, lz, dist = shadow_ray(points, n, light, eps, views, near,
+                                                                       far, use_seg, org, spc)
         if not s0 <= s1:
             continue
-        Ox, Oy, Oz, Dx, Dy, Dz = to_index_space(px + eps * lx, py + eps * ly, pz + eps * lz,
-                                                lx, ly, lz, org, spc)
         res = cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, s0, s1)
         counts[n, 0] += res[7]
         counts[n, 1] += res[8]
@@ -158,15 +169,10 @@ def shadow_accumulate(data, org, spc, params, op_x, op_y, col_x, col_rgb, points
     for n in prange(points.shape[0]):
         if vis[n] == 0.0:
             continue
-        px, py, pz = points[n, 0], points[n, 1], points[n, 2]
-        lx, ly, lz, dist = to_light(light, px, py, pz)
-        if dist <= eps:
-            continue
-        s0, s1 = shadow_span(light, views, near, far, use_seg, px, py, pz, eps, dist)
+        s0, s1, Ox, Oy, Oz, Dx, Dy, Dz, lx, ly, lz, dist = shadow_ray(points, n, light, eps, views, near,
+                                                                       far, use_seg, org, spc)
         if not s0 <= s1:
             continue
-        Ox, Oy, Oz, Dx, Dy, Dz = to_index_space(px + eps * lx, py + eps * ly, pz + eps * lz,
-                                                lx, ly, lz, org, spc)
         r, g, b, a, samples = accumulate_ray(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, lx, ly, lz, s0, s1,
                                              dist - eps, params, op_x, op_y, col_x, col_rgb,
                                              nobits, 0, 0, False)
