@@ -1,4 +1,4 @@
-"""The `parc` command line: render, compare, info, make.
+"""The `parc` command line: render, compare, bench, info, make.
 
 Every user mistake ends in one line on stderr (``parc: error: ...``) and
 exit status 2: no traceback, and no output file, complete or partial.
@@ -35,6 +35,7 @@ examples:
   parc compare scene.toml --size 256 256      flags override the scene file's view and size
   parc info CThead.nrrd                       dims, spacing, histogram, isovalues
   parc make ct_phantom --size 128 -o ct.nrrd  a synthetic volume
+  parc bench --quick --out report/            the benchmark suite: report.md and charts
 
 Axis order: positions, spacing and origin are x,y,z; arrays are [z,y,x].
 Scene files (.toml) are described in the README ("Scene files") and in
@@ -203,6 +204,23 @@ def build_parser():
     _add_light_options(c)
     _add_volume_options(c)
 
+    b = sub.add_parser("bench", help="run the benchmark suite: the papers' tables, sweeps, Visible Woman scale",
+                       description="Run the fixed benchmark suite and write OUT/report.md, OUT/results.json, "
+                                   "PNG charts and pictures: Sobierajski & Avila's Tables 1-3 (brute against "
+                                   "parc), Parker et al.'s time shares and thread scaling, sweeps of speed "
+                                   "against error (supercell, sample step, root finder, storage precision), a "
+                                   "512x512x1734 int16 memory-mapped phantom, and the ideal bound. Real volumes "
+                                   "from ../shared/data are used when present, synthetic ones otherwise. The "
+                                   "full suite takes several minutes on 2 cores (the phantom, 910 MB, is written "
+                                   "to the cache folder on the first run); exits 1 if a consistency check fails.")
+    b.add_argument("--out", default="bench-report", metavar="DIR", help="output folder (default bench-report)")
+    size = b.add_mutually_exclusive_group()
+    size.add_argument("--quick", action="store_true",
+                      help="a reduced suite in a few minutes: half-size images, a 256x256x867 phantom")
+    size.add_argument("--tiny", action="store_true",
+                      help="tiny synthetic volumes and images, seconds: checks the report, not the speed")
+    b.add_argument("--data", metavar="DIR", help="folder of real volumes (default ../shared/data beside the checkout)")
+
     i = sub.add_parser("info", help="describe a volume and suggest isovalues")
     i.add_argument("volume")
     _add_volume_options(i)
@@ -226,7 +244,9 @@ def main(argv=None):
         if args.command is None:
             build_parser().print_help()
             return EXIT_USAGE
-        commands = {"render": cmd_render, "compare": cmd_compare, "info": cmd_info, "make": cmd_make}
+        args.argv = list(sys.argv[1:] if argv is None else argv)
+        commands = {"render": cmd_render, "compare": cmd_compare, "info": cmd_info, "make": cmd_make,
+                    "bench": cmd_bench}
         return commands[args.command](args)
     except InputError as exc:
         print(f"parc: error: {exc}", file=sys.stderr)
@@ -448,6 +468,11 @@ def cmd_compare(args):
                   f"{w}x{h} pixels, median of {args.repeats} after a warm-up")
         print(format_table(rows))
     return 0
+
+
+def cmd_bench(args):
+    from .bench import main
+    return main(args)
 
 
 def _buffers(args):

@@ -59,7 +59,8 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
         One row per method: ``method``, ``seconds`` (median total),
         ``phases`` (median seconds per phase), ``speedup`` against brute,
         the `image_error` fields, ``cells_visited``, ``cubic_solves``,
-        ``hits``, ``polygons``, ``supercell``, ``pixels``.
+        ``samples``, ``shadow_cells``, ``shadow_solves``, ``hits``,
+        ``polygons``, ``supercell``, ``pixels``.
     """
     if repeats < 1 or warmup < 0:
         raise InputError("repeats must be at least 1 and warmup at least 0")
@@ -92,6 +93,7 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
         row = {"method": name, "seconds": med, "phases": phases,
                "cells_visited": s["cells_visited"], "cubic_solves": s["cubic_solves"],
                "samples": s.get("samples", 0),
+               "shadow_cells": s.get("shadow_cells", 0), "shadow_solves": s.get("shadow_solves", 0),
                "hits": s["hits"], "pixels": s["pixels"], "polygons": s.get("polygons", 0),
                "supercell": s.get("supercell")}
         row.update(image_error(res, reference, cell))

@@ -23,7 +23,7 @@ READ_EXTENSIONS = tuple(_READERS)
 #: Extensions ``save_volume`` writes.
 WRITE_EXTENSIONS = (".nrrd", ".nhdr", ".npy", ".mhd", ".mha", ".vtk", ".raw")
 #: Options only a headerless raw file takes.
-RAW_ONLY_OPTIONS = ("shape", "dtype", "byte_order", "offset")
+RAW_ONLY_OPTIONS = ("shape", "dtype", "byte_order", "offset", "mmap")
 
 
 def load_volume(path, **options) -> Volume:
@@ -36,7 +36,7 @@ def load_volume(path, **options) -> Volume:
         or headerless ``.raw``/``.bin``/``.dat``.
     **options
         For raw files: ``shape=(nx, ny, nz)``, ``dtype``, ``byte_order``,
-        ``offset`` (see :func:`data_tools.io.raw.read_raw`). ``spacing`` and
+        ``offset``, ``mmap`` (see :func:`data_tools.io.raw.read_raw`). ``spacing`` and
         ``origin`` apply to every format and replace what the file says.
         Options that are ``None`` are ignored.
 
@@ -57,7 +57,7 @@ def load_volume(path, **options) -> Volume:
     unknown = set(options) - set(RAW_ONLY_OPTIONS) - {"spacing", "origin"}
     if unknown:
         raise TypeError(f"load_volume() got unexpected options {sorted(unknown)}")
-    options = {k: v for k, v in options.items() if v is not None}
+    options = {k: v for k, v in options.items() if v is not None and not (k == "mmap" and not v)}
     ext = path.suffix.lower()
     if ext not in _READERS:
         if not path.exists():

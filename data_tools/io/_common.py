@@ -66,12 +66,14 @@ def to_native(arr: np.ndarray) -> np.ndarray:
 
 
 def read_samples(path: Path, offset: int, dims, dtype, big_endian: bool, *,
-                 exact: bool = True, kind: str = "raw") -> np.ndarray:
+                 exact: bool = True, kind: str = "raw", mmap: bool = False) -> np.ndarray:
     """Read ``nx*ny*nz`` samples from ``path`` at byte ``offset`` as ``[z, y, x]``.
 
     With ``exact`` the data must end the file; otherwise trailing bytes
     (a final newline, further sections) are ignored. A short file is an
-    InputError stating the expected and actual byte counts.
+    InputError stating the expected and actual byte counts. With ``mmap``
+    the samples are a read-only memory map of the file (pages are read as
+    rays touch them), which needs the machine's byte order.
     """
     nx, ny, nz = (int(n) for n in dims)
     dt = file_order_dtype(dtype, big_endian)
@@ -84,6 +86,11 @@ def read_samples(path: Path, offset: int, dims, dtype, big_endian: bool, *,
         raise InputError(
             f"{path}: {kind} data {state}: {nx}x{ny}x{nz} {np.dtype(dtype).name} needs "
             f"{expected} bytes{where}, the file has {max(actual, 0)}")
+    if mmap:
+        if not (dt.isnative or dt.itemsize == 1):
+            raise InputError(f"{path}: cannot memory-map {kind} data in the other byte order; "
+                             "load it without mmap")
+        return np.memmap(path, dtype=dt.newbyteorder("="), mode="r", offset=offset, shape=(nz, ny, nx))
     arr = np.fromfile(path, dtype=dt, count=count, offset=offset)
     return to_native(arr).reshape(nz, ny, nx)
 

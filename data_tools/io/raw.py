@@ -74,7 +74,7 @@ def _parse_dtype(dtype, path):
 
 
 def read_raw(path, *, shape=None, dtype=None, byte_order=None, offset=0,
-             spacing=None, origin=None) -> Volume:
+             spacing=None, origin=None, mmap=False) -> Volume:
     """Read a headerless raw volume, x varying fastest.
 
     Parameters
@@ -91,6 +91,9 @@ def read_raw(path, *, shape=None, dtype=None, byte_order=None, offset=0,
         Header bytes to skip before the samples.
     spacing, origin : (x, y, z), optional
         Default ``(1, 1, 1)`` and ``(0, 0, 0)``.
+    mmap : bool
+        Memory-map the samples read-only instead of reading them: a volume
+        larger than memory renders, paged in as rays reach it.
 
     Returns
     -------
@@ -123,7 +126,7 @@ def read_raw(path, *, shape=None, dtype=None, byte_order=None, offset=0,
     if offset < 0:
         raise InputError(f"{path}: offset must not be negative, got {offset}")
     with reading(path, "raw"):
-        data = read_samples(path, offset, dims, dtype, str(byte_order).lower() == "big")
+        data = read_samples(path, offset, dims, dtype, str(byte_order).lower() == "big", mmap=bool(mmap))
     return Volume(data, spacing=spacing if spacing is not None else (1.0, 1.0, 1.0),
                   origin=origin if origin is not None else (0.0, 0.0, 0.0),
                   name=str(path), meta={"format": "raw", "byte_order": str(byte_order).lower()})

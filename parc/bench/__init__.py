@@ -1,0 +1,314 @@
+"""`parc bench`: the reproducible scoreboard, speed against error, every figure measured in one run.
+
+The suite (`run_bench`) writes ``report.md``, ``results.json``, PNG
+charts and the scenes' pictures into one folder:
+
+1. Sobierajski & Avila's Tables 1-3 (`tables`): CT translucent, iron
+   protein isosurface inside a translucent volume, a neuron on a floor with
+   two shadowing lights; `brute` against `parc` at two image sizes.
+2. Parker et al.'s Tables 1-2 (`parker`): the share of traversal,
+   intersection and shading in a CT isosurface frame; thread scaling.
+3. Sweeps of speed against error (`sweeps`): supercell size, sample step,
+   cubic root finder, storage precision.
+4. Visible Woman scale (`scale`): a 512x512x1734 int16 phantom, memory-mapped.
+5. The ideal bound (`parc.ideal`) next to what each method touched.
+
+Real volumes from ``../shared/data`` are used when present, synthetic
+analogues otherwise; the report says which. Three suites: `Suite.full`
+(the default), `Suite.quick` (a few minutes) and `Suite.tiny` (seconds; for
+the tests: its numbers check the report's consistency, not speed).
+"""
+from __future__ import annotations
+
+import json
+import os
+import platform
+import sys
+import time
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from data_tools import InputError
+
+from .scenes import default_data_dir
+
+
+def default_cache_dir():
+    """Where the Visible Woman phantom is kept between runs: ``$PARC_CACHE_DIR/bench`` or ``~/.cache/parc/bench``."""
+    base = os.environ.get("PARC_CACHE_DIR") or os.path.join(os.path.expanduser("~"), ".cache", "parc")
+    return Path(base) / "bench"
+
+
+@dataclass(frozen=True)
+class Suite:
+    """What one bench run measures.
+
+    Attributes
+    ----------
+    name : str
+    sizes : tuple of int
+        Image sides of the paper tables (the paper's 300 and 600).
+    parker_size : int
+        Image side of the CT isosurface sections (time shares, threads, sweeps).
+    repeats : int
+        Timed renders per measurement after one warm-up; medians are reported.
+    supercells : tuple of float
+        Supercell sizes of the sweep, in cells.
+    steps : tuple of float
+        Sample steps of the sweep, in smallest spacings.
+    roots_quick : bool
+        The root-finder study's quick sample of the hard-ray suite.
+    roots_n : int or None
+        Rays per hard-ray category (overrides ``roots_quick``).
+    vw_shape : (nx, ny, nz)
+        The memory-mapped phantom.
+    vw_size : int
+        Its image side.
+    small_volumes : bool
+        Small synthetic volumes everywhere (the tests' suite).
+    data_dir, cache_dir : Path or None
+        Real volumes (absent: synthetic analogues); where the phantom is kept.
+    """
+
+    name: str = "full"
+    sizes: tuple = (300, 600)
+    parker_size: int = 512
+    repeats: int = 3
+    supercells: tuple = (0.5, 1.0, 2.0, 4.0, 8.0)
+    steps: tuple = (2.0, 1.0, 0.5, 0.25)
+    roots_quick: bool = False
+    roots_n: int | None = None
+    vw_shape: tuple = (512, 512, 1734)
+    vw_size: int = 512
+    small_volumes: bool = False
+    data_dir: Path | None = field(default_factory=default_data_dir)
+    cache_dir: Path = field(default_factory=default_cache_dir)
+
+    @classmethod
+    def full(cls, **kw):
+        """The whole suite at the papers' sizes (several minutes on 2 cores; the phantom's first build adds one)."""
+        return cls(**kw)
+
+    @classmethod
+    def quick(cls, **kw):
+        """A reduced suite, a few minutes: half-size images, one repeat fewer, a 256x256x867 phantom."""
+        return replace(cls(name="quick", sizes=(150, 300), parker_size=256, repeats=2, supercells=(1.0, 2.0, 4.0, 8.0),
+                           steps=(1.0, 0.5, 0.25), roots_quick=True, vw_shape=(256, 256, 867), vw_size=256), **kw)
+
+    @classmethod
+    def tiny(cls, **kw):
+        """Seconds: tiny synthetic volumes and images, for checking the report, not for reading speed."""
+        return replace(cls(name="tiny", sizes=(16, 24), parker_size=24, repeats=1, supercells=(1.0, 4.0),
+                           steps=(1.0, 0.5), roots_n=40, vw_shape=(24, 24, 80), vw_size=24, small_volumes=True,
+                           data_dir=None), **kw)
+
+
+#: ``(key, title, function name)`` of each section, in report order.
+SECTIONS = (
+    ("table1", "Table 1: CT translucent", "tables.table1"),
+    ("table2", "Table 2: iron protein", "tables.table2"),
+    ("table3", "Table 3: neuron and floor, shadows", "tables.table3"),
+    ("time_shares", "Parker Table 1: time shares", "parker.time_shares"),
+    ("threads", "Parker Table 2: thread scaling", "parker.thread_scaling"),
+    ("supercells", "supercell sweep", "sweeps.supercell_sweep"),
+    ("steps", "step sweep", "sweeps.step_size_sweep"),
+    ("roots", "root finders", "sweeps.root_finders"),
+    ("precision", "storage precision", "sweeps.precision"),
+    ("visible_woman", "Visible Woman scale", "scale.visible_woman"),
+)
+
+
+def machine():
+    """The machine the numbers come from: CPU, cores, threads, OpenGL renderer, versions."""
+    import moderngl
+    import numba
+
+    from ..raster import get_context
+    cpu = platform.processor() or platform.machine()
+    try:
+        with open("/proc/cpuinfo") as f:
+            cpu = next((ln.split(":", 1)[1].strip() for ln in f if ln.startswith("model name")), cpu)
+    except OSError:
+        pass
+    ctx = get_context()
+    return {"cpu": cpu, "cores": os.cpu_count(), "numba_threads": numba.config.NUMBA_NUM_THREADS,
+            "opengl": f"{ctx.info['GL_RENDERER']} (OpenGL {ctx.info['GL_VERSION']})",
+            "python": platform.python_version(), "numpy": np.__version__, "numba": numba.__version__,
+            "moderngl": moderngl.__version__, "os": platform.platform(),
+            "date": time.strftime("%Y-%m-%d %H:%M %Z")}
+
+
+def run_bench(out, suite=None, *, progress=None, command=None):
+    """Run the suite and write ``out/report.md``, ``out/results.json``, charts and pictures.
+
+    Parameters
+    ----------
+    out : str or Path
+        Output folder (created).
+    suite : Suite, optional
+        Default `Suite.full`.
+    progress : callable(str) or None
+        Told what is being measured, step by step.
+    command : str, optional
+        The command line to print in the report.
+
+    Returns
+    -------
+    dict
+        Everything measured (also in ``results.json``), with ``checks``: the
+        consistency checks the report's numbers pass (see `consistency`).
+
+    Raises
+    ------
+    OpenGLUnavailable
+        No OpenGL context: PARC cannot run, so neither can the bench.
+    """
+    from importlib import import_module
+
+    from . import report
+
+    suite = suite or Suite.full()
+    out = Path(out)
+    say = progress or (lambda msg: None)
+    images_dir = out / "images"
+    images_dir.mkdir(parents=True, exist_ok=True)
+    started = time.perf_counter()
+    res = {"suite": {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(suite).items()},
+           "machine": machine(), "command": command}
+    images = {}
+    for n, (key, title, func) in enumerate(SECTIONS, 1):
+        module, name = func.split(".")
+        t0 = time.perf_counter()
+        say(f"[{n}/{len(SECTIONS)}] {title}")
+        fn = getattr(import_module(f".{module}", __name__), name)
+        step = lambda msg, n=n: say(f"[{n}/{len(SECTIONS)}]   {msg}")  # noqa: E731
+        res[key] = fn(suite, step, images) if module == "tables" else fn(suite, step)
+        res[key]["seconds"] = time.perf_counter() - t0
+    say("pictures of the tables' scenes")
+    _pictures(images, images_dir)
+    res["seconds"] = time.perf_counter() - started
+    md, ideal_rows = _report(res, out, report)
+    res["ideal"] = [dict(zip(("scene", "size", "unit", "method", "ideal", "touched"), r)) for r in ideal_rows]
+    res["checks"] = consistency(res)
+    md += _checks_md(res["checks"])
+    _write(out / "report.md", "\n".join(md) + "\n")
+    _write(out / "results.json", json.dumps(res, indent=1, default=_json_default))
+    return res
+
+
+def _json_default(v):
+    if isinstance(v, (np.integer,)):
+        return int(v)
+    if isinstance(v, (np.floating,)):
+        return float(v)
+    if isinstance(v, Path):
+        return str(v)
+    if isinstance(v, tuple):
+        return list(v)
+    raise TypeError(f"not JSON serializable: {type(v).__name__}")
+
+
+def _write(path, text):
+    tmp = path.with_name(path.name + ".part")
+    tmp.write_text(text)
+    tmp.replace(path)
+
+
+def _pictures(images, folder):
+    from PIL import Image
+
+    from ..renderer import render
+    for key, scene in images.items():
+        img = render(scene, method="parc").image
+        rgba = np.clip(np.rint(img * 255.0), 0, 255).astype(np.uint8)
+        Image.fromarray(rgba, "RGBA").save(folder / f"{key}.png")
+
+
+def _report(res, out, report):
+    m = res["machine"]
+    s = res["suite"]
+    md = ["# PARC benchmark report", "",
+          f"Suite `{s['name']}`, run {m['date']} in {res['seconds'] / 60:.1f} min"
+          + (f" with `{res['command']}`" if res.get("command") else "") + ".", "",
+          f"Machine: {m['cpu']}, {m['cores']} cores ({m['numba_threads']} Numba threads); OpenGL: {m['opengl']}; "
+          f"Python {m['python']}, NumPy {m['numpy']}, Numba {m['numba']}, moderngl {m['moderngl']}; {m['os']}.", "",
+          "Every speedup is a ratio of two times measured in this run on this machine: each the median of "
+          f"{s['repeats']} renders after a warm-up. `brute` is the unaccelerated caster; `parc` casts the same "
+          "rays over OpenGL-rasterized segments with the same traversal and intersection code.", ""]
+    md += report.paper_tables(res)
+    md += report.parker(res, out)
+    md += report.sweeps(res, out)
+    md += report.scale(res, out)
+    ideal_md, rows = report.ideal(res)
+    md += ideal_md
+    return md, rows
+
+
+def consistency(res):
+    """Checks the numbers must pass: counts positive, ideal ≤ touched, zero error where exactness is claimed.
+
+    Returns a list of ``{"check": str, "ok": bool}``.
+    """
+    checks = []
+
+    def check(what, ok):
+        checks.append({"check": what, "ok": bool(ok)})
+
+    exact = [(f"table{n} {r['method']} {r['size']}²", r) for n in (1, 2, 3) for r in res[f"table{n}"]["rows"]]
+    exact += [(f"supercell {r['supercell']}", r) for r in res["supercells"]["rows"]]
+    exact += [(f"time shares {r['surface']} {r['method']}", r) for r in res["time_shares"]["rows"]]
+    exact += [(f"Visible Woman {r['surface']}", r) for r in res["visible_woman"]["surfaces"]]
+    for what, r in exact:
+        check(f"{what}: parc equals brute (hit masks, |Δcolour| ≤ 1e-6)",
+              r["hit_mismatches"] == 0 and r["max_color"] <= 1e-6)
+    for r in res["steps"]["rows"]:
+        check(f"step {r['step']:g}: parc equals brute", r["parc_vs_brute"] <= 1e-6)
+    for r in res["precision"]["rows"]:
+        check(f"precision {r['volume']} {r['dtype']}: parc equals brute", r["parc_vs_brute"] <= 1e-6)
+    for r in res["ideal"]:
+        check(f"{r['scene']} {r['size']}² {r['method']}: ideal {r['unit']} > 0 and ≤ touched",
+              0 < r["ideal"] <= r["touched"])
+    for n, key in ((1, "samples"), (2, "cells"), (3, "primary_cells")):
+        rows = res[f"table{n}"]["rows"]
+        brute = {r["size"]: r[key] for r in rows if r["method"] == "brute"}
+        for r in rows:
+            check(f"table{n} {r['method']} {r['size']}²: {key} positive and ≤ brute's",
+                  0 < r[key] <= brute[r["size"]])
+            check(f"table{n} {r['method']} {r['size']}²: times positive, casting ≤ total",
+                  0 < r.get("cast_seconds", r.get("primary_cast_seconds", 0)) <= r["total_seconds"])
+    project = next(r for r in res["roots"]["rows"] if r["name"] == "project")
+    check("root finders: the project's finder has no failure on the hard-ray suite", project["failures"] == 0)
+    for r in res["threads"]["rows"]:
+        check(f"threads {r['threads']}: frames per second positive", r["brute_fps"] > 0 and r["parc_fps"] > 0)
+    return checks
+
+
+def _checks_md(checks):
+    bad = [c for c in checks if not c["ok"]]
+    md = ["## Consistency", "",
+          f"{len(checks) - len(bad)} of {len(checks)} checks pass (counts positive, ideal ≤ touched ≤ brute, "
+          "zero error wherever exactness is claimed)." + ("" if bad else " None fails."), ""]
+    md += [f"- FAILED: {c['check']}" for c in bad]
+    return md + [""]
+
+
+def main(args):
+    """`parc bench` (see `parc.cli`): run a suite, print progress on stderr, say where the report is."""
+    suite = Suite.tiny() if args.tiny else Suite.quick() if args.quick else Suite.full()
+    if args.data is not None:
+        suite = replace(suite, data_dir=Path(args.data))
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"{out}: exists and is not a folder")
+    t0 = time.perf_counter()
+
+    def say(msg):
+        print(f"parc bench: {msg}  ({time.perf_counter() - t0:.0f} s)", file=sys.stderr, flush=True)
+
+    res = run_bench(out, suite, progress=say, command="parc " + " ".join(args.argv))
+    failed = [c for c in res["checks"] if not c["ok"]]
+    print(f"{out / 'report.md'}: {len(res['checks']) - len(failed)} of {len(res['checks'])} checks pass "
+          f"({res['seconds'] / 60:.1f} min)")
+    return 1 if failed else 0

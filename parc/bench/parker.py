@@ -1,0 +1,121 @@
+"""Parker et al.'s Tables 1 and 2, measured: where an isosurface frame's time goes, and thread scaling.
+
+Share of time (Parker et al.'s Table 1). They read traversal,
+intersection and shading shares off hardware cycle counters. Here, on one
+thread so that seconds add up:
+
+* *intersection*: the frame's own cubics, recorded by the root-finder
+  study's walk (`parc.rootstudy.walk_rays`, checked to visit exactly the
+  caster's cells: its solve count must equal the render's), then solved
+  again in a tight loop (best of 3). That is the time the root finder
+  takes inside the cast.
+* *traversal*: the cast phase less the intersection: ray set-up, cell
+  stepping, corner reads and the cubic's coefficients.
+* *shading*: the shading phase (normals, lights).
+* *OpenGL* (PARC only): classification, proxy and rasterization.
+
+Thread scaling (their Table 2): frames per second of the bone isosurface
+at 1 thread up to every core Numba has, each the median of the repeats.
+"""
+from __future__ import annotations
+
+import statistics
+import time
+
+import numba
+import numpy as np
+
+from ..compare import compare
+from ..rootstudy import PROJECT, solve_all, walk_rays
+from . import scenes
+
+ISOS = (("skin", 600.0), ("bone", 1500.0))
+
+
+def recorded_cubics(scene):
+    """The cubics ``(A, B, C, D, L)`` the caster solves for the scene's one isosurface, in ray order."""
+    vis = scene.volumes[0]
+    vol = vis.volume
+    w, h = scene.size
+    o, d = scene.camera.rays(w, h)
+    o = np.ascontiguousarray(o.reshape(-1, 3))
+    d = np.ascontiguousarray(d.reshape(-1, 3))
+    n = len(o)
+    isos = np.full(n, float(vis.value))
+    t, cell, uvw = np.empty(n), np.empty((n, 3), np.int32), np.zeros((n, 3))
+    solves, offsets = np.zeros(n, np.int64), np.zeros(n, np.int64)
+    args = (vol.data, np.array(vol.origin), np.array(vol.spacing), o, d, isos, PROJECT, t, cell, uvw, solves)
+    walk_rays(*args, np.empty((0, 5)), offsets)
+    offsets[1:] = np.cumsum(solves)[:-1]
+    rec = np.empty((int(solves.sum()), 5))
+    walk_rays(*args, rec, offsets)
+    return rec
+
+
+def _solve_seconds(rec, repeats=3):
+    solve_all(rec[:16], PROJECT, 1)
+    best = float("inf")
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        solve_all(rec, PROJECT, 1)
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
+def time_shares(suite, progress):
+    """Rows per (isosurface, method): seconds and shares of traversal, intersection, shading, OpenGL."""
+    rows, source = [], None
+    threads = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        for name, iso in ISOS:
+            scene, source = scenes.ct_iso(suite.parker_size, iso, suite.data_dir, suite.small_volumes)
+            progress(f"time shares, {name}: recording the frame's cubics")
+            rec = recorded_cubics(scene)
+            intersect = _solve_seconds(rec)
+            res = compare(scene, methods=("brute", "parc"), repeats=suite.repeats,
+                          progress=lambda m: progress(f"time shares, {name}: {m}, 1 thread"))
+            for r in res:
+                if r["cubic_solves"] != len(rec):
+                    raise RuntimeError(f"{name}: the recorded walk solved {len(rec)} cubics, "
+                                       f"the {r['method']} render {r['cubic_solves']}")
+                ph = r["phases"]
+                cast = ph.get("cast", 0.0)
+                gl = sum(ph.get(k, 0.0) for k in ("classify", "proxy", "raster"))
+                parts = {"traversal": max(cast - intersect, 0.0), "intersection": min(intersect, cast),
+                         "shading": ph.get("shade", 0.0)}
+                if r["method"] != "brute":
+                    parts["OpenGL"] = gl
+                total = sum(parts.values())
+                rows.append({"surface": f"{name} ({iso:g})", "method": r["method"], "seconds": r["seconds"],
+                             "parts_seconds": parts,
+                             "shares": {k: v / total if total > 0 else 0.0 for k, v in parts.items()},
+                             "cubics": len(rec), "cells": r["cells_visited"],
+                             "ns_per_solve": 1e9 * intersect / max(len(rec), 1),
+                             "max_color": r["max_color"], "hit_mismatches": r["hit_mismatches"]})
+    finally:
+        numba.set_num_threads(threads)
+    return {"source": source, "size": suite.parker_size, "rows": rows}
+
+
+def thread_scaling(suite, progress):
+    """Frames per second of the bone isosurface for 1 .. all threads, brute and parc."""
+    scene, source = scenes.ct_iso(suite.parker_size, 1500.0, suite.data_dir, suite.small_volumes)
+    most = numba.config.NUMBA_NUM_THREADS
+    counts = sorted({1, 2, 4, 8, 16, 32, 64, most} & set(range(1, most + 1)))
+    threads = numba.get_num_threads()
+    rows = []
+    try:
+        for k in counts:
+            numba.set_num_threads(k)
+            res = compare(scene, methods=("brute", "parc"), repeats=suite.repeats,
+                          progress=lambda m: progress(f"thread scaling: {m}, {k} thread(s)"))
+            rows.append({"threads": k, **{f"{r['method']}_fps": 1.0 / r["seconds"] for r in res}})
+    finally:
+        numba.set_num_threads(threads)
+    for m in ("brute", "parc"):
+        base = rows[0][f"{m}_fps"]
+        for r in rows:
+            r[f"{m}_speedup"] = r[f"{m}_fps"] / base
+    return {"source": source, "size": suite.parker_size, "cores": most, "rows": rows,
+            "median_parc_fps": statistics.median(r["parc_fps"] for r in rows)}

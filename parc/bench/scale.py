@@ -1,0 +1,162 @@
+"""Visible Woman scale: a 512x512x1734 16-bit CT-like phantom, streamed to disk once and memory-mapped.
+
+Parker et al. rendered the Visible Woman CT (1734 slices of 512x512 at 16
+bits, 910 MB) at about 10 frames per second on 64 processors. The bench
+builds a phantom of the same size and type (`data_tools.synthetic.
+ct_phantom_to_disk`, slab by slab, so building it needs little memory),
+keeps it in the cache folder for later runs, maps it read-only and renders
+its skin and bone isosurfaces at 512x512 with `brute` and `parc`.
+
+It runs in a child process (``python -m parc.bench.scale``) so that the
+peak resident memory it reports is this section's alone: the mapped pages
+the rays touched, the per-cell min/max (two int16 arrays the size of the
+volume) and the proxy.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import statistics
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ISOS = (("skin", 600.5), ("bone", 1500.5))
+
+
+def phantom_path(cache_dir, shape):
+    nx, ny, nz = shape
+    return Path(cache_dir) / f"vw_phantom_{nx}x{ny}x{nz}_int16.raw"
+
+
+def visible_woman(suite, progress):
+    """Generate (once) and render the phantom in a child process; returns its measurements."""
+    from data_tools.synthetic import ct_phantom_to_disk
+
+    path = phantom_path(suite.cache_dir, suite.vw_shape)
+    generated = None
+    if not path.is_file():
+        path.parent.mkdir(parents=True, exist_ok=True)
+        nx, ny, nz = suite.vw_shape
+        progress(f"Visible Woman scale: writing a {nx}x{ny}x{nz} int16 phantom "
+                 f"({nx * ny * nz * 2 / 1e6:.0f} MB) to {path}")
+        t0 = time.perf_counter()
+        tmp = path.with_name("." + path.name)     # hidden until whole; keeps the .raw suffix the writer needs
+        ct_phantom_to_disk(tmp, suite.vw_shape)
+        tmp.replace(path)          # a crash mid-write leaves no truncated phantom behind
+        generated = time.perf_counter() - t0
+    out = path.with_suffix(".json")
+    cmd = [sys.executable, "-m", "parc.bench.scale", str(path), "--size", str(suite.vw_size),
+           "--repeats", str(suite.repeats), "--json", str(out)]
+    progress(f"Visible Woman scale: rendering in a child process ({' '.join(cmd[1:4])} ...)")
+    proc = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=None, text=True)
+    if proc.returncode != 0:
+        raise RuntimeError(f"the Visible Woman child process failed (exit {proc.returncode})")
+    result = json.loads(out.read_text())
+    out.unlink()
+    result.update({"path": str(path), "generate_seconds": generated})
+    return result
+
+
+def _render_timed(scene, method, repeats):
+    from ..renderer import render
+    runs = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        res = render(scene, method=method)
+        runs.append((time.perf_counter() - t0, res))
+    return statistics.median(t for t, _ in runs), runs[0][1]
+
+
+def measure(path, size, repeats, say):
+    """Everything the section reports, measured in this process."""
+    import numba
+
+    from data_tools import load_volume
+
+    from ..camera import Camera
+    from ..classify import VolumeIndex
+    from ..compare import image_error
+    from ..renderer import render
+    from ..scene import Isosurface, Scene
+
+    # Compile (or load) the kernels for read-only int16 samples first, so no
+    # frame below pays for it.
+    import numpy as np
+    from data_tools import Volume
+    warm = np.zeros((4, 4, 4), np.int16)
+    warm[1:3, 1:3, 1:3] = 2000
+    warm.flags.writeable = False
+    for method in ("brute", "parc"):
+        render(Scene(camera=Camera.framing((0, 0, 0), (3, 3, 3)), size=(8, 8),
+                     volumes=[Isosurface(Volume(warm), 600.5)]), method=method)
+    t0 = time.perf_counter()
+    vol = load_volume(path, mmap=True)
+    out = {"shape": list(vol.dims), "dtype": str(vol.dtype), "bytes": int(vol.data.nbytes),
+           "map_seconds": time.perf_counter() - t0, "size": size, "threads": numba.get_num_threads()}
+    cam = Camera.framing(*vol.bounds, azimuth=30.0, elevation=15.0)
+    say("cell min/max (once per volume)")
+    t0 = time.perf_counter()
+    mn, _ = VolumeIndex.of(vol).cell_minmax()
+    out["minmax_seconds"] = time.perf_counter() - t0
+    out["minmax_bytes"] = int(2 * mn.nbytes)
+    surfaces = []
+    for name, iso in ISOS:
+        scene = Scene(camera=cam, size=(size, size), volumes=[Isosurface(vol, iso)])
+        say(f"{name}: first parc frame (classification, proxy, raster, cast)")
+        t0 = time.perf_counter()
+        first = render(scene, method="parc")
+        first_wall = time.perf_counter() - t0
+        ph = first.stats["seconds"]
+        say(f"{name}: parc frames")
+        parc_s, parc_res = _render_timed(scene, "parc", repeats)
+        say(f"{name}: brute frames")
+        render(scene, method="brute")
+        brute_s, brute_res = _render_timed(scene, "brute", repeats)
+        err = image_error(parc_res, brute_res, 1.0)
+        surfaces.append({
+            "surface": name, "isovalue": iso,
+            "brute_seconds": brute_s, "parc_seconds": parc_s, "speedup": brute_s / parc_s,
+            "first_frame_seconds": first_wall,
+            "proxy_build_seconds": ph.get("classify", 0.0) + ph.get("proxy", 0.0),
+            "raster_seconds": parc_res.stats["seconds"].get("raster", 0.0),
+            "polygons": parc_res.stats.get("polygons", 0), "supercell": parc_res.stats.get("supercell"),
+            "brute_cells": brute_res.stats["cells_visited"], "parc_cells": parc_res.stats["cells_visited"],
+            "ideal_cells": brute_res.stats["cubic_solves"],
+            "hit_mismatches": err["hit_mismatches"], "max_depth_cells": err["max_depth_cells"],
+            "max_color": err["max_color"]})
+    # Changing the isovalue: the proxy for a new level, from the cached min/max,
+    # then the first frame; measured on a third level so no proxy is cached.
+    scene = Scene(camera=cam, size=(size, size), volumes=[Isosurface(vol, 1200.5)])
+    say("changing the isovalue to 1200.5")
+    t0 = time.perf_counter()
+    res = render(scene, method="parc")
+    ph = res.stats["seconds"]
+    out["iso_change"] = {"isovalue": 1200.5, "first_frame_seconds": time.perf_counter() - t0,
+                         "reclassify_proxy_seconds": ph.get("classify", 0.0) + ph.get("proxy", 0.0)}
+    out["surfaces"] = surfaces
+    out["peak_rss_bytes"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+    return out
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(prog="python -m parc.bench.scale",
+                                description="Render a memory-mapped phantom; the Visible Woman section of parc bench.")
+    p.add_argument("path")
+    p.add_argument("--size", type=int, default=512)
+    p.add_argument("--repeats", type=int, default=3)
+    p.add_argument("--json", required=True)
+    a = p.parse_args(argv)
+
+    def say(msg):
+        print(f"parc bench:   {msg}", file=sys.stderr, flush=True)
+
+    out = measure(a.path, a.size, a.repeats, say)
+    Path(a.json).write_text(json.dumps(out, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

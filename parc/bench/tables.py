@@ -1,0 +1,115 @@
+"""Sobierajski & Avila's Tables 1-3, measured: `brute` against `parc`, same columns, one run per size.
+
+Each table's scene is rendered by `parc.compare` (a warm-up, then the
+median of the suite's repeats; `brute` first, as the reference). The
+columns follow the paper:
+
+* *casting time*: rays cast, plus, for PARC, rasterizing the proxy (the
+  paper's casting time "includes the time required to project the
+  polygonal model");
+* *total time*: the whole `render` call, wall clock;
+* *cells*: cells considered for intersection (visited by the walk);
+  *samples*: trilinear samples taken.
+
+Next to them, the ideal bound (`parc.ideal`): the cells or samples a
+caster that touched contributing cells only would need, and the error of
+each image against `brute`'s (zero is what exactness means).
+"""
+from __future__ import annotations
+
+from ..compare import compare
+from ..ideal import ideal_samples
+from ..renderer import render
+from ..scene import Translucent
+from . import scenes
+
+
+def _cast_seconds(row):
+    ph = row["phases"]
+    return ph.get("cast", 0.0) + ph.get("raster", 0.0) + ph.get("raster_bits", 0.0)
+
+
+def _error(row):
+    return {k: row[k] for k in ("hit_mismatches", "max_depth_cells", "max_color", "psnr")}
+
+
+def _rows(scene, methods, options, suite, progress, label):
+    return compare(scene, methods=methods, options=options, repeats=suite.repeats,
+                   warmup=1, progress=lambda m: progress(f"{label}: {m}"))
+
+
+def table1(suite, progress, images):
+    """CT translucent (Fig. 11): samples, casting and total time; `parc` with depth, and with depth and bits."""
+    out, source = [], None
+    for size in suite.sizes:
+        scene, source = scenes.ct_translucent(size, suite.data_dir, suite.small_volumes)
+        options = {"parc": {"buffers": ("depth",)}, "parc:bits": {"buffers": ("depth", "bits")}}
+        rows = _rows(scene, ["brute", "parc", "parc:bits"], options, suite, progress, f"Table 1, {size}²")
+        progress(f"Table 1, {size}²: ideal samples")
+        ideal = ideal_samples(scene, scene.volumes[0])
+        for r in rows:
+            out.append({"method": {"brute": "brute", "parc": "parc (depth)",
+                                   "parc:bits": "parc (depth+bits)"}[r["method"]],
+                        "size": size, "samples": r["samples"], "ideal_samples": ideal,
+                        "cast_seconds": _cast_seconds(r), "total_seconds": r["seconds"],
+                        "speedup": r["speedup"], "polygons": r["polygons"], **_error(r)})
+        images["table1"] = scene
+    return {"source": source, "rows": out}
+
+
+def table2(suite, progress, images):
+    """Iron protein (Fig. 12): an isosurface inside a translucent volume; cells, samples, times."""
+    out, source = [], None
+    for size in suite.sizes:
+        scene, source = scenes.iron_protein(size, suite.data_dir, suite.small_volumes)
+        rows = _rows(scene, ["brute", "parc"], {}, suite, progress, f"Table 2, {size}²")
+        progress(f"Table 2, {size}²: ideal samples")
+        depth = render(scene, method="brute").depth
+        trans = [v for v in scene.volumes if isinstance(v, Translucent)]
+        ideal_s = sum(ideal_samples(scene, v, stop=depth) for v in trans)
+        ideal_c = next(r for r in rows if r["method"] == "brute")["cubic_solves"]
+        for r in rows:
+            out.append({"method": r["method"], "size": size, "cells": r["cells_visited"], "ideal_cells": ideal_c,
+                        "samples": r["samples"], "ideal_samples": ideal_s,
+                        "cast_seconds": _cast_seconds(r), "total_seconds": r["seconds"],
+                        "speedup": r["speedup"], "polygons": r["polygons"], **_error(r)})
+        images["table2"] = scene
+    return {"source": source, "rows": out}
+
+
+def table3(suite, progress, images):
+    """Neuron on a floor with two shadowing lights (Fig. 13): primary and shadow rays apart."""
+    out, source = [], None
+    for size in suite.sizes:
+        scene, source = scenes.neuron_floor(size, suite.data_dir, suite.small_volumes)
+        rows = _rows(scene, ["brute", "parc"], {}, suite, progress, f"Table 3, {size}²")
+        brute = rows[0]
+        for r in rows:
+            ph = r["phases"]
+            shadow = ph.get("shadow", 0.0) + ph.get("raster_lights", 0.0)
+            primary_cast = ph.get("cast", 0.0) + ph.get("raster", 0.0)
+            out.append({"method": r["method"], "size": size,
+                        "primary_cells": r["cells_visited"], "ideal_primary_cells": brute["cubic_solves"],
+                        "primary_cast_seconds": primary_cast,
+                        "primary_total_seconds": r["seconds"] - shadow,
+                        "shadow_cells": r["shadow_cells"], "ideal_shadow_cells": brute["shadow_solves"],
+                        "shadow_seconds": shadow, "total_seconds": r["seconds"],
+                        "speedup": r["speedup"], **_error(r)})
+        for r in out[-len(rows):]:
+            b = out[-len(rows)]
+            r["primary_speedup"] = b["primary_cast_seconds"] / max(r["primary_cast_seconds"], 1e-12)
+            r["shadow_speedup"] = b["shadow_seconds"] / max(r["shadow_seconds"], 1e-12)
+        images["table3"] = scene
+    return {"source": source, "rows": out}
+
+
+def speedups(table, key="total_seconds"):
+    """``{size: brute seconds / parc seconds}`` of a table's rows, per PARC method."""
+    out = {}
+    for r in table["rows"]:
+        if r["method"] == "brute":
+            base = r[key]
+        else:
+            out[(r["size"], r["method"])] = base / max(r[key], 1e-12)
+    return out
+

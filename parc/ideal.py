@@ -1,0 +1,104 @@
+"""The ideal caster's work, for reports: how close `brute` and `parc` come to it.
+
+About this technique
+--------------------
+The ideal caster spends work only in *contributing* cells (DESIGN, "Speed:
+what is measured"); a benchmark lists its count next to what each method
+took.
+
+- Translucent volumes (`ideal_samples`): the samples of the unaccelerated
+  caster's lattice that lie in cells whose value range (min/max of the
+  eight corners) meets the transfer function's non-zero opacity, walked
+  with the same stopping rules (``t >= stop``, early ray termination in
+  composite mode), so the count is exactly a subset of ``brute``'s
+  ``samples`` and PARC, at any supercell size, never takes fewer. The
+  definition and the per-ray kernel are in `raycast.ideal`.
+- Isosurfaces (`ideal_iso_cells`): nothing new to count. The ideal caster
+  solves the cubic in exactly the cells whose range holds the isovalue, up
+  to the first hit, and that is the unaccelerated caster's own
+  ``cubic_solves`` statistic (it solves only in such cells, and stops at
+  the hit).
+"""
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from data_tools import InputError
+from raycast.config import TILE_CHUNK
+from raycast.ideal import ideal_samples_image
+
+from .scene import Translucent
+
+_NO_STOP = np.empty((1, 1))
+
+
+def contributing_cells(vis: Translucent) -> np.ndarray:
+    """uint8 ``(nz-1, ny-1, nx-1)``: 1 where a cell's corner range meets ``vis``'s non-zero opacity."""
+    from .classify import VolumeIndex
+    mn, mx = VolumeIndex.of(vis.volume).cell_minmax()
+    return np.ascontiguousarray(vis.tf.nonzero_in(mn, mx), dtype=np.uint8)
+
+
+def ideal_sample_counts(scene, vis: Translucent, stop=None) -> np.ndarray:
+    """Per-pixel ideal sample counts, int64 ``(H, W)``; see `ideal_samples`."""
+    from .renderer import accumulation_params
+
+    if not isinstance(vis, Translucent):
+        raise InputError(f"ideal samples are defined for a Translucent volume, got {type(vis).__name__}")
+    w, h = scene.size
+    use_stop = stop is not None
+    if use_stop:
+        stop = np.ascontiguousarray(stop, dtype=np.float64)
+        if stop.shape != (h, w):
+            raise InputError(f"stop must be ({h}, {w}) (the image's rows and columns), got {stop.shape}")
+    else:
+        stop = _NO_STOP
+    vol = vis.volume
+    op_x, op_y, col_x, col_rgb = vis.tf.arrays()
+    counts = np.empty(w * h, np.int64)
+    with numba.parallel_chunksize(TILE_CHUNK):      # as the renderer: tiles handed out a few at a time
+        ideal_samples_image(vol.data, np.array(vol.origin, dtype=np.float64),
+                            np.array(vol.spacing, dtype=np.float64), scene.camera.as_array(), w, h,
+                            accumulation_params(vis), op_x, op_y, col_x, col_rgb,
+                            contributing_cells(vis), stop, use_stop, counts)
+    return counts.reshape(h, w)
+
+
+def ideal_samples(scene, vis: Translucent, stop=None) -> int:
+    """Samples the ideal caster takes for one translucent volume over the scene's camera.
+
+    Parameters
+    ----------
+    scene : Scene
+        Its camera and image size are used (``scene.size`` is ``(W, H)``).
+    vis : Translucent
+        The volume, transfer function, mode, step and threshold.
+    stop : ndarray (H, W) of float, optional
+        Per-pixel world distance ``t`` at which each ray stops (e.g. an
+        isosurface's depth, ``inf`` where none): no sample at ``t >= stop``.
+
+    Returns
+    -------
+    int
+        The number of the unaccelerated caster's samples that lie in
+        contributing cells (see `raycast.ideal`): at most ``brute``'s
+        ``stats["samples"]``, at least every sample of non-zero opacity, and
+        never more than ``parc``'s.
+
+    Raises
+    ------
+    InputError
+        ``vis`` is not a Translucent, or ``stop`` has the wrong shape.
+    """
+    return int(ideal_sample_counts(scene, vis, stop).sum())
+
+
+def ideal_iso_cells(result_brute) -> int:
+    """Cells the ideal caster solves in for an isosurface: ``brute``'s ``stats["cubic_solves"]``.
+
+    The unaccelerated caster solves the cubic only in cells whose range
+    holds the isovalue, up to the first hit: exactly the ideal set, so
+    there is nothing to recount. Given for symmetry with `ideal_samples`.
+    """
+    return int(result_brute.stats["cubic_solves"])

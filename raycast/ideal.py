@@ -1,0 +1,108 @@
+"""The ideal caster's sample count for accumulation: samples inside contributing cells only.
+
+About this technique
+--------------------
+A benchmark should say how close each method comes to the *ideal* caster,
+one that spends samples only where something can be seen. For
+accumulation (composite, maximum and average intensity) a *contributing
+cell* is one whose value range, the min/max of its eight corners (the
+exact range of its trilinear interpolant), meets the transfer function's
+non-zero opacity somewhere (`parc.transfer.TransferFunction.nonzero_in`
+on `parc.classify.cell_minmax` gives exactly this classification,
+``contrib[k, j, i]``).
+
+For each pixel `ideal_ray_samples` walks exactly the unaccelerated
+caster's sample lattice: the same `clip_box`, `lattice_range` (no
+segment), `sample_value`, `tf_opacity`, `composite_sample`, the same
+``t >= t_stop`` rule and, in composite mode, the same early termination
+once the accumulated opacity reaches the threshold (maximum and average
+intensity never stop early). It counts the samples that lie in a
+contributing cell, the cell being the one `sample_value` assigns the
+sample (a sample exactly on a face between cells belongs to the cell
+``floor`` picks, clamped to the grid). The count is therefore exactly the
+subset of ``accumulate_ray``'s samples (no segment, no bits) taken inside
+contributing cells:
+
+- it never exceeds the unaccelerated caster's count (`cast_accumulate_image`
+  without segments);
+- PARC can never take fewer: its proxy covers every contributing cell
+  (depth segments from 1-cell supercells or larger are conservative), so
+  each counted sample lies within the pixel's segment, and PARC stops
+  where the unaccelerated caster stops (it skips only transparent samples);
+- every sample with non-zero opacity is counted (its value lies in its
+  cell's range, which then meets the opacity's support).
+
+The walk evaluates every lattice sample, contributing or not, so that the
+accumulated opacity, and hence the stopping sample, is bit for bit the
+unaccelerated caster's; this is a counter for reports, not a fast path.
+"""
+import math
+
+from numba import prange
+
+from .composite import MODE_COMPOSITE, P_MODE, P_STEP, P_THRESHOLD, composite_sample, lattice_range, sample_value
+from .config import TILE_H, TILE_W, kernel
+from .rays import camera_ray, tile_count, tile_rect
+from .transfer import tf_opacity
+from .traverse import clip_box, to_index_space
+
+
+@kernel
+def ideal_ray_samples(data, spc, contrib, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, t_stop, params,
+                      op_x, op_y, col_x, col_rgb):
+    """Samples of the unaccelerated lattice of one ray (index space ``O + t D``) that lie in contributing cells.
+
+    ``contrib`` is uint8 ``(nz-1, ny-1, nx-1)``, non-zero for contributing
+    cells; ``d`` the world direction (for shading, which only the colour
+    uses). Lattice points at ``t >= t_stop`` are not taken, and a composite
+    ray stops where `accumulate_ray` stops.
+    """
+    nz, ny, nx = data.shape
+    t_in, t_out = clip_box(Ox, Oy, Oz, Dx, Dy, Dz, nx, ny, nz)
+    if not t_in <= t_out:
+        return 0
+    step = params[P_STEP]
+    composite = int(params[P_MODE]) == MODE_COMPOSITE
+    threshold = params[P_THRESHOLD]
+    # No segment: every lattice point of the ray in the volume, as the brute caster takes them.
+    n0, n1, _ = lattice_range(t_in, t_out, step, -math.inf, math.inf)
+    acc = 0.0
+    count = 0
+    for n in range(n0, n1 + 1):
+        t = t_in + n * step
+        if t >= t_stop:
+            break
+        v, i, j, k, u, vv, w = sample_value(data, Ox + t * Dx, Oy + t * Dy, Oz + t * Dz)
+        if contrib[k, j, i] != 0:
+            count += 1
+        if not composite:
+            continue            # maximum and average intensity take every lattice point
+        a = tf_opacity(op_x, op_y, v)
+        if not a > 0.0:
+            continue
+        # The step-corrected opacity exactly as the caster composites it; the colour is not needed.
+        a, _, _, _ = composite_sample(data, spc, v, i, j, k, u, vv, w, a, dx, dy, dz, params,
+                                      op_x, op_y, col_x, col_rgb)
+        acc += (1.0 - acc) * a
+        if acc >= threshold:
+            break
+    return count
+
+
+@kernel(parallel=True)
+def ideal_samples_image(data, org, spc, cam, width, height, params, op_x, op_y, col_x, col_rgb,
+                        contrib, stop, use_stop, counts):
+    """`ideal_ray_samples` of every pixel into ``counts[y * width + x]`` (int64), tile by tile.
+
+    Tiled as `cast_accumulate_image`; with ``use_stop`` no sample is counted
+    at ``t >= stop[y, x]`` (an opaque surface there).
+    """
+    for tile in prange(tile_count(width, 0, height, TILE_W, TILE_H)):
+        x0, x1, y0, y1 = tile_rect(tile, width, 0, height, TILE_W, TILE_H)
+        for y in range(y0, y1):
+            for x in range(x0, x1):
+                ox, oy, oz, dx, dy, dz = camera_ray(cam, width, height, x, y)
+                Ox, Oy, Oz, Dx, Dy, Dz = to_index_space(ox, oy, oz, dx, dy, dz, org, spc)
+                counts[y * width + x] = ideal_ray_samples(
+                    data, spc, contrib, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz,
+                    stop[y, x] if use_stop else math.inf, params, op_x, op_y, col_x, col_rgb)

@@ -1,0 +1,149 @@
+"""`parc bench` on its tiny suite: the report is complete, its numbers consistent, its exactness claims true."""
+import copy
+import json
+import re
+
+import pytest
+from PIL import Image
+
+from parc.bench import Suite, consistency, run_bench
+from parc.cli import main
+
+SECTIONS = ("## 1. Sobierajski & Avila, Tables 1–3", "### Table 1", "### Table 2", "### Table 3",
+            "## 2. Parker et al.", "### Share of time", "### Thread scaling", "## 3. Speed against error",
+            "### Supercell size", "### Sample step", "### Cubic root finders", "### Storage precision",
+            "## 4. Visible Woman scale", "## 5. Ideal bound", "## Consistency")
+
+
+@pytest.fixture(scope="module")
+def bench(tmp_path_factory, gl_context):
+    out = tmp_path_factory.mktemp("bench")
+    suite = Suite.tiny(cache_dir=tmp_path_factory.mktemp("cache"))
+    lines = []
+    res = run_bench(out, suite, progress=lines.append)
+    return out, suite, res, lines
+
+
+def test_report_has_every_section_and_the_machine(bench):
+    out, _, res, _ = bench
+    md = (out / "report.md").read_text()
+    for heading in SECTIONS:
+        assert heading in md, heading
+    assert res["machine"]["opengl"] in md
+    assert f"{res['machine']['cores']} cores" in md
+    assert "not found" in md          # the tiny suite says it used synthetic stand-ins
+
+
+def test_every_picture_the_report_links_is_a_png(bench):
+    out, *_ = bench
+    md = (out / "report.md").read_text()
+    links = re.findall(r"!\[[^\]]*\]\(([^)]+)\)", md)
+    assert len(links) >= 9
+    for link in links:
+        with Image.open(out / link) as img:
+            assert img.format == "PNG" and img.width > 0
+
+
+def test_results_json_matches_what_run_bench_returned(bench):
+    out, _, res, _ = bench
+    saved = json.loads((out / "results.json").read_text())
+    assert saved["checks"] == res["checks"]
+    assert saved["table1"]["rows"][0]["samples"] == res["table1"]["rows"][0]["samples"]
+
+
+def test_every_consistency_check_passes(bench):
+    _, _, res, _ = bench
+    failed = [c["check"] for c in res["checks"] if not c["ok"]]
+    assert not failed, failed
+    assert len(res["checks"]) > 50
+
+
+@pytest.mark.parametrize("table", ["table1", "table2", "table3"])
+def test_paper_tables_have_brute_and_parc_at_each_size(bench, table):
+    _, suite, res, _ = bench
+    rows = res[table]["rows"]
+    for size in suite.sizes:
+        methods = [r["method"] for r in rows if r["size"] == size]
+        assert methods[0] == "brute" and any(m.startswith("parc") for m in methods)
+        brute = next(r for r in rows if r["size"] == size and r["method"] == "brute")
+        for r in rows:
+            if r["size"] == size:
+                # speedup is the ratio of the two medians in the same run
+                assert r["speedup"] == pytest.approx(brute["total_seconds"] / r["total_seconds"], rel=1e-9)
+                assert r["hit_mismatches"] == 0 and r["max_color"] <= 1e-6
+
+
+def test_isosurface_ideal_is_brute_solves_and_parc_solves_the_same(bench):
+    _, _, res, _ = bench
+    for r in res["time_shares"]["rows"]:
+        assert r["cubics"] > 0 and r["cells"] >= r["cubics"]
+    rows = res["table3"]["rows"]
+    for r in rows:
+        assert 0 < r["ideal_primary_cells"] <= r["primary_cells"]
+        assert 0 < r["ideal_shadow_cells"] <= r["shadow_cells"]
+
+
+def test_time_shares_add_up(bench):
+    _, _, res, _ = bench
+    for r in res["time_shares"]["rows"]:
+        assert sum(r["shares"].values()) == pytest.approx(1.0)
+        assert ("OpenGL" in r["shares"]) == (r["method"] != "brute")
+
+
+def test_sweeps_cover_what_the_suite_asked(bench):
+    _, suite, res, _ = bench
+    sizes = {r["supercell"] for r in res["supercells"]["rows"]}
+    for s in suite.supercells:
+        assert f"{s:g}x{s:g}x{s:g}" in sizes
+    assert len(res["steps"]["rows"]) == len(suite.steps)
+    assert {r["name"] for r in res["roots"]["rows"]} == {"project", "closed-form", "marmitt"}
+    assert {r["dtype"] for r in res["precision"]["rows"]} >= {"float32", "float64"}
+
+
+def test_visible_woman_section_maps_the_phantom_it_built(bench):
+    _, suite, res, _ = bench
+    vw = res["visible_woman"]
+    assert tuple(vw["shape"]) == tuple(suite.vw_shape)
+    assert vw["bytes"] == 2 * suite.vw_shape[0] * suite.vw_shape[1] * suite.vw_shape[2]
+    assert vw["generate_seconds"] is not None and vw["peak_rss_bytes"] > vw["bytes"]
+    assert [s["surface"] for s in vw["surfaces"]] == ["skin", "bone"]
+    assert vw["iso_change"]["reclassify_proxy_seconds"] > 0
+
+
+def test_the_phantom_is_reused_on_the_next_run(bench):
+    from parc.bench.scale import visible_woman
+    _, suite, res, _ = bench
+    again = visible_woman(suite, lambda m: None)
+    assert again["generate_seconds"] is None
+    assert again["path"] == res["visible_woman"]["path"]
+
+
+def test_progress_names_every_section(bench):
+    *_, lines = bench
+    for n in range(1, 11):
+        assert any(line.startswith(f"[{n}/10]") for line in lines)
+
+
+def test_consistency_catches_a_broken_claim(bench):
+    _, _, res, _ = bench
+    broken = copy.deepcopy(res)
+    broken["table2"]["rows"][1]["max_color"] = 1e-3
+    assert [c for c in consistency(broken) if not c["ok"]]
+    broken = copy.deepcopy(res)
+    broken["ideal"][0]["ideal"] = broken["ideal"][0]["touched"] + 1
+    assert [c for c in consistency(broken) if not c["ok"]]
+
+
+def test_cli_refuses_an_output_that_is_a_file(tmp_path, capsys):
+    f = tmp_path / "taken"
+    f.write_text("x")
+    assert main(["bench", "--tiny", "--out", str(f)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("parc: error:") and "not a folder" in err[0]
+
+
+def test_cli_help_explains_the_report(capsys):
+    with pytest.raises(SystemExit):
+        main(["bench", "--help"])
+    text = capsys.readouterr().out
+    assert "report.md" in text and "--quick" in text and "--out" in text

@@ -1,0 +1,217 @@
+"""Benchmark-report charts: the number formatter, the axis mapping, the stacking, and the PNGs.
+
+Truth for the images: the palette colour of a series appears only in its
+markers, bars or legend swatch, so its pixels are located by exact colour
+and their positions compared with the data (higher value -> smaller row).
+"""
+import math
+import os
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from parc.bench.charts import (PALETTE, _data_axis, axis_mapping, bar_chart, fmt_number,
+                               line_chart, scatter_chart, stack_segments, stacked_bar_chart)
+
+KW = dict(title="t", x_label="x", y_label="y")
+
+
+def load(path, size=(720, 480)):
+    """The PNG as an RGB array, after checking it is a whole PNG of ``size``."""
+    with Image.open(path) as im:
+        assert im.format == "PNG" and im.size == size
+        im.verify()
+    with Image.open(path) as im:
+        return np.asarray(im.convert("RGB"))
+
+
+def blobs(img, colour):
+    """Groups of pixels of exactly ``colour``, split where whole columns have none, left to right.
+
+    Returns ``[(first column, last column, mean row, row count of the tallest column)]``.
+    """
+    mask = np.all(img == np.array(colour, np.uint8), axis=2)
+    cols = np.flatnonzero(mask.any(axis=0))
+    if cols.size == 0:
+        return []
+    out = []
+    for run in np.split(cols, np.flatnonzero(np.diff(cols) > 1) + 1):
+        sub = mask[:, run[0]:run[-1] + 1]
+        rows = np.nonzero(sub)[0]
+        out.append((run[0], run[-1], rows.mean(), int(sub.sum(axis=0).max())))
+    return out
+
+
+# --------------------------------------------------------------------------
+# Pure helpers
+# --------------------------------------------------------------------------
+
+@pytest.mark.parametrize("v, text", [
+    (0, "0"), (0.0, "0"), (1234, "1.23k"), (3000, "3k"), (999999, "1M"), (2.5e9, "2.5G"),
+    (1e-12, "1e-12"), (2.5e-7, "2.5e-7"), (0.5, "0.5"), (12.5, "12.5"), (0.001, "0.001"),
+    (123.456, "123"), (-0.25, "-0.25"), (-1500, "-1.5k"), (math.nan, "nan"),
+    (math.inf, "inf"), (-math.inf, "-inf"),
+])
+def test_fmt_number(v, text):
+    assert fmt_number(v) == text
+
+
+def test_fmt_number_digits_keep_close_ticks_apart():
+    assert fmt_number(10.02, 4) != fmt_number(10.04, 4)
+    assert _data_axis([10.02, 10.1], False).labels()[1][1] == "10.04"
+
+
+def test_linear_mapping_endpoints_and_monotone():
+    f = axis_mapping(-3.0, 7.0, False, 50, 650)
+    assert f(-3.0) == pytest.approx(50) and f(7.0) == pytest.approx(650)
+    px = [f(v) for v in np.linspace(-3, 7, 21)]
+    assert all(b > a for a, b in zip(px, px[1:]))
+    # A y axis runs from the bottom row up: larger values get smaller rows.
+    g = axis_mapping(0.0, 1.0, False, 400, 40)
+    assert g(0.0) == pytest.approx(400) and g(1.0) == pytest.approx(40) and g(0.9) < g(0.1)
+
+
+def test_log_mapping_puts_decades_evenly():
+    f = axis_mapping(1.0, 100.0, True, 0, 200)
+    assert f(1.0) == pytest.approx(0) and f(100.0) == pytest.approx(200)
+    assert f(10.0) == pytest.approx(100)
+    assert math.isnan(f(-1.0)) and math.isnan(f(0.0))  # no zero slot: 0 cannot be shown
+
+
+@pytest.mark.parametrize("px0, px1", [(400, 40), (60, 660)])
+def test_log_zero_slot_is_beyond_the_smallest_positive(px0, px1):
+    f = axis_mapping(1e-3, 1.0, True, px0, px1, zero=True)
+    assert f(0.0) == px0
+    assert f(1.0) == pytest.approx(px1)
+    # Zero, then a gap, then the positive range: all on the same side, in order.
+    assert (f(0.0) - f(1e-3)) * (px0 - px1) > 0 and abs(f(1e-3) - f(0.0)) > 10
+    assert (f(1e-3) - f(1e-2)) * (px0 - px1) > 0
+
+
+def test_data_axis_degenerate_ranges_are_padded():
+    for values, log in [([5.0, 5.0], False), ([0.0], False), ([], False), ([-2.0], False),
+                        ([7.0], True), ([], True), ([0.0, 0.0], True)]:
+        ax = _data_axis(values, log)
+        assert ax.lo < ax.hi and len(ax.ticks) >= 2, (values, log)
+        assert all(ax.lo <= v <= ax.hi for v in values if not log or v > 0)
+    ax = _data_axis([0.0, 2e-3, 0.5], True)
+    assert ax.zero and ax.labels()[0] == (0.0, "0")
+    assert all(math.log10(t) == pytest.approx(round(math.log10(t))) for t in ax.ticks)
+
+
+def test_linear_ticks_are_nice_and_cover_the_data():
+    ax = _data_axis([0.13, 9.7], False)
+    steps = np.diff(ax.ticks)
+    assert np.allclose(steps, steps[0]) and 3 <= len(ax.ticks) <= 8
+    mant = steps[0] / 10 ** math.floor(math.log10(steps[0]))
+    assert min(abs(mant - m) for m in (1, 2, 5)) < 1e-9
+    assert ax.lo <= 0.13 and ax.hi >= 9.7
+
+
+def test_stack_segments_normalise_to_100():
+    segs = stack_segments({"raster": 1, "cast": 3, "shade": 0})
+    assert [s[0] for s in segs] == ["raster", "cast", "shade"]
+    assert segs[0][1:] == pytest.approx((0, 25)) and segs[1][1:] == pytest.approx((25, 100))
+    assert segs[2][2] - segs[2][1] == 0
+    odd = stack_segments({"a": math.nan, "b": -5, "c": 2.0, "d": None, "e": math.inf})
+    assert [round(e - s, 9) for _, s, e in odd] == [0, 0, 100, 0, 0]
+    assert all(s == e == 0 for _, s, e in stack_segments({"a": 0, "b": 0}))
+
+
+# --------------------------------------------------------------------------
+# Images
+# --------------------------------------------------------------------------
+
+def test_scatter_markers_where_the_data_says(tmp_path):
+    pts = [{"x": 1, "y": 1, "label": "low"}, {"x": 2, "y": 3, "label": "high"},
+           {"x": 3, "y": 2, "label": "mid"}]
+    out = scatter_chart(tmp_path / "deep" / "er" / "s.png", pts, **KW)
+    assert out == tmp_path / "deep" / "er" / "s.png"
+    b = blobs(load(out), PALETTE[0])
+    assert len(b) == 3  # one series: no legend, so only the three markers carry the colour
+    low, high, mid = (row for _, _, row, _ in b)
+    assert high < mid < low
+    assert os.listdir(out.parent) == ["s.png"]  # no temporary file left behind
+
+
+def test_scatter_zero_error_on_log_axis_is_drawn_below(tmp_path):
+    pts = [{"x": 1.0, "y": 0.0, "label": "parc", "series": "parc"},
+           {"x": 2.0, "y": 1e-3, "label": "step 1", "series": "brute"},
+           {"x": 4.0, "y": 1.0, "label": "step 2", "series": "brute"}]
+    img = load(scatter_chart(tmp_path / "z.png", pts, x_log=True, y_log=True, **KW))
+    zero = blobs(img, PALETTE[0])[0][2]  # marker first, legend swatch last
+    brute = [b[2] for b in blobs(img, PALETTE[1])][:2]
+    assert zero > brute[0] > brute[1]
+
+
+def test_scatter_zero_on_log_x_is_left_of_smallest(tmp_path):
+    pts = [{"x": 0.0, "y": 1, "label": "a"}, {"x": 1e-6, "y": 2, "label": "b"},
+           {"x": 1e-2, "y": 3, "label": "c"}]
+    b = blobs(load(scatter_chart(tmp_path / "zx.png", pts, x_log=True, **KW)), PALETTE[0])
+    assert len(b) == 3 and b[0][2] > b[1][2] > b[2][2]  # left to right: y = 1, 2, 3
+
+
+@pytest.mark.parametrize("pts, log", [
+    ([{"x": math.nan, "y": 1, "label": "a"}, {"x": 1, "y": math.inf, "label": "b"}], False),
+    ([{"x": None, "y": None, "label": "a"}], False),
+    ([{"x": -1, "y": -2, "label": "neg"}], True),
+    ([], False),
+    ([{"x": 3, "y": 3, "label": "one"}], True),
+    ([{"x": 5, "y": 5, "label": "a"}, {"x": 5, "y": 5, "label": "b"}], False),
+])
+def test_scatter_degenerate_input_renders(tmp_path, pts, log):
+    img = load(scatter_chart(tmp_path / "d.png", pts, x_log=log, y_log=log, size=(400, 300), **KW),
+               size=(400, 300))
+    finite = [p for p in pts if p["x"] is not None and math.isfinite(p["x"])
+              and math.isfinite(p["y"]) and (not log or p["x"] >= 0)]
+    assert bool(blobs(img, PALETTE[0])) == bool(finite)
+
+
+def test_line_chart_legend_and_order(tmp_path):
+    series = {"brute": [(64, 0.5), (128, 2.0), (256, 8.0)],
+              "parc": [(64, 0.05), (128, math.nan), (256, 0.8)]}
+    img = load(line_chart(tmp_path / "l.png", series, x_log=True, y_log=True, **KW))
+    brute, parc = blobs(img, PALETTE[0]), blobs(img, PALETTE[1])
+    # brute: one unbroken line, then the legend swatch; parc is broken at the NaN, so its
+    # two markers stand alone (no line bridges the gap), then its swatch.
+    assert len(brute) == 2 and len(parc) == 3
+    c0, c1 = brute[0][:2]
+    mask = np.all(img == np.array(PALETTE[0], np.uint8), axis=2)
+    assert np.flatnonzero(mask[:, c0]).mean() > np.flatnonzero(mask[:, c1]).mean()  # rises
+    assert parc[1][0] - parc[0][1] > 100
+
+
+def test_bar_heights_are_proportional(tmp_path):
+    groups = [("a", {"s": 1.0}), ("b", {"s": 3.0}), ("c", {"s": math.nan})]
+    img = load(bar_chart(tmp_path / "b.png", groups, title="t", y_label="ms"))
+    bars = blobs(img, PALETTE[0])
+    assert len(bars) == 3  # two bars and the legend swatch; NaN draws no bar
+    h1, h3 = bars[0][3], bars[1][3]
+    assert h3 / h1 == pytest.approx(3.0, rel=0.05)
+
+
+def test_bar_chart_log_with_zero(tmp_path):
+    groups = [("x", {"brute": 2.3, "parc": 0.0}), ("y", {"brute": 3400.0, "parc": 0.21})]
+    img = load(bar_chart(tmp_path / "bl.png", groups, title="t", y_label="ms", y_log=True))
+    brute = blobs(img, PALETTE[0])
+    assert brute[1][3] > brute[0][3] > 0
+
+
+def test_stacked_bars_fill_the_axis_in_proportion(tmp_path):
+    bars = [("one", {"raster": 1.0, "cast": 3.0}), ("two", {"raster": 1.0, "cast": 1.0}),
+            ("none", {"raster": 0.0})]
+    img = load(stacked_bar_chart(tmp_path / "st.png", bars, title="t"))
+    raster, cast = blobs(img, PALETTE[0]), blobs(img, PALETTE[1])
+    # Bars first, legend swatch last; white segment outlines cost a pixel or two each.
+    assert cast[0][3] / raster[0][3] == pytest.approx(3.0, rel=0.05)
+    assert cast[1][3] / raster[1][3] == pytest.approx(1.0, rel=0.05)
+    assert raster[0][3] + cast[0][3] == pytest.approx(raster[1][3] + cast[1][3], abs=2)
+
+
+def test_write_replaces_existing_file(tmp_path):
+    path = tmp_path / "same.png"
+    path.write_bytes(b"not a png")
+    load(bar_chart(str(path), [("g", {"s": 1})], title="t", y_label="v", size=(320, 240)),
+         size=(320, 240))
+    assert sorted(os.listdir(tmp_path)) == ["same.png"]

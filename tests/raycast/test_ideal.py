@@ -1,0 +1,285 @@
+"""The ideal caster's sample count (`raycast.ideal`, `parc.ideal`).
+
+Truth: a slow plain-Python walk of the unaccelerated caster's lattice,
+written from the definition (its own ray, clipping, lattice, cell
+assignment and cell ranges), which must give the kernel's per-pixel
+counts exactly; and the order ``ideal <= parc <= brute`` of
+``stats["samples"]`` on random scenes, which must hold without tolerance.
+The reference repeats the kernels' floating-point operations in the same
+order (Python floats are IEEE doubles, and the kernels run without
+fastmath), because samples on cell faces, which the axis-aligned view
+produces on purpose, belong to the cell ``floor`` picks and a rounding
+difference would move them.
+"""
+import math
+
+import numpy as np
+import pytest
+
+from data_tools import Volume
+from data_tools.synthetic import blobs, trilinear_field
+from parc import Camera, Scene, TransferFunction, Translucent, render
+from parc.ideal import contributing_cells, ideal_iso_cells, ideal_sample_counts, ideal_samples
+from parc.renderer import accumulation_params
+from raycast.composite import MODE_COMPOSITE, P_MODE, P_RATIO, P_THRESHOLD, cast_accumulate_image
+
+SIZE = (9, 7)
+TINY_DIRECTION = 1e-200     # as raycast.traverse: a direction component below it counts as zero
+
+
+# --------------------------------------------------------------------------
+# The slow reference
+# --------------------------------------------------------------------------
+
+def _pixel_ray(cam, width, height, x, y):
+    """The world ray through pixel (x, y), DESIGN's formula (as `raycast.rays.camera_ray` computes it)."""
+    eye, f, r, u = cam[0:3], cam[3:6], cam[6:9], cam[9:12]
+    sx = (2.0 * (x + 0.5) / width - 1.0) * (width / height)
+    sy = 1.0 - 2.0 * (y + 0.5) / height
+    if cam[14] != 0.0:
+        o = [eye[a] + cam[13] * (sx * r[a] + sy * u[a]) for a in range(3)]
+        return o, [f[0], f[1], f[2]]
+    d = [f[a] + cam[12] * (sx * r[a] + sy * u[a]) for a in range(3)]
+    inv = 1.0 / math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+    return [eye[0], eye[1], eye[2]], [d[0] * inv, d[1] * inv, d[2] * inv]
+
+
+def _clip(O, D, dims):
+    """``(t_in, t_out)`` of the index-space ray in the box ``[0, n-1]^3``, ``t_in >= 0``."""
+    t_in, t_out = 0.0, math.inf
+    for o, d, n in zip(O, D, dims):
+        if abs(d) < TINY_DIRECTION:
+            if o < 0.0 or o > n - 1.0:
+                return math.inf, -math.inf
+            continue
+        inv = 1.0 / d
+        t0, t1 = sorted(((0.0 - o) * inv, (n - 1.0 - o) * inv))
+        t_in, t_out = max(t_in, t0), min(t_out, t1)
+    return t_in, t_out
+
+
+def _value(data, p):
+    """Trilinear value at index point ``p`` and its cell ``(i, j, k)``: floor, clamped to the grid."""
+    nz, ny, nx = data.shape
+    i, j, k = (min(max(int(math.floor(c)), 0), n - 2) for c, n in zip(p, (nx, ny, nz)))
+    u, v, w = p[0] - i, p[1] - j, p[2] - k
+    c = data[k:k + 2, j:j + 2, i:i + 2].astype(np.float64)
+    # Nested lerps along x, then y, then z, as the kernel rounds them.
+    cx = [[float(c[b, a, 0]) + u * (float(c[b, a, 1]) - float(c[b, a, 0])) for a in range(2)] for b in range(2)]
+    cy = [cx[b][0] + v * (cx[b][1] - cx[b][0]) for b in range(2)]
+    return cy[0] + w * (cy[1] - cy[0]), (i, j, k)
+
+
+def _contributing(data, tf):
+    """Cells whose 8-corner range has non-zero opacity somewhere, one cell at a time."""
+    nz, ny, nx = data.shape
+    out = np.zeros((nz - 1, ny - 1, nx - 1), bool)
+    for k in range(nz - 1):
+        for j in range(ny - 1):
+            for i in range(nx - 1):
+                c = data[k:k + 2, j:j + 2, i:i + 2]
+                out[k, j, i] = tf.nonzero_in(c.min(), c.max())
+    return out
+
+
+def _slow_counts(vis, cam, width, height, stop=None):
+    """Per-pixel ideal counts: brute's lattice walked in plain Python, counting contributing cells."""
+    vol, tf = vis.volume, vis.tf
+    data = vol.data
+    contrib = _contributing(data, tf)
+    org, spc = vol.origin, vol.spacing
+    dims = vol.dims
+    ratio = accumulation_params(vis)[P_RATIO]
+    cam = [float(c) for c in cam]
+    out = np.zeros((height, width), np.int64)
+    for y in range(height):
+        for x in range(width):
+            o, d = _pixel_ray(cam, width, height, x, y)
+            O = [(o[a] - org[a]) / spc[a] for a in range(3)]
+            D = [d[a] / spc[a] for a in range(3)]
+            t_in, t_out = _clip(O, D, dims)
+            if not t_in <= t_out:
+                continue
+            t_stop = math.inf if stop is None else stop[y, x]
+            acc = 0.0
+            for n in range(int(math.floor((t_out - t_in) / vis.step)) + 1):
+                t = t_in + n * vis.step
+                if t >= t_stop:
+                    break
+                v, (i, j, k) = _value(data, [O[a] + t * D[a] for a in range(3)])
+                out[y, x] += contrib[k, j, i]
+                if vis.mode != "composite":
+                    continue
+                a = float(tf.opacity(np.array([v]))[0])
+                if a > 0.0:
+                    a = a if a >= 1.0 or ratio == 1.0 else -math.expm1(ratio * math.log1p(-a))
+                    acc += (1.0 - acc) * a
+                    if acc >= vis.threshold:
+                        break
+    return out
+
+
+# --------------------------------------------------------------------------
+# Scenes
+# --------------------------------------------------------------------------
+
+def _tiny_volume(dtype):
+    # A ramp along x and z plus noise (nx=6, ny=5, nz=7): cell ranges narrow
+    # enough that the low corner holds non-contributing cells, with
+    # contributing neighbours across x and z faces.
+    rng = np.random.default_rng(11)
+    data = (25 * np.arange(6) + 12 * np.arange(7)[:, None, None] + rng.integers(0, 20, (7, 5, 6))).astype(dtype)
+    # Binary-exact spacing, origin and step (0.125) put the axis-aligned view's
+    # samples exactly on z faces every fourth step.
+    return Volume(data, spacing=(1.0, 1.25, 0.5), origin=(-2.0, 1.5, 0.25))
+
+
+#: Opacity zero below 90 and between 170 and 200: many cells are not contributing.
+TINY_TF = TransferFunction(opacity=[[90, 0.0], [130, 0.35], [170, 0.0], [200, 0.0], [230, 0.5]],
+                           color=[[0, 1.0, 0.5, 0.0], [255, 0.0, 0.5, 1.0]])
+
+
+def _tiny_cameras(vol):
+    lo, hi = vol.bounds
+    c = vol.center
+    return {
+        "perspective": Camera.framing(lo, hi, azimuth=37.0, elevation=23.0, zoom=1.3),
+        # Down the z axis: two direction components exactly zero, samples every
+        # fourth step exactly on a z face between cells.
+        "parallel-z": Camera(eye=(c[0], c[1], c[2] + 40.0), look_at=tuple(c), up=(0.0, 1.0, 0.0),
+                             parallel_scale=0.55 * float(hi[1] - lo[1])),
+    }
+
+
+def _kernel_counts(vis, cam, size, stop=None):
+    scene = Scene(camera=cam, size=size, volumes=[vis])
+    return ideal_sample_counts(scene, vis, stop)
+
+
+def _set_threshold(vis, threshold):
+    """A Translucent whose params carry ``threshold`` (1.01 is refused by Translucent, but not by the kernels)."""
+    vis.threshold = threshold
+    return vis
+
+
+CASES = [("mip", None), ("average", None), ("composite", 1.01), ("composite", 0.5)]
+
+
+@pytest.mark.parametrize("dtype", ["uint8", "float32"])
+@pytest.mark.parametrize("view", ["perspective", "parallel-z"])
+@pytest.mark.parametrize("mode,threshold", CASES)
+def test_kernel_matches_slow_reference(dtype, view, mode, threshold):
+    vol = _tiny_volume(dtype)
+    cam = _tiny_cameras(vol)[view]
+    vis = Translucent(vol, TINY_TF, mode=mode, step=None if view == "parallel-z" else 0.29)
+    if threshold is not None:
+        _set_threshold(vis, threshold)
+    w, h = SIZE
+    got = _kernel_counts(vis, cam, SIZE)
+    want = _slow_counts(vis, cam.as_array(), w, h)
+    np.testing.assert_array_equal(got, want)
+    # Not vacuous: some samples are counted and some are not.
+    assert 0 < want.sum()
+    assert (contributing_cells(vis) == 0).any()
+
+    # Per pixel against the unaccelerated caster itself: a subset of its
+    # samples, and no pixel with opacity lacks counted samples.
+    params = accumulation_params(vis)
+    assert params[P_THRESHOLD] == vis.threshold and (params[P_MODE] == MODE_COMPOSITE) == (mode == "composite")
+    image = np.empty((h, w, 4), np.float32)
+    brute = np.empty(w * h, np.int64)
+    cast_accumulate_image(vol.data, np.array(vol.origin), np.array(vol.spacing), cam.as_array(), w, h, params,
+                          *vis.tf.arrays(), np.empty((1, 1, 2)), False, np.empty((1, 1)), False,
+                          np.zeros((1, 1, 1), np.uint32), False, image, brute, 0, h)
+    brute = brute.reshape(h, w)
+    assert (got <= brute).all()
+    assert (got[image[..., 3] > 0] > 0).all()
+
+
+def test_composite_with_stop_matches_slow_reference():
+    vol = _tiny_volume("float32")
+    cam = _tiny_cameras(vol)["perspective"]
+    vis = Translucent(vol, TINY_TF, step=0.29, threshold=0.8)
+    w, h = SIZE
+    stop = np.random.default_rng(3).uniform(0.0, 60.0, (h, w))
+    np.testing.assert_array_equal(_kernel_counts(vis, cam, SIZE, stop), _slow_counts(vis, cam.as_array(), w, h, stop))
+
+
+# --------------------------------------------------------------------------
+# Against brute and parc on random scenes
+# --------------------------------------------------------------------------
+
+def _random_tf(rng, lo, hi):
+    """One or two opacity bumps over a zero background, some narrow."""
+    pts = []
+    span = hi - lo
+    for c in np.sort(rng.uniform(lo + 0.1 * span, hi - 0.1 * span, rng.integers(1, 3))):
+        width = span * (1e-3 if rng.random() < 0.3 else rng.uniform(0.02, 0.2))
+        pts += [[c - width, 0.0], [c, float(rng.uniform(0.05, 0.9))], [c + width, 0.0]]
+    pts = sorted(pts)
+    for i in range(1, len(pts)):      # keep the values non-decreasing after overlaps
+        pts[i][0] = max(pts[i][0], pts[i - 1][0])
+    return TransferFunction(opacity=pts, color=[[lo, 0.9, 0.4, 0.2], [hi, 0.3, 0.6, 1.0]])
+
+
+def _random_scene(seed):
+    rng = np.random.default_rng(500 + seed)
+    dims = tuple(int(n) for n in rng.integers(8, 16, 3))
+    spacing = tuple(rng.uniform(0.6, 1.6, 3)) if seed % 2 else (1.0, 1.0, 1.0)
+    origin = tuple(rng.uniform(-10, 10, 3))
+    if seed % 3 == 0:
+        data = blobs(dims, seed=seed).data
+    elif seed % 3 == 1:
+        data = rng.normal(size=dims[::-1]).astype(np.float32)       # noise
+    else:
+        data = trilinear_field(dims, seed=seed, dtype="float32").data
+    vol = Volume(data, spacing=spacing, origin=origin)
+    vis = Translucent(vol, _random_tf(rng, *vol.value_range()), shade=bool(seed % 2))
+    lo, hi = vol.bounds
+    cam = Camera.framing(lo, hi, azimuth=rng.uniform(0, 360), elevation=rng.uniform(-70, 70),
+                         parallel=seed % 4 == 3, zoom=1.4)
+    return Scene(camera=cam, size=(24, 18), volumes=[vis]), vis
+
+
+@pytest.fixture(scope="module")
+def gl():
+    from parc.raster import OpenGLUnavailable, get_context
+    try:
+        return get_context()
+    except OpenGLUnavailable as exc:
+        pytest.skip(f"PARC needs a headless EGL context: {exc}")
+
+
+@pytest.mark.parametrize("seed", range(10))
+def test_ideal_at_most_parc_at_most_brute(seed, gl):
+    scene, vis = _random_scene(seed)
+    brute = render(scene, method="brute")
+    parc = render(scene, method="parc", supercell=1)
+    ideal = ideal_samples(scene, vis)
+    assert ideal <= parc.stats["samples"] <= brute.stats["samples"], seed
+    if (brute.image[..., 3] > 0).any():
+        assert ideal > 0, seed
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_stop_only_removes_samples(seed):
+    scene, vis = _random_scene(seed)
+    w, h = scene.size
+    free = ideal_sample_counts(scene, vis)
+    rng = np.random.default_rng(seed)
+    dist = float(np.linalg.norm(np.asarray(scene.camera.eye) - vis.volume.center))
+    stop = rng.uniform(0.5 * dist, 1.5 * dist, (h, w))
+    stop[rng.random((h, w)) < 0.2] = np.inf
+    stopped = ideal_sample_counts(scene, vis, stop)
+    assert (stopped <= free).all()
+    assert stopped.sum() < free.sum()            # the stops cut through the volume
+    np.testing.assert_array_equal(ideal_sample_counts(scene, vis, np.full((h, w), np.inf)), free)
+    assert ideal_sample_counts(scene, vis, np.zeros((h, w))).sum() == 0
+
+
+def test_ideal_iso_cells_is_brutes_cubic_solves():
+    # The unaccelerated caster's own count; no render here, to keep the isosurface kernels' compile out.
+    from parc import RenderResult
+    res = RenderResult(image=np.zeros((1, 1, 4), np.float32), depth=np.full((1, 1), np.inf),
+                       stats={"method": "brute", "cubic_solves": 17})
+    assert ideal_iso_cells(res) == 17
