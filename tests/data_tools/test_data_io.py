@@ -279,3 +279,26 @@ def test_failed_save_writes_nothing(tmp_path, monkeypatch):
     assert list(tmp_path.iterdir()) == []
     with pytest.raises(InputError, match="cannot write"):
         save_volume(Volume(make_array("uint8")), tmp_path / "no" / "such" / "dir.npy")
+
+
+def test_raw_mmap_maps_the_file_read_only(tmp_path):
+    data = (np.arange(5 * 4 * 3, dtype=np.int16) * 37 - 900).reshape(3, 4, 5)
+    path = tmp_path / "ct_5x4x3_int16.raw"
+    data.astype("<i2").tofile(path)
+    vol = load_volume(path, mmap=True)
+    assert isinstance(vol.data, np.memmap) and not vol.data.flags.writeable
+    np.testing.assert_array_equal(vol.data, data)
+    assert load_volume(path, mmap=False).data.flags.writeable
+
+
+def test_raw_mmap_refuses_the_other_byte_order(tmp_path):
+    path = tmp_path / "ct_5x4x3_int16.raw"
+    np.zeros((3, 4, 5), ">i2").tofile(path)
+    with pytest.raises(InputError, match="byte order"):
+        load_volume(path, mmap=True, byte_order="big")
+
+
+def test_mmap_is_for_raw_files_only(tmp_path):
+    path = save_volume(Volume(np.zeros((3, 4, 5), np.uint8)), tmp_path / "v.nrrd")
+    with pytest.raises(InputError, match="--mmap apply only to headerless raw"):
+        load_volume(path, mmap=True)
