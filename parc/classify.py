@@ -510,7 +510,8 @@ def choose_supercell(index, iso=None, *, pixels=512 * 512, rays=None, cores=None
     Returns
     -------
     size : float
-        The candidate with the least estimated time.
+        The candidate with the least estimated time, among those that give
+        at most `MAX_SUPERCELLS` supercells for this volume.
     table : list of dict
         Per candidate: ``size``, ``supercells``, ``pc_supercells``,
         ``faces`` (outer faces before merging), ``raster_s``, ``cells``,
@@ -533,7 +534,10 @@ def choose_supercell(index, iso=None, *, pixels=512 * 512, rays=None, cores=None
     cores = cores or os.cpu_count() or 1
     rays = pixels // 2 if rays is None else rays
     table = []
+    dims = index.volume.dims
     for m in candidates:
+        if math.prod(len(_axis_edges(n, c)) - 1 for n, c in zip(dims, _size_triple(m))) > MAX_SUPERCELLS:
+            continue        # too fine to classify for this volume (a 1734-slice CT at 1 cell)
         pc = classify(m) if classify is not None else index.classify(iso, m)
         faces = count_outer_faces(pc)
         raster = RASTER_FIXED_S * pixels / (512 * 512) + RASTER_PER_FACE_S * faces

@@ -207,3 +207,14 @@ def test_count_outer_faces():
     pc[1, 1, 2] = True
     assert count_outer_faces(pc) == 10
     assert count_outer_faces(np.ones((2, 3, 4), bool)) == 2 * (6 + 8 + 12)
+
+
+def test_cost_model_skips_sizes_too_fine_for_the_volume(monkeypatch):
+    import parc.classify as classify
+    from data_tools.synthetic import blobs
+    index = classify.VolumeIndex(blobs(17))
+    # 16^3 cells: size 1 gives 4096 supercells, size 2 gives 512, size 4 gives 64.
+    monkeypatch.setattr(classify, "MAX_SUPERCELLS", 600)
+    size, table = classify.choose_supercell(index, 0.5, candidates=(1, 2, 4))
+    assert [r["size"] for r in table] == [2.0, 4.0]
+    assert size in (2.0, 4.0)
