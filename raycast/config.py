@@ -23,6 +23,12 @@ os.environ.setdefault("NUMBA_CACHE_DIR", os.path.join(
     "numba-" + _source_digest()))
 
 import numba  # noqa: E402
+import numba.core.config  # noqa: E402
+
+# Numba reads the variable when it is first imported; `parc` modules may
+# import it before this one, so hand it the folder directly as well. Kernels
+# pick their cache folder when they are decorated, after this line.
+numba.core.config.CACHE_DIR = os.environ["NUMBA_CACHE_DIR"]
 
 #: Flags shared by all kernels. fastmath stays off: PARC and the
 #: unaccelerated caster must round identically, and the root finder relies

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 from . import charts
 
@@ -173,7 +174,7 @@ def scale(res, out):
            if vw.get("generate_seconds") is not None else "reused from an earlier run")
     md = ["## 4. Visible Woman scale", "",
           f"A {nx}×{ny}×{nz} {vw['dtype']} CT-like phantom ({vw['bytes'] / 1e6:,.0f} MB), {gen}, memory-mapped "
-          f"read-only (`{vw['path']}`); {vw['size']}² images, {vw['threads']} threads. Cell min/max once per "
+          f"read-only (`{Path(vw['path']).name}` in the cache folder); {vw['size']}² images, {vw['threads']} threads. Cell min/max once per "
           f"volume: {_s(vw['minmax_seconds'])} s ({vw['minmax_bytes'] / 1e6:,.0f} MB). Peak resident memory of "
           f"the section's process: {vw['peak_rss_bytes'] / 1e6:,.0f} MB.", ""]
     md.append(_table(("surface", "brute s/frame", "parc s/frame", "speedup", "parc FPS", "proxy build (s)",
