@@ -55,7 +55,7 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
     (cells, solves, samples, shadow_cells, shadow_solves, shadow_samples,
     shadow_rays), seconds per phase and per-volume PARC details.
     """
-    from .renderer import _parc_segments, accumulation_params
+    from .renderer import _parc_segments, accumulation_params, column_totals
 
     w, h = scene.size
     npx = w * h
@@ -86,8 +86,6 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
     t0 = time.perf_counter()
     depth = np.full(npx, np.inf)
     winner = np.full(npx, -1, np.int64)
-    cell = np.full((npx, 3), -1, np.int32)
-    uvw = np.zeros((npx, 3))
     isos = [(n, v) for n, v in enumerate(scene.volumes) if isinstance(v, Isosurface)]
     for n, iso in isos:
         vol = iso.volume
@@ -97,19 +95,27 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
             cast_iso_image(vol.data, np.array(vol.origin), np.array(vol.spacing), cam, w, h, iso.value,
                            seg, parc, t, c, uv, cnt, 0, h)
         closer = t < depth
-        depth[closer] = t[closer]
-        winner[closer] = n
-        cell[closer] = c[closer]
-        uvw[closer] = uv[closer]
-        sums = cnt.sum(axis=0)
-        counts["cells"] += int(sums[0])
-        counts["solves"] += int(sums[1])
+        np.copyto(winner, n, where=closer)
+        if n == isos[0][0]:
+            # The first surface takes every hit it has: its arrays become the
+            # merged ones (cell and uvw are read only where winner >= 0).
+            depth, cell, uvw = t, c, uv
+        else:
+            np.copyto(depth, t, where=closer)
+            np.copyto(cell, c, where=closer[:, None])
+            np.copyto(uvw, uv, where=closer[:, None])
+        cells, solves = column_totals(cnt)
+        counts["cells"] += cells
+        counts["solves"] += solves
     timings["cast"] = time.perf_counter() - t0
     report(0.4)
 
     # Lighting and shadows of the hits.
     image = np.zeros((h, w, 4), np.float32)
     hit = np.flatnonzero(winner >= 0)
+    # Hits grouped by volume (pixel order kept within each), so each volume's
+    # surface frames are written in place into one slice of the hit arrays.
+    hit = hit[np.argsort(winner[hit], kind="stable")]
     timings["shade"] = 0.0
     timings["shadow"] = 0.0
     timings["raster_lights"] = 0.0
@@ -121,16 +127,15 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
         views = np.empty((nh, 3))
         colors = np.empty((nh, 3))
         materials = np.empty((nh, 4))
+        owner = winner[hit]
         for n, iso in isos:
-            sel = np.flatnonzero(winner[hit] == n)
-            if not len(sel):
+            a, b = np.searchsorted(owner, n, "left"), np.searchsorted(owner, n, "right")
+            if a == b:
                 continue
-            p, q, r = np.empty((len(sel), 3)), np.empty((len(sel), 3)), np.empty((len(sel), 3))
-            surface_frames(iso.volume.data, np.array(iso.volume.spacing), cam, w, h, hit[sel], depth, cell, uvw,
-                           p, q, r)
-            points[sel], normals[sel], views[sel] = p, q, r
-            colors[sel] = iso.color
-            materials[sel] = iso.material
+            surface_frames(iso.volume.data, np.array(iso.volume.spacing), cam, w, h, hit[a:b], depth, cell, uvw,
+                           points[a:b], normals[a:b], views[a:b])
+            colors[a:b] = iso.color
+            materials[a:b] = iso.material
         lights = light_array(scene.lights) if scene.lights else np.array([[KIND_HEADLIGHT, 0, 0, 0, 1, 1, 1.0]])
         diffuse = np.empty((len(lights), nh))
         specular = np.empty((len(lights), nh))
@@ -218,10 +223,11 @@ def _shadows(scene, method, lights, points, vis, segs, sizes, light_buffer, timi
                 shadow_accumulate(vol.data, org, spc, accumulation_params(v), op_x, op_y, col_x, col_rgb,
                                   points, row, eps, views, near, far, method == "parc", v_l, cnt)
             timings["shadow"] += time.perf_counter() - t0
-    sums = cnt.sum(axis=0)
-    counts["shadow_cells"] += int(sums[0])
-    counts["shadow_solves"] += int(sums[1])
-    counts["shadow_samples"] += int(sums[2])
+    from .renderer import column_totals
+    cells, solves, samples = column_totals(cnt)[:3]
+    counts["shadow_cells"] += cells
+    counts["shadow_solves"] += solves
+    counts["shadow_samples"] += samples
 
 
 def _cached_light_buffers(light, vis, proxy, size, n):
