@@ -217,13 +217,12 @@ def solve_all(rec, variant, reps):
 
 # ---------------------------------------------------------------- drivers
 
-def _walk(batch, variant, record=False):
-    """``(t, cell, uvw, rec)`` of one batch walked with ``variant``; ``rec`` the solved cubics if asked."""
-    n = len(batch)
+def walk(data, org, spc, origins, dirs, isos, variant, record=False):
+    """``(t, cell, uvw, rec)`` of world rays walked with ``variant``; ``rec`` the cubics solved, in ray order, if asked."""
+    n = len(origins)
     t, cell, uvw = np.empty(n), np.empty((n, 3), np.int32), np.zeros((n, 3))
     solves, offsets = np.zeros(n, np.int64), np.zeros(n, np.int64)
-    args = (batch.scene.data, batch.scene.origin, batch.scene.spacing, batch.origins, batch.dirs,
-            batch.isos, variant, t, cell, uvw, solves)
+    args = (data, org, spc, origins, dirs, isos, variant, t, cell, uvw, solves)
     walk_rays(*args, np.empty((0, 5)), offsets)
     rec = None
     if record:
@@ -231,6 +230,12 @@ def _walk(batch, variant, record=False):
         rec = np.empty((int(solves.sum()), 5))
         walk_rays(*args, rec, offsets)
     return t, cell, uvw, rec
+
+
+def _walk(batch, variant, record=False):
+    """`walk` over one batch of the hard-ray suite."""
+    return walk(batch.scene.data, batch.scene.origin, batch.scene.spacing, batch.origins, batch.dirs,
+                batch.isos, variant, record)
 
 
 def _aimed_at(batch, m, t, r, roots):

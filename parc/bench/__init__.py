@@ -20,6 +20,7 @@ the tests: its numbers check the report's consistency, not speed).
 """
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import platform
@@ -127,11 +128,9 @@ def machine():
 
     from ..raster import get_context
     cpu = platform.processor() or platform.machine()
-    try:
+    with contextlib.suppress(OSError):           # no /proc off Linux: keep platform's name
         with open("/proc/cpuinfo") as f:
             cpu = next((ln.split(":", 1)[1].strip() for ln in f if ln.startswith("model name")), cpu)
-    except OSError:
-        pass
     ctx = get_context()
     return {"cpu": cpu, "cores": os.cpu_count(), "numba_threads": numba.config.NUMBA_NUM_THREADS,
             "opengl": f"{ctx.info['GL_RENDERER']} (OpenGL {ctx.info['GL_VERSION']})",

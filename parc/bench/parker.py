@@ -26,7 +26,7 @@ import numba
 import numpy as np
 
 from ..compare import compare
-from ..rootstudy import PROJECT, solve_all, walk_rays
+from ..rootstudy import PROJECT, solve_all, walk
 from . import scenes
 
 ISOS = (("skin", 600.0), ("bone", 1500.0))
@@ -40,16 +40,8 @@ def recorded_cubics(scene):
     o, d = scene.camera.rays(w, h)
     o = np.ascontiguousarray(o.reshape(-1, 3))
     d = np.ascontiguousarray(d.reshape(-1, 3))
-    n = len(o)
-    isos = np.full(n, float(vis.value))
-    t, cell, uvw = np.empty(n), np.empty((n, 3), np.int32), np.zeros((n, 3))
-    solves, offsets = np.zeros(n, np.int64), np.zeros(n, np.int64)
-    args = (vol.data, np.array(vol.origin), np.array(vol.spacing), o, d, isos, PROJECT, t, cell, uvw, solves)
-    walk_rays(*args, np.empty((0, 5)), offsets)
-    offsets[1:] = np.cumsum(solves)[:-1]
-    rec = np.empty((int(solves.sum()), 5))
-    walk_rays(*args, rec, offsets)
-    return rec
+    return walk(vol.data, np.array(vol.origin), np.array(vol.spacing), o, d, np.full(len(o), float(vis.value)),
+                PROJECT, record=True)[3]
 
 
 def _solve_seconds(rec, repeats=3):
