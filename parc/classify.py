@@ -55,6 +55,15 @@ CHUNK_VALUES = 1 << 22
 #: so a supercell whose exact range only touches the isovalue stays PC.
 RANGE_PAD = 2.0 ** -40
 
+#: Empty blocks skipped inside PARC's segments (`raycast.iso`) are
+#: ``2**BLOCK_SHIFT`` cells a side. Measured on the CT head bone (512x512,
+#: cast only): blocks of 2 cells 27 ms, 4 cells 23 ms, 8 cells 33 ms, none 30 ms;
+#: small blocks jump often (each jump costs a few divisions), large ones are
+#: seldom empty.
+BLOCK_SHIFT = 2
+#: Isovalues whose block tables are kept per volume.
+BLOCK_CACHE_SIZE = 4
+
 #: Most supercells a grid may have (a guard against sub-cell sizes on big
 #: volumes, which would need tens of GB).
 MAX_SUPERCELLS = 1 << 28
@@ -390,6 +399,21 @@ def classify_iso(mn, mx, iso):
     return np.less_equal(mn, iso, signature=sig) & np.greater_equal(mx, iso, signature=sig)
 
 
+def sign_iso(mn, mx, iso):
+    """Which side of an isovalue each box lies on: int8 +1 (all above), -1 (all below), 0 (neither).
+
+    The empty-block table of `raycast.iso.cast_iso_ray`. Strict where
+    `classify_iso` is inclusive, so the two never disagree: a box is signed
+    exactly when it is not possibly contributing, and the sign is that of
+    ``float(sample) - iso`` at each of its samples, as the caster computes it.
+    """
+    iso = np.float64(iso)
+    sig = (np.float64, np.float64, np.bool_)
+    out = np.greater(mn, iso, signature=sig).view(np.int8)
+    out -= np.less(mx, iso, signature=sig).view(np.int8)
+    return out
+
+
 # --------------------------------------------------------------------------
 # Per-volume cache
 # --------------------------------------------------------------------------
@@ -448,6 +472,17 @@ class VolumeIndex:
         """Possibly contributing supercells of ``size`` for isovalue ``iso``: bool ``grid.shape``."""
         mn, mx = self.ranges(size)
         return classify_iso(mn, mx, iso)
+
+    def block_signs(self, iso):
+        """The empty-block table for isovalue ``iso`` (`sign_iso` of blocks of
+        ``2**BLOCK_SHIFT`` cells a side) and its shift, kept for the last few isovalues."""
+        cache = self.__dict__.setdefault("_block_signs", {})
+        key = float(iso)
+        if key not in cache:
+            if len(cache) >= BLOCK_CACHE_SIZE:
+                cache.pop(next(iter(cache)))
+            cache[key] = sign_iso(*self.ranges(1 << BLOCK_SHIFT), key)
+        return cache[key], BLOCK_SHIFT
 
 
 # --------------------------------------------------------------------------

@@ -55,7 +55,7 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
     (cells, solves, samples, shadow_cells, shadow_solves, shadow_samples,
     shadow_rays), seconds per phase and per-volume PARC details.
     """
-    from .renderer import _parc_segments, accumulation_params, column_totals
+    from .renderer import _parc_segments, accumulation_params, column_totals, iso_blocks
 
     w, h = scene.size
     npx = w * h
@@ -91,9 +91,10 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
         vol = iso.volume
         t, c, uv, cnt = empty_outputs(npx)
         seg = segs.get(n, np.empty((1, 1, 2)))
+        blocks, bshift = iso_blocks(iso, parc)
         with numba.parallel_chunksize(TILE_CHUNK):
             cast_iso_image(vol.data, np.array(vol.origin), np.array(vol.spacing), cam, w, h, iso.value,
-                           seg, parc, t, c, uv, cnt, 0, h)
+                           seg, parc, blocks, bshift, t, c, uv, cnt, 0, h)
         closer = t < depth
         np.copyto(winner, n, where=closer)
         if n == isos[0][0]:
@@ -193,7 +194,7 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
 
 def _shadows(scene, method, lights, points, vis, segs, sizes, light_buffer, timings, counts, extra):
     """Shadow rays from every hit to every light, volume by volume; ``vis`` scaled in place."""
-    from .renderer import _proxy, accumulation_params
+    from .renderer import _proxy, accumulation_params, iso_blocks
 
     eps = SHADOW_EPS * min(min(v.volume.spacing) for v in scene.volumes)
     nh = len(points)
@@ -216,8 +217,9 @@ def _shadows(scene, method, lights, points, vis, segs, sizes, light_buffer, timi
             org = np.array(vol.origin)
             spc = np.array(vol.spacing)
             if isinstance(v, Isosurface):
+                blocks, bshift = iso_blocks(v, method == "parc")
                 shadow_iso(vol.data, org, spc, v.value, points, row, eps, views, near, far,
-                           method == "parc", v_l, cnt)
+                           method == "parc", blocks, bshift, v_l, cnt)
             else:
                 op_x, op_y, col_x, col_rgb = v.tf.arrays()
                 shadow_accumulate(vol.data, org, spc, accumulation_params(v), op_x, op_y, col_x, col_rgb,

@@ -16,8 +16,9 @@ import numpy as np
 from data_tools import InputError
 from raycast.config import TILE_CHUNK
 from raycast.composite import (MODE_AVERAGE, MODE_COMPOSITE, MODE_MIP, N_PARAMS, P_AMBIENT, P_HI, P_LO,
-                               P_MODE, P_RATIO, P_SHADE, P_STEP, P_THRESHOLD, cast_accumulate_image)
-from raycast.iso import cast_iso_image, empty_outputs
+                               P_MODE, P_RATIO, P_SHADE, P_STEP, P_THRESHOLD, cast_accumulate_image,
+                               over_background)
+from raycast.iso import NO_BLOCKS, cast_iso_image, empty_outputs
 from raycast.shade import shade_headlight
 
 from .scene import Isosurface, Scene, Translucent
@@ -138,7 +139,7 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
     else:
         raise InputError(f"cannot render a {type(vis).__name__}; give an Isosurface or a Translucent")
     if scene.background is not None:
-        image += (1.0 - image[..., 3:4]) * np.asarray(scene.background, np.float32)
+        over_background(image, np.asarray(scene.background, np.float32))
     timings["total"] = time.perf_counter() - t0
     w, h = scene.size
     vol = vis.volume
@@ -174,7 +175,7 @@ def _render_general(scene, method, supercell, progress, light_buffer):
     image, depth, counts, timings, extra = render_scene(scene, method, supercell=supercell, progress=progress,
                                                         light_buffer=n)
     if scene.background is not None:
-        image += (1.0 - image[..., 3:4]) * np.asarray(scene.background, np.float32)
+        over_background(image, np.asarray(scene.background, np.float32))
     timings["total"] = time.perf_counter() - t0
     w, h = scene.size
     stats = {
@@ -217,13 +218,14 @@ def _render_iso(scene, iso, seg, use_seg, timings, progress):
     org = np.array(vol.origin)
     spc = np.array(vol.spacing)
     t, cell, uvw, counts = empty_outputs(w * h)
+    blocks, bshift = iso_blocks(iso, use_seg)
     timings["setup"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
     bands = _row_bands(h, w, progress)
     with numba.parallel_chunksize(TILE_CHUNK):      # tiles handed out a few at a time
         for n, (y0, y1) in enumerate(bands):
-            cast_iso_image(vol.data, org, spc, cam, w, h, iso.value, seg, use_seg,
+            cast_iso_image(vol.data, org, spc, cam, w, h, iso.value, seg, use_seg, blocks, bshift,
                            t, cell, uvw, counts, y0, y1)
             if progress is not None:
                 progress((n + 1) / len(bands))
@@ -236,6 +238,15 @@ def _render_iso(scene, iso, seg, use_seg, timings, progress):
     timings["shade"] = time.perf_counter() - t0
     cells, solves = column_totals(counts)
     return image, t.reshape(h, w), {"cells": cells, "solves": solves}
+
+
+def iso_blocks(iso, parc):
+    """``(blocks, bshift)`` for `raycast.iso.cast_iso_ray`: PARC's empty-block
+    table for the isovalue, or none for the unaccelerated caster."""
+    if not parc:
+        return NO_BLOCKS, -1
+    from .classify import VolumeIndex
+    return VolumeIndex.of(iso.volume).block_signs(iso.value)
 
 
 def accumulation_params(vis):

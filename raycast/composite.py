@@ -397,3 +397,18 @@ def cast_merged_image(datas, orgs, spcs, cam, width, height, params, op_x, op_y,
                 image[y, x, 2] = min(b, 1.0)
                 image[y, x, 3] = min(acc, 1.0)
                 counts[y * width + x] = samples
+
+
+@kernel(parallel=True)
+def over_background(image, background):
+    """Composite a premultiplied RGBA ``(H, W, 4)`` float32 image over ``background`` (RGBA), in place.
+
+    One pass over the pixels; NumPy's broadcast expression took 6-7 ms a
+    frame at 512x512, a tenth of a PARC frame.
+    """
+    h, w, _ = image.shape
+    for y in prange(h):
+        for x in range(w):
+            a = np.float32(1.0) - image[y, x, 3]
+            for c in range(4):
+                image[y, x, c] += a * background[c]

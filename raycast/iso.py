@@ -6,6 +6,19 @@ one segment; `cast_iso_image` (camera rays, image tiles) and
 PARC and the unaccelerated caster call the same `cast_iso_ray`; PARC only
 passes the ray segment ``[seg0, seg1]`` its OpenGL pass found, the
 unaccelerated caster ``[-inf, inf]``.
+
+Empty blocks. A segment runs from the first possibly contributing
+supercell the ray meets to the last, so it also crosses empty space:
+between supercells, and inside a supercell whose surface the ray misses.
+PARC passes a table of blocks of ``2**bshift`` cells a side
+(`parc.classify.VolumeIndex.block_signs`): +1 where every sample of the
+block lies above the isovalue, -1 where all lie below, 0 otherwise. A
+walk entering a signed block jumps to the block's exit instead of
+stepping through it. Nothing else changes: an empty cell's only effect on
+the walk is the sign it hands on, which is the block's, and the jump
+lands on the cell the full walk would be in at that time (`start_index`),
+so the hits are bit for bit the unaccelerated caster's. The unaccelerated
+caster passes `NO_BLOCKS`.
 """
 import math
 
@@ -16,6 +29,9 @@ from .config import TILE_H, TILE_W, kernel
 from .cubic import cubic_along_ray, eval_cubic, first_root, trilinear_coefficients
 from .rays import camera_ray
 from .traverse import axis_state, cell_corners, clip_box, next_exit, start_index, step_axis, to_index_space
+
+#: The empty-block table of a walk without one (``bshift = -1``).
+NO_BLOCKS = np.zeros((1, 1, 1), np.int8)
 
 
 @kernel
@@ -87,7 +103,23 @@ def _entry_sign(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, i, j, k, sx, sy, sz,
 
 
 @kernel
-def cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, seg0, seg1):
+def _block_exit(Ox, Oy, Oz, sx, sy, sz, ix, iy, iz, bi, bj, bk, bshift):
+    """Time the ray leaves block ``(bi, bj, bk)`` (blocks ``2**bshift`` cells a side)."""
+    last = (1 << bshift) - 1
+    ex = math.inf
+    ey = math.inf
+    ez = math.inf
+    if sx != 0:
+        ex = next_exit(Ox, ix, sx, (bi << bshift) + (last if sx > 0 else 0))
+    if sy != 0:
+        ey = next_exit(Oy, iy, sy, (bj << bshift) + (last if sy > 0 else 0))
+    if sz != 0:
+        ez = next_exit(Oz, iz, sz, (bk << bshift) + (last if sz > 0 else 0))
+    return min(ex, min(ey, ez))
+
+
+@kernel
+def cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, seg0, seg1, blocks, bshift):
     """First isosurface hit along an index-space ray, within ``[seg0, seg1]``.
 
     Returns ``(t, i, j, k, u, v, w, cells, solves)``: the hit's ray
@@ -103,6 +135,10 @@ def cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, seg0, seg1):
     leaves through that face, on the same numbers) is hit at its entry.
     The walk carries that sign from cell to cell; for the first cell of a
     segment it is recomputed, so any start gives the same answers.
+
+    ``blocks``/``bshift``: the empty-block table (module docstring), or
+    `NO_BLOCKS` and -1. ``cells`` counts the cells the walk looked at, not
+    those a jump passed over.
     """
     nz, ny, nx = data.shape
     t_in, t_out = clip_box(Ox, Oy, Oz, Dx, Dy, Dz, nx, ny, nz)
@@ -123,34 +159,69 @@ def cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, seg0, seg1):
     first = True
     cells = 0
     solves = 0
+    # The block last jumped across: cells still in it after the jump (the
+    # landing cell, zero-length cells at its exit) are stepped, not jumped.
+    jbi = -1
+    jbj = -1
+    jbk = -1
     while True:
         cells += 1
         c0 = max(t_in, max(tx0, max(ty0, tz0)))
         c1 = min(t_out, min(tx1, min(ty1, tz1)))
-        v000, v100, v010, v110, v001, v101, v011, v111, lo, hi = corners(data, iso, i, j, k)
-        if lo > 0.0:
-            prev = 1.0
-        elif hi < 0.0:
-            prev = -1.0
+        sign = 0
+        if bshift >= 0:
+            bi = i >> bshift
+            bj = j >> bshift
+            bk = k >> bshift
+            sign = blocks[bk, bj, bi]
+            if sign != 0 and (bi != jbi or bj != jbj or bk != jbk):
+                tb = _block_exit(Ox, Oy, Oz, sx, sy, sz, ix, iy, iz, bi, bj, bk, bshift)
+                if tb >= t_end:
+                    break
+                if tb > c1:
+                    i = start_index(Ox, Dx, tb, nx)
+                    j = start_index(Oy, Dy, tb, ny)
+                    k = start_index(Oz, Dz, tb, nz)
+                    sx, ix, tx0, tx1 = axis_state(Ox, Dx, i)
+                    sy, iy, ty0, ty1 = axis_state(Oy, Dy, j)
+                    sz, iz, tz0, tz1 = axis_state(Oz, Dz, k)
+                    c0 = max(t_in, max(tx0, max(ty0, tz0)))
+                    c1 = min(t_out, min(tx1, min(ty1, tz1)))
+                    first = False
+                    prev = float(sign)
+                    # The landing cell is the one the walk is in at tb:
+                    # mostly still inside the block, else just past it.
+                    sign = blocks[k >> bshift, j >> bshift, i >> bshift]
+                jbi = bi
+                jbj = bj
+                jbk = bk
+        if sign != 0:
+            prev = float(sign)
         else:
-            if first and c0 > t_in:
-                # Only a possibly contributing start cell needs the sign its
-                # predecessor ends with; most PARC segments start in empty cells.
-                prev = _entry_sign(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, i, j, k, sx, sy, sz,
-                                   tx0, ty0, tz0, tx1, ty1, tz1, c0, t_in, t_out)
-            if c0 <= c1:
-                solves += 1
-                A, B, C, D, u0, v0, w0 = cell_cubic(v000, v100, v010, v110, v001, v101, v011, v111,
-                                                    Ox, Oy, Oz, Dx, Dy, Dz, i, j, k, c0)
-                if c0 > t_in and prev != 0.0 and D != 0.0 and (D < 0.0) != (prev < 0.0):
-                    return c0, i, j, k, u0, v0, w0, cells, solves
-                L = c1 - c0
-                s = first_root(A, B, C, D, L)
-                if s >= 0.0:
-                    return (c0 + s, i, j, k, u0 + s * Dx, v0 + s * Dy, w0 + s * Dz,
-                            cells, solves)
-                f = eval_cubic(A, B, C, D, L)
-                prev = 1.0 if f > 0.0 else (-1.0 if f < 0.0 else 0.0)
+            v000, v100, v010, v110, v001, v101, v011, v111, lo, hi = corners(data, iso, i, j, k)
+            if lo > 0.0:
+                prev = 1.0
+            elif hi < 0.0:
+                prev = -1.0
+            else:
+                if first and c0 > t_in:
+                    # Only a possibly contributing start cell needs the sign its
+                    # predecessor ends with; most PARC segments start in empty cells.
+                    prev = _entry_sign(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, i, j, k, sx, sy, sz,
+                                       tx0, ty0, tz0, tx1, ty1, tz1, c0, t_in, t_out)
+                if c0 <= c1:
+                    solves += 1
+                    A, B, C, D, u0, v0, w0 = cell_cubic(v000, v100, v010, v110, v001, v101, v011, v111,
+                                                        Ox, Oy, Oz, Dx, Dy, Dz, i, j, k, c0)
+                    if c0 > t_in and prev != 0.0 and D != 0.0 and (D < 0.0) != (prev < 0.0):
+                        return c0, i, j, k, u0, v0, w0, cells, solves
+                    L = c1 - c0
+                    s = first_root(A, B, C, D, L)
+                    if s >= 0.0:
+                        return (c0 + s, i, j, k, u0 + s * Dx, v0 + s * Dy, w0 + s * Dz,
+                                cells, solves)
+                    f = eval_cubic(A, B, C, D, L)
+                    prev = 1.0 if f > 0.0 else (-1.0 if f < 0.0 else 0.0)
         first = False
         if c1 >= t_end:
             break
@@ -190,14 +261,15 @@ def _store(n, res, t, cell, uvw, counts):
 
 
 @kernel(parallel=True)
-def cast_iso_image(data, org, spc, cam, width, height, iso, seg, use_seg,
+def cast_iso_image(data, org, spc, cam, width, height, iso, seg, use_seg, blocks, bshift,
                    t, cell, uvw, counts, row0, row1):
     """Cast every pixel of a ``width x height`` image, tile by tile.
 
     Outputs are flat per pixel (index ``y * width + x``): ``t``, ``cell``
     (i, j, k), ``uvw`` (local hit coordinates), ``counts`` (cells, solves).
     With ``use_seg``, ``seg[y, x] = (near, far)`` bounds each ray and a
-    pixel with ``near > far`` costs nothing. Only rows ``row0 <= y < row1``
+    pixel with ``near > far`` costs nothing. ``blocks``/``bshift``: the
+    empty-block table, or `NO_BLOCKS` and -1 (see `cast_iso_ray`). Only rows ``row0 <= y < row1``
     are cast, so a driver can report progress band by band.
     """
     tiles_x = (width + TILE_W - 1) // TILE_W
@@ -222,12 +294,12 @@ def cast_iso_image(data, org, spc, cam, width, height, iso, seg, use_seg,
                         continue
                 ox, oy, oz, dx, dy, dz = camera_ray(cam, width, height, x, y)
                 Ox, Oy, Oz, Dx, Dy, Dz = to_index_space(ox, oy, oz, dx, dy, dz, org, spc)
-                res = cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, s0, s1)
+                res = cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, s0, s1, blocks, bshift)
                 _store(n, res, t, cell, uvw, counts)
 
 
 @kernel(parallel=True)
-def cast_iso_rays(data, org, spc, origins, dirs, iso, seg, use_seg, t, cell, uvw, counts):
+def cast_iso_rays(data, org, spc, origins, dirs, iso, seg, use_seg, blocks, bshift, t, cell, uvw, counts):
     """Cast arbitrary world rays ``origins[n] + t dirs[n]`` (``|dirs[n]| = 1``)."""
     for n in prange(origins.shape[0]):
         s0 = -math.inf
@@ -237,7 +309,7 @@ def cast_iso_rays(data, org, spc, origins, dirs, iso, seg, use_seg, t, cell, uvw
             s1 = seg[n, 1]
         Ox, Oy, Oz, Dx, Dy, Dz = to_index_space(
             origins[n, 0], origins[n, 1], origins[n, 2], dirs[n, 0], dirs[n, 1], dirs[n, 2], org, spc)
-        res = cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, s0, s1)
+        res = cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, s0, s1, blocks, bshift)
         _store(n, res, t, cell, uvw, counts)
 
 

@@ -136,9 +136,10 @@ def shadow_ray(points, n, light, eps, views, near, far, use_seg, org, spc):
 
 
 @kernel(parallel=True)
-def shadow_iso(data, org, spc, iso, points, light, eps, views, near, far, use_seg, vis, counts):
+def shadow_iso(data, org, spc, iso, points, light, eps, views, near, far, use_seg, blocks, bshift, vis, counts):
     """Zero ``vis[n]`` where the isosurface blocks the shadow ray of ``points[n]``.
 
+    ``blocks``/``bshift``: the empty-block table, or `raycast.iso.NO_BLOCKS` and -1.
     Rays whose ``vis`` is already 0 are skipped. ``counts[n]`` gains the
     cells visited and cubics solved.
     """
@@ -149,7 +150,7 @@ def shadow_iso(data, org, spc, iso, points, light, eps, views, near, far, use_se
                                                                        far, use_seg, org, spc)
         if not s0 <= s1:
             continue
-        res = cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, s0, s1)
+        res = cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, s0, s1, blocks, bshift)
         counts[n, 0] += res[7]
         counts[n, 1] += res[8]
         if res[0] <= s1 and res[0] < math.inf:

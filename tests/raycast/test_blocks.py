@@ -1,0 +1,188 @@
+"""Empty-block jumps inside ray segments (`raycast.iso`): bit for bit the full walk.
+
+Source of truth: the same caster without a block table (`NO_BLOCKS`), which
+the hard-ray suite checks against mpmath roots. Tables are built here
+directly from the samples of each block (independent of
+`parc.classify.sign_iso`, which `test_sign_iso_*` checks against this one).
+Blocks of 1 cell make every empty cell a jump; 2, 4 and 8 cells make jumps
+that land inside the block, on its exit faces, edges and corners.
+"""
+import numpy as np
+import pytest
+
+from data_tools.synthetic import blobs
+from parc.classify import VolumeIndex, cell_minmax, sign_iso
+from raycast.hardcases import CATEGORIES, cast, hard_batches, random_dirs
+
+SHIFTS = (0, 1, 2, 3)
+
+
+def noise(shape, dtype, seed):
+    """Smoothed random samples ``(nz, ny, nx)`` in ``dtype``: surfaces in many small pieces."""
+    rng = np.random.default_rng(seed)
+    a = rng.normal(size=shape)
+    a = (a + np.roll(a, 1, 0) + np.roll(a, 1, 1) + np.roll(a, 1, 2)) / 4
+    if np.dtype(dtype).kind == "f":
+        return a.astype(dtype)
+    info = np.iinfo(dtype)
+    a = (a - a.min()) / (a.max() - a.min())
+    return (info.min + a * (float(info.max) - info.min)).astype(dtype)
+
+
+def block_table(data, iso, shift):
+    """+1 / -1 / 0 per block of ``2**shift`` cells: whether every sample of the block
+    (its cells' corners) lies above or below ``iso``, as ``float(sample) - iso``."""
+    v = data.astype(np.float64) - iso
+    b = 1 << shift
+
+    def every_block(a):
+        cells = np.ones(tuple(n - 1 for n in a.shape), bool)
+        for dz in (0, 1):
+            for dy in (0, 1):
+                for dx in (0, 1):
+                    cells &= a[dz:dz + cells.shape[0], dy:dy + cells.shape[1], dx:dx + cells.shape[2]]
+        pad = [(0, -n % b) for n in cells.shape]
+        cells = np.pad(cells, pad, constant_values=True)
+        cz, cy, cx = (n // b for n in cells.shape)
+        return cells.reshape(cz, b, cy, b, cx, b).all(axis=(1, 3, 5))
+
+    return every_block(v > 0).astype(np.int8) - every_block(v < 0).astype(np.int8)
+
+
+def same_hits(a, b):
+    t0, c0, u0, _ = a
+    t1, c1, u1, _ = b
+    hit = np.isfinite(t0)
+    return (np.array_equal(t0, t1) and np.array_equal(c0[hit], c1[hit])
+            and np.array_equal(u0[hit], u1[hit]))
+
+
+def random_segments(rng, n, span):
+    """Random ``[near, far]`` per ray, some empty, some unbounded, some of zero length."""
+    a, b = np.sort(rng.uniform(-0.2 * span, 1.2 * span, (2, n)), axis=0)
+    seg = np.stack([a, b], axis=1)
+    kind = rng.integers(0, 5, n)
+    seg[kind == 0] = (-np.inf, np.inf)
+    seg[kind == 1, 1] = seg[kind == 1, 0]
+    seg[kind == 2] = seg[kind == 2][:, ::-1]
+    return seg
+
+
+@pytest.mark.parametrize("category", list(CATEGORIES))
+def test_hard_rays_same_with_blocks(category):
+    """The hard-ray suite (1,500 rays per category), whole rays and random segments."""
+    rng = np.random.default_rng(7)
+    jumps = 0
+    for batch in hard_batches(category, 1500, seed=3):
+        sc = batch.scene
+        for iso in np.unique(batch.isos):
+            m = batch.isos == iso
+            o, d = batch.origins[m], batch.dirs[m]
+            span = float(np.linalg.norm(sc.hi_world - sc.lo_world)) + 50.0
+            for seg in (None, random_segments(rng, len(o), span)):
+                ref = cast(sc, o, d, iso, seg)
+                for shift in SHIFTS:
+                    table = block_table(sc.data, iso, shift)
+                    got = cast(sc, o, d, iso, seg, blocks=(table, shift))
+                    assert same_hits(ref, got), (category, sc.name, iso, shift)
+                    assert np.array_equal(ref[3][:, 1], got[3][:, 1])      # the same cubics solved
+                    jumps += int((got[3][:, 0] < ref[3][:, 0]).sum())
+    if category not in ("grazing", "near-double", "face-edge-vertex", "iso-sample"):
+        assert jumps > 0       # the tables did skip cells
+
+
+class _Grid:
+    """What `raycast.hardcases.cast` needs of a scene: samples, origin, spacing."""
+
+    def __init__(self, data, origin, spacing):
+        self.data = data
+        self.origin = np.asarray(origin, np.float64)
+        self.spacing = np.asarray(spacing, np.float64)
+
+
+def _volumes():
+    rng = np.random.default_rng(11)
+    yield "blobs-uint8", blobs((17, 19, 23), count=4, seed=5).data, (0.0, 0.0, 0.0), (1.0, 1.0, 1.0)
+    yield "noise-int16", noise((18, 21, 13), np.int16, 2), (-3.0, 1.5, 2.0), (0.7, 1.3, 2.1)
+    smooth = np.cumsum(np.cumsum(rng.normal(size=(15, 16, 20)), axis=2), axis=1).astype(np.float32)
+    yield "smooth-float32", smooth, (1.0, -2.0, 0.5), (1.0, 1.0, 1.0)
+
+
+@pytest.mark.parametrize("name,data,origin,spacing", list(_volumes()), ids=lambda v: v if isinstance(v, str) else "")
+def test_random_volumes_same_with_blocks(name, data, origin, spacing):
+    """Eyes outside and inside, axis-aligned rays on grid planes and edges, random isovalues."""
+    rng = np.random.default_rng(abs(hash(name)) % 2**32)
+    sc = _Grid(data, origin, spacing)
+    nz, ny, nx = data.shape
+    hi = sc.origin + sc.spacing * np.array([nx - 1, ny - 1, nz - 1])
+    n = 3000
+    centre = (sc.origin + hi) / 2
+    eyes = np.concatenate([centre + rng.normal(size=(n // 2, 3)) * 40.0,
+                           rng.uniform(sc.origin, hi, (n - n // 2, 3))])
+    dirs = random_dirs(rng, n)
+    aim = rng.uniform(sc.origin, hi, (n, 3))
+    outside = np.arange(n) < n // 2
+    dirs[outside] = aim[outside] - eyes[outside]
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    # A fifth of the rays along an axis, through sample planes and edges.
+    ax = rng.integers(0, 3, n)
+    lattice = rng.random(n) < 0.2
+    for m in np.flatnonzero(lattice):
+        dirs[m] = 0.0
+        dirs[m, ax[m]] = rng.choice((-1.0, 1.0))
+        idx = rng.integers(0, (nx, ny, nz))
+        eyes[m] = np.where(np.arange(3) == ax[m], eyes[m], sc.origin + idx * sc.spacing)
+    lo, hi_v = float(data.min()), float(data.max())
+    isos = [float(data.flat[rng.integers(data.size)])] + list(rng.uniform(lo, hi_v, 3))
+    skipped = 0
+    for iso in isos:
+        seg = random_segments(rng, n, float(np.linalg.norm(hi - sc.origin)) + 80.0)
+        for s in (None, seg):
+            ref = cast(sc, eyes, dirs, iso, s)
+            for shift in SHIFTS:
+                got = cast(sc, eyes, dirs, iso, s, blocks=(block_table(data, iso, shift), shift))
+                assert same_hits(ref, got), (name, iso, shift)
+                skipped += int(ref[3][:, 0].sum() - got[3][:, 0].sum())
+    assert skipped > 0
+
+
+def test_a_wrong_table_is_caught():
+    """Sanity of the comparison: a table that calls a surface block empty loses hits."""
+    data = blobs(20, count=3, seed=1).data
+    sc = _Grid(data, (0, 0, 0), (1, 1, 1))
+    rng = np.random.default_rng(0)
+    eyes = np.array([9.5, 9.5, -30.0]) + rng.normal(size=(500, 3)) * 2
+    dirs = np.tile([0.0, 0.0, 1.0], (500, 1))
+    iso = float(np.percentile(data, 90))
+    table = block_table(data, iso, 1)
+    ref = cast(sc, eyes, dirs, iso)
+    assert np.isfinite(ref[0]).any()
+    wrong = np.where(table == 0, np.int8(-1), table)
+    got = cast(sc, eyes, dirs, iso, blocks=(wrong, 1))
+    assert not same_hits(ref, got)
+
+
+@pytest.mark.parametrize("shift", SHIFTS)
+def test_sign_iso_matches_block_samples(shift):
+    rng = np.random.default_rng(shift)
+    for dtype in (np.uint8, np.int16, np.float32):
+        data = noise((13, 10, 9), dtype, shift)
+        mn, mx = cell_minmax(data)
+        b = 1 << shift
+        for iso in [float(data.flat[rng.integers(data.size)]), float(rng.uniform(data.min(), data.max()))]:
+            if b == 1:
+                got = sign_iso(mn, mx, iso)
+            else:
+                from parc.classify import supercell_grid, supercell_ranges
+                grid = supercell_grid(data.shape[::-1], (b, b, b))
+                got = sign_iso(*supercell_ranges(data, grid, cell_ranges=(mn, mx)), iso)
+            assert np.array_equal(got, block_table(data, iso, shift))
+
+
+def test_volume_index_block_signs_follow_the_isovalue():
+    vol = blobs((16, 18, 20), count=3, seed=4)
+    index = VolumeIndex.of(vol)
+    for iso in (40.0, 90.5, 200.0):
+        table, shift = index.block_signs(iso)
+        assert np.array_equal(table, block_table(vol.data, iso, shift))
+        assert index.block_signs(iso)[0] is table            # kept for the next frame
