@@ -61,7 +61,7 @@ RANGE_PAD = 2.0 ** -40
 #: small blocks jump often (each jump costs a few divisions), large ones are
 #: seldom empty.
 BLOCK_SHIFT = 2
-#: Isovalues whose block tables are kept per volume.
+#: Block tables (isovalues, transfer functions) kept per volume.
 BLOCK_CACHE_SIZE = 4
 
 #: Most supercells a grid may have (a guard against sub-cell sizes on big
@@ -475,13 +475,23 @@ class VolumeIndex:
 
     def block_signs(self, iso):
         """The empty-block table for isovalue ``iso`` (`sign_iso` of blocks of
-        ``2**BLOCK_SHIFT`` cells a side) and its shift, kept for the last few isovalues."""
-        cache = self.__dict__.setdefault("_block_signs", {})
-        key = float(iso)
+        ``2**BLOCK_SHIFT`` cells a side) and its shift, kept for the last few tables."""
+        return self._blocks(("iso", float(iso)), lambda mn, mx: sign_iso(mn, mx, iso))
+
+    def tf_blocks(self, tf):
+        """The transparent-block table for transfer function ``tf`` (int8, 1 where
+        the opacity is zero over the block's whole range; see `raycast.composite`)
+        and its shift, kept for the last few tables."""
+        op_x, op_y, _, _ = tf.arrays()
+        return self._blocks(("tf", op_x.tobytes(), op_y.tobytes()),
+                            lambda mn, mx: (~tf.nonzero_in(mn, mx)).view(np.int8))
+
+    def _blocks(self, key, table):
+        cache = self.__dict__.setdefault("_block_tables", {})
         if key not in cache:
             if len(cache) >= BLOCK_CACHE_SIZE:
                 cache.pop(next(iter(cache)))
-            cache[key] = sign_iso(*self.ranges(1 << BLOCK_SHIFT), key)
+            cache[key] = table(*self.ranges(1 << BLOCK_SHIFT))
         return cache[key], BLOCK_SHIFT
 
 

@@ -171,6 +171,9 @@ def build_parser():
                         "(same image, faster)")
     r.add_argument("--supercell", type=_supercell, metavar="M[,N,P]",
                    help="parc: supercell size in cells, fractional allowed (default: chosen by a cost model)")
+    r.add_argument("--no-blocks", action="store_true",
+                   help="parc: walk the whole of each OpenGL segment, without jumping over empty "
+                        "4x4x4-cell blocks inside it (same image, slower)")
     r.add_argument("--background", type=_floats(3, "--background"), metavar="R,G,B",
                    help="opaque background colour in [0,1] (default transparent); replaces a scene file's")
     r.add_argument("--quiet", action="store_true", help="no progress or notes on stderr")
@@ -192,6 +195,9 @@ def build_parser():
                    help="comma-separated methods (default brute,parc; brute always runs as the reference)")
     c.add_argument("--supercell", type=_supercell, metavar="M[,N,P]",
                    help="parc's supercell size (default: chosen by the cost model)")
+    c.add_argument("--no-blocks", action="store_true",
+                   help="parc walks the whole of each OpenGL segment, without jumping over empty "
+                        "4x4x4-cell blocks inside it (same image, slower)")
     c.add_argument("--sweep-supercell", metavar="LIST",
                    help="run parc once per supercell size, e.g. 0.5,1,2,4,8: speed against error")
     c.add_argument("--sweep-step", metavar="LIST",
@@ -386,9 +392,12 @@ def cmd_render(args):
     scene = _scene(args, say)
     w, h = scene.size
     progress = None if args.quiet else _Progress(f"rendering {w}x{h}")
-    kwargs = {"supercell": args.supercell, "buffers": _buffers(args)} if args.method == "parc" else {}
+    kwargs = ({"supercell": args.supercell, "buffers": _buffers(args), "blocks": not args.no_blocks}
+              if args.method == "parc" else {})
     if args.supercell is not None and args.method != "parc":
         raise InputError("--supercell applies to --method parc")
+    if args.no_blocks and args.method != "parc":
+        raise InputError("--no-blocks applies to --method parc")
     result = parc.render(scene, method=args.method, progress=progress, **kwargs)
     if progress is not None:
         progress.done()
@@ -443,13 +452,14 @@ def cmd_compare(args):
                           progress=None if args.json else (lambda m: say(f"timing {m} ...")))
         print(json.dumps(rows, indent=2, default=float) if args.json else format_step_table(rows))
         return 0
-    options = {"parc": {"buffers": _buffers(args)}}
+    common = {"buffers": _buffers(args), "blocks": not args.no_blocks}
+    options = {"parc": dict(common)}
     if args.sweep_supercell:
         sizes = [_supercell_or_error(v) for v in args.sweep_supercell.split(";" if ";" in args.sweep_supercell else ",")]
         methods = ["brute"] + [f"parc:{s:g}" for s in sizes]
-        options = {f"parc:{s:g}": {"supercell": s, "buffers": _buffers(args)} for s in sizes}
+        options = {f"parc:{s:g}": {"supercell": s, **common} for s in sizes}
     elif args.supercell is not None:
-        options = {"parc": {"supercell": args.supercell, "buffers": _buffers(args)}}
+        options = {"parc": {"supercell": args.supercell, **common}}
     rows = compare(scene, methods=methods, repeats=args.repeats, options=options,
                    progress=None if args.json else (lambda m: say(f"timing {m} ...")))
     if args.json:

@@ -47,15 +47,17 @@ _NONE_VIEWS = np.zeros((0, N_VIEW))
 _NONE_BUF = np.zeros((0, 1, 1))
 
 
-def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=LIGHT_BUFFER_SIZE):
+def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=LIGHT_BUFFER_SIZE, blocks=True):
     """Render any scene (`parc.render` calls this for several volumes or lights).
 
     Returns ``(image, depth, counts, timings, extra)``: the float32 RGBA
     image (without background), the ``(H, W)`` depth, the counters
     (cells, solves, samples, shadow_cells, shadow_solves, shadow_samples,
-    shadow_rays), seconds per phase and per-volume PARC details.
+    shadow_rays), seconds per phase and per-volume PARC details. ``blocks``:
+    PARC's walks and shadow rays skip the volumes' empty blocks
+    (`parc.renderer.render`).
     """
-    from .renderer import _parc_segments, accumulation_params, column_totals, iso_blocks
+    from .renderer import _parc_segments, accumulation_params, column_totals, empty_blocks
 
     w, h = scene.size
     npx = w * h
@@ -91,10 +93,10 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
         vol = iso.volume
         t, c, uv, cnt = empty_outputs(npx)
         seg = segs.get(n, np.empty((1, 1, 2)))
-        blocks, bshift = iso_blocks(iso, parc)
+        eb, bshift = empty_blocks(iso, parc and blocks)
         with numba.parallel_chunksize(TILE_CHUNK):
             cast_iso_image(vol.data, np.array(vol.origin), np.array(vol.spacing), cam, w, h, iso.value,
-                           seg, parc, blocks, bshift, t, c, uv, cnt, 0, h)
+                           seg, parc, eb, bshift, t, c, uv, cnt, 0, h)
         closer = t < depth
         np.copyto(winner, n, where=closer)
         if n == isos[0][0]:
@@ -144,7 +146,8 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
         vis = (diffuse > 0.0).astype(np.float64)
         timings["shade"] = time.perf_counter() - t0
         if scene.shadows and scene.lights:
-            _shadows(scene, method, lights, points, vis, segs, sizes, light_buffer, timings, counts, extra)
+            _shadows(scene, method, lights, points, vis, segs, sizes, light_buffer, blocks, timings, counts,
+                     extra)
         t0 = time.perf_counter()
         rgb = np.empty((nh, 3))
         combine_lights(colors, materials, lights, diffuse, specular, vis, rgb)
@@ -172,7 +175,7 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
                 cast_accumulate_image(vol.data, np.array(vol.origin), np.array(vol.spacing), cam, w, h,
                                       accumulation_params(v), op_x, op_y, col_x, col_rgb,
                                       segs.get(n, np.empty((1, 1, 2))), parc, stop, True, nobits, False,
-                                      layer_rgba[j], cnt, 0, h)
+                                      *empty_blocks(v, parc and blocks), layer_rgba[j], cnt, 0, h)
             counts["samples"] += int(cnt.sum())
             layer_t[j] = _box_entry(scene, vol)
         front = np.zeros((h, w, 4), np.float32)
@@ -192,9 +195,9 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
     return image, depth.reshape(h, w), counts, timings, extra
 
 
-def _shadows(scene, method, lights, points, vis, segs, sizes, light_buffer, timings, counts, extra):
+def _shadows(scene, method, lights, points, vis, segs, sizes, light_buffer, blocks, timings, counts, extra):
     """Shadow rays from every hit to every light, volume by volume; ``vis`` scaled in place."""
-    from .renderer import _proxy, accumulation_params, iso_blocks
+    from .renderer import _proxy, accumulation_params, empty_blocks
 
     eps = SHADOW_EPS * min(min(v.volume.spacing) for v in scene.volumes)
     nh = len(points)
@@ -216,14 +219,14 @@ def _shadows(scene, method, lights, points, vis, segs, sizes, light_buffer, timi
             t0 = time.perf_counter()
             org = np.array(vol.origin)
             spc = np.array(vol.spacing)
+            eb, bshift = empty_blocks(v, method == "parc" and blocks)
             if isinstance(v, Isosurface):
-                blocks, bshift = iso_blocks(v, method == "parc")
                 shadow_iso(vol.data, org, spc, v.value, points, row, eps, views, near, far,
-                           method == "parc", blocks, bshift, v_l, cnt)
+                           method == "parc", eb, bshift, v_l, cnt)
             else:
                 op_x, op_y, col_x, col_rgb = v.tf.arrays()
                 shadow_accumulate(vol.data, org, spc, accumulation_params(v), op_x, op_y, col_x, col_rgb,
-                                  points, row, eps, views, near, far, method == "parc", v_l, cnt)
+                                  points, row, eps, views, near, far, method == "parc", eb, bshift, v_l, cnt)
             timings["shadow"] += time.perf_counter() - t0
     from .renderer import column_totals
     cells, solves, samples = column_totals(cnt)[:3]

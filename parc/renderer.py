@@ -63,7 +63,7 @@ DEFAULT_BUFFERS = ("depth",)
 
 
 def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAULT_BUFFERS,
-           progress=None, light_buffer=None) -> RenderResult:
+           progress=None, light_buffer=None, blocks=True) -> RenderResult:
     """Ray cast a scene.
 
     Parameters
@@ -88,6 +88,12 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
         Side in pixels of PARC's light buffers for shadow rays (default
         `parc.lights.LIGHT_BUFFER_SIZE`). Any size gives the same image;
         finer buffers give shorter shadow-ray segments for more raster time.
+    blocks : bool, default True
+        PARC only: inside its segments the caster also jumps over blocks of
+        4x4x4 cells that cannot contribute (an isosurface's sign table, a
+        transfer function's transparent blocks; `parc.classify`), computed
+        once per isovalue or transfer function. The image is the same
+        either way; False measures the OpenGL segments alone.
 
     Returns
     -------
@@ -107,8 +113,9 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
     """
     if method not in METHODS:
         raise InputError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
+    skip_blocks = method == "parc" and bool(blocks)
     if len(scene.volumes) != 1 or scene.lights:
-        return _render_general(scene, method, supercell, progress, light_buffer)
+        return _render_general(scene, method, supercell, progress, light_buffer, skip_blocks)
     vis = scene.volumes[0]
     timings = {}
     t0 = time.perf_counter()
@@ -132,10 +139,12 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
             extra.update({"planes": planes.count, "plane_axis": "xyz"[planes.axis],
                           "plane_polygons": planes.polygons})
         extra["buffers"] = list(buffers) if isinstance(vis, Translucent) else ["depth"]
+        extra["blocks"] = skip_blocks
     if isinstance(vis, Isosurface):
-        image, depth, counts = _render_iso(scene, vis, seg, use_seg, timings, progress)
+        image, depth, counts = _render_iso(scene, vis, seg, use_seg, skip_blocks, timings, progress)
     elif isinstance(vis, Translucent):
-        image, depth, counts = _render_translucent(scene, vis, seg, use_seg, timings, progress, planes)
+        image, depth, counts = _render_translucent(scene, vis, seg, use_seg, skip_blocks, timings, progress,
+                                                   planes)
     else:
         raise InputError(f"cannot render a {type(vis).__name__}; give an Isosurface or a Translucent")
     if scene.background is not None:
@@ -163,7 +172,7 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
     return RenderResult(image=image, depth=depth, stats=stats)
 
 
-def _render_general(scene, method, supercell, progress, light_buffer):
+def _render_general(scene, method, supercell, progress, light_buffer, skip_blocks):
     """Several volumes, or lights: `parc.multivolume.render_scene`, with the same stats."""
     from .lights import LIGHT_BUFFER_SIZE
     from .multivolume import render_scene
@@ -173,7 +182,7 @@ def _render_general(scene, method, supercell, progress, light_buffer):
         raise InputError(f"light buffers need at least 2x2 pixels, got {light_buffer!r}")
     t0 = time.perf_counter()
     image, depth, counts, timings, extra = render_scene(scene, method, supercell=supercell, progress=progress,
-                                                        light_buffer=n)
+                                                        light_buffer=n, blocks=skip_blocks)
     if scene.background is not None:
         over_background(image, np.asarray(scene.background, np.float32))
     timings["total"] = time.perf_counter() - t0
@@ -210,7 +219,7 @@ def _describe(vis):
     return d
 
 
-def _render_iso(scene, iso, seg, use_seg, timings, progress):
+def _render_iso(scene, iso, seg, use_seg, skip_blocks, timings, progress):
     vol = iso.volume
     w, h = scene.size
     t0 = time.perf_counter()
@@ -218,7 +227,7 @@ def _render_iso(scene, iso, seg, use_seg, timings, progress):
     org = np.array(vol.origin)
     spc = np.array(vol.spacing)
     t, cell, uvw, counts = empty_outputs(w * h)
-    blocks, bshift = iso_blocks(iso, use_seg)
+    blocks, bshift = empty_blocks(iso, skip_blocks)
     timings["setup"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -240,13 +249,17 @@ def _render_iso(scene, iso, seg, use_seg, timings, progress):
     return image, t.reshape(h, w), {"cells": cells, "solves": solves}
 
 
-def iso_blocks(iso, parc):
-    """``(blocks, bshift)`` for `raycast.iso.cast_iso_ray`: PARC's empty-block
-    table for the isovalue, or none for the unaccelerated caster."""
-    if not parc:
+def empty_blocks(vis, use):
+    """``(blocks, bshift)`` for the casting kernels: the empty-block table of
+    an Isosurface (`raycast.iso`) or Translucent (`raycast.composite`)
+    volume when ``use``, else none (the unaccelerated caster)."""
+    if not use:
         return NO_BLOCKS, -1
     from .classify import VolumeIndex
-    return VolumeIndex.of(iso.volume).block_signs(iso.value)
+    index = VolumeIndex.of(vis.volume)
+    if isinstance(vis, Isosurface):
+        return index.block_signs(vis.value)
+    return index.tf_blocks(vis.tf)
 
 
 def accumulation_params(vis):
@@ -263,7 +276,7 @@ def accumulation_params(vis):
     return p
 
 
-def _render_translucent(scene, vis, seg, use_seg, timings, progress, planes=None):
+def _render_translucent(scene, vis, seg, use_seg, skip_blocks, timings, progress, planes=None):
     vol = vis.volume
     w, h = scene.size
     t0 = time.perf_counter()
@@ -275,6 +288,7 @@ def _render_translucent(scene, vis, seg, use_seg, timings, progress, planes=None
     image = np.empty((h, w, 4), np.float32)
     counts = np.empty(w * h, np.int64)
     use_bits = planes is not None
+    blocks, bshift = empty_blocks(vis, skip_blocks)
     bits = np.zeros((1, 1, 1), np.uint32)
     if use_bits:
         planes.set_params(params)
@@ -286,7 +300,8 @@ def _render_translucent(scene, vis, seg, use_seg, timings, progress, planes=None
     with numba.parallel_chunksize(TILE_CHUNK):
         for n, (y0, y1) in enumerate(bands):
             cast_accumulate_image(vol.data, org, spc, cam, w, h, params, op_x, op_y, col_x, col_rgb,
-                                  seg, use_seg, _NO_STOP, False, bits, use_bits, image, counts, y0, y1)
+                                  seg, use_seg, _NO_STOP, False, bits, use_bits, blocks, bshift, image, counts,
+                                  y0, y1)
             if progress is not None:
                 progress((n + 1) / len(bands))
     timings["cast"] = time.perf_counter() - t0

@@ -35,7 +35,7 @@ from numba import prange
 from .config import TILE_H, TILE_W, kernel
 from .rays import camera_ray, tile_count, tile_rect
 from .shade import blinn_phong, trilinear_gradient
-from .transfer import correct_opacity, tf_lookup, tf_opacity
+from .transfer import correct_opacity, tf_color, tf_lookup, tf_opacity
 from .traverse import cell_corners, clip_box, to_index_space
 
 MODE_COMPOSITE = 0
@@ -143,7 +143,7 @@ def lattice_range(t_in, t_out, step, seg0, seg1):
 @kernel
 def composite_sample(data, spc, v, i, j, k, u, vv, w, a, dx, dy, dz, params, op_x, op_y, col_x, col_rgb):
     """Step-corrected opacity and (shaded) colour of a composite sample of value ``v`` and opacity ``a > 0``."""
-    cr, cg, cb, _ = tf_lookup(op_x, op_y, col_x, col_rgb, v)
+    cr, cg, cb = tf_color(col_x, col_rgb, v)
     a = correct_opacity(a, params[P_RATIO])
     if params[P_SHADE] != 0.0:
         gx, gy, gz = trilinear_gradient(data, i, j, k, u, vv, w, spc)
@@ -162,14 +162,38 @@ def composite_sample(data, spc, v, i, j, k, u, vv, w, a, dx, dy, dz, params, op_
 
 
 @kernel
+def _block_exit_axis(O, D, c, bshift):
+    if D == 0.0:
+        return math.inf
+    b = ((c >> bshift) + 1) << bshift if D > 0.0 else (c >> bshift) << bshift
+    return (b - O) / D
+
+
+@kernel
+def block_last_sample(n, t_in, step, Ox, Oy, Oz, Dx, Dy, Dz, i, j, k, bshift):
+    """A lattice index safely before the ray leaves the block of cell ``(i, j, k)``
+    (blocks ``2**bshift`` cells a side), at least ``n``; as `next_plane_sample`, two steps of slack."""
+    t_b = min(_block_exit_axis(Ox, Dx, i, bshift),
+              min(_block_exit_axis(Oy, Dy, j, bshift), _block_exit_axis(Oz, Dz, k, bshift)))
+    if t_b == math.inf:
+        return 1 << 62
+    return max(n, int(math.floor((t_b - t_in) / step)) - 2)
+
+
+@kernel
 def accumulate_ray(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, seg0, seg1, t_stop, params,
-                   op_x, op_y, col_x, col_rgb, bits, py, px, use_bits):
+                   op_x, op_y, col_x, col_rgb, bits, py, px, use_bits, blocks, bshift):
     """Accumulate one ray (index space ``O + t D``; world direction ``d``) over ``[seg0, seg1]``.
 
     Returns premultiplied ``(r, g, b, a, samples)``; ``samples`` counts the
     trilinear interpolations done. Lattice points at ``t >= t_stop`` (an
     opaque surface, a light) are not taken. With ``use_bits``, samples in a
     plane of supercells whose bit in ``bits[py, px]`` is clear are skipped.
+    With ``bshift >= 0``, ``blocks`` marks (non-zero) the blocks of
+    ``2**bshift`` cells a side whose whole value range is transparent
+    (`parc.classify.VolumeIndex.tf_blocks`): a sample in one is skipped with
+    the rest of the block. The unaccelerated caster passes
+    `raycast.iso.NO_BLOCKS` and -1.
     """
     nz, ny, nx = data.shape
     t_in, t_out = clip_box(Ox, Oy, Oz, Dx, Dy, Dz, nx, ny, nz)
@@ -207,6 +231,14 @@ def accumulate_ray(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, seg0, seg1, t_
             if not plane_bit(bits, py, px, pos, params):
                 # Skip the rest of this plane: its samples are all transparent.
                 n = max(n, min(n1, next_plane_sample(n, t_in, step, Oa, Da, pos, params)) - 1)
+                continue
+        if bshift >= 0:
+            ci = min(max(int(math.floor(x)), 0), nx - 2)
+            cj = min(max(int(math.floor(y)), 0), ny - 2)
+            ck = min(max(int(math.floor(z)), 0), nz - 2)
+            if blocks[ck >> bshift, cj >> bshift, ci >> bshift] != 0:
+                # The samples up to where the ray leaves the block are transparent.
+                n = min(n1, block_last_sample(n, t_in, step, Ox, Oy, Oz, Dx, Dy, Dz, ci, cj, ck, bshift))
                 continue
         samples += 1
         v, i, j, k, u, vv, w = sample_value(data, x, y, z)
@@ -254,13 +286,15 @@ def average_grey(total, count, params):
 
 @kernel(parallel=True)
 def cast_accumulate_image(data, org, spc, cam, width, height, params, op_x, op_y, col_x, col_rgb,
-                          seg, use_seg, stop, use_stop, bits, use_bits, image, counts, row0, row1):
+                          seg, use_seg, stop, use_stop, bits, use_bits, blocks, bshift, image, counts,
+                          row0, row1):
     """Accumulate every pixel of rows ``row0 <= y < row1``, tile by tile.
 
     ``image`` is ``(height, width, 4)`` float32 premultiplied RGBA,
     ``counts[y * width + x]`` the samples taken. With ``use_seg`` a pixel
     whose ``seg[y, x]`` has ``near > far`` costs nothing. With ``use_stop``
     no sample is taken at ``t >= stop[y, x]`` (an opaque surface there).
+    ``blocks``/``bshift``: transparent blocks to skip (`accumulate_ray`).
     """
     for tile in prange(tile_count(width, row0, row1, TILE_W, TILE_H)):
         x0, x1, y0, y1 = tile_rect(tile, width, row0, row1, TILE_W, TILE_H)
@@ -279,7 +313,8 @@ def cast_accumulate_image(data, org, spc, cam, width, height, params, op_x, op_y
                 ox, oy, oz, dx, dy, dz = camera_ray(cam, width, height, x, y)
                 Ox, Oy, Oz, Dx, Dy, Dz = to_index_space(ox, oy, oz, dx, dy, dz, org, spc)
                 r, g, b, a, n = accumulate_ray(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, s0, s1,
-                                               stop[y, x] if use_stop else math.inf, params, op_x, op_y, col_x, col_rgb, bits, y, x, use_bits)
+                                               stop[y, x] if use_stop else math.inf, params, op_x, op_y, col_x, col_rgb,
+                                               bits, y, x, use_bits, blocks, bshift)
                 image[y, x, 0] = r
                 image[y, x, 1] = g
                 image[y, x, 2] = b

@@ -159,12 +159,12 @@ def shadow_iso(data, org, spc, iso, points, light, eps, views, near, far, use_se
 
 @kernel(parallel=True)
 def shadow_accumulate(data, org, spc, params, op_x, op_y, col_x, col_rgb, points, light, eps,
-                      views, near, far, use_seg, vis, counts):
+                      views, near, far, use_seg, blocks, bshift, vis, counts):
     """Scale ``vis[n]`` by the light a translucent volume lets through along the shadow ray.
 
     ``1 - a`` with ``a`` the opacity the volume's mode accumulates over the
-    ray from ``P'`` to the light (`accumulate_ray`). ``counts[n, 2]``
-    gains the samples taken.
+    ray from ``P'`` to the light (`accumulate_ray`; ``blocks``/``bshift``
+    as there). ``counts[n, 2]`` gains the samples taken.
     """
     nobits = np.zeros((1, 1, 1), np.uint32)
     for n in prange(points.shape[0]):
@@ -176,7 +176,7 @@ def shadow_accumulate(data, org, spc, params, op_x, op_y, col_x, col_rgb, points
             continue
         r, g, b, a, samples = accumulate_ray(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, lx, ly, lz, s0, s1,
                                              dist - eps, params, op_x, op_y, col_x, col_rgb,
-                                             nobits, 0, 0, False)
+                                             nobits, 0, 0, False, blocks, bshift)
         counts[n, 2] += samples
         vis[n] *= 1.0 - a
 

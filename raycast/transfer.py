@@ -8,6 +8,9 @@ import math
 
 from .config import kernel
 
+#: Control-point tables up to this long are searched by a forward scan.
+LINEAR_SEARCH_MAX = 16
+
 
 @kernel
 def _locate(x, v):
@@ -24,6 +27,13 @@ def _locate(x, v):
         return 0, -1.0
     lo = 0
     hi = n - 1
+    if n <= LINEAR_SEARCH_MAX:
+        # Few points (every preset): a forward scan mispredicts one branch,
+        # a bisection about half of its own. Same segment either way.
+        hi = 1
+        while x[hi] <= v:
+            hi += 1
+        lo = hi - 1
     while hi - lo > 1:          # invariant: x[lo] <= v < x[hi]
         mid = (lo + hi) >> 1
         if x[mid] <= v:
@@ -65,14 +75,20 @@ def tf_lookup(op_x, op_y, col_x, col_rgb, v):
     """
     if v != v:
         return 0.0, 0.0, 0.0, 0.0
-    a = tf_opacity(op_x, op_y, v)
+    r, g, b = tf_color(col_x, col_rgb, v)
+    return r, g, b, tf_opacity(op_x, op_y, v)
+
+
+@kernel
+def tf_color(col_x, col_rgb, v):
+    """Straight ``(r, g, b)`` at a data value ``v`` that is not NaN (see `tf_lookup`)."""
     i, t = _locate(col_x, v)
     if t < 0.0:
-        return col_rgb[i, 0], col_rgb[i, 1], col_rgb[i, 2], a
+        return col_rgb[i, 0], col_rgb[i, 1], col_rgb[i, 2]
     r = col_rgb[i, 0] + t * (col_rgb[i + 1, 0] - col_rgb[i, 0])
     g = col_rgb[i, 1] + t * (col_rgb[i + 1, 1] - col_rgb[i, 1])
     b = col_rgb[i, 2] + t * (col_rgb[i + 1, 2] - col_rgb[i, 2])
-    return r, g, b, a
+    return r, g, b
 
 
 @kernel

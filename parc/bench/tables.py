@@ -39,17 +39,23 @@ def _rows(scene, methods, options, suite, progress, label):
 
 
 def table1(suite, progress, images):
-    """CT translucent (Fig. 11): samples, casting and total time; `parc` with depth, and with depth and bits."""
+    """CT translucent (Fig. 11): samples, casting and total time; `parc` with depth, and with depth and bits.
+
+    Also `parc` with depth buffers alone, without the empty-block jumps
+    inside its segments (``blocks=False``): the paper's depth-buffer PARC.
+    """
     out, source = [], None
     for size in suite.sizes:
         scene, source = scenes.ct_translucent(size, suite.data_dir, suite.small_volumes)
-        options = {"parc": {"buffers": ("depth",)}, "parc:bits": {"buffers": ("depth", "bits")}}
-        rows = _rows(scene, ["brute", "parc", "parc:bits"], options, suite, progress, f"Table 1, {size}²")
+        options = {"parc:segments": {"buffers": ("depth",), "blocks": False},
+                   "parc": {"buffers": ("depth",)}, "parc:bits": {"buffers": ("depth", "bits")}}
+        rows = _rows(scene, ["brute", "parc:segments", "parc", "parc:bits"], options, suite, progress,
+                     f"Table 1, {size}²")
         progress(f"Table 1, {size}²: ideal samples")
         ideal = ideal_samples(scene, scene.volumes[0])
         for r in rows:
-            out.append({"method": {"brute": "brute", "parc": "parc (depth)",
-                                   "parc:bits": "parc (depth+bits)"}[r["method"]],
+            out.append({"method": {"brute": "brute", "parc:segments": "parc (depth, no blocks)",
+                                   "parc": "parc (depth)", "parc:bits": "parc (depth+bits)"}[r["method"]],
                         "size": size, "samples": r["samples"], "ideal_samples": ideal,
                         "cast_seconds": _cast_seconds(r), "total_seconds": r["seconds"],
                         "speedup": r["speedup"], "polygons": r["polygons"], **_error(r)})

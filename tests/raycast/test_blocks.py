@@ -186,3 +186,4 @@ def test_volume_index_block_signs_follow_the_isovalue():
         table, shift = index.block_signs(iso)
         assert np.array_equal(table, block_table(vol.data, iso, shift))
         assert index.block_signs(iso)[0] is table            # kept for the next frame
+
