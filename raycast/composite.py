@@ -65,10 +65,22 @@ def sample_value(data, x, y, z):
     Nested linear interpolation: for integer data each step stays within
     its two end values, so the value never leaves the cell's corner range.
     """
+    i, j, k = sample_cell(data, x, y, z)
+    val, u, v, w = interpolate(data, x, y, z, i, j, k)
+    return val, i, j, k, u, v, w
+
+
+@kernel
+def sample_cell(data, x, y, z):
+    """The cell `sample_value` interpolates in at index-space ``(x, y, z)``: the floor, clamped to the grid."""
     nz, ny, nx = data.shape
-    i = min(max(int(math.floor(x)), 0), nx - 2)
-    j = min(max(int(math.floor(y)), 0), ny - 2)
-    k = min(max(int(math.floor(z)), 0), nz - 2)
+    return (min(max(int(math.floor(x)), 0), nx - 2), min(max(int(math.floor(y)), 0), ny - 2),
+            min(max(int(math.floor(z)), 0), nz - 2))
+
+
+@kernel
+def interpolate(data, x, y, z, i, j, k):
+    """Trilinear value at ``(x, y, z)`` in cell ``(i, j, k)``, and the local coordinates ``(u, v, w)``."""
     u = x - i
     v = y - j
     w = z - k
@@ -79,7 +91,7 @@ def sample_value(data, x, y, z):
     c11 = v011 + u * (v111 - v011)
     c0 = c00 + v * (c10 - c00)
     c1 = c01 + v * (c11 - c01)
-    return c0 + w * (c1 - c0), i, j, k, u, v, w
+    return c0 + w * (c1 - c0), u, v, w
 
 
 #: A sample this close (in planes) to a boundary between planes of
@@ -232,16 +244,13 @@ def accumulate_ray(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, seg0, seg1, t_
                 # Skip the rest of this plane: its samples are all transparent.
                 n = max(n, min(n1, next_plane_sample(n, t_in, step, Oa, Da, pos, params)) - 1)
                 continue
-        if bshift >= 0:
-            ci = min(max(int(math.floor(x)), 0), nx - 2)
-            cj = min(max(int(math.floor(y)), 0), ny - 2)
-            ck = min(max(int(math.floor(z)), 0), nz - 2)
-            if blocks[ck >> bshift, cj >> bshift, ci >> bshift] != 0:
-                # The samples up to where the ray leaves the block are transparent.
-                n = min(n1, block_last_sample(n, t_in, step, Ox, Oy, Oz, Dx, Dy, Dz, ci, cj, ck, bshift))
-                continue
+        i, j, k = sample_cell(data, x, y, z)
+        if bshift >= 0 and blocks[k >> bshift, j >> bshift, i >> bshift] != 0:
+            # The samples up to where the ray leaves the block are transparent.
+            n = min(n1, block_last_sample(n, t_in, step, Ox, Oy, Oz, Dx, Dy, Dz, i, j, k, bshift))
+            continue
         samples += 1
-        v, i, j, k, u, vv, w = sample_value(data, x, y, z)
+        v, u, vv, w = interpolate(data, x, y, z, i, j, k)
         a = tf_opacity(op_x, op_y, v)
         if not a > 0.0:
             continue
