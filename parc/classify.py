@@ -40,6 +40,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from data_tools import InputError
+from raycast.composite import TRANSPARENT_BLOCK, TRANSPARENT_CELL
 
 #: Supercell boundaries this close to an integer (in cells) are snapped to
 #: it, so that e.g. ``10 * 0.1`` does not leave a 2e-16-cell sliver.
@@ -476,22 +477,38 @@ class VolumeIndex:
     def block_signs(self, iso):
         """The empty-block table for isovalue ``iso`` (`sign_iso` of blocks of
         ``2**BLOCK_SHIFT`` cells a side) and its shift, kept for the last few tables."""
-        return self._blocks(("iso", float(iso)), lambda mn, mx: sign_iso(mn, mx, iso))
+        return self._blocks(("iso", float(iso)), lambda: sign_iso(*self.ranges(1 << BLOCK_SHIFT), iso))
 
     def tf_blocks(self, tf):
-        """The transparent-block table for transfer function ``tf`` (int8, 1 where
-        the opacity is zero over the block's whole range; see `raycast.composite`)
-        and its shift, kept for the last few tables."""
+        """The transparency table for transfer function ``tf`` and its block shift,
+        kept for the last few tables.
+
+        One int8 per cell (`raycast.composite.accumulate_ray`):
+        ``TRANSPARENT_BLOCK`` where the opacity is zero over the whole range
+        of the cell's block of ``2**BLOCK_SHIFT`` cells, else
+        ``TRANSPARENT_CELL`` where it is zero over the cell's own range, else
+        ``MAY_CONTRIBUTE``. Per cell rather than per block: one lookup
+        answers both questions, and a transparent cell in a block that is
+        not (most of them, at a surface's edge) still saves its samples'
+        interpolation.
+        """
+        def table():
+            cells = np.where(~tf.nonzero_in(*self.cell_minmax()), np.int8(TRANSPARENT_CELL), np.int8(0))
+            block = ~tf.nonzero_in(*self.ranges(1 << BLOCK_SHIFT))
+            b = 1 << BLOCK_SHIFT
+            whole = block.repeat(b, 0).repeat(b, 1).repeat(b, 2)[:cells.shape[0], :cells.shape[1], :cells.shape[2]]
+            cells[whole] = TRANSPARENT_BLOCK
+            return cells
+
         op_x, op_y, _, _ = tf.arrays()
-        return self._blocks(("tf", op_x.tobytes(), op_y.tobytes()),
-                            lambda mn, mx: (~tf.nonzero_in(mn, mx)).view(np.int8))
+        return self._blocks(("tf", op_x.tobytes(), op_y.tobytes()), table)
 
     def _blocks(self, key, table):
         cache = self.__dict__.setdefault("_block_tables", {})
         if key not in cache:
             if len(cache) >= BLOCK_CACHE_SIZE:
                 cache.pop(next(iter(cache)))
-            cache[key] = table(*self.ranges(1 << BLOCK_SHIFT))
+            cache[key] = table()
         return cache[key], BLOCK_SHIFT
 
 

@@ -192,6 +192,15 @@ def block_last_sample(n, t_in, step, Ox, Oy, Oz, Dx, Dy, Dz, i, j, k, bshift):
     return max(n, int(math.floor((t_b - t_in) / step)) - 2)
 
 
+#: Values of the transparency table `accumulate_ray` takes, one per cell
+#: (`parc.classify.VolumeIndex.tf_blocks`): the cell may contribute; its
+#: own value range is transparent (its samples need no interpolation); the
+#: whole block of ``2**bshift`` cells around it is (jump to its exit).
+MAY_CONTRIBUTE = 0
+TRANSPARENT_CELL = 1
+TRANSPARENT_BLOCK = 2
+
+
 @kernel
 def accumulate_ray(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, seg0, seg1, t_stop, params,
                    op_x, op_y, col_x, col_rgb, bits, py, px, use_bits, blocks, bshift):
@@ -201,10 +210,11 @@ def accumulate_ray(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, seg0, seg1, t_
     trilinear interpolations done. Lattice points at ``t >= t_stop`` (an
     opaque surface, a light) are not taken. With ``use_bits``, samples in a
     plane of supercells whose bit in ``bits[py, px]`` is clear are skipped.
-    With ``bshift >= 0``, ``blocks`` marks (non-zero) the blocks of
-    ``2**bshift`` cells a side whose whole value range is transparent
-    (`parc.classify.VolumeIndex.tf_blocks`): a sample in one is skipped with
-    the rest of the block. The unaccelerated caster passes
+    With ``bshift >= 0``, ``blocks[k, j, i]`` tells for each cell whether
+    its value range, or that of its whole block of ``2**bshift`` cells a
+    side, is transparent (`TRANSPARENT_CELL`, `TRANSPARENT_BLOCK`): a
+    sample there is not interpolated, and the first one in a transparent
+    block skips the rest of the block. The unaccelerated caster passes
     `raycast.iso.NO_BLOCKS` and -1.
     """
     nz, ny, nx = data.shape
@@ -229,6 +239,9 @@ def accumulate_ray(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, seg0, seg1, t_
         Oa, Da = Oy, Dy
     else:
         Oa, Da = Oz, Dz
+    # The transparent block last jumped across: its samples left after the
+    # jump's slack are skipped without computing the jump again.
+    jumped = -1
     n = n0 - 1
     while n < n1:
         n += 1
@@ -245,10 +258,16 @@ def accumulate_ray(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, seg0, seg1, t_
                 n = max(n, min(n1, next_plane_sample(n, t_in, step, Oa, Da, pos, params)) - 1)
                 continue
         i, j, k = sample_cell(data, x, y, z)
-        if bshift >= 0 and blocks[k >> bshift, j >> bshift, i >> bshift] != 0:
-            # The samples up to where the ray leaves the block are transparent.
-            n = min(n1, block_last_sample(n, t_in, step, Ox, Oy, Oz, Dx, Dy, Dz, i, j, k, bshift))
-            continue
+        if bshift >= 0:
+            clear = blocks[k, j, i]
+            if clear != MAY_CONTRIBUTE:
+                if clear == TRANSPARENT_BLOCK:
+                    key = ((k >> bshift) * ((ny >> bshift) + 1) + (j >> bshift)) * ((nx >> bshift) + 1) + (i >> bshift)
+                    if key != jumped:
+                        # The samples up to where the ray leaves the block are transparent.
+                        jumped = key
+                        n = min(n1, block_last_sample(n, t_in, step, Ox, Oy, Oz, Dx, Dy, Dz, i, j, k, bshift))
+                continue
         samples += 1
         v, u, vv, w = interpolate(data, x, y, z, i, j, k)
         a = tf_opacity(op_x, op_y, v)

@@ -196,11 +196,19 @@ def _spiky_tf(lo, hi):
 
 def test_tf_blocks_match_a_dense_check():
     from parc.classify import VolumeIndex
+    from raycast.composite import MAY_CONTRIBUTE, TRANSPARENT_BLOCK, TRANSPARENT_CELL
     vol = blobs((17, 14, 12), count=5, seed=3)
     tf = _spiky_tf(float(vol.data.min()), float(vol.data.max()))
     table, shift = VolumeIndex.of(vol).tf_blocks(tf)
-    assert np.array_equal(table, transparent_table(vol.data, tf, shift))
-    assert 0 < table.sum() < table.size
+    cells = transparent_table(vol.data, tf, 0)
+    b = 1 << shift
+    blocks = transparent_table(vol.data, tf, shift).repeat(b, 0).repeat(b, 1).repeat(b, 2)
+    blocks = blocks[:cells.shape[0], :cells.shape[1], :cells.shape[2]]
+    want = np.where(blocks == 1, TRANSPARENT_BLOCK, np.where(cells == 1, TRANSPARENT_CELL, MAY_CONTRIBUTE))
+    assert table.shape == cells.shape
+    assert np.array_equal(table, want)
+    for value in (MAY_CONTRIBUTE, TRANSPARENT_CELL, TRANSPARENT_BLOCK):
+        assert (table == value).any()
 
 
 @pytest.mark.parametrize("mode", ["composite", "mip", "average"])
