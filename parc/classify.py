@@ -41,6 +41,7 @@ import numpy as np
 
 from data_tools import InputError
 from raycast.composite import TRANSPARENT_BLOCK, TRANSPARENT_CELL
+from raycast.iso import SIGNED_BLOCK
 
 #: Supercell boundaries this close to an integer (in cells) are snapped to
 #: it, so that e.g. ``10 * 0.1`` does not leave a 2e-16-cell sliver.
@@ -475,9 +476,19 @@ class VolumeIndex:
         return classify_iso(mn, mx, iso)
 
     def block_signs(self, iso):
-        """The empty-block table for isovalue ``iso`` (`sign_iso` of blocks of
-        ``2**BLOCK_SHIFT`` cells a side) and its shift, kept for the last few tables."""
-        return self._blocks(("iso", float(iso)), lambda: sign_iso(*self.ranges(1 << BLOCK_SHIFT), iso))
+        """The sign table for isovalue ``iso`` and its block shift, kept for the last few tables.
+
+        One int8 per cell (`raycast.iso`): `sign_iso` of the cell's block of
+        ``2**BLOCK_SHIFT`` cells, doubled, where the block is signed, else
+        `sign_iso` of the cell. The walk jumps across signed blocks and
+        steps a signed cell without reading its corners.
+        """
+        def table():
+            cells = sign_iso(*self.cell_minmax(), iso)
+            whole = _per_cell(sign_iso(*self.ranges(1 << BLOCK_SHIFT), iso), cells.shape)
+            return np.where(whole != 0, whole * np.int8(SIGNED_BLOCK), cells)
+
+        return self._blocks(("iso", float(iso)), table)
 
     def tf_blocks(self, tf):
         """The transparency table for transfer function ``tf`` and its block shift,
@@ -494,10 +505,7 @@ class VolumeIndex:
         """
         def table():
             cells = np.where(~tf.nonzero_in(*self.cell_minmax()), np.int8(TRANSPARENT_CELL), np.int8(0))
-            block = ~tf.nonzero_in(*self.ranges(1 << BLOCK_SHIFT))
-            b = 1 << BLOCK_SHIFT
-            whole = block.repeat(b, 0).repeat(b, 1).repeat(b, 2)[:cells.shape[0], :cells.shape[1], :cells.shape[2]]
-            cells[whole] = TRANSPARENT_BLOCK
+            cells[_per_cell(~tf.nonzero_in(*self.ranges(1 << BLOCK_SHIFT)), cells.shape)] = TRANSPARENT_BLOCK
             return cells
 
         op_x, op_y, _, _ = tf.arrays()
@@ -510,6 +518,12 @@ class VolumeIndex:
                 cache.pop(next(iter(cache)))
             cache[key] = table()
         return cache[key], BLOCK_SHIFT
+
+
+def _per_cell(blocks, shape):
+    """A per-block table (blocks of ``2**BLOCK_SHIFT`` cells) spread over the cells of a ``shape`` grid."""
+    b = 1 << BLOCK_SHIFT
+    return blocks.repeat(b, 0).repeat(b, 1).repeat(b, 2)[:shape[0], :shape[1], :shape[2]]
 
 
 # --------------------------------------------------------------------------

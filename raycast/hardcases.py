@@ -478,7 +478,7 @@ class Batch:
 def cast(scene, origins, dirs, iso, seg=None, blocks=None):
     """Run the caster on world rays with one isovalue; returns (t, cell, uvw, counts).
 
-    ``blocks``: an empty-block table and its shift (``(int8 array, shift)``,
+    ``blocks``: a sign table and its block shift (``(int8 array, shift)``,
     see `raycast.iso`), or None for none. Small groups run on one thread: a parallel launch on a busy machine costs
     milliseconds, and the per-ray kernel is the same either way.
     """

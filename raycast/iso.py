@@ -10,15 +10,17 @@ unaccelerated caster ``[-inf, inf]``.
 Empty blocks. A segment runs from the first possibly contributing
 supercell the ray meets to the last, so it also crosses empty space:
 between supercells, and inside a supercell whose surface the ray misses.
-PARC passes a table of blocks of ``2**bshift`` cells a side
-(`parc.classify.VolumeIndex.block_signs`): +1 where every sample of the
-block lies above the isovalue, -1 where all lie below, 0 otherwise. A
-walk entering a signed block jumps to the block's exit instead of
-stepping through it. Nothing else changes: an empty cell's only effect on
-the walk is the sign it hands on, which is the block's, and the jump
-lands on the cell the full walk would be in at that time (`start_index`),
-so the hits are bit for bit the unaccelerated caster's. The unaccelerated
-caster passes `NO_BLOCKS`.
+PARC passes a sign table with one entry per cell
+(`parc.classify.VolumeIndex.block_signs`): ±1 where every sample of the
+cell lies above (+) or below (-) the isovalue, ±2 where every sample of
+its block of ``2**bshift`` cells a side does, 0 otherwise. A walk
+entering a signed block jumps to the block's exit instead of stepping
+through it; a signed cell elsewhere is stepped without reading its
+corners. Nothing else changes: an empty cell's only effect on the walk is
+the sign it hands on, which is the table's, and the jump lands on the
+cell the full walk would be in at that time (`start_index`), so the hits
+are bit for bit the unaccelerated caster's. The unaccelerated caster
+passes `NO_BLOCKS`.
 """
 import math
 
@@ -30,8 +32,11 @@ from .cubic import cubic_along_ray, eval_cubic, first_root, trilinear_coefficien
 from .rays import camera_ray
 from .traverse import axis_state, cell_corners, clip_box, next_exit, start_index, step_axis, to_index_space
 
-#: The empty-block table of a walk without one (``bshift = -1``).
+#: The table a walk without one takes (with ``bshift = -1``).
 NO_BLOCKS = np.zeros((1, 1, 1), np.int8)
+
+#: A sign-table entry of this magnitude: the cell's whole block is signed.
+SIGNED_BLOCK = 2
 
 
 @kernel
@@ -119,6 +124,16 @@ def _block_exit(Ox, Oy, Oz, sx, sy, sz, ix, iy, iz, bi, bj, bk, bshift):
 
 
 @kernel
+def _cell_sign(entry):
+    """The sign (+1, -1, 0) a sign-table entry gives its cell."""
+    if entry > 0:
+        return 1
+    if entry < 0:
+        return -1
+    return 0
+
+
+@kernel
 def cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, seg0, seg1, blocks, bshift):
     """First isosurface hit along an index-space ray, within ``[seg0, seg1]``.
 
@@ -136,7 +151,7 @@ def cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, seg0, seg1, blocks, bshift):
     The walk carries that sign from cell to cell; for the first cell of a
     segment it is recomputed, so any start gives the same answers.
 
-    ``blocks``/``bshift``: the empty-block table (module docstring), or
+    ``blocks``/``bshift``: the sign table (module docstring), or
     `NO_BLOCKS` and -1. ``cells`` counts the cells the walk looked at, not
     those a jump passed over.
     """
@@ -170,11 +185,12 @@ def cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, seg0, seg1, blocks, bshift):
         c1 = min(t_out, min(tx1, min(ty1, tz1)))
         sign = 0
         if bshift >= 0:
+            entry = blocks[k, j, i]
+            sign = _cell_sign(entry)
             bi = i >> bshift
             bj = j >> bshift
             bk = k >> bshift
-            sign = blocks[bk, bj, bi]
-            if sign != 0 and (bi != jbi or bj != jbj or bk != jbk):
+            if abs(entry) == SIGNED_BLOCK and (bi != jbi or bj != jbj or bk != jbk):
                 tb = _block_exit(Ox, Oy, Oz, sx, sy, sz, ix, iy, iz, bi, bj, bk, bshift)
                 if tb >= t_end:
                     break
@@ -191,7 +207,7 @@ def cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, seg0, seg1, blocks, bshift):
                     prev = float(sign)
                     # The landing cell is the one the walk is in at tb:
                     # mostly still inside the block, else just past it.
-                    sign = blocks[k >> bshift, j >> bshift, i >> bshift]
+                    sign = _cell_sign(blocks[k, j, i])
                 jbi = bi
                 jbj = bj
                 jbk = bk
@@ -269,7 +285,7 @@ def cast_iso_image(data, org, spc, cam, width, height, iso, seg, use_seg, blocks
     (i, j, k), ``uvw`` (local hit coordinates), ``counts`` (cells, solves).
     With ``use_seg``, ``seg[y, x] = (near, far)`` bounds each ray and a
     pixel with ``near > far`` costs nothing. ``blocks``/``bshift``: the
-    empty-block table, or `NO_BLOCKS` and -1 (see `cast_iso_ray`). Only rows ``row0 <= y < row1``
+    sign table, or `NO_BLOCKS` and -1 (see `cast_iso_ray`). Only rows ``row0 <= y < row1``
     are cast, so a driver can report progress band by band.
     """
     tiles_x = (width + TILE_W - 1) // TILE_W

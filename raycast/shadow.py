@@ -139,7 +139,7 @@ def shadow_ray(points, n, light, eps, views, near, far, use_seg, org, spc):
 def shadow_iso(data, org, spc, iso, points, light, eps, views, near, far, use_seg, blocks, bshift, vis, counts):
     """Zero ``vis[n]`` where the isosurface blocks the shadow ray of ``points[n]``.
 
-    ``blocks``/``bshift``: the empty-block table, or `raycast.iso.NO_BLOCKS` and -1.
+    ``blocks``/``bshift``: the sign table (`raycast.iso`), or `raycast.iso.NO_BLOCKS` and -1.
     Rays whose ``vis`` is already 0 are skipped. ``counts[n]`` gains the
     cells visited and cubics solved.
     """

@@ -5,7 +5,9 @@ the hard-ray suite checks against mpmath roots. Tables are built here
 directly from the samples of each block (independent of
 `parc.classify.sign_iso`, which `test_sign_iso_*` checks against this one).
 Blocks of 1 cell make every empty cell a jump; 2, 4 and 8 cells make jumps
-that land inside the block, on its exit faces, edges and corners.
+that land inside the block, on its exit faces, edges and corners, and
+leave signed cells in unsigned blocks, which the walk steps on the table's
+sign alone.
 """
 import numpy as np
 import pytest
@@ -49,6 +51,16 @@ def block_table(data, iso, shift):
     return every_block(v > 0).astype(np.int8) - every_block(v < 0).astype(np.int8)
 
 
+def sign_table(data, iso, shift):
+    """The walk's per-cell table: twice the block's sign where its block of
+    ``2**shift`` cells is signed, else the cell's own sign."""
+    cells = block_table(data, iso, 0)
+    b = 1 << shift
+    whole = block_table(data, iso, shift).repeat(b, 0).repeat(b, 1).repeat(b, 2)
+    whole = whole[:cells.shape[0], :cells.shape[1], :cells.shape[2]]
+    return np.where(whole != 0, 2 * whole, cells).astype(np.int8)
+
+
 def same_hits(a, b):
     t0, c0, u0, _ = a
     t1, c1, u1, _ = b
@@ -82,7 +94,7 @@ def test_hard_rays_same_with_blocks(category):
             for seg in (None, random_segments(rng, len(o), span)):
                 ref = cast(sc, o, d, iso, seg)
                 for shift in SHIFTS:
-                    table = block_table(sc.data, iso, shift)
+                    table = sign_table(sc.data, iso, shift)
                     got = cast(sc, o, d, iso, seg, blocks=(table, shift))
                     assert same_hits(ref, got), (category, sc.name, iso, shift)
                     assert np.array_equal(ref[3][:, 1], got[3][:, 1])      # the same cubics solved
@@ -140,7 +152,7 @@ def test_random_volumes_same_with_blocks(name, data, origin, spacing):
         for s in (None, seg):
             ref = cast(sc, eyes, dirs, iso, s)
             for shift in SHIFTS:
-                got = cast(sc, eyes, dirs, iso, s, blocks=(block_table(data, iso, shift), shift))
+                got = cast(sc, eyes, dirs, iso, s, blocks=(sign_table(data, iso, shift), shift))
                 assert same_hits(ref, got), (name, iso, shift)
                 skipped += int(ref[3][:, 0].sum() - got[3][:, 0].sum())
     assert skipped > 0
@@ -154,7 +166,7 @@ def test_a_wrong_table_is_caught():
     eyes = np.array([9.5, 9.5, -30.0]) + rng.normal(size=(500, 3)) * 2
     dirs = np.tile([0.0, 0.0, 1.0], (500, 1))
     iso = float(np.percentile(data, 90))
-    table = block_table(data, iso, 1)
+    table = sign_table(data, iso, 1)
     ref = cast(sc, eyes, dirs, iso)
     assert np.isfinite(ref[0]).any()
     wrong = np.where(table == 0, np.int8(-1), table)
@@ -182,8 +194,10 @@ def test_sign_iso_matches_block_samples(shift):
 def test_volume_index_block_signs_follow_the_isovalue():
     vol = blobs((16, 18, 20), count=3, seed=4)
     index = VolumeIndex.of(vol)
-    for iso in (40.0, 90.5, 200.0):
+    seen = set()
+    for iso in (3.5, 40.0, 90.5, 200.0):
         table, shift = index.block_signs(iso)
-        assert np.array_equal(table, block_table(vol.data, iso, shift))
+        assert np.array_equal(table, sign_table(vol.data, iso, shift))
+        seen.update(np.unique(table).tolist())
         assert index.block_signs(iso)[0] is table            # kept for the next frame
-
+    assert seen == {-2, -1, 0, 1, 2}
