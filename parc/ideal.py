@@ -21,11 +21,9 @@ took.
 """
 from __future__ import annotations
 
-import numba
 import numpy as np
 
 from data_tools import InputError
-from raycast.config import TILE_CHUNK
 from raycast.ideal import ideal_samples_image
 
 from .scene import Translucent
@@ -57,11 +55,10 @@ def ideal_sample_counts(scene, vis: Translucent, stop=None) -> np.ndarray:
     vol = vis.volume
     op_x, op_y, col_x, col_rgb = vis.tf.arrays()
     counts = np.empty(w * h, np.int64)
-    with numba.parallel_chunksize(TILE_CHUNK):      # as the renderer: tiles handed out a few at a time
-        ideal_samples_image(vol.data, np.array(vol.origin, dtype=np.float64),
-                            np.array(vol.spacing, dtype=np.float64), scene.camera.as_array(), w, h,
-                            accumulation_params(vis), op_x, op_y, col_x, col_rgb,
-                            contributing_cells(vis), stop, use_stop, counts)
+    ideal_samples_image(vol.data, np.array(vol.origin, dtype=np.float64),
+                        np.array(vol.spacing, dtype=np.float64), scene.camera.as_array(), w, h,
+                        accumulation_params(vis), op_x, op_y, col_x, col_rgb,
+                        contributing_cells(vis), stop, use_stop, counts)
     return counts.reshape(h, w)
 
 

@@ -28,10 +28,8 @@ from __future__ import annotations
 
 import time
 
-import numba
 import numpy as np
 
-from raycast.config import TILE_CHUNK
 from raycast.composite import N_PARAMS, cast_accumulate_image, cast_merged_image
 from raycast.iso import cast_iso_image, empty_outputs
 from raycast.shadow import (KIND_HEADLIGHT, combine_lights, light_terms, shadow_accumulate, shadow_iso,
@@ -94,9 +92,8 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
         t, c, uv, cnt = empty_outputs(npx)
         seg = segs.get(n, np.empty((1, 1, 2)))
         eb, bshift = empty_blocks(iso, parc and blocks)
-        with numba.parallel_chunksize(TILE_CHUNK):
-            cast_iso_image(vol.data, np.array(vol.origin), np.array(vol.spacing), cam, w, h, iso.value,
-                           seg, parc, eb, bshift, t, c, uv, cnt, 0, h)
+        cast_iso_image(vol.data, np.array(vol.origin), np.array(vol.spacing), cam, w, h, iso.value,
+                       seg, parc, eb, bshift, t, c, uv, cnt, 0, h)
         closer = t < depth
         np.copyto(winner, n, where=closer)
         if n == isos[0][0]:
@@ -171,11 +168,10 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
             vol = v.volume
             op_x, op_y, col_x, col_rgb = v.tf.arrays()
             cnt = np.empty(npx, np.int64)
-            with numba.parallel_chunksize(TILE_CHUNK):
-                cast_accumulate_image(vol.data, np.array(vol.origin), np.array(vol.spacing), cam, w, h,
-                                      accumulation_params(v), op_x, op_y, col_x, col_rgb,
-                                      segs.get(n, np.empty((1, 1, 2))), parc, stop, True, nobits, False,
-                                      *empty_blocks(v, parc and blocks), layer_rgba[j], cnt, 0, h)
+            cast_accumulate_image(vol.data, np.array(vol.origin), np.array(vol.spacing), cam, w, h,
+                                  accumulation_params(v), op_x, op_y, col_x, col_rgb,
+                                  segs.get(n, np.empty((1, 1, 2))), parc, stop, True, nobits, False,
+                                  *empty_blocks(v, parc and blocks), layer_rgba[j], cnt, 0, h)
             counts["samples"] += int(cnt.sum())
             layer_t[j] = _box_entry(scene, vol)
         front = np.zeros((h, w, 4), np.float32)
@@ -183,9 +179,8 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
             datas, orgs, spcs, params, tables, tf_len = _packed(comp, accumulation_params)
             seg = (np.stack([segs[n] for n, _ in comp]) if parc else np.empty((1, 1, 1, 2)))
             cnt = np.empty(npx, np.int64)
-            with numba.parallel_chunksize(TILE_CHUNK):
-                cast_merged_image(datas, orgs, spcs, cam, w, h, params, *tables, tf_len, seg, parc, stop,
-                                  layer_t, layer_rgba, front, cnt)
+            cast_merged_image(datas, orgs, spcs, cam, w, h, params, *tables, tf_len, seg, parc, stop,
+                              layer_t, layer_rgba, front, cnt)
             counts["samples"] += int(cnt.sum())
         else:
             _composite_layers(layer_t, layer_rgba, front)

@@ -10,11 +10,9 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
 from data_tools import InputError
-from raycast.config import TILE_CHUNK
 from raycast.composite import (MODE_AVERAGE, MODE_COMPOSITE, MODE_MIP, N_PARAMS, P_AMBIENT, P_HI, P_LO,
                                P_MODE, P_RATIO, P_SHADE, P_STEP, P_THRESHOLD, cast_accumulate_image,
                                over_background)
@@ -232,12 +230,11 @@ def _render_iso(scene, iso, seg, use_seg, skip_blocks, timings, progress):
 
     t0 = time.perf_counter()
     bands = _row_bands(h, w, progress)
-    with numba.parallel_chunksize(TILE_CHUNK):      # tiles handed out a few at a time
-        for n, (y0, y1) in enumerate(bands):
-            cast_iso_image(vol.data, org, spc, cam, w, h, iso.value, seg, use_seg, blocks, bshift,
-                           t, cell, uvw, counts, y0, y1)
-            if progress is not None:
-                progress((n + 1) / len(bands))
+    for n, (y0, y1) in enumerate(bands):
+        cast_iso_image(vol.data, org, spc, cam, w, h, iso.value, seg, use_seg, blocks, bshift,
+                       t, cell, uvw, counts, y0, y1)
+        if progress is not None:
+            progress((n + 1) / len(bands))
     timings["cast"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -297,13 +294,12 @@ def _render_translucent(scene, vis, seg, use_seg, skip_blocks, timings, progress
 
     t0 = time.perf_counter()
     bands = _row_bands(h, w, progress)
-    with numba.parallel_chunksize(TILE_CHUNK):
-        for n, (y0, y1) in enumerate(bands):
-            cast_accumulate_image(vol.data, org, spc, cam, w, h, params, op_x, op_y, col_x, col_rgb,
-                                  seg, use_seg, _NO_STOP, False, bits, use_bits, blocks, bshift, image, counts,
-                                  y0, y1)
-            if progress is not None:
-                progress((n + 1) / len(bands))
+    for n, (y0, y1) in enumerate(bands):
+        cast_accumulate_image(vol.data, org, spc, cam, w, h, params, op_x, op_y, col_x, col_rgb,
+                              seg, use_seg, _NO_STOP, False, bits, use_bits, blocks, bshift, image, counts,
+                              y0, y1)
+        if progress is not None:
+            progress((n + 1) / len(bands))
     timings["cast"] = time.perf_counter() - t0
     return image, np.full((h, w), np.inf), {"samples": int(counts.sum())}
 

@@ -40,10 +40,6 @@ JIT = dict(cache=True, nogil=True, fastmath=False, error_model="numpy")
 TILE_W = 32
 TILE_H = 4
 
-#: Tiles handed to a thread at a time. Small chunks let threads that drew
-#: cheap tiles (empty sky) take more work: dynamic load balancing.
-TILE_CHUNK = 4
-
 #: Root finder: bisection/Newton stops when the bracket is this small
 #: relative to the cell's t-interval (well below the 1e-9-of-a-cell target).
 ROOT_REL_TOL = 1e-15

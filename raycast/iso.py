@@ -29,7 +29,7 @@ from numba import prange
 
 from .config import TILE_H, TILE_W, kernel
 from .cubic import cubic_along_ray, eval_cubic, first_root, trilinear_coefficients
-from .rays import camera_ray
+from .rays import camera_ray, spread, spread_stride
 from .traverse import axis_state, cell_corners, clip_box, next_exit, start_index, step_axis, to_index_space
 
 #: The table a walk without one takes (with ``bshift = -1``).
@@ -290,7 +290,10 @@ def cast_iso_image(data, org, spc, cam, width, height, iso, seg, use_seg, blocks
     """
     tiles_x = (width + TILE_W - 1) // TILE_W
     tiles_y = (row1 - row0 + TILE_H - 1) // TILE_H
-    for tile in prange(tiles_x * tiles_y):
+    tiles = tiles_x * tiles_y
+    stride = spread_stride(tiles)
+    for it in prange(tiles):
+        tile = spread(it, tiles, stride)
         ty = tile // tiles_x
         tx = tile - ty * tiles_x
         y_lo = row0 + ty * TILE_H
@@ -317,7 +320,10 @@ def cast_iso_image(data, org, spc, cam, width, height, iso, seg, use_seg, blocks
 @kernel(parallel=True)
 def cast_iso_rays(data, org, spc, origins, dirs, iso, seg, use_seg, blocks, bshift, t, cell, uvw, counts):
     """Cast arbitrary world rays ``origins[n] + t dirs[n]`` (``|dirs[n]| = 1``)."""
-    for n in prange(origins.shape[0]):
+    rays = origins.shape[0]
+    stride = spread_stride(rays)
+    for it in prange(rays):
+        n = spread(it, rays, stride)
         s0 = -math.inf
         s1 = math.inf
         if use_seg:

@@ -4,7 +4,7 @@ import math
 from numba import prange
 
 from .config import kernel
-from .rays import camera_ray
+from .rays import camera_ray, spread, spread_stride
 from .traverse import cell_corners
 
 
@@ -71,7 +71,10 @@ def shade_headlight(data, spc, cam, width, height, t, cell, uvw, color, material
     ``image`` is ``(height, width, 4)`` float32, premultiplied RGBA; misses
     stay transparent.
     """
-    for n in prange(width * height):
+    pixels = width * height
+    stride = spread_stride(pixels)
+    for it in prange(pixels):
+        n = spread(it, pixels, stride)
         if not t[n] < math.inf:
             continue
         y = n // width

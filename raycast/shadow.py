@@ -29,7 +29,7 @@ from numba import prange
 from .composite import accumulate_ray
 from .config import kernel
 from .iso import cast_iso_ray
-from .rays import camera_ray
+from .rays import camera_ray, spread, spread_stride
 from .shade import blinn_phong, trilinear_gradient
 from .traverse import to_index_space
 
@@ -143,7 +143,10 @@ def shadow_iso(data, org, spc, iso, points, light, eps, views, near, far, use_se
     Rays whose ``vis`` is already 0 are skipped. ``counts[n]`` gains the
     cells visited and cubics solved.
     """
-    for n in prange(points.shape[0]):
+    rays = points.shape[0]
+    stride = spread_stride(rays)
+    for it in prange(rays):
+        n = spread(it, rays, stride)
         if vis[n] == 0.0:
             continue
         s0, s1, Ox, Oy, Oz, Dx, Dy, Dz, lx, ly, lz, dist = shadow_ray(points, n, light, eps, views, near,
@@ -167,7 +170,10 @@ def shadow_accumulate(data, org, spc, params, op_x, op_y, col_x, col_rgb, points
     as there). ``counts[n, 2]`` gains the samples taken.
     """
     nobits = np.zeros((1, 1, 1), np.uint32)
-    for n in prange(points.shape[0]):
+    rays = points.shape[0]
+    stride = spread_stride(rays)
+    for it in prange(rays):
+        n = spread(it, rays, stride)
         if vis[n] == 0.0:
             continue
         s0, s1, Ox, Oy, Oz, Dx, Dy, Dz, lx, ly, lz, dist = shadow_ray(points, n, light, eps, views, near,
