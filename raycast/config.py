@@ -40,6 +40,11 @@ JIT = dict(cache=True, nogil=True, fastmath=False, error_model="numpy")
 TILE_W = 32
 TILE_H = 4
 
+#: Parallel loops over single rays or pixels hand out runs of this many
+#: (`raycast.rays.spread`): spreading item by item cost more than the
+#: shading it balanced (an integer division per pixel).
+SPREAD_CHUNK = 64
+
 #: Root finder: bisection/Newton stops when the bracket is this small
 #: relative to the cell's t-interval (well below the 1e-9-of-a-cell target).
 ROOT_REL_TOL = 1e-15

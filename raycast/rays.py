@@ -50,8 +50,16 @@ def spread(it, n, stride):
     sequence) makes every run of iterations a near-uniform sample of the
     items, so the threads get even shares; on the Fig. 13 floor both
     methods went from no gain with two threads to nearly twice as fast.
+    Loops over single rays spread runs of `raycast.config.SPREAD_CHUNK` of them
+    (`chunk_count`), tile loops whole tiles.
     """
     return (it * stride) % n
+
+
+@kernel
+def chunk_count(n, size):
+    """Runs of ``size`` items covering ``n`` items (the last may be shorter)."""
+    return (n + size - 1) // size
 
 
 @kernel

@@ -4,7 +4,8 @@ import math
 from numba import prange
 
 from .config import kernel
-from .rays import camera_ray, spread, spread_stride
+from .config import SPREAD_CHUNK
+from .rays import camera_ray, chunk_count, spread, spread_stride
 from .traverse import cell_corners
 
 
@@ -72,23 +73,25 @@ def shade_headlight(data, spc, cam, width, height, t, cell, uvw, color, material
     stay transparent.
     """
     pixels = width * height
-    stride = spread_stride(pixels)
-    for it in prange(pixels):
-        n = spread(it, pixels, stride)
-        if not t[n] < math.inf:
-            continue
-        y = n // width
-        x = n - y * width
-        ox, oy, oz, dx, dy, dz = camera_ray(cam, width, height, x, y)
-        gx, gy, gz = trilinear_gradient(data, cell[n, 0], cell[n, 1], cell[n, 2],
-                                        uvw[n, 0], uvw[n, 1], uvw[n, 2], spc)
-        gl = math.sqrt(gx * gx + gy * gy + gz * gz)
-        if gl > 0.0:
-            gx, gy, gz = gx / gl, gy / gl, gz / gl
-        else:
-            # A flat cell (all corners at the isovalue) has no gradient: face the viewer.
-            gx, gy, gz = -dx, -dy, -dz
-        diff, spec = blinn_phong(gx, gy, gz, -dx, -dy, -dz, -dx, -dy, -dz, material)
-        for c in range(3):
-            image[y, x, c] = min(1.0, color[c] * (material[0] + diff) + spec)
-        image[y, x, 3] = 1.0
+    chunks = chunk_count(pixels, SPREAD_CHUNK)
+    stride = spread_stride(chunks)
+    for it in prange(chunks):
+        c0 = spread(it, chunks, stride) * SPREAD_CHUNK
+        for n in range(c0, min(pixels, c0 + SPREAD_CHUNK)):
+            if not t[n] < math.inf:
+                continue
+            y = n // width
+            x = n - y * width
+            ox, oy, oz, dx, dy, dz = camera_ray(cam, width, height, x, y)
+            gx, gy, gz = trilinear_gradient(data, cell[n, 0], cell[n, 1], cell[n, 2],
+                                            uvw[n, 0], uvw[n, 1], uvw[n, 2], spc)
+            gl = math.sqrt(gx * gx + gy * gy + gz * gz)
+            if gl > 0.0:
+                gx, gy, gz = gx / gl, gy / gl, gz / gl
+            else:
+                # A flat cell (all corners at the isovalue) has no gradient: face the viewer.
+                gx, gy, gz = -dx, -dy, -dz
+            diff, spec = blinn_phong(gx, gy, gz, -dx, -dy, -dz, -dx, -dy, -dz, material)
+            for c in range(3):
+                image[y, x, c] = min(1.0, color[c] * (material[0] + diff) + spec)
+            image[y, x, 3] = 1.0

@@ -27,9 +27,9 @@ import numpy as np
 from numba import prange
 
 from .composite import accumulate_ray
-from .config import kernel
+from .config import SPREAD_CHUNK, kernel
 from .iso import cast_iso_ray
-from .rays import camera_ray, spread, spread_stride
+from .rays import camera_ray, chunk_count, spread, spread_stride
 from .shade import blinn_phong, trilinear_gradient
 from .traverse import to_index_space
 
@@ -144,20 +144,22 @@ def shadow_iso(data, org, spc, iso, points, light, eps, views, near, far, use_se
     cells visited and cubics solved.
     """
     rays = points.shape[0]
-    stride = spread_stride(rays)
-    for it in prange(rays):
-        n = spread(it, rays, stride)
-        if vis[n] == 0.0:
-            continue
-        s0, s1, Ox, Oy, Oz, Dx, Dy, Dz, lx, ly, lz, dist = shadow_ray(points, n, light, eps, views, near,
-                                                                       far, use_seg, org, spc)
-        if not s0 <= s1:
-            continue
-        res = cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, s0, s1, blocks, bshift)
-        counts[n, 0] += res[7]
-        counts[n, 1] += res[8]
-        if res[0] <= s1 and res[0] < math.inf:
-            vis[n] = 0.0
+    chunks = chunk_count(rays, SPREAD_CHUNK)
+    stride = spread_stride(chunks)
+    for it in prange(chunks):
+        c0 = spread(it, chunks, stride) * SPREAD_CHUNK
+        for n in range(c0, min(rays, c0 + SPREAD_CHUNK)):
+            if vis[n] == 0.0:
+                continue
+            s0, s1, Ox, Oy, Oz, Dx, Dy, Dz, lx, ly, lz, dist = shadow_ray(points, n, light, eps, views, near,
+                                                                           far, use_seg, org, spc)
+            if not s0 <= s1:
+                continue
+            res = cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, s0, s1, blocks, bshift)
+            counts[n, 0] += res[7]
+            counts[n, 1] += res[8]
+            if res[0] <= s1 and res[0] < math.inf:
+                vis[n] = 0.0
 
 
 @kernel(parallel=True)
@@ -171,20 +173,22 @@ def shadow_accumulate(data, org, spc, params, op_x, op_y, col_x, col_rgb, points
     """
     nobits = np.zeros((1, 1, 1), np.uint32)
     rays = points.shape[0]
-    stride = spread_stride(rays)
-    for it in prange(rays):
-        n = spread(it, rays, stride)
-        if vis[n] == 0.0:
-            continue
-        s0, s1, Ox, Oy, Oz, Dx, Dy, Dz, lx, ly, lz, dist = shadow_ray(points, n, light, eps, views, near,
-                                                                       far, use_seg, org, spc)
-        if not s0 <= s1:
-            continue
-        r, g, b, a, samples = accumulate_ray(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, lx, ly, lz, s0, s1,
-                                             dist - eps, params, op_x, op_y, col_x, col_rgb,
-                                             nobits, 0, 0, False, blocks, bshift)
-        counts[n, 2] += samples
-        vis[n] *= 1.0 - a
+    chunks = chunk_count(rays, SPREAD_CHUNK)
+    stride = spread_stride(chunks)
+    for it in prange(chunks):
+        c0 = spread(it, chunks, stride) * SPREAD_CHUNK
+        for n in range(c0, min(rays, c0 + SPREAD_CHUNK)):
+            if vis[n] == 0.0:
+                continue
+            s0, s1, Ox, Oy, Oz, Dx, Dy, Dz, lx, ly, lz, dist = shadow_ray(points, n, light, eps, views, near,
+                                                                           far, use_seg, org, spc)
+            if not s0 <= s1:
+                continue
+            r, g, b, a, samples = accumulate_ray(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, lx, ly, lz, s0, s1,
+                                                 dist - eps, params, op_x, op_y, col_x, col_rgb,
+                                                 nobits, 0, 0, False, blocks, bshift)
+            counts[n, 2] += samples
+            vis[n] *= 1.0 - a
 
 
 @kernel(parallel=True)
