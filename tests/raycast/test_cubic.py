@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 
 from raycast.reference import EPS, mpf, peval, pderiv, real_roots
-from raycast.cubic import first_root
+from raycast.cubic import eval_cubic, first_root, surely_no_root
 
 
 def _eval_bound(a, b, c, d, s):
@@ -237,3 +237,32 @@ def test_random_cubics_against_mpmath(seed):
         if reason:
             fails.append((kind, (a, b, c, d, L), s, reason))
     assert not fails, f"{len(fails)} failures, e.g. {fails[:3]}"
+
+
+@pytest.mark.parametrize("seed", range(2))
+def test_surely_no_root_only_where_the_cubic_keeps_its_sign(seed):
+    """The hull shortcut answers "no root" only for cubics with no root in [0, L] whose
+    float values (as `first_root` computes them) all keep the sign of ``d``."""
+    rng = np.random.default_rng(100 + seed)
+    said = 0
+    for n in range(1500):
+        r = rng.uniform(-0.2, 1.2)
+        if n % 3 == 0:       # near-tangent: a double root lifted by a tiny offset, just clear or just through
+            a, b, c, d = poly_from_roots(rng.choice([-1, 1]) * 10 ** rng.uniform(-3, 3), r, r, rng.uniform(1, 3))
+            d += rng.choice([-1, 1]) * 10 ** rng.uniform(-17, -3) * max(1.0, abs(d))
+        elif n % 3 == 1:     # a root just outside the interval
+            a, b, c, d = poly_from_roots(rng.choice([-1, 1]), rng.choice([-1, 1]) * 10 ** rng.uniform(-15, -1),
+                                         *rng.uniform(-3, 3, 2))
+        else:                # raw coefficients of mixed magnitude
+            a, b, c, d = rng.normal(size=4) * 10.0 ** rng.uniform(-6, 6, 4)
+        a, b, c, d = float(a), float(b), float(c), float(d)
+        L = float(rng.choice([1.0, rng.uniform(0.01, 2.0)]))
+        if not surely_no_root(a, b, c, d, L):
+            continue
+        said += 1
+        p = [mpf(d), mpf(c), mpf(b), mpf(a)]
+        assert not real_roots(p, mpf(0), mpf(L)), (a, b, c, d, L)
+        vals = np.array([eval_cubic(a, b, c, d, s) for s in np.linspace(0.0, L, 257)])
+        assert np.all(np.sign(vals) == np.sign(d)), (a, b, c, d, L)
+        assert first_root(a, b, c, d, L) == -1.0
+    assert said > 300
