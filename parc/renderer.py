@@ -88,10 +88,12 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
         finer buffers give shorter shadow-ray segments for more raster time.
     blocks : bool, default True
         PARC only: inside its segments the caster also jumps over blocks of
-        4x4x4 cells that cannot contribute (an isosurface's sign table, a
-        transfer function's transparent blocks; `parc.classify`), computed
-        once per isovalue or transfer function. The image is the same
-        either way; False measures the OpenGL segments alone.
+        4x4x4 cells that cannot contribute and steps over single such cells
+        without reading their samples (an isosurface's sign table, a
+        transfer function's transparency table, one entry per cell;
+        `parc.classify`), computed once per isovalue or transfer function.
+        The image is the same either way; False measures the OpenGL
+        segments alone.
 
     Returns
     -------
