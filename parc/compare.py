@@ -57,7 +57,7 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
     -------
     list of dict
         One row per method: ``method``, ``seconds`` (median total),
-        ``phases`` (median seconds per phase), ``speedup`` against brute,
+        ``phases`` (seconds per phase of the median run), ``speedup`` against brute,
         the `image_error` fields, ``cells_visited``, ``cubic_solves``,
         ``samples``, ``shadow_cells``, ``shadow_solves``, ``hits``,
         ``polygons``, ``supercell``, ``pixels``.
@@ -84,8 +84,10 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
             res.stats["seconds"]["wall"] = time.perf_counter() - t0
             runs.append(res)
         med = statistics.median(r.stats["seconds"]["wall"] for r in runs)
-        phases = {k: statistics.median(r.stats["seconds"].get(k, 0.0) for r in runs)
-                  for k in runs[0].stats["seconds"] if k != "wall"}
+        # Phases of one run, the median one (the lower of the middle two):
+        # medians taken phase by phase need not add up to any run's total.
+        middle = sorted(runs, key=lambda r: r.stats["seconds"]["wall"])[(len(runs) - 1) // 2]
+        phases = {k: v for k, v in middle.stats["seconds"].items() if k != "wall"}
         res = runs[0]
         if reference is None:
             reference = res
@@ -123,7 +125,7 @@ def format_table(rows):
     out += [fmt.format(*l) for l in lines]
     phases = sorted({k for r in rows for k in r["phases"]})
     out.append("")
-    out.append("seconds per phase (median): " + ", ".join(phases))
+    out.append("seconds per phase (the median run): " + ", ".join(phases))
     for r in rows:
         out.append(f"  {r['method']:<10} " + "  ".join(f"{k}={r['phases'].get(k, 0.0):.4f}" for k in phases))
     return "\n".join(out)

@@ -76,7 +76,7 @@ class Suite:
     name: str = "full"
     sizes: tuple = (300, 600)
     parker_size: int = 512
-    repeats: int = 3
+    repeats: int = 5
     supercells: tuple = (0.5, 1.0, 2.0, 4.0, 8.0)
     steps: tuple = (2.0, 1.0, 0.5, 0.25)
     roots_quick: bool = False
