@@ -20,8 +20,9 @@ up in the transfer function).
   data range: an X-ray-like grey level of what the transfer function shows.
 
 Why every mode is defined through non-zero opacity: PARC skips samples it
-has proven transparent (outside ``[near, far]``, or in a plane of
-supercells whose bit is clear). A transparent sample adds exactly nothing
+has proven transparent (outside ``[near, far]``, in a plane of
+supercells whose bit is clear, or in a cell or block whose value range
+the transfer function makes transparent). A transparent sample adds exactly nothing
 to any of the three sums, so skipping it changes no bit of the result,
 and the accelerated image equals the unaccelerated one. The skipped
 samples are the same lattice points the unaccelerated caster would have
@@ -322,7 +323,7 @@ def cast_accumulate_image(data, org, spc, cam, width, height, params, op_x, op_y
     ``counts[y * width + x]`` the samples taken. With ``use_seg`` a pixel
     whose ``seg[y, x]`` has ``near > far`` costs nothing. With ``use_stop``
     no sample is taken at ``t >= stop[y, x]`` (an opaque surface there).
-    ``blocks``/``bshift``: transparent blocks to skip (`accumulate_ray`).
+    ``blocks``/``bshift``: the transparency table (`accumulate_ray`).
     """
     tiles = tile_count(width, row0, row1, TILE_W, TILE_H)
     stride = spread_stride(tiles)
