@@ -40,7 +40,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from data_tools import InputError
-from raycast.composite import TRANSPARENT_BLOCK, TRANSPARENT_CELL
+from raycast.composite import MAY_CONTRIBUTE, TRANSPARENT_BLOCK, TRANSPARENT_CELL
 from raycast.iso import SIGNED_BLOCK
 
 #: Supercell boundaries this close to an integer (in cells) are snapped to
@@ -484,9 +484,8 @@ class VolumeIndex:
         steps a signed cell without reading its corners.
         """
         def table():
-            cells = sign_iso(*self.cell_minmax(), iso)
-            whole = _per_cell(sign_iso(*self.ranges(1 << BLOCK_SHIFT), iso), cells.shape)
-            return np.where(whole != 0, whole * np.int8(SIGNED_BLOCK), cells)
+            blocks = sign_iso(*self.ranges(1 << BLOCK_SHIFT), iso) * np.int8(SIGNED_BLOCK)
+            return self._cell_table(lambda mn, mx: sign_iso(mn, mx, iso), blocks)
 
         return self._blocks(("iso", float(iso)), table)
 
@@ -503,13 +502,33 @@ class VolumeIndex:
         not (most of them, at a surface's edge) still saves its samples'
         interpolation.
         """
+        def cells(mn, mx):
+            return np.where(tf.nonzero_in(mn, mx), np.int8(MAY_CONTRIBUTE), np.int8(TRANSPARENT_CELL))
+
         def table():
-            cells = np.where(~tf.nonzero_in(*self.cell_minmax()), np.int8(TRANSPARENT_CELL), np.int8(0))
-            cells[_per_cell(~tf.nonzero_in(*self.ranges(1 << BLOCK_SHIFT)), cells.shape)] = TRANSPARENT_BLOCK
-            return cells
+            clear = ~tf.nonzero_in(*self.ranges(1 << BLOCK_SHIFT))
+            return self._cell_table(cells, np.where(clear, np.int8(TRANSPARENT_BLOCK), np.int8(0)))
 
         op_x, op_y, _, _ = tf.arrays()
         return self._blocks(("tf", op_x.tobytes(), op_y.tobytes()), table)
+
+    def _cell_table(self, cell_entries, block_entries):
+        """An int8 table per cell: ``block_entries`` (per block of ``2**BLOCK_SHIFT``
+        cells) where non-zero, else ``cell_entries(mn, mx)`` of the cell ranges.
+
+        Built slab by slab, so that a volume of a billion cells needs little
+        beyond the table itself.
+        """
+        mn, mx = self.cell_minmax()
+        out = np.empty(mn.shape, np.int8)
+        b = 1 << BLOCK_SHIFT
+        slab = max(1, CHUNK_VALUES // (mn.shape[1] * mn.shape[2]) // b) * b
+        for z0 in range(0, mn.shape[0], slab):
+            z1 = min(mn.shape[0], z0 + slab)
+            mine = cell_entries(mn[z0:z1], mx[z0:z1])
+            whole = _per_cell(block_entries[z0 // b:-(-z1 // b)], mine.shape)
+            out[z0:z1] = np.where(whole != 0, whole, mine)
+        return out
 
     def _blocks(self, key, table):
         cache = self.__dict__.setdefault("_block_tables", {})

@@ -194,8 +194,12 @@ def _spiky_tf(lo, hi):
                             color=[(lo, 0.9, 0.4, 0.2), (hi, 0.3, 0.6, 1.0)])
 
 
-def test_tf_blocks_match_a_dense_check():
+@pytest.mark.parametrize("slab_values", [None, 64])
+def test_tf_blocks_match_a_dense_check(slab_values, monkeypatch):
+    """Also built in slabs of 4 cells (a small `CHUNK_VALUES`), as large volumes are."""
     from parc.classify import VolumeIndex
+    if slab_values:
+        monkeypatch.setattr("parc.classify.CHUNK_VALUES", slab_values)
     from raycast.composite import MAY_CONTRIBUTE, TRANSPARENT_BLOCK, TRANSPARENT_CELL
     vol = blobs((17, 14, 12), count=5, seed=3)
     tf = _spiky_tf(float(vol.data.min()), float(vol.data.max()))

@@ -191,7 +191,11 @@ def test_sign_iso_matches_block_samples(shift):
             assert np.array_equal(got, block_table(data, iso, shift))
 
 
-def test_volume_index_block_signs_follow_the_isovalue():
+@pytest.mark.parametrize("slab_values", [None, 64])
+def test_volume_index_block_signs_follow_the_isovalue(slab_values, monkeypatch):
+    """Also built in slabs of 4 cells (a small `CHUNK_VALUES`), as large volumes are."""
+    if slab_values:
+        monkeypatch.setattr("parc.classify.CHUNK_VALUES", slab_values)
     vol = blobs((16, 18, 20), count=3, seed=4)
     index = VolumeIndex.of(vol)
     seen = set()
