@@ -1,0 +1,34 @@
+"""How the parallel drivers hand out work (`raycast.rays`): every item exactly once, spread out."""
+import numpy as np
+import pytest
+
+from raycast.rays import chunk_count, spread, spread_stride, tile_count, tile_rect
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 7, 64, 100, 1000, 2048, 4096, 8191, 16385])
+def test_spread_visits_every_item_once(n):
+    stride = spread_stride(n)
+    order = np.array([spread(it, n, stride) for it in range(n)])
+    assert np.array_equal(np.sort(order), np.arange(n))
+
+
+@pytest.mark.parametrize("n", [100, 2048, 16385])
+def test_each_thread_share_samples_the_whole_range(n):
+    """Two or four contiguous runs of iterations (a static schedule's shares) each
+    take items from every part of the range, not one end of it."""
+    stride = spread_stride(n)
+    order = np.array([spread(it, n, stride) for it in range(n)])
+    for threads in (2, 4):
+        for share in np.array_split(order, threads):
+            counts = np.histogram(share, bins=4, range=(0, n))[0]
+            assert counts.min() >= 0.8 * len(share) / 4
+
+
+def test_chunks_and_tiles_cover_the_items():
+    assert chunk_count(0, 64) == 0 and chunk_count(64, 64) == 1 and chunk_count(65, 64) == 2
+    width, row0, row1 = 70, 3, 18
+    seen = np.zeros((row1, width), int)
+    for tile in range(tile_count(width, row0, row1, 32, 4)):
+        x0, x1, y0, y1 = tile_rect(tile, width, row0, row1, 32, 4)
+        seen[y0:y1, x0:x1] += 1
+    assert (seen[row0:] == 1).all() and (seen[:row0] == 0).all()
