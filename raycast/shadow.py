@@ -131,6 +131,10 @@ def shadow_ray(points, n, light, eps, views, near, far, use_seg, org, spc):
     s0, s1 = 1.0, 0.0
     if dist > eps:
         s0, s1 = shadow_span(light, views, near, far, use_seg, px, py, pz, eps, dist)
+    if not s0 <= s1:
+        # Most of PARC's shadow rays end here (no PC supercell on the way):
+        # spare them the division into index space.
+        return s0, s1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, lx, ly, lz, dist
     Ox, Oy, Oz, Dx, Dy, Dz = to_index_space(px + eps * lx, py + eps * ly, pz + eps * lz, lx, ly, lz, org, spc)
     return s0, s1, Ox, Oy, Oz, Dx, Dy, Dz, lx, ly, lz, dist
 
