@@ -178,8 +178,10 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
         if comp:
             datas, orgs, spcs, params, tables, tf_len = _packed(comp, accumulation_params)
             seg = (np.stack([segs[n] for n, _ in comp]) if parc else np.empty((1, 1, 1, 2)))
+            clear = [empty_blocks(v, parc and blocks) for _, v in comp]
             cnt = np.empty(npx, np.int64)
-            cast_merged_image(datas, orgs, spcs, cam, w, h, params, *tables, tf_len, seg, parc, stop,
+            cast_merged_image(datas, orgs, spcs, cam, w, h, params, *tables, tf_len, seg, parc,
+                              tuple(c for c, _ in clear), np.array([s for _, s in clear], np.int64), stop,
                               layer_t, layer_rgba, front, cnt)
             counts["samples"] += int(cnt.sum())
         else:

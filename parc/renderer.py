@@ -249,9 +249,9 @@ def _render_iso(scene, iso, seg, use_seg, skip_blocks, timings, progress):
 
 
 def empty_blocks(vis, use):
-    """``(blocks, bshift)`` for the casting kernels: the empty-block table of
-    an Isosurface (`raycast.iso`) or Translucent (`raycast.composite`)
-    volume when ``use``, else none (the unaccelerated caster)."""
+    """``(table, bshift)`` for the casting kernels: the per-cell sign table of
+    an Isosurface (`raycast.iso`) or transparency table of a Translucent
+    (`raycast.composite`) volume when ``use``, else none (the unaccelerated caster)."""
     if not use:
         return NO_BLOCKS, -1
     from .classify import VolumeIndex

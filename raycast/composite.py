@@ -367,7 +367,7 @@ def _next_layer(layer_t, used, y, x, before):
 
 @kernel(parallel=True)
 def cast_merged_image(datas, orgs, spcs, cam, width, height, params, op_x, op_y, col_x, col_rgb, tf_len,
-                      seg, use_seg, stop, layer_t, layer_rgba, image, counts):
+                      seg, use_seg, clear, bshifts, stop, layer_t, layer_rgba, image, counts):
     """Composite several overlapping volumes along each pixel's ray, samples merged in depth order.
 
     ``datas`` is a tuple of K volumes of one dtype, each with its own
@@ -381,7 +381,11 @@ def cast_merged_image(datas, orgs, spcs, cam, width, height, params, op_x, op_y,
     back, and stop at ``stop[y, x]`` (an opaque surface) or once the
     opacity reaches the largest threshold. ``layer_t[j]``, ``layer_rgba[j]``
     are finished per-pixel layers (maximum or average intensity of another
-    volume) composited where the ray reaches ``t = layer_t``.
+    volume) composited where the ray reaches ``t = layer_t``. ``clear[k]``
+    and ``bshifts[k]``: volume k's transparency table, as `accumulate_ray`
+    takes it (`raycast.iso.NO_BLOCKS` and -1 for none); a skipped sample
+    adds nothing, so the layers and the other volumes' samples keep their
+    order.
     """
     nvol = len(datas)
     thr = 0.0
@@ -392,6 +396,7 @@ def cast_merged_image(datas, orgs, spcs, cam, width, height, params, op_x, op_y,
     for it in prange(tiles):
         x0, x1, y0, y1 = tile_rect(spread(it, tiles, stride), width, 0, height, TILE_W, TILE_H)
         st = np.empty((nvol, 9))
+        jumped = np.empty(nvol, np.int64)
         used = np.zeros(layer_t.shape[0], np.bool_)
         for y in range(y0, y1):
             for x in range(x0, x1):
@@ -413,6 +418,7 @@ def cast_merged_image(datas, orgs, spcs, cam, width, height, params, op_x, op_y,
                     st[k, 3], st[k, 4], st[k, 5] = Dx, Dy, Dz
                     st[k, 6], st[k, 7], st[k, 8] = t_in, n0, n1
                 used[:] = False
+                jumped[:] = -1
                 r = 0.0
                 g = 0.0
                 b = 0.0
@@ -442,11 +448,29 @@ def cast_merged_image(datas, orgs, spcs, cam, width, height, params, op_x, op_y,
                     if best < 0 or acc >= thr:
                         break
                     st[best, 7] += 1.0
-                    samples += 1
                     data = datas[best]
-                    v, i, j, k, u, vv, w = sample_value(data, st[best, 0] + bt * st[best, 3],
-                                                        st[best, 1] + bt * st[best, 4],
-                                                        st[best, 2] + bt * st[best, 5])
+                    x_ = st[best, 0] + bt * st[best, 3]
+                    y_ = st[best, 1] + bt * st[best, 4]
+                    z_ = st[best, 2] + bt * st[best, 5]
+                    i, j, k = sample_cell(data, x_, y_, z_)
+                    bshift = bshifts[best]
+                    if bshift >= 0:
+                        e = clear[best][k, j, i]
+                        if e != MAY_CONTRIBUTE:
+                            if e == TRANSPARENT_BLOCK:
+                                bz, by, bx = data.shape
+                                key = ((k >> bshift) * ((by >> bshift) + 1) + (j >> bshift)) * ((bx >> bshift) + 1) \
+                                    + (i >> bshift)
+                                if key != jumped[best]:
+                                    jumped[best] = key
+                                    n = int(st[best, 7]) - 1
+                                    last = block_last_sample(n, st[best, 6], params[best, P_STEP],
+                                                             st[best, 0], st[best, 1], st[best, 2],
+                                                             st[best, 3], st[best, 4], st[best, 5], i, j, k, bshift)
+                                    st[best, 7] = min(float(last), st[best, 8]) + 1.0
+                            continue
+                    samples += 1
+                    v, u, vv, w = interpolate(data, x_, y_, z_, i, j, k)
                     no = int(tf_len[best, 0])
                     nc = int(tf_len[best, 1])
                     a = tf_opacity(op_x[best, :no], op_y[best, :no], v)

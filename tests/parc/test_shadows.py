@@ -187,6 +187,28 @@ def test_multi_volume_parc_equals_brute(gl, case, seed):
     _assert_same(scene, supercell=(1, 2, 3, 0.5)[seed])
 
 
+def test_merged_translucent_volumes_skip_transparent_cells(gl):
+    """Overlapping composite volumes (the merged walk) with an isosurface inside: the
+    transparency tables change no pixel and take fewer samples."""
+    rng = np.random.default_rng(7)
+    skipped = 0
+    for seed in range(3):
+        a = _volume(rng, "blobs")
+        b = _volume(rng, "blobs")
+        b = Volume(b.data, spacing=b.spacing, origin=tuple(np.array(a.center) - rng.uniform(1, 4, 3)), name="b")
+        vols = [Translucent(a, tf="viridis"), Translucent(b, tf="greyscale"), _iso(rng, b)]
+        lo, hi = _union([v.volume for v in vols])
+        scene = Scene(camera=_camera(rng, lo, hi), size=SIZE, volumes=vols)
+        ref = render(scene, "brute")
+        off = render(scene, "parc", blocks=False)
+        on = render(scene, "parc")
+        assert np.abs(on.image - ref.image).max() <= 1e-6
+        assert np.array_equal(on.image, off.image)
+        assert on.stats["samples"] <= off.stats["samples"]
+        skipped += off.stats["samples"] - on.stats["samples"]
+    assert skipped > 0
+
+
 def test_translucent_in_front_of_surface_is_composited_over_it(gl):
     """One translucent volume in front of an isosurface: the pixel is ``front + (1 - a) surface``."""
     rng = np.random.default_rng(3)
