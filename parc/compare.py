@@ -43,8 +43,7 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
     methods : sequence of str
         Methods to run; ``"brute"`` is always run (first) as the reference.
     repeats : int, default 3
-        Timed renders per method, taken in turns (every method once, then
-        again); the median total time is reported.
+        Timed renders per method; the median total time is reported.
     warmup : int, default 1
         Untimed renders first (JIT compilation, OpenGL context, caches).
     options : dict of method -> dict, optional
@@ -52,7 +51,7 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
         ``{"parc": {"supercell": 4}}``. A method name may carry a label after
         a colon (``"parc:4"``) so one method appears with several options.
     progress : callable(str) or None
-        Told which methods are about to be timed.
+        Told which method is running.
 
     Returns
     -------
@@ -71,22 +70,19 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
     cell = float(min(vol.spacing))
     rows = []
     reference = None
-    if progress:
-        progress(f"{', '.join(names)} ({warmup} warm-up and {repeats} timed renders each, in turns)")
     for name in names:
+        method = name.split(":")[0]
+        kwargs = options.get(name, {})
+        if progress:
+            progress(name)
         for _ in range(warmup):
-            render(scene, method=name.split(":")[0], **options.get(name, {}))
-    # The timed renders take turns, method after method, so that the
-    # machine's drifts in speed (shared hosts) fall on every method alike.
-    runs_of = {name: [] for name in names}
-    for _ in range(repeats):
-        for name in names:
+            render(scene, method=method, **kwargs)
+        runs = []
+        for _ in range(repeats):
             t0 = time.perf_counter()
-            res = render(scene, method=name.split(":")[0], **options.get(name, {}))
+            res = render(scene, method=method, **kwargs)
             res.stats["seconds"]["wall"] = time.perf_counter() - t0
-            runs_of[name].append(res)
-    for name in names:
-        runs = runs_of[name]
+            runs.append(res)
         med = statistics.median(r.stats["seconds"]["wall"] for r in runs)
         # Phases of one run, the median one (the lower of the middle two):
         # medians taken phase by phase need not add up to any run's total.
