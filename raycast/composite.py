@@ -183,6 +183,13 @@ def _block_exit_axis(O, D, c, bshift):
 
 
 @kernel
+def block_key(i, j, k, bshift, ny, nx):
+    """A number for the block of ``2**bshift`` cells holding cell ``(i, j, k)`` of an
+    ``(nz, ny, nx)``-sample grid, unique within the grid."""
+    return ((k >> bshift) * ((ny >> bshift) + 1) + (j >> bshift)) * ((nx >> bshift) + 1) + (i >> bshift)
+
+
+@kernel
 def block_last_sample(n, t_in, step, Ox, Oy, Oz, Dx, Dy, Dz, i, j, k, bshift):
     """A lattice index safely before the ray leaves the block of cell ``(i, j, k)``
     (blocks ``2**bshift`` cells a side), at least ``n``; as `next_plane_sample`, two steps of slack."""
@@ -263,7 +270,7 @@ def accumulate_ray(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, seg0, seg1, t_
             clear = blocks[k, j, i]
             if clear != MAY_CONTRIBUTE:
                 if clear == TRANSPARENT_BLOCK:
-                    key = ((k >> bshift) * ((ny >> bshift) + 1) + (j >> bshift)) * ((nx >> bshift) + 1) + (i >> bshift)
+                    key = block_key(i, j, k, bshift, ny, nx)
                     if key != jumped:
                         # The samples up to where the ray leaves the block are transparent.
                         jumped = key
@@ -458,9 +465,7 @@ def cast_merged_image(datas, orgs, spcs, cam, width, height, params, op_x, op_y,
                         e = clear[best][k, j, i]
                         if e != MAY_CONTRIBUTE:
                             if e == TRANSPARENT_BLOCK:
-                                bz, by, bx = data.shape
-                                key = ((k >> bshift) * ((by >> bshift) + 1) + (j >> bshift)) * ((bx >> bshift) + 1) \
-                                    + (i >> bshift)
+                                key = block_key(i, j, k, bshift, data.shape[1], data.shape[2])
                                 if key != jumped[best]:
                                     jumped[best] = key
                                     n = int(st[best, 7]) - 1

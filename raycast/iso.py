@@ -27,9 +27,9 @@ import math
 import numpy as np
 from numba import prange
 
-from .config import SPREAD_CHUNK, TILE_H, TILE_W, kernel
+from .config import TILE_H, TILE_W, kernel
 from .cubic import cubic_along_ray, eval_cubic, first_root, trilinear_coefficients
-from .rays import camera_ray, chunk_count, spread, spread_stride
+from .rays import camera_ray, spread, spread_run, spread_runs, spread_stride
 from .traverse import axis_state, cell_corners, clip_box, next_exit, start_index, step_axis, to_index_space
 
 #: The table a walk without one takes (with ``bshift = -1``).
@@ -321,11 +321,11 @@ def cast_iso_image(data, org, spc, cam, width, height, iso, seg, use_seg, blocks
 def cast_iso_rays(data, org, spc, origins, dirs, iso, seg, use_seg, blocks, bshift, t, cell, uvw, counts):
     """Cast arbitrary world rays ``origins[n] + t dirs[n]`` (``|dirs[n]| = 1``)."""
     rays = origins.shape[0]
-    chunks = chunk_count(rays, SPREAD_CHUNK)
-    stride = spread_stride(chunks)
-    for it in prange(chunks):
-        c0 = spread(it, chunks, stride) * SPREAD_CHUNK
-        for n in range(c0, min(rays, c0 + SPREAD_CHUNK)):
+    runs = spread_runs(rays)
+    stride = spread_stride(runs)
+    for it in prange(runs):
+        lo, hi = spread_run(it, runs, stride, rays)
+        for n in range(lo, hi):
             s0 = -math.inf
             s1 = math.inf
             if use_seg:

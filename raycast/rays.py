@@ -6,7 +6,7 @@ this is DESIGN's ray formula, written once.
 """
 import math
 
-from .config import kernel
+from .config import SPREAD_CHUNK, kernel
 
 CAM_SIZE = 15
 
@@ -50,8 +50,8 @@ def spread(it, n, stride):
     sequence) makes every run of iterations a near-uniform sample of the
     items, so the threads get even shares: casting the Fig. 13 floor went
     from no gain with two threads to 1.3-1.5x, for both methods.
-    Loops over single rays spread runs of `raycast.config.SPREAD_CHUNK` of them
-    (`chunk_count`), tile loops whole tiles.
+    Loops over single rays spread runs of `SPREAD_CHUNK` of them
+    (`spread_run`), tile loops whole tiles.
     """
     return (it * stride) % n
 
@@ -60,6 +60,19 @@ def spread(it, n, stride):
 def chunk_count(n, size):
     """Runs of ``size`` items covering ``n`` items (the last may be shorter)."""
     return (n + size - 1) // size
+
+
+@kernel
+def spread_runs(n):
+    """Runs of `SPREAD_CHUNK` items covering ``n`` single rays or pixels."""
+    return chunk_count(n, SPREAD_CHUNK)
+
+
+@kernel
+def spread_run(it, runs, stride, n):
+    """Items ``lo <= m < hi`` that iteration ``it`` of a loop over `spread_runs(n)` runs takes."""
+    lo = spread(it, runs, stride) * SPREAD_CHUNK
+    return lo, min(n, lo + SPREAD_CHUNK)
 
 
 @kernel

@@ -4,8 +4,7 @@ import math
 from numba import prange
 
 from .config import kernel
-from .config import SPREAD_CHUNK
-from .rays import camera_ray, chunk_count, spread, spread_stride
+from .rays import camera_ray, spread_run, spread_runs, spread_stride
 from .traverse import cell_corners
 
 
@@ -73,11 +72,11 @@ def shade_headlight(data, spc, cam, width, height, t, cell, uvw, color, material
     stay transparent.
     """
     pixels = width * height
-    chunks = chunk_count(pixels, SPREAD_CHUNK)
-    stride = spread_stride(chunks)
-    for it in prange(chunks):
-        c0 = spread(it, chunks, stride) * SPREAD_CHUNK
-        for n in range(c0, min(pixels, c0 + SPREAD_CHUNK)):
+    runs = spread_runs(pixels)
+    stride = spread_stride(runs)
+    for it in prange(runs):
+        lo, hi = spread_run(it, runs, stride, pixels)
+        for n in range(lo, hi):
             if not t[n] < math.inf:
                 continue
             y = n // width

@@ -27,9 +27,9 @@ import numpy as np
 from numba import prange
 
 from .composite import accumulate_ray
-from .config import SPREAD_CHUNK, kernel
+from .config import kernel
 from .iso import cast_iso_ray
-from .rays import camera_ray, chunk_count, spread, spread_stride
+from .rays import camera_ray, spread_run, spread_runs, spread_stride
 from .shade import blinn_phong, trilinear_gradient
 from .traverse import to_index_space
 
@@ -148,11 +148,11 @@ def shadow_iso(data, org, spc, iso, points, light, eps, views, near, far, use_se
     cells visited and cubics solved.
     """
     rays = points.shape[0]
-    chunks = chunk_count(rays, SPREAD_CHUNK)
-    stride = spread_stride(chunks)
-    for it in prange(chunks):
-        c0 = spread(it, chunks, stride) * SPREAD_CHUNK
-        for n in range(c0, min(rays, c0 + SPREAD_CHUNK)):
+    runs = spread_runs(rays)
+    stride = spread_stride(runs)
+    for it in prange(runs):
+        lo, hi = spread_run(it, runs, stride, rays)
+        for n in range(lo, hi):
             if vis[n] == 0.0:
                 continue
             s0, s1, Ox, Oy, Oz, Dx, Dy, Dz, lx, ly, lz, dist = shadow_ray(points, n, light, eps, views, near,
@@ -177,11 +177,11 @@ def shadow_accumulate(data, org, spc, params, op_x, op_y, col_x, col_rgb, points
     """
     nobits = np.zeros((1, 1, 1), np.uint32)
     rays = points.shape[0]
-    chunks = chunk_count(rays, SPREAD_CHUNK)
-    stride = spread_stride(chunks)
-    for it in prange(chunks):
-        c0 = spread(it, chunks, stride) * SPREAD_CHUNK
-        for n in range(c0, min(rays, c0 + SPREAD_CHUNK)):
+    runs = spread_runs(rays)
+    stride = spread_stride(runs)
+    for it in prange(runs):
+        lo, hi = spread_run(it, runs, stride, rays)
+        for n in range(lo, hi):
             if vis[n] == 0.0:
                 continue
             s0, s1, Ox, Oy, Oz, Dx, Dy, Dz, lx, ly, lz, dist = shadow_ray(points, n, light, eps, views, near,

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from raycast.rays import chunk_count, spread, spread_stride, tile_count, tile_rect
+from raycast.rays import chunk_count, spread, spread_run, spread_runs, spread_stride, tile_count, tile_rect
 
 
 @pytest.mark.parametrize("n", [1, 2, 3, 7, 64, 100, 1000, 2048, 4096, 8191, 16385])
@@ -32,3 +32,14 @@ def test_chunks_and_tiles_cover_the_items():
         x0, x1, y0, y1 = tile_rect(tile, width, row0, row1, 32, 4)
         seen[y0:y1, x0:x1] += 1
     assert (seen[row0:] == 1).all() and (seen[:row0] == 0).all()
+
+
+@pytest.mark.parametrize("n", [0, 1, 63, 64, 65, 1000])
+def test_spread_runs_cover_every_ray_once(n):
+    runs = spread_runs(n)
+    stride = spread_stride(runs)
+    seen = np.zeros(n, int)
+    for it in range(runs):
+        lo, hi = spread_run(it, runs, stride, n)
+        seen[lo:hi] += 1
+    assert (seen == 1).all()
