@@ -53,12 +53,11 @@ def ideal_sample_counts(scene, vis: Translucent, stop=None) -> np.ndarray:
     else:
         stop = _NO_STOP
     vol = vis.volume
-    op_x, op_y, col_x, col_rgb = vis.tf.arrays()
+    op_x, op_y, _, _ = vis.tf.arrays()
     counts = np.empty(w * h, np.int64)
     ideal_samples_image(vol.data, np.array(vol.origin, dtype=np.float64),
                         np.array(vol.spacing, dtype=np.float64), scene.camera.as_array(), w, h,
-                        accumulation_params(vis), op_x, op_y, col_x, col_rgb,
-                        contributing_cells(vis), stop, use_stop, counts)
+                        accumulation_params(vis), op_x, op_y, contributing_cells(vis), stop, use_stop, counts)
     return counts.reshape(h, w)
 
 

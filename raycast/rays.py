@@ -11,7 +11,7 @@ from .config import SPREAD_CHUNK, kernel
 CAM_SIZE = 15
 
 
-@kernel
+@kernel(inline="always")
 def camera_ray(cam, width, height, x, y):
     """World ray ``(ox, oy, oz, dx, dy, dz)`` through the centre of pixel (x, y), y down."""
     sx = (2.0 * (x + 0.5) / width - 1.0) * (width / height)

@@ -55,7 +55,7 @@ def to_light(light, px, py, pz):
     return -light[1], -light[2], -light[3], math.inf
 
 
-@kernel
+@kernel(inline="always")
 def light_segment(views, near, far, px, py, pz):
     """``(lo, hi)``: the light buffers' bounds for the light's rays through ``P``.
 
@@ -97,7 +97,7 @@ def light_segment(views, near, far, px, py, pz):
     return lo, hi
 
 
-@kernel
+@kernel(inline="always")
 def shadow_span(light, views, near, far, use_seg, px, py, pz, eps, dist):
     """The shadow ray's ``[s0, s1]`` (from ``P' = P + eps l``), ``s0 > s1`` if it meets nothing."""
     s0 = 0.0
@@ -119,7 +119,7 @@ def shadow_span(light, views, near, far, use_seg, px, py, pz, eps, dist):
     return max(s0, a - m), min(s1, b + m)
 
 
-@kernel
+@kernel(inline="always")
 def shadow_ray(points, n, light, eps, views, near, far, use_seg, org, spc):
     """Shadow ray of ``points[n]`` in a volume's index space, and the span it walks.
 

@@ -79,7 +79,7 @@ def tf_lookup(op_x, op_y, col_x, col_rgb, v):
     return r, g, b, tf_opacity(op_x, op_y, v)
 
 
-@kernel
+@kernel(inline="always")
 def tf_color(col_x, col_rgb, v):
     """Straight ``(r, g, b)`` at a data value ``v`` that is not NaN (see `tf_lookup`)."""
     i, t = _locate(col_x, v)
