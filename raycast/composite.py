@@ -361,7 +361,7 @@ def cast_accumulate_image(data, org, spc, cam, width, height, params, op_x, op_y
                 counts[y * width + x] = n
 
 
-@kernel
+@kernel(inline="always")
 def _next_layer(layer_t, used, y, x, before):
     """The unused layer with the smallest ``t < before`` at pixel (y, x), or -1."""
     best = -1
