@@ -31,7 +31,7 @@ import time
 import numpy as np
 
 from raycast.composite import N_PARAMS, cast_accumulate_image, cast_merged_image
-from raycast.iso import cast_iso_image, empty_outputs
+from raycast.iso import cast_iso_image, empty_outputs, keep_nearest
 from raycast.shadow import (KIND_HEADLIGHT, combine_lights, light_terms, shadow_accumulate, shadow_iso,
                             surface_frames)
 
@@ -86,6 +86,8 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
     t0 = time.perf_counter()
     depth = np.full(npx, np.inf)
     winner = np.full(npx, -1, np.int64)
+    # The nearest hit's cell and local coordinates, read only where winner >= 0.
+    _, cell, uvw, _ = empty_outputs(npx)
     isos = [(n, v) for n, v in enumerate(scene.volumes) if isinstance(v, Isosurface)]
     for n, iso in isos:
         vol = iso.volume
@@ -94,16 +96,7 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
         eb, bshift = empty_blocks(iso, parc and blocks)
         cast_iso_image(vol.data, np.array(vol.origin), np.array(vol.spacing), cam, w, h, iso.value,
                        seg, parc, eb, bshift, t, c, uv, cnt, 0, h)
-        closer = t < depth
-        np.copyto(winner, n, where=closer)
-        if n == isos[0][0]:
-            # The first surface takes every hit it has: its arrays become the
-            # merged ones (cell and uvw are read only where winner >= 0).
-            depth, cell, uvw = t, c, uv
-        else:
-            np.copyto(depth, t, where=closer)
-            np.copyto(cell, c, where=closer[:, None])
-            np.copyto(uvw, uv, where=closer[:, None])
+        keep_nearest(t, c, uv, n, depth, cell, uvw, winner)
         cells, solves = column_totals(cnt)
         counts["cells"] += cells
         counts["solves"] += solves
@@ -146,11 +139,7 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
             _shadows(scene, method, lights, points, vis, segs, sizes, light_buffer, blocks, timings, counts,
                      extra)
         t0 = time.perf_counter()
-        rgb = np.empty((nh, 3))
-        combine_lights(colors, materials, lights, diffuse, specular, vis, rgb)
-        flat = image.reshape(npx, 4)
-        flat[hit, :3] = rgb
-        flat[hit, 3] = 1.0
+        combine_lights(colors, materials, lights, diffuse, specular, vis, hit, image.reshape(npx, 4))
         timings["shade"] += time.perf_counter() - t0
     report(0.8)
 

@@ -337,6 +337,22 @@ def cast_iso_rays(data, org, spc, origins, dirs, iso, seg, use_seg, blocks, bshi
             _store(n, res, t, cell, uvw, counts)
 
 
+@kernel(parallel=True)
+def keep_nearest(t, cell, uvw, n, depth, near_cell, near_uvw, winner):
+    """Merge one surface's hits (``t``, ``cell``, ``uvw``) into the nearest so far, in place:
+    where ``t`` is closer than ``depth``, take its hit and set ``winner`` to ``n``.
+
+    One pass; NumPy's masked copies took 6 ms a frame at 300x300.
+    """
+    for m in prange(t.shape[0]):
+        if t[m] < depth[m]:
+            depth[m] = t[m]
+            winner[m] = n
+            for a in range(3):
+                near_cell[m, a] = cell[m, a]
+                near_uvw[m, a] = uvw[m, a]
+
+
 def empty_outputs(n):
     """Per-ray output arrays for `n` rays, uninitialized: the drivers write every ray's ``t``,
     ``cell[:, 0]`` and ``counts``, and the rest wherever ``t`` is finite."""

@@ -41,7 +41,7 @@ KIND_HEADLIGHT = 2
 SEGMENT_SLACK = 4e-7
 
 
-@kernel
+@kernel(inline="always")
 def to_light(light, px, py, pz):
     """Unit direction from ``P`` to the light and the distance (``inf`` for directional)."""
     if light[0] == KIND_POINT:
@@ -252,12 +252,15 @@ def light_terms(points, normals, views, materials, lights, diffuse, specular):
 
 
 @kernel(parallel=True)
-def combine_lights(colors, materials, lights, diffuse, specular, vis, rgb):
-    """``rgb[m] = colour (ambient + sum_l vis d_l c_l) + sum_l vis s_l c_l``, clamped to 1."""
+def combine_lights(colors, materials, lights, diffuse, specular, vis, pix, image):
+    """Colour each hit pixel ``pix[m]`` of the flat ``(H*W, 4)`` float32 ``image``, opaque:
+    ``colour (ambient + sum_l vis d_l c_l) + sum_l vis s_l c_l``, clamped to 1."""
     for m in prange(colors.shape[0]):
+        n = pix[m]
         for c in range(3):
             acc = colors[m, c] * materials[m, 0]
             for k in range(lights.shape[0]):
                 w = vis[k, m] * lights[k, 4 + c]
                 acc += w * (colors[m, c] * diffuse[k, m] + specular[k, m])
-            rgb[m, c] = min(1.0, acc)
+            image[n, c] = min(1.0, acc)
+        image[n, 3] = 1.0
