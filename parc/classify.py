@@ -57,12 +57,15 @@ CHUNK_VALUES = 1 << 22
 #: so a supercell whose exact range only touches the isovalue stays PC.
 RANGE_PAD = 2.0 ** -40
 
-#: Empty blocks skipped inside PARC's segments (`raycast.iso`) are
-#: ``2**BLOCK_SHIFT`` cells a side. Measured on the CT head bone (512x512,
-#: cast only): blocks of 2 cells 27 ms, 4 cells 23 ms, 8 cells 33 ms, none 30 ms;
-#: small blocks jump often (each jump costs a few divisions), large ones are
-#: seldom empty.
-BLOCK_SHIFT = 2
+#: Blocks skipped inside PARC's segments are ``2**shift`` cells a side:
+#: small blocks jump often (each jump costs a few divisions), large ones
+#: are seldom empty. Isosurfaces (`raycast.iso`), CT head at 512x512, cast
+#: only, median of 6: skin 60/48/44 ms and bone 48/39/35 ms for blocks of
+#: 2/4/8 cells; neghip and the Fig. 13 scene the same for 4 and 8.
+ISO_BLOCK_SHIFT = 3
+#: Transfer functions (`raycast.composite`), CT head ``ct_skin_bone`` at
+#: 300x300: 110/97/100 ms for blocks of 2/4/8 cells.
+TF_BLOCK_SHIFT = 2
 #: Block tables (isovalues, transfer functions) kept per volume.
 BLOCK_CACHE_SIZE = 4
 
@@ -479,15 +482,15 @@ class VolumeIndex:
         """The sign table for isovalue ``iso`` and its block shift, kept for the last few tables.
 
         One int8 per cell (`raycast.iso`): `sign_iso` of the cell's block of
-        ``2**BLOCK_SHIFT`` cells, doubled, where the block is signed, else
+        ``2**ISO_BLOCK_SHIFT`` cells, doubled, where the block is signed, else
         `sign_iso` of the cell. The walk jumps across signed blocks and
         steps a signed cell without reading its corners.
         """
         def table():
-            blocks = sign_iso(*self.ranges(1 << BLOCK_SHIFT), iso) * np.int8(SIGNED_BLOCK)
-            return self._cell_table(lambda mn, mx: sign_iso(mn, mx, iso), blocks)
+            blocks = sign_iso(*self.ranges(1 << ISO_BLOCK_SHIFT), iso) * np.int8(SIGNED_BLOCK)
+            return self._cell_table(lambda mn, mx: sign_iso(mn, mx, iso), blocks, ISO_BLOCK_SHIFT)
 
-        return self._blocks(("iso", float(iso)), table)
+        return self._blocks(("iso", float(iso)), table, ISO_BLOCK_SHIFT)
 
     def tf_blocks(self, tf):
         """The transparency table for transfer function ``tf`` and its block shift,
@@ -495,7 +498,7 @@ class VolumeIndex:
 
         One int8 per cell (`raycast.composite.accumulate_ray`):
         ``TRANSPARENT_BLOCK`` where the opacity is zero over the whole range
-        of the cell's block of ``2**BLOCK_SHIFT`` cells, else
+        of the cell's block of ``2**TF_BLOCK_SHIFT`` cells, else
         ``TRANSPARENT_CELL`` where it is zero over the cell's own range, else
         ``MAY_CONTRIBUTE``. Per cell rather than per block: one lookup
         answers both questions, and a transparent cell in a block that is
@@ -506,14 +509,14 @@ class VolumeIndex:
             return np.where(tf.nonzero_in(mn, mx), np.int8(MAY_CONTRIBUTE), np.int8(TRANSPARENT_CELL))
 
         def table():
-            clear = ~tf.nonzero_in(*self.ranges(1 << BLOCK_SHIFT))
-            return self._cell_table(cells, np.where(clear, np.int8(TRANSPARENT_BLOCK), np.int8(0)))
+            clear = ~tf.nonzero_in(*self.ranges(1 << TF_BLOCK_SHIFT))
+            return self._cell_table(cells, np.where(clear, np.int8(TRANSPARENT_BLOCK), np.int8(0)), TF_BLOCK_SHIFT)
 
         op_x, op_y, _, _ = tf.arrays()
-        return self._blocks(("tf", op_x.tobytes(), op_y.tobytes()), table)
+        return self._blocks(("tf", op_x.tobytes(), op_y.tobytes()), table, TF_BLOCK_SHIFT)
 
-    def _cell_table(self, cell_entries, block_entries):
-        """An int8 table per cell: ``block_entries`` (per block of ``2**BLOCK_SHIFT``
+    def _cell_table(self, cell_entries, block_entries, shift):
+        """An int8 table per cell: ``block_entries`` (per block of ``2**shift``
         cells) where non-zero, else ``cell_entries(mn, mx)`` of the cell ranges.
 
         Built slab by slab, so that a volume of a billion cells needs little
@@ -521,27 +524,27 @@ class VolumeIndex:
         """
         mn, mx = self.cell_minmax()
         out = np.empty(mn.shape, np.int8)
-        b = 1 << BLOCK_SHIFT
+        b = 1 << shift
         slab = max(1, CHUNK_VALUES // (mn.shape[1] * mn.shape[2]) // b) * b
         for z0 in range(0, mn.shape[0], slab):
             z1 = min(mn.shape[0], z0 + slab)
             mine = cell_entries(mn[z0:z1], mx[z0:z1])
-            whole = _per_cell(block_entries[z0 // b:-(-z1 // b)], mine.shape)
+            whole = _per_cell(block_entries[z0 // b:-(-z1 // b)], mine.shape, shift)
             out[z0:z1] = np.where(whole != 0, whole, mine)
         return out
 
-    def _blocks(self, key, table):
+    def _blocks(self, key, table, shift):
         cache = self.__dict__.setdefault("_block_tables", {})
         if key not in cache:
             if len(cache) >= BLOCK_CACHE_SIZE:
                 cache.pop(next(iter(cache)))
             cache[key] = table()
-        return cache[key], BLOCK_SHIFT
+        return cache[key], shift
 
 
-def _per_cell(blocks, shape):
-    """A per-block table (blocks of ``2**BLOCK_SHIFT`` cells) spread over the cells of a ``shape`` grid."""
-    b = 1 << BLOCK_SHIFT
+def _per_cell(blocks, shape, shift):
+    """A per-block table (blocks of ``2**shift`` cells) spread over the cells of a ``shape`` grid."""
+    b = 1 << shift
     return blocks.repeat(b, 0).repeat(b, 1).repeat(b, 2)[:shape[0], :shape[1], :shape[2]]
 
 

@@ -88,7 +88,8 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
         finer buffers give shorter shadow-ray segments for more raster time.
     blocks : bool, default True
         PARC only: inside its segments the caster also jumps over blocks of
-        4x4x4 cells that cannot contribute and steps over single such cells
+        cells that cannot contribute (8x8x8 for an isosurface, 4x4x4 for a
+        transfer function) and steps over single such cells
         without reading their samples (an isosurface's sign table, a
         transfer function's transparency table, one entry per cell;
         `parc.classify`), computed once per isovalue or transfer function.

@@ -196,7 +196,7 @@ def _spiky_tf(lo, hi):
 
 @pytest.mark.parametrize("slab_values", [None, 64])
 def test_tf_blocks_match_a_dense_check(slab_values, monkeypatch):
-    """Also built in slabs of 4 cells (a small `CHUNK_VALUES`), as large volumes are."""
+    """Also built in slabs one block thick (a small `CHUNK_VALUES`), as large volumes are."""
     from parc.classify import VolumeIndex
     if slab_values:
         monkeypatch.setattr("parc.classify.CHUNK_VALUES", slab_values)

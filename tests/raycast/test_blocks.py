@@ -193,10 +193,10 @@ def test_sign_iso_matches_block_samples(shift):
 
 @pytest.mark.parametrize("slab_values", [None, 64])
 def test_volume_index_block_signs_follow_the_isovalue(slab_values, monkeypatch):
-    """Also built in slabs of 4 cells (a small `CHUNK_VALUES`), as large volumes are."""
+    """Also built in slabs one block thick (a small `CHUNK_VALUES`), as large volumes are."""
     if slab_values:
         monkeypatch.setattr("parc.classify.CHUNK_VALUES", slab_values)
-    vol = blobs((16, 18, 20), count=3, seed=4)
+    vol = blobs((24, 26, 28), count=3, seed=4)   # big enough for 8-cell blocks of every sign
     index = VolumeIndex.of(vol)
     seen = set()
     for iso in (3.5, 40.0, 90.5, 200.0):
