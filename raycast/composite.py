@@ -258,12 +258,6 @@ def accumulate_ray(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, seg0, seg1, t_
         x = Ox + t * Dx
         y = Oy + t * Dy
         z = Oz + t * Dz
-        if use_bits:
-            pos = Oa + t * Da
-            if not plane_bit(bits, py, px, pos, params):
-                # Skip the rest of this plane: its samples are all transparent.
-                n = max(n, min(n1, next_plane_sample(n, t_in, step, Oa, Da, pos, params)) - 1)
-                continue
         i, j, k = sample_cell(data, x, y, z)
         if bshift >= 0:
             clear = blocks[k, j, i]
@@ -274,6 +268,17 @@ def accumulate_ray(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, seg0, seg1, t_
                         # The samples up to where the ray leaves the block are transparent.
                         jumped = key
                         n = min(n1, block_last_sample(n, t_in, step, Ox, Oy, Oz, Dx, Dy, Dz, i, j, k, bshift))
+                continue
+        # The plane test comes after the table's: a cell that may contribute
+        # lies in a possibly contributing supercell, whose plane's bit the
+        # ray has, so behind a table the test seldom skips anything; it is
+        # taken only for the samples the table leaves (depth+bits on the CT
+        # head at 300x300: 0.20 s with the test first, 0.14 s after).
+        if use_bits:
+            pos = Oa + t * Da
+            if not plane_bit(bits, py, px, pos, params):
+                # Skip the rest of this plane: its samples are all transparent.
+                n = max(n, min(n1, next_plane_sample(n, t_in, step, Oa, Da, pos, params)) - 1)
                 continue
         samples += 1
         v, u, vv, w = interpolate(data, x, y, z, i, j, k)
