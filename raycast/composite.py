@@ -173,6 +173,16 @@ def shade_color(data, spc, i, j, k, u, vv, w, dx, dy, dz, params, cr, cg, cb):
     return cr * f, cg * f, cb * f
 
 
+@kernel(inline="always")
+def composite_sample(data, spc, v, i, j, k, u, vv, w, a, dx, dy, dz, params, col_x, col_rgb):
+    """Step-corrected opacity and (shaded) colour of a composite sample of value ``v`` and opacity ``a > 0``."""
+    a = correct_opacity(a, params[P_RATIO])
+    cr, cg, cb = tf_color(col_x, col_rgb, v)
+    if params[P_SHADE] != 0.0:
+        cr, cg, cb = shade_color(data, spc, i, j, k, u, vv, w, dx, dy, dz, params, cr, cg, cb)
+    return a, cr, cg, cb
+
+
 @kernel
 def _block_exit_axis(O, D, c, bshift):
     if D == 0.0:
@@ -286,10 +296,8 @@ def accumulate_ray(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, seg0, seg1, t_
         if not a > 0.0:
             continue
         if mode == MODE_COMPOSITE:
-            a = correct_opacity(a, params[P_RATIO])
-            cr, cg, cb = tf_color(col_x, col_rgb, v)
-            if params[P_SHADE] != 0.0:
-                cr, cg, cb = shade_color(data, spc, i, j, k, u, vv, w, dx, dy, dz, params, cr, cg, cb)
+            a, cr, cg, cb = composite_sample(data, spc, v, i, j, k, u, vv, w, a, dx, dy, dz, params,
+                                             col_x, col_rgb)
             wgt = (1.0 - acc) * a
             r += wgt * cr
             g += wgt * cg
@@ -487,11 +495,8 @@ def cast_merged_image(datas, orgs, spcs, cam, width, height, params, op_x, op_y,
                     a = tf_opacity(op_x[best, :no], op_y[best, :no], v)
                     if not a > 0.0:
                         continue
-                    a = correct_opacity(a, params[best, P_RATIO])
-                    cr, cg, cb = tf_color(col_x[best, :nc], col_rgb[best, :nc], v)
-                    if params[best, P_SHADE] != 0.0:
-                        cr, cg, cb = shade_color(data, spcs[best], i, j, k, u, vv, w, dx, dy, dz, params[best],
-                                                 cr, cg, cb)
+                    a, cr, cg, cb = composite_sample(data, spcs[best], v, i, j, k, u, vv, w, a, dx, dy, dz,
+                                                     params[best], col_x[best, :nc], col_rgb[best, :nc])
                     wgt = (1.0 - acc) * a
                     r += wgt * cr
                     g += wgt * cg
