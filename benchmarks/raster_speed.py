@@ -25,7 +25,8 @@ import numba
 import numpy as np
 
 from parc.camera import Camera
-from parc.classify import VolumeIndex, count_outer_faces
+from parc.classify import VolumeIndex
+from parc.costmodel import count_outer_faces
 from parc.proxy import build_proxy
 from parc.raster import get_context, raster_segments
 from raycast.iso import NO_BLOCKS, cast_iso_image, empty_outputs
@@ -137,7 +138,8 @@ def main():
 
 def stages(idx, vol, iso, cam, w, h, args):
     """Per-stage raster times (best and median of --repeats frames after a first one)."""
-    from parc.classify import _size_triple, choose_supercell
+    from parc.classify import _size_triple
+    from parc.costmodel import choose_supercell
     size = args.supercell if args.supercell is not None else choose_supercell(idx, iso, pixels=w * h)[0]
     size = _size_triple(size)
     grid = idx.grid(size)

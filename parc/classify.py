@@ -28,9 +28,9 @@ sizes no refinement is needed and the ranges stay in the data's native
 dtype; along an axis whose boundaries are all integers nothing is
 interpolated.
 
-`choose_supercell` picks a size with a measured cost model: rasterizing
-the proxy costs per polygon, walking a ray costs per cell, and bigger
-supercells trade the first for the second.
+`parc.costmodel.choose_supercell` picks a size with a measured cost
+model: rasterizing the proxy costs per polygon, walking a ray costs per
+cell, and bigger supercells trade the first for the second.
 """
 from __future__ import annotations
 
@@ -546,103 +546,3 @@ def _per_cell(blocks, shape, shift):
     """A per-block table (blocks of ``2**shift`` cells) spread over the cells of a ``shape`` grid."""
     b = 1 << shift
     return blocks.repeat(b, 0).repeat(b, 1).repeat(b, 2)[:shape[0], :shape[1], :shape[2]]
-
-
-# --------------------------------------------------------------------------
-# Choosing the supercell size
-# --------------------------------------------------------------------------
-
-#: Cost model constants, measured on this project's development machine
-#: (2 x86 cores, Mesa llvmpipe 22.3 / LLVM 15, 512x512 images) with
-#: ``benchmarks/raster_speed.py`` on the CT head skin (iso 600.5) and a
-#: 256^3 sphere, sizes 1-8; see `choose_supercell`.
-#: Rasterization (parc.raster, merged proxy, float32 fragments): fixed cost
-#: per 512x512 frame (clear, fill, read-back), then per outer face of the
-#: unmerged proxy; refitted after the float32 fragment path (draw = 8.2 ms
-#: + 0.43 us per face on the CT head skin and bone, neghip).
-RASTER_FIXED_S = 8.2e-3
-RASTER_PER_FACE_S = 0.43e-6
-#: Numba caster with segments, per core: per ray that reaches the PC
-#: region (setup, the cubic at the hit) and per cell walked (refitted with
-#: the face-root sign carry in the walk).
-CAST_PER_RAY_S = 0.76e-6
-CAST_PER_CELL_S = 9.8e-9
-#: Cells walked per ray that reaches a PC supercell: ``WALK_BASE +
-#: WALK_PER_CELL * m`` for supercells of ``m`` cells: the walk from the
-#: supercell's boundary to the surface grows with the supercell. Fitted:
-#: sphere 3.2 + 1.7 m, CT head skin 3.5 + 4.3 m (noisier, many layers).
-WALK_BASE = 3.3
-WALK_PER_CELL = 3.0
-
-#: Supercell sizes `choose_supercell` considers by default.
-CANDIDATE_SIZES = (1, 2, 3, 4, 6, 8)
-
-
-def count_outer_faces(pc):
-    """Faces between a PC supercell and an empty one or the volume boundary."""
-    p = np.pad(pc, 1)
-    return int(sum(np.count_nonzero(np.diff(p, axis=a)) for a in range(3)))
-
-
-def choose_supercell(index, iso=None, *, pixels=512 * 512, rays=None, cores=None,
-                     candidates=CANDIDATE_SIZES, classify=None):
-    """Pick a supercell size for an isovalue (or any classification) by estimated render time.
-
-    Parameters
-    ----------
-    index : VolumeIndex
-    iso : float, optional
-        The isovalue; or give ``classify``.
-    classify : callable(size) -> bool array, optional
-        The possibly contributing supercells of a size (e.g. for a transfer
-        function), used instead of ``index.classify(iso, size)``.
-    pixels : int, default 512*512
-        Image size in pixels.
-    rays : int or None
-        Rays expected to reach the PC region; default half the pixels.
-    cores : int or None
-        Cores the caster runs on; default ``os.cpu_count()``.
-    candidates : sequence of sizes
-        Cubic sizes (cells per supercell edge) to compare.
-
-    Returns
-    -------
-    size : float
-        The candidate with the least estimated time, among those that give
-        at most `MAX_SUPERCELLS` supercells for this volume.
-    table : list of dict
-        Per candidate: ``size``, ``supercells``, ``pc_supercells``,
-        ``faces`` (outer faces before merging), ``raster_s``, ``cells``,
-        ``cast_s``, ``total_s``.
-
-    Notes
-    -----
-    ``raster_s = RASTER_FIXED_S * pixels / 512^2 + RASTER_PER_FACE_S *
-    faces``; ``cast_s = rays * (CAST_PER_RAY_S + (WALK_BASE + WALK_PER_CELL
-    m) CAST_PER_CELL_S) / cores``. Small supercells cost polygons, large
-    ones cells walked through their empty parts. The constants were
-    measured on one machine (see the module constants); the model ranks
-    sizes, it does not predict times elsewhere. On that machine, CT head
-    skin at 512x512 (160k rays, 2 cores): model 4 (0.100 s; 6: 0.101,
-    2: 0.154, 1: 0.46); measured raster + cast 4: 0.112 s, 6 and 8:
-    0.097, 2: 0.179, 1: 0.287. The flat bottom is real: sizes 3-8 are
-    within 20% of each other.
-    """
-    import os
-    cores = cores or os.cpu_count() or 1
-    rays = pixels // 2 if rays is None else rays
-    table = []
-    dims = index.volume.dims
-    for m in candidates:
-        if math.prod(len(_axis_edges(n, c)) - 1 for n, c in zip(dims, _size_triple(m))) > MAX_SUPERCELLS:
-            continue        # too fine to classify for this volume (a 1734-slice CT at 1 cell)
-        pc = classify(m) if classify is not None else index.classify(iso, m)
-        faces = count_outer_faces(pc)
-        raster = RASTER_FIXED_S * pixels / (512 * 512) + RASTER_PER_FACE_S * faces
-        cells = rays * (WALK_BASE + WALK_PER_CELL * float(np.mean(_size_triple(m))))
-        cast = (rays * CAST_PER_RAY_S + cells * CAST_PER_CELL_S) / cores
-        table.append({"size": float(m), "supercells": int(pc.size), "pc_supercells": int(pc.sum()),
-                      "faces": faces, "raster_s": raster, "cells": cells, "cast_s": cast,
-                      "total_s": raster + cast})
-    best = min(table, key=lambda r: r["total_s"])
-    return best["size"], table

@@ -76,7 +76,7 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
         and sampling code, so the images are the same.
     supercell : float or (m, n, p), optional
         PARC's supercell size in cells (fractional and below 1 allowed).
-        Default: chosen by `parc.classify.choose_supercell`'s cost model.
+        Default: chosen by `parc.costmodel.choose_supercell`'s cost model.
     buffers : subset of ("depth", "bits"), default ("depth",)
         PARC's buffers for translucent volumes: near/far ray distances
         (depth-buffer PARC, §3) and planes of supercells the ray meets
@@ -336,7 +336,8 @@ def _proxy(vis, supercell, size_px, timings, *, merge=True):
 
     ``merge=False`` keeps one face per supercell face (the light buffers' proxy, `parc.lights`).
     """
-    from .classify import VolumeIndex, _size_triple, choose_supercell
+    from .classify import VolumeIndex, _size_triple
+    from .costmodel import choose_supercell
     from .proxy import build_proxy
 
     vol = vis.volume

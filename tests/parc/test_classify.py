@@ -1,4 +1,4 @@
-"""Cell ranges, supercell grids and ranges, isovalue classification, the size chooser.
+"""Cell ranges, supercell grids and ranges, isovalue classification.
 
 Truth: slow loops over cells, and an exact per-piece reference for
 supercell ranges (`parc_reference.box_range`: the interpolant's extremes
@@ -14,8 +14,7 @@ import numpy as np
 import pytest
 
 from data_tools import InputError, Volume
-from parc.classify import (RANGE_PAD, VolumeIndex, cell_minmax, choose_supercell, classify_iso,
-                           count_outer_faces, supercell_grid, supercell_ranges)
+from parc.classify import RANGE_PAD, VolumeIndex, cell_minmax, classify_iso, supercell_grid, supercell_ranges
 from parc_reference import box_range, cell_minmax_loop
 
 DTYPES = ["uint8", "int16", "uint16", "float32", "float64"]
@@ -184,37 +183,3 @@ def test_volume_index_caches():
     assert idx.ranges(1) is idx.cell_minmax()
     pc = idx.classify(float(np.median(vol.data)), 2)
     assert pc.shape == idx.grid(2).shape and pc.dtype == bool
-
-
-def test_choose_supercell_reports_its_model():
-    from data_tools.synthetic import sphere
-    vol = sphere(40)
-    size, table = choose_supercell(VolumeIndex.of(vol), 0.0, rays=200 * 200, cores=2)
-    assert size in [r["size"] for r in table]
-    best = min(table, key=lambda r: r["total_s"])
-    assert best["size"] == size
-    polys = [r["faces"] for r in table]
-    assert polys[0] > polys[-1] > 0
-    for r in table:
-        assert r["total_s"] == pytest.approx(r["raster_s"] + r["cast_s"])
-
-
-def test_count_outer_faces():
-    pc = np.zeros((3, 4, 5), bool)
-    assert count_outer_faces(pc) == 0
-    pc[1, 1, 1] = True
-    assert count_outer_faces(pc) == 6
-    pc[1, 1, 2] = True
-    assert count_outer_faces(pc) == 10
-    assert count_outer_faces(np.ones((2, 3, 4), bool)) == 2 * (6 + 8 + 12)
-
-
-def test_cost_model_skips_sizes_too_fine_for_the_volume(monkeypatch):
-    import parc.classify as classify
-    from data_tools.synthetic import blobs
-    index = classify.VolumeIndex(blobs(17))
-    # 16^3 cells: size 1 gives 4096 supercells, size 2 gives 512, size 4 gives 64.
-    monkeypatch.setattr(classify, "MAX_SUPERCELLS", 600)
-    size, table = classify.choose_supercell(index, 0.5, candidates=(1, 2, 4))
-    assert [r["size"] for r in table] == [2.0, 4.0]
-    assert size in (2.0, 4.0)

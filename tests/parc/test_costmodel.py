@@ -1,0 +1,121 @@
+"""The supercell size chooser and the face counts it is built on.
+
+Truth: slow loops over every supercell boundary, and the proxy itself
+(`parc.proxy.build_proxy` merges the faces the counts count).
+"""
+import numpy as np
+import pytest
+
+from parc.classify import VolumeIndex, supercell_grid
+from parc.costmodel import choose_supercell, count_face_strips, count_outer_faces
+from parc.proxy import build_proxy
+
+
+def _faces_loop(pc):
+    """Every outer unit face as ``(axis, orientation, plane, u, v)``, by a loop over boundaries."""
+    nz, ny, nx = pc.shape
+    n = (nx, ny, nz)
+
+    def is_pc(x, y, z):
+        return 0 <= x < nx and 0 <= y < ny and 0 <= z < nz and bool(pc[z, y, x])
+
+    out = set()
+    for a in range(3):
+        u, v = (a + 1) % 3, (a + 2) % 3
+        for p in range(n[a] + 1):
+            for iu in range(n[u]):
+                for iv in range(n[v]):
+                    below = [0, 0, 0]
+                    below[a], below[u], below[v] = p - 1, iu, iv
+                    above = list(below)
+                    above[a] = p
+                    lo, hi = is_pc(*below), is_pc(*above)
+                    if lo != hi:
+                        out.add((a, int(lo), p, iu, iv))
+    return out
+
+
+def _strips_loop(pc):
+    """Maximal runs along u of faces with the same axis, orientation, plane and v."""
+    faces = _faces_loop(pc)
+    return sum(1 for (a, o, p, iu, iv) in faces if (a, o, p, iu - 1, iv) not in faces)
+
+
+def test_count_outer_faces():
+    pc = np.zeros((3, 4, 5), bool)
+    assert count_outer_faces(pc) == 0
+    pc[1, 1, 1] = True
+    assert count_outer_faces(pc) == 6
+    pc[1, 1, 2] = True
+    assert count_outer_faces(pc) == 10
+    assert count_outer_faces(np.ones((2, 3, 4), bool)) == 2 * (6 + 8 + 12)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_face_counts_match_a_loop_and_bound_the_merged_proxy(seed):
+    rng = np.random.default_rng(seed)
+    shape = tuple(int(s) for s in rng.integers(1, 7, 3))
+    pc = rng.random(shape) < rng.uniform(0.1, 0.9)
+    faces = _faces_loop(pc)
+    assert count_outer_faces(pc) == len(faces)
+    strips = count_face_strips(pc)
+    assert strips == _strips_loop(pc)
+    grid = supercell_grid((shape[2] + 1, shape[1] + 1, shape[0] + 1), 1)
+    proxy = build_proxy(grid, pc, grid.world_edges(_Box(grid)))
+    assert proxy.n_polygons <= strips <= len(faces)
+
+
+class _Box:
+    """A stand-in volume at the origin with unit spacing, for `SupercellGrid.world_edges`."""
+
+    def __init__(self, grid):
+        self.origin = (0.0, 0.0, 0.0)
+        self.spacing = (1.0, 1.0, 1.0)
+
+
+def test_strips_of_a_slab_are_its_rows():
+    # A slab one supercell thick: top and bottom are one strip per row, the
+    # four sides one strip each along their u axis, or one per layer.
+    pc = np.zeros((5, 7, 9), bool)
+    pc[2] = True
+    assert count_outer_faces(pc) == 2 * 7 * 9 + 2 * 9 + 2 * 7
+    # z faces run along x (u = x): 7 rows each; x faces run along y: one per
+    # side; y faces run along z: one per column of the side (9 each).
+    assert count_face_strips(pc) == 2 * 7 + 2 * 1 + 2 * 9
+
+
+def test_choose_supercell_reports_its_model():
+    from data_tools.synthetic import sphere
+    vol = sphere(40)
+    size, table = choose_supercell(VolumeIndex.of(vol), 0.0, rays=200 * 200, cores=2)
+    assert size in [r["size"] for r in table]
+    best = min(table, key=lambda r: r["total_s"])
+    assert best["size"] == size
+    polys = [r["faces"] for r in table]
+    assert polys[0] > polys[-1] > 0
+    for r in table:
+        assert r["strips"] <= r["faces"]
+        assert r["total_s"] == pytest.approx(r["raster_s"] + r["cast_s"])
+
+
+def test_flat_surfaces_pay_for_merged_polygons_not_faces():
+    # A floor: the slab's faces merge into a few rectangles at every size, so
+    # the model must not charge small supercells for their many unit faces.
+    from data_tools.synthetic import floor
+    vol = floor(64, relief=0.0)
+    index = VolumeIndex.of(vol)
+    size, table = choose_supercell(index, 127.5, pixels=600 * 600, cores=2)
+    by_size = {r["size"]: r for r in table}
+    assert by_size[1.0]["strips"] * 10 < by_size[1.0]["faces"]
+    assert size <= 2.0
+
+
+def test_cost_model_skips_sizes_too_fine_for_the_volume(monkeypatch):
+    import parc.costmodel as costmodel
+    from data_tools.synthetic import blobs
+    index = VolumeIndex(blobs(17))
+    # 16^3 cells: size 1 gives 4096 supercells, size 2 gives 512, size 4 gives 64.
+    monkeypatch.setattr(costmodel, "MAX_SUPERCELLS", 600)
+    size, table = costmodel.choose_supercell(index, 0.5, candidates=(1, 2, 4))
+    assert [r["size"] for r in table] == [2.0, 4.0]
+    assert size in (2.0, 4.0)
