@@ -31,12 +31,13 @@ import time
 import numpy as np
 
 from raycast.composite import N_PARAMS, cast_accumulate_image, cast_merged_image
-from raycast.iso import cast_iso_image, empty_outputs, keep_nearest
+from raycast.iso import cast_iso_image, keep_nearest
 from raycast.shadow import (KIND_HEADLIGHT, combine_lights, light_terms, shadow_accumulate, shadow_iso,
                             surface_frames)
 
 from .lights import CACHE_SIZE, LIGHT_BUFFER_SIZE, N_VIEW, light_array, light_buffers
 from .scene import DirectionalLight, Isosurface
+from .workspace import work_array
 
 #: Shadow rays start this far (times the smallest spacing in the scene) from their hit point.
 SHADOW_EPS = 1e-5
@@ -55,7 +56,7 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
     PARC's walks and shadow rays skip the volumes' empty blocks
     (`parc.renderer.render`).
     """
-    from .renderer import _parc_segments, accumulation_params, column_totals, empty_blocks
+    from .renderer import _parc_segments, accumulation_params, column_totals, empty_blocks, iso_work
 
     w, h = scene.size
     npx = w * h
@@ -73,7 +74,7 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
     for n, vis in enumerate(scene.volumes):
         if parc:
             phase = {}
-            seg, info, _ = _parc_segments(scene, vis, supercell, phase)
+            seg, info, _ = _parc_segments(scene, vis, supercell, phase, slot=n)
             for key in ("raster", "classify", "proxy"):
                 timings[key] += phase.get(key, 0.0)
             segs[n] = seg
@@ -85,13 +86,15 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
     # Isosurfaces: nearest hit.
     t0 = time.perf_counter()
     depth = np.full(npx, np.inf)
-    winner = np.full(npx, -1, np.int64)
+    winner = work_array("winner", (npx,), np.int64)
+    winner.fill(-1)
     # The nearest hit's cell and local coordinates, read only where winner >= 0.
-    _, cell, uvw, _ = empty_outputs(npx)
+    cell, uvw, _ = iso_work(npx, slot="nearest")
     isos = [(n, v) for n, v in enumerate(scene.volumes) if isinstance(v, Isosurface)]
     for n, iso in isos:
         vol = iso.volume
-        t, c, uv, cnt = empty_outputs(npx)
+        t = work_array("iso_t", (npx,))
+        c, uv, cnt = iso_work(npx)
         seg = segs.get(n, np.empty((1, 1, 2)))
         eb, bshift = empty_blocks(iso, parc and blocks)
         cast_iso_image(vol.data, np.array(vol.origin), np.array(vol.spacing), cam, w, h, iso.value,

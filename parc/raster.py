@@ -131,6 +131,8 @@ import numpy as np
 
 from data_tools import InputError
 
+from .workspace import work_array
+
 #: Where the GLSL sources live; `load_shader` reads them by name.
 SHADER_DIR = Path(__file__).with_name("shaders")
 
@@ -485,7 +487,7 @@ def margin(t, scale):
     return MARGIN_T * np.abs(t) + MARGIN_S * scale
 
 
-def raster_segments(camera, width, height, proxy, *, pad_px=COVERAGE_PAD_PX, face_range=False):
+def raster_segments(camera, width, height, proxy, *, pad_px=COVERAGE_PAD_PX, face_range=False, out=None):
     """Near and far ray distance of every pixel to the proxy, conservatively.
 
     Parameters
@@ -504,6 +506,10 @@ def raster_segments(camera, width, height, proxy, *, pad_px=COVERAGE_PAD_PX, fac
         than where the pixel's centre ray crosses it. With ``pad_px >= 0.5``
         the bounds then hold for *every* ray through the pixel's square,
         which the light buffers of shadow PARC need (`parc.lights`).
+
+    out : ndarray (H, W, 2) float64, optional
+        Where to write the segments (the renderer reuses one from frame to
+        frame, `parc.workspace`); default a new array.
 
     Returns
     -------
@@ -582,8 +588,8 @@ def raster_segments(camera, width, height, proxy, *, pad_px=COVERAGE_PAD_PX, fac
         seconds["draw"] = time.perf_counter() - t0
 
         t0 = time.perf_counter()
-        rg = np.frombuffer(fbo.read(components=2, dtype="f4"), dtype=np.float32)
-        rg = rg.reshape(height, width, 2)
+        rg = work_array("raster_readback", (height, width, 2), np.float32)
+        fbo.read_into(rg, components=2, dtype="f4")
         seconds["readback"] = time.perf_counter() - t0
         ctx.blend_equation = _moderngl().FUNC_ADD
         ctx.disable(_moderngl().BLEND)
@@ -591,13 +597,14 @@ def raster_segments(camera, width, height, proxy, *, pad_px=COVERAGE_PAD_PX, fac
         t0 = time.perf_counter()
         # The shader wrote (near, -far), already conservative and near >= 0;
         # pixels without a fragment kept (inf, inf), i.e. near inf, far -inf.
-        seg = rg.astype(np.float64)
+        seg = np.empty((height, width, 2)) if out is None else out
+        np.copyto(seg, rg)
         np.negative(seg[..., 1], out=seg[..., 1])
     else:
         drawn = 0
         seconds.update(upload=0.0, draw=0.0, readback=0.0)
         t0 = time.perf_counter()
-        seg = np.empty((height, width, 2))
+        seg = np.empty((height, width, 2)) if out is None else out
         seg[..., 0] = np.inf
         seg[..., 1] = -np.inf
     near, far = seg[..., 0], seg[..., 1]

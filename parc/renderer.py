@@ -16,10 +16,11 @@ from data_tools import InputError
 from raycast.composite import (MODE_AVERAGE, MODE_COMPOSITE, MODE_MIP, N_PARAMS, P_AMBIENT, P_HI, P_LO,
                                P_MODE, P_RATIO, P_SHADE, P_STEP, P_THRESHOLD, cast_accumulate_image,
                                over_background)
-from raycast.iso import NO_BLOCKS, cast_iso_image, empty_outputs
+from raycast.iso import NO_BLOCKS, cast_iso_image
 from raycast.shade import shade_headlight
 
 from .scene import Isosurface, Scene, Translucent
+from .workspace import work_array
 
 METHODS = ("brute", "parc")
 
@@ -228,7 +229,8 @@ def _render_iso(scene, iso, seg, use_seg, skip_blocks, timings, progress):
     cam = scene.camera.as_array()
     org = np.array(vol.origin)
     spc = np.array(vol.spacing)
-    t, cell, uvw, counts = empty_outputs(w * h)
+    t = np.empty(w * h)
+    cell, uvw, counts = iso_work(w * h)
     blocks, bshift = empty_blocks(iso, skip_blocks)
     timings["setup"] = time.perf_counter() - t0
 
@@ -248,6 +250,13 @@ def _render_iso(scene, iso, seg, use_seg, skip_blocks, timings, progress):
     timings["shade"] = time.perf_counter() - t0
     cells, solves = column_totals(counts)
     return image, t.reshape(h, w), {"cells": cells, "solves": solves}
+
+
+def iso_work(n, slot=0):
+    """The isosurface caster's per-ray ``cell``, ``uvw`` and ``counts`` arrays for ``n`` rays,
+    reused from frame to frame (`parc.workspace`); ``slot`` tells apart sets alive at once."""
+    return (work_array(("iso_cell", slot), (n, 3), np.int32), work_array(("iso_uvw", slot), (n, 3)),
+            work_array(("iso_counts", slot), (n, 2), np.int64))
 
 
 def empty_blocks(vis, use):
@@ -287,7 +296,7 @@ def _render_translucent(scene, vis, seg, use_seg, skip_blocks, timings, progress
     params = accumulation_params(vis)
     op_x, op_y, col_x, col_rgb = vis.tf.arrays()
     image = np.empty((h, w, 4), np.float32)
-    counts = np.empty(w * h, np.int64)
+    counts = work_array("samples", (w * h,), np.int64)
     use_bits = planes is not None
     blocks, bshift = empty_blocks(vis, skip_blocks)
     bits = np.zeros((1, 1, 1), np.uint32)
@@ -317,16 +326,20 @@ def _classifier(index, vis):
             lambda size: vis.tf.nonzero_in(*index.ranges(size)))
 
 
-def _parc_segments(scene, vis, supercell, timings):
-    """The proxy (built or reused) rasterized: per-pixel segments, stats and the proxy."""
+def _parc_segments(scene, vis, supercell, timings, slot=0):
+    """The proxy (built or reused) rasterized: per-pixel segments, stats and the proxy.
+
+    The segments are written into a work array (`parc.workspace`); ``slot``
+    tells apart the volumes of one frame.
+    """
     from .raster import raster_segments
 
     w, h = scene.size
     proxy, extra = _proxy(vis, supercell, scene.size, timings)
-    segs = raster_segments(scene.camera, w, h, proxy)
+    segs = raster_segments(scene.camera, w, h, proxy, out=work_array(("seg", slot), (h, w, 2)))
     timings["raster"] = segs.seconds["total"]
     extra.update({"polygons": segs.polygons,
-                  "segment_pixels": int((segs.near <= segs.far).sum()),
+                  "segment_pixels": segs.info["pixels"],
                   "raster_seconds": dict(segs.seconds)})
     return segs.seg, extra, proxy
 

@@ -1,0 +1,65 @@
+"""Work arrays reused between frames: what is reused, what never is.
+
+Truth: object identity for the reuse itself, and for renders a fresh
+render of the same scene after others have run in between (a work array
+leaking into a result would be overwritten by them).
+"""
+import numpy as np
+import pytest
+
+import parc.workspace as workspace
+from data_tools.synthetic import blobs
+from parc import Camera, Isosurface, PointLight, Scene, render
+from parc.raster import OpenGLUnavailable
+from parc.workspace import release, work_array
+
+
+def test_same_name_shape_and_dtype_give_the_same_array():
+    release()
+    a = work_array("t", (3, 4))
+    assert work_array("t", (3, 4)) is a
+    assert work_array("t", (3, 4), np.float32) is not a
+    assert work_array("u", (3, 4)) is not work_array("t", (3, 4))
+    b = work_array("t", (5,))
+    assert b.shape == (5,) and b.flags.c_contiguous
+    release()
+    assert work_array("t", (5,)) is not b
+
+
+def test_kept_bytes_are_bounded(monkeypatch):
+    release()
+    monkeypatch.setattr(workspace, "KEEP_BYTES", 1000)
+    a = work_array("a", (100,))      # 800 bytes: kept
+    assert work_array("a", (100,)) is a
+    b = work_array("b", (100,))      # together over the bound: the older one goes
+    assert work_array("b", (100,)) is b
+    assert work_array("a", (100,)) is not a
+    big = work_array("big", (1000,))  # alone over the bound: never kept
+    assert work_array("big", (1000,)) is not big
+    release()
+
+
+def _scene(vol, iso, lights=()):
+    cam = Camera.framing(*vol.bounds, azimuth=35.0, elevation=25.0)
+    return Scene(camera=cam, size=(64, 48), volumes=[Isosurface(vol, iso)], lights=list(lights))
+
+
+@pytest.mark.parametrize("method", ["brute", "parc"])
+@pytest.mark.parametrize("lit", [False, True])
+def test_a_result_is_not_changed_by_later_renders(method, lit):
+    vol = blobs(24, seed=5)
+    lo, hi = float(vol.data.min()), float(vol.data.max())
+    lights = [PointLight(position=(40.0, -30.0, 50.0))] if lit else []
+    first, other = _scene(vol, lo + 0.45 * (hi - lo), lights), _scene(vol, lo + 0.6 * (hi - lo), lights)
+    try:
+        a = render(first, method=method)
+    except OpenGLUnavailable:
+        pytest.skip("no OpenGL")
+    image, depth = a.image.copy(), a.depth.copy()
+    render(other, method=method)
+    render(other, method="parc" if method == "brute" else "brute")
+    np.testing.assert_array_equal(a.image, image)
+    np.testing.assert_array_equal(a.depth, depth)
+    again = render(first, method=method)
+    np.testing.assert_array_equal(again.image, image)
+    np.testing.assert_array_equal(again.depth, depth)
