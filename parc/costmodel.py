@@ -81,6 +81,20 @@ def count_outer_faces(pc):
     return int(sum(np.count_nonzero(np.diff(p, axis=a)) for a in range(3)))
 
 
+def face_counts(pc):
+    """``(faces, strips)``: the outer faces (`count_outer_faces`) and their strips (`count_face_strips`), in one pass."""
+    faces = strips = 0
+    for a, mask in _face_masks(pc):
+        uax = 2 - (a + 1) % 3
+        rest = tuple(slice(1, None) if d == uax else slice(None) for d in range(3))
+        prev = tuple(slice(None, -1) if d == uax else slice(None) for d in range(3))
+        n = int(np.count_nonzero(mask))
+        # Every face starts a strip unless its neighbour before it along u is a face too.
+        faces += n
+        strips += n - int(np.count_nonzero(mask[rest] & mask[prev]))
+    return faces, strips
+
+
 def count_face_strips(pc):
     """Strips of outer faces: runs along each face's ``u`` axis, as `parc.proxy` merges them first.
 
@@ -89,15 +103,7 @@ def count_face_strips(pc):
     proxy then merges equal strips into rectangles, so its polygon count is
     at most this.
     """
-    n = 0
-    for a, faces in _face_masks(pc):
-        uax = 2 - (a + 1) % 3
-        first = faces.copy()
-        rest = tuple(slice(1, None) if d == uax else slice(None) for d in range(3))
-        prev = tuple(slice(None, -1) if d == uax else slice(None) for d in range(3))
-        first[rest] &= ~faces[prev]
-        n += int(np.count_nonzero(first))
-    return n
+    return face_counts(pc)[1]
 
 
 def choose_supercell(index, iso=None, *, pixels=512 * 512, rays=None, cores=None,
@@ -152,12 +158,12 @@ def choose_supercell(index, iso=None, *, pixels=512 * 512, rays=None, cores=None
         if math.prod(len(_axis_edges(n, c)) - 1 for n, c in zip(dims, _size_triple(m))) > MAX_SUPERCELLS:
             continue        # too fine to classify for this volume (a 1734-slice CT at 1 cell)
         pc = classify(m) if classify is not None else index.classify(iso, m)
-        strips = count_face_strips(pc)
+        faces, strips = face_counts(pc)
         raster = RASTER_FIXED_S * pixels / (512 * 512) + RASTER_PER_STRIP_S * strips
         cells = rays * (WALK_BASE + WALK_PER_CELL * float(np.mean(_size_triple(m))))
         cast = (rays * CAST_PER_RAY_S + cells * CAST_PER_CELL_S) / cores
         table.append({"size": float(m), "supercells": int(pc.size), "pc_supercells": int(pc.sum()),
-                      "faces": count_outer_faces(pc), "strips": strips, "raster_s": raster,
+                      "faces": faces, "strips": strips, "raster_s": raster,
                       "cells": cells, "cast_s": cast, "total_s": raster + cast})
     best = min(table, key=lambda r: r["total_s"])
     return best["size"], table

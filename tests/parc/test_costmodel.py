@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from parc.classify import VolumeIndex, supercell_grid
-from parc.costmodel import choose_supercell, count_face_strips, count_outer_faces
+from parc.costmodel import choose_supercell, count_face_strips, count_outer_faces, face_counts
 from parc.proxy import build_proxy
 
 
@@ -60,6 +60,7 @@ def test_face_counts_match_a_loop_and_bound_the_merged_proxy(seed):
     assert count_outer_faces(pc) == len(faces)
     strips = count_face_strips(pc)
     assert strips == _strips_loop(pc)
+    assert face_counts(pc) == (len(faces), strips)
     grid = supercell_grid((shape[2] + 1, shape[1] + 1, shape[0] + 1), 1)
     proxy = build_proxy(grid, pc, grid.world_edges(_Box(grid)))
     assert proxy.n_polygons <= strips <= len(faces)
