@@ -28,6 +28,7 @@ import os
 import numpy as np
 
 from .classify import MAX_SUPERCELLS, _axis_edges, _size_triple
+from .proxy import outer_face_masks
 
 #: Cost model constants, measured on this project's development machine
 #: (2 x86 cores, Mesa llvmpipe 22.3 / LLVM 15). Rasterization
@@ -56,42 +57,23 @@ WALK_PER_CELL = 3.0
 CANDIDATE_SIZES = (1, 2, 3, 4, 6, 8)
 
 
-def _face_masks(pc):
-    """Per axis ``a`` (x, y, z): the unit faces perpendicular to it, split by orientation.
-
-    Yields ``(a, faces)`` twice per axis, ``faces`` a bool array over the
-    boundaries ([z, y, x], one longer along ``a``) that is True where a PC
-    supercell meets an empty one (or the outside) with its PC side below,
-    then above.
-    """
-    p = np.pad(np.asarray(pc, dtype=bool), 1)
-    for a in range(3):
-        ax = 2 - a
-        keep = tuple(slice(1, -1) if d != ax else slice(None) for d in range(3))
-        q = p[keep]
-        lo = q[tuple(slice(None, -1) if d == ax else slice(None) for d in range(3))]
-        hi = q[tuple(slice(1, None) if d == ax else slice(None) for d in range(3))]
-        yield a, lo & ~hi
-        yield a, hi & ~lo
-
-
 def count_outer_faces(pc):
     """Faces between a PC supercell and an empty one or the volume boundary."""
-    p = np.pad(pc, 1)
-    return int(sum(np.count_nonzero(np.diff(p, axis=a)) for a in range(3)))
+    return face_counts(pc)[0]
 
 
 def face_counts(pc):
     """``(faces, strips)``: the outer faces (`count_outer_faces`) and their strips (`count_face_strips`), in one pass."""
     faces = strips = 0
-    for a, mask in _face_masks(pc):
+    for a, below, above in outer_face_masks(pc):
         uax = 2 - (a + 1) % 3
         rest = tuple(slice(1, None) if d == uax else slice(None) for d in range(3))
         prev = tuple(slice(None, -1) if d == uax else slice(None) for d in range(3))
-        n = int(np.count_nonzero(mask))
-        # Every face starts a strip unless its neighbour before it along u is a face too.
-        faces += n
-        strips += n - int(np.count_nonzero(mask[rest] & mask[prev]))
+        for mask in (below, above):
+            n = int(np.count_nonzero(mask))
+            # Every face starts a strip unless its neighbour before it along u is a face too.
+            faces += n
+            strips += n - int(np.count_nonzero(mask[rest] & mask[prev]))
     return faces, strips
 
 

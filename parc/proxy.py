@@ -153,19 +153,13 @@ def build_proxy(grid, pc, world_edges, *, merge=True):
     pc = np.asarray(pc, dtype=bool)
     if pc.shape != grid.shape:
         raise ValueError(f"PC mask shape {pc.shape} does not match the grid {grid.shape}")
-    padded = np.pad(pc, 1)
     rows = []
-    for a in range(3):
-        arr_axis = 2 - a   # array axes are [z, y, x]
-        hi = padded[tuple(slice(1, None) if d == arr_axis else slice(1, -1) for d in range(3))]
-        lo = padded[tuple(slice(None, -1) if d == arr_axis else slice(1, -1) for d in range(3))]
-        iz, iy, ix = np.nonzero(hi != lo)
-        # hi[..., p] is the supercell above boundary p: PC there means the
-        # empty side (and the outward normal) is towards -axis.
-        sign = np.where(hi[iz, iy, ix], -1, 1).astype(np.int8)
-        idx = (ix, iy, iz)
-        plane, u, v = idx[a], idx[(a + 1) % 3], idx[(a + 2) % 3]
-        rows.append((np.full(len(plane), a), plane, u, v, sign))
+    for a, below, above in outer_face_masks(pc):
+        for sign, mask in ((1, below), (-1, above)):
+            iz, iy, ix = np.nonzero(mask)
+            idx = (ix, iy, iz)
+            plane, u, v = idx[a], idx[(a + 1) % 3], idx[(a + 2) % 3]
+            rows.append((np.full(len(plane), a), plane, u, v, np.full(len(plane), sign, np.int8)))
     axis, plane, u, v, sign = (np.concatenate(c) for c in zip(*rows))
     if merge and len(axis):
         faces, outward = _merge_runs(axis, plane, u, v, sign)
@@ -174,6 +168,23 @@ def build_proxy(grid, pc, world_edges, *, merge=True):
         outward = sign
     return Proxy(grid=grid, pc=pc, faces=faces, outward=outward.astype(np.int8),
                  world_edges=tuple(np.asarray(e, dtype=np.float64) for e in world_edges))
+
+
+def outer_face_masks(pc):
+    """The outer faces of a PC mask, per axis and orientation, as boolean masks over the boundaries.
+
+    Yields ``(a, below, above)`` for each axis ``a`` (0, 1, 2 = x, y, z):
+    arrays ([z, y, x], one longer along ``a`` than ``pc``) whose entry at
+    boundary ``p`` is True where the PC supercell lies below it (``p - 1``,
+    outward normal ``+e_a``) or above it (``p``, outward ``-e_a``) and the
+    other side is empty or outside the grid.
+    """
+    padded = np.pad(np.asarray(pc, dtype=bool), 1)
+    for a in range(3):
+        arr_axis = 2 - a   # array axes are [z, y, x]
+        hi = padded[tuple(slice(1, None) if d == arr_axis else slice(1, -1) for d in range(3))]
+        lo = padded[tuple(slice(None, -1) if d == arr_axis else slice(1, -1) for d in range(3))]
+        yield a, lo & ~hi, hi & ~lo
 
 
 def _merge_runs(axis, plane, u, v, sign):
@@ -381,4 +392,5 @@ def proxy_for_iso(volume, iso, size, *, merge=True):
     return build_proxy(grid, index.classify(iso, size), grid.world_edges(volume), merge=merge)
 
 
-__all__ = ["PlaneProxy", "Proxy", "SupercellGrid", "build_plane_proxy", "build_proxy", "proxy_for_iso"]
+__all__ = ["PlaneProxy", "Proxy", "SupercellGrid", "build_plane_proxy", "build_proxy", "outer_face_masks",
+           "proxy_for_iso"]

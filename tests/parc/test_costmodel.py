@@ -62,21 +62,20 @@ def test_face_counts_match_a_loop_and_bound_the_merged_proxy(seed):
     assert strips == _strips_loop(pc)
     assert face_counts(pc) == (len(faces), strips)
     grid = supercell_grid((shape[2] + 1, shape[1] + 1, shape[0] + 1), 1)
-    proxy = build_proxy(grid, pc, grid.world_edges(_Box(grid)))
+    proxy = build_proxy(grid, pc, grid.world_edges(_Box()))
     assert proxy.n_polygons <= strips <= len(faces)
 
 
 class _Box:
     """A stand-in volume at the origin with unit spacing, for `SupercellGrid.world_edges`."""
 
-    def __init__(self, grid):
+    def __init__(self):
         self.origin = (0.0, 0.0, 0.0)
         self.spacing = (1.0, 1.0, 1.0)
 
 
 def test_strips_of_a_slab_are_its_rows():
-    # A slab one supercell thick: top and bottom are one strip per row, the
-    # four sides one strip each along their u axis, or one per layer.
+    # A slab one supercell thick, full in x and y.
     pc = np.zeros((5, 7, 9), bool)
     pc[2] = True
     assert count_outer_faces(pc) == 2 * 7 * 9 + 2 * 9 + 2 * 7
