@@ -40,8 +40,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from data_tools import InputError
-from raycast.composite import MAY_CONTRIBUTE, TRANSPARENT_BLOCK, TRANSPARENT_CELL
-from raycast.iso import SIGNED_BLOCK
+from numba import prange
+
+from raycast.config import kernel
 
 #: Supercell boundaries this close to an integer (in cells) are snapped to
 #: it, so that e.g. ``10 * 0.1`` does not leave a 2e-16-cell sliver.
@@ -57,17 +58,21 @@ CHUNK_VALUES = 1 << 22
 #: so a supercell whose exact range only touches the isovalue stays PC.
 RANGE_PAD = 2.0 ** -40
 
-#: Blocks skipped inside PARC's segments are ``2**shift`` cells a side:
-#: small blocks jump often (each jump costs a few divisions), large ones
-#: are seldom empty. Isosurfaces (`raycast.iso`), CT head at 512x512, cast
-#: only, median of 6: skin 60/48/44 ms and bone 48/39/35 ms for blocks of
-#: 2/4/8 cells; neghip and the Fig. 13 scene the same for 4 and 8.
-ISO_BLOCK_SHIFT = 3
-#: Transfer functions (`raycast.composite`), CT head ``ct_skin_bone`` at
-#: 300x300: 110/97/100 ms for blocks of 2/4/8 cells.
-TF_BLOCK_SHIFT = 2
-#: Block tables (isovalues, transfer functions) kept per volume.
-BLOCK_CACHE_SIZE = 4
+#: Skip tables (`skip_radius`): radii are capped at this many cells, which
+#: bounds the table's build (a window scan per cell and axis) and costs
+#: little, since a long empty stretch is crossed in a few capped jumps.
+SKIP_CAP = 16
+#: The smallest radius worth a jump (each costs a few divisions; stepping
+#: a cell costs a table lookup). Cast only, PARC segments, median of 25
+#: in one process: CT head skin at 512x512 15.8 ms for 2 against 16.8,
+#: 16.2, 17.3 ms for 1, 4, 8-cell aligned blocks; bone 11.5 against 12.3
+#: ms; neghip the same within 2%. Transfer functions, CT head
+#: ``ct_skin_bone`` at 600x600: 134-142 ms against 142-152 ms with 4-cell
+#: aligned blocks.
+ISO_JUMP_MIN = 2
+TF_JUMP_MIN = 2
+#: Skip tables (isovalues, transfer functions) kept per volume.
+SKIP_CACHE_SIZE = 4
 
 #: Most supercells a grid may have (a guard against sub-cell sizes on big
 #: volumes, which would need tens of GB).
@@ -478,71 +483,136 @@ class VolumeIndex:
         mn, mx = self.ranges(size)
         return classify_iso(mn, mx, iso)
 
-    def block_signs(self, iso):
-        """The sign table for isovalue ``iso`` and its block shift, kept for the last few tables.
+    def iso_skip(self, iso):
+        """The skip table for isovalue ``iso`` and the smallest radius worth a jump, kept for the last few.
 
-        One int8 per cell (`raycast.iso`): `sign_iso` of the cell's block of
-        ``2**ISO_BLOCK_SHIFT`` cells, doubled, where the block is signed, else
-        `sign_iso` of the cell. The walk jumps across signed blocks and
-        steps a signed cell without reading its corners.
+        One int8 per cell (`raycast.iso.cast_iso_ray`): `skip_radius` of the
+        cells' `sign_iso`, i.e. ``s * (r + 1)`` where every cell within
+        Chebyshev distance ``r`` has the sign ``s`` (±1), 0 for a cell whose
+        range holds the isovalue. The walk steps a signed cell without
+        reading its corners and jumps across the cube of radius ``r``.
         """
         def table():
-            blocks = sign_iso(*self.ranges(1 << ISO_BLOCK_SHIFT), iso) * np.int8(SIGNED_BLOCK)
-            return self._cell_table(lambda mn, mx: sign_iso(mn, mx, iso), blocks, ISO_BLOCK_SHIFT)
+            mn, mx = self.cell_minmax()
+            return skip_radius(sign_iso(mn, mx, iso), SKIP_CAP)
 
-        return self._blocks(("iso", float(iso)), table, ISO_BLOCK_SHIFT)
+        return self._skip(("iso", float(iso)), table, ISO_JUMP_MIN)
 
-    def tf_blocks(self, tf):
-        """The transparency table for transfer function ``tf`` and its block shift,
-        kept for the last few tables.
+    def tf_skip(self, tf):
+        """The skip table for transfer function ``tf`` and the smallest radius worth a jump, kept for the last few.
 
         One int8 per cell (`raycast.composite.accumulate_ray`):
-        ``TRANSPARENT_BLOCK`` where the opacity is zero over the whole range
-        of the cell's block of ``2**TF_BLOCK_SHIFT`` cells, else
-        ``TRANSPARENT_CELL`` where it is zero over the cell's own range, else
-        ``MAY_CONTRIBUTE``. Per cell rather than per block: one lookup
-        answers both questions, and a transparent cell in a block that is
-        not (most of them, at a surface's edge) still saves its samples'
-        interpolation.
+        `MAY_CONTRIBUTE` (0) where the opacity is non-zero somewhere in the
+        cell's range, else ``r + 1`` where every cell within Chebyshev
+        distance ``r`` is transparent too (`skip_radius`). A sample in a
+        transparent cell is not interpolated; the first one in a cube of
+        radius at least the jump minimum skips the samples up to its exit.
         """
-        def cells(mn, mx):
-            return np.where(tf.nonzero_in(mn, mx), np.int8(MAY_CONTRIBUTE), np.int8(TRANSPARENT_CELL))
-
         def table():
-            clear = ~tf.nonzero_in(*self.ranges(1 << TF_BLOCK_SHIFT))
-            return self._cell_table(cells, np.where(clear, np.int8(TRANSPARENT_BLOCK), np.int8(0)), TF_BLOCK_SHIFT)
+            mn, mx = self.cell_minmax()
+            return skip_radius((~tf.nonzero_in(mn, mx)).view(np.int8), SKIP_CAP)
 
         op_x, op_y, _, _ = tf.arrays()
-        return self._blocks(("tf", op_x.tobytes(), op_y.tobytes()), table, TF_BLOCK_SHIFT)
+        return self._skip(("tf", op_x.tobytes(), op_y.tobytes()), table, TF_JUMP_MIN)
 
-    def _cell_table(self, cell_entries, block_entries, shift):
-        """An int8 table per cell: ``block_entries`` (per block of ``2**shift``
-        cells) where non-zero, else ``cell_entries(mn, mx)`` of the cell ranges.
-
-        Built slab by slab, so that a volume of a billion cells needs little
-        beyond the table itself.
-        """
-        mn, mx = self.cell_minmax()
-        out = np.empty(mn.shape, np.int8)
-        b = 1 << shift
-        slab = max(1, CHUNK_VALUES // (mn.shape[1] * mn.shape[2]) // b) * b
-        for z0 in range(0, mn.shape[0], slab):
-            z1 = min(mn.shape[0], z0 + slab)
-            mine = cell_entries(mn[z0:z1], mx[z0:z1])
-            whole = _per_cell(block_entries[z0 // b:-(-z1 // b)], mine.shape, shift)
-            out[z0:z1] = np.where(whole != 0, whole, mine)
-        return out
-
-    def _blocks(self, key, table, shift):
-        cache = self.__dict__.setdefault("_block_tables", {})
+    def _skip(self, key, table, jump_min):
+        cache = self.__dict__.setdefault("_skip_tables", {})
         if key not in cache:
-            if len(cache) >= BLOCK_CACHE_SIZE:
+            if len(cache) >= SKIP_CACHE_SIZE:
                 cache.pop(next(iter(cache)))
             cache[key] = table()
-        return cache[key], shift
+        return cache[key], jump_min
 
 
-def _per_cell(blocks, shape, shift):
-    """A per-block table (blocks of ``2**shift`` cells) spread over the cells of a ``shape`` grid."""
-    b = 1 << shift
-    return blocks.repeat(b, 0).repeat(b, 1).repeat(b, 2)[:shape[0], :shape[1], :shape[2]]
+def skip_radius(classes, cap):
+    """Per cell, its class times ``1 +`` the Chebyshev radius of the cube around it of that class.
+
+    Parameters
+    ----------
+    classes : int8 ndarray (nz, ny, nx)
+        0 for a cell that may contribute, else the class of an empty one
+        (an isosurface's sign, ±1; 1 for a transparent cell).
+    cap : int
+        Largest ``1 + radius`` stored (at most 127).
+
+    Returns
+    -------
+    int8 ndarray, same shape
+        ``c * min(cap, d)`` for a cell of class ``c != 0``, where ``d`` is
+        the Chebyshev distance (``max(|di|, |dj|, |dk|)``) to the nearest
+        cell of another class; cells outside the grid count as the same
+        class (a walk never enters them). 0 where ``c == 0``.
+
+    Notes
+    -----
+    The distance is separable: the distance along x to another class in
+    the row, then ``min over dj of max(|dj|, d_x)`` over the cells of the
+    same class in the column, then the same along z (a cell of another
+    class contributes ``|dj|`` itself). Three int8 arrays of the grid's size.
+    """
+    classes = np.ascontiguousarray(classes, dtype=np.int8)
+    if not 1 <= cap <= 127:
+        raise ValueError(f"cap must be in 1..127, got {cap}")
+    along_x = np.empty_like(classes)
+    _radius_rows(classes, cap, along_x)
+    along_y = np.empty_like(classes)
+    _radius_columns(classes, along_x, 1, along_y)
+    _radius_columns(classes, along_y, 0, along_x)
+    along_x *= classes
+    return along_x
+
+
+@kernel(parallel=True)
+def _radius_rows(c, cap, out):
+    """Distance along x to a cell of another class in the row, capped (0 for class 0)."""
+    nz, ny, nx = c.shape
+    for k in prange(nz):
+        for j in range(ny):
+            d = cap
+            for i in range(nx):
+                s = c[k, j, i]
+                if s == 0:
+                    d = 0
+                elif i > 0 and c[k, j, i - 1] != s:
+                    d = 1
+                elif i > 0:
+                    d = min(d + 1, cap)
+                out[k, j, i] = d
+            d = cap
+            for i in range(nx - 1, -1, -1):
+                s = c[k, j, i]
+                if s == 0:
+                    d = 0
+                elif i < nx - 1 and c[k, j, i + 1] != s:
+                    d = 1
+                elif i < nx - 1:
+                    d = min(d + 1, cap)
+                out[k, j, i] = min(out[k, j, i], d)
+
+
+@kernel(parallel=True)
+def _radius_columns(c, inner, axis, out):
+    """``min over dm of max(|dm|, inner at m + dm)`` along array axis ``axis`` (0: z, 1: y),
+    a cell of another class counting 0; the scan stops once ``|dm|`` reaches the best."""
+    nz, ny, nx = c.shape
+    n = nz if axis == 0 else ny
+    for kk in prange(nz):
+        k = np.int64(kk)
+        for j in range(ny):
+            m = k if axis == 0 else j
+            for i in range(nx):
+                s = c[k, j, i]
+                best = np.int64(inner[k, j, i])
+                d = 1
+                while d < best:
+                    for q in (m - d, m + d):
+                        if 0 <= q < n:
+                            if axis == 0:
+                                v = inner[q, j, i] if c[q, j, i] == s else 0
+                            else:
+                                v = inner[k, q, i] if c[k, q, i] == s else 0
+                            best = min(best, max(d, v))
+                    d += 1
+                out[k, j, i] = best
+
+

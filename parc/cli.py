@@ -173,8 +173,7 @@ def build_parser():
                    help="parc: supercell size in cells, fractional allowed (default: chosen by a cost model)")
     r.add_argument("--no-blocks", action="store_true",
                    help="parc: walk the whole of each OpenGL segment, without skipping the empty "
-                        "cells and blocks of cells (8x8x8 for isosurfaces, 4x4x4 for transfer "
-                        "functions) inside it (same image, slower)")
+                        "cells and cubes of such cells inside it (same image, slower)")
     r.add_argument("--background", type=_floats(3, "--background"), metavar="R,G,B",
                    help="opaque background colour in [0,1] (default transparent); replaces a scene file's")
     r.add_argument("--quiet", action="store_true", help="no progress or notes on stderr")
@@ -198,8 +197,7 @@ def build_parser():
                    help="parc's supercell size (default: chosen by the cost model)")
     c.add_argument("--no-blocks", action="store_true",
                    help="parc walks the whole of each OpenGL segment, without skipping the empty "
-                        "cells and blocks of cells (8x8x8 for isosurfaces, 4x4x4 for transfer "
-                        "functions) inside it (same image, slower)")
+                        "cells and cubes of such cells inside it (same image, slower)")
     c.add_argument("--sweep-supercell", metavar="LIST",
                    help="run parc once per supercell size, e.g. 0.5,1,2,4,8: speed against error")
     c.add_argument("--sweep-step", metavar="LIST",

@@ -53,10 +53,10 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
     image (without background), the ``(H, W)`` depth, the counters
     (cells, solves, samples, shadow_cells, shadow_solves, shadow_samples,
     shadow_rays), seconds per phase and per-volume PARC details. ``blocks``:
-    PARC's walks and shadow rays skip the volumes' empty blocks
+    PARC's walks and shadow rays skip the volumes' empty cells
     (`parc.renderer.render`).
     """
-    from .renderer import _parc_segments, accumulation_params, column_totals, empty_blocks, iso_work
+    from .renderer import _parc_segments, accumulation_params, column_totals, iso_work, skip_table
 
     w, h = scene.size
     npx = w * h
@@ -96,9 +96,9 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
         t = work_array("iso_t", (npx,))
         c, uv, cnt = iso_work(npx)
         seg = segs.get(n, np.empty((1, 1, 2)))
-        eb, bshift = empty_blocks(iso, parc and blocks)
+        skip, jump_min = skip_table(iso, parc and blocks)
         cast_iso_image(vol.data, np.array(vol.origin), np.array(vol.spacing), cam, w, h, iso.value,
-                       seg, parc, eb, bshift, t, c, uv, cnt, 0, h)
+                       seg, parc, skip, jump_min, t, c, uv, cnt, 0, h)
         keep_nearest(t, c, uv, n, depth, cell, uvw, winner)
         cells, solves = column_totals(cnt)
         counts["cells"] += cells
@@ -163,17 +163,17 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
             cast_accumulate_image(vol.data, np.array(vol.origin), np.array(vol.spacing), cam, w, h,
                                   accumulation_params(v), op_x, op_y, col_x, col_rgb,
                                   segs.get(n, np.empty((1, 1, 2))), parc, stop, True, nobits, False,
-                                  *empty_blocks(v, parc and blocks), layer_rgba[j], cnt, 0, h)
+                                  *skip_table(v, parc and blocks), layer_rgba[j], cnt, 0, h)
             counts["samples"] += int(cnt.sum())
             layer_t[j] = _box_entry(scene, vol)
         front = np.zeros((h, w, 4), np.float32)
         if comp:
             datas, orgs, spcs, params, tables, tf_len = _packed(comp, accumulation_params)
             seg = (np.stack([segs[n] for n, _ in comp]) if parc else np.empty((1, 1, 1, 2)))
-            clear = [empty_blocks(v, parc and blocks) for _, v in comp]
+            skips = [skip_table(v, parc and blocks) for _, v in comp]
             cnt = np.empty(npx, np.int64)
             cast_merged_image(datas, orgs, spcs, cam, w, h, params, *tables, tf_len, seg, parc,
-                              tuple(c for c, _ in clear), np.array([s for _, s in clear], np.int64), stop,
+                              tuple(c for c, _ in skips), np.array([m for _, m in skips], np.int64), stop,
                               layer_t, layer_rgba, front, cnt)
             counts["samples"] += int(cnt.sum())
         else:
@@ -186,7 +186,7 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
 
 def _shadows(scene, method, lights, points, vis, segs, sizes, light_buffer, blocks, timings, counts, extra):
     """Shadow rays from every hit to every light, volume by volume; ``vis`` scaled in place."""
-    from .renderer import _proxy, accumulation_params, empty_blocks
+    from .renderer import _proxy, accumulation_params, skip_table
 
     eps = SHADOW_EPS * min(min(v.volume.spacing) for v in scene.volumes)
     nh = len(points)
@@ -208,14 +208,14 @@ def _shadows(scene, method, lights, points, vis, segs, sizes, light_buffer, bloc
             t0 = time.perf_counter()
             org = np.array(vol.origin)
             spc = np.array(vol.spacing)
-            eb, bshift = empty_blocks(v, method == "parc" and blocks)
+            skip, jump_min = skip_table(v, method == "parc" and blocks)
             if isinstance(v, Isosurface):
                 shadow_iso(vol.data, org, spc, v.value, points, row, eps, views, near, far,
-                           method == "parc", eb, bshift, v_l, cnt)
+                           method == "parc", skip, jump_min, v_l, cnt)
             else:
                 op_x, op_y, col_x, col_rgb = v.tf.arrays()
                 shadow_accumulate(vol.data, org, spc, accumulation_params(v), op_x, op_y, col_x, col_rgb,
-                                  points, row, eps, views, near, far, method == "parc", eb, bshift, v_l, cnt)
+                                  points, row, eps, views, near, far, method == "parc", skip, jump_min, v_l, cnt)
             timings["shadow"] += time.perf_counter() - t0
     from .renderer import column_totals
     cells, solves, samples = column_totals(cnt)[:3]

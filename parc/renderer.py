@@ -16,7 +16,7 @@ from data_tools import InputError
 from raycast.composite import (MODE_AVERAGE, MODE_COMPOSITE, MODE_MIP, N_PARAMS, P_AMBIENT, P_HI, P_LO,
                                P_MODE, P_RATIO, P_SHADE, P_STEP, P_THRESHOLD, cast_accumulate_image,
                                over_background)
-from raycast.iso import NO_BLOCKS, cast_iso_image
+from raycast.iso import NO_SKIP, cast_iso_image
 from raycast.shade import shade_headlight
 
 from .scene import Isosurface, Scene, Translucent
@@ -89,12 +89,12 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
         `parc.lights.LIGHT_BUFFER_SIZE`). Any size gives the same image;
         finer buffers give shorter shadow-ray segments for more raster time.
     blocks : bool, default True
-        PARC only: inside its segments the caster also jumps over blocks of
-        cells that cannot contribute (8x8x8 for an isosurface, 4x4x4 for a
-        transfer function) and steps over single such cells
-        without reading their samples (an isosurface's sign table, a
-        transfer function's transparency table, one entry per cell;
-        `parc.classify`), computed once per isovalue or transfer function.
+        PARC only: inside its segments the caster also jumps across cubes
+        of cells that cannot contribute (all above or all below the
+        isovalue, or all transparent) and steps over single such cells
+        without reading their samples (a skip table with one entry per
+        cell, `parc.classify.skip_radius`), computed once per isovalue or
+        transfer function.
         The image is the same either way; False measures the OpenGL
         segments alone.
 
@@ -231,13 +231,13 @@ def _render_iso(scene, iso, seg, use_seg, skip_blocks, timings, progress):
     spc = np.array(vol.spacing)
     t = np.empty(w * h)
     cell, uvw, counts = iso_work(w * h)
-    blocks, bshift = empty_blocks(iso, skip_blocks)
+    skip, jump_min = skip_table(iso, skip_blocks)
     timings["setup"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
     bands = _row_bands(h, w, progress)
     for n, (y0, y1) in enumerate(bands):
-        cast_iso_image(vol.data, org, spc, cam, w, h, iso.value, seg, use_seg, blocks, bshift,
+        cast_iso_image(vol.data, org, spc, cam, w, h, iso.value, seg, use_seg, skip, jump_min,
                        t, cell, uvw, counts, y0, y1)
         if progress is not None:
             progress((n + 1) / len(bands))
@@ -259,17 +259,17 @@ def iso_work(n, slot=0):
             work_array(("iso_counts", slot), (n, 2), np.int64))
 
 
-def empty_blocks(vis, use):
-    """``(table, bshift)`` for the casting kernels: the per-cell sign table of
-    an Isosurface (`raycast.iso`) or transparency table of a Translucent
-    (`raycast.composite`) volume when ``use``, else none (the unaccelerated caster)."""
+def skip_table(vis, use):
+    """``(table, jump_min)`` for the casting kernels: the per-cell skip table of an
+    Isosurface (`raycast.iso`) or Translucent (`raycast.composite`) volume and
+    the smallest radius worth a jump when ``use``, else none (the unaccelerated caster)."""
     if not use:
-        return NO_BLOCKS, -1
+        return NO_SKIP, -1
     from .classify import VolumeIndex
     index = VolumeIndex.of(vis.volume)
     if isinstance(vis, Isosurface):
-        return index.block_signs(vis.value)
-    return index.tf_blocks(vis.tf)
+        return index.iso_skip(vis.value)
+    return index.tf_skip(vis.tf)
 
 
 def accumulation_params(vis):
@@ -298,7 +298,7 @@ def _render_translucent(scene, vis, seg, use_seg, skip_blocks, timings, progress
     image = np.empty((h, w, 4), np.float32)
     counts = work_array("samples", (w * h,), np.int64)
     use_bits = planes is not None
-    blocks, bshift = empty_blocks(vis, skip_blocks)
+    skip, jump_min = skip_table(vis, skip_blocks)
     bits = np.zeros((1, 1, 1), np.uint32)
     if use_bits:
         planes.set_params(params)
@@ -309,7 +309,7 @@ def _render_translucent(scene, vis, seg, use_seg, skip_blocks, timings, progress
     bands = _row_bands(h, w, progress)
     for n, (y0, y1) in enumerate(bands):
         cast_accumulate_image(vol.data, org, spc, cam, w, h, params, op_x, op_y, col_x, col_rgb,
-                              seg, use_seg, _NO_STOP, False, bits, use_bits, blocks, bshift, image, counts,
+                              seg, use_seg, _NO_STOP, False, bits, use_bits, skip, jump_min, image, counts,
                               y0, y1)
         if progress is not None:
             progress((n + 1) / len(bands))

@@ -21,8 +21,8 @@ up in the transfer function).
 
 Why every mode is defined through non-zero opacity: PARC skips samples it
 has proven transparent (outside ``[near, far]``, in a plane of
-supercells whose bit is clear, or in a cell or block whose value range
-the transfer function makes transparent). A transparent sample adds exactly nothing
+supercells whose bit is clear, or in a cell, or a cube of cells, whose
+value range the transfer function makes transparent). A transparent sample adds exactly nothing
 to any of the three sums, so skipping it changes no bit of the result,
 and the accelerated image equals the unaccelerated one. The skipped
 samples are the same lattice points the unaccelerated caster would have
@@ -184,55 +184,45 @@ def composite_sample(data, spc, v, i, j, k, u, vv, w, a, dx, dy, dz, params, col
 
 
 @kernel
-def _block_exit_axis(O, D, c, bshift):
+def _cube_exit_axis(O, D, c, r):
     if D == 0.0:
         return math.inf
-    b = ((c >> bshift) + 1) << bshift if D > 0.0 else (c >> bshift) << bshift
+    b = c + r + 1 if D > 0.0 else c - r
     return (b - O) / D
 
 
 @kernel
-def block_key(i, j, k, bshift, ny, nx):
-    """A number for the block of ``2**bshift`` cells holding cell ``(i, j, k)`` of an
-    ``(nz, ny, nx)``-sample grid, unique within the grid."""
-    return ((k >> bshift) * ((ny >> bshift) + 1) + (j >> bshift)) * ((nx >> bshift) + 1) + (i >> bshift)
-
-
-@kernel
-def block_last_sample(n, t_in, step, Ox, Oy, Oz, Dx, Dy, Dz, i, j, k, bshift):
-    """A lattice index safely before the ray leaves the block of cell ``(i, j, k)``
-    (blocks ``2**bshift`` cells a side), at least ``n``; as `next_plane_sample`, two steps of slack."""
-    t_b = min(_block_exit_axis(Ox, Dx, i, bshift),
-              min(_block_exit_axis(Oy, Dy, j, bshift), _block_exit_axis(Oz, Dz, k, bshift)))
+def cube_last_sample(n, t_in, step, Ox, Oy, Oz, Dx, Dy, Dz, i, j, k, r):
+    """A lattice index safely before the ray leaves the cube of cells within ``r`` of cell ``(i, j, k)``,
+    at least ``n``; as `next_plane_sample`, two steps of slack."""
+    t_b = min(_cube_exit_axis(Ox, Dx, i, r), min(_cube_exit_axis(Oy, Dy, j, r), _cube_exit_axis(Oz, Dz, k, r)))
     if t_b == math.inf:
         return 1 << 62
     return max(n, int(math.floor((t_b - t_in) / step)) - 2)
 
 
-#: Values of the transparency table `accumulate_ray` takes, one per cell
-#: (`parc.classify.VolumeIndex.tf_blocks`): the cell may contribute; its
-#: own value range is transparent (its samples need no interpolation); the
-#: whole block of ``2**bshift`` cells around it is (jump to its exit).
+#: The skip table `accumulate_ray` takes has one int8 per cell
+#: (`parc.classify.VolumeIndex.tf_skip`): this where the cell may
+#: contribute, else ``r + 1`` where every cell within Chebyshev distance
+#: ``r`` is transparent (its samples need no interpolation, and a ray may
+#: jump to the cube's exit).
 MAY_CONTRIBUTE = 0
-TRANSPARENT_CELL = 1
-TRANSPARENT_BLOCK = 2
 
 
 @kernel
 def accumulate_ray(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, seg0, seg1, t_stop, params,
-                   op_x, op_y, col_x, col_rgb, bits, py, px, use_bits, blocks, bshift):
+                   op_x, op_y, col_x, col_rgb, bits, py, px, use_bits, skip, jump_min):
     """Accumulate one ray (index space ``O + t D``; world direction ``d``) over ``[seg0, seg1]``.
 
     Returns premultiplied ``(r, g, b, a, samples)``; ``samples`` counts the
     trilinear interpolations done. Lattice points at ``t >= t_stop`` (an
     opaque surface, a light) are not taken. With ``use_bits``, samples in a
     plane of supercells whose bit in ``bits[py, px]`` is clear are skipped.
-    With ``bshift >= 0``, ``blocks[k, j, i]`` tells for each cell whether
-    its value range, or that of its whole block of ``2**bshift`` cells a
-    side, is transparent (`TRANSPARENT_CELL`, `TRANSPARENT_BLOCK`): a
-    sample there is not interpolated, and the first one in a transparent
-    block skips the rest of the block. The unaccelerated caster passes
-    `raycast.iso.NO_BLOCKS` and -1.
+    With ``jump_min >= 0``, ``skip[k, j, i]`` (the skip table above)
+    tells for each cell whether it is transparent: a sample there is not
+    interpolated, and one in a cell whose cube of transparent cells has a
+    radius of at least ``jump_min`` skips the samples up to the cube's exit.
+    The unaccelerated caster passes `raycast.iso.NO_SKIP` and -1.
     """
     nz, ny, nx = data.shape
     t_in, t_out = clip_box(Ox, Oy, Oz, Dx, Dy, Dz, nx, ny, nz)
@@ -256,9 +246,6 @@ def accumulate_ray(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, seg0, seg1, t_
         Oa, Da = Oy, Dy
     else:
         Oa, Da = Oz, Dz
-    # The transparent block last jumped across: its samples left after the
-    # jump's slack are skipped without computing the jump again.
-    jumped = -1
     n = n0 - 1
     while n < n1:
         n += 1
@@ -269,15 +256,12 @@ def accumulate_ray(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, seg0, seg1, t_
         y = Oy + t * Dy
         z = Oz + t * Dz
         i, j, k = sample_cell(data, x, y, z)
-        if bshift >= 0:
-            clear = blocks[k, j, i]
+        if jump_min >= 0:
+            clear = skip[k, j, i]
             if clear != MAY_CONTRIBUTE:
-                if clear == TRANSPARENT_BLOCK:
-                    key = block_key(i, j, k, bshift, ny, nx)
-                    if key != jumped:
-                        # The samples up to where the ray leaves the block are transparent.
-                        jumped = key
-                        n = min(n1, block_last_sample(n, t_in, step, Ox, Oy, Oz, Dx, Dy, Dz, i, j, k, bshift))
+                if clear - 1 >= jump_min:
+                    # The samples up to where the ray leaves the cube are transparent.
+                    n = min(n1, cube_last_sample(n, t_in, step, Ox, Oy, Oz, Dx, Dy, Dz, i, j, k, clear - 1))
                 continue
         # The plane test comes after the table's: a cell that may contribute
         # lies in a possibly contributing supercell, whose plane's bit the
@@ -336,7 +320,7 @@ def average_grey(total, count, params):
 
 @kernel(parallel=True)
 def cast_accumulate_image(data, org, spc, cam, width, height, params, op_x, op_y, col_x, col_rgb,
-                          seg, use_seg, stop, use_stop, bits, use_bits, blocks, bshift, image, counts,
+                          seg, use_seg, stop, use_stop, bits, use_bits, skip, jump_min, image, counts,
                           row0, row1):
     """Accumulate every pixel of rows ``row0 <= y < row1``, tile by tile.
 
@@ -344,7 +328,7 @@ def cast_accumulate_image(data, org, spc, cam, width, height, params, op_x, op_y
     ``counts[y * width + x]`` the samples taken. With ``use_seg`` a pixel
     whose ``seg[y, x]`` has ``near > far`` costs nothing. With ``use_stop``
     no sample is taken at ``t >= stop[y, x]`` (an opaque surface there).
-    ``blocks``/``bshift``: the transparency table (`accumulate_ray`).
+    ``skip``/``jump_min``: the skip table (`accumulate_ray`).
     """
     tiles = tile_count(width, row0, row1, TILE_W, TILE_H)
     stride = spread_stride(tiles)
@@ -366,7 +350,7 @@ def cast_accumulate_image(data, org, spc, cam, width, height, params, op_x, op_y
                 Ox, Oy, Oz, Dx, Dy, Dz = to_index_space(ox, oy, oz, dx, dy, dz, org, spc)
                 r, g, b, a, n = accumulate_ray(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, s0, s1,
                                                stop[y, x] if use_stop else math.inf, params, op_x, op_y, col_x, col_rgb,
-                                               bits, y, x, use_bits, blocks, bshift)
+                                               bits, y, x, use_bits, skip, jump_min)
                 image[y, x, 0] = r
                 image[y, x, 1] = g
                 image[y, x, 2] = b
@@ -388,7 +372,7 @@ def _next_layer(layer_t, used, y, x, before):
 
 @kernel(parallel=True)
 def cast_merged_image(datas, orgs, spcs, cam, width, height, params, op_x, op_y, col_x, col_rgb, tf_len,
-                      seg, use_seg, clear, bshifts, stop, layer_t, layer_rgba, image, counts):
+                      seg, use_seg, skip, jump_mins, stop, layer_t, layer_rgba, image, counts):
     """Composite several overlapping volumes along each pixel's ray, samples merged in depth order.
 
     ``datas`` is a tuple of K volumes of one dtype, each with its own
@@ -402,9 +386,9 @@ def cast_merged_image(datas, orgs, spcs, cam, width, height, params, op_x, op_y,
     back, and stop at ``stop[y, x]`` (an opaque surface) or once the
     opacity reaches the largest threshold. ``layer_t[j]``, ``layer_rgba[j]``
     are finished per-pixel layers (maximum or average intensity of another
-    volume) composited where the ray reaches ``t = layer_t``. ``clear[k]``
-    and ``bshifts[k]``: volume k's transparency table, as `accumulate_ray`
-    takes it (`raycast.iso.NO_BLOCKS` and -1 for none); a skipped sample
+    volume) composited where the ray reaches ``t = layer_t``. ``skip[k]``
+    and ``jump_mins[k]``: volume k's skip table, as `accumulate_ray`
+    takes it (`raycast.iso.NO_SKIP` and -1 for none); a skipped sample
     adds nothing, so the layers and the other volumes' samples keep their
     order.
     """
@@ -417,7 +401,6 @@ def cast_merged_image(datas, orgs, spcs, cam, width, height, params, op_x, op_y,
     for it in prange(tiles):
         x0, x1, y0, y1 = tile_rect(spread(it, tiles, stride), width, 0, height, TILE_W, TILE_H)
         st = np.empty((nvol, 9))
-        jumped = np.empty(nvol, np.int64)
         used = np.zeros(layer_t.shape[0], np.bool_)
         for y in range(y0, y1):
             for x in range(x0, x1):
@@ -439,7 +422,6 @@ def cast_merged_image(datas, orgs, spcs, cam, width, height, params, op_x, op_y,
                     st[k, 3], st[k, 4], st[k, 5] = Dx, Dy, Dz
                     st[k, 6], st[k, 7], st[k, 8] = t_in, n0, n1
                 used[:] = False
-                jumped[:] = -1
                 r = 0.0
                 g = 0.0
                 b = 0.0
@@ -474,19 +456,16 @@ def cast_merged_image(datas, orgs, spcs, cam, width, height, params, op_x, op_y,
                     y_ = st[best, 1] + bt * st[best, 4]
                     z_ = st[best, 2] + bt * st[best, 5]
                     i, j, k = sample_cell(data, x_, y_, z_)
-                    bshift = bshifts[best]
-                    if bshift >= 0:
-                        e = clear[best][k, j, i]
+                    jump_min = jump_mins[best]
+                    if jump_min >= 0:
+                        e = skip[best][k, j, i]
                         if e != MAY_CONTRIBUTE:
-                            if e == TRANSPARENT_BLOCK:
-                                key = block_key(i, j, k, bshift, data.shape[1], data.shape[2])
-                                if key != jumped[best]:
-                                    jumped[best] = key
-                                    n = int(st[best, 7]) - 1
-                                    last = block_last_sample(n, st[best, 6], params[best, P_STEP],
-                                                             st[best, 0], st[best, 1], st[best, 2],
-                                                             st[best, 3], st[best, 4], st[best, 5], i, j, k, bshift)
-                                    st[best, 7] = min(float(last), st[best, 8]) + 1.0
+                            if e - 1 >= jump_min:
+                                n = int(st[best, 7]) - 1
+                                last = cube_last_sample(n, st[best, 6], params[best, P_STEP],
+                                                        st[best, 0], st[best, 1], st[best, 2],
+                                                        st[best, 3], st[best, 4], st[best, 5], i, j, k, e - 1)
+                                st[best, 7] = min(float(last), st[best, 8]) + 1.0
                             continue
                     samples += 1
                     v, u, vv, w = interpolate(data, x_, y_, z_, i, j, k)

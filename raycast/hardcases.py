@@ -29,7 +29,7 @@ from fractions import Fraction
 import numba
 import numpy as np
 
-from .iso import NO_BLOCKS, cast_iso_rays, empty_outputs
+from .iso import NO_SKIP, cast_iso_rays, empty_outputs
 
 # ----------------------------------------------------------------- fields
 
@@ -475,19 +475,19 @@ class Batch:
         return len(self.origins)
 
 
-def cast(scene, origins, dirs, iso, seg=None, blocks=None):
+def cast(scene, origins, dirs, iso, seg=None, skip=None):
     """Run the caster on world rays with one isovalue; returns (t, cell, uvw, counts).
 
-    ``blocks``: a sign table and its block shift (``(int8 array, shift)``,
-    see `raycast.iso`), or None for none. Small groups run on one thread: a parallel launch on a busy machine costs
+    ``skip``: a skip table and the smallest radius worth a jump (``(int8
+    array, jump_min)``, see `raycast.iso`), or None for none. Small groups run on one thread: a parallel launch on a busy machine costs
     milliseconds, and the per-ray kernel is the same either way.
     """
     n = len(origins)
     t, cell, uvw, counts = empty_outputs(n)
     use_seg = seg is not None
     seg = np.ascontiguousarray(seg, dtype=np.float64) if use_seg else np.empty((1, 2))
-    if blocks is None:
-        blocks = (NO_BLOCKS, -1)
+    if skip is None:
+        skip = (NO_SKIP, -1)
     threads = numba.get_num_threads()
     if n < 256:
         numba.set_num_threads(1)
@@ -495,7 +495,7 @@ def cast(scene, origins, dirs, iso, seg=None, blocks=None):
         cast_iso_rays(scene.data, scene.origin, scene.spacing,
                       np.ascontiguousarray(origins, dtype=np.float64),
                       np.ascontiguousarray(dirs, dtype=np.float64),
-                      float(iso), seg, use_seg, *blocks, t, cell, uvw, counts)
+                      float(iso), seg, use_seg, *skip, t, cell, uvw, counts)
     finally:
         numba.set_num_threads(threads)
     return t, cell, uvw, counts

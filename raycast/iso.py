@@ -7,20 +7,21 @@ PARC and the unaccelerated caster call the same `cast_iso_ray`; PARC only
 passes the ray segment ``[seg0, seg1]`` its OpenGL pass found, the
 unaccelerated caster ``[-inf, inf]``.
 
-Empty blocks. A segment runs from the first possibly contributing
+Skipping empty cells. A segment runs from the first possibly contributing
 supercell the ray meets to the last, so it also crosses empty space:
 between supercells, and inside a supercell whose surface the ray misses.
-PARC passes a sign table with one entry per cell
-(`parc.classify.VolumeIndex.block_signs`): ±1 where every sample of the
-cell lies above (+) or below (-) the isovalue, ±2 where every sample of
-its block of ``2**bshift`` cells a side does, 0 otherwise. A walk
-entering a signed block jumps to the block's exit instead of stepping
-through it; a signed cell elsewhere is stepped without reading its
-corners. Nothing else changes: an empty cell's only effect on the walk is
-the sign it hands on, which is the table's, and the jump lands on the
-cell the full walk would be in at that time (`start_index`), so the hits
-are bit for bit the unaccelerated caster's. The unaccelerated caster
-passes `NO_BLOCKS`.
+PARC passes a skip table with one entry per cell
+(`parc.classify.VolumeIndex.iso_skip`): ``s (r + 1)`` where every sample
+of every cell within Chebyshev distance ``r`` (a cube of ``2r + 1`` cells
+a side around it) lies above (``s = +1``) or below (-1) the isovalue, 0
+otherwise. A walk in a cell of radius at least ``jump_min`` jumps to the
+cube's exit instead of stepping through it; a signed cell elsewhere is
+stepped without reading its corners. Nothing else changes: an empty
+cell's only effect on the walk is the sign it hands on, which is the
+table's, and the jump lands on the cell the full walk would be in at that
+time (`start_index`, the exit computed with the walk's own crossing
+times), so the hits are bit for bit the unaccelerated caster's. The
+unaccelerated caster passes `NO_SKIP`.
 """
 import math
 
@@ -32,11 +33,8 @@ from .cubic import cubic_along_ray, eval_cubic, first_root, trilinear_coefficien
 from .rays import camera_ray, spread, spread_run, spread_runs, spread_stride
 from .traverse import axis_state, cell_corners, clip_box, next_exit, start_index, step_axis, to_index_space
 
-#: The table a walk without one takes (with ``bshift = -1``).
-NO_BLOCKS = np.zeros((1, 1, 1), np.int8)
-
-#: A sign-table entry of this magnitude: the cell's whole block is signed.
-SIGNED_BLOCK = 2
+#: The table a walk without one takes (with ``jump_min = -1``).
+NO_SKIP = np.zeros((1, 1, 1), np.int8)
 
 
 @kernel
@@ -108,18 +106,17 @@ def _entry_sign(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, i, j, k, sx, sy, sz,
 
 
 @kernel
-def _block_exit(Ox, Oy, Oz, sx, sy, sz, ix, iy, iz, bi, bj, bk, bshift):
-    """Time the ray leaves block ``(bi, bj, bk)`` (blocks ``2**bshift`` cells a side)."""
-    last = (1 << bshift) - 1
+def _cube_exit(Ox, Oy, Oz, sx, sy, sz, ix, iy, iz, i, j, k, r):
+    """Time the ray leaves the cube of cells within ``r`` of cell ``(i, j, k)``, by the walk's crossing times."""
     ex = math.inf
     ey = math.inf
     ez = math.inf
     if sx != 0:
-        ex = next_exit(Ox, ix, sx, (bi << bshift) + (last if sx > 0 else 0))
+        ex = next_exit(Ox, ix, sx, i + sx * r)
     if sy != 0:
-        ey = next_exit(Oy, iy, sy, (bj << bshift) + (last if sy > 0 else 0))
+        ey = next_exit(Oy, iy, sy, j + sy * r)
     if sz != 0:
-        ez = next_exit(Oz, iz, sz, (bk << bshift) + (last if sz > 0 else 0))
+        ez = next_exit(Oz, iz, sz, k + sz * r)
     return min(ex, min(ey, ez))
 
 
@@ -134,7 +131,7 @@ def _cell_sign(entry):
 
 
 @kernel
-def cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, seg0, seg1, blocks, bshift):
+def cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, seg0, seg1, skip, jump_min):
     """First isosurface hit along an index-space ray, within ``[seg0, seg1]``.
 
     Returns ``(t, i, j, k, u, v, w, cells, solves)``: the hit's ray
@@ -151,9 +148,9 @@ def cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, seg0, seg1, blocks, bshift):
     The walk carries that sign from cell to cell; for the first cell of a
     segment it is recomputed, so any start gives the same answers.
 
-    ``blocks``/``bshift``: the sign table (module docstring), or
-    `NO_BLOCKS` and -1. ``cells`` counts the cells the walk looked at, not
-    those a jump passed over.
+    ``skip``/``jump_min``: the skip table and the smallest radius worth a
+    jump (module docstring), or `NO_SKIP` and -1. ``cells`` counts the
+    cells the walk looked at, not those a jump passed over.
     """
     nz, ny, nx = data.shape
     t_in, t_out = clip_box(Ox, Oy, Oz, Dx, Dy, Dz, nx, ny, nz)
@@ -174,26 +171,21 @@ def cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, seg0, seg1, blocks, bshift):
     first = True
     cells = 0
     solves = 0
-    # The block last jumped across: cells still in it after the jump (the
-    # landing cell, zero-length cells at its exit) are stepped, not jumped.
-    jbi = -1
-    jbj = -1
-    jbk = -1
     while True:
         cells += 1
         c0 = max(t_in, max(tx0, max(ty0, tz0)))
         c1 = min(t_out, min(tx1, min(ty1, tz1)))
         sign = 0
-        if bshift >= 0:
-            entry = blocks[k, j, i]
+        if jump_min >= 0:
+            entry = skip[k, j, i]
             sign = _cell_sign(entry)
-            bi = i >> bshift
-            bj = j >> bshift
-            bk = k >> bshift
-            if abs(entry) == SIGNED_BLOCK and (bi != jbi or bj != jbj or bk != jbk):
-                tb = _block_exit(Ox, Oy, Oz, sx, sy, sz, ix, iy, iz, bi, bj, bk, bshift)
+            r = abs(entry) - 1
+            if r >= jump_min:
+                tb = _cube_exit(Ox, Oy, Oz, sx, sy, sz, ix, iy, iz, i, j, k, r)
                 if tb >= t_end:
                     break
+                # A cube exit at or before the cell's own (rounding at a
+                # corner of the cube) is no jump: the cell is stepped.
                 if tb > c1:
                     i = start_index(Ox, Dx, tb, nx)
                     j = start_index(Oy, Dy, tb, ny)
@@ -206,11 +198,8 @@ def cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, seg0, seg1, blocks, bshift):
                     first = False
                     prev = float(sign)
                     # The landing cell is the one the walk is in at tb:
-                    # mostly still inside the block, else just past it.
-                    sign = _cell_sign(blocks[k, j, i])
-                jbi = bi
-                jbj = bj
-                jbk = bk
+                    # mostly just past the cube, else still on its edge.
+                    sign = _cell_sign(skip[k, j, i])
         if sign != 0:
             prev = float(sign)
         else:
@@ -277,15 +266,15 @@ def _store(n, res, t, cell, uvw, counts):
 
 
 @kernel(parallel=True)
-def cast_iso_image(data, org, spc, cam, width, height, iso, seg, use_seg, blocks, bshift,
+def cast_iso_image(data, org, spc, cam, width, height, iso, seg, use_seg, skip, jump_min,
                    t, cell, uvw, counts, row0, row1):
     """Cast every pixel of a ``width x height`` image, tile by tile.
 
     Outputs are flat per pixel (index ``y * width + x``): ``t``, ``cell``
     (i, j, k), ``uvw`` (local hit coordinates), ``counts`` (cells, solves).
     With ``use_seg``, ``seg[y, x] = (near, far)`` bounds each ray and a
-    pixel with ``near > far`` costs nothing. ``blocks``/``bshift``: the
-    sign table, or `NO_BLOCKS` and -1 (see `cast_iso_ray`). Only rows ``row0 <= y < row1``
+    pixel with ``near > far`` costs nothing. ``skip``/``jump_min``: the
+    skip table, or `NO_SKIP` and -1 (see `cast_iso_ray`). Only rows ``row0 <= y < row1``
     are cast, so a driver can report progress band by band.
     """
     tiles_x = (width + TILE_W - 1) // TILE_W
@@ -313,12 +302,12 @@ def cast_iso_image(data, org, spc, cam, width, height, iso, seg, use_seg, blocks
                         continue
                 ox, oy, oz, dx, dy, dz = camera_ray(cam, width, height, x, y)
                 Ox, Oy, Oz, Dx, Dy, Dz = to_index_space(ox, oy, oz, dx, dy, dz, org, spc)
-                res = cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, s0, s1, blocks, bshift)
+                res = cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, s0, s1, skip, jump_min)
                 _store(n, res, t, cell, uvw, counts)
 
 
 @kernel(parallel=True)
-def cast_iso_rays(data, org, spc, origins, dirs, iso, seg, use_seg, blocks, bshift, t, cell, uvw, counts):
+def cast_iso_rays(data, org, spc, origins, dirs, iso, seg, use_seg, skip, jump_min, t, cell, uvw, counts):
     """Cast arbitrary world rays ``origins[n] + t dirs[n]`` (``|dirs[n]| = 1``)."""
     rays = origins.shape[0]
     runs = spread_runs(rays)
@@ -333,7 +322,7 @@ def cast_iso_rays(data, org, spc, origins, dirs, iso, seg, use_seg, blocks, bshi
                 s1 = seg[n, 1]
             Ox, Oy, Oz, Dx, Dy, Dz = to_index_space(
                 origins[n, 0], origins[n, 1], origins[n, 2], dirs[n, 0], dirs[n, 1], dirs[n, 2], org, spc)
-            res = cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, s0, s1, blocks, bshift)
+            res = cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, s0, s1, skip, jump_min)
             _store(n, res, t, cell, uvw, counts)
 
 

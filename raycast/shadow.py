@@ -140,10 +140,10 @@ def shadow_ray(points, n, light, eps, views, near, far, use_seg, org, spc):
 
 
 @kernel(parallel=True)
-def shadow_iso(data, org, spc, iso, points, light, eps, views, near, far, use_seg, blocks, bshift, vis, counts):
+def shadow_iso(data, org, spc, iso, points, light, eps, views, near, far, use_seg, skip, jump_min, vis, counts):
     """Zero ``vis[n]`` where the isosurface blocks the shadow ray of ``points[n]``.
 
-    ``blocks``/``bshift``: the sign table (`raycast.iso`), or `raycast.iso.NO_BLOCKS` and -1.
+    ``skip``/``jump_min``: the skip table (`raycast.iso`), or `raycast.iso.NO_SKIP` and -1.
     Rays whose ``vis`` is already 0 are skipped. ``counts[n]`` gains the
     cells visited and cubics solved.
     """
@@ -159,7 +159,7 @@ def shadow_iso(data, org, spc, iso, points, light, eps, views, near, far, use_se
                                                                            far, use_seg, org, spc)
             if not s0 <= s1:
                 continue
-            res = cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, s0, s1, blocks, bshift)
+            res = cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, s0, s1, skip, jump_min)
             counts[n, 0] += res[7]
             counts[n, 1] += res[8]
             if res[0] <= s1 and res[0] < math.inf:
@@ -168,11 +168,11 @@ def shadow_iso(data, org, spc, iso, points, light, eps, views, near, far, use_se
 
 @kernel(parallel=True)
 def shadow_accumulate(data, org, spc, params, op_x, op_y, col_x, col_rgb, points, light, eps,
-                      views, near, far, use_seg, blocks, bshift, vis, counts):
+                      views, near, far, use_seg, skip, jump_min, vis, counts):
     """Scale ``vis[n]`` by the light a translucent volume lets through along the shadow ray.
 
     ``1 - a`` with ``a`` the opacity the volume's mode accumulates over the
-    ray from ``P'`` to the light (`accumulate_ray`; ``blocks``/``bshift``
+    ray from ``P'`` to the light (`accumulate_ray`; ``skip``/``jump_min``
     as there). ``counts[n, 2]`` gains the samples taken.
     """
     nobits = np.zeros((1, 1, 1), np.uint32)
@@ -190,7 +190,7 @@ def shadow_accumulate(data, org, spc, params, op_x, op_y, col_x, col_rgb, points
                 continue
             r, g, b, a, samples = accumulate_ray(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, lx, ly, lz, s0, s1,
                                                  dist - eps, params, op_x, op_y, col_x, col_rgb,
-                                                 nobits, 0, 0, False, blocks, bshift)
+                                                 nobits, 0, 0, False, skip, jump_min)
             counts[n, 2] += samples
             vis[n] *= 1.0 - a
 

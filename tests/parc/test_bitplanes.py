@@ -32,7 +32,7 @@ from parc.camera import Camera
 from parc.classify import VolumeIndex, supercell_grid
 from parc.proxy import build_plane_proxy, build_proxy
 from parc_reference import caster_rays
-from raycast.iso import NO_BLOCKS
+from raycast.iso import NO_SKIP
 
 SIZES = [1, 2, 1.5, 3, (2, 3, 1.5), 0.5]
 
@@ -492,7 +492,7 @@ def _cast(vol, tf, mode, cam, w, h, *, bits=None, seg=None, step=None):
     s = seg if seg is not None else np.zeros((1, 1, 2))
     cast_accumulate_image(vol.data, np.array(vol.origin, float), np.array(vol.spacing, float),
                           cam.as_array(), w, h, params, op_x, op_y, col_x, col_rgb,
-                          s, seg is not None, np.empty((1, 1)), False, b, bits is not None, NO_BLOCKS, -1,
+                          s, seg is not None, np.empty((1, 1)), False, b, bits is not None, NO_SKIP, -1,
                           image, counts, 0, h)
     return image, int(counts.sum())
 

@@ -166,7 +166,7 @@ def test_bad_translucent_settings(kwargs, words):
         Translucent(vol, **args)
 
 
-# Transparent blocks (`parc.classify.VolumeIndex.tf_blocks`, skipped by `raycast.composite.accumulate_ray`)
+# Transparent cells and cubes (`parc.classify.VolumeIndex.tf_skip`, skipped by `raycast.composite.accumulate_ray`)
 
 def transparent_table(data, tf, shift):
     """1 per block of ``2**shift`` cells whose samples' whole range has zero opacity, else 0:
@@ -194,25 +194,25 @@ def _spiky_tf(lo, hi):
                             color=[(lo, 0.9, 0.4, 0.2), (hi, 0.3, 0.6, 1.0)])
 
 
-@pytest.mark.parametrize("slab_values", [None, 64])
-def test_tf_blocks_match_a_dense_check(slab_values, monkeypatch):
-    """Also built in slabs one block thick (a small `CHUNK_VALUES`), as large volumes are."""
-    from parc.classify import VolumeIndex
-    if slab_values:
-        monkeypatch.setattr("parc.classify.CHUNK_VALUES", slab_values)
-    from raycast.composite import MAY_CONTRIBUTE, TRANSPARENT_BLOCK, TRANSPARENT_CELL
+def test_tf_skip_table_matches_a_dense_check():
+    """Zero where the cell may contribute, else one plus the radius of its cube of transparent cells."""
+    from parc.classify import SKIP_CAP, VolumeIndex
+    from raycast.composite import MAY_CONTRIBUTE
     vol = blobs((17, 14, 12), count=5, seed=3)
     tf = _spiky_tf(float(vol.data.min()), float(vol.data.max()))
-    table, shift = VolumeIndex.of(vol).tf_blocks(tf)
-    cells = transparent_table(vol.data, tf, 0)
-    b = 1 << shift
-    blocks = transparent_table(vol.data, tf, shift).repeat(b, 0).repeat(b, 1).repeat(b, 2)
-    blocks = blocks[:cells.shape[0], :cells.shape[1], :cells.shape[2]]
-    want = np.where(blocks == 1, TRANSPARENT_BLOCK, np.where(cells == 1, TRANSPARENT_CELL, MAY_CONTRIBUTE))
-    assert table.shape == cells.shape
-    assert np.array_equal(table, want)
-    for value in (MAY_CONTRIBUTE, TRANSPARENT_CELL, TRANSPARENT_BLOCK):
-        assert (table == value).any()
+    table, jump_min = VolumeIndex.of(vol).tf_skip(tf)
+    clear = transparent_table(vol.data, tf, 0).astype(bool)
+    assert table.shape == clear.shape
+    assert np.array_equal(table == MAY_CONTRIBUTE, ~clear)
+    cz, cy, cx = clear.shape
+    for k, j, i in np.argwhere(clear):
+        r = 0
+        while r + 1 < SKIP_CAP and clear[max(0, k - r - 1):k + r + 2, max(0, j - r - 1):j + r + 2,
+                                         max(0, i - r - 1):i + r + 2].all():
+            r += 1
+        assert table[k, j, i] == r + 1, (k, j, i)
+    assert len(np.unique(table)) >= 4          # cubes of several radii
+    assert jump_min >= 0
 
 
 @pytest.mark.parametrize("mode", ["composite", "mip", "average"])

@@ -22,7 +22,7 @@ from parc import Camera, Scene, TransferFunction, Translucent, render
 from parc.ideal import contributing_cells, ideal_iso_cells, ideal_sample_counts, ideal_samples
 from parc.renderer import accumulation_params
 from raycast.composite import MODE_COMPOSITE, P_MODE, P_RATIO, P_THRESHOLD, cast_accumulate_image
-from raycast.iso import NO_BLOCKS
+from raycast.iso import NO_SKIP
 
 SIZE = (9, 7)
 TINY_DIRECTION = 1e-200     # as raycast.traverse: a direction component below it counts as zero
@@ -191,7 +191,7 @@ def test_kernel_matches_slow_reference(dtype, view, mode, threshold):
     brute = np.empty(w * h, np.int64)
     cast_accumulate_image(vol.data, np.array(vol.origin), np.array(vol.spacing), cam.as_array(), w, h, params,
                           *vis.tf.arrays(), np.empty((1, 1, 2)), False, np.empty((1, 1)), False,
-                          np.zeros((1, 1, 1), np.uint32), False, NO_BLOCKS, -1, image, brute, 0, h)
+                          np.zeros((1, 1, 1), np.uint32), False, NO_SKIP, -1, image, brute, 0, h)
     brute = brute.reshape(h, w)
     assert (got <= brute).all()
     assert (got[image[..., 3] > 0] > 0).all()

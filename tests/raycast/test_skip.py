@@ -1,22 +1,25 @@
-"""Empty-block jumps inside ray segments (`raycast.iso`): bit for bit the full walk.
+"""Jumps across empty cells inside ray segments (`raycast.iso`): bit for bit the full walk.
 
-Source of truth: the same caster without a block table (`NO_BLOCKS`), which
+Source of truth: the same caster without a skip table (`NO_SKIP`), which
 the hard-ray suite checks against mpmath roots. Tables are built here
-directly from the samples of each block (independent of
-`parc.classify.sign_iso`, which `test_sign_iso_*` checks against this one).
-Blocks of 1 cell make every empty cell a jump; 2, 4 and 8 cells make jumps
-that land inside the block, on its exit faces, edges and corners, and
-leave signed cells in unsigned blocks, which the walk steps on the table's
-sign alone.
+directly from the samples of each cell (independent of
+`parc.classify.sign_iso`, which `test_sign_iso_*` checks against this one)
+and their cube radii by repeated erosion (independent of
+`parc.classify.skip_radius`'s separable scans). A jump minimum of 0 or 1
+makes nearly every empty cell a jump, landing on the cube's exit faces,
+edges and corners; larger ones leave signed cells the walk steps on the
+table's sign alone; a small cap cuts the cubes short.
 """
 import numpy as np
 import pytest
 
 from data_tools.synthetic import blobs
-from parc.classify import VolumeIndex, cell_minmax, sign_iso
+from parc.classify import SKIP_CAP, VolumeIndex, cell_minmax, sign_iso, skip_radius
 from raycast.hardcases import CATEGORIES, cast, hard_batches, random_dirs
 
 SHIFTS = (0, 1, 2, 3)
+#: (jump minimum, cap) pairs the walks are checked with.
+SKIPS = ((0, SKIP_CAP), (1, SKIP_CAP), (2, SKIP_CAP), (4, SKIP_CAP), (1, 3))
 
 
 def noise(shape, dtype, seed):
@@ -51,14 +54,35 @@ def block_table(data, iso, shift):
     return every_block(v > 0).astype(np.int8) - every_block(v < 0).astype(np.int8)
 
 
-def sign_table(data, iso, shift):
-    """The walk's per-cell table: twice the block's sign where its block of
-    ``2**shift`` cells is signed, else the cell's own sign."""
-    cells = block_table(data, iso, 0)
-    b = 1 << shift
-    whole = block_table(data, iso, shift).repeat(b, 0).repeat(b, 1).repeat(b, 2)
-    whole = whole[:cells.shape[0], :cells.shape[1], :cells.shape[2]]
-    return np.where(whole != 0, 2 * whole, cells).astype(np.int8)
+def erode(mask):
+    """Cells whose 3x3x3 neighbourhood (outside the grid counting True) is all True."""
+    out = mask.copy()
+    for axis in range(3):
+        p = np.pad(out, [(1, 1) if a == axis else (0, 0) for a in range(3)], constant_values=True)
+        n = out.shape[axis]
+        out = (p.take(range(0, n), axis) & p.take(range(1, n + 1), axis) & p.take(range(2, n + 2), axis))
+    return out
+
+
+def radius_table(classes, cap):
+    """``c * min(cap, 1 + r)`` with ``r`` the largest cube radius around a cell of class ``c != 0``
+    holding only class ``c`` (outside the grid counts as any class); 0 where ``c == 0``."""
+    out = np.zeros(classes.shape, np.int64)
+    for c in np.unique(classes):
+        if c == 0:
+            continue
+        mask = classes == c
+        depth = mask.astype(np.int64)
+        for _ in range(cap - 1):
+            mask = erode(mask)
+            depth += mask
+        out += c * depth * (classes == c)
+    return out.astype(np.int8)
+
+
+def sign_table(data, iso, cap=SKIP_CAP):
+    """The walk's per-cell skip table: the cell's sign times one plus its cube radius."""
+    return radius_table(block_table(data, iso, 0), cap)
 
 
 def same_hits(a, b):
@@ -81,7 +105,7 @@ def random_segments(rng, n, span):
 
 
 @pytest.mark.parametrize("category", list(CATEGORIES))
-def test_hard_rays_same_with_blocks(category):
+def test_hard_rays_same_with_skip_tables(category):
     """The hard-ray suite (1,500 rays per category), whole rays and random segments."""
     rng = np.random.default_rng(7)
     jumps = 0
@@ -93,10 +117,10 @@ def test_hard_rays_same_with_blocks(category):
             span = float(np.linalg.norm(sc.hi_world - sc.lo_world)) + 50.0
             for seg in (None, random_segments(rng, len(o), span)):
                 ref = cast(sc, o, d, iso, seg)
-                for shift in SHIFTS:
-                    table = sign_table(sc.data, iso, shift)
-                    got = cast(sc, o, d, iso, seg, blocks=(table, shift))
-                    assert same_hits(ref, got), (category, sc.name, iso, shift)
+                for jump_min, cap in SKIPS:
+                    table = sign_table(sc.data, iso, cap)
+                    got = cast(sc, o, d, iso, seg, skip=(table, jump_min))
+                    assert same_hits(ref, got), (category, sc.name, iso, jump_min, cap)
                     assert np.array_equal(ref[3][:, 1], got[3][:, 1])      # the same cubics solved
                     jumps += int((got[3][:, 0] < ref[3][:, 0]).sum())
     if category not in ("grazing", "near-double", "face-edge-vertex", "iso-sample"):
@@ -121,7 +145,7 @@ def _volumes():
 
 
 @pytest.mark.parametrize("name,data,origin,spacing", list(_volumes()), ids=lambda v: v if isinstance(v, str) else "")
-def test_random_volumes_same_with_blocks(name, data, origin, spacing):
+def test_random_volumes_same_with_skip_tables(name, data, origin, spacing):
     """Eyes outside and inside, axis-aligned rays on grid planes and edges, random isovalues."""
     rng = np.random.default_rng(abs(hash(name)) % 2**32)
     sc = _Grid(data, origin, spacing)
@@ -151,26 +175,26 @@ def test_random_volumes_same_with_blocks(name, data, origin, spacing):
         seg = random_segments(rng, n, float(np.linalg.norm(hi - sc.origin)) + 80.0)
         for s in (None, seg):
             ref = cast(sc, eyes, dirs, iso, s)
-            for shift in SHIFTS:
-                got = cast(sc, eyes, dirs, iso, s, blocks=(sign_table(data, iso, shift), shift))
-                assert same_hits(ref, got), (name, iso, shift)
+            for jump_min, cap in SKIPS:
+                got = cast(sc, eyes, dirs, iso, s, skip=(sign_table(data, iso, cap), jump_min))
+                assert same_hits(ref, got), (name, iso, jump_min, cap)
                 skipped += int(ref[3][:, 0].sum() - got[3][:, 0].sum())
     assert skipped > 0
 
 
 def test_a_wrong_table_is_caught():
-    """Sanity of the comparison: a table that calls a surface block empty loses hits."""
+    """Sanity of the comparison: a table that calls surface cells empty loses hits."""
     data = blobs(20, count=3, seed=1).data
     sc = _Grid(data, (0, 0, 0), (1, 1, 1))
     rng = np.random.default_rng(0)
     eyes = np.array([9.5, 9.5, -30.0]) + rng.normal(size=(500, 3)) * 2
     dirs = np.tile([0.0, 0.0, 1.0], (500, 1))
     iso = float(np.percentile(data, 90))
-    table = sign_table(data, iso, 1)
+    table = sign_table(data, iso)
     ref = cast(sc, eyes, dirs, iso)
     assert np.isfinite(ref[0]).any()
     wrong = np.where(table == 0, np.int8(-1), table)
-    got = cast(sc, eyes, dirs, iso, blocks=(wrong, 1))
+    got = cast(sc, eyes, dirs, iso, skip=(wrong, 1))
     assert not same_hits(ref, got)
 
 
@@ -191,17 +215,30 @@ def test_sign_iso_matches_block_samples(shift):
             assert np.array_equal(got, block_table(data, iso, shift))
 
 
-@pytest.mark.parametrize("slab_values", [None, 64])
-def test_volume_index_block_signs_follow_the_isovalue(slab_values, monkeypatch):
-    """Also built in slabs one block thick (a small `CHUNK_VALUES`), as large volumes are."""
-    if slab_values:
-        monkeypatch.setattr("parc.classify.CHUNK_VALUES", slab_values)
-    vol = blobs((24, 26, 28), count=3, seed=4)   # big enough for 8-cell blocks of every sign
+def test_volume_index_skip_tables_follow_the_isovalue():
+    vol = blobs((24, 26, 28), count=3, seed=4)
     index = VolumeIndex.of(vol)
     seen = set()
     for iso in (3.5, 40.0, 90.5, 200.0):
-        table, shift = index.block_signs(iso)
-        assert np.array_equal(table, sign_table(vol.data, iso, shift))
-        seen.update(np.unique(table).tolist())
-        assert index.block_signs(iso)[0] is table            # kept for the next frame
-    assert seen == {-2, -1, 0, 1, 2}
+        table, jump_min = index.iso_skip(iso)
+        assert jump_min >= 0
+        assert np.array_equal(table, sign_table(vol.data, iso))
+        seen.update(np.sign(np.unique(table)).tolist())
+        assert index.iso_skip(iso)[0] is table            # kept for the next frame
+    assert seen == {-1, 0, 1}
+
+
+@pytest.mark.parametrize("cap", [1, 2, 5, 16, 127])
+def test_skip_radius_matches_repeated_erosion(cap):
+    rng = np.random.default_rng(cap)
+    for shape, p_zero in (((9, 11, 13), 0.05), ((20, 7, 31), 0.002), ((1, 1, 40), 0.1), ((6, 30, 2), 0.0)):
+        classes = rng.choice(np.array([-1, 1], np.int8), size=shape)
+        # Runs and slabs of one class, so that radii grow past a few cells.
+        classes[:, :shape[1] // 2] = 1
+        classes[rng.random(shape) < p_zero] = 0
+        got = skip_radius(classes, cap)
+        assert got.dtype == np.int8
+        assert np.array_equal(got, radius_table(classes, cap))
+        assert (np.abs(got) <= cap).all()
+    with pytest.raises(ValueError):
+        skip_radius(classes, 128)
