@@ -449,7 +449,7 @@ def cmd_compare(args):
         except ValueError:
             raise InputError(f"--sweep-step must be comma-separated numbers, got {args.sweep_step!r}") from None
         rows = step_sweep(scene, steps, repeats=args.repeats,
-                          progress=None if args.json else (lambda m: say(f"timing {m} ...")))
+                          progress=None if args.json else (lambda m: say(f"warming up {m} ...")))
         print(json.dumps(rows, indent=2, default=float) if args.json else format_step_table(rows))
         return 0
     common = {"buffers": _buffers(args), "blocks": not args.no_blocks}
@@ -461,7 +461,7 @@ def cmd_compare(args):
     elif args.supercell is not None:
         options = {"parc": {"supercell": args.supercell, **common}}
     rows = compare(scene, methods=methods, repeats=args.repeats, options=options,
-                   progress=None if args.json else (lambda m: say(f"timing {m} ...")))
+                   progress=None if args.json else (lambda m: say(f"warming up {m} ...")))
     if args.json:
         print(json.dumps(rows, indent=2, default=float))
     else:

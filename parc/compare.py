@@ -43,7 +43,9 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
     methods : sequence of str
         Methods to run; ``"brute"`` is always run (first) as the reference.
     repeats : int, default 3
-        Timed renders per method; the median total time is reported.
+        Timed renders per method, taken in rounds of one render per method
+        (so that a drift in the machine's speed reaches every method
+        alike); the median total time is reported.
     warmup : int, default 1
         Untimed renders first (JIT compilation, OpenGL context, caches).
     options : dict of method -> dict, optional
@@ -51,7 +53,7 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
         ``{"parc": {"supercell": 4}}``. A method name may carry a label after
         a colon (``"parc:4"``) so one method appears with several options.
     progress : callable(str) or None
-        Told which method is running.
+        Told which method is warming up.
 
     Returns
     -------
@@ -68,36 +70,37 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
     names = ["brute"] + [m for m in methods if m != "brute"]
     vol = scene.volumes[0].volume
     cell = float(min(vol.spacing))
-    rows = []
-    reference = None
+    runs = {name: [] for name in names}
+    first = {}
     for name in names:
-        method = name.split(":")[0]
-        kwargs = options.get(name, {})
         if progress:
             progress(name)
         for _ in range(warmup):
-            render(scene, method=method, **kwargs)
-        # Only the first run's image is kept (for the error): holding every
-        # run's image made each later render of the first method fault in
-        # fresh pages, 7 ms of a 512x512 shading phase that the next
-        # method, timed once memory was being reused, did not pay.
-        res = None
-        runs = []
-        for _ in range(repeats):
+            render(scene, method=name.split(":")[0], **options.get(name, {}))
+    # Round by round, every method once per round: the machine's speed
+    # drifts (by up to 1.5x over a minute on a shared one), and timing all
+    # of brute's runs before any of parc's let the drift into the ratio.
+    # Only each method's first image is kept (for the error): holding every
+    # run's image made each later render fault in fresh pages, 7 ms of a
+    # 512x512 shading phase that a method timed once memory was being
+    # reused did not pay.
+    for _ in range(repeats):
+        for name in names:
             t0 = time.perf_counter()
-            out = render(scene, method=method, **kwargs)
+            out = render(scene, method=name.split(":")[0], **options.get(name, {}))
             out.stats["seconds"]["wall"] = time.perf_counter() - t0
-            runs.append(out.stats)
-            if res is None:
-                res = out
+            runs[name].append(out.stats)
+            first.setdefault(name, out)
             del out
-        med = statistics.median(s["seconds"]["wall"] for s in runs)
+    reference = first["brute"]
+    rows = []
+    for name in names:
+        med = statistics.median(s["seconds"]["wall"] for s in runs[name])
         # Phases of one run, the median one (the lower of the middle two):
         # medians taken phase by phase need not add up to any run's total.
-        middle = sorted(runs, key=lambda s: s["seconds"]["wall"])[(len(runs) - 1) // 2]
+        middle = sorted(runs[name], key=lambda s: s["seconds"]["wall"])[(repeats - 1) // 2]
         phases = {k: v for k, v in middle["seconds"].items() if k != "wall"}
-        if reference is None:
-            reference = res
+        res = first[name]
         s = res.stats
         row = {"method": name, "seconds": med, "phases": phases,
                "cells_visited": s["cells_visited"], "cubic_solves": s["cubic_solves"],
