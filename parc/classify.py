@@ -58,10 +58,11 @@ CHUNK_VALUES = 1 << 22
 #: so a supercell whose exact range only touches the isovalue stays PC.
 RANGE_PAD = 2.0 ** -40
 
-#: Skip tables (`skip_radius`): radii are capped at this many cells, which
-#: bounds the table's build (a window scan per cell and axis) and costs
-#: little, since a long empty stretch is crossed in a few capped jumps.
-SKIP_CAP = 16
+#: Skip tables (`skip_radius`): ``1 + radius`` is capped at this many
+#: cells, which bounds the table's build (a pass per radius over each
+#: column): CT head skin cells walked at 512x512 with caps 2/4/8/16:
+#: 1.78M/0.92M/0.897M/0.895M; 454M cells built in 2.9 s with 8, 4.0 s with 16.
+SKIP_CAP = 8
 #: The smallest radius worth a jump (each costs a few divisions; stepping
 #: a cell costs a table lookup). Cast only, PARC segments, median of 25
 #: in one process: CT head skin at 512x512 15.8 ms for 2 against 16.8,
@@ -556,8 +557,8 @@ def skip_radius(classes, cap):
     along_x = np.empty_like(classes)
     _radius_rows(classes, cap, along_x)
     along_y = np.empty_like(classes)
-    _radius_columns(classes, along_x, 1, along_y)
-    _radius_columns(classes, along_y, 0, along_x)
+    _radius_columns(classes, along_x, 1, cap, along_y)
+    _radius_columns(classes, along_y, 0, cap, along_x)
     along_x *= classes
     return along_x
 
@@ -591,9 +592,14 @@ def _radius_rows(c, cap, out):
 
 
 @kernel(parallel=True)
-def _radius_columns(c, inner, axis, out):
+def _radius_columns(c, inner, axis, cap, out):
     """``min over dm of max(|dm|, inner at m + dm)`` along array axis ``axis`` (0: z, 1: y),
-    a cell of another class counting 0; the scan stops once ``|dm|`` reaches the best."""
+    a cell of another class counting 0.
+
+    Row by row along x, so that the loop over ``dm`` (up to the cap)
+    runs over whole rows: a scan per cell that stopped once ``|dm|``
+    reached its best built a 454M-cell table in ~19 s, this in 4 s.
+    """
     nz, ny, nx = c.shape
     n = nz if axis == 0 else ny
     for kk in prange(nz):
@@ -601,18 +607,16 @@ def _radius_columns(c, inner, axis, out):
         for j in range(ny):
             m = k if axis == 0 else j
             for i in range(nx):
-                s = c[k, j, i]
-                best = np.int64(inner[k, j, i])
-                d = 1
-                while d < best:
-                    for q in (m - d, m + d):
-                        if 0 <= q < n:
-                            if axis == 0:
-                                v = inner[q, j, i] if c[q, j, i] == s else 0
-                            else:
-                                v = inner[k, q, i] if c[k, q, i] == s else 0
-                            best = min(best, max(d, v))
-                    d += 1
-                out[k, j, i] = best
-
-
+                out[k, j, i] = inner[k, j, i]
+            for d in range(1, cap):
+                for q in (m - d, m + d):
+                    if q < 0 or q >= n:
+                        continue
+                    qk = q if axis == 0 else k
+                    qj = j if axis == 0 else q
+                    dd = np.int8(d)
+                    for i in range(nx):
+                        v = inner[qk, qj, i] if c[qk, qj, i] == c[k, j, i] else np.int8(0)
+                        v = max(v, dd)
+                        if v < out[k, j, i]:
+                            out[k, j, i] = v
