@@ -413,7 +413,7 @@ def classify_iso(mn, mx, iso):
 def sign_iso(mn, mx, iso):
     """Which side of an isovalue each box lies on: int8 +1 (all above), -1 (all below), 0 (neither).
 
-    The empty-block table of `raycast.iso.cast_iso_ray`. Strict where
+    The classes of `skip_radius` for an isosurface (`raycast.iso.cast_iso_ray`). Strict where
     `classify_iso` is inclusive, so the two never disagree: a box is signed
     exactly when it is not possibly contributing, and the sign is that of
     ``float(sample) - iso`` at each of its samples, as the caster computes it.

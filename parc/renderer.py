@@ -56,7 +56,7 @@ class RenderResult:
 PARC_BUFFERS = ("depth", "bits")
 
 #: Buffers used unless asked: the bit planes are exact, but the per-cell
-#: transparency table already skips every sample they would, and they cost
+#: skip table already skips every sample they would, and they cost
 #: a raster pass and a test per sample (CT head, ct_skin_bone, 512x512:
 #: depth 0.24 s, depth+bits 0.31 s, of which 0.035 s the bit-plane pass).
 DEFAULT_BUFFERS = ("depth",)

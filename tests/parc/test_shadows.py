@@ -189,7 +189,7 @@ def test_multi_volume_parc_equals_brute(gl, case, seed):
 
 def test_merged_translucent_volumes_skip_transparent_cells(gl):
     """Overlapping composite volumes (the merged walk) with an isosurface inside: the
-    transparency tables change no pixel and take fewer samples."""
+    skip tables change no pixel and take fewer samples."""
     rng = np.random.default_rng(7)
     skipped = 0
     for seed in range(3):
