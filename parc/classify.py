@@ -64,12 +64,13 @@ RANGE_PAD = 2.0 ** -40
 #: 1.78M/0.92M/0.897M/0.895M; 454M cells built in 2.9 s with 8, 4.0 s with 16.
 SKIP_CAP = 8
 #: The smallest radius worth a jump (each costs a few divisions; stepping
-#: a cell costs a table lookup). Cast only, PARC segments, median of 25
-#: in one process: CT head skin at 512x512 15.8 ms for 2 against 16.8,
-#: 16.2, 17.3 ms for 1, 4, 8-cell aligned blocks; bone 11.5 against 12.3
-#: ms; neghip the same within 2%. Transfer functions, CT head
-#: ``ct_skin_bone`` at 600x600: 134-142 ms against 142-152 ms with 4-cell
-#: aligned blocks.
+#: a cell costs a table lookup). Cast only, PARC segments, fastest of 25
+#: in one process, CT head at 512x512: skin 15.1 ms with 2 against 15.7
+#: (1), 15.7 (4), 16.2 (6) and 16.8 ms with the former 8-cell aligned
+#: blocks; bone 10.7 ms with 2 against 11.5 (1), 11.0 (4) and 11.6 ms;
+#: neghip within 2% for all. Transfer functions, CT head ``ct_skin_bone``
+#: at 600x600: 134 ms with 2 against 142 ms (1), 133 ms (4) and 142 ms
+#: with 4-cell aligned blocks.
 ISO_JUMP_MIN = 2
 TF_JUMP_MIN = 2
 #: Skip tables (isovalues, transfer functions) kept per volume.
