@@ -40,9 +40,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from data_tools import InputError
-from numba import prange
 
-from raycast.config import kernel
+from .skip import ISO_JUMP_MIN, SKIP_CAP, TF_JUMP_MIN, skip_radius
 
 #: Supercell boundaries this close to an integer (in cells) are snapped to
 #: it, so that e.g. ``10 * 0.1`` does not leave a 2e-16-cell sliver.
@@ -58,21 +57,6 @@ CHUNK_VALUES = 1 << 22
 #: so a supercell whose exact range only touches the isovalue stays PC.
 RANGE_PAD = 2.0 ** -40
 
-#: Skip tables (`skip_radius`): ``1 + radius`` is capped at this many
-#: cells, which bounds the table's build (a pass per radius over each
-#: column): CT head skin cells walked at 512x512 with caps 2/4/8/16:
-#: 1.78M/0.92M/0.897M/0.895M; 454M cells built in 2.9 s with 8, 4.0 s with 16.
-SKIP_CAP = 8
-#: The smallest radius worth a jump (each costs a few divisions; stepping
-#: a cell costs a table lookup). Cast only, PARC segments, fastest of 25
-#: in one process, CT head at 512x512: skin 15.1 ms with 2 against 15.7
-#: (1), 15.7 (4), 16.2 (6) and 16.8 ms with the former 8-cell aligned
-#: blocks; bone 10.7 ms with 2 against 11.5 (1), 11.0 (4) and 11.6 ms;
-#: neghip within 2% for all. Transfer functions, CT head ``ct_skin_bone``
-#: at 600x600: 134 ms with 2 against 142 ms (1), 133 ms (4) and 142 ms
-#: with 4-cell aligned blocks.
-ISO_JUMP_MIN = 2
-TF_JUMP_MIN = 2
 #: Skip tables (isovalues, transfer functions) kept per volume.
 SKIP_CACHE_SIZE = 4
 
@@ -524,100 +508,3 @@ class VolumeIndex:
                 cache.pop(next(iter(cache)))
             cache[key] = table()
         return cache[key], jump_min
-
-
-def skip_radius(classes, cap):
-    """Per cell, its class times ``1 +`` the Chebyshev radius of the cube around it of that class.
-
-    Parameters
-    ----------
-    classes : int8 ndarray (nz, ny, nx)
-        0 for a cell that may contribute, else the class of an empty one
-        (an isosurface's sign, ±1; 1 for a transparent cell).
-    cap : int
-        Largest ``1 + radius`` stored (at most 127).
-
-    Returns
-    -------
-    int8 ndarray, same shape
-        ``c * min(cap, d)`` for a cell of class ``c != 0``, where ``d`` is
-        the Chebyshev distance (``max(|di|, |dj|, |dk|)``) to the nearest
-        cell of another class; cells outside the grid count as the same
-        class (a walk never enters them). 0 where ``c == 0``.
-
-    Notes
-    -----
-    The distance is separable: the distance along x to another class in
-    the row, then ``min over dj of max(|dj|, d_x)`` over the cells of the
-    same class in the column, then the same along z (a cell of another
-    class contributes ``|dj|`` itself). Three int8 arrays of the grid's size.
-    """
-    classes = np.ascontiguousarray(classes, dtype=np.int8)
-    if not 1 <= cap <= 127:
-        raise ValueError(f"cap must be in 1..127, got {cap}")
-    along_x = np.empty_like(classes)
-    _radius_rows(classes, cap, along_x)
-    along_y = np.empty_like(classes)
-    _radius_columns(classes, along_x, 1, cap, along_y)
-    _radius_columns(classes, along_y, 0, cap, along_x)
-    along_x *= classes
-    return along_x
-
-
-@kernel(parallel=True)
-def _radius_rows(c, cap, out):
-    """Distance along x to a cell of another class in the row, capped (0 for class 0)."""
-    nz, ny, nx = c.shape
-    for k in prange(nz):
-        for j in range(ny):
-            d = cap
-            for i in range(nx):
-                s = c[k, j, i]
-                if s == 0:
-                    d = 0
-                elif i > 0 and c[k, j, i - 1] != s:
-                    d = 1
-                elif i > 0:
-                    d = min(d + 1, cap)
-                out[k, j, i] = d
-            d = cap
-            for i in range(nx - 1, -1, -1):
-                s = c[k, j, i]
-                if s == 0:
-                    d = 0
-                elif i < nx - 1 and c[k, j, i + 1] != s:
-                    d = 1
-                elif i < nx - 1:
-                    d = min(d + 1, cap)
-                out[k, j, i] = min(out[k, j, i], d)
-
-
-@kernel(parallel=True)
-def _radius_columns(c, inner, axis, cap, out):
-    """``min over dm of max(|dm|, inner at m + dm)`` along array axis ``axis`` (0: z, 1: y),
-    a cell of another class counting 0.
-
-    Row by row along x, so that the loop over ``dm`` (up to the cap)
-    runs over whole rows: a scan per cell that stopped once ``|dm|``
-    reached its best built a 454M-cell table in ~19 s, this in 4 s.
-    """
-    nz, ny, nx = c.shape
-    n = nz if axis == 0 else ny
-    for kk in prange(nz):
-        k = np.int64(kk)
-        for j in range(ny):
-            m = k if axis == 0 else j
-            for i in range(nx):
-                out[k, j, i] = inner[k, j, i]
-            for d in range(1, cap):
-                for q in (m - d, m + d):
-                    if q < 0 or q >= n:
-                        continue
-                    qk = q if axis == 0 else k
-                    qj = j if axis == 0 else q
-                    dd = np.int8(d)
-                    for i in range(nx):
-                        v = inner[qk, qj, i] if c[qk, qj, i] == c[k, j, i] else np.int8(0)
-                        v = max(v, dd)
-                        if v < out[k, j, i]:
-                            out[k, j, i] = v

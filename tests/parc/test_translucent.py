@@ -196,7 +196,8 @@ def _spiky_tf(lo, hi):
 
 def test_tf_skip_table_matches_a_dense_check():
     """Zero where the cell may contribute, else one plus the radius of its cube of transparent cells."""
-    from parc.classify import SKIP_CAP, VolumeIndex
+    from parc.classify import VolumeIndex
+    from parc.skip import SKIP_CAP
     from raycast.composite import MAY_CONTRIBUTE
     vol = blobs((17, 14, 12), count=5, seed=3)
     tf = _spiky_tf(float(vol.data.min()), float(vol.data.max()))

@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 from data_tools.synthetic import blobs
-from parc.classify import SKIP_CAP, VolumeIndex, cell_minmax, sign_iso, skip_radius
+from parc.classify import VolumeIndex, cell_minmax, sign_iso
+from parc.skip import SKIP_CAP, skip_radius
 from raycast.hardcases import CATEGORIES, cast, hard_batches, random_dirs
 
 SHIFTS = (0, 1, 2, 3)
