@@ -13,10 +13,15 @@ but is cheaper to set up, and measure ``s`` from the ray's entry into the
 cell so the coefficients stay small (no ``t^3`` with ``t`` in the hundreds)
 whatever the cell's distance from the eye or the origin.
 
-The first root in ``[0, L]`` is found robustly rather than in closed form:
-the derivative's roots split the interval into pieces on which the cubic is
-monotone; the first piece whose ends differ in sign (or end on zero) holds
-the first root, found by safeguarded Newton iteration. This handles a
+The first root in ``[0, L]`` is found robustly rather than in closed form.
+The cubic's Bernstein coefficients on the interval come first: when their
+signs are sure (beyond a rounding margin) and never change, there is no
+root (most cells the ray misses); when they change once, there is exactly
+one, bracketed by the ends (most hits). Otherwise the derivative's roots
+split the interval into pieces on which the cubic is monotone, and the
+first piece whose ends differ in sign (or end on zero) holds the first
+root. Either way safeguarded Newton iteration, started at the secant's
+root, finds it. This handles a
 leading coefficient near zero (the derivative's roots use the stable
 quadratic formula, so a tiny ``A`` sends one root far away instead of
 dividing by it), roots on faces, edges and vertices (an exact zero at an end
@@ -66,8 +71,8 @@ def eval_cubic(a, b, c, d, s):
 
 
 @kernel
-def _bracketed_root(a, b, c, d, lo, hi, flo):
-    """Root of a cubic monotone on [lo, hi] whose ends differ in sign."""
+def _bracketed_root(a, b, c, d, lo, hi, flo, fhi):
+    """The root of a cubic with exactly one root in [lo, hi], where its ends differ in sign."""
     tol = ROOT_REL_TOL * (hi - lo)
     if tol <= 0.0:
         return lo
@@ -76,10 +81,16 @@ def _bracketed_root(a, b, c, d, lo, hi, flo):
         xl, xh = lo, hi
     else:
         xl, xh = hi, lo
-    s = 0.5 * (lo + hi)
+    # Start from the secant's root (the false position of the ends): a cell's
+    # cubic is close to linear, so Newton starts within rounding of the root.
+    s = lo + (hi - lo) * (flo / (flo - fhi))
+    if not (s > min(lo, hi) and s < max(lo, hi)):
+        s = 0.5 * (lo + hi)
     dx_old = hi - lo
     dx = dx_old
     f = eval_cubic(a, b, c, d, s)
+    if f == 0.0:
+        return s
     df = (3.0 * a * s + 2.0 * b) * s + c
     for _ in range(ROOT_MAX_ITER):
         # Newton when it stays inside the bracket and halves the step, else bisect.
@@ -110,11 +121,35 @@ def _bracketed_root(a, b, c, d, lo, hi, flo):
     return s
 
 
-#: `surely_no_root` margin, relative to the cubic's scale on the interval:
-#: a thousand times the rounding error of its Bernstein coefficients and of
-#: `eval_cubic` (a few units in 2**-53 of that scale).
+#: Margin of the Bernstein sign tests, relative to the cubic's scale on the
+#: interval: a thousand times the rounding error of its Bernstein
+#: coefficients and of `eval_cubic` (a few units in 2**-53 of that scale).
 HULL_MARGIN = 1e-13
 _THIRD = 1.0 / 3.0
+
+
+@kernel
+def bernstein(a, b, c, d, length):
+    """The cubic's Bernstein coefficients on ``[0, length]``, and the margin their signs are sure beyond.
+
+    ``(b0, b1, b2, b3, m)``: ``b0`` and ``b3`` are its values at the ends;
+    a coefficient with ``|bi| > m`` (`HULL_MARGIN` times the scale
+    ``|d| + |c| L + |b| L^2 + |a| L^3``) has the sign the exact one has,
+    and so does every value `eval_cubic` computes where they all agree.
+    """
+    cl = c * length
+    bl = b * length * length
+    al = a * length * length * length
+    m = HULL_MARGIN * (abs(d) + abs(cl) + abs(bl) + abs(al))
+    return d, d + cl * _THIRD, d + (2.0 * cl + bl) * _THIRD, d + cl + bl + al, m
+
+
+@kernel
+def sign_changes(b0, b1, b2, b3, m):
+    """Sign changes along ``b0 .. b3``, or -1 where one of them is within ``m`` of zero."""
+    if not (abs(b0) > m and abs(b1) > m and abs(b2) > m and abs(b3) > m):
+        return -1
+    return int((b0 < 0.0) != (b1 < 0.0)) + int((b1 < 0.0) != (b2 < 0.0)) + int((b2 < 0.0) != (b3 < 0.0))
 
 
 @kernel
@@ -122,26 +157,13 @@ def surely_no_root(a, b, c, d, length):
     """Whether the cubic is, beyond rounding, of one sign all over ``[0, length]``.
 
     Its Bernstein coefficients on the interval bound it (convex hull
-    property), so when all four exceed `HULL_MARGIN` times the scale
-    ``|d| + |c| L + |b| L^2 + |a| L^3`` on one side of zero, every value
-    `first_root` would compute there, at any point, has that sign too: it
-    would return -1, and this answers the same without a square root or
-    a division. Most cells whose range holds the isovalue but that the
-    ray misses pass (135,261 of the 135,309 such solves of a CT head
-    frame), at a third of the cost.
+    property), so when all four are beyond their margin on one side of
+    zero, every value `first_root` would compute there has that sign too.
+    Most cells whose range holds the isovalue but that the ray misses pass
+    (135,261 of the 135,309 such solves of a CT head frame), at a third of
+    the cost of the search.
     """
-    cl = c * length
-    bl = b * length * length
-    al = a * length * length * length
-    m = HULL_MARGIN * (abs(d) + abs(cl) + abs(bl) + abs(al))
-    # The end values first: a ray that does cross the surface changes sign
-    # between them, and is let through at once.
-    b3 = d + cl + bl + al
-    if d > m and b3 > m:
-        return d + cl * _THIRD > m and d + (2.0 * cl + bl) * _THIRD > m
-    if d < -m and b3 < -m:
-        return d + cl * _THIRD < -m and d + (2.0 * cl + bl) * _THIRD < -m
-    return False
+    return sign_changes(*bernstein(a, b, c, d, length)) == 0
 
 
 @kernel
@@ -154,8 +176,14 @@ def first_root(a, b, c, d, length):
         return -1.0
     if d == 0.0:
         return 0.0
-    if surely_no_root(a, b, c, d, length):
+    b0, b1, b2, b3, m = bernstein(a, b, c, d, length)
+    changes = sign_changes(b0, b1, b2, b3, m)
+    if changes == 0:
         return -1.0
+    if changes == 1:
+        # Exactly one root in the interval (Descartes' rule for the
+        # Bernstein basis), bracketed by the ends: no critical points needed.
+        return _bracketed_root(a, b, c, d, 0.0, length, b0, b3)
     # Critical points in (0, length) from 3a s^2 + 2b s + c = 0.
     qa = 3.0 * a
     qb = 2.0 * b
@@ -191,7 +219,7 @@ def first_root(a, b, c, d, length):
         if fhi == 0.0:
             return hi
         if (flo < 0.0) != (fhi < 0.0):
-            return _bracketed_root(a, b, c, d, lo, hi, flo)
+            return _bracketed_root(a, b, c, d, lo, hi, flo, fhi)
         lo = hi
         flo = fhi
     return -1.0

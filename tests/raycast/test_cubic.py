@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 
 from raycast.reference import EPS, mpf, peval, pderiv, real_roots
-from raycast.cubic import eval_cubic, first_root, surely_no_root
+from raycast.cubic import bernstein, eval_cubic, first_root, sign_changes, surely_no_root
 
 
 def _eval_bound(a, b, c, d, s):
@@ -265,4 +265,32 @@ def test_surely_no_root_only_where_the_cubic_keeps_its_sign(seed):
         vals = np.array([eval_cubic(a, b, c, d, s) for s in np.linspace(0.0, L, 257)])
         assert np.all(np.sign(vals) == np.sign(d)), (a, b, c, d, L)
         assert first_root(a, b, c, d, L) == -1.0
+    assert said > 300
+
+
+@pytest.mark.parametrize("seed", range(2))
+def test_one_bernstein_sign_change_means_one_simple_root(seed):
+    """Where `first_root` takes its shortcut (the Bernstein coefficients change sign
+    exactly once beyond their margin), mpmath finds exactly one root in [0, L],
+    and the root returned is it; cubics with three roots around the interval
+    (some inside, some just outside) make the count matter."""
+    rng = np.random.default_rng(200 + seed)
+    said = 0
+    for n in range(1500):
+        lead = rng.choice([-1, 1]) * 10 ** rng.uniform(-3, 3)
+        if n % 2:
+            roots = rng.uniform(-0.3, 1.3, 3)
+        else:            # a close pair straddling an end: one root in, one just out
+            e = rng.choice([0.0, 1.0])
+            gap = 10 ** rng.uniform(-9, -1)
+            roots = (e - gap * rng.uniform(0.1, 1), e + gap * rng.uniform(0.1, 1), rng.uniform(-1, 2))
+        a, b, c, d = (float(v) for v in poly_from_roots(lead, *roots))
+        L = 1.0
+        if sign_changes(*bernstein(a, b, c, d, L)) != 1:
+            continue
+        said += 1
+        p = [mpf(d), mpf(c), mpf(b), mpf(a)]
+        found = real_roots(p, mpf(0), mpf(L))
+        assert len(found) == 1 and not found[0][1], ((a, b, c, d), found)
+        assert_ok(a, b, c, d, L)
     assert said > 300
