@@ -13,21 +13,30 @@ def _source_digest():
     return h.hexdigest()[:12]
 
 
-# Compiled kernels are cached outside the package (set before numba is
-# imported anywhere), in a folder named for the kernels' sources: Numba
-# checks only the timestamp of the file that defines a kernel, so an edit
-# to a function it inlines from another module would otherwise leave a
-# stale compiled kernel in use. `dev.sh` puts the cache in the checkout.
-os.environ.setdefault("NUMBA_CACHE_DIR", os.path.join(
-    os.environ.get("PARC_CACHE_DIR", os.path.join(os.path.expanduser("~"), ".cache", "parc")),
-    "numba-" + _source_digest()))
+# Numba's OpenMP workers otherwise spin for a while after each parallel
+# loop, on the two cores llvmpipe's rasterizer threads need next: a CT head
+# frame's raster pass took 6-7 ms right after a cast, 4 ms with them asleep.
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 import numba  # noqa: E402
 import numba.core.config  # noqa: E402
 
-# Numba reads the variable when it is first imported; `parc` modules may
-# import it before this one, so hand it the folder directly as well. Kernels
-# pick their cache folder when they are decorated, after this line.
+#: Shares the parallel loops deal their tiles into (`raycast.rays.spread`):
+#: the threads Numba starts with. A compile-time constant (asking Numba in
+#: a kernel would keep it out of the cache), so the cache folder names it.
+SPREAD_WAYS = max(1, int(numba.config.NUMBA_NUM_THREADS))
+
+# Compiled kernels are cached outside the package, in a folder named for
+# the kernels' sources and the thread count (`SPREAD_WAYS`): Numba
+# checks only the timestamp of the file that defines a kernel, so an edit
+# to a function it inlines from another module would otherwise leave a
+# stale compiled kernel in use. `dev.sh` puts the cache in the checkout.
+# Numba reads NUMBA_CACHE_DIR when it is first imported, and `parc` modules
+# may import it before this one, so it gets the folder directly as well.
+# Kernels pick their cache folder when they are decorated, after this line.
+os.environ.setdefault("NUMBA_CACHE_DIR", os.path.join(
+    os.environ.get("PARC_CACHE_DIR", os.path.join(os.path.expanduser("~"), ".cache", "parc")),
+    f"numba-{_source_digest()}-{SPREAD_WAYS}t"))
 numba.core.config.CACHE_DIR = os.environ["NUMBA_CACHE_DIR"]
 
 #: Flags shared by all kernels. fastmath stays off: PARC and the

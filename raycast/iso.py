@@ -19,8 +19,8 @@ cube's exit instead of stepping through it; a signed cell elsewhere is
 stepped without reading its corners. Nothing else changes: an empty
 cell's only effect on the walk is the sign it hands on, which is the
 table's, and the jump lands on the cell the full walk would be in at that
-time (`start_index`, the exit computed with the walk's own crossing
-times), so the hits are bit for bit the unaccelerated caster's. The
+time (the cube's exit and the landing cell both by the walk's own crossing
+times, `advance`), so the hits are bit for bit the unaccelerated caster's. The
 unaccelerated caster passes `NO_SKIP`.
 """
 import math
@@ -30,8 +30,8 @@ from numba import prange
 
 from .config import TILE_H, TILE_W, kernel
 from .cubic import cubic_along_ray, eval_cubic, first_root, trilinear_coefficients
-from .rays import camera_ray, spread, spread_run, spread_runs, spread_stride
-from .traverse import axis_state, cell_corners, clip_box, next_exit, start_index, step_axis, to_index_space
+from .rays import camera_ray, spread, spread_run, spread_runs, spread_ways
+from .traverse import advance, axis_state, cell_corners, clip_box, next_exit, start_index, step_axis, to_index_space
 
 #: The table a walk without one takes (with ``jump_min = -1``).
 NO_SKIP = np.zeros((1, 1, 1), np.int8)
@@ -187,12 +187,9 @@ def cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, seg0, seg1, skip, jump_min):
                 # A cube exit at or before the cell's own (rounding at a
                 # corner of the cube) is no jump: the cell is stepped.
                 if tb > c1:
-                    i = start_index(Ox, Dx, tb, nx)
-                    j = start_index(Oy, Dy, tb, ny)
-                    k = start_index(Oz, Dz, tb, nz)
-                    sx, ix, tx0, tx1 = axis_state(Ox, Dx, i)
-                    sy, iy, ty0, ty1 = axis_state(Oy, Dy, j)
-                    sz, iz, tz0, tz1 = axis_state(Oz, Dz, k)
+                    i, tx0, tx1 = advance(Ox, ix, sx, i, tx0, tx1, tb)
+                    j, ty0, ty1 = advance(Oy, iy, sy, j, ty0, ty1, tb)
+                    k, tz0, tz1 = advance(Oz, iz, sz, k, tz0, tz1, tb)
                     c0 = max(t_in, max(tx0, max(ty0, tz0)))
                     c1 = min(t_out, min(tx1, min(ty1, tz1)))
                     first = False
@@ -280,9 +277,9 @@ def cast_iso_image(data, org, spc, cam, width, height, iso, seg, use_seg, skip, 
     tiles_x = (width + TILE_W - 1) // TILE_W
     tiles_y = (row1 - row0 + TILE_H - 1) // TILE_H
     tiles = tiles_x * tiles_y
-    stride = spread_stride(tiles)
+    ways = spread_ways(tiles)
     for it in prange(tiles):
-        tile = spread(it, tiles, stride)
+        tile = spread(it, tiles, ways, tiles_x)
         ty = tile // tiles_x
         tx = tile - ty * tiles_x
         y_lo = row0 + ty * TILE_H
@@ -311,9 +308,9 @@ def cast_iso_rays(data, org, spc, origins, dirs, iso, seg, use_seg, skip, jump_m
     """Cast arbitrary world rays ``origins[n] + t dirs[n]`` (``|dirs[n]| = 1``)."""
     rays = origins.shape[0]
     runs = spread_runs(rays)
-    stride = spread_stride(runs)
+    ways = spread_ways(runs)
     for it in prange(runs):
-        lo, hi = spread_run(it, runs, stride, rays)
+        lo, hi = spread_run(it, runs, ways, rays)
         for n in range(lo, hi):
             s0 = -math.inf
             s1 = math.inf

@@ -2,26 +2,48 @@
 import numpy as np
 import pytest
 
-from raycast.rays import chunk_count, spread, spread_run, spread_runs, spread_stride, tile_count, tile_rect
+from raycast.rays import chunk_count, spread, spread_run, spread_runs, spread_ways, tile_count, tile_rect
 
 
+@pytest.mark.parametrize("ways", [1, 2, 3, 4, 16])
 @pytest.mark.parametrize("n", [1, 2, 3, 7, 64, 100, 1000, 2048, 4096, 8191, 16385])
-def test_spread_visits_every_item_once(n):
-    stride = spread_stride(n)
-    order = np.array([spread(it, n, stride) for it in range(n)])
+def test_spread_visits_every_item_once(n, ways):
+    ways = min(n, ways)
+    order = np.array([spread(it, n, ways) for it in range(n)])
     assert np.array_equal(np.sort(order), np.arange(n))
 
 
+@pytest.mark.parametrize("ways", [2, 3, 4])
 @pytest.mark.parametrize("n", [100, 2048, 16385])
-def test_each_thread_share_samples_the_whole_range(n):
-    """Two or four contiguous runs of iterations (a static schedule's shares) each
-    take items from every part of the range, not one end of it."""
-    stride = spread_stride(n)
-    order = np.array([spread(it, n, stride) for it in range(n)])
-    for threads in (2, 4):
-        for share in np.array_split(order, threads):
-            counts = np.histogram(share, bins=4, range=(0, n))[0]
-            assert counts.min() >= 0.8 * len(share) / 4
+def test_each_thread_share_samples_the_whole_range_in_order(n, ways):
+    """The contiguous runs of iterations a static schedule gives each thread
+    take items from every part of the range, not one end of it, and walk it
+    in order, one item of every ``ways``."""
+    order = np.array([spread(it, n, ways) for it in range(n)])
+    for share in np.array_split(order, ways):
+        counts = np.histogram(share, bins=4, range=(0, n))[0]
+        assert counts.min() >= 0.8 * len(share) / 4
+        assert (np.diff(share) == ways).all()
+
+
+@pytest.mark.parametrize("ways", [1, 2, 3, 5])
+def test_spread_deals_whole_rows_of_tiles(ways):
+    """With ``group`` (tiles in a row), each share takes whole rows, every
+    ``ways``-th, in order, and every tile once."""
+    across, rows = 16, 37
+    n = across * rows
+    order = np.array([spread(it, n, ways, across) for it in range(n)])
+    assert np.array_equal(np.sort(order), np.arange(n))
+    rows_taken = order.reshape(rows, across) // across
+    assert (rows_taken == rows_taken[:, :1]).all()
+    assert (np.diff(order.reshape(rows, across), axis=1) == 1).all()
+    for share in np.array_split(rows_taken[:, 0], ways):
+        assert (np.diff(share) == ways).all()
+
+
+def test_one_way_is_the_natural_order():
+    assert [spread(it, 10, 1) for it in range(10)] == list(range(10))
+    assert spread_ways(5) >= 1 and spread_ways(1) == 1
 
 
 def test_chunks_and_tiles_cover_the_items():
@@ -37,9 +59,9 @@ def test_chunks_and_tiles_cover_the_items():
 @pytest.mark.parametrize("n", [0, 1, 63, 64, 65, 1000])
 def test_spread_runs_cover_every_ray_once(n):
     runs = spread_runs(n)
-    stride = spread_stride(runs)
+    ways = spread_ways(runs) if runs else 1
     seen = np.zeros(n, int)
     for it in range(runs):
-        lo, hi = spread_run(it, runs, stride, n)
+        lo, hi = spread_run(it, runs, ways, n)
         seen[lo:hi] += 1
     assert (seen == 1).all()

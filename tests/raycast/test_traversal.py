@@ -89,3 +89,28 @@ def test_cells_visited_on_a_long_grid():
     o2, d2 = near_axis_rays(rng, scene, 40)
     bad, _ = check_counts(scene, np.concatenate([eyes, o2]), np.concatenate([d, d2]), "long")
     assert not bad, bad[:5]
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_advance_lands_where_start_index_starts(seed):
+    """`advance` (the skip-table jump's landing) stepping a cell on to time ``t``
+    gives the cell, entry and exit `start_index` and `axis_state` give at ``t``,
+    including times exactly on a crossing and rays along grid planes."""
+    from raycast.traverse import advance, axis_state, next_exit, start_index
+    rng = np.random.default_rng(seed)
+    n = 40
+    for _ in range(3000):
+        O = float(rng.choice([rng.uniform(0, n - 1), float(rng.integers(0, n - 1))]))
+        D = float(rng.choice([rng.uniform(-2, 2), rng.choice([-1.0, 1.0]) * 10 ** rng.uniform(-9, 1), 0.0]))
+        t0 = float(rng.uniform(0, 5))
+        i = start_index(O, D, t0, n)
+        step, inv, a0, a1 = axis_state(O, D, i)
+        t = t0 + float(rng.uniform(0, 20))
+        if rng.uniform() < 0.3 and step != 0:   # exactly on a later crossing
+            t = max(t0, next_exit(O, inv, step, i + step * int(rng.integers(0, 5))))
+        if step != 0 and not 0.0 <= O + t * D <= n - 1.0:
+            continue
+        got = advance(O, inv, step, i, a0, a1, t)
+        want = start_index(O, D, t, n)
+        assert got[0] == want, (O, D, t0, t, got, want)
+        assert got[1:] == axis_state(O, D, want)[2:], (O, D, t0, t)
