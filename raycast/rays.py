@@ -51,7 +51,8 @@ def spread(it, n, ways, group=1):
     gave (casting the Fig. 13 floor: no gain from two threads before
     either), and, unlike it, walks the image in order, next to the tiles
     it just cast, whose cells and skip-table entries are still in its
-    caches (PARC's CT head cast, one thread: 30 ms instead of 35).
+    caches (PARC's CT head cast at 512x512 on two threads: 14 ms instead
+    of 17; `brute`'s translucent CT head at 300x300: 0.15 s instead of 0.26).
     """
     g = it // group
     return _deal(g, n // group, ways) * group + (it - g * group)
