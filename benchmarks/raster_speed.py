@@ -28,7 +28,8 @@ from parc.camera import Camera
 from parc.classify import VolumeIndex
 from parc.costmodel import count_outer_faces
 from parc.proxy import build_proxy
-from parc.raster import get_context, raster_segments
+from parc.gl import get_context
+from parc.raster import raster_segments
 from raycast.iso import NO_SKIP, cast_iso_image, empty_outputs
 
 SIZES = (1, 2, 3, 4, 6, 8)

@@ -94,9 +94,9 @@ OR-ing ``uvec4`` colours into an RGBA32UI target with ``glLogicOp(GL_OR)``
 (reachable through ``eglGetProcAddress``; moderngl has no setting) was
 ~15% faster than the atomics, for a ctypes dependency; not used.
 
-The OpenGL context is `parc.raster.get_context`'s, and the view helpers
-(the pixel rays as affine maps, the scene scale, the eye's distance to the
-PC region) are the depth pass's own, so both passes see the same rays.
+The OpenGL context is `parc.gl.get_context`'s, and the view helpers (the
+pixel rays as affine maps, the scene scale, the eye's distance to the PC
+region) are the depth pass's own, so both passes see the same rays.
 """
 from __future__ import annotations
 
@@ -109,8 +109,10 @@ import numpy as np
 
 from data_tools import InputError
 
-from .raster import (ABS_TOL, COVERAGE_PAD_PX, GUARD_PX, INSIDE_CLIP_REL, TOL_REL, _distance_to_pc,
-                     _moderngl, _program, _scene_scale, _set, get_context, set_view_uniforms)
+from .gl import get_context, moderngl_module, program, set_uniform
+from .origins import distance_to_pc
+from .raster import (ABS_TOL, COVERAGE_PAD_PX, GUARD_PX, INSIDE_CLIP_REL, TOL_REL, _scene_scale,
+                     set_view_uniforms)
 
 #: Width of the boundary band (halo mode), in cells along the plane axis:
 #: far above the caster's mismatch between ``floor(pos / m)`` and the
@@ -351,7 +353,7 @@ def raster_bits(camera, width, height, plane_proxy, *, first, count, halo=True, 
             back += 4.0 * band / abs(f[axis])
         clip_near = -back
     else:
-        d_min = _distance_to_pc(eye, proxy)
+        d_min = distance_to_pc(eye, proxy)
         eye_inside = d_min == 0.0
         cos_max = 1.0 / math.sqrt(1.0 + th * th * ((aspect * ndc_limit[0]) ** 2 + ndc_limit[1] ** 2))
         clip_near = INSIDE_CLIP_REL * scale if eye_inside else 0.5 * d_min * cos_max
@@ -372,18 +374,18 @@ def raster_bits(camera, width, height, plane_proxy, *, first, count, halo=True, 
         prog = vao.program
         set_view_uniforms(prog, camera, width, height, up.offsets, clip_near=clip_near,
                           ndc_limit=ndc_limit, pad_px=pad_px, scale=scale)
-        _set(prog, "plane_axis", axis)
-        _set(prog, "first", first)
-        _set(prog, "halo", 1 if halo else 0)
-        _set(prog, "band", band)
-        _set(prog, "width", width)
-        _set(prog, "nwords", nwords)
-        _set(prog, "count", count)
+        set_uniform(prog, "plane_axis", axis)
+        set_uniform(prog, "first", first)
+        set_uniform(prog, "halo", 1 if halo else 0)
+        set_uniform(prog, "band", band)
+        set_uniform(prog, "width", width)
+        set_uniform(prog, "nwords", nwords)
+        set_uniform(prog, "count", count)
         fbo, out = _sized(ctx, width, height, nwords)
         out.clear()
         fbo.use()
         ctx.viewport = (0, 0, width, height)
-        mgl = _moderngl()
+        mgl = moderngl_module()
         ctx.disable(mgl.DEPTH_TEST | mgl.CULL_FACE | mgl.BLEND)
         up.edges.bind_to_storage_buffer(0)
         out.bind_to_storage_buffer(1)
@@ -438,7 +440,7 @@ class _Upload:
     def vao(self, ctx, parallel):
         if parallel not in self.vaos:
             self.vaos[parallel] = ctx.vertex_array(
-                _program(ctx, "bitplanes", parallel),
+                program(ctx, "bitplanes", parallel),
                 [(self.faces, "4i 2i 2i", "in_face", "in_vrange", "in_bits")])
         return self.vaos[parallel]
 

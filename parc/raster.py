@@ -42,7 +42,7 @@ wrong for an exact ray caster:
   leaves the PC region it crosses a face it is not parallel to.
 - **Cavity faces are skipped** while no ray starts in a cavity (empty
   supercells enclosed by PC ones): a ray's first entry and last exit lie
-  on faces bordering the open empty space (`_open_faces`).
+  on faces bordering the open empty space (`parc.origins.open_faces`).
 
 Error bounds
 ------------
@@ -111,13 +111,13 @@ rasterization (~2/3, measured with a constant fragment shader) and the
 fragment shader (~1/3) on its threads; clear and read-back take ~0.4 ms
 each, the float64 conversion ~0.9 ms. Faces bordering only cavities (bone:
 1.1k of 6.9k, neghip: 1.0k of 2.2k) are skipped while no ray starts in
-one (`_open_faces`). Looseness against the exact segments
+one (`parc.origins.open_faces`). Looseness against the exact segments
 (tests/parc/test_raster.py reports it): ~1e-4 cells mean, ~2e-3 max,
 except a few pixels next to faces whose plane passes through or next to
 the eye (up to a few cells).
 
-The OpenGL context is created once per process (`get_context`), headless
-through EGL (llvmpipe on CPU-only machines).
+The OpenGL context is created once per process (`parc.gl.get_context`),
+headless through EGL (llvmpipe on CPU-only machines).
 """
 from __future__ import annotations
 
@@ -125,16 +125,15 @@ import math
 import time
 import weakref
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
 from data_tools import InputError
 
+from .gl import get_context, moderngl_module, program, set_uniform
+from .origins import distance_to_pc, in_cavity, open_faces, parallel_inside
 from .workspace import work_array
 
-#: Where the GLSL sources live; `load_shader` reads them by name.
-SHADER_DIR = Path(__file__).with_name("shaders")
 
 #: Coverage growth of each face's projection, in pixels. It only has to
 #: exceed the error of the emitted float32 corners (< 1e-3 px up to 16k
@@ -184,84 +183,13 @@ TOL_REL = 2.0 ** -32
 #: far is raised past the clipped sliver.
 INSIDE_CLIP_REL = 2.0 ** -30
 
-#: Pixels per band when parallel-view ray origins are tested on the CPU.
-_BAND_PIXELS = 1 << 18
 
 #: Cleared value: "no fragment" in both channels (near inf, far -inf).
 EMPTY = math.inf
 
 
-class OpenGLUnavailable(InputError):
-    """No usable OpenGL 4.3 context (headless EGL) on this machine."""
-
-
-_CONTEXT = None
-_PROGRAMS = {}
 _UPLOADS = weakref.WeakKeyDictionary()
 _SIZED = {}
-_FLOOD = None
-
-
-def get_context():
-    """The process-wide headless OpenGL context, created on first call.
-
-    Returns
-    -------
-    moderngl.Context
-        OpenGL 4.3 core or later through EGL.
-
-    Raises
-    ------
-    OpenGLUnavailable
-        moderngl or EGL is missing, or the driver cannot give 4.3 with
-        float64 shaders (the message is one line).
-    """
-    global _CONTEXT
-    if _CONTEXT is not None:
-        return _CONTEXT
-    try:
-        import moderngl
-    except ImportError as exc:  # pragma: no cover - moderngl is a dependency
-        raise OpenGLUnavailable(f"OpenGL is not available: cannot import moderngl ({exc})") from None
-    try:
-        ctx = moderngl.create_standalone_context(backend="egl", require=430)
-    except Exception as exc:  # moderngl raises plain Exceptions from the driver
-        reason = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
-        raise OpenGLUnavailable(f"OpenGL is not available: no headless EGL context with "
-                                f"OpenGL 4.3 ({reason})") from None
-    # Buffers uploaded for a proxy are released when the proxy goes away.
-    ctx.gc_mode = "auto"
-    _CONTEXT = ctx
-    return ctx
-
-
-def load_shader(name):
-    """Source text of ``parc/shaders/<name>``."""
-    return (SHADER_DIR / name).read_text()
-
-
-def _program(ctx, name, parallel=False):
-    """The compiled program ``parc/shaders/<name>.{vert,geom,frag}`` (cached per context).
-
-    With ``parallel``, the fragment shader is compiled with ``PARALLEL``
-    defined (its parallel-view path).
-    """
-    key = (id(ctx), name, bool(parallel))
-    if key not in _PROGRAMS:
-        frag = load_shader(f"{name}.frag")
-        if parallel:
-            head, _, rest = frag.partition("\n")
-            frag = f"{head}\n#define PARALLEL 1\n{rest}"
-        try:
-            _PROGRAMS[key] = ctx.program(vertex_shader=load_shader(f"{name}.vert"),
-                                         geometry_shader=load_shader(f"{name}.geom"),
-                                         fragment_shader=frag)
-        except Exception as exc:
-            # A driver without float64 shaders or geometry shaders ends up here.
-            lines = [ln.strip() for ln in str(exc).splitlines() if "error" in ln.lower()]
-            raise OpenGLUnavailable(f"OpenGL {ctx.info['GL_VERSION']} cannot compile PARC's "
-                                    f"{name} shaders: {(lines or [str(exc)])[-1]}") from None
-    return _PROGRAMS[key]
 
 
 def _sized(ctx, width, height):
@@ -288,7 +216,7 @@ class _Upload:
     def vao(self, ctx, parallel):
         """The vertex array feeding the faces to the perspective or parallel program."""
         if parallel not in self.vaos:
-            self.vaos[parallel] = ctx.vertex_array(_program(ctx, "segments", parallel),
+            self.vaos[parallel] = ctx.vertex_array(program(ctx, "segments", parallel),
                                                    [(self.faces, "4i 2i", "in_face", "in_vrange")])
         return self.vaos[parallel]
 
@@ -296,13 +224,13 @@ class _Upload:
 def _upload(ctx, proxy):
     """Face records and boundary table of a proxy on the GPU (cached per proxy).
 
-    Faces on the open empty space (see `_open_faces`) come first, so a
+    Faces on the open empty space (`parc.origins.open_faces`) come first, so a
     frame whose rays all start outside the cavities draws only those.
     """
     up = _UPLOADS.get(proxy)
     if up is not None and up.faces.ctx is ctx:
         return up, False
-    is_open, cavity = _open_faces(proxy)
+    is_open, cavity = open_faces(proxy)
     order = np.argsort(~is_open, kind="stable")
     faces = np.ascontiguousarray(proxy.faces[order], dtype=np.int32)
     vbo = ctx.buffer(faces.tobytes())
@@ -317,130 +245,6 @@ def _upload(ctx, proxy):
                  cavity_hi=np.stack([ex[kx + 1], ey[ky + 1], ez[kz + 1]], axis=1))
     _UPLOADS[proxy] = up
     return up, True
-
-
-def _open_faces(proxy):
-    """Which faces border the open empty space; and the cavities.
-
-    The open empty space is the set of empty (not PC) supercells connected
-    to the outside of the volume through empty supercells sharing a face,
-    an edge or a corner; the other empty supercells are cavities. A ray
-    starting outside every (closed) cavity box first meets the PC region
-    at a point all of whose empty neighbour boxes are open: up to that
-    point it ran through empty boxes, each sharing at least a point with
-    the next, from an open one; and every empty box holding the entry
-    point shares that point with the last of them. So the faces there
-    border open supercells; the same holds for the last exit, after which
-    the ray runs to infinity. Faces bordering only cavities are never
-    needed for such rays (a ray merely passing within the tests' touching
-    distance of a box behaves the same: that distance is far below a
-    supercell).
-
-    Returns
-    -------
-    is_open : ndarray of bool, shape (Q,)
-        Per face of ``proxy.faces``: some unit face of it has an open
-        supercell on its empty side.
-    cavity : ndarray of bool, shape ``proxy.pc.shape``
-    """
-    padded = np.pad(proxy.pc, 1)
-    open_ = _flood_from_corner(~padded)
-    f = proxy.faces.astype(np.int64)
-    q = len(f)
-    nu = f[:, 3] - f[:, 2]
-    nv = f[:, 5] - f[:, 4]
-    rep = nu * nv
-    idx = np.repeat(np.arange(q), rep)
-    k = np.arange(int(rep.sum())) - np.repeat(np.cumsum(rep) - rep, rep)
-    a = f[idx, 0]
-    # Padded index of the empty side of each unit face: the face at
-    # boundary p lies between supercells p-1 and p, i.e. padded p and p+1.
-    side = f[idx, 1] + (proxy.outward[idx] > 0)
-    uu = f[idx, 2] + k % nu[idx] + 1
-    vv = f[idx, 4] + k // nu[idx] + 1
-    xyz = [np.where(a == ax, side, np.where((a + 1) % 3 == ax, uu, vv)) for ax in range(3)]
-    unit_open = open_[xyz[2], xyz[1], xyz[0]]
-    is_open = np.zeros(q, dtype=bool)
-    np.logical_or.at(is_open, idx, unit_open)
-    cavity = ~padded[1:-1, 1:-1, 1:-1] & ~open_[1:-1, 1:-1, 1:-1]
-    return is_open, cavity
-
-
-def _flood_from_corner(empty):
-    """Cells of ``empty`` (3-D bool) connected to ``empty[0, 0, 0]`` through 26-neighbours."""
-    global _FLOOD
-    if _FLOOD is None:
-        from raycast.config import kernel   # sets Numba's cache folder before Numba loads
-
-        @kernel
-        def flood(cells, ny, nx, start):
-            # cells: flat (z, y, x) with a border of False, so neighbours
-            # need no bounds test; cleared as they are reached. Scanline
-            # fill: clear the whole run along x around a seed, then seed
-            # every run in the 8 neighbouring rows that touches it (x - 1
-            # to x + 1: neighbours through faces, edges and corners).
-            stack = np.empty(cells.size, dtype=np.int64)
-            stack[0] = start
-            top = 1
-            while top > 0:
-                top -= 1
-                i = stack[top]
-                if not cells[i]:
-                    continue
-                lo = i
-                while cells[lo - 1]:
-                    lo -= 1
-                hi = i
-                while cells[hi + 1]:
-                    hi += 1
-                for j in range(lo, hi + 1):
-                    cells[j] = False
-                for dz in (-1, 0, 1):
-                    for dy in (-1, 0, 1):
-                        if dz == 0 and dy == 0:
-                            continue
-                        off = (dz * ny + dy) * nx
-                        inrun = False
-                        for j in range(lo - 1 + off, hi + 2 + off):
-                            if cells[j]:
-                                if not inrun:
-                                    stack[top] = j
-                                    top += 1
-                                    inrun = True
-                            else:
-                                inrun = False
-
-        _FLOOD = flood
-    nz, ny, nx = (n + 2 for n in empty.shape)
-    cells = np.pad(empty, 1).ravel()
-    start = (ny + 1) * nx + 1
-    if not cells[start]:
-        return np.zeros_like(empty)
-    left = cells.copy()
-    _FLOOD(left, ny, nx, start)
-    return (cells & ~left).reshape(nz, ny, nx)[1:-1, 1:-1, 1:-1]
-
-
-def _in_cavity(up, camera, width, height, eye):
-    """Whether a ray of this view may start in (or on) a cavity box: then every face is drawn."""
-    if not len(up.cavity_lo):
-        return False
-    if not camera.parallel:
-        return bool(np.all((up.cavity_lo <= eye) & (eye <= up.cavity_hi), axis=1).any())
-    # Parallel: ray origins lie within a rounding of the view plane; does
-    # that slab meet a cavity box?
-    f = np.asarray(camera.basis()[0], dtype=np.float64)
-    centre = (up.cavity_lo + up.cavity_hi) / 2.0
-    half = (up.cavity_hi - up.cavity_lo) / 2.0 @ np.abs(f)
-    dist = (centre - eye) @ f
-    slab = _origin_slab(camera, width, height, eye, up.cavity_lo, up.cavity_hi) + 2.0 ** -40 * half
-    return bool(np.any((dist - half <= slab) & (dist + half >= -slab)))
-
-
-def _origin_slab(camera, width, height, eye, lo, hi):
-    """Half-width around the view plane that holds every parallel ray origin as the caster rounds it."""
-    return 2.0 ** -40 * (np.abs(eye).max() + max(np.abs(lo).max(), np.abs(hi).max())
-                         + camera.parallel_scale * (width / height + 1.0))
 
 
 @dataclass
@@ -549,10 +353,10 @@ def raster_segments(camera, width, height, proxy, *, pad_px=COVERAGE_PAD_PX, fac
     d_min = None
     if camera.parallel:
         clip_near = -4.0 * TOL_REL * scale   # keep crossings a rounding behind the view plane
-        inside_px = _parallel_inside(camera, width, height, proxy)
+        inside_px = parallel_inside(camera, width, height, proxy)
         eye_inside = bool(inside_px.any())
     else:
-        d_min = _distance_to_pc(eye, proxy)
+        d_min = distance_to_pc(eye, proxy)
         eye_inside = d_min == 0.0
         # Visible points have forward distance >= d * cos(angle to f) and
         # the guard band's corner ray has the largest angle.
@@ -573,17 +377,17 @@ def raster_segments(camera, width, height, proxy, *, pad_px=COVERAGE_PAD_PX, fac
         prog = vao.program
         set_view_uniforms(prog, camera, width, height, up.offsets, clip_near=clip_near,
                           ndc_limit=ndc_limit, pad_px=pad_px, scale=scale)
-        _set(prog, "face_range", 1 if face_range else 0)
+        set_uniform(prog, "face_range", 1 if face_range else 0)
         fbo = _sized(ctx, width, height)
         fbo.use()
         ctx.viewport = (0, 0, width, height)
-        ctx.disable(_moderngl().DEPTH_TEST | _moderngl().CULL_FACE)
-        ctx.enable(_moderngl().BLEND)
-        ctx.blend_equation = _moderngl().MIN
+        ctx.disable(moderngl_module().DEPTH_TEST | moderngl_module().CULL_FACE)
+        ctx.enable(moderngl_module().BLEND)
+        ctx.blend_equation = moderngl_module().MIN
         fbo.clear(EMPTY, EMPTY, 0.0, 0.0)
         up.edges.bind_to_storage_buffer(0)
-        drawn = up.count if _in_cavity(up, camera, width, height, eye) else up.n_open
-        vao.render(_moderngl().POINTS, vertices=drawn)
+        drawn = up.count if in_cavity(up, camera, width, height, eye) else up.n_open
+        vao.render(moderngl_module().POINTS, vertices=drawn)
         ctx.finish()
         seconds["draw"] = time.perf_counter() - t0
 
@@ -591,8 +395,8 @@ def raster_segments(camera, width, height, proxy, *, pad_px=COVERAGE_PAD_PX, fac
         rg = work_array("raster_readback", (height, width, 2), np.float32)
         fbo.read_into(rg, components=2, dtype="f4")
         seconds["readback"] = time.perf_counter() - t0
-        ctx.blend_equation = _moderngl().FUNC_ADD
-        ctx.disable(_moderngl().BLEND)
+        ctx.blend_equation = moderngl_module().FUNC_ADD
+        ctx.disable(moderngl_module().BLEND)
 
         t0 = time.perf_counter()
         # The shader wrote (near, -far), already conservative and near >= 0;
@@ -637,35 +441,24 @@ def set_view_uniforms(prog, camera, width, height, edge_offset, *, clip_near, nd
     aff0, affx, affy = _pixel_affine(camera, f, r, u, th, width, height)
     flush = FLUSH_TOL * (width + height)
     err_d = AFFINE_ERR * (np.abs(aff0) + np.abs(affx) * (width - 1) + np.abs(affy) * (height - 1)) + flush
-    _set(prog, "edge_offset", edge_offset)
-    _set(prog, "eye", tuple(eye))
-    _set(prog, "fwd", tuple(f))
-    _set(prog, "right", tuple(r))
-    _set(prog, "upv", tuple(u))
-    _set(prog, "parallel", 1 if camera.parallel else 0)
-    _set(prog, "tan_half", th)
-    _set(prog, "pscale", float(camera.parallel_scale or 0.0))
-    _set(prog, "aspect", width / height)
-    _set(prog, "clip_near", clip_near)
-    _set(prog, "ndc_limit", ndc_limit)
-    _set(prog, "ndc_pad", (2.0 * pad_px / width, 2.0 * pad_px / height))
-    _set(prog, "aff0", tuple(aff0))
-    _set(prog, "affx", tuple(affx))
-    _set(prog, "affy", tuple(affy))
-    _set(prog, "err_d", tuple(err_d))
-    _set(prog, "pix_max", (width - 1.0, height - 1.0))
-    _set(prog, "abs_tol", ABS_TOL * scale + flush)
-
-
-def _moderngl():
-    import moderngl
-    return moderngl
-
-
-def _set(prog, name, value):
-    """Set a uniform the compiler kept (unused ones are optimized away)."""
-    if name in prog:
-        prog[name].value = value
+    set_uniform(prog, "edge_offset", edge_offset)
+    set_uniform(prog, "eye", tuple(eye))
+    set_uniform(prog, "fwd", tuple(f))
+    set_uniform(prog, "right", tuple(r))
+    set_uniform(prog, "upv", tuple(u))
+    set_uniform(prog, "parallel", 1 if camera.parallel else 0)
+    set_uniform(prog, "tan_half", th)
+    set_uniform(prog, "pscale", float(camera.parallel_scale or 0.0))
+    set_uniform(prog, "aspect", width / height)
+    set_uniform(prog, "clip_near", clip_near)
+    set_uniform(prog, "ndc_limit", ndc_limit)
+    set_uniform(prog, "ndc_pad", (2.0 * pad_px / width, 2.0 * pad_px / height))
+    set_uniform(prog, "aff0", tuple(aff0))
+    set_uniform(prog, "affx", tuple(affx))
+    set_uniform(prog, "affy", tuple(affy))
+    set_uniform(prog, "err_d", tuple(err_d))
+    set_uniform(prog, "pix_max", (width - 1.0, height - 1.0))
+    set_uniform(prog, "abs_tol", ABS_TOL * scale + flush)
 
 
 def _pixel_affine(camera, f, r, u, th, width, height):
@@ -698,68 +491,3 @@ def _scene_scale(camera, lo, hi, aspect):
     return float(s)
 
 
-def _distance_to_pc(point, proxy):
-    """Euclidean distance from ``point`` to the nearest PC supercell box (0 if inside or on one)."""
-    ex, ey, ez = proxy.world_edges
-    if not proxy.pc.any():
-        return math.inf
-
-    def axis_gap(e, p):
-        # Per supercell along one axis: distance from p to [e[a], e[a+1]].
-        return np.maximum(np.maximum(e[:-1] - p, 0.0), p - e[1:])
-
-    gx, gy, gz = (axis_gap(e, p) ** 2 for e, p in zip((ex, ey, ez), point))
-    plane = gy[:, None] + gx[None, :]
-    best = math.inf
-    # Slab by slab in z keeps memory at one (Ay, Ax) plane per slice.
-    for k in np.flatnonzero(proxy.pc.any(axis=(1, 2))):
-        best = min(best, gz[k] + float(plane[proxy.pc[k]].min()))
-        if best == 0.0:
-            break
-    return math.sqrt(best)
-
-
-def _parallel_inside(camera, width, height, proxy):
-    """Pixels of a parallel view whose ray starts inside (or on) a PC supercell, (H, W) bool.
-
-    Ray origins by the caster's formula, a band of rows at a time (memory).
-    """
-    f, r, u = camera.basis()
-    ps = camera.parallel_scale
-    eye = np.asarray(camera.eye, dtype=np.float64)
-    lo, hi = proxy.bounds
-    inside = np.zeros((height, width), dtype=bool)
-    # Every origin lies within a rounding of the view plane (2^-52 of the
-    # coordinates): if the volume box is clear of that slab, no origin is
-    # in it -- the usual case, a view plane in front of the volume.
-    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
-    dist = (corners - eye) @ np.asarray(f, dtype=np.float64)
-    slab = _origin_slab(camera, width, height, eye, lo, hi)
-    if (dist > slab).all() or (dist < -slab).all():
-        return inside
-    sx = (2.0 * (np.arange(width) + 0.5) / width - 1.0) * (width / height)
-    band = max(1, _BAND_PIXELS // width)
-    for y0 in range(0, height, band):
-        sy = 1.0 - 2.0 * (np.arange(y0, min(height, y0 + band)) + 0.5) / height
-        o = eye + ps * (sx[None, :, None] * r + sy[:, None, None] * u)
-        o = o.reshape(-1, 3)
-        cand = np.flatnonzero(np.all((o >= lo) & (o <= hi), axis=1))
-        if not len(cand):
-            continue
-        p = o[cand]
-        idx = []
-        for axis, e in enumerate(proxy.world_edges):
-            n = len(e) - 1
-            # Closed boxes: a point on a boundary belongs to both neighbours.
-            right = np.clip(np.searchsorted(e, p[:, axis], "right") - 1, 0, n - 1)
-            left = np.clip(np.searchsorted(e, p[:, axis], "left") - 1, 0, n - 1)
-            idx.append((left, right))
-        (x0, x1), (y0_, y1_), (z0, z1) = idx
-        hit = np.zeros(len(cand), dtype=bool)
-        for zz in (z0, z1):
-            for yy in (y0_, y1_):
-                for xx in (x0, x1):
-                    hit |= proxy.pc[zz, yy, xx]
-        flat = inside[y0:y0 + band].reshape(-1)
-        flat[cand] = hit
-    return inside

@@ -126,7 +126,7 @@ def machine():
     import moderngl
     import numba
 
-    from ..raster import get_context
+    from ..gl import get_context
     cpu = platform.processor() or platform.machine()
     with contextlib.suppress(OSError):           # no /proc off Linux: keep platform's name
         with open("/proc/cpuinfo") as f:

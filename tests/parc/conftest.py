@@ -8,7 +8,7 @@ LOOSENESS = []
 @pytest.fixture(scope="session")
 def gl_context():
     """The process-wide headless context, or a skip with the reason."""
-    from parc.raster import OpenGLUnavailable, get_context
+    from parc.gl import OpenGLUnavailable, get_context
     try:
         return get_context()
     except OpenGLUnavailable as exc:

@@ -270,9 +270,9 @@ def _cavity_reference(pc):
 @pytest.mark.parametrize("size", [1, 1.5, 2], ids=str)
 def test_cavity_faces_found(size):
     """Faces bordering only cavities are told apart from the rest (no GL needed)."""
-    from parc import raster
+    from parc.origins import open_faces
     _, proxy = _shell_proxy(size)
-    is_open, cavity = raster._open_faces(proxy)
+    is_open, cavity = open_faces(proxy)
     ref = _cavity_reference(proxy.pc)
     assert ref.any()
     np.testing.assert_array_equal(cavity, ref)
@@ -363,16 +363,16 @@ def test_opengl_unavailable_is_an_input_error(monkeypatch):
     import moderngl
 
     from data_tools import InputError
-    from parc import raster
+    from parc import gl
 
     def fail(**kwargs):
         raise Exception("eglGetDisplay failed\nsecond line of driver noise")
 
-    monkeypatch.setattr(raster, "_CONTEXT", None)
+    monkeypatch.setattr(gl, "_CONTEXT", None)
     monkeypatch.setattr(moderngl, "create_standalone_context", fail)
-    with pytest.raises(raster.OpenGLUnavailable) as err:
-        raster.get_context()
-    assert issubclass(raster.OpenGLUnavailable, InputError)
+    with pytest.raises(gl.OpenGLUnavailable) as err:
+        gl.get_context()
+    assert issubclass(gl.OpenGLUnavailable, InputError)
     msg = str(err.value)
     assert "\n" not in msg and "OpenGL is not available" in msg and "eglGetDisplay failed" in msg
 
@@ -390,13 +390,13 @@ def test_extreme_image_shapes(gl, looseness, w, h):
 
 def test_parallel_inside_in_bands(gl, monkeypatch):
     """The CPU test of parallel ray origins gives the same answer band by band."""
-    from parc import raster
+    from parc import origins
     vol = _volume(6)
     proxy = _proxy(vol, 1.5, frac=0.5)
     c = vol.center
     cam = Camera(eye=tuple(c), look_at=tuple(c + np.array([0.3, -0.5, 0.8])), up=(0, 1, 0),
                  parallel_scale=6.0)
-    whole = raster._parallel_inside(cam, 37, 29, proxy)
-    monkeypatch.setattr(raster, "_BAND_PIXELS", 40)
-    banded = raster._parallel_inside(cam, 37, 29, proxy)
+    whole = origins.parallel_inside(cam, 37, 29, proxy)
+    monkeypatch.setattr(origins, "_BAND_PIXELS", 40)
+    banded = origins.parallel_inside(cam, 37, 29, proxy)
     assert whole.any() and np.array_equal(whole, banded)

@@ -10,7 +10,7 @@ import pytest
 import parc.workspace as workspace
 from data_tools.synthetic import blobs
 from parc import Camera, Isosurface, PointLight, Scene, render
-from parc.raster import OpenGLUnavailable
+from parc.gl import OpenGLUnavailable
 from parc.workspace import release, work_array
 
 

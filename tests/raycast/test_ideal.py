@@ -244,7 +244,7 @@ def _random_scene(seed):
 
 @pytest.fixture(scope="module")
 def gl():
-    from parc.raster import OpenGLUnavailable, get_context
+    from parc.gl import OpenGLUnavailable, get_context
     try:
         return get_context()
     except OpenGLUnavailable as exc:

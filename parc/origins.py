@@ -1,0 +1,211 @@
+"""Where a view's rays start relative to the PC region, for the rasterization passes.
+
+A face projected from behind the eye, or a ray starting inside a PC
+supercell, would be lost to a plain rasterization: `parc.raster` and
+`parc.bitplanes` clip the faces in front of the eye at a distance below
+the eye's distance to the PC region (`distance_to_pc`), give near 0 to the
+parallel rays that start inside it (`parallel_inside`), and draw the faces
+bordering cavities (empty supercells enclosed by PC ones) only when a ray
+may start in one (`open_faces`, `in_cavity`).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from raycast.config import kernel
+
+#: Pixels per band when parallel-view ray origins are tested on the CPU.
+_BAND_PIXELS = 1 << 18
+
+
+def open_faces(proxy):
+    """Which faces border the open empty space; and the cavities.
+
+    The open empty space is the set of empty (not PC) supercells connected
+    to the outside of the volume through empty supercells sharing a face,
+    an edge or a corner; the other empty supercells are cavities. A ray
+    starting outside every (closed) cavity box first meets the PC region
+    at a point all of whose empty neighbour boxes are open: up to that
+    point it ran through empty boxes, each sharing at least a point with
+    the next, from an open one; and every empty box holding the entry
+    point shares that point with the last of them. So the faces there
+    border open supercells; the same holds for the last exit, after which
+    the ray runs to infinity. Faces bordering only cavities are never
+    needed for such rays (a ray merely passing within the tests' touching
+    distance of a box behaves the same: that distance is far below a
+    supercell).
+
+    Returns
+    -------
+    is_open : ndarray of bool, shape (Q,)
+        Per face of ``proxy.faces``: some unit face of it has an open
+        supercell on its empty side.
+    cavity : ndarray of bool, shape ``proxy.pc.shape``
+    """
+    padded = np.pad(proxy.pc, 1)
+    open_ = flood_from_corner(~padded)
+    f = proxy.faces.astype(np.int64)
+    q = len(f)
+    nu = f[:, 3] - f[:, 2]
+    nv = f[:, 5] - f[:, 4]
+    rep = nu * nv
+    idx = np.repeat(np.arange(q), rep)
+    k = np.arange(int(rep.sum())) - np.repeat(np.cumsum(rep) - rep, rep)
+    a = f[idx, 0]
+    # Padded index of the empty side of each unit face: the face at
+    # boundary p lies between supercells p-1 and p, i.e. padded p and p+1.
+    side = f[idx, 1] + (proxy.outward[idx] > 0)
+    uu = f[idx, 2] + k % nu[idx] + 1
+    vv = f[idx, 4] + k // nu[idx] + 1
+    xyz = [np.where(a == ax, side, np.where((a + 1) % 3 == ax, uu, vv)) for ax in range(3)]
+    unit_open = open_[xyz[2], xyz[1], xyz[0]]
+    is_open = np.zeros(q, dtype=bool)
+    np.logical_or.at(is_open, idx, unit_open)
+    cavity = ~padded[1:-1, 1:-1, 1:-1] & ~open_[1:-1, 1:-1, 1:-1]
+    return is_open, cavity
+
+
+@kernel
+def _flood(cells, ny, nx, start):
+    """Clear the cells of ``cells`` (flat (z, y, x), a border of False, so neighbours need
+    no bounds test) connected to ``start`` through 26-neighbours.
+
+    Scanline fill: clear the whole run along x around a seed, then seed
+    every run in the 8 neighbouring rows that touches it (x - 1 to x + 1:
+    neighbours through faces, edges and corners).
+    """
+    stack = np.empty(cells.size, dtype=np.int64)
+    stack[0] = start
+    top = 1
+    while top > 0:
+        top -= 1
+        i = stack[top]
+        if not cells[i]:
+            continue
+        lo = i
+        while cells[lo - 1]:
+            lo -= 1
+        hi = i
+        while cells[hi + 1]:
+            hi += 1
+        for j in range(lo, hi + 1):
+            cells[j] = False
+        for dz in (-1, 0, 1):
+            for dy in (-1, 0, 1):
+                if dz == 0 and dy == 0:
+                    continue
+                off = (dz * ny + dy) * nx
+                inrun = False
+                for j in range(lo - 1 + off, hi + 2 + off):
+                    if cells[j]:
+                        if not inrun:
+                            stack[top] = j
+                            top += 1
+                            inrun = True
+                    else:
+                        inrun = False
+
+
+def flood_from_corner(empty):
+    """Cells of ``empty`` (3-D bool) connected to ``empty[0, 0, 0]`` through 26-neighbours."""
+    nz, ny, nx = (n + 2 for n in empty.shape)
+    cells = np.pad(empty, 1).ravel()
+    start = (ny + 1) * nx + 1
+    if not cells[start]:
+        return np.zeros_like(empty)
+    left = cells.copy()
+    _flood(left, ny, nx, start)
+    return (cells & ~left).reshape(nz, ny, nx)[1:-1, 1:-1, 1:-1]
+
+
+def in_cavity(up, camera, width, height, eye):
+    """Whether a ray of this view may start in (or on) a cavity box (``up.cavity_lo``,
+    ``up.cavity_hi``: their corners); then every face is drawn."""
+    if not len(up.cavity_lo):
+        return False
+    if not camera.parallel:
+        return bool(np.all((up.cavity_lo <= eye) & (eye <= up.cavity_hi), axis=1).any())
+    # Parallel: ray origins lie within a rounding of the view plane; does
+    # that slab meet a cavity box?
+    f = np.asarray(camera.basis()[0], dtype=np.float64)
+    centre = (up.cavity_lo + up.cavity_hi) / 2.0
+    half = (up.cavity_hi - up.cavity_lo) / 2.0 @ np.abs(f)
+    dist = (centre - eye) @ f
+    slab = origin_slab(camera, width, height, eye, up.cavity_lo, up.cavity_hi) + 2.0 ** -40 * half
+    return bool(np.any((dist - half <= slab) & (dist + half >= -slab)))
+
+
+def origin_slab(camera, width, height, eye, lo, hi):
+    """Half-width around the view plane that holds every parallel ray origin as the caster rounds it."""
+    return 2.0 ** -40 * (np.abs(eye).max() + max(np.abs(lo).max(), np.abs(hi).max())
+                         + camera.parallel_scale * (width / height + 1.0))
+
+
+def distance_to_pc(point, proxy):
+    """Euclidean distance from ``point`` to the nearest PC supercell box (0 if inside or on one)."""
+    ex, ey, ez = proxy.world_edges
+    if not proxy.pc.any():
+        return math.inf
+
+    def axis_gap(e, p):
+        # Per supercell along one axis: distance from p to [e[a], e[a+1]].
+        return np.maximum(np.maximum(e[:-1] - p, 0.0), p - e[1:])
+
+    gx, gy, gz = (axis_gap(e, p) ** 2 for e, p in zip((ex, ey, ez), point))
+    plane = gy[:, None] + gx[None, :]
+    best = math.inf
+    # Slab by slab in z keeps memory at one (Ay, Ax) plane per slice.
+    for k in np.flatnonzero(proxy.pc.any(axis=(1, 2))):
+        best = min(best, gz[k] + float(plane[proxy.pc[k]].min()))
+        if best == 0.0:
+            break
+    return math.sqrt(best)
+
+
+def parallel_inside(camera, width, height, proxy):
+    """Pixels of a parallel view whose ray starts inside (or on) a PC supercell, (H, W) bool.
+
+    Ray origins by the caster's formula, a band of rows at a time (memory).
+    """
+    f, r, u = camera.basis()
+    ps = camera.parallel_scale
+    eye = np.asarray(camera.eye, dtype=np.float64)
+    lo, hi = proxy.bounds
+    inside = np.zeros((height, width), dtype=bool)
+    # Every origin lies within a rounding of the view plane (2^-52 of the
+    # coordinates): if the volume box is clear of that slab, no origin is
+    # in it -- the usual case, a view plane in front of the volume.
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    dist = (corners - eye) @ np.asarray(f, dtype=np.float64)
+    slab = origin_slab(camera, width, height, eye, lo, hi)
+    if (dist > slab).all() or (dist < -slab).all():
+        return inside
+    sx = (2.0 * (np.arange(width) + 0.5) / width - 1.0) * (width / height)
+    band = max(1, _BAND_PIXELS // width)
+    for y0 in range(0, height, band):
+        sy = 1.0 - 2.0 * (np.arange(y0, min(height, y0 + band)) + 0.5) / height
+        o = eye + ps * (sx[None, :, None] * r + sy[:, None, None] * u)
+        o = o.reshape(-1, 3)
+        cand = np.flatnonzero(np.all((o >= lo) & (o <= hi), axis=1))
+        if not len(cand):
+            continue
+        p = o[cand]
+        idx = []
+        for axis, e in enumerate(proxy.world_edges):
+            n = len(e) - 1
+            # Closed boxes: a point on a boundary belongs to both neighbours.
+            right = np.clip(np.searchsorted(e, p[:, axis], "right") - 1, 0, n - 1)
+            left = np.clip(np.searchsorted(e, p[:, axis], "left") - 1, 0, n - 1)
+            idx.append((left, right))
+        (x0, x1), (y0_, y1_), (z0, z1) = idx
+        hit = np.zeros(len(cand), dtype=bool)
+        for zz in (z0, z1):
+            for yy in (y0_, y1_):
+                for xx in (x0, x1):
+                    hit |= proxy.pc[zz, yy, xx]
+        flat = inside[y0:y0 + band].reshape(-1)
+        flat[cand] = hit
+    return inside
+
