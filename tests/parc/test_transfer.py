@@ -320,7 +320,7 @@ def test_nonzero_in_dtypes_shapes_and_chunks(monkeypatch):
     a = rng.uniform(300, 900, 10007)
     b = a + rng.uniform(0, 50, a.size)
     whole = tf.nonzero_in(a, b)
-    monkeypatch.setattr(T, "_CHUNK", 1000)
+    monkeypatch.setattr(T.function, "_CHUNK", 1000)
     np.testing.assert_array_equal(tf.nonzero_in(a, b), whole)
 
 

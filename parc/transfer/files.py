@@ -1,0 +1,199 @@
+"""Transfer-function files: our TOML/JSON format and ParaView colour maps, loaded and saved.
+
+File formats
+------------
+Our own format, TOML or JSON with the same keys::
+
+    name = "skin and bone"            # optional
+    description = "..."               # optional
+    space = "data"                    # optional: "data" (default) or "normalized"
+    opacity = [[500, 0.0], [650, 0.05], [1000, 0.0]]      # [value, alpha], required
+    color = [[500, 0.8, 0.5, 0.4], [1000, 1.0, 0.9, 0.8]]  # [value, r, g, b], optional (white)
+
+With ``space = "normalized"`` the values lie in [0, 1] and map linearly
+onto the data range ``(lo, hi)`` given to `load_transfer_function`.
+
+ParaView colour-map JSON (File > Export in the colour map editor): a list
+of objects (the first is used) or one object, with ``"RGBPoints": [x, r, g,
+b, ...]`` and optionally ``"Points": [x, alpha, midpoint, sharpness, ...]``
+(only ``x, alpha`` are used: opacity is linear between points). Without
+``"Points"`` the opacity is the ramp the range presets use. Other keys
+(``"Name"``, ``"ColorSpace"``, ``"NanColor"``...) are read or ignored. When
+the colour points span [0, 1] or [-1, 1] (a preset meant to be stretched)
+and a data range is given, both point lists are mapped onto it.
+"""
+from __future__ import annotations
+
+import json
+import os
+import tomllib
+from pathlib import Path
+
+import numpy as np
+
+from data_tools import InputError
+
+from .function import TransferFunction, control_points, is_number, short_repr
+from .presets import PRESETS, data_range_of, preset, ramp_opacity
+
+
+_OUR_KEYS = ("color", "description", "name", "opacity", "space")
+
+def load_transfer_function(spec, data_range=None):
+    """A transfer function from a preset name or a file.
+
+    Parameters
+    ----------
+    spec : str, path or TransferFunction
+        A name in `PRESETS`, or a ``.toml`` / ``.json`` file in our format or
+        ParaView's (see the module notes). A TransferFunction is returned as is.
+    data_range : (lo, hi), optional
+        The volume's value range: needed by the ramp presets and
+        ``space = "normalized"`` files, and used to stretch normalized
+        ParaView maps.
+
+    Returns
+    -------
+    TransferFunction
+
+    Raises
+    ------
+    InputError
+        One line naming the file (or preset) and the offending key.
+    """
+    if isinstance(spec, TransferFunction):
+        return spec
+    text = os.fspath(spec)
+    if text in PRESETS:
+        return preset(text, data_range)
+    path = Path(text)
+    ext = path.suffix.lower()
+    if not path.exists():
+        if ext in (".toml", ".json") or os.sep in text or "/" in text:
+            raise InputError(f"transfer function file not found: {text}")
+        raise InputError(f"unknown transfer function preset {text!r}; known: {', '.join(PRESETS)}; "
+                         "or give a .toml or .json file")
+    where = f"transfer function {text}"
+    if ext not in (".toml", ".json"):
+        raise InputError(f"{where}: unknown file type {ext or '(none)'!r}; use .toml or .json")
+    if path.is_dir():
+        raise InputError(f"{where}: is a directory, not a file")
+    try:
+        raw = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError:
+        raise InputError(f"{where}: not a UTF-8 text file") from None
+    except OSError as exc:
+        raise InputError(f"{where}: cannot read: {exc.strerror or exc}") from None
+    if ext == ".toml":
+        try:
+            doc = tomllib.loads(raw)
+        except tomllib.TOMLDecodeError as exc:
+            raise InputError(f"{where}: malformed TOML: {exc}") from None
+    else:
+        try:
+            doc = json.loads(raw)
+        except json.JSONDecodeError as exc:
+            raise InputError(f"{where}: malformed JSON: {exc}") from None
+        if isinstance(doc, list) or (isinstance(doc, dict) and "RGBPoints" in doc):
+            return _from_paraview(doc, where, text, data_range)
+    if not isinstance(doc, dict):
+        raise InputError(f"{where}: expected an object with 'opacity' and 'color' keys, "
+                         f"got a {type(doc).__name__}")
+    return _from_ours(doc, where, text, data_range)
+
+def _from_ours(doc, where, source, data_range):
+    unknown = sorted(set(doc) - set(_OUR_KEYS))
+    if unknown:
+        raise InputError(f"{where}: unknown key{'s' if len(unknown) > 1 else ''} "
+                         f"{', '.join(repr(k) for k in unknown)}; known: {', '.join(_OUR_KEYS)}")
+    for key in ("name", "description", "space"):
+        if key in doc and not isinstance(doc[key], str):
+            raise InputError(f"{where}: {key}: must be a string, got {short_repr(doc[key])}")
+    if "opacity" not in doc:
+        raise InputError(f"{where}: opacity: missing; give opacity = [[value, alpha], ...]")
+    space = doc.get("space", "data")
+    if space not in ("data", "normalized"):
+        raise InputError(f"{where}: space: must be \"data\" or \"normalized\", got {space!r}")
+    tf = TransferFunction(doc["opacity"], doc.get("color"), name=doc.get("name", ""),
+                          description=doc.get("description", ""), source=source)
+    if space == "normalized":
+        for key, xs in (("opacity", tf.arrays()[0]), ("color", tf.arrays()[2])):
+            bad = np.flatnonzero((xs < 0.0) | (xs > 1.0))
+            if len(bad):
+                raise InputError(f"{where}: {key}[{bad[0]}]: value {xs[bad[0]]:g} is outside [0, 1] "
+                                 "(space = \"normalized\")")
+        if data_range is None:
+            raise InputError(f"{where}: space: \"normalized\" needs the data range (lo, hi)")
+        lo, hi = data_range_of(data_range, where)
+        tf = tf.mapped(lo, hi)
+    return tf
+
+def _from_paraview(doc, where, source, data_range):
+    if isinstance(doc, list):
+        if not doc:
+            raise InputError(f"{where}: the ParaView colour-map list is empty")
+        doc = doc[0]
+        if not isinstance(doc, dict):
+            raise InputError(f"{where}: [0]: expected a ParaView colour-map object, got {short_repr(doc)}")
+    name = doc.get("Name", "")
+    if not isinstance(name, str):
+        raise InputError(f"{where}: Name: must be a string, got {short_repr(name)}")
+    if "RGBPoints" not in doc:
+        extra = " (indexed/categorical maps are not supported)" if "IndexedColors" in doc else ""
+        raise InputError(f"{where}: RGBPoints: missing{extra}")
+    col = control_points(_flat_groups(doc["RGBPoints"], "RGBPoints", 4, 4, where), "RGBPoints",
+                  ("r", "g", "b"), where, label=lambda i, j: f"RGBPoints[{4 * i + j}]")
+    if "Points" in doc:
+        op = control_points(_flat_groups(doc["Points"], "Points", 4, 2, where), "Points", ("alpha",),
+                     where, label=lambda i, j: f"Points[{4 * i + j}]")
+    else:
+        x0, x1 = col[0, 0], col[-1, 0]
+        span = x1 - x0 if x1 > x0 else 1.0
+        op = np.array(ramp_opacity())
+        op[:, 0] = x0 + op[:, 0] * span
+        op[-1, 0] = x0 + span
+    tf = TransferFunction(op, col, name=name, source=source)
+    x0, x1 = col[0, 0], col[-1, 0]
+    normalized = x1 > x0 and abs(x1 - 1.0) <= 1e-6 and (abs(x0) <= 1e-6 or abs(x0 + 1.0) <= 1e-6)
+    if normalized and data_range is not None:
+        lo, hi = data_range_of(data_range, where)
+        tf = tf.mapped(lo, hi, src=(x0, x1))
+    return tf
+
+def _flat_groups(raw, key, group, keep, where):
+    """``[[x, ...], ...]`` from a flat ParaView list in groups of ``group``, first ``keep`` of each."""
+    shape = "[x, r, g, b, ...]" if key == "RGBPoints" else "[x, alpha, midpoint, sharpness, ...]"
+    if not isinstance(raw, list):
+        raise InputError(f"{where}: {key}: expected a flat list {shape}, got {short_repr(raw)}")
+    if not raw:
+        raise InputError(f"{where}: {key}: the list is empty")
+    if len(raw) % group:
+        raise InputError(f"{where}: {key}: {len(raw)} numbers is not a multiple of {group} {shape}")
+    for i, x in enumerate(raw):
+        if not is_number(x):
+            raise InputError(f"{where}: {key}[{i}]: must be a number, got {short_repr(x)}")
+    return [raw[i:i + keep] for i in range(0, len(raw), group)]
+
+def save_transfer_function(tf, path):
+    """Write ``tf`` to ``path`` (``.toml`` or ``.json``) in our format; `load_transfer_function` reads it back equal."""
+    path = Path(path)
+    ext = path.suffix.lower()
+    d = tf.to_dict()
+    if ext == ".json":
+        text = json.dumps(d, indent=2) + "\n"
+    elif ext == ".toml":
+        lines = []
+        for key in ("name", "description", "space"):
+            if key in d:
+                # A JSON string is a TOML basic string, once DEL is escaped too.
+                value = json.dumps(d[key], ensure_ascii=False).replace("\x7f", "\\u007f")
+                lines.append(f"{key} = {value}")
+        for key in ("opacity", "color"):
+            lines.append(f"{key} = [")
+            lines += ["    [" + ", ".join(repr(float(x)) for x in p) + "]," for p in d[key]]
+            lines.append("]")
+        text = "\n".join(lines) + "\n"
+    else:
+        raise InputError(f"transfer function {path}: unknown file type {ext or '(none)'!r}; "
+                         "use .toml or .json")
+    path.write_text(text, encoding="utf-8")
