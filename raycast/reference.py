@@ -88,7 +88,8 @@ from fractions import Fraction
 import mpmath
 import numpy as np
 
-from .hardcases import cast_batch, field_grad
+from .hardcases import cast_batch
+from .hardfields import field_grad
 
 DPS = 40
 MP = mpmath.MPContext()
@@ -110,7 +111,7 @@ NOISE_FACTOR = 10.0     # |P(t_m)| <= NOISE_FACTOR * E(t_m) + ...
 # ----------------------------------------------------------- exact cubic
 
 def mp_grid(scene):
-    """``(origin, spacing)`` of a `raycast.hardcases.Scene` as mpf triples (kept on the scene)."""
+    """``(origin, spacing)`` of a `raycast.hardfields.Scene` as mpf triples (kept on the scene)."""
     if getattr(scene, "_mp_grid", None) is None:
         scene._mp_grid = ([mpf(float(x)) for x in scene.origin],
                           [mpf(float(x)) for x in scene.spacing])

@@ -22,10 +22,10 @@ does) anywhere before the hit gives bit-identical answers.
 import numpy as np
 import pytest
 
-from raycast.hardcases import (ANISO, DYADIC, UNIT, Batch, aimed_rays, axis_rays, cast,
-                               diagonal_vertex_rays, in_plane_rays, near_axis_rays, parallel_rays,
-                               perspective_rays, plane_hugging_rays, random_dirs, random_isos,
-                               random_scene, report, vertex_world)
+from raycast.hardcases import Batch, cast, report
+from raycast.hardfields import ANISO, DYADIC, UNIT, random_isos, random_scene
+from raycast.hardrays import (aimed_rays, axis_rays, diagonal_vertex_rays, in_plane_rays, near_axis_rays,
+                              parallel_rays, perspective_rays, plane_hugging_rays, random_dirs, vertex_world)
 from raycast.reference import Truth, run_batches
 
 SCENES = [

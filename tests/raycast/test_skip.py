@@ -16,7 +16,8 @@ import pytest
 from data_tools.synthetic import blobs
 from parc.classify import VolumeIndex, cell_minmax, sign_iso
 from parc.skip import SKIP_CAP, skip_radius
-from raycast.hardcases import CATEGORIES, cast, hard_batches, random_dirs
+from raycast.hardcases import CATEGORIES, cast, hard_batches
+from raycast.hardrays import random_dirs
 
 SHIFTS = (0, 1, 2, 3)
 #: (jump minimum, cap) pairs the walks are checked with.

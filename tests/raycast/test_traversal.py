@@ -19,9 +19,10 @@ decides whether the crossing is inside the box.
 import numpy as np
 import pytest
 
-from raycast.hardcases import (ANISO, DYADIC, UNIT, axis_rays, cast, diagonal_vertex_rays, in_plane_rays,
-                       long_scenes, near_axis_rays, parallel_rays, perspective_rays,
-                       plane_hugging_rays, random_scene)
+from raycast.hardcases import cast, long_scenes
+from raycast.hardfields import ANISO, DYADIC, UNIT, random_scene
+from raycast.hardrays import (axis_rays, diagonal_vertex_rays, in_plane_rays, near_axis_rays, parallel_rays,
+                              perspective_rays, plane_hugging_rays)
 from raycast.reference import exact_cell_count
 
 KINDS = ["persp-outside", "persp-inside", "parallel", "axis", "near-axis", "plane-hugging",
