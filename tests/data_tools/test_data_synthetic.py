@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from data_tools import InputError, Volume, synthetic
+from data_tools import InputError, Volume, phantom
 from data_tools.io import load_volume
 from data_tools.synthetic import (DESCRIPTIONS, SYNTHETIC, builtin_volume, ct_phantom, ct_phantom_to_disk,
                                   floor, make_synthetic, marschner_lobb, neuron, sphere, torus,
@@ -165,12 +165,12 @@ def test_ct_phantom_levels():
 
 @pytest.mark.parametrize("ext", [".nrrd", ".raw"])
 def test_ct_phantom_streams_the_same_samples(tmp_path, monkeypatch, ext):
-    monkeypatch.setattr(synthetic, "_SLAB_VOXELS", 3 * 20 * 18)   # several slabs, a short last one
+    monkeypatch.setattr(phantom, "_SLAB_VOXELS", 3 * 20 * 18)   # several slabs, a short last one
     shape = (20, 18, 16)
     path = tmp_path / f"ct_20x18x16_int16{ext}"
     ct_phantom_to_disk(path, shape, seed=4, spacing=(1, 1, 2))
     vol = load_volume(path)
-    monkeypatch.setattr(synthetic, "_SLAB_VOXELS", 1 << 22)
+    monkeypatch.setattr(phantom, "_SLAB_VOXELS", 1 << 22)
     ref = ct_phantom(shape, seed=4, spacing=(1, 1, 2))
     np.testing.assert_array_equal(vol.data, ref.data)
     if ext == ".nrrd":
