@@ -2,7 +2,7 @@
 
 Source of truth: the real roots of ``a s^3 + b s^2 + c s + d`` in ``[0, L]``
 computed in mpmath (40 digits) from the exact float64 coefficients
-(`raycast.reference.real_roots`). The cubic is the caster's own input, so the only
+(`raycast.mpcubic.real_roots`). The cubic is the caster's own input, so the only
 legitimate error is the float evaluation of the cubic, bounded by
 ``e(s) = 8 eps (|a| s^3 + |b| s^2 + |c| s + |d|)`` (Horner). Tolerance:
 
@@ -21,7 +21,8 @@ import math
 import numpy as np
 import pytest
 
-from raycast.reference import EPS, mpf, peval, pderiv, real_roots
+from raycast.mpcubic import mpf, pderiv, peval, real_roots
+from raycast.reference import EPS
 from raycast.cubic import bernstein, eval_cubic, first_root, sign_changes, surely_no_root
 
 

@@ -116,7 +116,7 @@ def test_segment_start_gives_identical_hits(spec):
 def test_truth_agrees_with_a_plain_sample_scan():
     """Guard on the reference itself: scan P(t) on a fine grid in mpmath; the
     first sign change must bracket Truth's first root."""
-    from raycast.reference import mpf, peval
+    from raycast.mpcubic import mpf, peval
     scene = make_scene(*SCENES[0])
     rng = np.random.default_rng(5)
     iso = float(np.median(scene.data)) + 0.123
