@@ -127,8 +127,10 @@ import weakref
 from dataclasses import dataclass, field
 
 import numpy as np
+from numba import prange
 
 from data_tools import InputError
+from raycast.config import kernel
 
 from .gl import get_context, moderngl_module, program, set_uniform
 from .origins import distance_to_pc, in_cavity, open_faces, parallel_inside
@@ -402,8 +404,7 @@ def raster_segments(camera, width, height, proxy, *, pad_px=COVERAGE_PAD_PX, fac
         # The shader wrote (near, -far), already conservative and near >= 0;
         # pixels without a fragment kept (inf, inf), i.e. near inf, far -inf.
         seg = np.empty((height, width, 2)) if out is None else out
-        np.copyto(seg, rg)
-        np.negative(seg[..., 1], out=seg[..., 1])
+        pixels = unpack_segments(rg, seg)
     else:
         drawn = 0
         seconds.update(upload=0.0, draw=0.0, readback=0.0)
@@ -411,6 +412,7 @@ def raster_segments(camera, width, height, proxy, *, pad_px=COVERAGE_PAD_PX, fac
         seg = np.empty((height, width, 2)) if out is None else out
         seg[..., 0] = np.inf
         seg[..., 1] = -np.inf
+        pixels = 0
     near, far = seg[..., 0], seg[..., 1]
 
     if camera.parallel:
@@ -426,11 +428,30 @@ def raster_segments(camera, width, height, proxy, *, pad_px=COVERAGE_PAD_PX, fac
         # past the clipped sliver (t <= clip_near / cos(angle)).
         near[:] = 0.0
         np.maximum(far, 2.0 * clip_near / cos_max + margin(0.0, scale), out=far)
+    if eye_inside:
+        pixels = np.count_nonzero(near <= far)
     seconds["post"] = time.perf_counter() - t0
     seconds["total"] = sum(seconds.values())
     info = {"eye_inside": bool(eye_inside), "d_min": d_min, "clip_near": clip_near,
-            "pixels": int(np.count_nonzero(near <= far)), "scale": scale, "drawn": drawn}
+            "pixels": int(pixels), "scale": scale, "drawn": drawn}
     return Segments(near=near, far=far, polygons=proxy.n_polygons, seconds=seconds, info=info, _seg=seg)
+
+
+@kernel(parallel=True)
+def unpack_segments(rg, seg):
+    """``seg[y, x] = (near, far)`` from the read-back ``(near, -far)``; returns the pixels with
+    ``near <= far``. One pass: NumPy's copy, negation and count took three (0.45 ms at 512x512)."""
+    height, width, _ = seg.shape
+    pixels = 0
+    for y in prange(height):
+        for x in range(width):
+            near = rg[y, x, 0]
+            far = -rg[y, x, 1]
+            seg[y, x, 0] = near
+            seg[y, x, 1] = far
+            if near <= far:
+                pixels += 1
+    return pixels
 
 
 def set_view_uniforms(prog, camera, width, height, edge_offset, *, clip_near, ndc_limit, pad_px, scale):
