@@ -110,9 +110,9 @@ setup on the calling thread (~2 ms for 3.7k faces), then llvmpipe's
 rasterization (~2/3, measured with a constant fragment shader) and the
 fragment shader (~1/3) on its threads; clear and read-back take ~0.4 ms
 each, the unpacking into float64 segments ~0.2 ms (`unpack_segments`).
-Faces bordering only cavities (bone:
-1.1k of 6.9k, neghip: 1.0k of 2.2k) are skipped while no ray starts in
-one (`parc.origins.open_faces`). Looseness against the exact segments
+Faces bordering only cavities (bone: 1.1k of 6.9k, neghip: 1.0k of
+2.2k) are skipped while no ray starts in one (`parc.origins.open_faces`).
+Looseness against the exact segments
 (tests/parc/test_raster.py reports it): ~1e-4 cells mean, ~2e-3 max,
 except a few pixels next to faces whose plane passes through or next to
 the eye (up to a few cells).
