@@ -34,7 +34,7 @@ import numpy as np
 from numba import prange
 
 from .config import TILE_H, TILE_W, kernel
-from .rays import camera_ray, spread, spread_ways, tile_count, tile_rect, tiles_across
+from .rays import camera_ray, dealt_tile, tile_count
 from .shade import blinn_phong, trilinear_gradient
 from .transfer import correct_opacity, tf_color, tf_lookup, tf_opacity
 from .traverse import cell_corners, clip_box, to_index_space
@@ -331,9 +331,8 @@ def cast_accumulate_image(data, org, spc, cam, width, height, params, op_x, op_y
     ``skip``/``jump_min``: the skip table (`accumulate_ray`).
     """
     tiles = tile_count(width, row0, row1, TILE_W, TILE_H)
-    ways = spread_ways(tiles)
     for it in prange(tiles):
-        x0, x1, y0, y1 = tile_rect(spread(it, tiles, ways, tiles_across(width, TILE_W)), width, row0, row1, TILE_W, TILE_H)
+        x0, x1, y0, y1 = dealt_tile(it, tiles, width, row0, row1)
         for y in range(y0, y1):
             for x in range(x0, x1):
                 s0 = -math.inf
@@ -397,9 +396,8 @@ def cast_merged_image(datas, orgs, spcs, cam, width, height, params, op_x, op_y,
     for k in range(nvol):
         thr = max(thr, params[k, P_THRESHOLD])
     tiles = tile_count(width, 0, height, TILE_W, TILE_H)
-    ways = spread_ways(tiles)
     for it in prange(tiles):
-        x0, x1, y0, y1 = tile_rect(spread(it, tiles, ways, tiles_across(width, TILE_W)), width, 0, height, TILE_W, TILE_H)
+        x0, x1, y0, y1 = dealt_tile(it, tiles, width, 0, height)
         st = np.empty((nvol, 9))
         used = np.zeros(layer_t.shape[0], np.bool_)
         for y in range(y0, y1):

@@ -42,7 +42,7 @@ from numba import prange
 
 from .composite import MODE_COMPOSITE, P_MODE, P_RATIO, P_STEP, P_THRESHOLD, lattice_range, sample_value
 from .config import TILE_H, TILE_W, kernel
-from .rays import camera_ray, spread, spread_ways, tile_count, tile_rect, tiles_across
+from .rays import camera_ray, dealt_tile, tile_count
 from .transfer import correct_opacity, tf_opacity
 from .traverse import clip_box, to_index_space
 
@@ -94,9 +94,8 @@ def ideal_samples_image(data, org, spc, cam, width, height, params, op_x, op_y,
     at ``t >= stop[y, x]`` (an opaque surface there).
     """
     tiles = tile_count(width, 0, height, TILE_W, TILE_H)
-    ways = spread_ways(tiles)
     for it in prange(tiles):
-        x0, x1, y0, y1 = tile_rect(spread(it, tiles, ways, tiles_across(width, TILE_W)), width, 0, height, TILE_W, TILE_H)
+        x0, x1, y0, y1 = dealt_tile(it, tiles, width, 0, height)
         for y in range(y0, y1):
             for x in range(x0, x1):
                 ox, oy, oz, dx, dy, dz = camera_ray(cam, width, height, x, y)

@@ -30,7 +30,7 @@ from numba import prange
 
 from .config import TILE_H, TILE_W, kernel
 from .cubic import cubic_along_ray, eval_cubic, first_root, trilinear_coefficients
-from .rays import camera_ray, spread, spread_run, spread_runs, spread_ways
+from .rays import camera_ray, dealt_tile, spread_run, spread_runs, tile_count
 from .traverse import advance, axis_state, cell_corners, clip_box, next_exit, start_index, step_axis, to_index_space
 
 #: The table a walk without one takes (with ``jump_min = -1``).
@@ -274,17 +274,11 @@ def cast_iso_image(data, org, spc, cam, width, height, iso, seg, use_seg, skip, 
     skip table, or `NO_SKIP` and -1 (see `cast_iso_ray`). Only rows ``row0 <= y < row1``
     are cast, so a driver can report progress band by band.
     """
-    tiles_x = (width + TILE_W - 1) // TILE_W
-    tiles_y = (row1 - row0 + TILE_H - 1) // TILE_H
-    tiles = tiles_x * tiles_y
-    ways = spread_ways(tiles)
+    tiles = tile_count(width, row0, row1, TILE_W, TILE_H)
     for it in prange(tiles):
-        tile = spread(it, tiles, ways, tiles_x)
-        ty = tile // tiles_x
-        tx = tile - ty * tiles_x
-        y_lo = row0 + ty * TILE_H
-        for y in range(y_lo, min(row1, y_lo + TILE_H)):
-            for x in range(tx * TILE_W, min(width, tx * TILE_W + TILE_W)):
+        x0, x1, y0, y1 = dealt_tile(it, tiles, width, row0, row1)
+        for y in range(y0, y1):
+            for x in range(x0, x1):
                 n = y * width + x
                 s0 = -math.inf
                 s1 = math.inf
@@ -308,9 +302,8 @@ def cast_iso_rays(data, org, spc, origins, dirs, iso, seg, use_seg, skip, jump_m
     """Cast arbitrary world rays ``origins[n] + t dirs[n]`` (``|dirs[n]| = 1``)."""
     rays = origins.shape[0]
     runs = spread_runs(rays)
-    ways = spread_ways(runs)
     for it in prange(runs):
-        lo, hi = spread_run(it, runs, ways, rays)
+        lo, hi = spread_run(it, runs, rays)
         for n in range(lo, hi):
             s0 = -math.inf
             s1 = math.inf

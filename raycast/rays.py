@@ -6,7 +6,7 @@ this is DESIGN's ray formula, written once.
 """
 import math
 
-from .config import SPREAD_CHUNK, SPREAD_WAYS, kernel
+from .config import SPREAD_CHUNK, SPREAD_WAYS, TILE_H, TILE_W, kernel
 
 CAM_SIZE = 15
 
@@ -31,13 +31,7 @@ def camera_ray(cam, width, height, x, y):
 
 
 @kernel
-def spread_ways(n):
-    """The shares `spread` deals ``n`` work items into: one per thread (`SPREAD_WAYS`), at most ``n``."""
-    return max(1, min(n, SPREAD_WAYS))
-
-
-@kernel
-def spread(it, n, ways, group=1):
+def spread(it, n, group=1, ways=SPREAD_WAYS):
     """The work item (``0 .. n-1``) iteration ``it`` of a parallel loop over ``n`` items takes.
 
     Numba's ``prange`` gives each thread one contiguous run of iterations
@@ -45,7 +39,7 @@ def spread(it, n, ways, group=1):
     workqueue layers), and costly work clusters: the tiles where the
     volume is, the hits of one surface. So the items, in runs of ``group``
     (a row of tiles; ``n`` a multiple of it), are dealt like cards into
-    ``ways`` shares: share ``q`` (the ``q``-th run of iterations) takes
+    ``ways`` shares, one per thread: share ``q`` (the ``q``-th run of iterations) takes
     runs ``q, q + ways, q + 2 ways, ...``. Each thread then gets an even
     sample of the image, as a golden-ratio stride over single tiles also
     gave (casting the Fig. 13 floor: no gain from two threads before
@@ -86,9 +80,9 @@ def spread_runs(n):
 
 
 @kernel
-def spread_run(it, runs, ways, n):
+def spread_run(it, runs, n):
     """Items ``lo <= m < hi`` that iteration ``it`` of a loop over `spread_runs(n)` runs takes."""
-    lo = spread(it, runs, ways) * SPREAD_CHUNK
+    lo = spread(it, runs) * SPREAD_CHUNK
     return lo, min(n, lo + SPREAD_CHUNK)
 
 
@@ -113,3 +107,11 @@ def tile_rect(tile, width, row0, row1, tile_w, tile_h):
     y0 = row0 + ty * tile_h
     x0 = tx * tile_w
     return x0, min(width, x0 + tile_w), y0, min(row1, y0 + tile_h)
+
+
+@kernel
+def dealt_tile(it, tiles, width, row0, row1):
+    """Pixel rectangle ``(x0, x1, y0, y1)`` that iteration ``it`` of a parallel loop over the
+    ``tiles = tile_count(width, row0, row1, TILE_W, TILE_H)`` image tiles casts: whole rows
+    of tiles dealt to the threads (`spread`)."""
+    return tile_rect(spread(it, tiles, tiles_across(width, TILE_W)), width, row0, row1, TILE_W, TILE_H)

@@ -4,7 +4,7 @@ import math
 from numba import prange
 
 from .config import kernel
-from .rays import camera_ray, spread_run, spread_runs, spread_ways
+from .rays import camera_ray, spread_run, spread_runs
 from .traverse import cell_corners
 
 
@@ -73,9 +73,8 @@ def shade_headlight(data, spc, cam, width, height, t, cell, uvw, color, material
     """
     pixels = width * height
     runs = spread_runs(pixels)
-    ways = spread_ways(runs)
     for it in prange(runs):
-        lo, hi = spread_run(it, runs, ways, pixels)
+        lo, hi = spread_run(it, runs, pixels)
         for n in range(lo, hi):
             if not t[n] < math.inf:
                 continue

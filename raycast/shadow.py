@@ -29,7 +29,7 @@ from numba import prange
 from .composite import accumulate_ray
 from .config import kernel
 from .iso import cast_iso_ray
-from .rays import camera_ray, spread_run, spread_runs, spread_ways
+from .rays import camera_ray, spread_run, spread_runs
 from .shade import blinn_phong, trilinear_gradient
 from .traverse import to_index_space
 
@@ -149,9 +149,8 @@ def shadow_iso(data, org, spc, iso, points, light, eps, views, near, far, use_se
     """
     rays = points.shape[0]
     runs = spread_runs(rays)
-    ways = spread_ways(runs)
     for it in prange(runs):
-        lo, hi = spread_run(it, runs, ways, rays)
+        lo, hi = spread_run(it, runs, rays)
         for n in range(lo, hi):
             if vis[n] == 0.0:
                 continue
@@ -178,9 +177,8 @@ def shadow_accumulate(data, org, spc, params, op_x, op_y, col_x, col_rgb, points
     nobits = np.zeros((1, 1, 1), np.uint32)
     rays = points.shape[0]
     runs = spread_runs(rays)
-    ways = spread_ways(runs)
     for it in prange(runs):
-        lo, hi = spread_run(it, runs, ways, rays)
+        lo, hi = spread_run(it, runs, rays)
         for n in range(lo, hi):
             if vis[n] == 0.0:
                 continue

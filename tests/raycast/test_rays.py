@@ -2,14 +2,15 @@
 import numpy as np
 import pytest
 
-from raycast.rays import chunk_count, spread, spread_run, spread_runs, spread_ways, tile_count, tile_rect
+from raycast.config import TILE_H, TILE_W
+from raycast.rays import chunk_count, dealt_tile, spread, spread_run, spread_runs, tile_count, tile_rect
 
 
 @pytest.mark.parametrize("ways", [1, 2, 3, 4, 16])
 @pytest.mark.parametrize("n", [1, 2, 3, 7, 64, 100, 1000, 2048, 4096, 8191, 16385])
 def test_spread_visits_every_item_once(n, ways):
     ways = min(n, ways)
-    order = np.array([spread(it, n, ways) for it in range(n)])
+    order = np.array([spread(it, n, 1, ways) for it in range(n)])
     assert np.array_equal(np.sort(order), np.arange(n))
 
 
@@ -19,7 +20,7 @@ def test_each_thread_share_samples_the_whole_range_in_order(n, ways):
     """The contiguous runs of iterations a static schedule gives each thread
     take items from every part of the range, not one end of it, and walk it
     in order, one item of every ``ways``."""
-    order = np.array([spread(it, n, ways) for it in range(n)])
+    order = np.array([spread(it, n, 1, ways) for it in range(n)])
     for share in np.array_split(order, ways):
         counts = np.histogram(share, bins=4, range=(0, n))[0]
         assert counts.min() >= 0.8 * len(share) / 4
@@ -32,7 +33,7 @@ def test_spread_deals_whole_rows_of_tiles(ways):
     ``ways``-th, in order, and every tile once."""
     across, rows = 16, 37
     n = across * rows
-    order = np.array([spread(it, n, ways, across) for it in range(n)])
+    order = np.array([spread(it, n, across, ways) for it in range(n)])
     assert np.array_equal(np.sort(order), np.arange(n))
     rows_taken = order.reshape(rows, across) // across
     assert (rows_taken == rows_taken[:, :1]).all()
@@ -42,8 +43,8 @@ def test_spread_deals_whole_rows_of_tiles(ways):
 
 
 def test_one_way_is_the_natural_order():
-    assert [spread(it, 10, 1) for it in range(10)] == list(range(10))
-    assert spread_ways(5) >= 1 and spread_ways(1) == 1
+    assert [spread(it, 10, 1, 1) for it in range(10)] == list(range(10))
+    assert sorted(spread(it, 5) for it in range(5)) == list(range(5))     # more threads than items
 
 
 def test_chunks_and_tiles_cover_the_items():
@@ -54,14 +55,20 @@ def test_chunks_and_tiles_cover_the_items():
         x0, x1, y0, y1 = tile_rect(tile, width, row0, row1, 32, 4)
         seen[y0:y1, x0:x1] += 1
     assert (seen[row0:] == 1).all() and (seen[:row0] == 0).all()
+    # The parallel loops' tiles (the project's tile size, dealt to threads) cover them too.
+    seen[:] = 0
+    tiles = tile_count(width, row0, row1, TILE_W, TILE_H)
+    for it in range(tiles):
+        x0, x1, y0, y1 = dealt_tile(it, tiles, width, row0, row1)
+        seen[y0:y1, x0:x1] += 1
+    assert (seen[row0:] == 1).all() and (seen[:row0] == 0).all()
 
 
 @pytest.mark.parametrize("n", [0, 1, 63, 64, 65, 1000])
 def test_spread_runs_cover_every_ray_once(n):
     runs = spread_runs(n)
-    ways = spread_ways(runs) if runs else 1
     seen = np.zeros(n, int)
     for it in range(runs):
-        lo, hi = spread_run(it, runs, ways, n)
+        lo, hi = spread_run(it, runs, n)
         seen[lo:hi] += 1
     assert (seen == 1).all()
