@@ -93,7 +93,7 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
         of cells that cannot contribute (all above or all below the
         isovalue, or all transparent) and steps over single such cells
         without reading their samples (a skip table with one entry per
-        cell, `parc.classify.skip_radius`), computed once per isovalue or
+        cell, `parc.skip.skip_radius`), computed once per isovalue or
         transfer function.
         The image is the same either way; False measures the OpenGL
         segments alone.

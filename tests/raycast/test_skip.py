@@ -5,7 +5,7 @@ the hard-ray suite checks against mpmath roots. Tables are built here
 directly from the samples of each cell (independent of
 `parc.classify.sign_iso`, which `test_sign_iso_*` checks against this one)
 and their cube radii by repeated erosion (independent of
-`parc.classify.skip_radius`'s separable scans). A jump minimum of 0 or 1
+`parc.skip.skip_radius`'s separable scans). A jump minimum of 0 or 1
 makes nearly every empty cell a jump, landing on the cube's exit faces,
 edges and corners; larger ones leave signed cells the walk steps on the
 table's sign alone; a small cap cuts the cubes short.
