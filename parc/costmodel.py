@@ -18,7 +18,10 @@ render time of each candidate size from what it costs here:
   the Fig. 13 floor at 2-cell supercells has 16,876 supercell faces, 508
   strips and 12 rectangles.
 - **Casting** pays per ray that reaches the PC region and per cell
-  walked; the cells walked grow with the supercell edge.
+  walked. Coarser supercells reach more rays (the PC region's projection
+  grows: `projected_share`), and each walks a little further from the
+  supercell's boundary to the surface, levelling off after a few cells
+  because the skip tables jump across the empty cubes in between.
 """
 from __future__ import annotations
 
@@ -31,30 +34,37 @@ from .classify import MAX_SUPERCELLS, _axis_edges, _size_triple
 from .proxy import outer_face_masks
 
 #: Cost model constants, measured on this project's development machine
-#: (2 x86 cores, Mesa llvmpipe 22.3 / LLVM 15). Rasterization
-#: (`parc.raster.raster_segments`, median of 5): least squares over the CT
-#: head skin and bone, neghip, and the Fig. 13 neuron and floor, supercells
-#: 1-8, at 300^2, 512^2 and 800^2 (90 frames; median error 21%): 2.0 ms per
-#: 512x512 frame plus 0.43 us per strip (`count_face_strips`). The
-#: per-frame cost is the same for every size and does not change the choice.
-RASTER_FIXED_S = 2.0e-3
-RASTER_PER_STRIP_S = 0.43e-6
-#: Numba caster with segments, per core: per ray that reaches the PC region
-#: (setup, the cubic at the hit) and per cell walked. Fitted to the CT head
-#: skin at 512x512 (`parc compare --sweep-supercell 2,3,4,6`: cast 14.1,
-#: 15.5, 17.3, 19.1 ms on 2 cores), with the model's rays (half the pixels)
-#: and cells per ray.
-CAST_PER_RAY_S = 0.16e-6
-CAST_PER_CELL_S = 6.4e-9
-#: Cells walked per ray that reaches a PC supercell: ``WALK_BASE +
-#: WALK_PER_CELL * m`` for supercells of ``m`` cells: the walk from the
-#: supercell's boundary to the surface grows with the supercell. Fitted:
-#: sphere 3.2 + 1.7 m, CT head skin 3.5 + 4.3 m (noisier, many layers).
-WALK_BASE = 3.3
-WALK_PER_CELL = 3.0
+#: (2 x86 cores, Mesa llvmpipe 22.3 / LLVM 15) with the skip tables on:
+#: least squares over the CT head skin (600) and bone (1500), neghip (80)
+#: and the CT head under ``ct_skin_bone``, supercells 1.5-16, at 512^2
+#: (300^2 translucent), median of 5 (`parc compare`'s default view).
+#: Rasterization (`parc.raster.raster_segments`): 2.6 ms per 512x512
+#: frame plus 0.325 us per strip (`count_face_strips`); the per-frame cost
+#: is the same for every size and does not change the choice.
+RASTER_FIXED_S = 2.6e-3
+RASTER_PER_STRIP_S = 0.325e-6
+#: Rays that reach the PC region: ``RAY_COVER * pixels * share``, where
+#: ``share`` is the part of the volume box's projected area that the PC
+#: supercells cover (`projected_share`, along the three axes). Coarser
+#: supercells cover more of the screen: neghip's PC region grows from 39%
+#: to 83% of the box's projection between sizes 1.5 and 16, and the rays
+#: with a segment from 16% to 35% of the pixels. Measured: segment pixels
+#: over ``pixels * share`` is 0.29-0.42 over all four scenes and sizes.
+RAY_COVER = 0.36
+#: Numba caster with segments, per core: per ray that reaches the PC
+#: region (setup, the cubic at the hit) and per cell walked.
+CAST_PER_RAY_S = 0.22e-6
+CAST_PER_CELL_S = 14.4e-9
+#: Cells walked per ray that reaches a PC supercell: ``WALK_CELLS * (1 -
+#: 2^-m)`` for supercells of ``m`` cells. The skip tables jump across the
+#: empty cubes inside a supercell, so the walk from its boundary to the
+#: surface levels off after a few cells instead of growing with ``m``:
+#: per segment ray, CT skin 7.2 cells at 1.5, 12.5 at 4, 13.7 at 10-16;
+#: bone 11.4, 17.6, 16-18; neghip 6.5, 9.9, 8.5-9.8.
+WALK_CELLS = 13.0
 
 #: Supercell sizes `choose_supercell` considers by default.
-CANDIDATE_SIZES = (1, 2, 3, 4, 6, 8)
+CANDIDATE_SIZES = (1, 2, 3, 4, 6, 8, 12)
 
 
 def count_outer_faces(pc):
@@ -88,6 +98,21 @@ def count_face_strips(pc):
     return face_counts(pc)[1]
 
 
+def projected_share(pc, edges):
+    """Part of the volume box's projected area that the PC supercells cover.
+
+    The three axis-aligned projections, each weighted by its area: the
+    box's mean projected area over all directions is proportional to that
+    sum (Cauchy), so this stands in for any view. ``pc`` is ``[z, y, x]``;
+    ``edges`` the supercell boundaries along x, y, z (any consistent units).
+    """
+    dx, dy, dz = (np.diff(np.asarray(e, dtype=np.float64)) for e in edges)
+    covered = (float((pc.any(axis=0) * np.outer(dy, dx)).sum()) + float((pc.any(axis=1) * np.outer(dz, dx)).sum())
+               + float((pc.any(axis=2) * np.outer(dz, dy)).sum()))
+    x, y, z = dx.sum(), dy.sum(), dz.sum()
+    return covered / float(x * y + z * x + z * y)
+
+
 def choose_supercell(index, iso=None, *, pixels=512 * 512, rays=None, cores=None,
                      candidates=CANDIDATE_SIZES, classify=None):
     """Pick a supercell size for an isovalue (or any classification) by estimated render time.
@@ -103,7 +128,8 @@ def choose_supercell(index, iso=None, *, pixels=512 * 512, rays=None, cores=None
     pixels : int, default 512*512
         Image size in pixels.
     rays : int or None
-        Rays expected to reach the PC region; default half the pixels.
+        Rays expected to meet the volume's box, of which the PC region
+        takes its `projected_share`; default ``RAY_COVER * pixels``.
     cores : int or None
         Cores the caster runs on; default ``os.cpu_count()``.
     candidates : sequence of sizes
@@ -116,36 +142,40 @@ def choose_supercell(index, iso=None, *, pixels=512 * 512, rays=None, cores=None
         at most `parc.classify.MAX_SUPERCELLS` supercells for this volume.
     table : list of dict
         Per candidate: ``size``, ``supercells``, ``pc_supercells``,
-        ``faces`` (outer faces before merging), ``strips``, ``raster_s``,
-        ``cells``, ``cast_s``, ``total_s``.
+        ``faces`` (outer faces before merging), ``strips``, ``share``
+        (`projected_share`), ``rays`` (reaching the PC region),
+        ``raster_s``, ``cells``, ``cast_s``, ``total_s``.
 
     Notes
     -----
     ``raster_s = RASTER_FIXED_S * pixels / 512^2 + RASTER_PER_STRIP_S *
-    strips``; ``cast_s = rays * (CAST_PER_RAY_S + (WALK_BASE +
-    WALK_PER_CELL m) CAST_PER_CELL_S) / cores``. Small supercells cost
-    polygons, large ones cells walked through their empty parts. The
-    constants were measured on one machine (see the module constants); the
-    model ranks sizes, it does not predict times elsewhere. Measured there
-    (raster + cast, 2 cores, median of 5): CT head skin at 512x512 picks 6
-    (2: 37 ms, 3: 30, 4: 29, 6: 26); the Fig. 13 floor at 600x600 picks 2,
-    where counting unmerged faces had picked 3 (floor alone: 2: 27.5 ms,
-    3: 31-35).
+    strips``; ``cast_s = rays_pc * (CAST_PER_RAY_S + WALK_CELLS (1 - 2^-m)
+    CAST_PER_CELL_S) / cores`` with ``rays_pc = rays * share``. Small
+    supercells cost polygons; large ones cover more of the screen and walk
+    a little further. The constants were measured on one machine (see the
+    module constants); the model ranks sizes, it does not predict times
+    elsewhere. Measured there (raster + cast, 2 cores, 512x512, median of
+    5; the model's pick in bold): CT head skin 4: 20.5 ms, 6: 18.8, **8:
+    18.6**, 10: 20.3; bone 4: 16.7, 6: 17.0, **8: 14.0**, 10: 13.6;
+    neghip **2: 9.2**, 3: 9.0, 4: 8.7, 8: 10.2.
     """
     cores = cores or os.cpu_count() or 1
-    rays = pixels // 2 if rays is None else rays
+    rays = RAY_COVER * pixels if rays is None else rays
     table = []
-    dims = index.volume.dims
+    vol = index.volume
+    dims = vol.dims
     for m in candidates:
         if math.prod(len(_axis_edges(n, c)) - 1 for n, c in zip(dims, _size_triple(m))) > MAX_SUPERCELLS:
             continue        # too fine to classify for this volume (a 1734-slice CT at 1 cell)
         pc = classify(m) if classify is not None else index.classify(iso, m)
         faces, strips = face_counts(pc)
+        share = projected_share(pc, [e * s for e, s in zip(index.grid(m).edges, vol.spacing)])
         raster = RASTER_FIXED_S * pixels / (512 * 512) + RASTER_PER_STRIP_S * strips
-        cells = rays * (WALK_BASE + WALK_PER_CELL * float(np.mean(_size_triple(m))))
-        cast = (rays * CAST_PER_RAY_S + cells * CAST_PER_CELL_S) / cores
+        rays_pc = rays * share
+        cells = rays_pc * WALK_CELLS * (1.0 - 2.0 ** -float(np.mean(_size_triple(m))))
+        cast = (rays_pc * CAST_PER_RAY_S + cells * CAST_PER_CELL_S) / cores
         table.append({"size": float(m), "supercells": int(pc.size), "pc_supercells": int(pc.sum()),
-                      "faces": faces, "strips": strips, "raster_s": raster,
+                      "faces": faces, "strips": strips, "share": share, "rays": rays_pc, "raster_s": raster,
                       "cells": cells, "cast_s": cast, "total_s": raster + cast})
     best = min(table, key=lambda r: r["total_s"])
     return best["size"], table

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from parc.classify import VolumeIndex, supercell_grid
-from parc.costmodel import choose_supercell, count_face_strips, count_outer_faces, face_counts
+from parc.costmodel import choose_supercell, count_face_strips, count_outer_faces, face_counts, projected_share
 from parc.proxy import build_proxy
 
 
@@ -119,3 +119,45 @@ def test_cost_model_skips_sizes_too_fine_for_the_volume(monkeypatch):
     size, table = costmodel.choose_supercell(index, 0.5, candidates=(1, 2, 4))
     assert [r["size"] for r in table] == [2.0, 4.0]
     assert size in (2.0, 4.0)
+
+
+def test_projected_share_of_one_box_and_of_a_column():
+    # Supercell boundaries along x, y, z; the volume box is 10 x 5 x 5.
+    edges = ([0.0, 1.0, 3.0, 6.0, 10.0], [0.0, 2.0, 3.0, 5.0], [0.0, 4.0, 5.0])
+    box = 10 * 5 + 5 * 10 + 5 * 5
+    pc = np.zeros((2, 3, 4), bool)
+    assert projected_share(pc, edges) == 0.0
+    pc[1, 2, 3] = True          # x in [6, 10], y in [3, 5], z in [4, 5]
+    assert projected_share(pc, edges) == pytest.approx((4 * 2 + 1 * 4 + 1 * 2) / box)
+    pc[0, 2, 3] = True          # the same column along z: its shadow along z counts once
+    assert projected_share(pc, edges) == pytest.approx((4 * 2 + 5 * 4 + 5 * 2) / box)
+    assert projected_share(np.ones((2, 3, 4), bool), edges) == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_projected_share_is_the_share_of_axis_rays_that_meet_the_pc_region(seed):
+    # Truth: rays along each axis through random points of the box's faces,
+    # each face weighted by its area, counted as hits when a PC supercell
+    # lies on their column.
+    rng = np.random.default_rng(seed)
+    shape = tuple(int(s) for s in rng.integers(1, 6, 3))
+    pc = rng.random(shape) < 0.2
+    edges = [np.concatenate([[0.0], np.cumsum(rng.uniform(0.3, 2.0, n))]) for n in shape[::-1]]
+    size = [e[-1] for e in edges]
+    n = 40_000
+    hits = weight = 0.0
+    for a in range(3):
+        u, v = [b for b in range(3) if b != a]
+        pu = rng.uniform(0, size[u], n)
+        pv = rng.uniform(0, size[v], n)
+        iu = np.searchsorted(edges[u], pu, side="right") - 1
+        iv = np.searchsorted(edges[v], pv, side="right") - 1
+        column = np.moveaxis(pc, 2 - a, -1)      # [.., .., along a], the rest in z, y, x order
+        idx = [None, None]
+        idx[0 if (2 - u) < (2 - v) else 1] = iu
+        idx[1 if (2 - u) < (2 - v) else 0] = iv
+        met = column[idx[0], idx[1]].any(axis=-1)
+        area = size[u] * size[v]
+        hits += area * met.mean()
+        weight += area
+    assert projected_share(pc, edges) == pytest.approx(hits / weight, abs=0.01)
