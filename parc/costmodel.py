@@ -169,7 +169,7 @@ def choose_supercell(index, iso=None, *, pixels=512 * 512, rays=None, cores=None
             continue        # too fine to classify for this volume (a 1734-slice CT at 1 cell)
         pc = classify(m) if classify is not None else index.classify(iso, m)
         faces, strips = face_counts(pc)
-        share = projected_share(pc, [e * s for e, s in zip(index.grid(m).edges, vol.spacing)])
+        share = projected_share(pc, index.grid(m).world_edges(vol))
         raster = RASTER_FIXED_S * pixels / (512 * 512) + RASTER_PER_STRIP_S * strips
         rays_pc = rays * share
         cells = rays_pc * WALK_CELLS * (1.0 - 2.0 ** -float(np.mean(_size_triple(m))))

@@ -152,11 +152,8 @@ def test_projected_share_is_the_share_of_axis_rays_that_meet_the_pc_region(seed)
         pv = rng.uniform(0, size[v], n)
         iu = np.searchsorted(edges[u], pu, side="right") - 1
         iv = np.searchsorted(edges[v], pv, side="right") - 1
-        column = np.moveaxis(pc, 2 - a, -1)      # [.., .., along a], the rest in z, y, x order
-        idx = [None, None]
-        idx[0 if (2 - u) < (2 - v) else 1] = iu
-        idx[1 if (2 - u) < (2 - v) else 0] = iv
-        met = column[idx[0], idx[1]].any(axis=-1)
+        # pc is [z, y, x]: with axis a moved last, the others stay in that order, v (> u) first.
+        met = np.moveaxis(pc, 2 - a, -1)[iv, iu].any(axis=-1)
         area = size[u] * size[v]
         hits += area * met.mean()
         weight += area
