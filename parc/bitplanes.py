@@ -120,8 +120,10 @@ from .raster import (ABS_TOL, COVERAGE_PAD_PX, GUARD_PX, INSIDE_CLIP_REL, TOL_RE
 #: far below a sample step.
 BAND_CELLS = 1e-7
 
-#: Proxies kept by `plane_buffers` (grid, classification, axis).
-PROXY_CACHE_SIZE = 4
+#: Proxies kept by `plane_buffers` (grid, classification, axis), least
+#: recently used dropped first; as many as `parc.renderer.PROXY_CACHE_SIZE`,
+#: so a supercell sweep keeps its planes' proxies too.
+PROXY_CACHE_SIZE = 8
 
 _UPLOADS = weakref.WeakKeyDictionary()
 _BUFFERS = {}
@@ -251,9 +253,10 @@ def plane_buffers(camera, width, height, volume, pc, grid, *, axis=None, halo=Fa
                          seconds={"proxy": 0.0, "total": 0.0}, info={"halo": bool(halo)})
     t0 = time.perf_counter()
     proxy = None
-    for entry in _PROXIES:
+    for n, entry in enumerate(_PROXIES):
         if entry[0] is grid and entry[1] is pc and entry[2] == axis and entry[3] is volume:
             proxy = entry[4]
+            _PROXIES.append(_PROXIES.pop(n))
             break
     if proxy is None:
         proxy = build_plane_proxy(grid, pc, grid.world_edges(volume), axis)

@@ -190,6 +190,20 @@ def test_compare_json_and_step_sweep(vol_file, capsys):
     assert rows[1]["brute_samples"] > rows[0]["brute_samples"] > 0
 
 
+@pytest.mark.parametrize("look", [["--iso", 4], ["--tf", "greyscale", "--buffers", "depth,bits"]])
+def test_supercell_sweep_times_no_proxy_builds(vol_file, capsys, gl, look):
+    # The sweep's methods take turns repeat by repeat: each size's proxy
+    # must outlive the other sizes' frames, or every timed frame rebuilds it.
+    sizes = [1, 1.5, 2, 3, 4, 6]
+    rc, out, err = _run(["compare", vol_file, *look, "--size", 16, 16, "--repeats", 2,
+                         "--sweep-supercell", ",".join(map(str, sizes)), "--json"], capsys)
+    assert rc == 0, err
+    rows = json.loads(out)
+    assert [r["method"] for r in rows] == ["brute"] + [f"parc:{s:g}" for s in sizes]
+    assert all(r["hit_mismatches"] == 0 and r["max_color"] <= 1e-6 for r in rows)
+    assert [r["phases"]["proxy"] for r in rows[1:]] == [0.0] * len(sizes)
+
+
 def test_outputs_are_ordinary_files(vol_file, tmp_path, capsys):
     import os
     import stat
