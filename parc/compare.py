@@ -62,7 +62,8 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
         ``phases`` (seconds per phase of the median run), ``speedup`` against brute,
         the `image_error` fields, ``cells_visited``, ``cubic_solves``,
         ``samples``, ``shadow_cells``, ``shadow_solves``, ``hits``,
-        ``polygons``, ``supercell``, ``pixels``.
+        ``polygons``, ``supercell``, ``pixels``, ``opengl_share`` (the
+        median run's share of time in `OPENGL_PHASES`).
     """
     if repeats < 1 or warmup < 0:
         raise InputError("repeats must be at least 1 and warmup at least 0")
@@ -108,6 +109,8 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
                "shadow_cells": s.get("shadow_cells", 0), "shadow_solves": s.get("shadow_solves", 0),
                "hits": s["hits"], "pixels": s["pixels"], "polygons": s.get("polygons", 0),
                "supercell": s.get("supercell")}
+        total = phases.get("total", 0.0)
+        row["opengl_share"] = (sum(phases.get(k, 0.0) for k in OPENGL_PHASES) / total) if total > 0 else 0.0
         row.update(image_error(res, reference, cell))
         rows.append(row)
     base = rows[0]["seconds"]
@@ -116,14 +119,20 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
     return rows
 
 
+#: Phases spent in OpenGL: the depth pass (`parc.raster`), the bit-plane pass
+#: (`parc.bitplanes`) and the light buffers' passes (`parc.lights`).
+OPENGL_PHASES = ("raster", "raster_bits", "raster_lights")
+
+
 def format_table(rows):
     """A readable terminal table of `compare` rows."""
-    head = ("method", "time s", "speedup", "cells/px", "cubics/px", "samples/px", "hits/px", "polygons",
-            "hit≠", "max Δdepth", "max Δcolour", "PSNR")
+    head = ("method", "time s", "speedup", "OpenGL", "cells/px", "cubics/px", "samples/px", "hits/px",
+            "polygons", "hit≠", "max Δdepth", "max Δcolour", "PSNR")
     lines = []
     for r in rows:
         px = max(r["pixels"], 1)
-        lines.append((r["method"], f"{r['seconds']:.4f}", f"{r['speedup']:.2f}x",
+        gl = r.get("opengl_share", 0.0)
+        lines.append((r["method"], f"{r['seconds']:.4f}", f"{r['speedup']:.2f}x", f"{100 * gl:.0f}%" if gl else "-",
                       f"{r['cells_visited'] / px:.1f}", f"{r['cubic_solves'] / px:.2f}",
                       f"{r.get('samples', 0) / px:.1f}",
                       f"{r['hits'] / px:.3f}", f"{r['polygons']:,}", str(r["hit_mismatches"]),
@@ -133,6 +142,9 @@ def format_table(rows):
     fmt = "  ".join(("{:<%d}" if i == 0 else "{:>%d}") % w for i, w in enumerate(widths))
     out = [fmt.format(*head), fmt.format(*("-" * w for w in widths))]
     out += [fmt.format(*l) for l in lines]
+    out.append("OpenGL: the share of the frame spent in OpenGL passes (phases " + ", ".join(OPENGL_PHASES) + ").")
+    out.append("cubics/px: cells whose range holds the isovalue, up to the hit: "
+               "the fewest cells per pixel an exact caster can visit.")
     phases = sorted({k for r in rows for k in r["phases"]})
     out.append("")
     out.append("seconds per phase (the median run): " + ", ".join(phases))

@@ -178,7 +178,7 @@ def test_tf_and_iso_together_are_refused(vol_file, tmp_path, capsys):
 def test_compare_prints_a_table(vol_file, capsys):
     rc, out, err = _run(["compare", vol_file, "--iso", 4, "--size", 16, 16, "--repeats", 1], capsys)
     assert rc == 0, err
-    assert "brute" in out and "parc" in out and "speedup" in out
+    assert "brute" in out and "parc" in out and "speedup" in out and "OpenGL" in out
 
 
 def test_compare_json_and_step_sweep(vol_file, capsys):
@@ -202,6 +202,12 @@ def test_supercell_sweep_times_no_proxy_builds(vol_file, capsys, gl, look):
     assert [r["method"] for r in rows] == ["brute"] + [f"parc:{s:g}" for s in sizes]
     assert all(r["hit_mismatches"] == 0 and r["max_color"] <= 1e-6 for r in rows)
     assert [r["phases"]["proxy"] for r in rows[1:]] == [0.0] * len(sizes)
+    # The OpenGL share is the OpenGL passes' part of the same run's phases.
+    assert rows[0]["opengl_share"] == 0.0
+    for r in rows[1:]:
+        ph = r["phases"]
+        gl = ph["raster"] + ph.get("raster_bits", 0.0)
+        assert 0.0 < r["opengl_share"] < 1.0 and r["opengl_share"] == pytest.approx(gl / ph["total"])
 
 
 def test_outputs_are_ordinary_files(vol_file, tmp_path, capsys):
