@@ -63,7 +63,9 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
         the `image_error` fields, ``cells_visited``, ``cubic_solves``,
         ``samples``, ``shadow_cells``, ``shadow_solves``, ``hits``,
         ``polygons``, ``supercell``, ``pixels``, ``opengl_share`` (the
-        median run's share of time in `OPENGL_PHASES`).
+        median run's share of time in `OPENGL_PHASES`), ``speedup_low`` and
+        ``speedup_high`` (the lowest and highest of the rounds' own ratios,
+        each round timing every method once).
     """
     if repeats < 1 or warmup < 0:
         raise InputError("repeats must be at least 1 and warmup at least 0")
@@ -114,8 +116,13 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
         row.update(image_error(res, reference, cell))
         rows.append(row)
     base = rows[0]["seconds"]
-    for row in rows:
+    brute_walls = [s["seconds"]["wall"] for s in runs["brute"]]
+    for row, name in zip(rows, names):
         row["speedup"] = base / row["seconds"] if row["seconds"] > 0 else float("inf")
+        # The same ratio round by round: its spread is what the machine's
+        # drift and noise did to this run.
+        rounds = [b / s["seconds"]["wall"] for b, s in zip(brute_walls, runs[name])]
+        row["speedup_low"], row["speedup_high"] = min(rounds), max(rounds)
     return rows
 
 
@@ -126,13 +133,15 @@ OPENGL_PHASES = ("raster", "raster_bits", "raster_lights")
 
 def format_table(rows):
     """A readable terminal table of `compare` rows."""
-    head = ("method", "time s", "speedup", "OpenGL", "cells/px", "cubics/px", "samples/px", "hits/px",
+    head = ("method", "time s", "speedup", "rounds", "OpenGL", "cells/px", "cubics/px", "samples/px", "hits/px",
             "polygons", "hit≠", "max Δdepth", "max Δcolour", "PSNR")
     lines = []
     for r in rows:
         px = max(r["pixels"], 1)
         gl = r.get("opengl_share", 0.0)
-        lines.append((r["method"], f"{r['seconds']:.4f}", f"{r['speedup']:.2f}x", f"{100 * gl:.0f}%" if gl else "-",
+        lines.append((r["method"], f"{r['seconds']:.4f}", f"{r['speedup']:.2f}x",
+                      f"{r['speedup_low']:.2f}-{r['speedup_high']:.2f}x" if "speedup_low" in r else "-",
+                      f"{100 * gl:.0f}%" if gl else "-",
                       f"{r['cells_visited'] / px:.1f}", f"{r['cubic_solves'] / px:.2f}",
                       f"{r.get('samples', 0) / px:.1f}",
                       f"{r['hits'] / px:.3f}", f"{r['polygons']:,}", str(r["hit_mismatches"]),
@@ -142,6 +151,8 @@ def format_table(rows):
     fmt = "  ".join(("{:<%d}" if i == 0 else "{:>%d}") % w for i, w in enumerate(widths))
     out = [fmt.format(*head), fmt.format(*("-" * w for w in widths))]
     out += [fmt.format(*l) for l in lines]
+    out.append("speedup: median against median; rounds: the lowest and highest ratio within one round "
+               "(every method once).")
     out.append("OpenGL: the share of the frame spent in OpenGL passes (phases " + ", ".join(OPENGL_PHASES) + ").")
     out.append("cubics/px: cells whose range holds the isovalue, up to the hit: "
                "the fewest cells per pixel an exact caster can visit.")

@@ -179,6 +179,10 @@ def test_compare_prints_a_table(vol_file, capsys):
     rc, out, err = _run(["compare", vol_file, "--iso", 4, "--size", 16, 16, "--repeats", 1], capsys)
     assert rc == 0, err
     assert "brute" in out and "parc" in out and "speedup" in out and "OpenGL" in out
+    # One round: the round's ratio is the speedup itself.
+    rc, out, err = _run(["compare", vol_file, "--iso", 4, "--size", 16, 16, "--repeats", 1, "--json"], capsys)
+    parc_row = json.loads(out)[1]
+    assert parc_row["speedup_low"] == parc_row["speedup_high"] == pytest.approx(parc_row["speedup"])
 
 
 def test_compare_json_and_step_sweep(vol_file, capsys):
@@ -202,6 +206,8 @@ def test_supercell_sweep_times_no_proxy_builds(vol_file, capsys, gl, look):
     assert [r["method"] for r in rows] == ["brute"] + [f"parc:{s:g}" for s in sizes]
     assert all(r["hit_mismatches"] == 0 and r["max_color"] <= 1e-6 for r in rows)
     assert [r["phases"]["proxy"] for r in rows[1:]] == [0.0] * len(sizes)
+    assert rows[0]["speedup_low"] == rows[0]["speedup_high"] == 1.0
+    assert all(0.0 < r["speedup_low"] <= r["speedup_high"] for r in rows)
     # The OpenGL share is the OpenGL passes' part of the same run's phases.
     assert rows[0]["opengl_share"] == 0.0
     for r in rows[1:]:
