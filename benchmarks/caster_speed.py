@@ -10,7 +10,7 @@ import numpy as np
 
 from data_tools.synthetic import ct_phantom
 from parc import Camera, Isosurface, Scene, render
-from raycast.iso import NO_SKIP, cast_iso_image, empty_outputs
+from raycast.iso import NO_SHADING, NO_SKIP, cast_iso_image, empty_outputs
 
 
 def empty_space_rate(n, threads, width=512, repeats=3):
@@ -24,7 +24,7 @@ def empty_space_rate(n, threads, width=512, repeats=3):
         t, cell, uvw, counts = empty_outputs(width * width)
         t0 = time.perf_counter()
         cast_iso_image(data, np.zeros(3), np.ones(3), arr, width, width, 1.0,
-                       np.empty((1, 1, 2)), False, NO_SKIP, -1, t, cell, uvw, counts, 0, width)
+                       np.empty((1, 1, 2)), False, NO_SKIP, -1, t, cell, uvw, counts, 0, width, *NO_SHADING)
         best = min(best, time.perf_counter() - t0)
     numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
     return counts[:, 0].sum() / best, best

@@ -30,7 +30,7 @@ from parc.costmodel import count_outer_faces
 from parc.proxy import build_proxy
 from parc.gl import get_context
 from parc.raster import raster_segments
-from raycast.iso import NO_SKIP, cast_iso_image, empty_outputs
+from raycast.iso import NO_SHADING, NO_SKIP, cast_iso_image, empty_outputs
 
 SIZES = (1, 2, 3, 4, 6, 8)
 CTHEAD = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "CThead.nrrd"
@@ -56,7 +56,7 @@ def cast(vol, cam, w, h, iso, seg=None):
     s = seg if seg is not None else np.empty((1, 1, 2))
     t0 = time.perf_counter()
     cast_iso_image(vol.data, np.array(vol.origin), np.array(vol.spacing), cam.as_array(), w, h, iso,
-                   s, seg is not None, NO_SKIP, -1, t, cell, uvw, counts, 0, h)
+                   s, seg is not None, NO_SKIP, -1, t, cell, uvw, counts, 0, h, *NO_SHADING)
     return time.perf_counter() - t0, t, counts
 
 

@@ -31,7 +31,7 @@ import time
 import numpy as np
 
 from raycast.composite import N_PARAMS, cast_accumulate_image, cast_merged_image
-from raycast.iso import cast_iso_image, keep_nearest
+from raycast.iso import NO_SHADING, cast_iso_image, keep_nearest
 from raycast.shadow import (KIND_HEADLIGHT, combine_lights, light_terms, shadow_accumulate, shadow_iso,
                             surface_frames)
 
@@ -98,7 +98,7 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
         seg = segs.get(n, np.empty((1, 1, 2)))
         skip, jump_min = skip_table(iso, parc and blocks)
         cast_iso_image(vol.data, np.array(vol.origin), np.array(vol.spacing), cam, w, h, iso.value,
-                       seg, parc, skip, jump_min, t, c, uv, cnt, 0, h)
+                       seg, parc, skip, jump_min, t, c, uv, cnt, 0, h, *NO_SHADING)
         keep_nearest(t, c, uv, n, depth, cell, uvw, winner)
         cells, solves = column_totals(cnt)
         counts["cells"] += cells

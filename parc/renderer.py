@@ -17,7 +17,6 @@ from raycast.composite import (MODE_AVERAGE, MODE_COMPOSITE, MODE_MIP, N_PARAMS,
                                P_MODE, P_RATIO, P_SHADE, P_STEP, P_THRESHOLD, cast_accumulate_image,
                                over_background)
 from raycast.iso import NO_SKIP, cast_iso_image
-from raycast.shade import shade_headlight
 
 from .scene import Isosurface, Scene, Translucent
 from .workspace import work_array
@@ -238,22 +237,20 @@ def _render_iso(scene, iso, seg, use_seg, skip_blocks, timings, progress):
     t = np.empty(w * h)
     cell, uvw, counts = iso_work(w * h)
     skip, jump_min = skip_table(iso, skip_blocks)
+    image = np.zeros((h, w, 4), np.float32)
+    color = np.array(iso.color, dtype=np.float64)
+    material = np.array(iso.material, dtype=np.float64)
     timings["setup"] = time.perf_counter() - t0
 
+    # The cast shades each hit as it finds it (the phase holds both).
     t0 = time.perf_counter()
     bands = _row_bands(h, w, progress)
     for n, (y0, y1) in enumerate(bands):
         cast_iso_image(vol.data, org, spc, cam, w, h, iso.value, seg, use_seg, skip, jump_min,
-                       t, cell, uvw, counts, y0, y1)
+                       t, cell, uvw, counts, y0, y1, True, color, material, image)
         if progress is not None:
             progress((n + 1) / len(bands))
     timings["cast"] = time.perf_counter() - t0
-
-    t0 = time.perf_counter()
-    image = np.zeros((h, w, 4), np.float32)
-    shade_headlight(vol.data, spc, cam, w, h, t, cell, uvw,
-                    np.array(iso.color), np.array(iso.material, dtype=np.float64), image)
-    timings["shade"] = time.perf_counter() - t0
     cells, solves = column_totals(counts)
     return image, t.reshape(h, w), {"cells": cells, "solves": solves}
 

@@ -31,10 +31,14 @@ from numba import prange
 from .config import TILE_H, TILE_W, kernel
 from .cubic import cubic_along_ray, eval_cubic, first_root, trilinear_coefficients
 from .rays import camera_ray, dealt_tile, spread_run, spread_runs, tile_count
+from .shade import headlight_pixel
 from .traverse import advance, axis_state, cell_corners, clip_box, next_exit, start_index, step_axis, to_index_space
 
 #: The table a walk without one takes (with ``jump_min = -1``).
 NO_SKIP = np.zeros((1, 1, 1), np.int8)
+
+#: The last four arguments of a `cast_iso_image` call that only casts (no shading).
+NO_SHADING = (False, np.zeros(3), np.zeros(4), np.zeros((1, 1, 4), np.float32))
 
 
 @kernel
@@ -264,7 +268,7 @@ def _store(n, res, t, cell, uvw, counts):
 
 @kernel(parallel=True)
 def cast_iso_image(data, org, spc, cam, width, height, iso, seg, use_seg, skip, jump_min,
-                   t, cell, uvw, counts, row0, row1):
+                   t, cell, uvw, counts, row0, row1, shade, color, material, image):
     """Cast every pixel of a ``width x height`` image, tile by tile.
 
     Outputs are flat per pixel (index ``y * width + x``): ``t``, ``cell``
@@ -273,6 +277,13 @@ def cast_iso_image(data, org, spc, cam, width, height, iso, seg, use_seg, skip, 
     pixel with ``near > far`` costs nothing. ``skip``/``jump_min``: the
     skip table, or `NO_SKIP` and -1 (see `cast_iso_ray`). Only rows ``row0 <= y < row1``
     are cast, so a driver can report progress band by band.
+
+    With ``shade``, each hit is also coloured into ``image`` (``(height,
+    width, 4)`` float32, left as it is at misses), lit from the eye with
+    ``color`` and ``material`` (`raycast.shade.headlight_pixel`), while its
+    cell's corners are still in cache: a separate pass over the hits
+    (`raycast.shade.shade_headlight`, the same colours) read them again
+    from memory, 1 ms of a 17 ms CT head frame.
     """
     tiles = tile_count(width, row0, row1, TILE_W, TILE_H)
     for it in prange(tiles):
@@ -295,6 +306,9 @@ def cast_iso_image(data, org, spc, cam, width, height, iso, seg, use_seg, skip, 
                 Ox, Oy, Oz, Dx, Dy, Dz = to_index_space(ox, oy, oz, dx, dy, dz, org, spc)
                 res = cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, s0, s1, skip, jump_min)
                 _store(n, res, t, cell, uvw, counts)
+                if shade and res[0] < math.inf:
+                    headlight_pixel(data, spc, res[1], res[2], res[3], res[4], res[5], res[6],
+                                    dx, dy, dz, color, material, image, y, x)
 
 
 @kernel(parallel=True)

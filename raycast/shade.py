@@ -64,12 +64,31 @@ def blinn_phong(nx, ny, nz, vx, vy, vz, lx, ly, lz, material):
     return material[1] * ndl, spec
 
 
+@kernel(inline="always")
+def headlight_pixel(data, spc, i, j, k, u, v, w, dx, dy, dz, color, material, image, y, x):
+    """Write the colour of a hit in cell ``(i, j, k)`` at local ``(u, v, w)``, seen along the
+    world direction ``d`` and lit from the eye, into pixel ``(y, x)`` of ``image``."""
+    gx, gy, gz = trilinear_gradient(data, i, j, k, u, v, w, spc)
+    gl = math.sqrt(gx * gx + gy * gy + gz * gz)
+    if gl > 0.0:
+        gx, gy, gz = gx / gl, gy / gl, gz / gl
+    else:
+        # A flat cell (all corners at the isovalue) has no gradient: face the viewer.
+        gx, gy, gz = -dx, -dy, -dz
+    diff, spec = blinn_phong(gx, gy, gz, -dx, -dy, -dz, -dx, -dy, -dz, material)
+    for c in range(3):
+        image[y, x, c] = min(1.0, color[c] * (material[0] + diff) + spec)
+    image[y, x, 3] = 1.0
+
+
 @kernel(parallel=True)
 def shade_headlight(data, spc, cam, width, height, t, cell, uvw, color, material, image):
     """Colour every hit pixel, lit by a light at the eye (the default headlight).
 
     ``image`` is ``(height, width, 4)`` float32, premultiplied RGBA; misses
-    stay transparent.
+    stay transparent. The one-isosurface render shades each hit as it is
+    found instead (`raycast.iso.cast_iso_image`); this pass is for hits
+    cast apart (the nearest of several surfaces) and for timing shading alone.
     """
     pixels = width * height
     runs = spread_runs(pixels)
@@ -81,15 +100,5 @@ def shade_headlight(data, spc, cam, width, height, t, cell, uvw, color, material
             y = n // width
             x = n - y * width
             ox, oy, oz, dx, dy, dz = camera_ray(cam, width, height, x, y)
-            gx, gy, gz = trilinear_gradient(data, cell[n, 0], cell[n, 1], cell[n, 2],
-                                            uvw[n, 0], uvw[n, 1], uvw[n, 2], spc)
-            gl = math.sqrt(gx * gx + gy * gy + gz * gz)
-            if gl > 0.0:
-                gx, gy, gz = gx / gl, gy / gl, gz / gl
-            else:
-                # A flat cell (all corners at the isovalue) has no gradient: face the viewer.
-                gx, gy, gz = -dx, -dy, -dz
-            diff, spec = blinn_phong(gx, gy, gz, -dx, -dy, -dz, -dx, -dy, -dz, material)
-            for c in range(3):
-                image[y, x, c] = min(1.0, color[c] * (material[0] + diff) + spec)
-            image[y, x, 3] = 1.0
+            headlight_pixel(data, spc, cell[n, 0], cell[n, 1], cell[n, 2], uvw[n, 0], uvw[n, 1], uvw[n, 2],
+                            dx, dy, dz, color, material, image, y, x)

@@ -9,9 +9,11 @@ thread so that seconds add up:
   caster's cells: its solve count must equal the render's), then solved
   again in a tight loop (best of 3). That is the time the root finder
   takes inside the cast.
-* *traversal*: the cast phase less the intersection: ray set-up, cell
-  stepping, corner reads and the cubic's coefficients.
-* *shading*: the shading phase (normals, lights).
+* *shading*: the frame's hits (from the same walk) shaded again by the
+  shading kernel in a tight loop (best of 3); the render shades each hit
+  inside its cast (`raycast.iso.cast_iso_image`), which takes a little less.
+* *traversal*: the cast phase less the intersection and the shading: ray
+  set-up, cell stepping, corner reads and the cubic's coefficients.
 * *OpenGL* (PARC only): classification, proxy and rasterization.
 
 Thread scaling (their Table 2): frames per second of the bone isosurface
@@ -25,6 +27,8 @@ import time
 import numba
 import numpy as np
 
+from raycast.shade import shade_headlight
+
 from ..compare import compare
 from ..rootstudy import PROJECT, solve_all, walk
 from . import scenes
@@ -32,8 +36,9 @@ from . import scenes
 ISOS = (("skin", 600.0), ("bone", 1500.0))
 
 
-def recorded_cubics(scene):
-    """The cubics ``(A, B, C, D, L)`` the caster solves for the scene's one isosurface, in ray order."""
+def recorded_walk(scene):
+    """The caster's walk over the scene's one isosurface: ``(t, cell, uvw, rec)``, the hits
+    and the cubics ``(A, B, C, D, L)`` it solves, in ray order."""
     vis = scene.volumes[0]
     vol = vis.volume
     w, h = scene.size
@@ -41,7 +46,23 @@ def recorded_cubics(scene):
     o = np.ascontiguousarray(o.reshape(-1, 3))
     d = np.ascontiguousarray(d.reshape(-1, 3))
     return walk(vol.data, np.array(vol.origin), np.array(vol.spacing), o, d, np.full(len(o), float(vis.value)),
-                PROJECT, record=True)[3]
+                PROJECT, record=True)
+
+
+def _shade_seconds(scene, t, cell, uvw, repeats=3):
+    """Best time of the headlight shading pass over the hits ``t``, ``cell``, ``uvw``."""
+    vis = scene.volumes[0]
+    vol = vis.volume
+    w, h = scene.size
+    args = (vol.data, np.array(vol.spacing), scene.camera.as_array(), w, h, t, cell, uvw,
+            np.array(vis.color, dtype=np.float64), np.array(vis.material, dtype=np.float64))
+    best = float("inf")
+    for _ in range(repeats + 1):
+        image = np.zeros((h, w, 4), np.float32)
+        t0 = time.perf_counter()
+        shade_headlight(*args, image)
+        best = min(best, time.perf_counter() - t0)
+    return best
 
 
 def _solve_seconds(rec, repeats=3):
@@ -63,8 +84,9 @@ def time_shares(suite, progress):
         for name, iso in ISOS:
             scene, source = scenes.ct_iso(suite.parker_size, iso, suite.data_dir, suite.small_volumes)
             progress(f"time shares, {name}: recording the frame's cubics")
-            rec = recorded_cubics(scene)
+            t, cell, uvw, rec = recorded_walk(scene)
             intersect = _solve_seconds(rec)
+            shading = _shade_seconds(scene, t, cell, uvw)
             res = compare(scene, methods=("brute", "parc"), repeats=suite.repeats,
                           progress=lambda m: progress(f"time shares, {name}: {m}, 1 thread"))
             for r in res:
@@ -74,8 +96,8 @@ def time_shares(suite, progress):
                 ph = r["phases"]
                 cast = ph.get("cast", 0.0)
                 gl = sum(ph.get(k, 0.0) for k in ("classify", "proxy", "raster"))
-                parts = {"traversal": max(cast - intersect, 0.0), "intersection": min(intersect, cast),
-                         "shading": ph.get("shade", 0.0)}
+                parts = {"traversal": max(cast - intersect - shading, 0.0), "intersection": min(intersect, cast),
+                         "shading": min(shading, max(cast - intersect, 0.0))}
                 if r["method"] != "brute":
                     parts["OpenGL"] = gl
                 total = sum(parts.values())

@@ -79,9 +79,10 @@ def parker(res, out):
     sh, th = res["time_shares"], res["threads"]
     md = ["## 2. Parker et al., Tables 1 and 2", "",
           f"### Share of time (their Table 1), CT at {sh['size']}², one thread", "",
-          f"Volume: {sh['source']}. Intersection is the frame's own cubics solved again in a tight loop; "
-          "traversal is the cast less that; shading is the shading phase; OpenGL is PARC's classification, "
-          "proxy and rasterization (`parc.bench.parker`).", ""]
+          f"Volume: {sh['source']}. Intersection is the frame's own cubics solved again in a tight loop, "
+          "shading its hits shaded again in one (the render shades each hit inside its cast); traversal is "
+          "the cast less both; OpenGL is PARC's classification, proxy and rasterization (`parc.bench.parker`).",
+          ""]
     md.append(_table(("surface", "method", "frame (s)", "traversal", "intersection", "shading", "OpenGL",
                       "cubics", "ns/solve"),
                      [(r["surface"], r["method"], _s(r["seconds"]),

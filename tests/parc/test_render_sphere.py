@@ -75,3 +75,33 @@ def test_sphere_image_is_lit_where_it_is_hit():
     assert lum[y, x] >= np.percentile(lum[hit], 95)
     s = res.stats
     assert s["cells_visited"] > s["cubic_solves"] >= s["hits"] == hit.sum() > 0
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_shading_in_the_cast_equals_the_shading_pass(seed):
+    # The render shades each hit inside its cast; the separate pass over the
+    # hits (used for several surfaces) must give the very same colours.
+    from raycast.iso import NO_SHADING, NO_SKIP, cast_iso_image, empty_outputs
+    from raycast.shade import shade_headlight
+
+    rng = np.random.default_rng(seed)
+    data = rng.normal(size=(14, 17, 12)).cumsum(axis=0).astype(np.float32)
+    vol = Volume(data, spacing=tuple(rng.uniform(0.5, 2.0, 3)), origin=tuple(rng.uniform(-5, 5, 3)))
+    iso = Isosurface(vol, float(np.quantile(data, rng.uniform(0.3, 0.7))), color=tuple(rng.uniform(0, 1, 3)))
+    cam = Camera.framing(*vol.bounds, azimuth=rng.uniform(0, 360), elevation=rng.uniform(-60, 60),
+                         parallel=bool(seed % 2))
+    w, h = 45, 37
+    args = (vol.data, np.array(vol.origin), np.array(vol.spacing), cam.as_array(), w, h, iso.value,
+            np.empty((1, 1, 2)), False, NO_SKIP, -1)
+    color, material = np.array(iso.color, dtype=np.float64), np.array(iso.material, dtype=np.float64)
+    fused = np.zeros((h, w, 4), np.float32)
+    t, cell, uvw, counts = empty_outputs(w * h)
+    cast_iso_image(*args, t, cell, uvw, counts, 0, h, True, color, material, fused)
+    apart = np.zeros((h, w, 4), np.float32)
+    t2, cell2, uvw2, counts2 = empty_outputs(w * h)
+    cast_iso_image(*args, t2, cell2, uvw2, counts2, 0, h, *NO_SHADING)
+    shade_headlight(vol.data, np.array(vol.spacing), cam.as_array(), w, h, t2, cell2, uvw2, color, material, apart)
+    assert np.isfinite(t).sum() > 20
+    np.testing.assert_array_equal(t, t2)
+    np.testing.assert_array_equal(fused, apart)
+    assert render(Scene(camera=cam, size=(w, h), volumes=[iso]), method="brute").image.tobytes() == fused.tobytes()
