@@ -1,7 +1,7 @@
-"""Render a scene: cast every pixel (unaccelerated, or over PARC's ray segments), then shade.
+"""Render a scene: cast every pixel (unaccelerated, or over PARC's ray segments) and shade it.
 
-One driver per kind of volume: `_render_iso` (opaque isosurface, first hit,
-then shading) and `_render_translucent` (accumulation). Both get their
+One driver per kind of volume: `_render_iso` (opaque isosurface: first hit,
+shaded as soon as it is found) and `_render_translucent` (accumulation). Both get their
 ray segments from `_parc_segments` when the method is ``"parc"``; the
 casting kernels are the same for both methods.
 """
