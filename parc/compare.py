@@ -138,10 +138,9 @@ def format_table(rows):
     lines = []
     for r in rows:
         px = max(r["pixels"], 1)
-        gl = r.get("opengl_share", 0.0)
+        gl = r["opengl_share"]
         lines.append((r["method"], f"{r['seconds']:.4f}", f"{r['speedup']:.2f}x",
-                      f"{r['speedup_low']:.2f}-{r['speedup_high']:.2f}x" if "speedup_low" in r else "-",
-                      f"{100 * gl:.0f}%" if gl else "-",
+                      f"{r['speedup_low']:.2f}-{r['speedup_high']:.2f}x", f"{100 * gl:.0f}%" if gl else "-",
                       f"{r['cells_visited'] / px:.1f}", f"{r['cubic_solves'] / px:.2f}",
                       f"{r.get('samples', 0) / px:.1f}",
                       f"{r['hits'] / px:.3f}", f"{r['polygons']:,}", str(r["hit_mismatches"]),
