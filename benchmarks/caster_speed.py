@@ -54,5 +54,5 @@ if __name__ == "__main__":
               f"{rate / 1e6:.1f} M cells/s ({rate / th / 1e6:.1f} M/s per core), {sec:.3f} s")
     for name, s in ct_frame(a.size).items():
         print(f"CT phantom {a.size}^3 {name} iso {s['parameters']['isovalue']:g}, 512x512: "
-              f"{s['seconds']['total']:.3f} s/frame (cast {s['seconds']['cast']:.3f}, shade {s['seconds']['shade']:.3f}), "
+              f"{s['seconds']['total']:.3f} s/frame (cast and shading {s['seconds']['cast']:.3f}), "
               f"{s['cells_visited'] / 1e6:.1f} M cells, {s['cubic_solves']:,} cubics, {s['hits']:,} hits")

@@ -147,3 +147,29 @@ def test_cli_help_explains_the_report(capsys):
         main(["bench", "--help"])
     text = capsys.readouterr().out
     assert "report.md" in text and "--quick" in text and "--out" in text
+
+
+# The stand-alone scripts in benchmarks/ read the renderer's stats by name;
+# run each on a tiny volume so a renamed statistic or phase breaks a test,
+# not the next person's measurement.
+BENCH_SCRIPTS = {
+    "caster_speed.py": (["--size", "16"], ["M cells/s", "skin iso 600", "bone iso 1500"]),
+    "raster_speed.py": (["--synthetic", "sphere", "--n", "16", "--size", "64"], ["same as brute: True", "fit: draw"]),
+    "raster_speed.py --stages": (["--synthetic", "sphere", "--n", "16", "--size", "64", "--stages"],
+                                 ["draw", "readback", "total"]),
+}
+
+
+@pytest.mark.parametrize("script", sorted(BENCH_SCRIPTS))
+def test_benchmark_script_runs_on_a_tiny_volume(script, gl_context):
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    args, expected = BENCH_SCRIPTS[script]
+    path = Path(__file__).resolve().parents[2] / "benchmarks" / script.split()[0]
+    run = subprocess.run([sys.executable, str(path), *args], capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert "same as brute: False" not in run.stdout
+    for text in expected:
+        assert text in run.stdout, (text, run.stdout[-2000:])
