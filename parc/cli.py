@@ -486,10 +486,11 @@ def cmd_bench(args):
 
 
 def _buffers(args):
-    names = tuple(b.strip() for b in args.buffers.split(",") if b.strip())
-    if not names or set(names) - {"depth", "bits"}:
-        raise InputError(f"--buffers must be depth, bits or depth,bits, got {args.buffers!r}")
-    return names
+    from .renderer import parse_buffers
+    try:
+        return parse_buffers(args.buffers)
+    except InputError:
+        raise InputError(f"--buffers must be depth, bits or depth,bits, got {args.buffers!r}") from None
 
 
 def _supercell_or_error(text):

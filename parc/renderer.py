@@ -80,8 +80,10 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
     supercell : float or (m, n, p), optional
         PARC's supercell size in cells (fractional and below 1 allowed).
         Default: chosen by `parc.costmodel.choose_supercell`'s cost model.
-    buffers : subset of ("depth", "bits"), default ("depth",)
-        PARC's buffers for translucent volumes: near/far ray distances
+    buffers : subset of ("depth", "bits"), or a string, default ("depth",)
+        PARC's buffers for translucent volumes (a string names them as
+        ``--buffers`` does: ``"depth"``, ``"bits"``, ``"depth,bits"``;
+        ``+`` joins them too): near/far ray distances
         (depth-buffer PARC, §3) and planes of supercells the ray meets
         (color-buffer PARC, §4). Isosurfaces use the depth buffers.
     progress : callable(done_fraction) or None
@@ -128,10 +130,8 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
     use_seg = method == "parc"
     planes = None
     extra = {}
-    buffers = tuple(buffers)
     if method == "parc":
-        if not buffers or set(buffers) - set(PARC_BUFFERS):
-            raise InputError(f"PARC buffers must be some of {', '.join(PARC_BUFFERS)}, got {buffers!r}")
+        buffers = parse_buffers(buffers)
         if isinstance(vis, Isosurface) or "depth" in buffers:
             seg, extra, proxy = _parc_segments(scene, vis, supercell, timings)
         else:
@@ -253,6 +253,21 @@ def _render_iso(scene, iso, seg, use_seg, skip_blocks, timings, progress):
     timings["cast"] = time.perf_counter() - t0
     cells, solves = column_totals(counts)
     return image, t.reshape(h, w), {"cells": cells, "solves": solves}
+
+
+def parse_buffers(buffers):
+    """PARC's buffers as a tuple of names from `PARC_BUFFERS`: from a sequence of names, or a
+    string naming them as ``--buffers`` does (``"depth"``, ``"depth,bits"``; ``+`` joins too)."""
+    given = buffers
+    if isinstance(buffers, str):
+        buffers = [b for b in buffers.replace("+", ",").split(",") if b.strip()]
+    try:
+        names = tuple(str(b).strip() for b in buffers)
+    except TypeError:
+        names = ()
+    if not names or "" in names or set(names) - set(PARC_BUFFERS):
+        raise InputError(f"PARC buffers must be {', '.join(PARC_BUFFERS)} or both, got {given!r}")
+    return names
 
 
 def iso_work(n, slot=0):

@@ -166,6 +166,31 @@ def test_bad_translucent_settings(kwargs, words):
         Translucent(vol, **args)
 
 
+
+@pytest.mark.parametrize("text, names", [("depth", ("depth",)), ("bits", ("bits",)),
+                                         ("depth,bits", ("depth", "bits")), ("depth+bits", ("depth", "bits")),
+                                         (" bits , depth ", ("bits", "depth"))])
+def test_buffers_named_by_a_string_as_on_the_command_line(text, names, gl):
+    from parc.renderer import parse_buffers
+
+    assert parse_buffers(text) == names
+    vol = Volume(blobs(10, seed=2).data)
+    scene = Scene(camera=Camera.framing(*vol.bounds, azimuth=30), size=(12, 10),
+                  volumes=[Translucent(vol, "greyscale")])
+    by_text = render(scene, "parc", buffers=text)
+    by_names = render(scene, "parc", buffers=names)
+    assert by_text.stats["buffers"] == list(names)
+    assert np.array_equal(by_text.image, by_names.image)
+    assert np.abs(by_text.image - render(scene).image).max() <= 1e-6
+
+
+@pytest.mark.parametrize("bad", ["deep", "", ",", ("depth", "colour"), (), 3])
+def test_unknown_buffers_get_one_clear_error(bad):
+    vol = Volume(blobs(8, seed=1).data)
+    scene = Scene(camera=Camera.framing(*vol.bounds), size=(4, 4), volumes=[Translucent(vol, "greyscale")])
+    with pytest.raises(InputError, match="PARC buffers must be depth, bits or both"):
+        render(scene, "parc", buffers=bad)
+
 # Transparent cells and cubes (`parc.classify.VolumeIndex.tf_skip`, skipped by `raycast.composite.accumulate_ray`)
 
 def transparent_table(data, tf, shift):
