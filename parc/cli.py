@@ -487,10 +487,7 @@ def cmd_bench(args):
 
 def _buffers(args):
     from .renderer import parse_buffers
-    try:
-        return parse_buffers(args.buffers)
-    except InputError:
-        raise InputError(f"--buffers must be depth, bits or depth,bits, got {args.buffers!r}") from None
+    return parse_buffers(args.buffers)
 
 
 def _supercell_or_error(text):

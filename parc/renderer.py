@@ -258,15 +258,13 @@ def _render_iso(scene, iso, seg, use_seg, skip_blocks, timings, progress):
 def parse_buffers(buffers):
     """PARC's buffers as a tuple of names from `PARC_BUFFERS`: from a sequence of names, or a
     string naming them as ``--buffers`` does (``"depth"``, ``"depth,bits"``; ``+`` joins too)."""
-    given = buffers
-    if isinstance(buffers, str):
-        buffers = [b for b in buffers.replace("+", ",").split(",") if b.strip()]
+    parts = buffers.replace("+", ",").split(",") if isinstance(buffers, str) else buffers
     try:
-        names = tuple(str(b).strip() for b in buffers)
+        names = tuple(str(b).strip() for b in parts)
     except TypeError:
         names = ()
-    if not names or "" in names or set(names) - set(PARC_BUFFERS):
-        raise InputError(f"PARC buffers must be {', '.join(PARC_BUFFERS)} or both, got {given!r}")
+    if not names or set(names) - set(PARC_BUFFERS):
+        raise InputError(f"PARC buffers must be {', '.join(PARC_BUFFERS)} or both (depth,bits), got {buffers!r}")
     return names
 
 

@@ -2,6 +2,9 @@
 import copy
 import json
 import re
+import subprocess
+import sys
+from pathlib import Path
 
 import pytest
 from PIL import Image
@@ -162,10 +165,6 @@ BENCH_SCRIPTS = {
 
 @pytest.mark.parametrize("script", sorted(BENCH_SCRIPTS))
 def test_benchmark_script_runs_on_a_tiny_volume(script, gl_context):
-    import subprocess
-    import sys
-    from pathlib import Path
-
     args, expected = BENCH_SCRIPTS[script]
     path = Path(__file__).resolve().parents[2] / "benchmarks" / script.split()[0]
     run = subprocess.run([sys.executable, str(path), *args], capture_output=True, text=True, timeout=300)

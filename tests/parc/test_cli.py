@@ -117,6 +117,7 @@ def test_bad_volume_files(kind, tmp_path, capsys):
     (["--iso", 4, "--eye", "1,2"], "--eye"),
     (["--iso", "abc"], "--iso"),
     (["--iso", 4, "--method", "magic"], "method"),
+    (["--tf", "greyscale", "--method", "parc", "--buffers", "depth,colour"], "buffers must be depth, bits"),
 ])
 def test_bad_arguments(extra, words, vol_file, tmp_path, capsys):
     out = tmp_path / "out.png"
