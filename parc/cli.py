@@ -257,6 +257,12 @@ def main(argv=None):
     except InputError as exc:
         print(f"parc: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
+    except MemoryError as exc:
+        # NumPy says how much it could not allocate; the usual cause is a
+        # --size too large for this machine.
+        detail = f": {exc}" if str(exc) else ""
+        print(f"parc: error: out of memory{detail}; try a smaller --size", file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         print("parc: interrupted", file=sys.stderr)
         return 130

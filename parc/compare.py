@@ -9,6 +9,7 @@ import numpy as np
 from data_tools import InputError
 
 from .renderer import render
+from .workspace import check_frame_memory
 
 
 def image_error(result, reference, cell_size):
@@ -69,6 +70,7 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
     """
     if repeats < 1 or warmup < 0:
         raise InputError("repeats must be at least 1 and warmup at least 0")
+    check_frame_memory(*scene.size, layers=len(scene.volumes))
     options = dict(options or {})
     names = ["brute"] + [m for m in methods if m != "brute"]
     vol = scene.volumes[0].volume

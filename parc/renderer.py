@@ -19,7 +19,7 @@ from raycast.composite import (MODE_AVERAGE, MODE_COMPOSITE, MODE_MIP, N_PARAMS,
 from raycast.iso import NO_SKIP, cast_iso_image
 
 from .scene import Isosurface, Scene, Translucent
-from .workspace import work_array
+from .workspace import check_frame_memory, work_array
 
 METHODS = ("brute", "parc")
 
@@ -109,7 +109,8 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
     Raises
     ------
     InputError
-        An unknown method or a scene this renderer cannot show.
+        An unknown method, a scene this renderer cannot show, or an image
+        too large for the memory available (`parc.workspace.check_frame_memory`).
     OpenGLUnavailable
         ``method="parc"`` without an OpenGL context.
 
@@ -121,6 +122,7 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
     if method not in METHODS:
         raise InputError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
     skip_blocks = method == "parc" and bool(blocks)
+    check_frame_memory(*scene.size, layers=len(scene.volumes))
     if len(scene.volumes) != 1 or scene.lights:
         return _render_general(scene, method, supercell, progress, light_buffer, skip_blocks)
     vis = scene.volumes[0]

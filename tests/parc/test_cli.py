@@ -140,6 +140,25 @@ def test_unwritable_outputs(target, vol_file, tmp_path, capsys):
     assert not (tmp_path / "missing_dir").exists() and not (tmp_path / "out.jpg").exists()
 
 
+def test_an_image_too_large_for_memory_gets_one_line(vol_file, tmp_path, capsys):
+    out = tmp_path / "o.png"
+    rc, _, err = _run(["render", vol_file, "--iso", 4, "--size", 10**6, 10**6, "-o", out], capsys)
+    assert rc == 2 and err.count("\n") == 1 and "needs about" in err and "--size" in err
+    assert not out.exists()
+
+
+def test_running_out_of_memory_gets_one_line(vol_file, tmp_path, capsys, monkeypatch):
+    # Whatever allocation fails (a volume, a table), the user sees one line.
+    import data_tools.synthetic
+
+    def too_big(*args, **kwargs):
+        raise MemoryError("Unable to allocate 931. GiB for an array")
+    monkeypatch.setattr(data_tools.synthetic, "make_synthetic", too_big)
+    rc, _, err = _run(["make", "sphere", "--size", 5000, "-o", tmp_path / "s.nrrd"], capsys)
+    assert rc == 1 and err.count("\n") == 1 and "out of memory: Unable to allocate 931. GiB" in err
+    assert not (tmp_path / "s.nrrd").exists()
+
+
 def test_console_script_prints_no_traceback(tmp_path):
     out = tmp_path / "o.png"
     p = subprocess.run([sys.executable, "-m", "parc.cli", "render", str(tmp_path / "nothing.nrrd"), "-o", str(out)],
