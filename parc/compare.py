@@ -133,6 +133,21 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
 OPENGL_PHASES = ("raster", "raster_bits", "raster_lights")
 
 
+#: What each phase of a frame holds, for the legend under `format_table`.
+PHASE_NOTES = {
+    "cast": "the ray walks with their cubics or samples (a lone isosurface shades each hit as it finds it)",
+    "classify": "supercells labelled possibly contributing (cell ranges are computed once per volume)",
+    "proxy": "the outer faces of those supercells (0 when reused)",
+    "raster": "OpenGL near/far pass and read-back",
+    "raster_bits": "OpenGL bit-plane pass and read-back",
+    "raster_lights": "OpenGL light buffers for shadow rays",
+    "setup": "camera, work arrays",
+    "shade": "shading the hits of several surfaces",
+    "shadow": "shadow rays",
+    "total": "the whole frame",
+}
+
+
 def format_table(rows):
     """A readable terminal table of `compare` rows."""
     head = ("method", "time s", "speedup", "rounds", "OpenGL", "cells/px", "cubics/px", "samples/px", "hits/px",
@@ -162,6 +177,7 @@ def format_table(rows):
     out.append("seconds per phase (the median run): " + ", ".join(phases))
     for r in rows:
         out.append(f"  {r['method']:<10} " + "  ".join(f"{k}={r['phases'].get(k, 0.0):.4f}" for k in phases))
+    out += [f"  {k}: {PHASE_NOTES[k]}" for k in phases if k in PHASE_NOTES]
     return "\n".join(out)
 
 

@@ -205,6 +205,24 @@ def test_compare_prints_a_table(vol_file, capsys):
     assert parc_row["speedup_low"] == parc_row["speedup_high"] == pytest.approx(parc_row["speedup"])
 
 
+def test_every_phase_a_render_reports_is_explained_under_the_table():
+    from data_tools.synthetic import blobs
+    from parc import Camera, Isosurface, PointLight, Scene, Translucent, compare
+    from parc.compare import PHASE_NOTES, format_table
+    vol = blobs(16, seed=2)
+    mid = float(vol.data.mean())
+    cam = Camera.framing(*vol.bounds)
+    scenes = [Scene(camera=cam, size=(12, 12), volumes=[Isosurface(vol, mid)]),
+              Scene(camera=cam, size=(12, 12), volumes=[Translucent(vol, "greyscale")]),
+              Scene(camera=cam, size=(12, 12), volumes=[Isosurface(vol, mid), Translucent(vol, "greyscale")],
+                    lights=[PointLight(position=(40.0, -30.0, 50.0))], shadows=True)]
+    for scene in scenes:
+        rows = compare(scene, repeats=1, warmup=0, options={"parc": {"buffers": "depth,bits"}})
+        table = format_table(rows)
+        for phase in rows[1]["phases"]:
+            assert phase in PHASE_NOTES and f"  {phase}: {PHASE_NOTES[phase]}" in table
+
+
 def test_compare_json_and_step_sweep(vol_file, capsys):
     rc, out, err = _run(["compare", vol_file, "--tf", "greyscale", "--size", 12, 12, "--repeats", 1,
                          "--sweep-step", "1,0.5", "--json"], capsys)
