@@ -73,6 +73,16 @@ class Volume:
         self.data = data
         self.spacing = _triple(self.spacing, "spacing", self.name, positive=True)
         self.origin = _triple(self.origin, "origin", self.name, positive=False)
+        # Positions must resolve a cell finely in float64 (2^-20 of a cell):
+        # a volume placed 1e20 spacings from the origin is smaller than one
+        # rounding step there, and no ray through it is well defined.
+        far = np.maximum(np.abs(self.origin), np.abs(np.add(self.origin, self.extent)))
+        if not np.isfinite(far).all():
+            raise InputError(f"{self.name}: spacing {self.spacing} and origin {self.origin} put the grid "
+                             f"beyond float64's range")
+        if not (far <= 2.0 ** 32 * np.array(self.spacing)).all():
+            raise InputError(f"{self.name}: origin {self.origin} with spacing {self.spacing} puts the grid more "
+                             f"than 2^32 cells from 0, beyond float64's resolution of a cell; move the origin")
 
     @property
     def shape(self):

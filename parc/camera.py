@@ -53,16 +53,17 @@ class Camera:
             if v.shape != (3,) or not np.isfinite(v).all():
                 raise InputError(f"camera {name} must be three finite numbers, got {getattr(self, name)!r}")
             object.__setattr__(self, name, tuple(float(c) for c in v))
-        f = np.subtract(self.look_at, self.eye)
-        if np.linalg.norm(f) == 0.0:
+        f = _unit(np.subtract(self.look_at, self.eye))
+        if f is None:
             raise InputError(f"camera eye equals look-at {self.look_at}: no view direction")
-        f = f / np.linalg.norm(f)
-        up = np.asarray(self.up)
-        if np.linalg.norm(up) == 0.0 or np.linalg.norm(np.cross(f, up / np.linalg.norm(up))) < 1e-9:
-            raise InputError(f"camera up {self.up} is parallel to the view direction {tuple(np.round(f, 6))}")
+        up = _unit(self.up)
+        if up is None:
+            raise InputError(f"camera up {self.up} is zero: give a direction")
+        if np.linalg.norm(np.cross(f, up)) < 1e-9:
+            raise InputError(f"camera up {self.up} is parallel to the view direction "
+                             f"{tuple(round(float(c), 6) for c in f)}")
         if self.parallel_scale is None:
-            if not 0.0 < float(self.fov) < 180.0:
-                raise InputError(f"field of view must be between 0 and 180 degrees, got {self.fov}")
+            check_fov(self.fov)
         elif not (math.isfinite(self.parallel_scale) and self.parallel_scale > 0.0):
             raise InputError(f"parallel scale must be positive, got {self.parallel_scale}")
 
@@ -72,10 +73,8 @@ class Camera:
 
     def basis(self):
         """Orthonormal ``(f, r, u)``: forward, right, up, each shape (3,)."""
-        f = np.subtract(self.look_at, self.eye)
-        f = f / np.linalg.norm(f)
-        r = np.cross(f, self.up)
-        r = r / np.linalg.norm(r)
+        f = _unit(np.subtract(self.look_at, self.eye))
+        r = _unit(np.cross(f, _unit(self.up)))
         u = np.cross(r, f)
         return f, r, u
 
@@ -153,5 +152,32 @@ class Camera:
         if parallel:
             return cls(eye=tuple(c + back * radius * 3.0), look_at=tuple(c), up=up,
                        parallel_scale=radius * 1.02)
-        dist = radius / math.sin(math.radians(fov) / 2.0) * 1.02
+        check_fov(fov)
+        half = math.sin(math.radians(fov) / 2.0)
+        dist = radius / half * 1.02 if half > 0.0 else math.inf
+        if not math.isfinite(float(np.max(np.abs(c + back * dist)))):
+            raise InputError(f"cannot frame the volume with a {fov:g}-degree field of view: "
+                             "the eye would lie beyond float64's range")
         return cls(eye=tuple(c + back * dist), look_at=tuple(c), up=up, fov=fov)
+
+
+def check_fov(fov):
+    """Refuse a field of view (degrees) that is not a number strictly between 0 and 180."""
+    try:
+        ok = 0.0 < float(fov) < 180.0
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise InputError(f"field of view must be between 0 and 180 degrees, got {fov}")
+
+
+def _unit(v):
+    """``v`` scaled to length 1, or None if it is zero; scaled by its largest component first,
+    so that huge and tiny vectors (1e300, 1e-300) neither overflow nor vanish."""
+    v = np.asarray(v, dtype=np.float64)
+    m = float(np.max(np.abs(v)))
+    if m == 0.0 or not math.isfinite(m):
+        return None
+    if not 1e-150 < m < 1e150:
+        v = v / m
+    return v / np.linalg.norm(v)

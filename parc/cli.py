@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import sys
 import tempfile
 import time
@@ -20,7 +21,6 @@ import numpy as np
 from data_tools import InputError
 
 EXIT_USAGE = 2
-
 EPILOG = """\
 examples:
   parc render -o out.png                      render the built-in volume
@@ -111,7 +111,7 @@ def _add_look_options(p):
     g.add_argument("--threshold", type=float, metavar="A",
                    help="with --tf: stop a ray once its opacity reaches A (default 0.99)")
     g.add_argument("--shade", action="store_true", help="with --tf: shade samples with the gradient")
-    g.add_argument("--buffers", default="depth", metavar="LIST",
+    g.add_argument("--buffers", metavar="LIST",
                    help="with --tf, PARC's buffers: depth (near/far, default), bits (planes of supercells), "
                         "or depth,bits")
 
@@ -243,19 +243,43 @@ def build_parser():
     return p
 
 
+#: Options taking one value that may start with a minus sign (argparse reads
+#: ``--sun -1,1,-1`` as two options, and only plain negative numbers as values).
+_SIGNED_OPTIONS = {"--eye", "--look-at", "--up", "--light", "--sun", "--spacing", "--origin", "--iso",
+                   "--step", "--threshold", "--fov", "--parallel"}
+_NUMBERS = re.compile(r"-[\d.][\d.eE+\-, ]*|-(inf|nan)", re.IGNORECASE)
+
+
+def _join_signed_values(argv):
+    """``["--sun", "-1,1,-1"]`` as ``["--sun=-1,1,-1"]``, so that argparse takes it as the option's value."""
+    out = []
+    i = 0
+    while i < len(argv):
+        if argv[i] in _SIGNED_OPTIONS and i + 1 < len(argv) and _NUMBERS.fullmatch(argv[i + 1]):
+            out.append(f"{argv[i]}={argv[i + 1]}")
+            i += 2
+        else:
+            out.append(argv[i])
+            i += 1
+    return out
+
+
 def main(argv=None):
     """Entry point of the `parc` console script; returns the exit status."""
+    argv = _join_signed_values(list(sys.argv[1:] if argv is None else argv))
     try:
-        args = build_parser().parse_args(argv)
-        if args.command is None:
-            build_parser().print_help()
-            return EXIT_USAGE
-        args.argv = list(sys.argv[1:] if argv is None else argv)
-        commands = {"render": cmd_render, "compare": cmd_compare, "info": cmd_info, "make": cmd_make,
-                    "bench": cmd_bench}
-        return commands[args.command](args)
+        # Extreme but valid numbers (an eye at 1e200) may overflow on the way to
+        # a clean error or a picture; NumPy's warnings would only add lines.
+        with np.errstate(all="ignore"):
+            return _main(argv)
     except InputError as exc:
         print(f"parc: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except OSError as exc:
+        # A path the system refuses (too long, not a folder, no permission)
+        # found only when it is used.
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"parc: error: {where}{exc.strerror or exc}", file=sys.stderr)
         return EXIT_USAGE
     except MemoryError as exc:
         # NumPy says how much it could not allocate; the usual cause is a
@@ -266,6 +290,17 @@ def main(argv=None):
     except KeyboardInterrupt:
         print("parc: interrupted", file=sys.stderr)
         return 130
+
+
+def _main(argv):
+    args = build_parser().parse_args(argv)
+    if args.command is None:
+        build_parser().print_help()
+        return EXIT_USAGE
+    args.argv = argv
+    commands = {"render": cmd_render, "compare": cmd_compare, "info": cmd_info, "make": cmd_make,
+                "bench": cmd_bench}
+    return commands[args.command](args)
 
 
 # --- commands -----------------------------------------------------------
@@ -290,6 +325,15 @@ def cmd_make(args):
     kwargs = {} if args.seed is None else {"seed": args.seed}
     if args.size is not None and args.size < 2:
         raise InputError(f"--size must be at least 2, got {args.size}")
+    if args.seed is not None and args.seed < 0:
+        raise InputError(f"--seed must be 0 or more, got {args.seed}")
+    if args.size is not None:
+        from data_tools.synthetic import SYNTHETIC_BYTES_PER_SAMPLE
+        from .workspace import available_memory
+        need, have = SYNTHETIC_BYTES_PER_SAMPLE * float(args.size) ** 3, available_memory()
+        if have is not None and need > have:
+            raise InputError(f"--size {args.size} needs about {need / 2**30:.1f} GB of memory; "
+                             f"{have / 2**30:.1f} GB is available")
     try:
         vol = make_synthetic(args.name, args.size, **kwargs)
     except TypeError:
@@ -358,6 +402,10 @@ def _volume_scene(args, say):
     if w < 1 or h < 1:
         raise InputError(f"image size must be positive, got {w} {h}")
     if args.volume is None:
+        for name in ("shape", "dtype", "byte_order", "spacing", "origin"):
+            if getattr(args, name, None) is not None:
+                raise InputError(f"--{name.replace('_', '-')} applies to a volume file; "
+                                 "the built-in volume takes none")
         vol = builtin_volume()
         iso = vol.meta["iso"] if args.iso is None and args.tf is None else args.iso
     else:
@@ -394,28 +442,28 @@ def cmd_render(args):
     out = _check_output(args.output, (".png", ".npy"))
     depth_out = _check_output(args.depth, (".npy",)) if args.depth else None
     stats_out = _check_output(args.stats, (".json",)) if args.stats else None
+    _check_distinct(args, [out, depth_out, stats_out])
     say = (lambda *a: None) if args.quiet else (lambda msg: print(f"parc: {msg}", file=sys.stderr))
     scene = _scene(args, say)
     w, h = scene.size
     progress = None if args.quiet else _Progress(f"rendering {w}x{h}")
     kwargs = ({"supercell": args.supercell, "buffers": _buffers(args), "blocks": not args.no_blocks}
               if args.method == "parc" else {})
-    if args.supercell is not None and args.method != "parc":
-        raise InputError("--supercell applies to --method parc")
-    if args.no_blocks and args.method != "parc":
-        raise InputError("--no-blocks applies to --method parc")
+    for flag, given in (("--supercell", args.supercell is not None), ("--no-blocks", args.no_blocks),
+                        ("--buffers", args.buffers is not None)):
+        if given and args.method != "parc":
+            raise InputError(f"{flag} applies to --method parc")
     result = parc.render(scene, method=args.method, progress=progress, **kwargs)
     if progress is not None:
         progress.done()
 
-    if out.suffix.lower() == ".png":
-        _atomic_write(out, lambda tmp: _write_png(result.image, tmp))
-    else:
-        _atomic_write(out, lambda tmp: np.save(tmp, result.image))
+    writes = [(out, (lambda tmp: _write_png(result.image, tmp)) if out.suffix.lower() == ".png"
+               else (lambda tmp: np.save(tmp, result.image)))]
     if depth_out:
-        _atomic_write(depth_out, lambda tmp: np.save(tmp, result.depth))
+        writes.append((depth_out, lambda tmp: np.save(tmp, result.depth)))
     if stats_out:
-        _atomic_write(stats_out, lambda tmp: tmp.write_text(json.dumps(result.stats, indent=2) + "\n"))
+        writes.append((stats_out, lambda tmp: tmp.write_text(json.dumps(result.stats, indent=2) + "\n")))
+    _atomic_write_all(writes)
     s = result.stats
     vis = scene.volumes[0]
     if len(scene.volumes) > 1:
@@ -447,23 +495,29 @@ def cmd_compare(args):
         raise InputError(f"unknown method {unknown[0]!r} in --methods; choose from brute, parc")
     if args.repeats < 1:
         raise InputError(f"--repeats must be at least 1, got {args.repeats}")
-    scene = _scene(args, say)
-    if args.sweep_step:
-        from .compare import format_step_table, step_sweep
+    _check_sweep_flags(args)
+    steps = None
+    if args.sweep_step is not None:
         try:
             steps = [float(v) for v in args.sweep_step.split(",")]
         except ValueError:
-            raise InputError(f"--sweep-step must be comma-separated numbers, got {args.sweep_step!r}") from None
+            steps = []
+        if not steps or not all(np.isfinite(steps)) or min(steps) <= 0:
+            raise InputError(f"--sweep-step must be comma-separated positive numbers, got {args.sweep_step!r}")
+    scene = _scene(args, say)
+    if steps is not None:
+        from .compare import format_step_table, step_sweep
         rows = step_sweep(scene, steps, repeats=args.repeats,
                           progress=None if args.json else (lambda m: say(f"warming up {m} ...")))
         print(json.dumps(rows, indent=2, default=float) if args.json else format_step_table(rows))
         return 0
     common = {"buffers": _buffers(args), "blocks": not args.no_blocks}
     options = {"parc": dict(common)}
-    if args.sweep_supercell:
+    if args.sweep_supercell is not None:
         sizes = [_supercell_or_error(v) for v in args.sweep_supercell.split(";" if ";" in args.sweep_supercell else ",")]
-        methods = ["brute"] + [f"parc:{s:g}" for s in sizes]
-        options = {f"parc:{s:g}": {"supercell": s, **common} for s in sizes}
+        labels = [f"parc:{_size_label(s)}" for s in sizes]
+        methods = ["brute"] + labels
+        options = {label: {"supercell": s, **common} for label, s in zip(labels, sizes)}
     elif args.supercell is not None:
         options = {"parc": {"supercell": args.supercell, **common}}
     rows = compare(scene, methods=methods, repeats=args.repeats, options=options,
@@ -492,8 +546,28 @@ def cmd_bench(args):
 
 
 def _buffers(args):
-    from .renderer import parse_buffers
-    return parse_buffers(args.buffers)
+    from .renderer import DEFAULT_BUFFERS, parse_buffers
+    return DEFAULT_BUFFERS if args.buffers is None else parse_buffers(args.buffers)
+
+
+def _check_sweep_flags(args):
+    """Refuse compare flags a sweep would ignore: one sweep at a time, and no fixed setting of what it varies."""
+    if args.sweep_step is not None and args.sweep_supercell is not None:
+        raise InputError("give --sweep-step or --sweep-supercell, not both")
+    sweep = "--sweep-step" if args.sweep_step is not None else "--sweep-supercell" if args.sweep_supercell is not None else None
+    if sweep is None:
+        return
+    if args.supercell is not None:
+        raise InputError(f"--supercell does not combine with {sweep} (it sets parc's supercell itself)")
+    if args.methods != "brute,parc":
+        raise InputError(f"--methods does not combine with {sweep} (it runs brute and parc itself)")
+    if sweep == "--sweep-step" and args.step is not None:
+        raise InputError("--step does not combine with --sweep-step (it varies the step)")
+
+
+def _size_label(size):
+    """A supercell size as a method label: ``4`` or ``1x2x3``."""
+    return "x".join(f"{v:g}" for v in size) if isinstance(size, tuple) else f"{size:g}"
 
 
 def _supercell_or_error(text):
@@ -529,22 +603,48 @@ def _check_output(path, allowed):
     return path
 
 
-def _atomic_write(path, write):
-    """Write through a temporary file in the same folder, then rename: never a half-written file."""
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=path.parent or ".")
-    os.close(fd)
-    tmp = Path(tmp)
+def _check_distinct(args, outputs):
+    """Refuse two outputs on one file, or an output on the volume or scene file read."""
+    seen = {}
+    inputs = [Path(args.volume).resolve()] if args.volume is not None else []
+    for path in outputs:
+        if path is None:
+            continue
+        key = path.resolve()
+        if key in seen:
+            raise InputError(f"{path}: given for two outputs ({seen[key]} and {path})")
+        if key in inputs:
+            raise InputError(f"{path}: is the input file; write the output elsewhere")
+        seen[key] = path
+
+
+def _atomic_write_all(writes):
+    """Write each ``(path, write)`` through a temporary file beside it, then rename them all.
+
+    Renaming starts only once every file is whole, so a failure (disk full, a
+    folder gone) leaves none of the outputs, never a half-written one, nor
+    an image without the depth and stats asked for with it.
+    """
+    done = []
     try:
-        write(tmp)
+        for path, write in writes:
+            fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=path.parent or ".")
+            os.close(fd)
+            done.append((Path(tmp), path))
+            write(Path(tmp))
         umask = os.umask(0)
         os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)    # mkstemp makes owner-only files; outputs are ordinary files
-        os.replace(tmp, path)
+        for tmp, path in done:
+            os.chmod(tmp, 0o666 & ~umask)    # mkstemp makes owner-only files; outputs are ordinary files
+        for tmp, path in done:
+            os.replace(tmp, path)
     except OSError as exc:
-        raise InputError(f"{path}: cannot write ({exc.strerror or exc})") from None
+        path = done[-1][1] if done else writes[0][0]
+        raise InputError(f"{exc.filename or path}: cannot write ({exc.strerror or exc})") from None
     finally:
-        if tmp.exists():
-            tmp.unlink()
+        for tmp, _ in done:
+            if tmp.exists():
+                tmp.unlink()
 
 
 def _write_png(image, path):

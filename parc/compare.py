@@ -199,15 +199,25 @@ def step_sweep(scene, steps, *, repeats=3, warmup=1, progress=None):
 
     from .scene import Scene, Translucent
     vis = scene.volumes[0]
-    if not isinstance(vis, Translucent):
-        raise InputError("a step sweep needs a translucent volume (--tf)")
+    if len(scene.volumes) != 1 or not isinstance(vis, Translucent):
+        raise InputError("a step sweep takes a scene of one translucent volume (--tf)")
     steps = sorted({float(s) for s in steps}, reverse=True)
-    if not steps or min(steps) <= 0:
+    if not steps or not all(np.isfinite(steps)) or min(steps) <= 0:
         raise InputError("sweep steps must be positive numbers")
+    check_frame_memory(*scene.size)
 
     def at(step):
         return Scene(camera=scene.camera, size=scene.size, background=scene.background,
                      volumes=[replace(vis, step=step, tf=vis.tf)])
+
+    # Refuse a step the volume cannot take before any work, the reference's too.
+    for step in steps:
+        at(step)
+    try:
+        at(min(steps) / 4)
+    except InputError as exc:
+        raise InputError(f"the reference step, a quarter of the finest ({min(steps) / 4:g}), "
+                         f"is too small: {exc}") from None
 
     if progress:
         progress(f"reference at step {min(steps) / 4:g}")

@@ -209,8 +209,10 @@ class _Where:
             raise InputError(f"{self.path}: no such scene file")
         if self.path.is_dir():
             raise InputError(f"{self.path}: is a folder, not a scene file")
+        if not self.path.is_file():
+            raise InputError(f"{self.path}: not a regular file")
         try:
-            text = self.path.read_text(encoding="utf-8")
+            text = self.path.read_text(encoding="utf-8-sig")   # a byte-order mark is no statement
         except UnicodeDecodeError:
             raise InputError(f"{self.path}: not a UTF-8 text file") from None
         except OSError as exc:
@@ -498,6 +500,13 @@ def _make_synthetic(where, t, cache):
             raise t.wrong("size", "an integer or an array of 3 integers (samples per axis)")
         elif size < 2:
             raise t.error("size", f"must be at least 2 samples per axis, got {size}")
+    if size is not None:
+        from data_tools.synthetic import SYNTHETIC_BYTES_PER_SAMPLE
+        from .workspace import available_memory
+        need, have = SYNTHETIC_BYTES_PER_SAMPLE * int(np.prod(np.broadcast_to(size, 3), dtype=float)), available_memory()
+        if have is not None and need > have:
+            raise t.error("size", f"{size} needs about {need / 2**30:.1f} GB of memory; "
+                                  f"{have / 2**30:.1f} GB is available")
     kwargs = {}
     if "seed" in t:
         seed = t.raw["seed"]

@@ -93,7 +93,7 @@ def check_frame_memory(width, height, layers=1):
     have = available_memory()
     if have is not None and need > have:
         raise InputError(f"a {width}x{height} image needs about {_gb(need)} of memory; "
-                         f"{_gb(have)} is available: render a smaller image (--size)")
+                         f"{_gb(have)} is available: render a smaller image (--size, or size in a scene file)")
 
 
 def _gb(n):

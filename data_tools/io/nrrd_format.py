@@ -31,6 +31,7 @@ def read_nrrd(path) -> Volume:
     Volume
     """
     path = Path(path)
+    _check_data_file(path)
     try:
         data, header = nrrd.read(str(path), index_order="C")
     except MemoryError:
@@ -47,6 +48,22 @@ def read_nrrd(path) -> Volume:
     if "space" in header:
         meta["space"] = header["space"]
     return Volume(data, spacing=spacing, origin=origin, name=str(path), meta=meta)
+
+
+def _check_data_file(path):
+    """Refuse a detached data file that is not a regular file (a pipe or a device would
+    block the read or never end it); other header faults are left to the read."""
+    try:
+        with open(path, "rb") as fh:
+            header = nrrd.read_header(fh)
+    except Exception:  # noqa: BLE001 - reported by the read itself
+        return
+    name = header.get("data file") or header.get("datafile")
+    if not isinstance(name, str) or name.startswith("LIST") or " " in name.strip():
+        return
+    data = Path(name) if Path(name).is_absolute() else path.parent / name
+    if data.exists() and not data.is_file():
+        raise InputError(f"{path}: data file {data} is not a regular file")
 
 
 def _explain(exc) -> str:

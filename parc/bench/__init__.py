@@ -297,6 +297,8 @@ def main(args):
     """`parc bench` (see `parc.cli`): run a suite, print progress on stderr, say where the report is."""
     suite = Suite.tiny() if args.tiny else Suite.quick() if args.quick else Suite.full()
     if args.data is not None:
+        if not Path(args.data).is_dir():
+            raise InputError(f"--data {args.data}: no such folder")
         suite = replace(suite, data_dir=Path(args.data))
     out = Path(args.out)
     if out.exists() and not out.is_dir():

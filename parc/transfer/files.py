@@ -78,8 +78,10 @@ def load_transfer_function(spec, data_range=None):
         raise InputError(f"{where}: unknown file type {ext or '(none)'!r}; use .toml or .json")
     if path.is_dir():
         raise InputError(f"{where}: is a directory, not a file")
+    if not path.is_file():
+        raise InputError(f"{where}: not a regular file")
     try:
-        raw = path.read_text(encoding="utf-8")
+        raw = path.read_text(encoding="utf-8-sig")   # a byte-order mark is no content
     except UnicodeDecodeError:
         raise InputError(f"{where}: not a UTF-8 text file") from None
     except OSError as exc:

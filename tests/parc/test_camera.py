@@ -66,10 +66,29 @@ def test_projection_puts_pixel_centres_where_the_rays_go():
     (dict(eye=(0, 0, 5), look_at=(0, 0, 0), fov=180.0), "field of view"),
     (dict(eye=(0, 0, 5), look_at=(0, 0, 0), parallel_scale=-1.0), "parallel scale"),
     (dict(eye=(0, 0, math.nan), look_at=(0, 0, 0)), "finite"),
+    (dict(eye=(0, 0, 5), look_at=(0, 0, 0), up=(0, 0, 0)), "is zero"),
+    (dict(eye=(0, 0, 5), look_at=(0, 0, 0), fov=math.nan), "field of view"),
 ])
 def test_bad_cameras_are_refused(kwargs, words):
     with pytest.raises(InputError, match=words):
         Camera(**kwargs)
+
+
+@pytest.mark.parametrize("fov", [0.0, 5e-324, math.inf, math.nan, 1e-320])
+def test_framing_refuses_a_field_of_view_it_cannot_frame_with(fov):
+    with pytest.raises(InputError, match="field of view"):
+        Camera.framing((0, 0, 0), (10, 10, 10), fov=fov)
+
+
+@pytest.mark.parametrize("scale", [1e-300, 1e300])
+def test_huge_and_tiny_vectors_give_the_basis_of_their_direction(scale):
+    # Their lengths under- or overflow; their directions are ordinary.
+    ref = Camera(eye=(3.0, -4.0, 2.0), look_at=(0.0, 0.0, 0.0), up=(1.0, 0.0, 1.0))
+    cam = Camera(eye=(3.0, -4.0, 2.0), look_at=(0.0, 0.0, 0.0), up=(scale, 0.0, scale))
+    for a, b in zip(ref.basis(), cam.basis()):
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-15)
+    far = Camera(eye=(3e200, -4e200, 2e200), look_at=(0.0, 0.0, 0.0), up=(0.0, 0.0, 1.0))
+    np.testing.assert_allclose(far.basis()[0], -np.array([3.0, -4.0, 2.0]) / math.sqrt(29.0), atol=1e-15)
 
 
 def test_framing_keeps_the_whole_box_in_view():

@@ -154,9 +154,104 @@ def test_running_out_of_memory_gets_one_line(vol_file, tmp_path, capsys, monkeyp
     def too_big(*args, **kwargs):
         raise MemoryError("Unable to allocate 931. GiB for an array")
     monkeypatch.setattr(data_tools.synthetic, "make_synthetic", too_big)
-    rc, _, err = _run(["make", "sphere", "--size", 5000, "-o", tmp_path / "s.nrrd"], capsys)
+    rc, _, err = _run(["make", "sphere", "--size", 16, "-o", tmp_path / "s.nrrd"], capsys)
     assert rc == 1 and err.count("\n") == 1 and "out of memory: Unable to allocate 931. GiB" in err
     assert not (tmp_path / "s.nrrd").exists()
+
+
+def test_a_vector_starting_with_a_minus_sign_is_a_value(vol_file, tmp_path, capsys):
+    # As the --help epilog writes it: "--sun -1,1,-1", not only "--sun=-1,1,-1".
+    outs = [tmp_path / "a.npy", tmp_path / "b.npy"]
+    for out, sun in zip(outs, (["--sun", "-1,1,-1"], ["--sun=-1,1,-1"])):
+        rc, _, err = _run(["render", vol_file, "--iso", 4, "--size", 12, 10, "--eye", "-20,-30,25",
+                           *sun, "-o", out], capsys)
+        assert rc == 0, err
+    np.testing.assert_array_equal(np.load(outs[0]), np.load(outs[1]))
+
+
+@pytest.mark.parametrize("extra, words", [
+    (["--fov", "0"], "field of view"),                      # the default framing divided by sin(0)
+    (["--fov", "5e-324"], "field of view"),
+    (["--up", "0,0,0"], "is zero"),
+    (["--origin", "1e20,0,0"], "2^32 cells"),             # the grid is below float64's resolution there
+    (["--method", "brute", "--buffers", "bits"], "--buffers applies to --method parc"),
+    (["--output-twice"], "given for two outputs"),
+])
+def test_more_bad_arguments(extra, words, vol_file, tmp_path, capsys):
+    out = tmp_path / "out.npy"
+    if extra == ["--output-twice"]:
+        extra = ["--depth", str(out)]
+    rc, _, err = _run(["render", vol_file, "--iso", 4, "--size", 8, 8, "-o", out] + extra, capsys)
+    assert rc == 2 and err.count("\n") == 1 and words in err, err
+    assert not out.exists()
+
+
+def test_an_output_on_the_input_is_refused(tmp_path, capsys):
+    vol = tmp_path / "v.npy"
+    np.save(vol, np.arange(27, dtype=np.float32).reshape(3, 3, 3))
+    rc, _, err = _run(["render", vol, "--iso", 4, "--size", 8, 8, "-o", vol], capsys)
+    assert rc == 2 and "is the input file" in err
+    assert np.load(vol).shape == (3, 3, 3)
+
+
+def test_reading_flags_without_a_volume_file_are_refused(tmp_path, capsys):
+    rc, _, err = _run(["render", "--size", 8, 8, "--spacing", "2,2,2", "-o", tmp_path / "o.png"], capsys)
+    assert rc == 2 and err.count("\n") == 1 and "--spacing applies to a volume file" in err
+
+
+def test_a_path_the_system_refuses_gets_one_line(vol_file, tmp_path, capsys):
+    out = tmp_path / ("a" * 300 + ".png")
+    rc, _, err = _run(["render", vol_file, "--iso", 4, "--size", 8, 8, "-o", out], capsys)
+    assert rc == 2 and err.count("\n") == 1 and "File name too long" in err
+
+
+def test_a_failed_write_leaves_no_output_of_the_set(vol_file, tmp_path, capsys, monkeypatch):
+    # The depth file cannot be written (disk full): the image written just
+    # before it must not be left on its own.
+    real_save = np.save
+
+    def save(path, arr, *a, **k):
+        if arr.dtype == np.float64:
+            raise OSError(28, "No space left on device", str(path))
+        return real_save(path, arr, *a, **k)
+    monkeypatch.setattr(np, "save", save)
+    out, depth = tmp_path / "o.png", tmp_path / "d.npy"
+    rc, _, err = _run(["render", vol_file, "--iso", 4, "--size", 8, 8, "-o", out, "--depth", depth], capsys)
+    assert rc == 2 and err.count("\n") == 1 and "No space left" in err
+    assert list(tmp_path.iterdir()) == [tmp_path / "ball.nrrd"]
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["make", "blobs", "--size", 8, "--seed", -1], "--seed must be 0 or more"),
+    (["make", "sphere", "--size", 10**7], "needs about"),
+])
+def test_make_refuses_what_it_cannot_make(argv, words, tmp_path, capsys):
+    out = tmp_path / "m.nrrd"
+    rc, _, err = _run(argv + ["-o", out], capsys)
+    assert rc == 2 and err.count("\n") == 1 and words in err, err
+    assert not out.exists()
+
+
+def test_pipes_are_refused_not_read(vol_file, tmp_path, capsys):
+    import os
+    if not hasattr(os, "mkfifo"):
+        pytest.skip("no named pipes here")
+    for name in ("scene.toml", "tf.toml", "data.raw"):
+        os.mkfifo(tmp_path / name)
+    (tmp_path / "h.nhdr").write_text("NRRD0004\ntype: uint8\ndimension: 3\nsizes: 4 4 4\nencoding: raw\n"
+                                     "data file: data.raw\n")
+    out = tmp_path / "o.png"
+    for argv in (["render", tmp_path / "scene.toml"], ["render", vol_file, "--tf", tmp_path / "tf.toml"],
+                 ["render", tmp_path / "h.nhdr", "--iso", 1]):
+        rc, _, err = _run(argv + ["--size", 8, 8, "-o", out], capsys)
+        assert rc == 2 and "not a regular file" in err, err
+
+
+def test_a_byte_order_mark_is_read_past(vol_file, tmp_path, capsys):
+    tf = tmp_path / "tf.toml"
+    tf.write_bytes(b"\xef\xbb\xbfopacity = [[0, 0], [6, 1]]\n")
+    rc, _, err = _run(["render", vol_file, "--tf", tf, "--size", 8, 8, "-o", tmp_path / "o.png"], capsys)
+    assert rc == 0, err
 
 
 def test_console_script_prints_no_traceback(tmp_path):
@@ -221,6 +316,29 @@ def test_every_phase_a_render_reports_is_explained_under_the_table():
         table = format_table(rows)
         for phase in rows[1]["phases"]:
             assert phase in PHASE_NOTES and f"  {phase}: {PHASE_NOTES[phase]}" in table
+
+
+def test_supercell_sweep_takes_sizes_per_axis(vol_file, capsys):
+    rc, out, err = _run(["compare", vol_file, "--iso", 4, "--size", 12, 12, "--repeats", 1, "--json",
+                         "--sweep-supercell", "1,2,3;2"], capsys)
+    assert rc == 0, err
+    rows = json.loads(out)
+    assert [r["method"] for r in rows] == ["brute", "parc:1x2x3", "parc:2"]
+    assert all(r["hit_mismatches"] == 0 for r in rows)
+
+
+@pytest.mark.parametrize("extra, words", [
+    (["--sweep-supercell", ""], "--sweep-supercell"),
+    (["--sweep-step", ""], "--sweep-step must be"),
+    (["--sweep-step", "nan"], "--sweep-step must be"),
+    (["--sweep-step", "1", "--sweep-supercell", "2"], "not both"),
+    (["--sweep-supercell", "1,2", "--supercell", "3"], "--supercell does not combine"),
+    (["--sweep-supercell", "1,2", "--methods", "parc"], "--methods does not combine"),
+    (["--sweep-step", "1e-4"], "reference step"),
+])
+def test_bad_sweeps_are_refused_before_any_work(extra, words, vol_file, capsys):
+    rc, out, err = _run(["compare", vol_file, "--tf", "greyscale", "--size", 8, 8, "--repeats", 1] + extra, capsys)
+    assert rc == 2 and err.count("\n") == 1 and words in err, err
 
 
 def test_compare_json_and_step_sweep(vol_file, capsys):
