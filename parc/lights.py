@@ -120,6 +120,13 @@ def _corners(lo, hi):
     return np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
 
 
+def _direction(v):
+    """``v`` scaled to length 1, without overflow or underflow of its squared length."""
+    v = np.asarray(v, dtype=np.float64)
+    v = v / np.abs(v).max()
+    return v / np.linalg.norm(v)
+
+
 def _up_for(f):
     """An up vector well away from ``f``."""
     a = int(np.argmin(np.abs(f)))
@@ -155,15 +162,14 @@ def light_views(light, lo, hi):
     L = np.asarray(light.position)
     inside = bool(np.all(L >= lo - 1e-9 * size) and np.all(L <= hi + 1e-9 * size))
     if not inside:
-        to_c = centre - L
-        dist = float(np.linalg.norm(to_c))
-        q = corners - L
-        cosang = (q @ to_c) / (np.linalg.norm(q, axis=1) * dist)
-        half = math.degrees(math.acos(float(np.clip(cosang.min(), -1.0, 1.0))))
+        # Directions scaled first: a far light (1e160) would overflow their squared lengths.
+        f = _direction(centre - L)
+        q = np.array([_direction(c - L) for c in corners])
+        half = math.degrees(math.acos(float(np.clip((q @ f).min(), -1.0, 1.0))))
         if half < MAX_HALF_ANGLE:
             fov = min(90.0, 2.0 * half * 1.02 + 0.5)
-            f = to_c / dist
-            return [Camera(eye=tuple(L), look_at=tuple(L + f), up=_up_for(f), fov=fov)]
+            # Looking at the centre, not L + f: far from the origin, L + f rounds to L.
+            return [Camera(eye=tuple(L), look_at=tuple(centre), up=_up_for(f), fov=fov)]
     views = []
     for a in range(3):
         for s in (1.0, -1.0):
@@ -171,7 +177,8 @@ def light_views(light, lo, hi):
                 continue      # the whole box is behind this face of the cube
             f = np.zeros(3)
             f[a] = s
-            views.append(Camera(eye=tuple(L), look_at=tuple(L + f), up=_up_for(f), fov=90.0))
+            reach = max(1.0, float(np.abs(L).max()))   # so that L + f reach does not round to L
+            views.append(Camera(eye=tuple(L), look_at=tuple(L + f * reach), up=_up_for(f), fov=90.0))
     return views
 
 

@@ -122,6 +122,22 @@ def test_shadow_parc_equals_brute(gl, seed, place, kind):
     assert p.stats["shadow_cells"] <= b.stats["shadow_cells"]
 
 
+@pytest.mark.parametrize("distance", [1e100, 1e160, 1e300])
+def test_a_very_far_point_light_shadows_as_brute_does(gl, distance):
+    # The light's view must keep its direction where L + f rounds to L and
+    # squared lengths overflow.
+    rng = np.random.default_rng(7)
+    vol = _volume(rng, "blobs")
+    lo, hi = vol.bounds
+    scene = Scene(camera=_camera(rng, lo, hi), size=SIZE, volumes=[_iso(rng, vol)],
+                  lights=[PointLight(position=(distance, 0.3 * distance, 0.5 * distance))], shadows=True)
+    b, p = _assert_same(scene, supercell=2, light_buffer=16)
+    assert b.stats["shadow_rays"] == p.stats["shadow_rays"]
+    # Beyond ~1e154 the shading's squared distance to the light overflows and
+    # the light reaches nothing, alike for both methods.
+    assert b.stats["shadow_rays"] > 0 or distance > 1e154
+
+
 def test_tiny_features_below_a_light_pixel(gl):
     """Single bright samples, 0.5-cell supercells, a 4x4 light buffer: every occluder still found."""
     data = np.zeros((12, 12, 12), np.uint8)
