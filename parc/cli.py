@@ -359,6 +359,15 @@ def _scene(args, say):
     return _add_flag_lights(scene, args, say)
 
 
+def _scene_then_notes(args, say):
+    """`_scene`, its notes said only once the scene stands: a refused one gets its error line alone."""
+    notes = []
+    scene = _scene(args, notes.append)
+    for note in notes:
+        say(note)
+    return scene
+
+
 def _file_scene(args):
     """The scene file's Scene, with the view flags given replacing its camera settings and size."""
     from dataclasses import replace
@@ -444,7 +453,7 @@ def cmd_render(args):
     stats_out = _check_output(args.stats, (".json",)) if args.stats else None
     _check_distinct(args, [out, depth_out, stats_out])
     say = (lambda *a: None) if args.quiet else (lambda msg: print(f"parc: {msg}", file=sys.stderr))
-    scene = _scene(args, say)
+    scene = _scene_then_notes(args, say)
     w, h = scene.size
     progress = None if args.quiet else _Progress(f"rendering {w}x{h}")
     kwargs = ({"supercell": args.supercell, "buffers": _buffers(args), "blocks": not args.no_blocks}
@@ -504,7 +513,7 @@ def cmd_compare(args):
             steps = []
         if not steps or not all(np.isfinite(steps)) or min(steps) <= 0:
             raise InputError(f"--sweep-step must be comma-separated positive numbers, got {args.sweep_step!r}")
-    scene = _scene(args, say)
+    scene = _scene_then_notes(args, say)
     if steps is not None:
         from .compare import format_step_table, step_sweep
         rows = step_sweep(scene, steps, repeats=args.repeats,

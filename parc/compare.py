@@ -72,6 +72,7 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
         raise InputError("repeats must be at least 1 and warmup at least 0")
     check_frame_memory(*scene.size, layers=len(scene.volumes))
     options = dict(options or {})
+    _check_supercells(scene, options)
     names = ["brute"] + [m for m in methods if m != "brute"]
     vol = scene.volumes[0].volume
     cell = float(min(vol.spacing))
@@ -131,6 +132,15 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
 #: Phases spent in OpenGL: the depth pass (`parc.raster`), the bit-plane pass
 #: (`parc.bitplanes`) and the light buffers' passes (`parc.lights`).
 OPENGL_PHASES = ("raster", "raster_bits", "raster_lights")
+
+
+def _check_supercells(scene, options):
+    """Refuse a supercell size no volume of the scene can take, before any render is timed."""
+    from .classify import VolumeIndex
+    for opts in options.values():
+        if opts.get("supercell") is not None:
+            for vis in scene.volumes:
+                VolumeIndex.of(vis.volume).grid(opts["supercell"])
 
 
 #: What each phase of a frame holds, for the legend under `format_table`.

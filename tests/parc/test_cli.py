@@ -318,6 +318,20 @@ def test_every_phase_a_render_reports_is_explained_under_the_table():
             assert phase in PHASE_NOTES and f"  {phase}: {PHASE_NOTES[phase]}" in table
 
 
+@pytest.mark.parametrize("extra", [["--supercell", "0.001"], ["--sweep-supercell", "1,0.001"]])
+def test_compare_refuses_a_supercell_before_warming_up(extra, vol_file, capsys):
+    rc, _, err = _run(["compare", vol_file, "--iso", 4, "--size", 8, 8, "--repeats", 1] + extra, capsys)
+    assert rc == 2 and err.count("\n") == 1 and "supercell size 0.001" in err, err
+
+
+def test_notes_are_held_back_when_the_scene_is_refused(vol_file, tmp_path, capsys):
+    # Without --iso a note names the level chosen; with a bad camera the error is the only line.
+    rc, _, err = _run(["render", vol_file, "--size", 8, 8, "--up", "0,0,0", "-o", tmp_path / "o.png"], capsys)
+    assert rc == 2 and err.count("\n") == 1 and "is zero" in err, err
+    rc, _, err = _run(["render", vol_file, "--size", 8, 8, "-o", tmp_path / "o.png"], capsys)
+    assert rc == 0 and "no --iso given" in err
+
+
 def test_supercell_sweep_takes_sizes_per_axis(vol_file, capsys):
     rc, out, err = _run(["compare", vol_file, "--iso", 4, "--size", 12, 12, "--repeats", 1, "--json",
                          "--sweep-supercell", "1,2,3;2"], capsys)
