@@ -204,7 +204,8 @@ def build_parser():
                    help="with --tf: run brute and parc once per sample step, e.g. 1,0.5,0.25, against a "
                         "reference at the finest step / 4: speed against error")
     c.add_argument("--repeats", type=int, default=3, help="timed renders per method; the median is reported")
-    c.add_argument("--json", action="store_true", help="print the rows as JSON instead of a table")
+    c.add_argument("--json", action="store_true",
+                   help="print the rows as JSON instead of a table (strict JSON: psnr null means identical images)")
     _add_look_options(c)
     _add_view_options(c)
     _add_light_options(c)
@@ -471,7 +472,7 @@ def cmd_render(args):
     if depth_out:
         writes.append((depth_out, lambda tmp: np.save(tmp, result.depth)))
     if stats_out:
-        writes.append((stats_out, lambda tmp: tmp.write_text(json.dumps(result.stats, indent=2) + "\n")))
+        writes.append((stats_out, lambda tmp: tmp.write_text(_json(result.stats) + "\n")))
     _atomic_write_all(writes)
     s = result.stats
     vis = scene.volumes[0]
@@ -518,7 +519,7 @@ def cmd_compare(args):
         from .compare import format_step_table, step_sweep
         rows = step_sweep(scene, steps, repeats=args.repeats,
                           progress=None if args.json else (lambda m: say(f"warming up {m} ...")))
-        print(json.dumps(rows, indent=2, default=float) if args.json else format_step_table(rows))
+        print(_json(rows) if args.json else format_step_table(rows))
         return 0
     common = {"buffers": _buffers(args), "blocks": not args.no_blocks}
     options = {"parc": dict(common)}
@@ -532,7 +533,7 @@ def cmd_compare(args):
     rows = compare(scene, methods=methods, repeats=args.repeats, options=options,
                    progress=None if args.json else (lambda m: say(f"warming up {m} ...")))
     if args.json:
-        print(json.dumps(rows, indent=2, default=float))
+        print(_json(rows))
     else:
         w, h = scene.size
         vis = scene.volumes[0]
@@ -595,6 +596,22 @@ def _camera(args, vol):
     lo, hi = vol.bounds
     return parc.Camera(**resolve_view(lo, hi, eye=args.eye, look_at=args.look_at, up=args.up, fov=args.fov,
                                       parallel=args.parallel))
+
+
+def _json(obj):
+    """Strict JSON (RFC 8259 has no Infinity or NaN): a non-finite number is written as null,
+    e.g. the PSNR of an image identical to the reference, or the depth of a pixel with no hit."""
+    def clean(v):
+        if isinstance(v, dict):
+            return {str(k): clean(x) for k, x in v.items()}
+        if isinstance(v, (list, tuple)):
+            return [clean(x) for x in v]
+        if isinstance(v, np.generic):
+            v = v.item()
+        if isinstance(v, float) and not np.isfinite(v):
+            return None
+        return v
+    return json.dumps(clean(obj), indent=2, allow_nan=False)
 
 
 def _check_output(path, allowed):

@@ -296,8 +296,11 @@ def test_compare_prints_a_table(vol_file, capsys):
     assert "brute" in out and "parc" in out and "speedup" in out and "OpenGL" in out
     # One round: the round's ratio is the speedup itself.
     rc, out, err = _run(["compare", vol_file, "--iso", 4, "--size", 16, 16, "--repeats", 1, "--json"], capsys)
-    parc_row = json.loads(out)[1]
+    def strict(constant):
+        raise ValueError(f"not strict JSON: {constant}")
+    parc_row = json.loads(out, parse_constant=strict)[1]
     assert parc_row["speedup_low"] == parc_row["speedup_high"] == pytest.approx(parc_row["speedup"])
+    assert parc_row["hit_mismatches"] == 0 and parc_row["psnr"] is None   # identical: infinite PSNR
 
 
 def test_every_phase_a_render_reports_is_explained_under_the_table():
