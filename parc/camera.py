@@ -53,10 +53,10 @@ class Camera:
             if v.shape != (3,) or not np.isfinite(v).all():
                 raise InputError(f"camera {name} must be three finite numbers, got {getattr(self, name)!r}")
             object.__setattr__(self, name, tuple(float(c) for c in v))
-        f = _unit(np.subtract(self.look_at, self.eye))
+        f = unit_vector(np.subtract(self.look_at, self.eye))
         if f is None:
             raise InputError(f"camera eye equals look-at {self.look_at}: no view direction")
-        up = _unit(self.up)
+        up = unit_vector(self.up)
         if up is None:
             raise InputError(f"camera up {self.up} is zero: give a direction")
         if np.linalg.norm(np.cross(f, up)) < 1e-9:
@@ -73,8 +73,8 @@ class Camera:
 
     def basis(self):
         """Orthonormal ``(f, r, u)``: forward, right, up, each shape (3,)."""
-        f = _unit(np.subtract(self.look_at, self.eye))
-        r = _unit(np.cross(f, _unit(self.up)))
+        f = unit_vector(np.subtract(self.look_at, self.eye))
+        r = unit_vector(np.cross(f, unit_vector(self.up)))
         u = np.cross(r, f)
         return f, r, u
 
@@ -171,7 +171,7 @@ def check_fov(fov):
         raise InputError(f"field of view must be between 0 and 180 degrees, got {fov}")
 
 
-def _unit(v):
+def unit_vector(v):
     """``v`` scaled to length 1, or None if it is zero; scaled by its largest component first,
     so that huge and tiny vectors (1e300, 1e-300) neither overflow nor vanish."""
     v = np.asarray(v, dtype=np.float64)

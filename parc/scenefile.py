@@ -68,7 +68,7 @@ import numpy as np
 
 from data_tools import InputError, Volume
 
-from .camera import Camera
+from .camera import Camera, unit_vector
 from .scene import MODES, DirectionalLight, Isosurface, PointLight, Scene, Translucent
 
 TOP_KEYS = ("size", "background", "shadows", "camera", "volume", "light")
@@ -177,9 +177,8 @@ def resolve_view(lo, hi, *, eye=None, look_at=None, up=None, fov=None, parallel=
         eye = tuple(np.asarray(look_at) + np.subtract(framed.eye, framed.look_at))
     if not explicit_up:
         # The default up must not be parallel to the view: fall back to +y.
-        f = np.subtract(look_at, eye)
-        n = np.linalg.norm(f)
-        if n > 0 and np.linalg.norm(np.cross(f / n, up)) < 1e-6:
+        f = unit_vector(np.subtract(look_at, eye))
+        if f is not None and np.linalg.norm(np.cross(f, up)) < 1e-6:
             up = (0.0, 1.0, 0.0)
     return {"eye": tuple(eye), "look_at": look_at, "up": up, "fov": fov, "parallel_scale": parallel}
 
@@ -565,16 +564,21 @@ def _load_camera(where, t, volumes, view):
 
     lo = np.min([v.volume.bounds[0] for v in volumes], axis=0)
     hi = np.max([v.volume.bounds[1] for v in volumes], axis=0)
-    cam = resolve_view(lo, hi, **settings)
-    f = np.subtract(cam["look_at"], cam["eye"])
-    if not np.linalg.norm(f) > 0.0:
+    if settings["up"] is not None and unit_vector(settings["up"]) is None:
+        raise where.error(label("up"), f"up {list(settings['up'])} is zero: give a direction")
+    with where.key("camera"):
+        cam = resolve_view(lo, hi, **settings)
+    f = unit_vector(np.subtract(cam["look_at"], cam["eye"]))
+    if f is None:
         if settings["look_at"] is None:
             raise where.error(label("eye"), f"eye {list(cam['eye'])} is the centre of the volumes, where the "
                                             "camera looks by default: move it or give look_at")
         name = "eye" if settings["eye"] is not None else "look_at"
         raise where.error(label(name), f"eye and look_at are the same point {list(cam['eye'])}: no view direction")
-    up = np.asarray(cam["up"])
-    if not np.linalg.norm(up) > 0.0 or np.linalg.norm(np.cross(f / np.linalg.norm(f), up / np.linalg.norm(up))) < 1e-9:
+    up = unit_vector(cam["up"])
+    if up is None:
+        raise where.error(label("up"), f"up {list(cam['up'])} is zero: give a direction")
+    if np.linalg.norm(np.cross(f, up)) < 1e-9:
         raise where.error(label("up"), f"up {list(cam['up'])} is parallel to the view direction")
     with where.key("camera"):
         return Camera(**cam)

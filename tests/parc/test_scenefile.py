@@ -250,6 +250,8 @@ BAD = [
     ("[camera]\neye = [7.5, 7.5, 7.5]\n{V}", "camera.eye", "centre of the volumes"),   # the default look_at
     ("[camera]\neye = [0, 0, 50]\nlook_at = [0, 0, 0]\nup = [0, 0, 2]\n{V}", "camera.up", "parallel to the view"),
     ("[camera]\neye = [inf, 0, 0]\n{V}", "camera.eye", "finite"),
+    ("[camera]\nup = [0, 0, 0]\n{V}", "camera.up", "is zero"),                  # with the default framing
+    ("[camera]\neye = [0, 0, 50]\nlook_at = [0, 0, 0]\nup = [0, 0, 0]\n{V}", "camera.up", "is zero"),
 ]
 
 
