@@ -75,7 +75,8 @@ def load_volume(path, **options) -> Volume:
     extra = sorted(set(options) - {"spacing", "origin"})
     if extra:
         flags = ", ".join("--" + k.replace("_", "-") for k in extra)
-        raise InputError(f"{path}: {flags} apply only to headerless raw files; this file has a header")
+        verb = "applies" if len(extra) == 1 else "apply"
+        raise InputError(f"{path}: {flags} {verb} only to headerless raw files; this file has a header")
     with reading(path, ext.lstrip(".").upper()):
         vol = reader(path)
     if "spacing" in options or "origin" in options:

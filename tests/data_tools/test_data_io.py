@@ -300,5 +300,5 @@ def test_raw_mmap_refuses_the_other_byte_order(tmp_path):
 
 def test_mmap_is_for_raw_files_only(tmp_path):
     path = save_volume(Volume(np.zeros((3, 4, 5), np.uint8)), tmp_path / "v.nrrd")
-    with pytest.raises(InputError, match="--mmap apply only to headerless raw"):
+    with pytest.raises(InputError, match="--mmap applies only to headerless raw"):
         load_volume(path, mmap=True)

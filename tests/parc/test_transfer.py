@@ -513,6 +513,8 @@ BAD_FILES = [
     ("pv_type.json", '[{"RGBPoints": [0, 0, "x", 0]}]', ["pv_type.json", "RGBPoints[2]", "number"]),
     ("pv_none.json", '[{"Name": "x", "IndexedColors": [1, 0, 0]}]', ["pv_none.json", "RGBPoints", "missing"]),
     ("pv_empty.json", '[]', ["pv_empty.json", "empty"]),
+    ("pv_object.json", '{"Name": "x", "ColorSpace": "RGB"}', ["pv_object.json", "RGBPoints"]),
+    ("null.json", 'null', ["null.json", "object", "got null"]),
     ("pv_name.json", '[{"Name": 5, "RGBPoints": [0, 0, 0, 0]}]', ["pv_name.json", "Name"]),
     ("tf.yaml", "opacity: []", ["tf.yaml", ".yaml", ".toml or .json"]),
 ]
