@@ -457,7 +457,7 @@ def cmd_render(args):
     scene = _scene_then_notes(args, say)
     w, h = scene.size
     progress = None if args.quiet else _Progress(f"rendering {w}x{h}")
-    kwargs = ({"supercell": args.supercell, "buffers": _buffers(args), "blocks": not args.no_blocks}
+    kwargs = ({"supercell": args.supercell, "buffers": _buffers(args, scene), "blocks": not args.no_blocks}
               if args.method == "parc" else {})
     for flag, given in (("--supercell", args.supercell is not None), ("--no-blocks", args.no_blocks),
                         ("--buffers", args.buffers is not None)):
@@ -521,7 +521,7 @@ def cmd_compare(args):
                           progress=None if args.json else (lambda m: say(f"warming up {m} ...")))
         print(_json(rows) if args.json else format_step_table(rows))
         return 0
-    common = {"buffers": _buffers(args), "blocks": not args.no_blocks}
+    common = {"buffers": _buffers(args, scene), "blocks": not args.no_blocks}
     options = {"parc": dict(common)}
     if args.sweep_supercell is not None:
         sizes = [_supercell_or_error(v) for v in args.sweep_supercell.split(";" if ";" in args.sweep_supercell else ",")]
@@ -555,9 +555,16 @@ def cmd_bench(args):
     return main(args)
 
 
-def _buffers(args):
+def _buffers(args, scene=None):
+    """PARC's buffers from --buffers (parsed, refused where no volume of ``scene`` is translucent)."""
     from .renderer import DEFAULT_BUFFERS, parse_buffers
-    return DEFAULT_BUFFERS if args.buffers is None else parse_buffers(args.buffers)
+    from .scene import Translucent
+    if args.buffers is None:
+        return DEFAULT_BUFFERS
+    buffers = parse_buffers(args.buffers)
+    if scene is not None and not any(isinstance(v, Translucent) for v in scene.volumes):
+        raise InputError("--buffers applies to translucent volumes (--tf); isosurfaces use the depth buffers")
+    return buffers
 
 
 def _check_sweep_flags(args):

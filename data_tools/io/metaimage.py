@@ -95,7 +95,12 @@ def _build(path, fields, data_start):
     origin = parse_numbers(origin.split(), 3, float, path, "Offset") if origin else (0.0, 0.0, 0.0)
     big = (get("BinaryDataByteOrderMSB", "ElementByteOrderMSB") or "false").lower() in _TRUE
     compressed = (get("CompressedData") or "false").lower() in _TRUE
-    header_size = int(get("HeaderSize") or 0)
+    try:
+        header_size = int(get("HeaderSize") or 0)
+    except ValueError:
+        raise InputError(f"{path}: HeaderSize must be an integer, got {get('HeaderSize')!r}") from None
+    if header_size < -1:
+        raise InputError(f"{path}: HeaderSize must be -1 (data at the end) or a byte count, got {header_size}")
     meta = {"format": "metaimage", "byte_order": "big" if big else "little"}
     matrix = get("TransformMatrix", "Rotation", "Orientation")
     if matrix:
@@ -103,7 +108,9 @@ def _build(path, fields, data_start):
         if np.abs(m - np.eye(3).ravel()).max() > 1e-6:
             meta["note"] = "non-identity TransformMatrix ignored: the volume is read on an axis-aligned grid"
 
-    data_name = get("ElementDataFile")
+    data_name = get("ElementDataFile").strip()
+    if not data_name:
+        raise InputError(f"{path}: ElementDataFile is empty; give LOCAL or a data file name")
     if data_name.upper() == "LOCAL":
         data_path, offset = path, data_start
     else:
@@ -112,8 +119,12 @@ def _build(path, fields, data_start):
         data_path = Path(data_name)
         if not data_path.is_absolute():
             data_path = path.parent / data_path
-        if not data_path.is_file():
+        if not data_path.exists():
             raise InputError(f"{path}: data file {data_path} (ElementDataFile) not found")
+        if not data_path.is_file():
+            raise InputError(f"{path}: data file {data_path} (ElementDataFile) is not a regular file")
+        if data_path.resolve() == path.resolve():
+            raise InputError(f"{path}: ElementDataFile names this header itself; write LOCAL for attached data")
         offset = 0
     nx, ny, nz = dims
     itemsize = np.dtype(dtype).itemsize

@@ -51,11 +51,20 @@ def read_npy(path) -> Volume:
     side = sidecar_path(path)
     if side.is_file():
         try:
-            info = json.loads(side.read_text(encoding="utf-8"))
+            info = json.loads(side.read_text(encoding="utf-8-sig"))
             spacing = info.get("spacing", spacing)
             origin = info.get("origin", origin)
         except (OSError, ValueError, AttributeError) as exc:
             raise InputError(f"{side}: bad sidecar ({one_line(exc)}); expected JSON with spacing and origin") from None
+        unknown = sorted(set(info) - {"spacing", "origin"})
+        if unknown:
+            raise InputError(f"{side}: unknown keys {', '.join(map(repr, unknown))} in the sidecar; "
+                             "it holds spacing and origin")
+        for key, value in (("spacing", spacing), ("origin", origin)):
+            # A string is a sequence too: "123" must not become (1, 2, 3).
+            if not (isinstance(value, (list, tuple)) and len(value) == 3
+                    and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)):
+                raise InputError(f"{side}: {key} must be an array of three numbers, got {json.dumps(value)}")
         meta["sidecar"] = str(side)
     return Volume(data, spacing=spacing, origin=origin, name=str(path), meta=meta)
 

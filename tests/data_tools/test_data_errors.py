@@ -126,11 +126,17 @@ def test_npy_nan_and_wrong_rank(tmp_path):
     fails(tmp_path / "obj.npy")
 
 
-def test_npy_bad_sidecar(tmp_path):
+@pytest.mark.parametrize("text, match", [("{not json", "bad sidecar"),
+                                         ('{"spacing": "123"}', "spacing must be an array of three numbers"),
+                                         ('{"spacing": [true, true, true]}', "spacing must be"),
+                                         ('{"origin": [1, 2]}', "origin must be"),
+                                         ('{"spacng": [1, 2, 3]}', "unknown keys 'spacng'")])
+def test_npy_bad_sidecar(tmp_path, text, match):
     np.save(tmp_path / "s.npy", SMALL)
-    (tmp_path / "s.npy.json").write_text("{not json")
-    with pytest.raises(InputError, match="s.npy.json"):
+    (tmp_path / "s.npy.json").write_text(text)
+    with pytest.raises(InputError, match="s.npy.json") as exc:
         load_volume(tmp_path / "s.npy")
+    assert match in str(exc.value)
 
 
 # --- NRRD ------------------------------------------------------------------
@@ -221,6 +227,18 @@ def test_mhd_bad_fields(tmp_path, writers, line, match):
     head, _, data = text.partition(b"ElementDataFile = LOCAL\n")
     lines = [ln for ln in head.decode().splitlines() if not ln.startswith(key)] + [line]
     p.write_bytes(("\n".join(lines) + "\nElementDataFile = LOCAL\n").encode() + data)
+    fails(p, match)
+
+
+@pytest.mark.parametrize("data_line, extra, match", [
+    ("ElementDataFile = ", "", "ElementDataFile is empty"),
+    ("ElementDataFile = n.mhd", "", "names this header itself"),
+    ("ElementDataFile = LOCAL", "HeaderSize = -5\n", "HeaderSize must be -1"),
+    ("ElementDataFile = LOCAL", "HeaderSize = abc\n", "HeaderSize must be an integer"),
+])
+def test_mhd_bad_data_location(tmp_path, data_line, extra, match):
+    p = tmp_path / "n.mhd"
+    p.write_text(f"NDims = 3\nDimSize = 2 2 2\nElementType = MET_UCHAR\n{extra}{data_line}\n" + "x" * 8)
     fails(p, match)
 
 

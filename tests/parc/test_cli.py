@@ -175,6 +175,7 @@ def test_a_vector_starting_with_a_minus_sign_is_a_value(vol_file, tmp_path, caps
     (["--up", "0,0,0"], "is zero"),
     (["--origin", "1e20,0,0"], "2^32 cells"),             # the grid is below float64's resolution there
     (["--method", "brute", "--buffers", "bits"], "--buffers applies to --method parc"),
+    (["--method", "parc", "--buffers", "bits"], "--buffers applies to translucent volumes"),
     (["--output-twice"], "given for two outputs"),
 ])
 def test_more_bad_arguments(extra, words, vol_file, tmp_path, capsys):
