@@ -67,6 +67,9 @@ def _check_data_file(path):
 
 
 def _explain(exc) -> str:
+    if isinstance(exc, KeyError) and exc.args:
+        # pynrrd looks field values up in tables: a KeyError names the value it does not know.
+        return f"unsupported value {exc.args[0]!r} in the header (e.g. an unknown type or encoding)"
     text = one_line(exc)
     m = re.search(r"dimensions: (\d+)-(\d+)=", text)
     if m:

@@ -174,6 +174,12 @@ def test_nrrd_unsupported_type(tmp_path):
     fails(tmp_path / "i64.nrrd", "unsupported")
 
 
+def test_nrrd_unknown_type_is_named(tmp_path):
+    p = tmp_path / "q.nrrd"
+    p.write_bytes(b"NRRD0004\ntype: quux\ndimension: 3\nsizes: 2 2 2\nencoding: raw\n\n" + bytes(8))
+    fails(p, "unsupported value 'quux' in the header")
+
+
 def test_nrrd_corrupt_header_field(tmp_path):
     p = tmp_path / "h.nrrd"
     p.write_bytes(b"NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 two 2\nencoding: raw\n\n" + bytes(8))
