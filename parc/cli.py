@@ -571,8 +571,11 @@ def _check_sweep_flags(args):
     """Refuse compare flags a sweep would ignore: one sweep at a time, and no fixed setting of what it varies."""
     if args.sweep_step is not None and args.sweep_supercell is not None:
         raise InputError("give --sweep-step or --sweep-supercell, not both")
-    sweep = "--sweep-step" if args.sweep_step is not None else "--sweep-supercell" if args.sweep_supercell is not None else None
-    if sweep is None:
+    if args.sweep_step is not None:
+        sweep = "--sweep-step"
+    elif args.sweep_supercell is not None:
+        sweep = "--sweep-supercell"
+    else:
         return
     if args.supercell is not None:
         raise InputError(f"--supercell does not combine with {sweep} (it sets parc's supercell itself)")

@@ -502,7 +502,8 @@ def _make_synthetic(where, t, cache):
     if size is not None:
         from data_tools.synthetic import SYNTHETIC_BYTES_PER_SAMPLE
         from .workspace import available_memory
-        need, have = SYNTHETIC_BYTES_PER_SAMPLE * int(np.prod(np.broadcast_to(size, 3), dtype=float)), available_memory()
+        samples = float(np.prod(np.broadcast_to(size, 3), dtype=float))
+        need, have = SYNTHETIC_BYTES_PER_SAMPLE * samples, available_memory()
         if have is not None and need > have:
             raise t.error("size", f"{size} needs about {need / 2**30:.1f} GB of memory; "
                                   f"{have / 2**30:.1f} GB is available")

@@ -98,7 +98,8 @@ def load_transfer_function(spec, data_range=None):
             raise InputError(f"{where}: malformed JSON: {exc}") from None
         if isinstance(doc, list) or (isinstance(doc, dict) and "RGBPoints" in doc):
             return _from_paraview(doc, where, text, data_range)
-        if isinstance(doc, dict) and not {"opacity", "color"} & set(doc) and {"ColorSpace", "Name", "Points"} & set(doc):
+        paraview_keys = {"ColorSpace", "Name", "Points"}
+        if isinstance(doc, dict) and not {"opacity", "color"} & set(doc) and paraview_keys & set(doc):
             raise InputError(f"{where}: a ParaView colour map needs RGBPoints (value, r, g, b, ...); none given")
     if not isinstance(doc, dict):
         kind = {str: "a string", int: "a number", float: "a number", bool: "true or false"}.get(type(doc), "null")

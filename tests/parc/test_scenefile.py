@@ -229,6 +229,7 @@ BAD = [
     ("[[volume]]\nsynthetic = 'cube'\niso = 0", "volume[1].synthetic", "unknown synthetic volume 'cube'"),
     ("[[volume]]\nsynthetic = 'sphere'\nseed = 2\niso = 0", "volume[1].seed", "takes no seed"),
     ("[[volume]]\nsynthetic = 'sphere'\nsize = 1\niso = 0", "volume[1].size", "at least 2"),
+    ("[[volume]]\nsynthetic = 'sphere'\nsize = 100000\niso = 0", "volume[1].size", "GB of memory"),
     ("[[volume]]\nsynthetic = 'sphere'\ndtype = 'uint8'\niso = 0", "volume[1].dtype", "not to synthetic"),
     ("{V}[[light]]\nposition = [0, 0, 9]\ndirection = [0, 0, -1]", "light[1]", "not both"),
     ("{V}[[light]]\ncolor = [1, 1, 1]", "light[1]", "give position (a point light) or direction"),
