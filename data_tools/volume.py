@@ -9,6 +9,7 @@ points; cell ``(i, j, k)`` is the box between samples ``i..i+1``,
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -20,6 +21,35 @@ SUPPORTED_DTYPES = tuple(np.dtype(t) for t in (
     "uint8", "int8", "uint16", "int16", "uint32", "int32", "float32", "float64"))
 
 
+def settled(cls):
+    """Class decorator: the fields of an instance are fixed once ``__init__`` has checked them.
+
+    Renderers cache what they derive from a volume or scene (cell ranges,
+    proxies, skip tables) on the object; a field changed afterwards would
+    skip the checks and leave those caches describing another object, so
+    PARC and the unaccelerated caster would disagree. A changed object is a
+    new one: ``dataclasses.replace(obj, field=...)``.
+    """
+    init = cls.__init__
+
+    @functools.wraps(init)
+    def __init__(self, *args, **kwargs):
+        object.__setattr__(self, "_settled", False)
+        init(self, *args, **kwargs)
+        object.__setattr__(self, "_settled", True)
+
+    def __setattr__(self, name, value):
+        if self.__dict__.get("_settled"):
+            raise AttributeError(f"{type(self).__name__}.{name} cannot change once built; make a new "
+                                 f"{type(self).__name__}: dataclasses.replace(obj, {name}=...)")
+        object.__setattr__(self, name, value)
+
+    cls.__init__ = __init__
+    cls.__setattr__ = __setattr__
+    return cls
+
+
+@settled
 @dataclass(eq=False)
 class Volume:
     """Scalar samples on a regular grid, in their native dtype.
@@ -37,6 +67,14 @@ class Volume:
     meta : dict
         Anything a reader wants to pass on (e.g. a note that oblique
         NRRD ``space directions`` were reduced to their column norms).
+        Copied, without the caches kept under keys starting with ``_``.
+
+    Notes
+    -----
+    A volume is fixed once built (`settled`): its samples are a read-only
+    view, and its fields cannot be reassigned. Rendering caches cell ranges,
+    proxies and skip tables on it. Changing the array it was built from in
+    place leaves them stale: build a new Volume for new samples.
 
     Raises
     ------
@@ -70,7 +108,11 @@ class Volume:
             if not np.isfinite(data).all():
                 bad = int(np.size(data) - np.count_nonzero(np.isfinite(data)))
                 raise InputError(f"{self.name}: {bad} non-finite samples (NaN or inf); replace them before rendering")
+        if data.flags.writeable:
+            data = data.view()
+            data.flags.writeable = False
         self.data = data
+        self.meta = {k: v for k, v in dict(self.meta or {}).items() if not str(k).startswith("_")}
         self.spacing = _triple(self.spacing, "spacing", self.name, positive=True)
         self.origin = _triple(self.origin, "origin", self.name, positive=False)
         # Positions must resolve a cell finely in float64 (2^-20 of a cell):
@@ -124,6 +166,8 @@ class Volume:
 
 def _triple(value, what, name, *, positive):
     try:
+        if isinstance(value, (str, bytes)) or any(isinstance(v, (bool, np.bool_)) for v in value):
+            raise TypeError   # "123" would otherwise read as (1, 2, 3), True as 1
         t = tuple(float(v) for v in value)
     except (TypeError, ValueError):
         raise InputError(f"{name}: {what} must be three numbers, got {value!r}") from None

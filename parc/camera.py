@@ -49,7 +49,10 @@ class Camera:
 
     def __post_init__(self):
         for name in ("eye", "look_at", "up"):
-            v = np.asarray(getattr(self, name), dtype=np.float64)
+            try:
+                v = np.asarray(getattr(self, name), dtype=np.float64)
+            except (TypeError, ValueError):
+                v = np.zeros(0)
             if v.shape != (3,) or not np.isfinite(v).all():
                 raise InputError(f"camera {name} must be three finite numbers, got {getattr(self, name)!r}")
             object.__setattr__(self, name, tuple(float(c) for c in v))
@@ -64,8 +67,15 @@ class Camera:
                              f"{tuple(round(float(c), 6) for c in f)}")
         if self.parallel_scale is None:
             check_fov(self.fov)
-        elif not (math.isfinite(self.parallel_scale) and self.parallel_scale > 0.0):
-            raise InputError(f"parallel scale must be positive, got {self.parallel_scale}")
+            object.__setattr__(self, "fov", float(self.fov))
+        else:
+            try:
+                scale = float(self.parallel_scale)
+            except (TypeError, ValueError):
+                scale = math.nan
+            if not (math.isfinite(scale) and scale > 0.0):
+                raise InputError(f"parallel scale must be positive, got {self.parallel_scale!r}")
+            object.__setattr__(self, "parallel_scale", scale)
 
     @property
     def parallel(self) -> bool:
@@ -143,8 +153,17 @@ class Camera:
         (0 = from -y) and ``elevation`` degrees above the xy-plane, far
         enough that the bounding sphere fits the vertical field of view.
         """
-        lo = np.asarray(lo, dtype=np.float64)
-        hi = np.asarray(hi, dtype=np.float64)
+        try:
+            lo = np.asarray(lo, dtype=np.float64)
+            hi = np.asarray(hi, dtype=np.float64)
+            zoom, azimuth, elevation = float(zoom), float(azimuth), float(elevation)
+        except (TypeError, ValueError):
+            raise InputError("framing needs two corners of three numbers and numeric zoom, azimuth "
+                             "and elevation") from None
+        if lo.shape != (3,) or hi.shape != (3,) or not (np.isfinite(lo).all() and np.isfinite(hi).all()):
+            raise InputError(f"framing needs two corners of three finite numbers, got {lo} and {hi}")
+        if not (math.isfinite(zoom) and zoom > 0.0):
+            raise InputError(f"zoom must be positive, got {zoom}")
         c = 0.5 * (lo + hi)
         radius = 0.5 * float(np.linalg.norm(hi - lo)) / zoom
         az, el = math.radians(azimuth), math.radians(elevation)

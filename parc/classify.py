@@ -169,11 +169,12 @@ def supercell_grid(dims, size):
         would exceed `MAX_SUPERCELLS`.
     """
     size = _size_triple(size)
-    edges = tuple(_axis_edges(n, m) for n, m in zip(dims, size))
-    total = math.prod(len(e) - 1 for e in edges)
+    # Counted before the edges are built: a size of 1e-9 would ask for gigabytes of them.
+    total = math.prod(max(1, math.ceil((n - 1 - SNAP) / m)) for n, m in zip(dims, size))
     if total > MAX_SUPERCELLS:
         raise InputError(f"supercell size {_fmt_size(size)} gives {total} supercells "
                          f"(at most {MAX_SUPERCELLS}); choose a larger size")
+    edges = tuple(_axis_edges(n, m) for n, m in zip(dims, size))
     return SupercellGrid(size=size, dims=tuple(int(n) for n in dims), edges=edges)
 
 

@@ -530,6 +530,12 @@ def cmd_compare(args):
         options = {label: {"supercell": s, **common} for label, s in zip(labels, sizes)}
     elif args.supercell is not None:
         options = {"parc": {"supercell": args.supercell, **common}}
+    if not any(m.startswith("parc") for m in methods):
+        for flag, given in (("--supercell", args.supercell is not None), ("--no-blocks", args.no_blocks),
+                            ("--buffers", args.buffers is not None)):
+            if given:
+                raise InputError(f"{flag} applies to parc, which --methods leaves out")
+    options = {k: v for k, v in options.items() if k in methods}
     rows = compare(scene, methods=methods, repeats=args.repeats, options=options,
                    progress=None if args.json else (lambda m: say(f"warming up {m} ...")))
     if args.json:

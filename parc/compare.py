@@ -68,12 +68,21 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
         ``speedup_high`` (the lowest and highest of the rounds' own ratios,
         each round timing every method once).
     """
-    if repeats < 1 or warmup < 0:
-        raise InputError("repeats must be at least 1 and warmup at least 0")
-    check_frame_memory(*scene.size, layers=len(scene.volumes))
+    from .scene import Scene
+    if not isinstance(scene, Scene):
+        raise InputError(f"compare takes a Scene, got {type(scene).__name__}")
+    for name, value, least in (("repeats", repeats, 1), ("warmup", warmup, 0)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < least:
+            raise InputError(f"{name} must be a whole number >= {least}, got {value!r}")
+    names = _method_names(methods)
+    if not isinstance(options or {}, dict) or not all(isinstance(o, dict) for o in (options or {}).values()):
+        raise InputError(f"options must map method names to dicts of render() arguments, got {options!r}")
     options = dict(options or {})
+    unused = sorted(set(options) - set(names))
+    if unused:
+        raise InputError(f"options for {', '.join(map(repr, unused))}, which is not among the methods run")
+    check_frame_memory(*scene.size, layers=len(scene.volumes))
     _check_supercells(scene, options)
-    names = ["brute"] + [m for m in methods if m != "brute"]
     vol = scene.volumes[0].volume
     cell = float(min(vol.spacing))
     runs = {name: [] for name in names}
@@ -132,6 +141,22 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
 #: Phases spent in OpenGL: the depth pass (`parc.raster`), the bit-plane pass
 #: (`parc.bitplanes`) and the light buffers' passes (`parc.lights`).
 OPENGL_PHASES = ("raster", "raster_bits", "raster_lights")
+
+
+def _method_names(methods):
+    """``methods`` as a list without repeats, brute first; a string may name them as ``"brute,parc"``."""
+    from .renderer import METHODS
+    if isinstance(methods, str):
+        methods = methods.split(",")
+    try:
+        names = [m.strip() for m in methods]
+    except (TypeError, AttributeError):
+        raise InputError(f"methods must be names such as ('brute', 'parc'), got {methods!r}") from None
+    for m in names:
+        if m.split(":")[0] not in METHODS:
+            raise InputError(f"unknown method {m!r}; choose from {', '.join(METHODS)} "
+                             "(a label may follow a colon: 'parc:4')")
+    return ["brute"] + [m for m in dict.fromkeys(names) if m != "brute"]
 
 
 def _check_supercells(scene, options):

@@ -244,10 +244,17 @@ def _cached_light_buffers(light, vis, proxy, size, n):
     return buf
 
 
+def _read_only(a):
+    """``a`` marked read-only, like every Volume's samples: the kernels index a tuple of
+    arrays of one Numba type, and a writable array is another type."""
+    a.flags.writeable = False
+    return a
+
+
 def _packed(comp, accumulation_params):
     """The merged walk's inputs: data of one dtype, placements, params and padded transfer tables."""
     dtype = np.result_type(*(v.volume.data.dtype for _, v in comp))
-    datas = tuple(v.volume.data if v.volume.data.dtype == dtype else v.volume.data.astype(dtype)
+    datas = tuple(v.volume.data if v.volume.data.dtype == dtype else _read_only(v.volume.data.astype(dtype))
                   for _, v in comp)
     orgs = np.array([v.volume.origin for _, v in comp], dtype=np.float64)
     spcs = np.array([v.volume.spacing for _, v in comp], dtype=np.float64)

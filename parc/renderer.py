@@ -119,9 +119,17 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
     Parker et al. 1998, §2 and Appendix A (traversal, intersection, normals);
     Sobierajski & Avila 1995, §3 (depth-buffer PARC) and §4 (accumulation).
     """
+    if not isinstance(scene, Scene):
+        raise InputError(f"render takes a Scene, got {type(scene).__name__}")
     if method not in METHODS:
         raise InputError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
+    if not isinstance(blocks, (bool, np.bool_)):
+        raise InputError(f"blocks must be True or False, got {blocks!r}")
+    if progress is not None and not callable(progress):
+        raise InputError(f"progress must be a function of the fraction done, got {progress!r}")
     skip_blocks = method == "parc" and bool(blocks)
+    buffers = parse_buffers(buffers)
+    light_buffer = _light_buffer_size(light_buffer)
     check_frame_memory(*scene.size, layers=len(scene.volumes))
     if len(scene.volumes) != 1 or scene.lights:
         return _render_general(scene, method, supercell, progress, light_buffer, skip_blocks)
@@ -133,7 +141,6 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
     planes = None
     extra = {}
     if method == "parc":
-        buffers = parse_buffers(buffers)
         if isinstance(vis, Isosurface) or "depth" in buffers:
             seg, extra, proxy = _parc_segments(scene, vis, supercell, timings)
         else:
@@ -187,9 +194,7 @@ def _render_general(scene, method, supercell, progress, light_buffer, skip_block
     from .lights import LIGHT_BUFFER_SIZE
     from .multivolume import render_scene
 
-    n = LIGHT_BUFFER_SIZE if light_buffer is None else int(light_buffer)
-    if n < 2:
-        raise InputError(f"light buffers need at least 2x2 pixels, got {light_buffer!r}")
+    n = LIGHT_BUFFER_SIZE if light_buffer is None else light_buffer
     t0 = time.perf_counter()
     image, depth, counts, timings, extra = render_scene(scene, method, supercell=supercell, progress=progress,
                                                         light_buffer=n, blocks=skip_blocks)
@@ -255,6 +260,21 @@ def _render_iso(scene, iso, seg, use_seg, skip_blocks, timings, progress):
     timings["cast"] = time.perf_counter() - t0
     cells, solves = column_totals(counts)
     return image, t.reshape(h, w), {"cells": cells, "solves": solves}
+
+
+#: Largest side of a light buffer, pixels (a buffer per light and view face).
+MAX_LIGHT_BUFFER = 8192
+
+
+def _light_buffer_size(light_buffer):
+    """``light_buffer`` checked: None (the default) or a whole number of pixels, 2 to `MAX_LIGHT_BUFFER`."""
+    if light_buffer is None:
+        return None
+    if (isinstance(light_buffer, (bool, np.bool_)) or not isinstance(light_buffer, (int, np.integer))
+            or not 2 <= light_buffer <= MAX_LIGHT_BUFFER):
+        raise InputError(f"light buffers take a whole number of pixels from 2 to {MAX_LIGHT_BUFFER}, "
+                         f"got {light_buffer!r}")
+    return int(light_buffer)
 
 
 def parse_buffers(buffers):

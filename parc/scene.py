@@ -2,13 +2,15 @@
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from data_tools import InputError, Volume
+from data_tools.volume import settled
 
-from .camera import Camera
+from .camera import Camera, unit_vector
 
 #: Default surface colour: a warm off-white that reads as tissue or bone.
 DEFAULT_SURFACE = (0.93, 0.86, 0.74)
@@ -16,6 +18,7 @@ DEFAULT_SURFACE = (0.93, 0.86, 0.74)
 DEFAULT_MATERIAL = (0.12, 0.78, 0.25, 40.0)
 
 
+@settled
 @dataclass(eq=False)
 class Isosurface:
     """An opaque isosurface ``volume == value`` of a volume's trilinear interpolant.
@@ -51,11 +54,13 @@ class Isosurface:
             raise InputError(f"isovalue {self.value:g} is outside the data range "
                              f"[{lo:g}, {hi:g}] of {self.volume.name}")
         self.color = _unit_triple(self.color, "surface colour")
+        self.material = _material(self.material)
 
 
 MODES = ("composite", "mip", "average")
 
 
+@settled
 @dataclass(eq=False)
 class Translucent:
     """A volume shown through a transfer function: composite, maximum or average intensity.
@@ -95,6 +100,9 @@ class Translucent:
         if not isinstance(self.volume, Volume):
             raise InputError(f"Translucent needs a Volume, got {type(self.volume).__name__}")
         if not isinstance(self.tf, TransferFunction):
+            if not isinstance(self.tf, (str, os.PathLike)):
+                raise InputError(f"a transfer function must be a TransferFunction, a preset name or a file, "
+                                 f"got {type(self.tf).__name__}")
             self.tf = load_transfer_function(self.tf, data_range=self.volume.value_range())
         if self.mode not in MODES:
             raise InputError(f"unknown mode {self.mode!r}; choose one of {', '.join(MODES)}")
@@ -109,11 +117,18 @@ class Translucent:
         if self.step < 1e-4 * min(self.volume.spacing):
             raise InputError(f"step {self.step:g} is below 1e-4 of the smallest spacing; "
                              f"that is too many samples per ray")
-        if not 0.0 < float(self.threshold) <= 1.0:
-            raise InputError(f"opacity threshold must be in (0, 1], got {self.threshold}")
-        self.threshold = float(self.threshold)
+        try:
+            threshold = float(self.threshold)
+        except (TypeError, ValueError):
+            threshold = math.nan
+        if not 0.0 < threshold <= 1.0:
+            raise InputError(f"opacity threshold must be in (0, 1], got {self.threshold!r}")
+        self.threshold = threshold
+        self.shade = _flag(self.shade, "shade")
+        self.material = _material(self.material)
 
 
+@settled
 @dataclass(eq=False)
 class PointLight:
     """A light at a point, shining equally in every direction (no fall-off with distance).
@@ -141,6 +156,7 @@ class PointLight:
         return tuple(c * self.intensity for c in self.color)
 
 
+@settled
 @dataclass(eq=False)
 class DirectionalLight:
     """A light infinitely far away (the sun): parallel rays travelling along ``direction``.
@@ -159,11 +175,10 @@ class DirectionalLight:
     intensity: float = 1.0
 
     def __post_init__(self):
-        d = np.asarray(_finite_triple(self.direction, "light direction"))
-        n = float(np.linalg.norm(d))
-        if not n > 0.0:
+        d = unit_vector(_finite_triple(self.direction, "light direction"))
+        if d is None:
             raise InputError(f"light direction must not be zero, got {self.direction!r}")
-        self.direction = tuple(float(c) for c in d / n)
+        self.direction = tuple(float(c) for c in d)
         self.color = _unit_triple(self.color, "light colour")
         self.intensity = _non_negative(self.intensity, "light intensity")
 
@@ -175,6 +190,7 @@ class DirectionalLight:
 LIGHTS = (PointLight, DirectionalLight)
 
 
+@settled
 @dataclass(eq=False)
 class Scene:
     """A camera, an image size and what to show.
@@ -207,27 +223,30 @@ class Scene:
         try:
             w, h = (int(v) for v in self.size)
             ok = (w, h) == tuple(self.size)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             ok = False
         if not ok or w < 1 or h < 1:
             raise InputError(f"image size must be two positive integers, got {self.size!r}")
         self.size = (w, h)
-        self.volumes = list(self.volumes)
+        self.volumes = _sequence(self.volumes, "volumes")
         if not self.volumes:
             raise InputError("the scene shows nothing: give at least one volume")
         if self.background is not None:
-            bg = np.asarray(self.background, dtype=np.float64)
+            try:
+                bg = np.asarray(self.background, dtype=np.float64)
+            except (TypeError, ValueError):
+                bg = np.zeros(0)
             if bg.shape not in ((3,), (4,)) or not ((bg >= 0) & (bg <= 1)).all():
                 raise InputError(f"background must be 3 or 4 numbers in [0, 1], got {self.background!r}")
             self.background = tuple(bg) + ((1.0,) if bg.shape == (3,) else ())
         for v in self.volumes:
             if not isinstance(v, (Isosurface, Translucent)):
                 raise InputError(f"a scene shows Isosurface or Translucent volumes, got {type(v).__name__}")
-        self.lights = list(self.lights)
+        self.lights = _sequence(self.lights, "lights")
         for light in self.lights:
             if not isinstance(light, LIGHTS):
                 raise InputError(f"a light must be a PointLight or a DirectionalLight, got {type(light).__name__}")
-        self.shadows = bool(self.shadows)
+        self.shadows = _flag(self.shadows, "shadows")
 
     @property
     def width(self):
@@ -259,7 +278,36 @@ def _non_negative(v, what):
 
 
 def _unit_triple(v, what):
-    a = np.asarray(v, dtype=np.float64)
+    try:
+        a = np.asarray(v, dtype=np.float64)
+    except (TypeError, ValueError):
+        a = np.zeros(0)
     if a.shape != (3,) or not ((a >= 0) & (a <= 1)).all():
         raise InputError(f"{what} must be three numbers in [0, 1], got {v!r}")
     return tuple(float(c) for c in a)
+
+
+def _flag(v, what):
+    """A yes/no setting: a bool (or NumPy's, or 0/1); "false" is not False, so strings are refused."""
+    if isinstance(v, (bool, np.bool_)) or (isinstance(v, (int, np.integer)) and v in (0, 1)):
+        return bool(v)
+    raise InputError(f"{what} must be True or False, got {v!r}")
+
+
+def _material(v):
+    """``(ambient, diffuse, specular, shininess)``: finite, the weights >= 0, shininess > 0."""
+    try:
+        a = np.asarray(v, dtype=np.float64)
+    except (TypeError, ValueError):
+        a = np.zeros(0)
+    if a.shape != (4,) or not np.isfinite(a).all() or (a[:3] < 0).any() or not a[3] > 0:
+        raise InputError(f"material must be (ambient, diffuse, specular, shininess): finite, "
+                         f"the weights >= 0 and shininess > 0, got {v!r}")
+    return tuple(float(c) for c in a)
+
+
+def _sequence(v, what):
+    """A list from a list or tuple; a lone volume or light (or None) is refused, not iterated."""
+    if not isinstance(v, (list, tuple)):
+        raise InputError(f"Scene {what} must be a list, got {type(v).__name__}")
+    return list(v)

@@ -288,7 +288,9 @@ def test_raw_mmap_maps_the_file_read_only(tmp_path):
     vol = load_volume(path, mmap=True)
     assert isinstance(vol.data, np.memmap) and not vol.data.flags.writeable
     np.testing.assert_array_equal(vol.data, data)
-    assert load_volume(path, mmap=False).data.flags.writeable
+    # Loaded into memory, the samples are a read-only view too (a Volume is fixed once built).
+    loaded = load_volume(path, mmap=False).data
+    assert not loaded.flags.writeable and loaded.base.flags.writeable
 
 
 def test_raw_mmap_refuses_the_other_byte_order(tmp_path):

@@ -81,3 +81,44 @@ def test_available_memory_reads_the_system():
     have = workspace.available_memory()
     # Linux reports it; elsewhere the check is skipped rather than guessed.
     assert have is None or have > 0
+
+
+def test_a_built_volume_and_scene_cannot_change_under_their_caches():
+    # Renders cache cell ranges, proxies and skip tables on the objects: a
+    # change after a render would leave parc walking another volume's segments.
+    vol = blobs(16, seed=4)
+    scene = _scene(vol, float(vol.data.mean()))
+    render(scene, method="brute")
+    with pytest.raises(ValueError, match="read-only"):
+        vol.data[0, 0, 0] = 1
+    for obj, name, value in ((vol, "origin", (5.0, 5.0, 5.0)), (vol, "spacing", (2.0, 2.0, 2.0)),
+                             (vol, "data", vol.data[::-1]), (scene, "size", (0, 5)),
+                             (scene.volumes[0], "value", "abc"), (scene, "volumes", [])):
+        with pytest.raises(AttributeError, match="cannot change once built"):
+            setattr(obj, name, value)
+
+
+def test_a_replaced_volume_starts_without_the_old_ones_caches():
+    import dataclasses
+    vol = blobs(16, seed=4)
+    iso = float(vol.data.mean())
+    first = render(_scene(vol, iso), method="parc") if _has_gl() else None
+    lo, hi = vol.value_range()
+    quarter = dataclasses.replace(vol, data=vol.data // 4)
+    assert quarter.value_range() == (lo // 4, hi // 4)      # not the original's cached range
+    with pytest.raises(InputError, match="outside the data range"):
+        Isosurface(quarter, hi)
+    if first is not None:
+        scene = _scene(quarter, iso / 4)
+        a, b = render(scene, method="parc"), render(scene, method="brute")
+        np.testing.assert_array_equal(np.isfinite(a.depth), np.isfinite(b.depth))
+        np.testing.assert_allclose(a.image, b.image, atol=1e-6, rtol=0)
+
+
+def _has_gl():
+    try:
+        from parc.gl import get_context
+        get_context()
+        return True
+    except OpenGLUnavailable:
+        return False

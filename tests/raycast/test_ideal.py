@@ -159,7 +159,7 @@ def _kernel_counts(vis, cam, size, stop=None):
 
 def _set_threshold(vis, threshold):
     """A Translucent whose params carry ``threshold`` (1.01 is refused by Translucent, but not by the kernels)."""
-    vis.threshold = threshold
+    object.__setattr__(vis, "threshold", threshold)   # past the check, on purpose
     return vis
 
 

@@ -1,0 +1,90 @@
+"""Bad arguments to the library: an InputError whose message names the problem, raised before any work.
+
+Truth: the documented argument types; each case below once ended in a
+TypeError, ValueError, ZeroDivisionError, MemoryError or Numba typing error
+deep inside, or was silently accepted.
+"""
+import dataclasses
+
+import numpy as np
+import pytest
+
+import parc
+from data_tools import InputError, Volume
+from data_tools.synthetic import blobs
+
+VOL = blobs(12, seed=3)
+ISO = float(VOL.data.mean())
+CAM = parc.Camera.framing(*VOL.bounds)
+
+
+def _scene(**kw):
+    args = dict(camera=CAM, size=(8, 8), volumes=[parc.Isosurface(VOL, ISO)])
+    args.update(kw)
+    return parc.Scene(**args)
+
+
+CASES = {
+    "volume spacing as a string": (lambda: Volume(VOL.data, spacing="123"), "spacing"),
+    "volume spacing of booleans": (lambda: Volume(VOL.data, spacing=[True] * 3), "spacing"),
+    "surface colour as a word": (lambda: parc.Isosurface(VOL, ISO, color="red"), "colour"),
+    "material of two numbers": (lambda: parc.Isosurface(VOL, ISO, material=(0.1, 0.7)), "material"),
+    "material none": (lambda: parc.Isosurface(VOL, ISO, material=None), "material"),
+    "negative material": (lambda: parc.Translucent(VOL, "greyscale", material=(-1, 1, 1, 10)), "material"),
+    "transfer function as a dict": (lambda: parc.Translucent(VOL, {"opacity": 1}), "transfer function"),
+    "threshold as text": (lambda: parc.Translucent(VOL, "greyscale", threshold="abc"), "threshold"),
+    "shade as text": (lambda: parc.Translucent(VOL, "greyscale", shade="yes"), "shade"),
+    "camera eye as text": (lambda: parc.Camera(eye="abc", look_at=(0, 0, 0)), "eye"),
+    "parallel scale as a list": (lambda: parc.Camera(eye=(0, 0, 5), look_at=(0, 0, 0), parallel_scale=[5]),
+                                 "parallel scale"),
+    "framing zoom 0": (lambda: parc.Camera.framing(*VOL.bounds, zoom=0), "zoom"),
+    "framing corner of two": (lambda: parc.Camera.framing((0, 0, 0), (1, 1)), "corners"),
+    "size infinite": (lambda: _scene(size=(float("inf"), 16)), "image size"),
+    "volumes not a list": (lambda: _scene(volumes=parc.Isosurface(VOL, ISO)), "volumes must be a list"),
+    "lights none": (lambda: _scene(lights=None), "lights must be a list"),
+    "background as a word": (lambda: _scene(background="black"), "background"),
+    "shadows as text": (lambda: _scene(shadows="false"), "shadows"),
+    "zero sun from overflow": (lambda: parc.DirectionalLight((1e308, 1e308, 0)).direction, None),
+    "render without a scene": (lambda: parc.render(parc.Isosurface(VOL, ISO)), "Scene"),
+    "blocks as an array": (lambda: parc.render(_scene(), blocks=np.array([1, 1])), "blocks"),
+    "progress not callable": (lambda: parc.render(_scene(), progress=5), "progress"),
+    "supercell 1e-9": (lambda: parc.render(_scene(), method="parc", supercell=1e-9), "choose a larger size"),
+    "light buffer of 2.5": (lambda: parc.render(_scene(), light_buffer=2.5), "light buffers"),
+    "light buffer of 1e9": (lambda: parc.render(_scene(lights=[parc.PointLight((1, 2, 3))]), light_buffer=10**9),
+                            "light buffers"),
+    "buffers on a lit scene": (lambda: parc.render(_scene(lights=[parc.PointLight((1, 2, 3))]), buffers="foo"),
+                               "buffers"),
+    "repeats 1.5": (lambda: parc.compare(_scene(), repeats=1.5), "repeats"),
+    "warmup none": (lambda: parc.compare(_scene(), warmup=None), "warmup"),
+    "methods none": (lambda: parc.compare(_scene(), methods=None), "methods"),
+    "options not dicts": (lambda: parc.compare(_scene(), options={"parc": None}), "options"),
+    "options for a method not run": (lambda: parc.compare(_scene(), methods=("brute",), options={"parc": {}}),
+                                     "not among the methods"),
+}
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_bad_arguments_raise_input_error(name):
+    make, words = CASES[name]
+    if words is None:
+        # A vector whose squared length overflows still has a direction.
+        assert make() == pytest.approx((2 ** -0.5, 2 ** -0.5, 0.0))
+        return
+    with pytest.raises(InputError) as exc:
+        make()
+    assert words in str(exc.value) and "\n" not in str(exc.value)
+
+
+def test_methods_may_be_named_in_one_string_and_are_run_once():
+    try:
+        rows = parc.compare(_scene(), methods="brute,parc,parc", repeats=1, warmup=0)
+    except parc.OpenGLUnavailable:
+        pytest.skip("no OpenGL")
+    assert [r["method"] for r in rows] == ["brute", "parc"]
+
+
+def test_a_string_is_not_taken_for_a_sequence_of_digits():
+    # Before: Volume(spacing="123") was spacing (1, 2, 3).
+    assert dataclasses.replace(VOL, spacing=(1, 2, 3)).spacing == (1.0, 2.0, 3.0)
+    with pytest.raises(InputError, match="spacing must be three numbers"):
+        dataclasses.replace(VOL, spacing="123")
