@@ -90,7 +90,10 @@ class Volume:
     meta: dict = field(default_factory=dict)
 
     def __post_init__(self):
-        data = np.asarray(self.data) if not isinstance(self.data, np.memmap) else self.data
+        try:
+            data = np.asarray(self.data) if not isinstance(self.data, np.memmap) else self.data
+        except ValueError:
+            raise InputError(f"{self.name}: samples must form a 3-D array (a nested list of equal lengths)") from None
         if data.ndim != 3:
             raise InputError(f"{self.name}: a volume needs 3 dimensions, got shape {data.shape}")
         if min(data.shape) < 2:
@@ -125,6 +128,12 @@ class Volume:
         if not (far <= 2.0 ** 32 * np.array(self.spacing)).all():
             raise InputError(f"{self.name}: origin {self.origin} with spacing {self.spacing} puts the grid more "
                              f"than 2^32 cells from 0, beyond float64's resolution of a cell; move the origin")
+
+    def __reduce__(self):
+        # Copies and pickles are built anew, through the checks: read-only
+        # samples, and none of the caches (they would outlive a change to the copy).
+        meta = {k: v for k, v in self.meta.items() if not str(k).startswith("_")}
+        return (type(self), (self.data, self.spacing, self.origin, self.name, meta))
 
     @property
     def shape(self):

@@ -168,12 +168,24 @@ class Camera:
         radius = 0.5 * float(np.linalg.norm(hi - lo)) / zoom
         az, el = math.radians(azimuth), math.radians(elevation)
         back = np.array([math.cos(el) * math.sin(az), -math.cos(el) * math.cos(az), math.sin(el)])
+        try:
+            u = unit_vector(up) if np.shape(up) == (3,) else None
+        except (TypeError, ValueError):
+            u = None      # Camera itself refuses it below
+        if u is not None and np.linalg.norm(np.cross(back, u)) < 1e-9:
+            raise InputError(f"an elevation of {elevation:g} degrees looks along up {tuple(up)}: "
+                             f"give another elevation or up")
         if parallel:
             return cls(eye=tuple(c + back * radius * 3.0), look_at=tuple(c), up=up,
                        parallel_scale=radius * 1.02)
         check_fov(fov)
         half = math.sin(math.radians(fov) / 2.0)
-        dist = radius / half * 1.02 if half > 0.0 else math.inf
+        if not half >= 2.0 ** -32:
+            # The eye would stand over 2^32 box sizes away: the box is then below
+            # float64's resolution at the eye, and rays through it are ill defined.
+            raise InputError(f"a field of view of {fov:g} degrees is too narrow to frame the volume "
+                             f"(the eye would stand over 2^32 volume sizes away)")
+        dist = radius / half * 1.02
         if not math.isfinite(float(np.max(np.abs(c + back * dist)))):
             raise InputError(f"cannot frame the volume with a {fov:g}-degree field of view: "
                              "the eye would lie beyond float64's range")

@@ -247,8 +247,9 @@ def build_parser():
 #: Options taking one value that may start with a minus sign (argparse reads
 #: ``--sun -1,1,-1`` as two options, and only plain negative numbers as values).
 _SIGNED_OPTIONS = {"--eye", "--look-at", "--up", "--light", "--sun", "--spacing", "--origin", "--iso",
-                   "--step", "--threshold", "--fov", "--parallel"}
-_NUMBERS = re.compile(r"-[\d.][\d.eE+\-, ]*|-(inf|nan)", re.IGNORECASE)
+                   "--step", "--threshold", "--fov", "--parallel", "--supercell", "--background", "--shape",
+                   "--sweep-supercell", "--sweep-step"}
+_NUMBERS = re.compile(r"-[\d.][\d.eE+\-,; ]*|-(inf|nan)", re.IGNORECASE)
 
 
 def _join_signed_values(argv):
@@ -360,13 +361,12 @@ def _scene(args, say):
     return _add_flag_lights(scene, args, say)
 
 
-def _scene_then_notes(args, say):
-    """`_scene`, its notes said only once the scene stands: a refused one gets its error line alone."""
+def _scene_and_notes(args):
+    """`_scene` and its notes, for the caller to say once the work has succeeded: a run
+    refused anywhere, up to the last check inside the render, gets its error line alone."""
     notes = []
     scene = _scene(args, notes.append)
-    for note in notes:
-        say(note)
-    return scene
+    return scene, notes
 
 
 def _file_scene(args):
@@ -397,7 +397,7 @@ def _add_flag_lights(scene, args, say):
         except InputError as exc:
             raise InputError(f"--sun: {exc}") from None
     if lights or args.shadows:
-        scene = replace(scene, lights=scene.lights + lights, shadows=scene.shadows or args.shadows)
+        scene = replace(scene, lights=[*scene.lights, *lights], shadows=scene.shadows or args.shadows)
     if scene.shadows and not scene.lights:
         say("shadows with only the headlight show nothing (the light sits at the eye); add --light or --sun")
     return scene
@@ -454,7 +454,7 @@ def cmd_render(args):
     stats_out = _check_output(args.stats, (".json",)) if args.stats else None
     _check_distinct(args, [out, depth_out, stats_out])
     say = (lambda *a: None) if args.quiet else (lambda msg: print(f"parc: {msg}", file=sys.stderr))
-    scene = _scene_then_notes(args, say)
+    scene, notes = _scene_and_notes(args)
     w, h = scene.size
     progress = None if args.quiet else _Progress(f"rendering {w}x{h}")
     kwargs = ({"supercell": args.supercell, "buffers": _buffers(args, scene), "blocks": not args.no_blocks}
@@ -466,6 +466,8 @@ def cmd_render(args):
     result = parc.render(scene, method=args.method, progress=progress, **kwargs)
     if progress is not None:
         progress.done()
+    for note in notes:
+        say(note)
 
     writes = [(out, (lambda tmp: _write_png(result.image, tmp)) if out.suffix.lower() == ".png"
                else (lambda tmp: np.save(tmp, result.image)))]
@@ -514,11 +516,13 @@ def cmd_compare(args):
             steps = []
         if not steps or not all(np.isfinite(steps)) or min(steps) <= 0:
             raise InputError(f"--sweep-step must be comma-separated positive numbers, got {args.sweep_step!r}")
-    scene = _scene_then_notes(args, say)
+    scene, notes = _scene_and_notes(args)
     if steps is not None:
         from .compare import format_step_table, step_sweep
         rows = step_sweep(scene, steps, repeats=args.repeats,
                           progress=None if args.json else (lambda m: say(f"warming up {m} ...")))
+        for note in notes:
+            say(note)
         print(_json(rows) if args.json else format_step_table(rows))
         return 0
     common = {"buffers": _buffers(args, scene), "blocks": not args.no_blocks}
@@ -538,6 +542,8 @@ def cmd_compare(args):
     options = {k: v for k, v in options.items() if k in methods}
     rows = compare(scene, methods=methods, repeats=args.repeats, options=options,
                    progress=None if args.json else (lambda m: say(f"warming up {m} ...")))
+    for note in notes:
+        say(note)
     if args.json:
         print(_json(rows))
     else:

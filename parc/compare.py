@@ -81,7 +81,14 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
     unused = sorted(set(options) - set(names))
     if unused:
         raise InputError(f"options for {', '.join(map(repr, unused))}, which is not among the methods run")
-    check_frame_memory(*scene.size, layers=len(scene.volumes))
+    for name, opts in options.items():
+        unknown = sorted(set(opts) - RENDER_OPTIONS)
+        if unknown:
+            raise InputError(f"options for {name!r}: {', '.join(map(repr, unknown))} is not a render() option; "
+                             f"known: {', '.join(sorted(RENDER_OPTIONS))}")
+    if progress is not None and not callable(progress):
+        raise InputError(f"progress must be a function of the method's name, got {progress!r}")
+    check_frame_memory(*scene.size, layers=len(scene.volumes), kept_images=len(names))
     _check_supercells(scene, options)
     vol = scene.volumes[0].volume
     cell = float(min(vol.spacing))
@@ -141,6 +148,10 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
 #: Phases spent in OpenGL: the depth pass (`parc.raster`), the bit-plane pass
 #: (`parc.bitplanes`) and the light buffers' passes (`parc.lights`).
 OPENGL_PHASES = ("raster", "raster_bits", "raster_lights")
+
+
+#: What `compare`'s options may set per method (the rest of `render`'s arguments it sets itself).
+RENDER_OPTIONS = {"supercell", "buffers", "blocks", "light_buffer"}
 
 
 def _method_names(methods):
@@ -239,7 +250,7 @@ def step_sweep(scene, steps, *, repeats=3, warmup=1, progress=None):
     steps = sorted({float(s) for s in steps}, reverse=True)
     if not steps or not all(np.isfinite(steps)) or min(steps) <= 0:
         raise InputError("sweep steps must be positive numbers")
-    check_frame_memory(*scene.size)
+    check_frame_memory(*scene.size, kept_images=2 * len(steps) + 1)
 
     def at(step):
         return Scene(camera=scene.camera, size=scene.size, background=scene.background,

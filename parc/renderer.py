@@ -79,6 +79,8 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
         and sampling code, so the images are the same.
     supercell : float or (m, n, p), optional
         PARC's supercell size in cells (fractional and below 1 allowed).
+        Like ``buffers``, ``light_buffer`` and ``blocks``, checked but not
+        used by ``"brute"``, so one set of arguments serves both methods.
         Default: chosen by `parc.costmodel.choose_supercell`'s cost model.
     buffers : subset of ("depth", "bits"), or a string, default ("depth",)
         PARC's buffers for translucent volumes (a string names them as
@@ -127,8 +129,14 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
         raise InputError(f"blocks must be True or False, got {blocks!r}")
     if progress is not None and not callable(progress):
         raise InputError(f"progress must be a function of the fraction done, got {progress!r}")
+    if supercell is not None:
+        from .classify import _size_triple
+        _size_triple(supercell)
     skip_blocks = method == "parc" and bool(blocks)
     buffers = parse_buffers(buffers)
+    if "depth" not in buffers and not any(isinstance(v, Translucent) for v in scene.volumes):
+        raise InputError(f"buffers {buffers!r} leave out the depth buffers isosurfaces use; "
+                         "bit planes apply to translucent volumes")
     light_buffer = _light_buffer_size(light_buffer)
     check_frame_memory(*scene.size, layers=len(scene.volumes))
     if len(scene.volumes) != 1 or scene.lights:

@@ -201,7 +201,9 @@ class Scene:
     size : (width, height)
         Image size in pixels, both at least 1.
     volumes : list of Isosurface or Translucent
+        Kept as a tuple.
     lights : list of PointLight or DirectionalLight
+        Kept as a tuple.
         Light sources for isosurfaces; empty means a headlight at the eye.
     background : (r, g, b, a) or None
         Composited under the image; None leaves it transparent.
@@ -307,7 +309,8 @@ def _material(v):
 
 
 def _sequence(v, what):
-    """A list from a list or tuple; a lone volume or light (or None) is refused, not iterated."""
+    """A tuple from a list or tuple (fixed, as the scene is); a lone volume or light (or None) is
+    refused, not iterated."""
     if not isinstance(v, (list, tuple)):
         raise InputError(f"Scene {what} must be a list, got {type(v).__name__}")
-    return list(v)
+    return tuple(v)

@@ -116,6 +116,8 @@ def load_scene(path, *, view=None, size=None) -> Scene:
         key, a value of the wrong type or out of range, a missing volume or
         transfer-function file, an isovalue outside the data range.
     """
+    if not isinstance(path, (str, os.PathLike)):
+        raise InputError(f"load_scene takes the path of a scene file, got {type(path).__name__}")
     where = _Where(path)
     doc = where.read()
     top = _Table(where, "", doc, TOP_KEYS)

@@ -76,12 +76,18 @@ def available_memory():
     return None
 
 
-def check_frame_memory(width, height, layers=1):
+#: Memory of an image a caller keeps per pixel (RGBA float32 and float64 depth, with room).
+KEPT_IMAGE_BYTES_PER_PIXEL = 32
+
+
+def check_frame_memory(width, height, layers=1, kept_images=0):
     """Refuse, with one line, a frame whose per-pixel arrays would not fit in memory.
 
     ``layers`` counts the per-pixel array sets alive at once (several volumes
-    or lights). Without the check a huge image stops on NumPy's allocation
-    error, or the system kills the process once the pages are touched.
+    or lights); ``kept_images`` the finished images held meanwhile (a
+    comparison keeps one per method). Without the check a huge image stops
+    on NumPy's allocation error, or the system kills the process once the
+    pages are touched.
 
     Raises
     ------
@@ -89,7 +95,8 @@ def check_frame_memory(width, height, layers=1):
         The estimate (`FRAME_BYTES_PER_PIXEL` per pixel and layer) exceeds
         the memory available.
     """
-    need = int(width) * int(height) * FRAME_BYTES_PER_PIXEL * max(1, int(layers))
+    need = int(width) * int(height) * (FRAME_BYTES_PER_PIXEL * max(1, int(layers))
+                                       + KEPT_IMAGE_BYTES_PER_PIXEL * int(kept_images))
     have = available_memory()
     if have is not None and need > have:
         raise InputError(f"a {width}x{height} image needs about {_gb(need)} of memory; "

@@ -24,6 +24,8 @@ def _parse_header(path: Path):
     with open(path, "rb") as f:
         head = f.read(_MAX_HEADER)
     fields, pos = {}, 0
+    if head.startswith(b"\xef\xbb\xbf"):
+        pos = 3     # a UTF-8 byte-order mark, as some editors write: not part of the first key
     while True:
         end = head.find(b"\n", pos)
         if end < 0:

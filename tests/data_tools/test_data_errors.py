@@ -248,6 +248,13 @@ def test_mhd_bad_data_location(tmp_path, data_line, extra, match):
     fails(p, match)
 
 
+def test_mhd_with_a_byte_order_mark_reads(tmp_path):
+    p = tmp_path / "b.mhd"
+    p.write_bytes(b"\xef\xbb\xbfNDims = 3\nDimSize = 2 2 2\nElementType = MET_UCHAR\nElementDataFile = LOCAL\n"
+                  + bytes(range(8)))
+    np.testing.assert_array_equal(load_volume(p).data.ravel(), np.arange(8))
+
+
 def test_mhd_without_data_file_line(tmp_path):
     p = tmp_path / "n.mhd"
     p.write_text("NDims = 3\nDimSize = 2 2 2\nElementType = MET_UCHAR\n")

@@ -54,6 +54,15 @@ CASES = {
                             "light buffers"),
     "buffers on a lit scene": (lambda: parc.render(_scene(lights=[parc.PointLight((1, 2, 3))]), buffers="foo"),
                                "buffers"),
+    "framing fov 1e-13": (lambda: parc.Camera.framing(*VOL.bounds, fov=1e-13), "too narrow"),
+    "framing straight down": (lambda: parc.Camera.framing(*VOL.bounds, elevation=90), "elevation of 90"),
+    "load_scene of None": (lambda: parc.load_scene(None), "path of a scene file"),
+    "bit planes for an isosurface": (lambda: parc.render(_scene(), method="parc", buffers="bits"), "bit planes"),
+    "supercell as text for brute": (lambda: parc.render(_scene(), supercell="a"), "supercell"),
+    "ragged nested list": (lambda: Volume([[[1, 2], [3]], [[1, 2], [3, 4]]]), "3-D array"),
+    "compare option unknown": (lambda: parc.compare(_scene(), options={"parc": {"bogus": 1}}), "bogus"),
+    "compare option method": (lambda: parc.compare(_scene(), options={"parc": {"method": "brute"}}), "method"),
+    "compare progress 5": (lambda: parc.compare(_scene(), progress=5), "progress"),
     "repeats 1.5": (lambda: parc.compare(_scene(), repeats=1.5), "repeats"),
     "warmup none": (lambda: parc.compare(_scene(), warmup=None), "warmup"),
     "methods none": (lambda: parc.compare(_scene(), methods=None), "methods"),
@@ -88,3 +97,40 @@ def test_a_string_is_not_taken_for_a_sequence_of_digits():
     assert dataclasses.replace(VOL, spacing=(1, 2, 3)).spacing == (1.0, 2.0, 3.0)
     with pytest.raises(InputError, match="spacing must be three numbers"):
         dataclasses.replace(VOL, spacing="123")
+
+
+def test_copies_and_pickles_are_new_volumes_without_caches():
+    import copy
+    import pickle
+    vol = blobs(12, seed=5)
+    scene = parc.Scene(camera=parc.Camera.framing(*vol.bounds), size=(12, 12),
+                       volumes=[parc.Isosurface(vol, float(vol.data.mean()))])
+    ref = parc.render(scene, method="brute")
+    try:
+        parc.render(scene, method="parc")     # leaves caches on the volume
+    except parc.OpenGLUnavailable:
+        pass
+    for other in (copy.copy(vol), copy.deepcopy(vol), pickle.loads(pickle.dumps(vol))):
+        assert not other.data.flags.writeable
+        assert not [k for k in other.meta if str(k).startswith("_")]
+        np.testing.assert_array_equal(other.data, vol.data)
+    again = pickle.loads(pickle.dumps(scene))
+    assert isinstance(again.volumes, tuple) and isinstance(again.lights, tuple)
+    np.testing.assert_array_equal(parc.render(again, method="brute").image, ref.image)
+
+
+def test_a_scene_holds_its_volumes_and_lights_as_tuples():
+    scene = _scene(lights=[parc.PointLight((1.0, 2.0, 3.0))])
+    assert isinstance(scene.volumes, tuple) and isinstance(scene.lights, tuple)
+    with pytest.raises(AttributeError):
+        scene.volumes.append("junk")
+
+
+def test_a_comparison_counts_the_images_it_keeps(monkeypatch):
+    import parc.workspace as workspace
+    scene = _scene()
+    one = 8 * 8 * workspace.FRAME_BYTES_PER_PIXEL
+    monkeypatch.setattr(workspace, "available_memory", lambda: one + 8 * 8 * workspace.KEPT_IMAGE_BYTES_PER_PIXEL)
+    parc.render(scene)                                     # one frame fits
+    with pytest.raises(InputError, match="needs about"):
+        parc.compare(scene, methods=("brute", "parc"))     # a frame and two kept images do not

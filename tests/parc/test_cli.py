@@ -328,6 +328,23 @@ def test_compare_refuses_a_supercell_before_warming_up(extra, vol_file, capsys):
     assert rc == 2 and err.count("\n") == 1 and "supercell size 0.001" in err, err
 
 
+def test_notes_are_held_back_when_the_render_refuses(vol_file, tmp_path, capsys):
+    # The note on the chosen level waits for the render: a supercell refused there is the only line.
+    rc, _, err = _run(["render", vol_file, "--size", 8, 8, "--method", "parc", "--supercell", "0.001",
+                       "-o", tmp_path / "o.png"], capsys)
+    assert rc == 2 and err.count("\n") == 1 and "supercell size 0.001" in err, err
+
+
+@pytest.mark.parametrize("flag, value, words", [("--supercell", "-2,2,2", "supercell size must be"),
+                                                ("--background", "-1,0,0", "background"),
+                                                ("--sweep-supercell", "-1,2", "--sweep-supercell")])
+def test_negative_values_reach_their_checks(flag, value, words, vol_file, tmp_path, capsys):
+    cmd = "compare" if flag.startswith("--sweep") else "render"
+    out = [] if cmd == "compare" else ["-o", tmp_path / "o.png"]
+    rc, _, err = _run([cmd, vol_file, "--iso", 4, "--size", 8, 8, flag, value] + out, capsys)
+    assert rc == 2 and err.count("\n") == 1 and words in err and "expected one argument" not in err, err
+
+
 def test_notes_are_held_back_when_the_scene_is_refused(vol_file, tmp_path, capsys):
     # Without --iso a note names the level chosen; with a bad camera the error is the only line.
     rc, _, err = _run(["render", vol_file, "--size", 8, 8, "--up", "0,0,0", "-o", tmp_path / "o.png"], capsys)

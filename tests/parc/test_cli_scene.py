@@ -89,13 +89,13 @@ def test_lights_on_a_volume_file(scene_file):
     assert len(scene.lights) == 1 and isinstance(scene.lights[0], parc.DirectionalLight)
     assert not scene.shadows
     scene, _ = _scene_of(["compare", vol, "--iso", 0.5])
-    assert scene.lights == [] and not scene.shadows           # the headlight
+    assert scene.lights == () and not scene.shadows           # the headlight
 
 
 def test_shadows_with_only_the_headlight_get_a_note(scene_file):
     vol = scene_file.parent / "data" / "ball.nrrd"
     scene, notes = _scene_of(["render", vol, "--iso", 0.5, "-o", "x.png", "--shadows"])
-    assert scene.shadows and scene.lights == []
+    assert scene.shadows and scene.lights == ()
     assert any("headlight" in n for n in notes)
 
 

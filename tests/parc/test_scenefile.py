@@ -98,7 +98,7 @@ def test_public_api_and_defaults(folder):
     """)
     scene = parc.load_scene(str(path))
     assert scene.size == (512, 512) and scene.background is None and not scene.shadows
-    assert scene.lights == []                       # the renderer's headlight
+    assert scene.lights == ()                       # the renderer's headlight
     vol = scene.volumes[0].volume
     assert scene.camera == parc.Camera.framing(*vol.bounds)   # the command line's default view
 
