@@ -112,8 +112,8 @@ def _add_look_options(p):
                    help="with --tf: stop a ray once its opacity reaches A (default 0.99)")
     g.add_argument("--shade", action="store_true", help="with --tf: shade samples with the gradient")
     g.add_argument("--buffers", metavar="LIST",
-                   help="with --tf, PARC's buffers: depth (near/far, default), bits (planes of supercells), "
-                        "or depth,bits")
+                   help="with --tf and --method parc, PARC's buffers: depth (near/far, default), bits "
+                        "(planes of supercells), or depth,bits")
 
 
 def _add_view_options(p):
@@ -164,7 +164,8 @@ def build_parser():
     r.add_argument("-o", "--output", required=True, metavar="OUT",
                    help="image: .png (8-bit RGBA) or .npy (float32 RGBA array)")
     r.add_argument("--depth", metavar="D.npy", help="also write the float64 depth image (inf = no hit)")
-    r.add_argument("--stats", metavar="S.json", help="also write timings and counts as JSON")
+    r.add_argument("--stats", metavar="S.json",
+                   help="also write timings and counts as JSON (strict: a non-finite number is null)")
     r.add_argument("--method", default="brute", choices=("brute", "parc"),
                    help="brute: unaccelerated casting (default); parc: walk only the ray segments "
                         "OpenGL finds from a polygon proxy of the possibly contributing supercells "
