@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from .errors import InputError
+from .memory import check_memory
 from .grids import grid_axes, grid_dims, soft_inside, volume_label
 from .neuron import floor, neuron
 from .phantom import ct_phantom, ct_phantom_to_disk
@@ -251,6 +252,11 @@ DESCRIPTIONS = {
     "trilinear_field": "float64 exact trilinear function of the indices (random small integer coefficients)",
     "builtin": "uint8 torus with blobs: the default volume of parc render (iso 127.5)",
 }
+
+
+def check_synthetic_size(size, what):
+    """Refuse a size (samples per axis: one number or three) whose volume would not fit in memory."""
+    check_memory(SYNTHETIC_BYTES_PER_SAMPLE * float(np.prod(np.broadcast_to(size, 3), dtype=float)), what)
 
 
 def make_synthetic(name, size=None, **kwargs) -> Volume:

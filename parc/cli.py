@@ -8,19 +8,17 @@ place only once whole.
 from __future__ import annotations
 
 import argparse
-import json
-import os
 import re
 import sys
-import tempfile
-import time
-from pathlib import Path
 
 import numpy as np
 
 from data_tools import InputError
 
+from .outputs import Progress, atomic_write_all, check_distinct, check_output, to_json, write_png
+
 EXIT_USAGE = 2
+
 EPILOG = """\
 examples:
   parc render -o out.png                      render the built-in volume
@@ -323,20 +321,15 @@ def cmd_info(args):
 
 def cmd_make(args):
     from data_tools.io import save_volume
-    from data_tools.synthetic import make_synthetic
-    out = _check_output(args.output, (".nrrd", ".nhdr", ".npy", ".mhd", ".mha", ".vtk", ".raw"))
+    from data_tools.synthetic import check_synthetic_size, make_synthetic
+    out = check_output(args.output, (".nrrd", ".nhdr", ".npy", ".mhd", ".mha", ".vtk", ".raw"))
     kwargs = {} if args.seed is None else {"seed": args.seed}
     if args.size is not None and args.size < 2:
         raise InputError(f"--size must be at least 2, got {args.size}")
     if args.seed is not None and args.seed < 0:
         raise InputError(f"--seed must be 0 or more, got {args.seed}")
     if args.size is not None:
-        from data_tools.synthetic import SYNTHETIC_BYTES_PER_SAMPLE
-        from .workspace import available_memory
-        need, have = SYNTHETIC_BYTES_PER_SAMPLE * float(args.size) ** 3, available_memory()
-        if have is not None and need > have:
-            raise InputError(f"--size {args.size} needs about {need / 2**30:.1f} GB of memory; "
-                             f"{have / 2**30:.1f} GB is available")
+        check_synthetic_size(args.size, f"--size {args.size}")
     try:
         vol = make_synthetic(args.name, args.size, **kwargs)
     except TypeError:
@@ -450,33 +443,31 @@ def _volume_scene(args, say):
 def cmd_render(args):
     import parc
 
-    out = _check_output(args.output, (".png", ".npy"))
-    depth_out = _check_output(args.depth, (".npy",)) if args.depth else None
-    stats_out = _check_output(args.stats, (".json",)) if args.stats else None
-    _check_distinct(args, [out, depth_out, stats_out])
+    out = check_output(args.output, (".png", ".npy"))
+    depth_out = check_output(args.depth, (".npy",)) if args.depth else None
+    stats_out = check_output(args.stats, (".json",)) if args.stats else None
+    check_distinct(args.volume, [out, depth_out, stats_out])
     say = (lambda *a: None) if args.quiet else (lambda msg: print(f"parc: {msg}", file=sys.stderr))
     scene, notes = _scene_and_notes(args)
     w, h = scene.size
-    progress = None if args.quiet else _Progress(f"rendering {w}x{h}")
+    progress = None if args.quiet else Progress(f"rendering {w}x{h}")
     kwargs = ({"supercell": args.supercell, "buffers": _buffers(args, scene), "blocks": not args.no_blocks}
               if args.method == "parc" else {})
-    for flag, given in (("--supercell", args.supercell is not None), ("--no-blocks", args.no_blocks),
-                        ("--buffers", args.buffers is not None)):
-        if given and args.method != "parc":
-            raise InputError(f"{flag} applies to --method parc")
+    if args.method != "parc":
+        _refuse_parc_flags(args, "applies to --method parc")
     result = parc.render(scene, method=args.method, progress=progress, **kwargs)
     if progress is not None:
         progress.done()
     for note in notes:
         say(note)
 
-    writes = [(out, (lambda tmp: _write_png(result.image, tmp)) if out.suffix.lower() == ".png"
+    writes = [(out, (lambda tmp: write_png(result.image, tmp)) if out.suffix.lower() == ".png"
                else (lambda tmp: np.save(tmp, result.image)))]
     if depth_out:
         writes.append((depth_out, lambda tmp: np.save(tmp, result.depth)))
     if stats_out:
-        writes.append((stats_out, lambda tmp: tmp.write_text(_json(result.stats) + "\n")))
-    _atomic_write_all(writes)
+        writes.append((stats_out, lambda tmp: tmp.write_text(to_json(result.stats) + "\n")))
+    atomic_write_all(writes)
     s = result.stats
     vis = scene.volumes[0]
     if len(scene.volumes) > 1:
@@ -499,13 +490,10 @@ def _describe(vis):
 
 
 def cmd_compare(args):
-    from .compare import compare, format_table
+    from .compare import method_names, compare, format_table
 
     say = lambda msg: print(f"parc: {msg}", file=sys.stderr)  # noqa: E731
-    methods = [m.strip() for m in args.methods.split(",") if m.strip()]
-    unknown = sorted(set(methods) - {"brute", "parc"})
-    if unknown:
-        raise InputError(f"unknown method {unknown[0]!r} in --methods; choose from brute, parc")
+    methods = method_names(args.methods)
     if args.repeats < 1:
         raise InputError(f"--repeats must be at least 1, got {args.repeats}")
     _check_sweep_flags(args)
@@ -524,7 +512,7 @@ def cmd_compare(args):
                           progress=None if args.json else (lambda m: say(f"warming up {m} ...")))
         for note in notes:
             say(note)
-        print(_json(rows) if args.json else format_step_table(rows))
+        print(to_json(rows) if args.json else format_step_table(rows))
         return 0
     common = {"buffers": _buffers(args, scene), "blocks": not args.no_blocks}
     options = {"parc": dict(common)}
@@ -536,17 +524,14 @@ def cmd_compare(args):
     elif args.supercell is not None:
         options = {"parc": {"supercell": args.supercell, **common}}
     if not any(m.startswith("parc") for m in methods):
-        for flag, given in (("--supercell", args.supercell is not None), ("--no-blocks", args.no_blocks),
-                            ("--buffers", args.buffers is not None)):
-            if given:
-                raise InputError(f"{flag} applies to parc, which --methods leaves out")
+        _refuse_parc_flags(args, "applies to parc, which --methods leaves out")
     options = {k: v for k, v in options.items() if k in methods}
     rows = compare(scene, methods=methods, repeats=args.repeats, options=options,
                    progress=None if args.json else (lambda m: say(f"warming up {m} ...")))
     for note in notes:
         say(note)
     if args.json:
-        print(_json(rows))
+        print(to_json(rows))
     else:
         w, h = scene.size
         vis = scene.volumes[0]
@@ -578,6 +563,14 @@ def _buffers(args, scene=None):
     if scene is not None and not any(isinstance(v, Translucent) for v in scene.volumes):
         raise InputError("--buffers applies to translucent volumes (--tf); isosurfaces use the depth buffers")
     return buffers
+
+
+def _refuse_parc_flags(args, why):
+    """Refuse PARC's own flags where no parc render runs: ``--FLAG {why}``."""
+    for flag, given in (("--supercell", args.supercell is not None), ("--no-blocks", args.no_blocks),
+                        ("--buffers", args.buffers is not None)):
+        if given:
+            raise InputError(f"{flag} {why}")
 
 
 def _check_sweep_flags(args):
@@ -619,112 +612,6 @@ def _camera(args, vol):
     lo, hi = vol.bounds
     return parc.Camera(**resolve_view(lo, hi, eye=args.eye, look_at=args.look_at, up=args.up, fov=args.fov,
                                       parallel=args.parallel))
-
-
-def _json(obj):
-    """Strict JSON (RFC 8259 has no Infinity or NaN): a non-finite number is written as null,
-    e.g. the PSNR of an image identical to the reference, or the depth of a pixel with no hit."""
-    def clean(v):
-        if isinstance(v, dict):
-            return {str(k): clean(x) for k, x in v.items()}
-        if isinstance(v, (list, tuple)):
-            return [clean(x) for x in v]
-        if isinstance(v, np.generic):
-            v = v.item()
-        if isinstance(v, float) and not np.isfinite(v):
-            return None
-        return v
-    return json.dumps(clean(obj), indent=2, allow_nan=False)
-
-
-def _check_output(path, allowed):
-    """Refuse an output path before any work: wrong extension, missing or unwritable folder."""
-    path = Path(path)
-    if path.suffix.lower() not in allowed:
-        raise InputError(f"{path}: output must end in {' or '.join(allowed)}")
-    folder = path.parent if str(path.parent) else Path(".")
-    if not folder.is_dir():
-        raise InputError(f"{path}: folder {folder} does not exist")
-    if path.is_dir():
-        raise InputError(f"{path}: is a folder")
-    if not os.access(folder, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
-        raise InputError(f"{path}: not writable")
-    return path
-
-
-def _check_distinct(args, outputs):
-    """Refuse two outputs on one file, or an output on the volume or scene file read."""
-    seen = {}
-    inputs = [Path(args.volume).resolve()] if args.volume is not None else []
-    for path in outputs:
-        if path is None:
-            continue
-        key = path.resolve()
-        if key in seen:
-            raise InputError(f"{path}: given for two outputs ({seen[key]} and {path})")
-        if key in inputs:
-            raise InputError(f"{path}: is the input file; write the output elsewhere")
-        seen[key] = path
-
-
-def _atomic_write_all(writes):
-    """Write each ``(path, write)`` through a temporary file beside it, then rename them all.
-
-    Renaming starts only once every file is whole, so a failure (disk full, a
-    folder gone) leaves none of the outputs, never a half-written one, nor
-    an image without the depth and stats asked for with it.
-    """
-    done = []
-    try:
-        for path, write in writes:
-            fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=path.parent or ".")
-            os.close(fd)
-            done.append((Path(tmp), path))
-            write(Path(tmp))
-        umask = os.umask(0)
-        os.umask(umask)
-        for tmp, path in done:
-            os.chmod(tmp, 0o666 & ~umask)    # mkstemp makes owner-only files; outputs are ordinary files
-        for tmp, path in done:
-            os.replace(tmp, path)
-    except OSError as exc:
-        path = done[-1][1] if done else writes[0][0]
-        raise InputError(f"{exc.filename or path}: cannot write ({exc.strerror or exc})") from None
-    finally:
-        for tmp, _ in done:
-            if tmp.exists():
-                tmp.unlink()
-
-
-def _write_png(image, path):
-    from PIL import Image
-    rgba = np.clip(np.rint(np.asarray(image) * 255.0), 0, 255).astype(np.uint8)
-    # PNG stores straight alpha; our images are premultiplied.
-    a = rgba[..., 3:4].astype(np.float64)
-    rgb = np.where(a > 0, np.clip(np.rint(rgba[..., :3] * 255.0 / np.maximum(a, 1)), 0, 255), 0)
-    Image.fromarray(np.concatenate([rgb.astype(np.uint8), rgba[..., 3:4]], axis=-1), "RGBA").save(path, format="PNG")
-
-
-class _Progress:
-    """Progress on stderr: a live percentage on a terminal, a few lines otherwise."""
-
-    def __init__(self, what):
-        self.what = what
-        self.tty = sys.stderr.isatty()
-        self.start = time.perf_counter()
-        self.last = -1
-
-    def __call__(self, fraction):
-        pct = int(100 * fraction)
-        if self.tty:
-            print(f"\rparc: {self.what}: {pct:3d}%", end="", file=sys.stderr, flush=True)
-        elif pct // 25 > self.last // 25 and pct < 100:
-            print(f"parc: {self.what}: {pct}%", file=sys.stderr, flush=True)
-        self.last = pct
-
-    def done(self):
-        if self.tty and self.last >= 0:
-            print(f"\rparc: {self.what}: done in {time.perf_counter() - self.start:.1f} s", file=sys.stderr)
 
 
 if __name__ == "__main__":

@@ -74,7 +74,7 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
     for name, value, least in (("repeats", repeats, 1), ("warmup", warmup, 0)):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < least:
             raise InputError(f"{name} must be a whole number >= {least}, got {value!r}")
-    names = _method_names(methods)
+    names = method_names(methods)
     if not isinstance(options or {}, dict) or not all(isinstance(o, dict) for o in (options or {}).values()):
         raise InputError(f"options must map method names to dicts of render() arguments, got {options!r}")
     options = dict(options or {})
@@ -154,13 +154,13 @@ OPENGL_PHASES = ("raster", "raster_bits", "raster_lights")
 RENDER_OPTIONS = {"supercell", "buffers", "blocks", "light_buffer"}
 
 
-def _method_names(methods):
+def method_names(methods):
     """``methods`` as a list without repeats, brute first; a string may name them as ``"brute,parc"``."""
     from .renderer import METHODS
     if isinstance(methods, str):
         methods = methods.split(",")
     try:
-        names = [m.strip() for m in methods]
+        names = [m.strip() for m in methods if m.strip()]
     except (TypeError, AttributeError):
         raise InputError(f"methods must be names such as ('brute', 'parc'), got {methods!r}") from None
     for m in names:

@@ -41,7 +41,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .camera import Camera
+from .camera import Camera, unit_vector
 from .scene import DirectionalLight, PointLight
 
 #: Light-buffer size in pixels (square). Finer buffers give tighter
@@ -120,13 +120,6 @@ def _corners(lo, hi):
     return np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
 
 
-def _direction(v):
-    """``v`` scaled to length 1, without overflow or underflow of its squared length."""
-    v = np.asarray(v, dtype=np.float64)
-    v = v / np.abs(v).max()
-    return v / np.linalg.norm(v)
-
-
 def _up_for(f):
     """An up vector well away from ``f``."""
     a = int(np.argmin(np.abs(f)))
@@ -163,8 +156,8 @@ def light_views(light, lo, hi):
     inside = bool(np.all(L >= lo - 1e-9 * size) and np.all(L <= hi + 1e-9 * size))
     if not inside:
         # Directions scaled first: a far light (1e160) would overflow their squared lengths.
-        f = _direction(centre - L)
-        q = np.array([_direction(c - L) for c in corners])
+        f = unit_vector(centre - L)
+        q = np.array([unit_vector(c - L) for c in corners])
         half = math.degrees(math.acos(float(np.clip((q @ f).min(), -1.0, 1.0))))
         if half < MAX_HALF_ANGLE:
             fov = min(90.0, 2.0 * half * 1.02 + 0.5)

@@ -488,7 +488,7 @@ def _read_file(where, t, cache):
 
 
 def _make_synthetic(where, t, cache):
-    from data_tools.synthetic import SYNTHETIC, make_synthetic
+    from data_tools.synthetic import SYNTHETIC, check_synthetic_size, make_synthetic
     name = t.string("synthetic")
     if name not in SYNTHETIC:
         raise t.error("synthetic", f"unknown synthetic volume {name!r}; choose from {', '.join(SYNTHETIC)}")
@@ -502,13 +502,8 @@ def _make_synthetic(where, t, cache):
         elif size < 2:
             raise t.error("size", f"must be at least 2 samples per axis, got {size}")
     if size is not None:
-        from data_tools.synthetic import SYNTHETIC_BYTES_PER_SAMPLE
-        from .workspace import available_memory
-        samples = float(np.prod(np.broadcast_to(size, 3), dtype=float))
-        need, have = SYNTHETIC_BYTES_PER_SAMPLE * samples, available_memory()
-        if have is not None and need > have:
-            raise t.error("size", f"{size} needs about {need / 2**30:.1f} GB of memory; "
-                                  f"{have / 2**30:.1f} GB is available")
+        with where.key(t.key("size")):
+            check_synthetic_size(size, str(size))
     kwargs = {}
     if "seed" in t:
         seed = t.raw["seed"]

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from data_tools import InputError
+from data_tools.memory import check_memory
 
 #: Bytes of work arrays kept between frames; a frame needing more gets fresh ones.
 KEEP_BYTES = 256 << 20
@@ -64,18 +64,6 @@ def release():
     _ARRAYS.clear()
 
 
-def available_memory():
-    """Bytes the system can still hand out without swapping (``MemAvailable``), or None if unknown."""
-    try:
-        with open("/proc/meminfo") as fh:
-            for line in fh:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except (OSError, ValueError, IndexError):
-        pass
-    return None
-
-
 #: Memory of an image a caller keeps per pixel (RGBA float32 and float64 depth, with room).
 KEPT_IMAGE_BYTES_PER_PIXEL = 32
 
@@ -97,11 +85,4 @@ def check_frame_memory(width, height, layers=1, kept_images=0):
     """
     need = int(width) * int(height) * (FRAME_BYTES_PER_PIXEL * max(1, int(layers))
                                        + KEPT_IMAGE_BYTES_PER_PIXEL * int(kept_images))
-    have = available_memory()
-    if have is not None and need > have:
-        raise InputError(f"a {width}x{height} image needs about {_gb(need)} of memory; "
-                         f"{_gb(have)} is available: render a smaller image (--size, or size in a scene file)")
-
-
-def _gb(n):
-    return f"{n / 2**30:.1f} GB" if n >= 2**30 else f"{n / 2**20:.0f} MB"
+    check_memory(need, f"a {width}x{height} image", ": render a smaller image (--size, or size in a scene file)")

@@ -128,9 +128,10 @@ def test_a_scene_holds_its_volumes_and_lights_as_tuples():
 
 def test_a_comparison_counts_the_images_it_keeps(monkeypatch):
     import parc.workspace as workspace
+    from data_tools import memory
     scene = _scene()
     one = 8 * 8 * workspace.FRAME_BYTES_PER_PIXEL
-    monkeypatch.setattr(workspace, "available_memory", lambda: one + 8 * 8 * workspace.KEPT_IMAGE_BYTES_PER_PIXEL)
+    monkeypatch.setattr(memory, "available_memory", lambda: one + 8 * 8 * workspace.KEPT_IMAGE_BYTES_PER_PIXEL)
     parc.render(scene)                                     # one frame fits
     with pytest.raises(InputError, match="needs about"):
         parc.compare(scene, methods=("brute", "parc"))     # a frame and two kept images do not

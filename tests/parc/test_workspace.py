@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import parc.workspace as workspace
-from data_tools import InputError
+from data_tools import InputError, memory
 from data_tools.synthetic import blobs
 from parc import Camera, Isosurface, PointLight, Scene, render
 from parc.gl import OpenGLUnavailable
@@ -69,16 +69,16 @@ def test_a_result_is_not_changed_by_later_renders(method, lit):
 def test_a_frame_larger_than_memory_is_refused_before_casting(monkeypatch):
     vol = blobs(12, seed=1)
     scene = _scene(vol, float(vol.data.mean()))
-    monkeypatch.setattr(workspace, "available_memory", lambda: 64 * 48 * workspace.FRAME_BYTES_PER_PIXEL - 1)
+    monkeypatch.setattr(memory, "available_memory", lambda: 64 * 48 * workspace.FRAME_BYTES_PER_PIXEL - 1)
     for method in ("brute", "parc"):
         with pytest.raises(InputError, match="64x48 image needs about .* available"):
             render(scene, method=method)
-    monkeypatch.setattr(workspace, "available_memory", lambda: 64 * 48 * workspace.FRAME_BYTES_PER_PIXEL)
+    monkeypatch.setattr(memory, "available_memory", lambda: 64 * 48 * workspace.FRAME_BYTES_PER_PIXEL)
     assert render(scene, method="brute").image.shape == (48, 64, 4)
 
 
 def test_available_memory_reads_the_system():
-    have = workspace.available_memory()
+    have = memory.available_memory()
     # Linux reports it; elsewhere the check is skipped rather than guessed.
     assert have is None or have > 0
 

@@ -1,0 +1,120 @@
+"""What the command line writes: output paths checked before any work, files written
+all or nothing, strict JSON, and progress on stderr."""
+from __future__ import annotations
+
+import json
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from data_tools import InputError
+
+
+def to_json(obj):
+    """Strict JSON (RFC 8259 has no Infinity or NaN): a non-finite number is written as null,
+    e.g. the PSNR of an image identical to the reference, or the depth of a pixel with no hit."""
+    def clean(v):
+        if isinstance(v, dict):
+            return {str(k): clean(x) for k, x in v.items()}
+        if isinstance(v, (list, tuple)):
+            return [clean(x) for x in v]
+        if isinstance(v, np.generic):
+            v = v.item()
+        if isinstance(v, float) and not np.isfinite(v):
+            return None
+        return v
+    return json.dumps(clean(obj), indent=2, allow_nan=False)
+
+
+def check_output(path, allowed):
+    """Refuse an output path before any work: wrong extension, missing or unwritable folder."""
+    path = Path(path)
+    if path.suffix.lower() not in allowed:
+        raise InputError(f"{path}: output must end in {' or '.join(allowed)}")
+    folder = path.parent if str(path.parent) else Path(".")
+    if not folder.is_dir():
+        raise InputError(f"{path}: folder {folder} does not exist")
+    if path.is_dir():
+        raise InputError(f"{path}: is a folder")
+    if not os.access(folder, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
+        raise InputError(f"{path}: not writable")
+    return path
+
+
+def check_distinct(source, outputs):
+    """Refuse two outputs on one file, or an output on ``source`` (the volume or scene file read, or None)."""
+    seen = {}
+    inputs = [Path(source).resolve()] if source is not None else []
+    for path in outputs:
+        if path is None:
+            continue
+        key = path.resolve()
+        if key in seen:
+            raise InputError(f"{path}: given for two outputs ({seen[key]} and {path})")
+        if key in inputs:
+            raise InputError(f"{path}: is the input file; write the output elsewhere")
+        seen[key] = path
+
+
+def atomic_write_all(writes):
+    """Write each ``(path, write)`` through a temporary file beside it, then rename them all.
+
+    Renaming starts only once every file is whole, so a failure (disk full, a
+    folder gone) leaves none of the outputs, never a half-written one, nor
+    an image without the depth and stats asked for with it.
+    """
+    done = []
+    try:
+        for path, write in writes:
+            fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=path.parent or ".")
+            os.close(fd)
+            done.append((Path(tmp), path))
+            write(Path(tmp))
+        umask = os.umask(0)
+        os.umask(umask)
+        for tmp, path in done:
+            os.chmod(tmp, 0o666 & ~umask)    # mkstemp makes owner-only files; outputs are ordinary files
+        for tmp, path in done:
+            os.replace(tmp, path)
+    except OSError as exc:
+        path = done[-1][1] if done else writes[0][0]
+        raise InputError(f"{exc.filename or path}: cannot write ({exc.strerror or exc})") from None
+    finally:
+        for tmp, _ in done:
+            if tmp.exists():
+                tmp.unlink()
+
+
+def write_png(image, path):
+    from PIL import Image
+    rgba = np.clip(np.rint(np.asarray(image) * 255.0), 0, 255).astype(np.uint8)
+    # PNG stores straight alpha; our images are premultiplied.
+    a = rgba[..., 3:4].astype(np.float64)
+    rgb = np.where(a > 0, np.clip(np.rint(rgba[..., :3] * 255.0 / np.maximum(a, 1)), 0, 255), 0)
+    Image.fromarray(np.concatenate([rgb.astype(np.uint8), rgba[..., 3:4]], axis=-1), "RGBA").save(path, format="PNG")
+
+
+class Progress:
+    """Progress on stderr: a live percentage on a terminal, a few lines otherwise."""
+
+    def __init__(self, what):
+        self.what = what
+        self.tty = sys.stderr.isatty()
+        self.start = time.perf_counter()
+        self.last = -1
+
+    def __call__(self, fraction):
+        pct = int(100 * fraction)
+        if self.tty:
+            print(f"\rparc: {self.what}: {pct:3d}%", end="", file=sys.stderr, flush=True)
+        elif pct // 25 > self.last // 25 and pct < 100:
+            print(f"parc: {self.what}: {pct}%", file=sys.stderr, flush=True)
+        self.last = pct
+
+    def done(self):
+        if self.tty and self.last >= 0:
+            print(f"\rparc: {self.what}: done in {time.perf_counter() - self.start:.1f} s", file=sys.stderr)
