@@ -37,7 +37,7 @@ from .config import TILE_H, TILE_W, kernel
 from .rays import camera_ray, dealt_tile, tile_count
 from .shade import blinn_phong, trilinear_gradient
 from .transfer import correct_opacity, tf_color, tf_lookup, tf_opacity
-from .traverse import cell_corners, clip_box, to_index_space
+from .traverse import cell_corners, clip_box, grid_shape, to_index_space
 
 MODE_COMPOSITE = 0
 MODE_MIP = 1
@@ -74,7 +74,7 @@ def sample_value(data, x, y, z):
 @kernel
 def sample_cell(data, x, y, z):
     """The cell `sample_value` interpolates in at index-space ``(x, y, z)``: the floor, clamped to the grid."""
-    nz, ny, nx = data.shape
+    nz, ny, nx = grid_shape(data)
     return (min(max(int(math.floor(x)), 0), nx - 2), min(max(int(math.floor(y)), 0), ny - 2),
             min(max(int(math.floor(z)), 0), nz - 2))
 
@@ -224,7 +224,7 @@ def accumulate_ray(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, seg0, seg1, t_
     radius of at least ``jump_min`` skips the samples up to the cube's exit.
     The unaccelerated caster passes `raycast.iso.NO_SKIP` and -1.
     """
-    nz, ny, nx = data.shape
+    nz, ny, nx = grid_shape(data)
     t_in, t_out = clip_box(Ox, Oy, Oz, Dx, Dy, Dz, nx, ny, nz)
     if not t_in <= t_out:
         return 0.0, 0.0, 0.0, 0.0, 0
@@ -405,7 +405,7 @@ def cast_merged_image(datas, orgs, spcs, cam, width, height, params, op_x, op_y,
                 ox, oy, oz, dx, dy, dz = camera_ray(cam, width, height, x, y)
                 for k in range(nvol):
                     Ox, Oy, Oz, Dx, Dy, Dz = to_index_space(ox, oy, oz, dx, dy, dz, orgs[k], spcs[k])
-                    nz, ny, nx = datas[k].shape
+                    nz, ny, nx = grid_shape(datas[k])
                     t_in, t_out = clip_box(Ox, Oy, Oz, Dx, Dy, Dz, nx, ny, nz)
                     n0, n1 = 0, -1
                     if t_in <= t_out:

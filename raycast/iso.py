@@ -32,7 +32,8 @@ from .config import TILE_H, TILE_W, kernel
 from .cubic import cubic_along_ray, eval_cubic, first_root, trilinear_coefficients
 from .rays import camera_ray, dealt_tile, spread_run, spread_runs, tile_count
 from .shade import headlight_pixel
-from .traverse import advance, axis_state, cell_corners, clip_box, next_exit, start_index, step_axis, to_index_space
+from .traverse import (advance, axis_state, cell_corners, clip_box, grid_shape, next_exit, start_index, step_axis,
+                       to_index_space)
 
 #: The table a walk without one takes (with ``jump_min = -1``).
 NO_SKIP = np.zeros((1, 1, 1), np.int8)
@@ -156,7 +157,7 @@ def cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, seg0, seg1, skip, jump_min):
     jump (module docstring), or `NO_SKIP` and -1. ``cells`` counts the
     cells the walk looked at, not those a jump passed over.
     """
-    nz, ny, nx = data.shape
+    nz, ny, nx = grid_shape(data)
     t_in, t_out = clip_box(Ox, Oy, Oz, Dx, Dy, Dz, nx, ny, nz)
     t_start = max(t_in, seg0)
     t_end = min(t_out, seg1)

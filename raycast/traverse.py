@@ -15,6 +15,10 @@ ray and the cell alone, whichever cell the walk started from.
 """
 import math
 
+from numba import types
+from numba.extending import overload
+
+from .bricks import BrickedSamples, bricked_corners
 from .config import kernel
 
 #: Below this an index-space direction component counts as zero: its
@@ -140,13 +144,47 @@ def step_axis(tx1, ty1, tz1):
     return 2
 
 
-@kernel
 def cell_corners(data, i, j, k):
     """The eight corner samples of cell ``(i, j, k)`` as floats, ``vIJK`` at local ``(I, J, K)``.
 
     Returned in the order v000, v100, v010, v110, v001, v101, v011, v111.
+    ``data`` is the ``(nz, ny, nx)`` sample array, or the same samples
+    bricked (`raycast.bricks`); in kernels the call compiles to the one
+    that matches (`_cell_corners`), and here, in Python, it reads either.
     """
+    if isinstance(data, BrickedSamples):
+        return bricked_corners(data, i, j, k)
+    return _linear_corners(data, i, j, k)
+
+
+def grid_shape(data):
+    """``(nz, ny, nx)`` of the samples, linear or bricked (as `cell_corners`)."""
+    if isinstance(data, BrickedSamples):
+        return data.nz, data.ny, data.nx
+    return data.shape
+
+
+@overload(grid_shape)
+def _grid_shape(data):
+    if isinstance(data, types.Array) and data.ndim == 3:
+        return lambda data: data.shape
+    if isinstance(data, types.BaseNamedTuple) and data.instance_class is BrickedSamples:
+        return lambda data: (data.nz, data.ny, data.nx)
+    return None
+
+
+def _linear_corners(data, i, j, k):
     return (float(data[k, j, i]), float(data[k, j, i + 1]),
             float(data[k, j + 1, i]), float(data[k, j + 1, i + 1]),
             float(data[k + 1, j, i]), float(data[k + 1, j, i + 1]),
             float(data[k + 1, j + 1, i]), float(data[k + 1, j + 1, i + 1]))
+
+
+@overload(cell_corners, jit_options=dict(nogil=True, fastmath=False, error_model="numpy"))
+def _cell_corners(data, i, j, k):
+    """`cell_corners` in kernels: chosen by the type of ``data`` when a kernel compiles."""
+    if isinstance(data, types.Array) and data.ndim == 3:
+        return _linear_corners
+    if isinstance(data, types.BaseNamedTuple) and data.instance_class is BrickedSamples:
+        return bricked_corners
+    return None

@@ -1,0 +1,120 @@
+"""Parker et al.'s bricked sample layout (§2.2, Appendix B) against the linear one, with the same kernels.
+
+An isosurface frame is cast twice per method, once with the samples
+linear (the renderer's layout) and once bricked (`raycast.bricks`: n^3
+samples to a brick, m^3 bricks to a macrobrick, offsets from per-axis
+tables): the unaccelerated cast over whole rays, and PARC's cast over its
+raster segments with its skip table. Layouts are timed in turn round by
+round (median of --repeats), cast and shading only; the images must be
+identical, and the script exits 1 if they are not.
+
+Run: ./dev.sh python benchmarks/bricking.py [--volume PATH --iso V | --synthetic NAME --n N] [--size 512]
+     [--brick 4] [--macro 5] [--azimuth 35 --elevation 25] [--threads T] [--repeats 7]
+Without --volume: CThead skin (../shared/data) when present, else a CT-like phantom.
+"""
+import argparse
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import numba
+import numpy as np
+
+from parc.camera import Camera
+from parc.classify import VolumeIndex, _size_triple
+from parc.costmodel import choose_supercell
+from parc.proxy import build_proxy
+from parc.raster import raster_segments
+from parc.renderer import skip_table
+from parc.scene import Isosurface
+from raycast.bricks import BRICK, MACRO, brick
+from raycast.iso import NO_SKIP, cast_iso_image, empty_outputs
+
+CTHEAD = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "CThead.nrrd"
+
+
+def _volume(args):
+    if args.synthetic:
+        from data_tools.synthetic import make_synthetic
+        vol = make_synthetic(args.synthetic, args.n)
+        return vol, args.iso if args.iso is not None else vol.meta.get("iso", 0.0)
+    if args.volume:
+        from data_tools.io import load_volume
+        return load_volume(args.volume), args.iso
+    if CTHEAD.exists():
+        from data_tools.io import load_volume
+        return load_volume(str(CTHEAD)), 600.5
+    from data_tools.synthetic import ct_phantom
+    return ct_phantom(192), 600.5
+
+
+def _segments(vol, iso, cam, w, h):
+    """PARC's per-pixel segments for the supercell size the renderer would choose."""
+    idx = VolumeIndex.of(vol)
+    size = _size_triple(choose_supercell(idx, iso, pixels=w * h)[0])
+    grid = idx.grid(size)
+    proxy = build_proxy(grid, idx.classify(iso, size), grid.world_edges(vol))
+    return raster_segments(cam, w, h, proxy).seg, size
+
+
+def cast(samples, vol, cam, w, h, iso, seg, skip, jump_min):
+    """One cast with shading, as the renderer runs it: seconds, depths and image."""
+    t, cell, uvw, counts = empty_outputs(w * h)
+    image = np.zeros((h, w, 4), np.float32)
+    use_seg = seg is not None
+    t0 = time.perf_counter()
+    cast_iso_image(samples, np.array(vol.origin), np.array(vol.spacing), cam.as_array(), w, h, iso,
+                   seg if use_seg else np.empty((1, 1, 2)), use_seg, skip, jump_min, t, cell, uvw, counts,
+                   0, h, True, np.ones(3), np.array([0.1, 0.7, 0.2, 20.0]), image)
+    return time.perf_counter() - t0, t, image
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--size", type=int, default=512)
+    ap.add_argument("--volume")
+    ap.add_argument("--iso", type=float)
+    ap.add_argument("--synthetic", help="a data_tools synthetic volume name (sphere, torus, ...)")
+    ap.add_argument("--n", type=int, default=256, help="synthetic volume size")
+    ap.add_argument("--brick", type=int, default=BRICK, help="samples per brick side (n)")
+    ap.add_argument("--macro", type=int, default=MACRO, help="bricks per macrobrick side (m)")
+    ap.add_argument("--azimuth", type=float, default=35.0)
+    ap.add_argument("--elevation", type=float, default=25.0)
+    ap.add_argument("--threads", type=int, default=numba.config.NUMBA_NUM_THREADS)
+    ap.add_argument("--repeats", type=int, default=7)
+    args = ap.parse_args()
+    vol, iso = _volume(args)
+    w = h = args.size
+    numba.set_num_threads(args.threads)
+    cam = Camera.framing(*vol.bounds, azimuth=args.azimuth, elevation=args.elevation)
+    linear = vol.data
+    bricked = brick(linear, args.brick, args.macro)
+    pad = bricked.flat.size / linear.size - 1.0
+    seg, size = _segments(vol, iso, cam, w, h)
+    skip, jump_min = skip_table(Isosurface(vol, iso), True)
+    print(f"{vol.name}, {vol.dtype}, iso {iso}, {w}x{h}, {args.threads} thread(s); "
+          f"bricks of {args.brick}^3 samples in macrobricks of {args.macro}^3 (padding {pad:.1%}); "
+          f"parc supercell {size}")
+    same_all = True
+    for method, s, sk, jm in (("brute", None, NO_SKIP, -1), ("parc", seg, skip, jump_min)):
+        layouts = {"linear": linear, "bricked": bricked}
+        for samples in layouts.values():          # compile (or load) and warm the caches
+            cast(samples, vol, cam, w, h, iso, s, sk, jm)
+        times = {name: [] for name in layouts}
+        out = {}
+        for _ in range(max(1, args.repeats)):
+            for name, samples in layouts.items():
+                sec, t, image = cast(samples, vol, cam, w, h, iso, s, sk, jm)
+                times[name].append(sec)
+                out[name] = (t, image)
+        same = all(np.array_equal(a, b) for a, b in zip(out["linear"], out["bricked"]))
+        same_all &= same
+        lin, bri = (statistics.median(times[k]) for k in ("linear", "bricked"))
+        print(f"{method:5}  linear {lin * 1e3:8.2f} ms  bricked {bri * 1e3:8.2f} ms  "
+              f"bricked/linear {bri / lin:.2f}  same as linear: {same}")
+    return 0 if same_all else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
