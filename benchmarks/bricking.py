@@ -1,14 +1,15 @@
 """Parker et al.'s bricked sample layout (§2.2, Appendix B) against the linear one, with the same kernels.
 
-An isosurface frame is cast twice per method, once with the samples
-linear (the renderer's layout) and once bricked (`raycast.bricks`: n^3
-samples to a brick, m^3 bricks to a macrobrick, offsets from per-axis
-tables): the unaccelerated cast over whole rays, and PARC's cast over its
-raster segments with its skip table. Layouts are timed in turn round by
-round (median of --repeats), cast and shading only; the images must be
-identical, and the script exits 1 if they are not.
+An isosurface frame (or, with --tf, a composited translucent one) is cast
+twice per method, once with the samples linear (the renderer's layout)
+and once bricked (`raycast.bricks`: n^3 samples to a brick, m^3 bricks
+to a macrobrick, offsets from per-axis tables): the unaccelerated cast
+over whole rays, and PARC's cast over its depth-buffer segments with its
+skip table. Layouts are timed in turn round by round (median of
+--repeats), the cast only (with shading for isosurfaces); the images
+must be identical, and the script exits 1 if they are not.
 
-Run: ./dev.sh python benchmarks/bricking.py [--volume PATH --iso V | --synthetic NAME --n N] [--size 512]
+Run: ./dev.sh python benchmarks/bricking.py [--volume PATH --iso V | --synthetic NAME --n N] [--tf PRESET] [--size 512]
      [--brick 4] [--macro 5] [--azimuth 35 --elevation 25] [--threads T] [--repeats 7]
 Without --volume: CThead skin (../shared/data) when present, else a CT-like phantom.
 """
@@ -26,9 +27,10 @@ from parc.classify import VolumeIndex, _size_triple
 from parc.costmodel import choose_supercell
 from parc.proxy import build_proxy
 from parc.raster import raster_segments
-from parc.renderer import skip_table
-from parc.scene import Isosurface
+from parc.renderer import accumulation_params, skip_table
+from parc.scene import Isosurface, Translucent
 from raycast.bricks import BRICK, MACRO, brick
+from raycast.composite import cast_accumulate_image
 from raycast.iso import NO_SKIP, cast_iso_image, empty_outputs
 
 CTHEAD = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "CThead.nrrd"
@@ -49,25 +51,41 @@ def _volume(args):
     return ct_phantom(192), 600.5
 
 
-def _segments(vol, iso, cam, w, h):
+def _segments(vol, classify, cam, w, h):
     """PARC's per-pixel segments for the supercell size the renderer would choose."""
     idx = VolumeIndex.of(vol)
-    size = _size_triple(choose_supercell(idx, iso, pixels=w * h)[0])
+    size = _size_triple(choose_supercell(idx, pixels=w * h, classify=classify)[0])
     grid = idx.grid(size)
-    proxy = build_proxy(grid, idx.classify(iso, size), grid.world_edges(vol))
+    proxy = build_proxy(grid, classify(size), grid.world_edges(vol))
     return raster_segments(cam, w, h, proxy).seg, size
 
 
-def cast(samples, vol, cam, w, h, iso, seg, skip, jump_min):
-    """One cast with shading, as the renderer runs it: seconds, depths and image."""
+def cast_iso(samples, vis, cam, w, h, seg, skip, jump_min):
+    """One isosurface cast with shading, as the renderer runs it: seconds, and its outputs."""
+    vol = vis.volume
     t, cell, uvw, counts = empty_outputs(w * h)
     image = np.zeros((h, w, 4), np.float32)
     use_seg = seg is not None
     t0 = time.perf_counter()
-    cast_iso_image(samples, np.array(vol.origin), np.array(vol.spacing), cam.as_array(), w, h, iso,
+    cast_iso_image(samples, np.array(vol.origin), np.array(vol.spacing), cam.as_array(), w, h, vis.value,
                    seg if use_seg else np.empty((1, 1, 2)), use_seg, skip, jump_min, t, cell, uvw, counts,
                    0, h, True, np.ones(3), np.array([0.1, 0.7, 0.2, 20.0]), image)
-    return time.perf_counter() - t0, t, image
+    return time.perf_counter() - t0, (t, image)
+
+
+def cast_translucent(samples, vis, cam, w, h, seg, skip, jump_min):
+    """One translucent cast (the renderer's accumulation over depth segments): seconds, and its outputs."""
+    vol = vis.volume
+    op_x, op_y, col_x, col_rgb = vis.tf.arrays()
+    image = np.zeros((h, w, 4), np.float32)
+    counts = np.zeros(w * h, np.int64)
+    use_seg = seg is not None
+    t0 = time.perf_counter()
+    cast_accumulate_image(samples, np.array(vol.origin), np.array(vol.spacing), cam.as_array(), w, h,
+                          accumulation_params(vis), op_x, op_y, col_x, col_rgb,
+                          seg if use_seg else np.empty((1, 1, 2)), use_seg, np.empty((1, 1)), False,
+                          np.zeros((1, 1, 1), np.uint32), False, skip, jump_min, image, counts, 0, h)
+    return time.perf_counter() - t0, (image, counts)
 
 
 def main():
@@ -75,6 +93,7 @@ def main():
     ap.add_argument("--size", type=int, default=512)
     ap.add_argument("--volume")
     ap.add_argument("--iso", type=float)
+    ap.add_argument("--tf", help="a transfer-function preset or file: cast a translucent volume instead")
     ap.add_argument("--synthetic", help="a data_tools synthetic volume name (sphere, torus, ...)")
     ap.add_argument("--n", type=int, default=256, help="synthetic volume size")
     ap.add_argument("--brick", type=int, default=BRICK, help="samples per brick side (n)")
@@ -91,23 +110,29 @@ def main():
     linear = vol.data
     bricked = brick(linear, args.brick, args.macro)
     pad = bricked.flat.size / linear.size - 1.0
-    seg, size = _segments(vol, iso, cam, w, h)
-    skip, jump_min = skip_table(Isosurface(vol, iso), True)
-    print(f"{vol.name}, {vol.dtype}, iso {iso}, {w}x{h}, {args.threads} thread(s); "
+    if args.tf:
+        vis, cast = Translucent(vol, args.tf), cast_translucent
+        what = f"transfer function {args.tf}"
+        seg, size = _segments(vol, lambda sz: vis.tf.nonzero_in(*VolumeIndex.of(vol).ranges(sz)), cam, w, h)
+    else:
+        vis, cast = Isosurface(vol, iso), cast_iso
+        what = f"iso {iso}"
+        seg, size = _segments(vol, lambda sz: VolumeIndex.of(vol).classify(iso, sz), cam, w, h)
+    skip, jump_min = skip_table(vis, True)
+    print(f"{vol.name}, {vol.dtype}, {what}, {w}x{h}, {args.threads} thread(s); "
           f"bricks of {args.brick}^3 samples in macrobricks of {args.macro}^3 (padding {pad:.1%}); "
           f"parc supercell {size}")
     same_all = True
     for method, s, sk, jm in (("brute", None, NO_SKIP, -1), ("parc", seg, skip, jump_min)):
         layouts = {"linear": linear, "bricked": bricked}
         for samples in layouts.values():          # compile (or load) and warm the caches
-            cast(samples, vol, cam, w, h, iso, s, sk, jm)
+            cast(samples, vis, cam, w, h, s, sk, jm)
         times = {name: [] for name in layouts}
         out = {}
         for _ in range(max(1, args.repeats)):
             for name, samples in layouts.items():
-                sec, t, image = cast(samples, vol, cam, w, h, iso, s, sk, jm)
+                sec, out[name] = cast(samples, vis, cam, w, h, s, sk, jm)
                 times[name].append(sec)
-                out[name] = (t, image)
         same = all(np.array_equal(a, b) for a, b in zip(out["linear"], out["bricked"]))
         same_all &= same
         lin, bri = (statistics.median(times[k]) for k in ("linear", "bricked"))

@@ -12,9 +12,10 @@ bit.
 
 The renderer keeps samples linear: ``benchmarks/bricking.py`` times both
 layouts with the same kernels, and on the 2-core machine the project is
-measured on, bricks made the unaccelerated caster slower (the tables cost
-more than the cache lines they save, and the hardware prefetcher already
-follows a linear walk) and left PARC's cast within noise.
+measured on, bricks made the unaccelerated caster 5-28% slower (the
+tables cost more than the cache lines they save, and the hardware
+prefetcher already follows a linear walk), PARC's isosurface cast 2-7%
+faster and its translucent cast 10% slower (README, Benchmark).
 """
 from collections import namedtuple
 

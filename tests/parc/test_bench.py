@@ -158,6 +158,8 @@ def test_cli_help_explains_the_report(capsys):
 BENCH_SCRIPTS = {
     "bricking.py": (["--synthetic", "sphere", "--n", "16", "--size", "32", "--repeats", "1"],
                     ["bricked/linear", "same as linear: True"]),
+    "bricking.py --tf": (["--synthetic", "sphere", "--n", "16", "--size", "32", "--repeats", "1", "--tf", "greyscale"],
+                         ["transfer function greyscale", "same as linear: True"]),
     "caster_speed.py": (["--size", "16"], ["M cells/s", "skin iso 600", "bone iso 1500"]),
     "raster_speed.py": (["--synthetic", "sphere", "--n", "16", "--size", "64"], ["same as brute: True", "fit: draw"]),
     "raster_speed.py --stages": (["--synthetic", "sphere", "--n", "16", "--size", "64", "--stages"],
