@@ -205,6 +205,7 @@ def build_parser():
     c.add_argument("--repeats", type=int, default=3, help="timed renders per method; the median is reported")
     c.add_argument("--json", action="store_true",
                    help="print the rows as JSON instead of a table (strict JSON: psnr null means identical images)")
+    c.add_argument("--quiet", action="store_true", help="no progress or notes on stderr")
     _add_look_options(c)
     _add_view_options(c)
     _add_light_options(c)
@@ -482,17 +483,22 @@ def cmd_render(args):
     return 0
 
 
+def _shown(vis):
+    """What a volume shows, in a few words: its isovalue, or its transfer function's mode and step."""
+    return (f"isovalue {vis.value:g}" if hasattr(vis, "value")
+            else f"{vis.mode} of {vis.tf.name or 'transfer function'}, step {vis.step:g}")
+
+
 def _describe(vis):
     """One volume of a scene in a few words, for notes and table headers."""
-    what = (f"isovalue {vis.value:g}" if hasattr(vis, "value")
-            else f"{vis.mode} of {vis.tf.name or 'transfer function'}, step {vis.step:g}")
-    return f"{vis.volume.name}, {what}"
+    return f"{vis.volume.name}, {_shown(vis)}"
 
 
 def cmd_compare(args):
     from .compare import method_names, compare, format_table
 
-    say = lambda msg: print(f"parc: {msg}", file=sys.stderr)  # noqa: E731
+    say = (lambda *a: None) if args.quiet else (lambda msg: print(f"parc: {msg}", file=sys.stderr))
+    warming = None if args.json or args.quiet else (lambda m: say(f"warming up {m} ..."))
     methods = method_names(args.methods)
     if args.repeats < 1:
         raise InputError(f"--repeats must be at least 1, got {args.repeats}")
@@ -508,8 +514,7 @@ def cmd_compare(args):
     scene, notes = _scene_and_notes(args)
     if steps is not None:
         from .compare import format_step_table, step_sweep
-        rows = step_sweep(scene, steps, repeats=args.repeats,
-                          progress=None if args.json else (lambda m: say(f"warming up {m} ...")))
+        rows = step_sweep(scene, steps, repeats=args.repeats, progress=warming)
         for note in notes:
             say(note)
         print(to_json(rows) if args.json else format_step_table(rows))
@@ -526,8 +531,7 @@ def cmd_compare(args):
     if not any(m.startswith("parc") for m in methods):
         _refuse_parc_flags(args, "applies to parc, which --methods leaves out")
     options = {k: v for k, v in options.items() if k in methods}
-    rows = compare(scene, methods=methods, repeats=args.repeats, options=options,
-                   progress=None if args.json else (lambda m: say(f"warming up {m} ...")))
+    rows = compare(scene, methods=methods, repeats=args.repeats, options=options, progress=warming)
     for note in notes:
         say(note)
     if args.json:
@@ -540,9 +544,7 @@ def cmd_compare(args):
                   f"({'; '.join(_describe(v) for v in scene.volumes)}), "
                   f"{w}x{h} pixels, median of {args.repeats} after a warm-up")
         else:
-            what = (f"isovalue {vis.value:g}" if hasattr(vis, "value")
-                    else f"{vis.mode} of {vis.tf.name or 'transfer function'}, step {vis.step:g}")
-            print(f"{vis.volume.name}: {'x'.join(map(str, vis.volume.dims))} {vis.volume.dtype}, {what}, "
+            print(f"{vis.volume.name}: {'x'.join(map(str, vis.volume.dims))} {vis.volume.dtype}, {_shown(vis)}, "
                   f"{w}x{h} pixels, median of {args.repeats} after a warm-up")
         print(format_table(rows))
     return 0

@@ -304,6 +304,15 @@ def test_compare_prints_a_table(vol_file, capsys):
     assert parc_row["hit_mismatches"] == 0 and parc_row["psnr"] is None   # identical: infinite PSNR
 
 
+def test_compare_quiet_keeps_stderr_empty(vol_file, capsys):
+    base = ["compare", vol_file, "--iso", 4, "--size", 12, 12, "--repeats", 1]
+    rc, out, err = _run(base, capsys)
+    assert rc == 0 and "warming up" in err
+    for extra in ([], ["--sweep-supercell", "1,2"]):
+        rc, out, err = _run(base + extra + ["--quiet"], capsys)
+        assert rc == 0 and err == "" and "speedup" in out
+
+
 def test_every_phase_a_render_reports_is_explained_under_the_table():
     from data_tools.synthetic import blobs
     from parc import Camera, Isosurface, PointLight, Scene, Translucent, compare
