@@ -142,4 +142,7 @@ def main():
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    try:
+        sys.exit(main())
+    except (ValueError, OSError) as e:         # InputError is a ValueError
+        sys.exit(f"bricking.py: error: {e}")

@@ -164,11 +164,21 @@ def grid_shape(data):
     return data.shape
 
 
+def _layout(data):
+    """``"linear"`` or ``"bricked"``: the sample layout a kernel argument's Numba type holds, else None."""
+    if isinstance(data, types.Array) and data.ndim == 3:
+        return "linear"
+    if isinstance(data, types.BaseNamedTuple) and data.instance_class is BrickedSamples:
+        return "bricked"
+    return None
+
+
 @overload(grid_shape)
 def _grid_shape(data):
-    if isinstance(data, types.Array) and data.ndim == 3:
+    layout = _layout(data)
+    if layout == "linear":
         return lambda data: data.shape
-    if isinstance(data, types.BaseNamedTuple) and data.instance_class is BrickedSamples:
+    if layout == "bricked":
         return lambda data: (data.nz, data.ny, data.nx)
     return None
 
@@ -183,8 +193,4 @@ def _linear_corners(data, i, j, k):
 @overload(cell_corners, jit_options=dict(nogil=True, fastmath=False, error_model="numpy"))
 def _cell_corners(data, i, j, k):
     """`cell_corners` in kernels: chosen by the type of ``data`` when a kernel compiles."""
-    if isinstance(data, types.Array) and data.ndim == 3:
-        return _linear_corners
-    if isinstance(data, types.BaseNamedTuple) and data.instance_class is BrickedSamples:
-        return bricked_corners
-    return None
+    return {"linear": _linear_corners, "bricked": bricked_corners}.get(_layout(data))
