@@ -17,7 +17,6 @@ import argparse
 import statistics
 import sys
 import time
-from pathlib import Path
 
 import numba
 import numpy as np
@@ -33,22 +32,7 @@ from raycast.bricks import BRICK, MACRO, brick
 from raycast.composite import cast_accumulate_image
 from raycast.iso import NO_SKIP, cast_iso_image, empty_outputs
 
-CTHEAD = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "CThead.nrrd"
-
-
-def _volume(args):
-    if args.synthetic:
-        from data_tools.synthetic import make_synthetic
-        vol = make_synthetic(args.synthetic, args.n)
-        return vol, args.iso if args.iso is not None else vol.meta.get("iso", 0.0)
-    if args.volume:
-        from data_tools.io import load_volume
-        return load_volume(args.volume), args.iso
-    if CTHEAD.exists():
-        from data_tools.io import load_volume
-        return load_volume(str(CTHEAD)), 600.5
-    from data_tools.synthetic import ct_phantom
-    return ct_phantom(192), 600.5
+from volumes import pick_volume   # beside this script
 
 
 def _segments(vol, classify, cam, w, h):
@@ -103,7 +87,7 @@ def main():
     ap.add_argument("--threads", type=int, default=numba.config.NUMBA_NUM_THREADS)
     ap.add_argument("--repeats", type=int, default=7)
     args = ap.parse_args()
-    vol, iso = _volume(args)
+    vol, iso = pick_volume(args)
     w = h = args.size
     numba.set_num_threads(args.threads)
     cam = Camera.framing(*vol.bounds, azimuth=args.azimuth, elevation=args.elevation)

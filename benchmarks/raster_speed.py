@@ -19,7 +19,6 @@ Without --volume: CThead skin (../shared/data) when present, else a CT-like phan
 import argparse
 import os
 import time
-from pathlib import Path
 
 import numba
 import numpy as np
@@ -32,23 +31,9 @@ from parc.gl import get_context
 from parc.raster import raster_segments
 from raycast.iso import NO_SHADING, NO_SKIP, cast_iso_image, empty_outputs
 
+from volumes import pick_volume   # beside this script
+
 SIZES = (1, 2, 3, 4, 6, 8)
-CTHEAD = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "CThead.nrrd"
-
-
-def _volume(args):
-    if args.synthetic:
-        from data_tools.synthetic import make_synthetic
-        vol = make_synthetic(args.synthetic, args.n)
-        return vol, args.iso if args.iso is not None else vol.meta.get("iso", 0.0)
-    if args.volume:
-        from data_tools.io import load_volume
-        return load_volume(args.volume), args.iso
-    if CTHEAD.exists():
-        from data_tools.io import load_volume
-        return load_volume(str(CTHEAD)), 600.5
-    from data_tools.synthetic import ct_phantom
-    return ct_phantom(192), 600.5
 
 
 def cast(vol, cam, w, h, iso, seg=None):
@@ -74,7 +59,7 @@ def main():
     ap.add_argument("--supercell", type=float,
                     help="with --stages: this size instead of the renderer's choice")
     args = ap.parse_args()
-    vol, iso = _volume(args)
+    vol, iso = pick_volume(args)
     w = h = args.size
     ctx = get_context()
     print(f"{vol.name} {vol.dims} {vol.dtype}, iso {iso}, {w}x{h}, GL: {ctx.info['GL_RENDERER']}, "

@@ -12,10 +12,11 @@ bit.
 
 The renderer keeps samples linear: ``benchmarks/bricking.py`` times both
 layouts with the same kernels, and on the 2-core machine the project is
-measured on, bricks made the unaccelerated caster 5-28% slower (the
+measured on, bricks made the unaccelerated caster 1-28% slower (the
 tables cost more than the cache lines they save, and the hardware
-prefetcher already follows a linear walk), PARC's isosurface cast 2-7%
-faster and its translucent cast 10% slower (README, Benchmark).
+prefetcher already follows a linear walk); PARC's isosurface cast was
+within noise of linear on the real volumes and 4-7% faster only on a
+910 MB one, and its translucent cast 10% slower (README, Benchmark).
 """
 from collections import namedtuple
 

@@ -1,0 +1,28 @@
+"""The volume a micro-benchmark script measures, from its flags (shared by the scripts here)."""
+from pathlib import Path
+
+CTHEAD = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "CThead.nrrd"
+
+#: The CT volumes' default level: skin.
+CT_SKIN = 600.5
+
+
+def pick_volume(args):
+    """``(volume, isovalue)``: ``--synthetic NAME --n N`` (its own level), ``--volume PATH``, or
+    else CThead from ../shared/data when present and a CT-like phantom when not (skin); ``--iso``
+    replaces the default level."""
+    from data_tools.io import load_volume
+    from data_tools.synthetic import ct_phantom, make_synthetic
+    if args.synthetic:
+        vol = make_synthetic(args.synthetic, args.n)
+        default = vol.meta.get("iso", 0.0)
+    elif args.volume:
+        vol, default = load_volume(args.volume), None
+    elif CTHEAD.exists():
+        vol, default = load_volume(str(CTHEAD)), CT_SKIN
+    else:
+        vol, default = ct_phantom(192), CT_SKIN
+    iso = args.iso if args.iso is not None else default
+    if iso is None:
+        raise ValueError("--volume needs --iso")
+    return vol, iso
