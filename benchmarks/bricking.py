@@ -87,7 +87,7 @@ def main():
     ap.add_argument("--threads", type=int, default=numba.config.NUMBA_NUM_THREADS)
     ap.add_argument("--repeats", type=int, default=7)
     args = ap.parse_args()
-    vol, iso = pick_volume(args)
+    vol, iso = pick_volume(args, need_iso=not args.tf)
     w = h = args.size
     numba.set_num_threads(args.threads)
     cam = Camera.framing(*vol.bounds, azimuth=args.azimuth, elevation=args.elevation)

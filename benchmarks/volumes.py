@@ -7,10 +7,10 @@ CTHEAD = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "CThea
 CT_SKIN = 600.5
 
 
-def pick_volume(args):
+def pick_volume(args, need_iso=True):
     """``(volume, isovalue)``: ``--synthetic NAME --n N`` (its own level), ``--volume PATH``, or
     else CThead from ../shared/data when present and a CT-like phantom when not (skin); ``--iso``
-    replaces the default level."""
+    replaces the default level, and a file's has none (None where not ``need_iso``)."""
     from data_tools.io import load_volume
     from data_tools.synthetic import ct_phantom, make_synthetic
     if args.synthetic:
@@ -23,6 +23,6 @@ def pick_volume(args):
     else:
         vol, default = ct_phantom(192), CT_SKIN
     iso = args.iso if args.iso is not None else default
-    if iso is None:
+    if iso is None and need_iso:
         raise ValueError("--volume needs --iso")
     return vol, iso

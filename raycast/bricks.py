@@ -6,9 +6,9 @@ or two and a ray's neighbouring cells share pages; the offset of sample
 ``(x, y, z)`` is ``Fx[x] + Fy[y] + Fz[z]``, three per-axis tables that
 replace the divisions and remainders of the bricked address. Every
 caster reads samples through `raycast.traverse.cell_corners` and the
-grid's size through `raycast.traverse.grid_shape`, so a `BrickedSamples` goes wherever a
-linear ``(nz, ny, nx)`` array does and gives the same images, bit for
-bit.
+grid's size through `raycast.traverse.grid_shape`, so a `BrickedSamples`
+goes wherever a linear ``(nz, ny, nx)`` array does and gives the same
+images, bit for bit.
 
 The renderer keeps samples linear: ``benchmarks/bricking.py`` times both
 layouts with the same kernels, and on the 2-core machine the project is
