@@ -112,11 +112,8 @@ def test_neuron_seeded_sparse_with_a_clean_surface():
         assert np.median(d) < 30
 
 
-def test_neuron_big_enough_and_quick():
-    import time
-    t = time.perf_counter()
+def test_neuron_big_enough():
     vol = neuron(128)
-    assert time.perf_counter() - t < 10.0                 # ~0.6 s measured; generous for busy machines
     d = vol.data
     # Dendrites reach far from the soma: the bright voxels span most of the box in z.
     z = np.nonzero((d > vol.meta["iso"]).any(axis=(1, 2)))[0]
