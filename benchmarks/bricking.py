@@ -22,26 +22,13 @@ import numba
 import numpy as np
 
 from parc.camera import Camera
-from parc.classify import VolumeIndex, _size_triple
-from parc.costmodel import choose_supercell
-from parc.proxy import build_proxy
-from parc.raster import raster_segments
-from parc.renderer import accumulation_params, skip_table
-from parc.scene import Isosurface, Translucent
+from parc.renderer import _NO_STOP, _parc_segments, accumulation_params, skip_table
+from parc.scene import Isosurface, Scene, Translucent
 from raycast.bricks import BRICK, MACRO, brick
 from raycast.composite import cast_accumulate_image
 from raycast.iso import NO_SKIP, cast_iso_image, empty_outputs
 
-from volumes import pick_volume   # beside this script
-
-
-def _segments(vol, classify, cam, w, h):
-    """PARC's per-pixel segments for the supercell size the renderer would choose."""
-    idx = VolumeIndex.of(vol)
-    size = _size_triple(choose_supercell(idx, pixels=w * h, classify=classify)[0])
-    grid = idx.grid(size)
-    proxy = build_proxy(grid, classify(size), grid.world_edges(vol))
-    return raster_segments(cam, w, h, proxy).seg, size
+from volumes import add_volume_flags, pick_volume   # beside this script
 
 
 def cast_iso(samples, vis, cam, w, h, seg, skip, jump_min):
@@ -67,7 +54,7 @@ def cast_translucent(samples, vis, cam, w, h, seg, skip, jump_min):
     t0 = time.perf_counter()
     cast_accumulate_image(samples, np.array(vol.origin), np.array(vol.spacing), cam.as_array(), w, h,
                           accumulation_params(vis), op_x, op_y, col_x, col_rgb,
-                          seg if use_seg else np.empty((1, 1, 2)), use_seg, np.empty((1, 1)), False,
+                          seg if use_seg else np.empty((1, 1, 2)), use_seg, _NO_STOP, False,
                           np.zeros((1, 1, 1), np.uint32), False, skip, jump_min, image, counts, 0, h)
     return time.perf_counter() - t0, (image, counts)
 
@@ -75,11 +62,8 @@ def cast_translucent(samples, vis, cam, w, h, seg, skip, jump_min):
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--size", type=int, default=512)
-    ap.add_argument("--volume")
-    ap.add_argument("--iso", type=float)
+    add_volume_flags(ap)
     ap.add_argument("--tf", help="a transfer-function preset or file: cast a translucent volume instead")
-    ap.add_argument("--synthetic", help="a data_tools synthetic volume name (sphere, torus, ...)")
-    ap.add_argument("--n", type=int, default=256, help="synthetic volume size")
     ap.add_argument("--brick", type=int, default=BRICK, help="samples per brick side (n)")
     ap.add_argument("--macro", type=int, default=MACRO, help="bricks per macrobrick side (m)")
     ap.add_argument("--azimuth", type=float, default=35.0)
@@ -95,13 +79,12 @@ def main():
     bricked = brick(linear, args.brick, args.macro)
     pad = bricked.flat.size / linear.size - 1.0
     if args.tf:
-        vis, cast = Translucent(vol, args.tf), cast_translucent
-        what = f"transfer function {args.tf}"
-        seg, size = _segments(vol, lambda sz: vis.tf.nonzero_in(*VolumeIndex.of(vol).ranges(sz)), cam, w, h)
+        vis, cast, what = Translucent(vol, args.tf), cast_translucent, f"transfer function {args.tf}"
     else:
-        vis, cast = Isosurface(vol, iso), cast_iso
-        what = f"iso {iso}"
-        seg, size = _segments(vol, lambda sz: VolumeIndex.of(vol).classify(iso, sz), cam, w, h)
+        vis, cast, what = Isosurface(vol, iso), cast_iso, f"iso {iso}"
+    # The renderer's own classification, proxy and raster pass, for the supercell its cost model picks.
+    seg, extra, _ = _parc_segments(Scene(camera=cam, size=(w, h), volumes=[vis]), vis, None, {})
+    size = extra["supercell"]
     skip, jump_min = skip_table(vis, True)
     print(f"{vol.name}, {vol.dtype}, {what}, {w}x{h}, {args.threads} thread(s); "
           f"bricks of {args.brick}^3 samples in macrobricks of {args.macro}^3 (padding {pad:.1%}); "

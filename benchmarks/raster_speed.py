@@ -31,7 +31,7 @@ from parc.gl import get_context
 from parc.raster import raster_segments
 from raycast.iso import NO_SHADING, NO_SKIP, cast_iso_image, empty_outputs
 
-from volumes import pick_volume   # beside this script
+from volumes import add_volume_flags, pick_volume   # beside this script
 
 SIZES = (1, 2, 3, 4, 6, 8)
 
@@ -48,10 +48,7 @@ def cast(vol, cam, w, h, iso, seg=None):
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--size", type=int, default=512)
-    ap.add_argument("--volume")
-    ap.add_argument("--iso", type=float)
-    ap.add_argument("--synthetic", help="a data_tools synthetic volume name (sphere, torus, ...)")
-    ap.add_argument("--n", type=int, default=256, help="synthetic volume size")
+    add_volume_flags(ap)
     ap.add_argument("--zoom", type=float, default=1.6)
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--parallel", action="store_true", help="a parallel view (default: perspective)")

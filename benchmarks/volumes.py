@@ -7,6 +7,14 @@ CTHEAD = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "CThea
 CT_SKIN = 600.5
 
 
+def add_volume_flags(ap):
+    """The flags `pick_volume` reads, on an argparse parser."""
+    ap.add_argument("--volume")
+    ap.add_argument("--iso", type=float)
+    ap.add_argument("--synthetic", help="a data_tools synthetic volume name (sphere, torus, ...)")
+    ap.add_argument("--n", type=int, default=256, help="synthetic volume size")
+
+
 def pick_volume(args, need_iso=True):
     """``(volume, isovalue)``: ``--synthetic NAME --n N`` (its own level), ``--volume PATH``, or
     else CThead from ../shared/data when present and a CT-like phantom when not (skin); ``--iso``
