@@ -1,4 +1,4 @@
-"""The `parc` command line: render, compare, bench, info, make.
+"""The `parc` command line: render, compare, bench, info, make (the scene its flags describe: `parc.flagscene`).
 
 Every user mistake ends in one line on stderr (``parc: error: ...``) and
 exit status 2: no traceback, and no output file, complete or partial.
@@ -15,6 +15,7 @@ import numpy as np
 
 from data_tools import InputError
 
+from .flagscene import load_volume_flags, scene_and_notes
 from .outputs import Progress, atomic_write_all, check_distinct, check_output, to_json, write_png
 
 EXIT_USAGE = 2
@@ -307,15 +308,9 @@ def _main(argv):
 
 # --- commands -----------------------------------------------------------
 
-def _load(args):
-    from data_tools.io import load_volume
-    return load_volume(args.volume, shape=args.shape, dtype=args.dtype, byte_order=args.byte_order,
-                       spacing=args.spacing, origin=args.origin)
-
-
 def cmd_info(args):
     from data_tools.info import format_info, volume_info
-    vol = _load(args)
+    vol = load_volume_flags(args)
     print(format_info(volume_info(vol)))
     return 0
 
@@ -340,107 +335,6 @@ def cmd_make(args):
     return 0
 
 
-#: Flags that describe the one volume on the command line; a scene file sets
-#: these per volume, in its [[volume]] tables (under the same names).
-_VOLUME_FLAGS = ("iso", "tf", "mode", "step", "threshold", "shade", "shape", "dtype", "byte_order",
-                 "spacing", "origin")
-
-
-def _is_scene_file(args):
-    return args.volume is not None and args.volume.lower().endswith(".toml")
-
-
-def _scene(args, say):
-    """The Scene the arguments describe: a scene file or one volume, with the flags' lights."""
-    scene = _file_scene(args) if _is_scene_file(args) else _volume_scene(args, say)
-    return _add_flag_lights(scene, args, say)
-
-
-def _scene_and_notes(args):
-    """`_scene` and its notes, for the caller to say once the work has succeeded: a run
-    refused anywhere, up to the last check inside the render, gets its error line alone."""
-    notes = []
-    scene = _scene(args, notes.append)
-    return scene, notes
-
-
-def _file_scene(args):
-    """The scene file's Scene, with the view flags given replacing its camera settings and size."""
-    from dataclasses import replace
-
-    from .scenefile import load_scene
-    for name in _VOLUME_FLAGS:
-        if getattr(args, name, None) not in (None, False):
-            flag = "--" + name.replace("_", "-")
-            raise InputError(f"{flag} does not apply to a scene file ({args.volume}); "
-                             f"set {name} in its [[volume]] tables")
-    view = {"eye": args.eye, "look_at": args.look_at, "up": args.up, "fov": args.fov, "parallel": args.parallel}
-    scene = load_scene(args.volume, view=view, size=args.size)
-    if getattr(args, "background", None) is not None:
-        scene = replace(scene, background=args.background)
-    return scene
-
-
-def _add_flag_lights(scene, args, say):
-    """``scene`` with the --light and --sun lights added, and shadows on with --shadows."""
-    import parc
-    from dataclasses import replace
-    lights = [parc.PointLight(position=p) for p in args.light or ()]
-    for d in args.sun or ():
-        try:
-            lights.append(parc.DirectionalLight(direction=d))
-        except InputError as exc:
-            raise InputError(f"--sun: {exc}") from None
-    if lights or args.shadows:
-        scene = replace(scene, lights=[*scene.lights, *lights], shadows=scene.shadows or args.shadows)
-    if scene.shadows and not scene.lights:
-        say("shadows with only the headlight show nothing (the light sits at the eye); add --light or --sun")
-    return scene
-
-
-def _volume_scene(args, say):
-    """The volume, isovalue and camera the flags describe, as a Scene."""
-    import parc
-    from data_tools.synthetic import builtin_volume
-
-    w, h = args.size or (512, 512)
-    if w < 1 or h < 1:
-        raise InputError(f"image size must be positive, got {w} {h}")
-    if args.volume is None:
-        for name in ("shape", "dtype", "byte_order", "spacing", "origin"):
-            if getattr(args, name, None) is not None:
-                raise InputError(f"--{name.replace('_', '-')} applies to a volume file; "
-                                 "the built-in volume takes none")
-        vol = builtin_volume()
-        iso = vol.meta["iso"] if args.iso is None and args.tf is None else args.iso
-    else:
-        vol = _load(args)
-        iso = args.iso
-    if "note" in vol.meta:
-        say(vol.meta["note"])
-    if args.tf is not None:
-        if args.iso is not None:
-            raise InputError("give --iso (an isosurface) or --tf (a translucent volume), not both")
-        vis = parc.Translucent(vol, args.tf, mode=args.mode or "composite", step=args.step,
-                               threshold=0.99 if args.threshold is None else args.threshold, shade=args.shade)
-        return parc.Scene(camera=_camera(args, vol), size=(w, h), volumes=[vis],
-                          background=getattr(args, "background", None))
-    for flag in ("mode", "step", "threshold", "shade"):
-        if getattr(args, flag) not in (None, False):
-            raise InputError(f"--{flag} applies to translucent volumes (--tf)")
-    if iso is None:
-        from data_tools.info import suggest_isovalues
-        levels = suggest_isovalues(vol)
-        if not levels:
-            lo, hi = vol.value_range()
-            raise InputError(f"{vol.name}: every sample is {lo:g}; there is no isosurface to show")
-        iso = levels[len(levels) // 2]
-        say(f"no --iso given; using {iso:g}, suggested from the histogram "
-            f"(others: {', '.join(f'{v:g}' for v in levels if v != iso) or 'none'})")
-    return parc.Scene(camera=_camera(args, vol), size=(w, h), volumes=[parc.Isosurface(vol, iso)],
-                      background=getattr(args, "background", None))
-
-
 def cmd_render(args):
     import parc
 
@@ -449,7 +343,7 @@ def cmd_render(args):
     stats_out = check_output(args.stats, (".json",)) if args.stats else None
     check_distinct(args.volume, [out, depth_out, stats_out])
     say = (lambda *a: None) if args.quiet else (lambda msg: print(f"parc: {msg}", file=sys.stderr))
-    scene, notes = _scene_and_notes(args)
+    scene, notes = scene_and_notes(args)
     w, h = scene.size
     progress = None if args.quiet else Progress(f"rendering {w}x{h}")
     kwargs = ({"supercell": args.supercell, "buffers": _buffers(args, scene), "blocks": not args.no_blocks}
@@ -511,7 +405,7 @@ def cmd_compare(args):
             steps = []
         if not steps or not all(np.isfinite(steps)) or min(steps) <= 0:
             raise InputError(f"--sweep-step must be comma-separated positive numbers, got {args.sweep_step!r}")
-    scene, notes = _scene_and_notes(args)
+    scene, notes = scene_and_notes(args)
     if steps is not None:
         from .compare import format_step_table, step_sweep
         rows = step_sweep(scene, steps, repeats=args.repeats, progress=warming)
@@ -603,17 +497,6 @@ def _supercell_or_error(text):
         return _supercell(text)
     except argparse.ArgumentTypeError as exc:
         raise InputError(f"--sweep-supercell: {exc}") from None
-
-
-# --- helpers ------------------------------------------------------------
-
-def _camera(args, vol):
-    import parc
-
-    from .scenefile import resolve_view
-    lo, hi = vol.bounds
-    return parc.Camera(**resolve_view(lo, hi, eye=args.eye, look_at=args.look_at, up=args.up, fov=args.fov,
-                                      parallel=args.parallel))
 
 
 if __name__ == "__main__":

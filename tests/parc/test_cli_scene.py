@@ -8,7 +8,8 @@ import pytest
 import parc
 from data_tools.io import save_volume
 from data_tools.synthetic import make_synthetic
-from parc.cli import _scene, build_parser, main
+from parc.cli import build_parser, main
+from parc.flagscene import scene_from_flags
 
 
 @pytest.fixture
@@ -39,7 +40,7 @@ def _run(argv, capsys):
 
 def _scene_of(argv):
     notes = []
-    return _scene(build_parser().parse_args([str(a) for a in argv]), notes.append), notes
+    return scene_from_flags(build_parser().parse_args([str(a) for a in argv]), notes.append), notes
 
 
 def _assert_refused(rc, err, out_file, *words):
