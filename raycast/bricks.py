@@ -72,7 +72,7 @@ def bricked_corners(data, i, j, k):
     """`raycast.traverse.cell_corners` for a `BrickedSamples`: six table reads, eight loads."""
     flat, fx, fy, fz = data.flat, data.fx, data.fy, data.fz
     x0, x1, y0, y1, z0, z1 = fx[i], fx[i + 1], fy[j], fy[j + 1], fz[k], fz[k + 1]
-    return (float(flat[z0 + y0 + x0]), float(flat[z0 + y0 + x1]),
-            float(flat[z0 + y1 + x0]), float(flat[z0 + y1 + x1]),
-            float(flat[z1 + y0 + x0]), float(flat[z1 + y0 + x1]),
-            float(flat[z1 + y1 + x0]), float(flat[z1 + y1 + x1]))
+    return (np.float64(flat[z0 + y0 + x0]), np.float64(flat[z0 + y0 + x1]),
+            np.float64(flat[z0 + y1 + x0]), np.float64(flat[z0 + y1 + x1]),
+            np.float64(flat[z1 + y0 + x0]), np.float64(flat[z1 + y0 + x1]),
+            np.float64(flat[z1 + y1 + x0]), np.float64(flat[z1 + y1 + x1]))

@@ -37,7 +37,7 @@ from .config import TILE_H, TILE_W, kernel
 from .rays import camera_ray, dealt_tile, tile_count
 from .shade import blinn_phong, trilinear_gradient
 from .transfer import correct_opacity, tf_color, tf_lookup, tf_opacity
-from .traverse import cell_corners, clip_box, grid_shape, to_index_space
+from .traverse import cell_corners, clip_box, corner_range, grid_shape, to_index_space
 
 MODE_COMPOSITE = 0
 MODE_MIP = 1
@@ -81,7 +81,7 @@ def sample_cell(data, x, y, z):
 
 @kernel
 def interpolate(data, x, y, z, i, j, k):
-    """Trilinear value at ``(x, y, z)`` in cell ``(i, j, k)``, and the local coordinates ``(u, v, w)``."""
+    """Trilinear value at ``(x, y, z)`` in cell ``(i, j, k)``, within its corners' range, and the local coordinates ``(u, v, w)``."""
     u = x - i
     v = y - j
     w = z - k
@@ -92,7 +92,18 @@ def interpolate(data, x, y, z, i, j, k):
     c11 = v011 + u * (v111 - v011)
     c0 = c00 + v * (c10 - c00)
     c1 = c01 + v * (c11 - c01)
-    return c0 + w * (c1 - c0), u, v, w
+    val = c0 + w * (c1 - c0)
+    # The nested lerps can round a few ulps past the corners' range (a
+    # difference like c10 - c00 is inexact), and a transfer function may
+    # start just there: the classification, from the corners' exact range,
+    # would call the cell transparent while a sample in it is not. The
+    # exact interpolant never leaves that range, so neither does this.
+    lo, hi = corner_range(v000, v100, v010, v110, v001, v101, v011, v111)
+    if val > hi:
+        val = hi
+    elif val < lo:
+        val = lo
+    return val, u, v, w
 
 
 #: A sample this close (in planes) to a boundary between planes of

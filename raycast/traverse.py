@@ -15,6 +15,8 @@ ray and the cell alone, whichever cell the walk started from.
 """
 import math
 
+import numpy as np
+
 from numba import types
 from numba.extending import overload
 
@@ -145,7 +147,7 @@ def step_axis(tx1, ty1, tz1):
 
 
 def cell_corners(data, i, j, k):
-    """The eight corner samples of cell ``(i, j, k)`` as floats, ``vIJK`` at local ``(I, J, K)``.
+    """The eight corner samples of cell ``(i, j, k)`` as float64, ``vIJK`` at local ``(I, J, K)``.
 
     Returned in the order v000, v100, v010, v110, v001, v101, v011, v111.
     ``data`` is the ``(nz, ny, nx)`` sample array, or the same samples
@@ -155,6 +157,14 @@ def cell_corners(data, i, j, k):
     if isinstance(data, BrickedSamples):
         return bricked_corners(data, i, j, k)
     return _linear_corners(data, i, j, k)
+
+
+@kernel
+def corner_range(v000, v100, v010, v110, v001, v101, v011, v111):
+    """Min and max of a cell's eight corner values: the range its trilinear interpolant spans."""
+    lo = min(min(min(v000, v100), min(v010, v110)), min(min(v001, v101), min(v011, v111)))
+    hi = max(max(max(v000, v100), max(v010, v110)), max(max(v001, v101), max(v011, v111)))
+    return lo, hi
 
 
 def grid_shape(data):
@@ -184,10 +194,14 @@ def _grid_shape(data):
 
 
 def _linear_corners(data, i, j, k):
-    return (float(data[k, j, i]), float(data[k, j, i + 1]),
-            float(data[k, j + 1, i]), float(data[k, j + 1, i + 1]),
-            float(data[k + 1, j, i]), float(data[k + 1, j, i + 1]),
-            float(data[k + 1, j + 1, i]), float(data[k + 1, j + 1, i + 1]))
+    # np.float64, not float(): in Numba float() of a float32 stays float32, and
+    # the differences of corners (interpolation, gradients) would round in
+    # float32 -- past the corners' range, or to inf from +-3e38 -- where the
+    # classification, in float64, rules the values out.
+    return (np.float64(data[k, j, i]), np.float64(data[k, j, i + 1]),
+            np.float64(data[k, j + 1, i]), np.float64(data[k, j + 1, i + 1]),
+            np.float64(data[k + 1, j, i]), np.float64(data[k + 1, j, i + 1]),
+            np.float64(data[k + 1, j + 1, i]), np.float64(data[k + 1, j + 1, i + 1]))
 
 
 @overload(cell_corners, jit_options=dict(nogil=True, fastmath=False, error_model="numpy"))

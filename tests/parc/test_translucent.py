@@ -264,3 +264,36 @@ def test_translucent_same_image_with_and_without_blocks(mode, gl):
             assert on.stats["samples"] <= off.stats["samples"]
             skipped += off.stats["samples"] - on.stats["samples"]
     assert skipped > 0
+
+
+# Values where the caster's arithmetic, not the data, decides: a transfer
+# function opaque only just past the data's range must show nothing.
+
+def _past_the_range_scenes(data, tf_points, cam):
+    vol = Volume(data)
+    tf = TransferFunction(opacity=tf_points)
+    for mode in MODES:
+        yield Scene(camera=cam, size=(8, 8), volumes=[Translucent(vol, tf, mode=mode, step=0.05)])
+
+
+@pytest.mark.parametrize("case", ["float32 rounding", "float32 overflow"])
+def test_float32_samples_stay_in_their_cells_range(case, gl):
+    """float32 corners are differenced in float64: in float32, 1 - (-0.6 2^-23)
+    rounds up and a sample overshoots 1.0; 3e38 - (-3e38) overflows to inf."""
+    if case == "float32 rounding":
+        rng = np.random.default_rng(5)
+        data = rng.choice(np.array([1.0, -0.6 * 2.0 ** -23], np.float32), (6, 6, 6))
+        points = [[1.0 + 1e-9, 0.0], [1.0 + 2e-9, 1.0]]            # opaque only above the maximum
+    else:
+        data = np.zeros((2, 2, 2), np.float32)
+        data[1, 1, 0], data[1, 1, 1] = -3e38, 3e38
+        hi = float(np.float32(3e38))
+        points = [[hi, 0.0], [hi, 0.8]]                              # opaque only at the maximum
+    lo_, hi_ = np.array([0.0, 0.0, 0.0]), np.array(data.shape[::-1], float) - 1
+    cam = Camera.framing(lo_, hi_, azimuth=30, elevation=20, zoom=1.2)
+    for scene in _past_the_range_scenes(data, points, cam):
+        ref = render(scene, method="brute")
+        assert ref.image[..., 3].max() == 0.0, scene.volumes[0].mode
+        for buffers in BUFFERS:
+            res = render(scene, method="parc", supercell=0.5, buffers=buffers)
+            assert np.abs(res.image - ref.image).max() <= 1e-6, (scene.volumes[0].mode, buffers)
