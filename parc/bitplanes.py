@@ -46,10 +46,17 @@ for this project's caster:
   little behind the view plane (a rounding, plus the band's width over
   ``|f_a|`` in halo mode, see below).
 
-Boundaries (halo mode, the default)
------------------------------------
+Boundaries: strict bits (the default) and halo mode
+---------------------------------------------------
 The caster (`raycast.composite.plane_bit`) maps a sample at index
-coordinate ``pos`` to plane ``floor(pos / m_a)``. The grid's boundaries
+coordinate ``pos`` to plane ``floor(pos / m_a)``, and where ``pos`` lies
+within its tolerance of a boundary (``PLANE_TOL`` planes plus the
+rounding of ``pos`` itself, ``POS_ROUNDING`` of its terms: large when the
+eye is far away) it tests the bit of the plane across as well. For that caster
+the strict bits suffice (``halo=False``, the default): exactly the planes
+whose PC boxes the ray meets (closed boxes, ``t >= 0``), plus the float32
+margins. Halo mode (``halo=True``) serves a caster that tests only
+``floor(pos / m_a)``, and is kept, tested, for one. The grid's boundaries
 are ``s m_a`` snapped to integers within `parc.classify.SNAP`, and the
 division rounds, so a sample *strictly inside* a PC box of plane ``p`` but
 within ``delta`` (about 1e-9 cells) of its boundary with plane ``p + 1``
@@ -73,10 +80,7 @@ or, parallel, a crossing at most ``band / |f_a|`` behind the view plane,
 which the parallel clip keeps). ``first`` and ``count`` then cover one
 plane beyond the PC planes at each end (``pos`` a rounding below 0 gives
 plane -1). The price is that each run of PC planes along a ray is
-sampled one plane further at each end. With a caster that tests the
-neighbouring bit for samples within ``delta`` of a boundary (``strict``
-mode, ``halo=False``), the bits are exactly the planes whose PC boxes the
-ray meets (closed boxes, ``t >= 0``), plus the float32 margins.
+sampled one plane further at each end.
 
 Cost
 ----
@@ -230,9 +234,10 @@ def plane_buffers(camera, width, height, volume, pc, grid, *, axis=None, halo=Fa
     grid : SupercellGrid
     axis : int or None
         The plane axis; default `major_axis`.
-    halo : bool, default True
-        Bits for the caster as it is (see "Boundaries"); False for the
-        strict bits (a caster tolerant at plane boundaries).
+    halo : bool, default False
+        False: the strict bits, for the caster here, which is tolerant at
+        plane boundaries; True: the halo bits, for a caster that is not
+        (see "Boundaries").
 
     Returns
     -------

@@ -111,6 +111,13 @@ def interpolate(data, x, y, z, i, j, k):
 #: either side of where the OpenGL pass saw the ray cross.
 PLANE_TOL = 1e-6
 
+#: ... and, on top of that, this fraction of ``|O_a| + |t D_a|`` (cells):
+#: the position ``O_a + t D_a`` rounds by a few units of 2^-53 of its
+#: terms, which an eye far from the volume makes large (eye 3e8 world
+#: units away: |O_a| ~ 1.6e9 cells, rounding ~4e-7 cells, 3e-6 of a
+#: 1/8-cell plane, past PLANE_TOL; brute took samples PARC skipped).
+POS_ROUNDING = 2.0 ** -48
+
 
 @kernel(inline="always")
 def _bit(bits, py, px, q, params):
@@ -121,11 +128,14 @@ def _bit(bits, py, px, q, params):
 
 
 @kernel(inline="always")
-def plane_bit(bits, py, px, pos, params):
-    """Whether a bit is set for the supercell plane holding index coordinate ``pos``."""
-    f = pos / params[P_PLANE_SIZE]
-    lo = int(math.floor(f - PLANE_TOL))
-    hi = int(math.floor(f + PLANE_TOL))
+def plane_bit(bits, py, px, pos, err, params):
+    """Whether a bit is set for the supercell plane holding index coordinate ``pos``
+    (rounded by up to ``err`` cells: see `POS_ROUNDING`)."""
+    m = params[P_PLANE_SIZE]
+    f = pos / m
+    tol = PLANE_TOL + err / m
+    lo = int(math.floor(f - tol))
+    hi = int(math.floor(f + tol))
     return _bit(bits, py, px, lo, params) or (hi != lo and _bit(bits, py, px, hi, params))
 
 
@@ -281,7 +291,7 @@ def accumulate_ray(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, seg0, seg1, t_
         # head at 300x300: 0.20 s with the test first, 0.14 s after).
         if use_bits:
             pos = Oa + t * Da
-            if not plane_bit(bits, py, px, pos, params):
+            if not plane_bit(bits, py, px, pos, POS_ROUNDING * (abs(Oa) + abs(t * Da)), params):
                 # Skip the rest of this plane: its samples are all transparent.
                 n = max(n, min(n1, next_plane_sample(n, t_in, step, Oa, Da, pos, params)) - 1)
                 continue

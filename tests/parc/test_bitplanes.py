@@ -14,15 +14,16 @@ Truths:
   are set is reported at the end of the run, not asserted.
 - Bits, the caster's contract: for every sample of the caster's lattice
   (index space, as `raycast.composite.accumulate_ray` computes it) that
-  lies in a closed PC box, the bit ``floor(pos / m_a) - first`` must be in
-  range and set (halo mode, the renderer's default); with strict bits, the
-  bit of ``floor(pos / m_a -+ 1e-6)`` (one of them) must be set: what a
-  caster tolerant at plane boundaries would test.
-- End to end: `raycast.composite.cast_accumulate_image` with bits (and
-  with bits and segments) against the unaccelerated caster: identical
-  images. (Strict bits with today's caster are reported, not asserted:
-  they lose samples on the volume's faces and plane boundaries.)
+  lies in a closed PC box, with strict bits (the renderer's default) the
+  bit of ``floor(pos / m_a -+ tol)`` (one of them) must be set, ``tol``
+  the caster's own tolerance at plane boundaries; with halo bits, the bit
+  ``floor(pos / m_a) - first`` itself (a caster without that tolerance).
+- End to end: `raycast.composite.cast_accumulate_image` with bits, strict
+  and halo (and with strict bits and segments), against the unaccelerated
+  caster: identical images.
 """
+import math
+
 import numpy as np
 import pytest
 
@@ -32,6 +33,7 @@ from parc.camera import Camera
 from parc.classify import VolumeIndex, supercell_grid
 from parc.proxy import build_plane_proxy, build_proxy
 from parc_reference import caster_rays
+from raycast.composite import PLANE_TOL, POS_ROUNDING
 from raycast.iso import NO_SKIP
 
 SIZES = [1, 2, 1.5, 3, (2, 3, 1.5), 0.5]
@@ -204,8 +206,9 @@ def caster_required(camera, width, height, vol, grid, pc, axis, step):
 
     The sample lattice is `accumulate_ray`'s: index-space ray, ``t_in``,
     ``t_out`` from `clip_box`, ``t = t_in + n step``. Returns arrays
-    ``(y, x, f)``, one row per sample that may have non-zero opacity; the
-    caster tests the bit of plane ``floor(f)``.
+    ``(y, x, f, tol)``, one row per sample that may have non-zero opacity;
+    the caster tests the bits of planes ``floor(f -+ tol)``, its tolerance
+    in planes (`raycast.composite.plane_bit`).
     """
     o, d = caster_rays(camera, width, height)
     org = np.asarray(vol.origin, np.float64)
@@ -245,7 +248,9 @@ def caster_required(camera, width, height, vol, grid, pc, axis, step):
         for yy in cand[1]:
             for xx in cand[0]:
                 need |= pc[zz, yy, xx]
-    return ys[rows][need], xs[rows][need], pos[need, axis] / grid.size[axis]
+    m = grid.size[axis]
+    err = POS_ROUNDING * (np.abs(O[ys[rows], xs[rows], axis]) + np.abs(t * D[ys[rows], xs[rows], axis]))
+    return ys[rows][need], xs[rows][need], pos[need, axis] / m, PLANE_TOL + err[need] / m
 
 
 # --------------------------------------------------------------------------
@@ -253,7 +258,7 @@ def caster_required(camera, width, height, vol, grid, pc, axis, step):
 # --------------------------------------------------------------------------
 
 def _check_bits(camera, vol, grid, pc, width, height, label, report, *, axis=None, steps=(0.25,)):
-    """Both modes against the geometric reference; halo mode against the caster's samples."""
+    """Both modes against the geometric reference and against the caster's samples."""
     results = {}
     for halo in (True, False):
         pb = plane_buffers(camera, width, height, vol, pc, grid, axis=axis, halo=halo)
@@ -274,25 +279,21 @@ def _check_bits(camera, vol, grid, pc, width, height, label, report, *, axis=Non
         report(f"{label:<44} {'halo  ' if halo else 'strict'} planes {pb.count:3d} "
                f"bits {int(met.sum()):6d} extra {extra:5d}  polys {pb.polygons}")
     for step in steps:
-        ys, xs, f = caster_required(camera, width, height, vol, grid, pc, results[True].axis, step)
-        # Halo bits: the caster as it is tests plane floor(f).
+        ys, xs, f, tol = caster_required(camera, width, height, vol, grid, pc, results[True].axis, step)
+        # Halo bits: a caster that tests plane floor(f) alone.
         pb = results[True]
         plane = np.floor(f).astype(np.int64)
         ok = _bit_set(pb, ys, xs, plane)
         assert ok.all(), (f"{label}: caster sample in a PC box with a clear bit at (y, x, plane) "
                           f"{np.column_stack([ys, xs, plane])[~ok][:5].tolist()}")
         # Strict bits: enough for a caster that also tests the neighbouring
-        # plane's bit within TOLERANT_CASTER of a boundary.
+        # plane's bit within its tolerance of a boundary, as the caster does.
         pb = results[False]
-        ok = _bit_set(pb, ys, xs, np.floor(f - TOLERANT_CASTER).astype(np.int64)) | \
-            _bit_set(pb, ys, xs, np.floor(f + TOLERANT_CASTER).astype(np.int64))
+        ok = _bit_set(pb, ys, xs, np.floor(f - tol).astype(np.int64)) | \
+            _bit_set(pb, ys, xs, np.floor(f + tol).astype(np.int64))
         assert ok.all(), (f"{label}: strict bits, tolerant caster: sample in a PC box with clear bits at "
                           f"(y, x, f) {np.column_stack([ys, xs, f])[~ok][:5].tolist()}")
     return results
-
-
-#: Plane units within which a boundary-tolerant caster tests both neighbouring bits.
-TOLERANT_CASTER = 1e-6
 
 
 def _bit_set(pb, ys, xs, plane):
@@ -543,13 +544,13 @@ def test_caster_with_bits_equals_brute(gl, planes_report, mode, size, seed):
         img2, n_both = _cast(vol, tf, mode, cam, w, h, bits=pb, seg=seg)
         d2 = float(np.abs(img2 - ref).max())
         assert d2 <= 1e-6, f"{label}: bits and segments, max |diff| {d2}"
-        # Strict bits are for a caster tolerant at plane boundaries: reported, not asserted.
-        strict = plane_buffers(cam, w, h, vol, pc, grid, halo=False)
-        img3, n_strict = _cast(vol, tf, mode, cam, w, h, bits=strict)
+        # Halo bits are a superset of the strict ones: the tolerant caster gives the same image.
+        halo = plane_buffers(cam, w, h, vol, pc, grid, halo=True)
+        img3, n_halo = _cast(vol, tf, mode, cam, w, h, bits=halo)
         d3 = float(np.abs(img3 - ref).max())
-        planes_report(f"e2e {mode:<9} s={str(size):<13} seed={seed} {label:<10} |d| {d:.0e} {d2:.0e}  "
-                      f"samples brute {n_ref:6d} bits {n_bits:6d} both {n_both:6d} "
-                      f"(strict bits {n_strict:6d} |d| {d3:.0e})")
+        assert d3 <= 1e-6, f"{label}: halo bits, max |diff| {d3}"
+        planes_report(f"e2e {mode:<9} s={str(size):<13} seed={seed} {label:<10} |d| {d:.0e} {d2:.0e} {d3:.0e}  "
+                      f"samples brute {n_ref:6d} bits {n_bits:6d} both {n_both:6d} halo bits {n_halo:6d}")
 
 
 @pytest.mark.parametrize("parallel", [False, True], ids=["persp", "parallel"])
@@ -594,3 +595,30 @@ def test_wide_fov_near_volume(gl, planes_report, seed):
     eye = np.array([lo[0] - 0.3, c[1] + 0.1, c[2] - 0.2])
     cam = Camera(eye=tuple(eye), look_at=tuple(c), up=(0, 0, 1), fov=160.0)
     _check_bits(cam, vol, grid, pc, 48, 40, f"wide fov seed={seed}", planes_report)
+
+
+@pytest.mark.parametrize("distance", [1e3, 1e6, 3e8], ids=str)
+@pytest.mark.parametrize("parallel", [False, True], ids=["persp", "parallel"])
+def test_distant_eye_fine_planes(gl, planes_report, distance, parallel):
+    """An eye far away with planes of 1/8 cell: a sample's position ``O + t D`` rounds by
+    ~1e-7 cells from 1e9-cell terms, past a fixed tolerance of 1e-6 planes."""
+    from parc.transfer import TransferFunction
+    vol = _volume(7, dims=(4, 7, 5), spacing=(5.2, 0.17, 2.0), origin=(3.4, 3.4, 0.2))
+    size = 0.125
+    idx = VolumeIndex.of(vol)
+    grid = idx.grid(size)
+    tf = TransferFunction(opacity=[[-1e30, 0.5]])               # every supercell contributes
+    pc = tf.nonzero_in(*idx.ranges(size))
+    d = np.array([-0.41, -0.86, 0.31])
+    c = np.array(vol.center)
+    eye = c + d / np.linalg.norm(d) * distance
+    w, h = 40, 52
+    kw = {"parallel_scale": 2.7} if parallel else {"fov": 2.0 * math.degrees(math.atan(3.0 / distance))}
+    cam = Camera(eye=tuple(eye), look_at=tuple(c), up=(1.0, 0.0, 0.0), **kw)
+    _check_bits(cam, vol, grid, pc, w, h, f"distant eye {distance:g} {'par' if parallel else 'per'}",
+                planes_report, steps=(3.0, 0.05))
+    for mode in ("composite", "average"):
+        ref, n_ref = _cast(vol, tf, mode, cam, w, h, step=3.0)
+        img, _ = _cast(vol, tf, mode, cam, w, h, bits=plane_buffers(cam, w, h, vol, pc, grid), step=3.0)
+        assert n_ref > 0
+        assert float(np.abs(img - ref).max()) <= 1e-6, mode
