@@ -126,7 +126,9 @@ def in_cavity(up, camera, width, height, eye):
     if not len(up.cavity_lo):
         return False
     if not camera.parallel:
-        return bool(np.all((up.cavity_lo <= eye) & (eye <= up.cavity_hi), axis=1).any())
+        # Within a rounding counts: the caster's index-space eye may lie on a box it misses in world space.
+        tol = 2.0 ** -40 * (np.abs(eye).max() + max(np.abs(up.cavity_lo).max(), np.abs(up.cavity_hi).max()))
+        return bool(np.all((up.cavity_lo - tol <= eye) & (eye <= up.cavity_hi + tol), axis=1).any())
     # Parallel: ray origins lie within a rounding of the view plane; does
     # that slab meet a cavity box?
     f = np.asarray(camera.basis()[0], dtype=np.float64)
@@ -165,9 +167,13 @@ def distance_to_pc(point, proxy):
 
 
 def parallel_inside(camera, width, height, proxy):
-    """Pixels of a parallel view whose ray starts inside (or on) a PC supercell, (H, W) bool.
+    """Pixels of a parallel view whose ray starts inside, on or next to a PC supercell, (H, W) bool.
 
     Ray origins by the caster's formula, a band of rows at a time (memory).
+    "Next to": within `origin_slab` (a rounding at the scene's scale), as
+    the caster converts the origin to index space, where one a rounding
+    outside a face in world coordinates can land exactly on it and walk
+    along it.
     """
     f, r, u = camera.basis()
     ps = camera.parallel_scale
@@ -188,16 +194,17 @@ def parallel_inside(camera, width, height, proxy):
         sy = 1.0 - 2.0 * (np.arange(y0, min(height, y0 + band)) + 0.5) / height
         o = eye + ps * (sx[None, :, None] * r + sy[:, None, None] * u)
         o = o.reshape(-1, 3)
-        cand = np.flatnonzero(np.all((o >= lo) & (o <= hi), axis=1))
+        cand = np.flatnonzero(np.all((o >= lo - slab) & (o <= hi + slab), axis=1))
         if not len(cand):
             continue
         p = o[cand]
         idx = []
         for axis, e in enumerate(proxy.world_edges):
             n = len(e) - 1
-            # Closed boxes: a point on a boundary belongs to both neighbours.
-            right = np.clip(np.searchsorted(e, p[:, axis], "right") - 1, 0, n - 1)
-            left = np.clip(np.searchsorted(e, p[:, axis], "left") - 1, 0, n - 1)
+            # Closed boxes grown by the slab: a point on or next to a boundary
+            # belongs to both neighbours.
+            right = np.clip(np.searchsorted(e, p[:, axis] + slab, "right") - 1, 0, n - 1)
+            left = np.clip(np.searchsorted(e, p[:, axis] - slab, "left") - 1, 0, n - 1)
             idx.append((left, right))
         (x0, x1), (y0_, y1_), (z0, z1) = idx
         hit = np.zeros(len(cand), dtype=bool)

@@ -105,3 +105,30 @@ def test_parc_equals_brute(seed, gl):
     assert np.abs(res.depth[hit] - ref.depth[hit]).max(initial=0) <= 1e-9 * cell, where
     assert np.abs(res.image - ref.image).max() <= 1e-6, where
     assert res.stats["cells_visited"] <= ref.stats["cells_visited"] + SIZE[0] * SIZE[1], where
+
+
+@pytest.mark.parametrize("supercell", [1, 2, 0.5])
+def test_parallel_origins_a_rounding_outside_a_face(supercell, gl):
+    """A parallel view whose view plane is the volume's top face: some ray origins lie an ulp
+    above the face in world coordinates but exactly on it in index space, where the caster
+    walks along the face and hits; PARC must start them at 0 too."""
+    spacing = (0.2732131732465832, 0.1507867643309695, 0.09822305326164066)
+    origin = (0.009136035710226587, -1.3579376261686327, -1.2224217394590022)
+    nx, ny, nz = 19, 12, 27
+    data = np.zeros((nz, ny, nx), np.uint8)
+    data[:, ny - 2, :] = 255                  # every top cell holds the level
+    data[:, ny - 1, :6] = 255                 # and the face itself, for x index <= 5
+    vol = Volume(data, spacing=spacing, origin=origin)
+    top = vol.bounds[1][1]
+    cam = Camera(eye=(3.9858175543691035, top, -0.8885672103796098),
+                 look_at=(-1.798484276041866, top, -0.8885672103796098), up=(0.3, 1.0, -0.2),
+                 parallel_scale=2.99080141420043)
+    o, _ = cam.rays(14, 44)
+    assert (o[..., 1] > top).any()             # the case: origins outside by a rounding
+    scene = Scene(camera=cam, size=(14, 44), volumes=[Isosurface(vol, 128.0)])
+    ref = render(scene, method="brute")
+    res = render(scene, method="parc", supercell=supercell)
+    hit_ref, hit = np.isfinite(ref.depth), np.isfinite(res.depth)
+    assert hit_ref.any()
+    assert (hit == hit_ref).all(), np.argwhere(hit != hit_ref)[:5].tolist()
+    assert np.abs(res.depth[hit] - ref.depth[hit]).max() == 0.0
