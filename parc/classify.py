@@ -52,10 +52,14 @@ SNAP = 1e-9
 CHUNK_VALUES = 1 << 22
 
 #: Interpolated ranges are widened by this fraction of the data's largest
-#: magnitude. The three nested lerps round to a few ulps (~1e-15 relative);
-#: 2^-40 (~1e-12) also covers the caster's own rounding near a range edge,
-#: so a supercell whose exact range only touches the isovalue stays PC.
-RANGE_PAD = 2.0 ** -40
+#: magnitude, so a supercell whose exact range only touches the isovalue
+#: stays PC. The three nested lerps round to a few ulps (~1e-15 relative);
+#: the caster's own positions round by a few 2^-53 of the ray origin's
+#: distance in cells (up to `raycast.traverse.FAR_ORIGIN` grid extents,
+#: beyond which it walks from the volume's entry), and a field can change
+#: by up to ~6 times its largest magnitude per cell: 2^-32 (~2e-10) covers
+#: origins some 40,000 cells away.
+RANGE_PAD = 2.0 ** -32
 
 #: Skip tables (isovalues, transfer functions) kept per volume.
 SKIP_CACHE_SIZE = 4

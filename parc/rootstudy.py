@@ -67,7 +67,7 @@ from raycast.config import kernel
 from raycast.cubic import eval_cubic, first_root
 from raycast.iso import cell_cubic, corners
 from raycast.roots_alt import MARMITT_ITER, first_root_closed_form, first_root_marmitt
-from raycast.traverse import axis_state, clip_box, next_exit, start_index, step_axis, to_index_space
+from raycast.traverse import axis_state, clip_box, entry_anchor, next_exit, start_index, step_axis, to_index_space
 
 #: Variant codes of the kernels' switch.
 PROJECT, CLOSED_FORM, MARMITT = 0, 1, 2
@@ -113,6 +113,15 @@ def walk_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, variant, rec, n0):
     to the root finder. When ``rec`` has rows, call ``m`` of this ray
     stores its ``(A, B, C, D, L)`` in ``rec[n0 + m]``.
     """
+    nz, ny, nx = data.shape
+    ta, Ox, Oy, Oz = entry_anchor(Ox, Oy, Oz, Dx, Dy, Dz, nx, ny, nz)     # as cast_iso_ray
+    t, i, j, k, u, v, w, solves = _walk_anchored(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, variant, rec, n0)
+    return ta + t, i, j, k, u, v, w, solves
+
+
+@kernel
+def _walk_anchored(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, variant, rec, n0):
+    """`walk_iso_ray` on an anchored ray."""
     nz, ny, nx = data.shape
     t_in, t_out = clip_box(Ox, Oy, Oz, Dx, Dy, Dz, nx, ny, nz)
     solves = 0

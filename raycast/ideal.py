@@ -44,7 +44,7 @@ from .composite import MODE_COMPOSITE, P_MODE, P_RATIO, P_STEP, P_THRESHOLD, lat
 from .config import TILE_H, TILE_W, kernel
 from .rays import camera_ray, dealt_tile, tile_count
 from .transfer import correct_opacity, tf_opacity
-from .traverse import clip_box, to_index_space
+from .traverse import clip_box, entry_anchor, to_index_space
 
 
 @kernel
@@ -66,11 +66,15 @@ def ideal_ray_samples(data, contrib, Ox, Oy, Oz, Dx, Dy, Dz, t_stop, params, op_
     n0, n1, _ = lattice_range(t_in, t_out, step, -math.inf, math.inf)
     acc = 0.0
     count = 0
+    # The lattice as `accumulate_ray` places it.
+    ta, Ax, Ay, Az = entry_anchor(Ox, Oy, Oz, Dx, Dy, Dz, nx, ny, nz)
+    base = t_in - ta
     for n in range(n0, n1 + 1):
         t = t_in + n * step
         if t >= t_stop:
             break
-        v, i, j, k, u, vv, w = sample_value(data, Ox + t * Dx, Oy + t * Dy, Oz + t * Dz)
+        tl = base + n * step
+        v, i, j, k, u, vv, w = sample_value(data, Ax + tl * Dx, Ay + tl * Dy, Az + tl * Dz)
         if contrib[k, j, i] != 0:
             count += 1
         if not composite:

@@ -32,8 +32,8 @@ from .config import TILE_H, TILE_W, kernel
 from .cubic import cubic_along_ray, eval_cubic, first_root, trilinear_coefficients
 from .rays import camera_ray, dealt_tile, spread_run, spread_runs, tile_count
 from .shade import headlight_pixel
-from .traverse import (advance, axis_state, cell_corners, clip_box, corner_range, grid_shape, next_exit, start_index,
-                       step_axis, to_index_space)
+from .traverse import (advance, axis_state, cell_corners, clip_box, corner_range, entry_anchor, grid_shape,
+                       next_exit, start_index, step_axis, to_index_space)
 
 #: The table a walk without one takes (with ``jump_min = -1``).
 NO_SKIP = np.zeros((1, 1, 1), np.int8)
@@ -156,6 +156,22 @@ def cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, seg0, seg1, skip, jump_min):
     jump (module docstring), or `NO_SKIP` and -1. ``cells`` counts the
     cells the walk looked at, not those a jump passed over.
     """
+    # Walked from the ray's entry into the volume, not from the eye: local
+    # coordinates like (O - i) + t D cancel terms as large as |O|, and with
+    # an eye far away (a parallel view from 3e8 units) their rounding,
+    # times a steep field, outgrew the margins of the sub-cell ranges PARC
+    # classifies by, and the two methods found different hits. Both anchor
+    # at the same point, so both still solve the same cubics.
+    nz, ny, nx = grid_shape(data)
+    ta, Ox, Oy, Oz = entry_anchor(Ox, Oy, Oz, Dx, Dy, Dz, nx, ny, nz)
+    t, i, j, k, u, v, w, cells, solves = _walk_iso(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, seg0 - ta, seg1 - ta,
+                                                   skip, jump_min)
+    return ta + t, i, j, k, u, v, w, cells, solves
+
+
+@kernel
+def _walk_iso(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, seg0, seg1, skip, jump_min):
+    """`cast_iso_ray` on a ray already anchored near the volume (its ``t`` measured from there)."""
     nz, ny, nx = grid_shape(data)
     t_in, t_out = clip_box(Ox, Oy, Oz, Dx, Dy, Dz, nx, ny, nz)
     t_start = max(t_in, seg0)

@@ -12,6 +12,12 @@ same numbers. Each crossing time is therefore computed directly from the
 integer plane, ``(plane - O) * invD``, never accumulated; a cell's interval
 is ``[max(t_in, entry planes), min(t_out, exit planes)]``, a function of the
 ray and the cell alone, whichever cell the walk started from.
+
+The casters move the origin of a ray from a distant eye to where it
+enters the volume before walking it (`entry_anchor`): crossing times and
+local coordinates like ``(O - i) + t D`` then round at the volume's scale
+rather than the eye's distance, which an eye far away (a parallel view
+from 1e8 units) makes large enough to matter.
 """
 import math
 
@@ -62,6 +68,39 @@ def clip_box(Ox, Oy, Oz, Dx, Dy, Dz, nx, ny, nz):
     t_in = max(0.0, max(ax, max(ay, az)))
     t_out = min(bx, min(by, bz))
     return t_in, t_out
+
+
+@kernel
+def anchor(Ox, Oy, Oz, Dx, Dy, Dz, t):
+    """The ray's point at ``t``, ``O + t D``: an origin near the volume, so that
+    positions measured from it round at the volume's scale, not the eye's distance."""
+    return Ox + t * Dx, Oy + t * Dy, Oz + t * Dz
+
+
+#: A ray whose origin lies farther than this many grid extents from index 0
+#: is walked from its entry into the volume (`entry_anchor`). Nearer, the
+#: origin stays: moving it rounds the ray itself by an ulp of the new
+#: origin, which sends a ray running within an ulp of a cell plane (the
+#: traversal tests build such rays) through other cells; farther, the
+#: rounding of positions measured from the eye is the larger error.
+FAR_ORIGIN = 16.0
+
+
+@kernel
+def entry_anchor(Ox, Oy, Oz, Dx, Dy, Dz, nx, ny, nz):
+    """``(ta, Ax, Ay, Az)``: where to walk a ray from, and its point there.
+
+    For an origin farther than `FAR_ORIGIN` grid extents, the ray's entry
+    into the sample box (`clip_box`) and its point there (`anchor`);
+    otherwise, or for a miss, ``(0, O)``.
+    """
+    far = FAR_ORIGIN * max(nx, max(ny, nz))
+    if max(abs(Ox), max(abs(Oy), abs(Oz))) > far:
+        t_in, t_out = clip_box(Ox, Oy, Oz, Dx, Dy, Dz, nx, ny, nz)
+        if 0.0 < t_in <= t_out:
+            Ax, Ay, Az = anchor(Ox, Oy, Oz, Dx, Dy, Dz, t_in)
+            return t_in, Ax, Ay, Az
+    return 0.0, Ox, Oy, Oz
 
 
 @kernel

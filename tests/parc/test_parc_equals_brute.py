@@ -132,3 +132,23 @@ def test_parallel_origins_a_rounding_outside_a_face(supercell, gl):
     assert hit_ref.any()
     assert (hit == hit_ref).all(), np.argwhere(hit != hit_ref)[:5].tolist()
     assert np.abs(res.depth[hit] - ref.depth[hit]).max() == 0.0
+
+
+@pytest.mark.parametrize("supercell", [0.5, 0.25, 0.125])
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_distant_parallel_eye_and_a_steep_field(seed, supercell, gl):
+    """An eye 3e8 units away looking straight down y, float32 samples from -3e38 to 3e38,
+    sub-cell supercells: positions measured from the eye round by ~1e-6 cells, which a
+    field this steep turns into values past the sub-cell ranges' margins."""
+    values = np.array([-3e38, -1e30, -1.0, -1e-45, 0.0, 1e-45, 1e-40, 1.0, 1e30, 3e38], np.float32)
+    data = np.random.default_rng(seed).choice(values, (4, 2, 24))
+    vol = Volume(data, spacing=(1.0, 0.1, 7.0))
+    cam = Camera(eye=(11.5, 311449835.4970588, 10.5), look_at=(11.5, 0.05, 10.5), up=(0.3, 0.2, 1.0),
+                 parallel_scale=23.8464957086173)
+    scene = Scene(camera=cam, size=(50, 53), volumes=[Isosurface(vol, float(np.float32(1e-40)))])
+    ref = render(scene, method="brute")
+    res = render(scene, method="parc", supercell=supercell)
+    hit_ref, hit = np.isfinite(ref.depth), np.isfinite(res.depth)
+    assert hit_ref.any()
+    assert (hit == hit_ref).all(), np.argwhere(hit != hit_ref)[:5].tolist()
+    assert np.abs(res.depth[hit] - ref.depth[hit]).max() == 0.0

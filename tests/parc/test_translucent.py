@@ -297,3 +297,23 @@ def test_float32_samples_stay_in_their_cells_range(case, gl):
         for buffers in BUFFERS:
             res = render(scene, method="parc", supercell=0.5, buffers=buffers)
             assert np.abs(res.image - ref.image).max() <= 1e-6, (scene.volumes[0].mode, buffers)
+
+
+@pytest.mark.parametrize("mode", MODES)
+def test_distant_parallel_eye_and_a_steep_field(mode, gl):
+    """An eye 3e8 units away, float32 samples from -3e38 to 3e38, sub-cell supercells, and
+    opacity only above zero: samples placed from the eye round by ~1e-6 cells, which a
+    field this steep turns into values past the sub-cell ranges' margins."""
+    values = np.array([-3e38, -1e30, -1.0, 0.0, 1e-40, 1.0, 1e30, 3e38], np.float32)
+    data = np.random.default_rng(4).choice(values, (4, 3, 20))
+    vol = Volume(data, spacing=(1.0, 0.1, 7.0))
+    tf = TransferFunction(opacity=[[0.0, 0.0], [1e-38, 0.6]])
+    cam = Camera(eye=(9.5, 311449835.4970588, 10.5), look_at=(9.5, 0.1, 10.5), up=(0.3, 0.2, 1.0),
+                 parallel_scale=23.8)
+    scene = Scene(camera=cam, size=(40, 44), volumes=[Translucent(vol, tf, mode=mode, step=0.05)])
+    ref = render(scene, method="brute")
+    assert ref.image[..., 3].max() > 0.0
+    for supercell in (0.5, 0.125):
+        for buffers in BUFFERS:
+            res = render(scene, method="parc", supercell=supercell, buffers=buffers)
+            assert np.abs(res.image - ref.image).max() <= 1e-6, (supercell, buffers)

@@ -57,16 +57,29 @@ def test_hard_category(category):
 
 
 def cell_entry(scene, o, d, cell):
-    """``c0`` of cell ``(i, j, k)`` on the caster's own numbers: the larger of the
-    box entry and the cell's three plane-entry times."""
-    from raycast.traverse import axis_state, clip_box, to_index_space
+    """``(ta, c0)``: where the caster anchors the ray (`raycast.traverse.entry_anchor`)
+    and, measured from there, ``c0`` of cell ``(i, j, k)`` on the caster's own
+    numbers: the larger of the box entry and the cell's three plane-entry times."""
+    from raycast.traverse import axis_state, clip_box, entry_anchor, to_index_space
 
     nz, ny, nx = scene.shape
     ray = to_index_space(*o, *d, scene.origin, scene.spacing)
+    ta, *anchored = entry_anchor(*ray, nx, ny, nz)
+    ray = (*anchored, *ray[3:])
     c0 = clip_box(*ray, nx, ny, nz)[0]
     for a in range(3):
         c0 = max(c0, axis_state(ray[a], ray[3 + a], int(cell[a]))[2])
-    return c0
+    return ta, c0
+
+
+def segment_start(ta, s):
+    """The largest ray parameter the caster takes to ``<= s`` once measured from ``ta``."""
+    import numpy as np
+
+    t = ta + s
+    while t - ta > s:
+        t = np.nextafter(t, -np.inf)
+    return t
 
 
 @pytest.mark.parametrize("category", ["face-edge-vertex", "iso-sample", "near-axis", "axis"])
@@ -92,9 +105,10 @@ def test_segment_start_gives_identical_hits(category):
             continue
         n_hits += int(hit.sum())
         o, d, t, cell, uvw = b.origins[hit], b.dirs[hit], t[hit], cell[hit], uvw[hit]
-        c0 = np.array([cell_entry(b.scene, o[m], d[m], cell[m]) for m in range(len(t))])
-        n_seeded += int(np.sum(t == c0))
-        for s0 in (c0 * rng.uniform(0, 1, len(t)), np.nextafter(c0, -np.inf), c0):
+        ta, c0 = np.array([cell_entry(b.scene, o[m], d[m], cell[m]) for m in range(len(t))]).T
+        n_seeded += int(np.sum(t == ta + c0))
+        for s in (c0 * rng.uniform(0, 1, len(t)), np.nextafter(c0, -np.inf), c0):
+            s0 = np.array([segment_start(a, b_) for a, b_ in zip(ta, s)])
             seg = np.stack([s0, np.full_like(t, np.inf)], 1)
             t2, cell2, uvw2, _ = cast(b.scene, o, d, b.isos[0], seg)
             diff = (t2 != t) | np.any(cell2 != cell, 1) | np.any(uvw2 != uvw, 1)
