@@ -40,6 +40,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from data_tools import InputError
+from raycast.composite import INTERP_ROUNDING
 
 from .skip import ISO_JUMP_MIN, SKIP_CAP, TF_JUMP_MIN, skip_radius
 
@@ -501,7 +502,7 @@ class VolumeIndex:
         """
         def table():
             mn, mx = self.cell_minmax()
-            return skip_radius((~tf.nonzero_in(mn, mx)).view(np.int8), SKIP_CAP)
+            return skip_radius((~tf.nonzero_in(mn, mx, rounding=INTERP_ROUNDING)).view(np.int8), SKIP_CAP)
 
         op_x, op_y, _, _ = tf.arrays()
         return self._skip(("tf", op_x.tobytes(), op_y.tobytes()), table, TF_JUMP_MIN)

@@ -182,7 +182,7 @@ class TransferFunction:
         """
         return np.column_stack([self._sup_lo, self._sup_hi])
 
-    def nonzero_in(self, mn, mx):
+    def nonzero_in(self, mn, mx, *, rounding=0.0):
         """Whether the opacity is non-zero somewhere in each closed range ``[mn, mx]``.
 
         Parameters
@@ -190,6 +190,12 @@ class TransferFunction:
         mn, mx : array_like
             Range bounds, any real dtype (compared in float64, as the kernels
             read samples), broadcast together; e.g. `parc.classify.cell_minmax`.
+        rounding : float, default 0
+            Widen each range by this fraction of its largest magnitude (for
+            8- and 16-bit integers, of the type's): the casters' samples
+            leave a cell's corner range by up to
+            `raycast.composite.INTERP_ROUNDING` of it, which classification
+            passes here.
 
         Returns
         -------
@@ -220,15 +226,24 @@ class TransferFunction:
             return out.reshape(shape)
         small_int = (a_all.dtype == b_all.dtype and a_all.dtype.kind in "iu"
                      and a_all.dtype.itemsize <= 2)
-        test = self._small_int_test(a_all.dtype) if small_int else self._float_test
+        if small_int:
+            test = self._small_int_test(a_all.dtype, rounding)
+        else:
+            def test(a, b):
+                return self._float_test(a, b, rounding)
         for s in range(0, len(a_all), _CHUNK):
             out[s:s + _CHUNK] = test(a_all[s:s + _CHUNK], b_all[s:s + _CHUNK])
         return out.reshape(shape)
 
-    def _float_test(self, a, b):
+    def _float_test(self, a, b, rounding=0.0):
         """`nonzero_in` for one chunk, in float64."""
         a = a.astype(np.float64, copy=False)
         b = b.astype(np.float64, copy=False)
+        if rounding:
+            with np.errstate(invalid="ignore"):
+                pad = rounding * np.maximum(np.abs(a), np.abs(b))
+            pad = np.where(np.isfinite(pad), pad, 0.0)
+            a, b = a - pad, b + pad
         lo, hi = self._sup_lo, self._sup_hi
         k = np.searchsorted(hi, a, side="left")          # first interval with hi >= mn
         hit = k < len(lo)
@@ -237,21 +252,23 @@ class TransferFunction:
         hit |= np.isnan(a) | np.isnan(b)
         return hit
 
-    def _small_int_test(self, dtype):
+    def _small_int_test(self, dtype, rounding=0.0):
         """`nonzero_in` for 8- and 16-bit integer ranges: one table lookup per range.
 
         For every value ``m`` of the dtype, ``need[m]`` is the least integer
-        ``mx`` for which ``[m, mx]`` meets the support: the ceiling of the
-        start of the first interval ending at or above ``m`` (the same
-        float64 search as `_float_test`, done once per value, not per range).
-        The table is indexed by the bit pattern (``view`` as unsigned), so
-        signed data needs no widened copy.
+        ``mx`` for which ``[m, mx]``, widened by ``p`` (``rounding`` times
+        the type's largest magnitude, below 1), meets the support: the
+        ceiling of ``start - p`` for the first interval ending at or above
+        ``m - p`` (the same float64 search as `_float_test`, done once per
+        value, not per range). The table is indexed by the bit pattern
+        (``view`` as unsigned), so signed data needs no widened copy.
         """
         info = np.iinfo(dtype)
+        p = rounding * max(-float(info.min), float(info.max))
         values = np.arange(info.min, info.max + 1, dtype=np.float64)
         lo, hi = self._sup_lo, self._sup_hi
-        k = np.searchsorted(hi, values, side="left")
-        start = np.where(k < len(lo), np.ceil(lo[np.minimum(k, len(lo) - 1)]), np.inf)
+        k = np.searchsorted(hi, values - p, side="left")
+        start = np.where(k < len(lo), np.ceil(lo[np.minimum(k, len(lo) - 1)] - p), np.inf)
         need = np.clip(start, info.min, info.max + 1).astype(np.int32)
         udtype = np.dtype(f"u{dtype.itemsize}")
         if info.min < 0:                                  # bit pattern order: 0..max, then min..-1

@@ -586,3 +586,21 @@ def test_nonzero_in_small_integer_table_equals_float_path(dtype):
         got = tf.nonzero_in(a, b)
         want = tf.nonzero_in(a.astype(np.float64), b.astype(np.float64))
         np.testing.assert_array_equal(got, want)
+
+
+@pytest.mark.parametrize("dtype", ["float64", "float32", "int16", "uint8"])
+def test_nonzero_in_widens_by_the_casters_rounding(dtype):
+    """With ``rounding``, a range counts from a few ulps short of a support that starts
+    (or ends) just past it: the casters' samples can overshoot a cell's corners that far."""
+    from raycast.composite import INTERP_ROUNDING
+    m = 200.0
+    eps = 8 * 2.0 ** -53 * m
+    after = TransferFunction([[m + eps, 0.0], [m + 2 * eps, 0.5], [m + 1.0, 0.5]])      # starts just past m
+    before = TransferFunction([[-1.0, 0.5], [m - 2 * eps, 0.5], [m - eps, 0.0]])       # ends just before m
+    lo, hi = np.array([100], dtype), np.array([m], dtype)
+    assert not after.nonzero_in(lo, hi)[0] and after.nonzero_in(lo, hi, rounding=INTERP_ROUNDING)[0]
+    lo, hi = np.array([m], dtype), np.array([250], dtype)
+    assert not before.nonzero_in(lo, hi)[0] and before.nonzero_in(lo, hi, rounding=INTERP_ROUNDING)[0]
+    # ... and no farther than that.
+    far = TransferFunction([[m + 1e-6 * m, 0.0], [m + 1.0, 0.5]])
+    assert not far.nonzero_in(np.array([100], dtype), np.array([m], dtype), rounding=INTERP_ROUNDING)[0]

@@ -1,14 +1,15 @@
 """Trilinear sampling (`raycast.composite.interpolate`) against exact rational arithmetic.
 
 The exact interpolant of a cell never leaves its corners' range, and the
-classification of cells for a transfer function relies on that; the
-float64 nested lerps must not leave it either, even by a rounding.
+classification of cells for a transfer function relies on that: the
+float64 nested lerps may leave it only by the rounding the classification
+widens ranges by (`INTERP_ROUNDING` of the corners' magnitude).
 """
 from fractions import Fraction
 
 import numpy as np
 
-from raycast.composite import interpolate
+from raycast.composite import INTERP_ROUNDING, interpolate
 
 
 def _exact(c, u, v, w):
@@ -22,19 +23,23 @@ def _exact(c, u, v, w):
     return total
 
 
-def test_samples_stay_in_the_corner_range_and_near_the_exact_value():
+def test_samples_stay_within_the_rounding_of_the_corner_range():
     # Corners mixing 1, tiny negatives and others, sampled on faces and
     # inside: the recipe for lerps whose inexact differences overshoot
-    # (about 1 sample in 1,000 did before the clamp).
+    # (about 1 sample in 1,000 does, by a few 2^-53).
     rng = np.random.default_rng(11)
+    outside = 0
     for n in range(20000):
         pick = rng.random(8)
         c = np.where(pick < 0.3, -rng.random(8) * 2.0 ** -50,
                      np.where(pick < 0.6, 1.0, rng.random(8))).reshape(2, 2, 2)
         u, v, w = (1.0 if rng.random() < p else float(rng.random()) for p in (0.5, 0.3, 0.1))
         val = interpolate(c, u, v, w, 0, 0, 0)[0]
-        assert c.min() <= val <= c.max(), (n, c.ravel().tolist(), u, v, w, val)
+        pad = INTERP_ROUNDING * np.abs(c).max()
+        assert c.min() - pad <= val <= c.max() + pad, (n, c.ravel().tolist(), u, v, w, val)
         assert abs(Fraction(val) - _exact(c, u, v, w)) <= Fraction(2.0 ** -50), n
+        outside += not c.min() <= val <= c.max()
+    assert outside > 0          # the case the widening is for does occur
 
 
 def test_float32_corners_are_read_in_float64():
