@@ -127,7 +127,7 @@ def in_cavity(up, camera, width, height, eye):
         return False
     if not camera.parallel:
         # Within a rounding counts: the caster's index-space eye may lie on a box it misses in world space.
-        tol = 2.0 ** -40 * (np.abs(eye).max() + max(np.abs(up.cavity_lo).max(), np.abs(up.cavity_hi).max()))
+        tol = origin_slab(camera, width, height, eye, up.cavity_lo, up.cavity_hi)
         return bool(np.all((up.cavity_lo - tol <= eye) & (eye <= up.cavity_hi + tol), axis=1).any())
     # Parallel: ray origins lie within a rounding of the view plane; does
     # that slab meet a cavity box?
@@ -140,9 +140,10 @@ def in_cavity(up, camera, width, height, eye):
 
 
 def origin_slab(camera, width, height, eye, lo, hi):
-    """Half-width around the view plane that holds every parallel ray origin as the caster rounds it."""
-    return 2.0 ** -40 * (np.abs(eye).max() + max(np.abs(lo).max(), np.abs(hi).max())
-                         + camera.parallel_scale * (width / height + 1.0))
+    """How far from the view plane (parallel) or the eye (perspective) a ray origin may
+    lie as the caster rounds it: 2^-40 of the scene's coordinates."""
+    spread = camera.parallel_scale * (width / height + 1.0) if camera.parallel else 0.0
+    return 2.0 ** -40 * (np.abs(eye).max() + max(np.abs(lo).max(), np.abs(hi).max()) + spread)
 
 
 def distance_to_pc(point, proxy):

@@ -274,10 +274,10 @@ def accumulate_ray(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, seg0, seg1, t_
     n = n0 - 1
     while n < n1:
         n += 1
-        t = t_in + n * step
+        tl = base + n * step
+        t = ta + tl               # t_in + n step, as before anchoring (ta is 0 or t_in)
         if t >= t_stop:
             break
-        tl = base + n * step
         x = Ax + tl * Dx
         y = Ay + tl * Dy
         z = Az + tl * Dz

@@ -70,10 +70,10 @@ def ideal_ray_samples(data, contrib, Ox, Oy, Oz, Dx, Dy, Dz, t_stop, params, op_
     ta, Ax, Ay, Az = entry_anchor(Ox, Oy, Oz, Dx, Dy, Dz, nx, ny, nz)
     base = t_in - ta
     for n in range(n0, n1 + 1):
-        t = t_in + n * step
+        tl = base + n * step
+        t = ta + tl
         if t >= t_stop:
             break
-        tl = base + n * step
         v, i, j, k, u, vv, w = sample_value(data, Ax + tl * Dx, Ay + tl * Dy, Az + tl * Dz)
         if contrib[k, j, i] != 0:
             count += 1

@@ -32,8 +32,8 @@ from .config import TILE_H, TILE_W, kernel
 from .cubic import cubic_along_ray, eval_cubic, first_root, trilinear_coefficients
 from .rays import camera_ray, dealt_tile, spread_run, spread_runs, tile_count
 from .shade import headlight_pixel
-from .traverse import (advance, axis_state, cell_corners, clip_box, corner_range, entry_anchor, grid_shape,
-                       next_exit, start_index, step_axis, to_index_space)
+from .traverse import (advance, axis_state, cell_corners, clip_box, entry_anchor, grid_shape, next_exit, start_index,
+                       step_axis, to_index_space)
 
 #: The table a walk without one takes (with ``jump_min = -1``).
 NO_SKIP = np.zeros((1, 1, 1), np.int8)
@@ -48,7 +48,8 @@ def corners(data, iso, i, j, k):
     c000, c100, c010, c110, c001, c101, c011, c111 = cell_corners(data, i, j, k)
     v000, v100, v010, v110 = c000 - iso, c100 - iso, c010 - iso, c110 - iso
     v001, v101, v011, v111 = c001 - iso, c101 - iso, c011 - iso, c111 - iso
-    lo, hi = corner_range(v000, v100, v010, v110, v001, v101, v011, v111)
+    lo = min(min(min(v000, v100), min(v010, v110)), min(min(v001, v101), min(v011, v111)))
+    hi = max(max(max(v000, v100), max(v010, v110)), max(max(v001, v101), max(v011, v111)))
     return v000, v100, v010, v110, v001, v101, v011, v111, lo, hi
 
 

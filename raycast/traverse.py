@@ -198,14 +198,6 @@ def cell_corners(data, i, j, k):
     return _linear_corners(data, i, j, k)
 
 
-@kernel
-def corner_range(v000, v100, v010, v110, v001, v101, v011, v111):
-    """Min and max of a cell's eight corner values: the range its trilinear interpolant spans."""
-    lo = min(min(min(v000, v100), min(v010, v110)), min(min(v001, v101), min(v011, v111)))
-    hi = max(max(max(v000, v100), max(v010, v110)), max(max(v001, v101), max(v011, v111)))
-    return lo, hi
-
-
 def grid_shape(data):
     """``(nz, ny, nx)`` of the samples, linear or bricked (as `cell_corners`)."""
     if isinstance(data, BrickedSamples):

@@ -107,6 +107,16 @@ def test_parc_equals_brute(seed, gl):
     assert res.stats["cells_visited"] <= ref.stats["cells_visited"] + SIZE[0] * SIZE[1], where
 
 
+def _same_hits(scene, supercell):
+    """``parc`` hits exactly ``brute``'s pixels, at exactly its depths (and ``brute`` hits some)."""
+    ref = render(scene, method="brute")
+    res = render(scene, method="parc", supercell=supercell)
+    hit_ref, hit = np.isfinite(ref.depth), np.isfinite(res.depth)
+    assert hit_ref.any()
+    assert (hit == hit_ref).all(), np.argwhere(hit != hit_ref)[:5].tolist()
+    assert np.abs(res.depth[hit] - ref.depth[hit]).max() == 0.0
+
+
 @pytest.mark.parametrize("supercell", [1, 2, 0.5])
 def test_parallel_origins_a_rounding_outside_a_face(supercell, gl):
     """A parallel view whose view plane is the volume's top face: some ray origins lie an ulp
@@ -125,13 +135,7 @@ def test_parallel_origins_a_rounding_outside_a_face(supercell, gl):
                  parallel_scale=2.99080141420043)
     o, _ = cam.rays(14, 44)
     assert (o[..., 1] > top).any()             # the case: origins outside by a rounding
-    scene = Scene(camera=cam, size=(14, 44), volumes=[Isosurface(vol, 128.0)])
-    ref = render(scene, method="brute")
-    res = render(scene, method="parc", supercell=supercell)
-    hit_ref, hit = np.isfinite(ref.depth), np.isfinite(res.depth)
-    assert hit_ref.any()
-    assert (hit == hit_ref).all(), np.argwhere(hit != hit_ref)[:5].tolist()
-    assert np.abs(res.depth[hit] - ref.depth[hit]).max() == 0.0
+    _same_hits(Scene(camera=cam, size=(14, 44), volumes=[Isosurface(vol, 128.0)]), supercell)
 
 
 @pytest.mark.parametrize("supercell", [0.5, 0.25, 0.125])
@@ -145,10 +149,4 @@ def test_distant_parallel_eye_and_a_steep_field(seed, supercell, gl):
     vol = Volume(data, spacing=(1.0, 0.1, 7.0))
     cam = Camera(eye=(11.5, 311449835.4970588, 10.5), look_at=(11.5, 0.05, 10.5), up=(0.3, 0.2, 1.0),
                  parallel_scale=23.8464957086173)
-    scene = Scene(camera=cam, size=(50, 53), volumes=[Isosurface(vol, float(np.float32(1e-40)))])
-    ref = render(scene, method="brute")
-    res = render(scene, method="parc", supercell=supercell)
-    hit_ref, hit = np.isfinite(ref.depth), np.isfinite(res.depth)
-    assert hit_ref.any()
-    assert (hit == hit_ref).all(), np.argwhere(hit != hit_ref)[:5].tolist()
-    assert np.abs(res.depth[hit] - ref.depth[hit]).max() == 0.0
+    _same_hits(Scene(camera=cam, size=(50, 53), volumes=[Isosurface(vol, float(np.float32(1e-40)))]), supercell)
