@@ -88,11 +88,16 @@ def exit_sign(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, i, j, k, c0, c1):
 
 @kernel
 def _entry_sign(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, i, j, k, sx, sy, sz,
-                tx0, ty0, tz0, tx1, ty1, tz1, c0, t_in, t_out):
+                tx0, ty0, tz0, tx1, ty1, tz1, c0, t_in, t_out, skip, jump_min):
     """Sign at the exit of the cell a full walk visits just before cell (i, j, k).
 
     That cell is the neighbour across the face of the latest entry time
     ``c0`` (ties: the last axis, as `step_axis` steps x, then y, then z).
+    Where the skip table signs it (a PARC segment starts on the face of a
+    possibly contributing supercell, and the cell behind that face is in
+    an empty one), the sign is the table's, as in the walk itself: its
+    corners and cubic cost as much as the hit cell's own (neghip at 2-cell
+    supercells: most segments start in a possibly contributing cell).
     """
     pi, pj, pk = i, j, k
     px0, py0, pz0, px1, py1, pz1 = tx0, ty0, tz0, tx1, ty1, tz1
@@ -105,6 +110,10 @@ def _entry_sign(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, i, j, k, sx, sy, sz,
     else:
         pi = i - sx
         _, _, px0, px1 = axis_state(Ox, Dx, pi)
+    if jump_min >= 0:
+        sign = _cell_sign(skip[pk, pj, pi])
+        if sign != 0:
+            return float(sign)
     return exit_sign(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, pi, pj, pk,
                      max(t_in, max(px0, max(py0, pz0))),
                      min(t_out, min(px1, min(py1, pz1))))
@@ -231,7 +240,7 @@ def _walk_iso(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, seg0, seg1, skip, jump_min):
                     # Only a possibly contributing start cell needs the sign its
                     # predecessor ends with; most PARC segments start in empty cells.
                     prev = _entry_sign(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, i, j, k, sx, sy, sz,
-                                       tx0, ty0, tz0, tx1, ty1, tz1, c0, t_in, t_out)
+                                       tx0, ty0, tz0, tx1, ty1, tz1, c0, t_in, t_out, skip, jump_min)
                 if c0 <= c1:
                     solves += 1
                     A, B, C, D, u0, v0, w0 = cell_cubic(v000, v100, v010, v110, v001, v101, v011, v111,
