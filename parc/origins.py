@@ -148,23 +148,40 @@ def origin_slab(camera, width, height, eye, lo, hi):
 
 def distance_to_pc(point, proxy):
     """Euclidean distance from ``point`` to the nearest PC supercell box (0 if inside or on one)."""
-    ex, ey, ez = proxy.world_edges
-    if not proxy.pc.any():
-        return math.inf
+    ex, ey, ez = (np.asarray(e, dtype=np.float64) for e in proxy.world_edges)
+    px, py, pz = (float(c) for c in point)
+    return math.sqrt(_nearest_box_sq(proxy.pc, ex, ey, ez, px, py, pz))
 
-    def axis_gap(e, p):
-        # Per supercell along one axis: distance from p to [e[a], e[a+1]].
-        return np.maximum(np.maximum(e[:-1] - p, 0.0), p - e[1:])
 
-    gx, gy, gz = (axis_gap(e, p) ** 2 for e, p in zip((ex, ey, ez), point))
-    plane = gy[:, None] + gx[None, :]
+@kernel
+def _gap(lo, hi, p):
+    """Distance from ``p`` to ``[lo, hi]`` along one axis."""
+    return max(max(lo - p, 0.0), p - hi)
+
+
+@kernel
+def _nearest_box_sq(pc, ex, ey, ez, px, py, pz):
+    """Smallest squared distance from ``(px, py, pz)`` to a box ``pc[k, j, i]`` (edges ``ex, ey, ez``), inf for none.
+
+    One pass that skips slabs and rows already farther than the best: the
+    NumPy version, a plane of gaps per slab, took 0.15 ms of each frame.
+    """
+    nz, ny, nx = pc.shape
     best = math.inf
-    # Slab by slab in z keeps memory at one (Ay, Ax) plane per slice.
-    for k in np.flatnonzero(proxy.pc.any(axis=(1, 2))):
-        best = min(best, gz[k] + float(plane[proxy.pc[k]].min()))
-        if best == 0.0:
-            break
-    return math.sqrt(best)
+    for k in range(nz):
+        gz = _gap(ez[k], ez[k + 1], pz) ** 2
+        if gz >= best:
+            continue
+        for j in range(ny):
+            gy = _gap(ey[j], ey[j + 1], py) ** 2
+            if gz + gy >= best:
+                continue
+            for i in range(nx):
+                if pc[k, j, i]:
+                    d = gz + (gy + _gap(ex[i], ex[i + 1], px) ** 2)
+                    if d < best:
+                        best = d
+    return best
 
 
 def parallel_inside(camera, width, height, proxy):

@@ -182,7 +182,7 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
         "seconds": timings,
         "pixels": w * h,
         "rays": w * h,
-        "hits": int(np.isfinite(depth).sum()),
+        "hits": counts["hits"],
         "cells_visited": counts.get("cells", 0),
         "cubic_solves": counts.get("solves", 0),
         "samples": counts.get("samples", 0),
@@ -260,14 +260,15 @@ def _render_iso(scene, iso, seg, use_seg, skip_blocks, timings, progress):
     # The cast shades each hit as it finds it (the phase holds both).
     t0 = time.perf_counter()
     bands = _row_bands(h, w, progress)
+    totals = np.zeros(3, np.int64)
     for n, (y0, y1) in enumerate(bands):
-        cast_iso_image(vol.data, org, spc, cam, w, h, iso.value, seg, use_seg, skip, jump_min,
-                       t, cell, uvw, counts, y0, y1, True, color, material, image)
+        totals += cast_iso_image(vol.data, org, spc, cam, w, h, iso.value, seg, use_seg, skip, jump_min,
+                                 t, cell, uvw, counts, y0, y1, True, color, material, image)
         if progress is not None:
             progress((n + 1) / len(bands))
     timings["cast"] = time.perf_counter() - t0
-    cells, solves = column_totals(counts)
-    return image, t.reshape(h, w), {"cells": cells, "solves": solves}
+    hits, cells, solves = (int(v) for v in totals)
+    return image, t.reshape(h, w), {"hits": hits, "cells": cells, "solves": solves}
 
 
 #: Largest side of a light buffer, pixels (a buffer per light and view face).
@@ -353,14 +354,15 @@ def _render_translucent(scene, vis, seg, use_seg, skip_blocks, timings, progress
 
     t0 = time.perf_counter()
     bands = _row_bands(h, w, progress)
+    samples = 0
     for n, (y0, y1) in enumerate(bands):
-        cast_accumulate_image(vol.data, org, spc, cam, w, h, params, op_x, op_y, col_x, col_rgb,
-                              seg, use_seg, _NO_STOP, False, bits, use_bits, skip, jump_min, image, counts,
-                              y0, y1)
+        samples += cast_accumulate_image(vol.data, org, spc, cam, w, h, params, op_x, op_y, col_x, col_rgb,
+                                         seg, use_seg, _NO_STOP, False, bits, use_bits, skip, jump_min, image,
+                                         counts, y0, y1)
         if progress is not None:
             progress((n + 1) / len(bands))
     timings["cast"] = time.perf_counter() - t0
-    return image, np.full((h, w), np.inf), {"samples": int(counts.sum())}
+    return image, np.full((h, w), np.inf), {"hits": 0, "samples": int(samples)}
 
 
 def _classifier(index, vis):

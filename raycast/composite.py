@@ -355,8 +355,10 @@ def cast_accumulate_image(data, org, spc, cam, width, height, params, op_x, op_y
     whose ``seg[y, x]`` has ``near > far`` costs nothing. With ``use_stop``
     no sample is taken at ``t >= stop[y, x]`` (an opaque surface there).
     ``skip``/``jump_min``: the skip table (`accumulate_ray`).
+    Returns the samples taken over the rows cast.
     """
     tiles = tile_count(width, row0, row1, TILE_W, TILE_H)
+    samples = 0
     for it in prange(tiles):
         x0, x1, y0, y1 = dealt_tile(it, tiles, width, row0, row1)
         for y in range(y0, y1):
@@ -381,6 +383,8 @@ def cast_accumulate_image(data, org, spc, cam, width, height, params, op_x, op_y
                 image[y, x, 2] = b
                 image[y, x, 3] = a
                 counts[y * width + x] = n
+                samples += n
+    return samples
 
 
 @kernel(inline="always")

@@ -304,6 +304,10 @@ def cast_iso_image(data, org, spc, cam, width, height, iso, seg, use_seg, skip, 
     skip table, or `NO_SKIP` and -1 (see `cast_iso_ray`). Only rows ``row0 <= y < row1``
     are cast, so a driver can report progress band by band.
 
+    Returns ``(hits, cells, solves)`` over the rows cast: summing them
+    afterwards, from ``counts`` and ``t``, read 6 MB again (0.4 ms of a
+    9 ms 512x512 PARC frame).
+
     With ``shade``, each hit is also coloured into ``image`` (``(height,
     width, 4)`` float32, left as it is at misses), lit from the eye with
     ``color`` and ``material`` (`raycast.shade.headlight_pixel`), while its
@@ -312,6 +316,9 @@ def cast_iso_image(data, org, spc, cam, width, height, iso, seg, use_seg, skip, 
     from memory, 1 ms of a 17 ms CT head frame.
     """
     tiles = tile_count(width, row0, row1, TILE_W, TILE_H)
+    hits = 0
+    cells = 0
+    solves = 0
     for it in prange(tiles):
         x0, x1, y0, y1 = dealt_tile(it, tiles, width, row0, row1)
         for y in range(y0, y1):
@@ -332,9 +339,14 @@ def cast_iso_image(data, org, spc, cam, width, height, iso, seg, use_seg, skip, 
                 Ox, Oy, Oz, Dx, Dy, Dz = to_index_space(ox, oy, oz, dx, dy, dz, org, spc)
                 res = cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, s0, s1, skip, jump_min)
                 _store(n, res, t, cell, uvw, counts)
-                if shade and res[0] < math.inf:
-                    headlight_pixel(data, spc, res[1], res[2], res[3], res[4], res[5], res[6],
-                                    dx, dy, dz, color, material, image, y, x)
+                cells += res[7]
+                solves += res[8]
+                if res[0] < math.inf:
+                    hits += 1
+                    if shade:
+                        headlight_pixel(data, spc, res[1], res[2], res[3], res[4], res[5], res[6],
+                                        dx, dy, dz, color, material, image, y, x)
+    return hits, cells, solves
 
 
 @kernel(parallel=True)
