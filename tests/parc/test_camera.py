@@ -99,3 +99,23 @@ def test_framing_keeps_the_whole_box_in_view():
     for corner in np.array(np.meshgrid(*zip(lo, hi))).T.reshape(-1, 3):
         clip = mvp @ np.append(corner, 1.0)
         assert np.all(np.abs(clip[:2] / clip[3]) <= 1.0)
+
+
+def test_the_cached_basis_and_kernel_array_cannot_be_changed_through_a_caller():
+    import copy
+    import dataclasses
+    import pickle
+
+    cam = Camera(eye=(3.0, -4.0, 2.0), look_at=(0.5, 0.25, 0.0), up=(0, 0, 1), fov=40.0)
+    f, r, u = cam.basis()
+    with pytest.raises(ValueError):
+        f[0] = 1.0
+    arr = cam.as_array()
+    arr[:] = 0.0                          # the caller's copy only
+    assert np.isfinite(cam.as_array()).all() and cam.as_array()[12] == pytest.approx(math.tan(math.radians(20)))
+    # A camera built from this one (replace, copy, pickle) has its own view.
+    moved = dataclasses.replace(cam, eye=(-3.0, 4.0, 2.0))
+    assert not np.allclose(moved.basis()[0], f)
+    for other in (copy.copy(cam), pickle.loads(pickle.dumps(cam))):
+        assert other == cam
+        np.testing.assert_array_equal(other.as_array(), cam.as_array())

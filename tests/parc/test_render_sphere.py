@@ -105,3 +105,41 @@ def test_shading_in_the_cast_equals_the_shading_pass(seed):
     np.testing.assert_array_equal(t, t2)
     np.testing.assert_array_equal(fused, apart)
     assert render(Scene(camera=cam, size=(w, h), volumes=[iso]), method="brute").image.tobytes() == fused.tobytes()
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_cast_totals_are_the_sums_of_the_per_pixel_outputs(seed):
+    # The stats take the totals the kernels return: band by band (as with
+    # progress), they must add up to what the per-pixel outputs hold.
+    from parc.renderer import accumulation_params, skip_table
+    from parc.scene import Translucent
+    from parc.transfer import load_transfer_function
+    from raycast.composite import cast_accumulate_image
+    from raycast.iso import NO_SHADING, cast_iso_image, empty_outputs
+
+    rng = np.random.default_rng(seed)
+    data = rng.normal(size=(13, 15, 11)).cumsum(axis=1).astype(np.float32)
+    vol = Volume(data, spacing=tuple(rng.uniform(0.5, 2.0, 3)))
+    cam = Camera.framing(*vol.bounds, azimuth=rng.uniform(0, 360), elevation=rng.uniform(-60, 60))
+    w, h = 33, 29
+    bands = [(0, 8), (8, 9), (9, h)]
+    iso = Isosurface(vol, float(np.quantile(data, 0.6)))
+    skip, jump_min = skip_table(iso, bool(seed % 2))
+    t, cell, uvw, counts = empty_outputs(w * h)
+    totals = sum(np.asarray(cast_iso_image(vol.data, np.array(vol.origin), np.array(vol.spacing), cam.as_array(),
+                                           w, h, iso.value, np.empty((1, 1, 2)), False, skip, jump_min,
+                                           t, cell, uvw, counts, y0, y1, *NO_SHADING)) for y0, y1 in bands)
+    assert totals.tolist() == [np.isfinite(t).sum(), counts[:, 0].sum(), counts[:, 1].sum()]
+    assert totals[0] > 0
+
+    tf = load_transfer_function("greyscale", data_range=(float(data.min()), float(data.max())))
+    vis = Translucent(vol, tf)
+    op_x, op_y, col_x, col_rgb = tf.arrays()
+    image = np.zeros((h, w, 4), np.float32)
+    samples = np.zeros(w * h, np.int64)
+    skip, jump_min = skip_table(vis, bool(seed % 2))
+    total = sum(cast_accumulate_image(vol.data, np.array(vol.origin), np.array(vol.spacing), cam.as_array(), w, h,
+                                      accumulation_params(vis), op_x, op_y, col_x, col_rgb, np.empty((1, 1, 2)),
+                                      False, np.empty((1, 1)), False, np.zeros((1, 1, 1), np.uint32), False,
+                                      skip, jump_min, image, samples, y0, y1) for y0, y1 in bands)
+    assert total == samples.sum() > 0
