@@ -401,6 +401,18 @@ def classify_iso(mn, mx, iso):
     return np.less_equal(mn, iso, signature=sig) & np.greater_equal(mx, iso, signature=sig)
 
 
+def classify_tf(mn, mx, tf):
+    """Possibly contributing boxes for a transfer function: its opacity is non-zero somewhere in ``[mn, mx]``.
+
+    Each range is widened by `raycast.composite.INTERP_ROUNDING`, how far
+    the casters' interpolated samples can round past a cell's corners, so
+    that a function starting just past a range cannot show in ``brute``
+    alone. Every classification for a transfer function goes through here
+    (supercells, the skip table, the ideal counts).
+    """
+    return tf.nonzero_in(mn, mx, rounding=INTERP_ROUNDING)
+
+
 def sign_iso(mn, mx, iso):
     """Which side of an isovalue each box lies on: int8 +1 (all above), -1 (all below), 0 (neither).
 
@@ -502,7 +514,7 @@ class VolumeIndex:
         """
         def table():
             mn, mx = self.cell_minmax()
-            return skip_radius((~tf.nonzero_in(mn, mx, rounding=INTERP_ROUNDING)).view(np.int8), SKIP_CAP)
+            return skip_radius((~classify_tf(mn, mx, tf)).view(np.int8), SKIP_CAP)
 
         op_x, op_y, _, _ = tf.arrays()
         return self._skip(("tf", op_x.tobytes(), op_y.tobytes()), table, TF_JUMP_MIN)

@@ -24,7 +24,6 @@ from __future__ import annotations
 import numpy as np
 
 from data_tools import InputError
-from raycast.composite import INTERP_ROUNDING
 from raycast.ideal import ideal_samples_image
 
 from .scene import Translucent
@@ -34,9 +33,9 @@ _NO_STOP = np.empty((1, 1))
 
 def contributing_cells(vis: Translucent) -> np.ndarray:
     """uint8 ``(nz-1, ny-1, nx-1)``: 1 where a cell's corner range meets ``vis``'s non-zero opacity."""
-    from .classify import VolumeIndex
+    from .classify import VolumeIndex, classify_tf
     mn, mx = VolumeIndex.of(vis.volume).cell_minmax()
-    return np.ascontiguousarray(vis.tf.nonzero_in(mn, mx, rounding=INTERP_ROUNDING), dtype=np.uint8)
+    return np.ascontiguousarray(classify_tf(mn, mx, vis.tf), dtype=np.uint8)
 
 
 def ideal_sample_counts(scene, vis: Translucent, stop=None) -> np.ndarray:

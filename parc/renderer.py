@@ -13,9 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from data_tools import InputError
-from raycast.composite import (INTERP_ROUNDING, MODE_AVERAGE, MODE_COMPOSITE, MODE_MIP, N_PARAMS, P_AMBIENT, P_HI,
-                               P_LO, P_MODE, P_RATIO, P_SHADE, P_STEP, P_THRESHOLD, cast_accumulate_image,
-                               over_background)
+from raycast.composite import (MODE_AVERAGE, MODE_COMPOSITE, MODE_MIP, N_PARAMS, P_AMBIENT, P_HI, P_LO, P_MODE,
+                               P_RATIO, P_SHADE, P_STEP, P_THRESHOLD, cast_accumulate_image, over_background)
 from raycast.iso import NO_SKIP, cast_iso_image
 
 from .scene import Isosurface, Scene, Translucent
@@ -367,11 +366,12 @@ def _render_translucent(scene, vis, seg, use_seg, skip_blocks, timings, progress
 
 def _classifier(index, vis):
     """``(key, classify(size) -> bool array)`` of the possibly contributing supercells."""
+    from .classify import classify_tf
     if isinstance(vis, Isosurface):
         return ("iso", vis.value), lambda size: index.classify(vis.value, size)
     op_x, op_y, _, _ = vis.tf.arrays()
     return (("tf", op_x.tobytes(), op_y.tobytes()),
-            lambda size: vis.tf.nonzero_in(*index.ranges(size), rounding=INTERP_ROUNDING))
+            lambda size: classify_tf(*index.ranges(size), vis.tf))
 
 
 def _parc_segments(scene, vis, supercell, timings, slot=0):

@@ -93,11 +93,10 @@ def _entry_sign(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, i, j, k, sx, sy, sz,
 
     That cell is the neighbour across the face of the latest entry time
     ``c0`` (ties: the last axis, as `step_axis` steps x, then y, then z).
-    Where the skip table signs it (a PARC segment starts on the face of a
-    possibly contributing supercell, and the cell behind that face is in
-    an empty one), the sign is the table's, as in the walk itself: its
-    corners and cubic cost as much as the hit cell's own (neghip at 2-cell
-    supercells: most segments start in a possibly contributing cell).
+    Where the skip table signs that cell (a PARC segment starts on the face
+    of a possibly contributing supercell, so the cell behind it lies in an
+    empty one), the sign is the table's, as everywhere else in the walk,
+    and its corners and cubic are not computed.
     """
     pi, pj, pk = i, j, k
     px0, py0, pz0, px1, py1, pz1 = tx0, ty0, tz0, tx1, ty1, tz1

@@ -194,7 +194,7 @@ class TransferFunction:
             Widen each range by this fraction of its largest magnitude (for
             8- and 16-bit integers, of the type's): the casters' samples
             leave a cell's corner range by up to
-            `raycast.composite.INTERP_ROUNDING` of it, which classification
+            `raycast.composite.INTERP_ROUNDING` of it, which `parc.classify.classify_tf`
             passes here.
 
         Returns
