@@ -97,7 +97,7 @@ dvec2 face_constants(int a, int u, int v, double c, dvec4 rect, double thi, out 
     double ep_u, ep_v;
     if (parallel != 0) {
         double fa = fwd[a];
-        valid = abs(fa) > 1e-100;
+        valid = abs(fa) > 1e-100lf;
         double ia = valid ? 1.0 / fa : 0.0;
         dvec3 kt = dvec3((w - aff0[a]) * ia, -affx[a] * ia, -affy[a] * ia);
         dvec3 ku = dvec3(aff0[u], affx[u], affy[u]) + fwd[u] * kt;
@@ -146,7 +146,7 @@ void main() {
     cam[3] = (c - eye[a]) * ca + rect.x * cu + rect.w * cv;
 
     dvec2 s[4];
-    dvec2 lo = dvec2(1e300), hi = dvec2(-1e300);
+    dvec2 lo = dvec2(1e300lf), hi = dvec2(-1e300lf);
     bool clipped = false;
     for (int k = 0; k < 4; k++) {
         dvec3 p0 = cam[k];
@@ -232,8 +232,8 @@ void main() {
         double len = sqrt(l0 * l1);
         double sn = n0.x * n1.y - n0.y * n1.x;
         double cs = dot(n0, n1);
-        ok = ok && !(sn < -1e-12 * len || cs < -0.999 * len);
-        if (sn < 1e-6 * len) {
+        ok = ok && !(sn < -1e-12lf * len || cs < -0.999lf * len);
+        if (sn < 1e-6lf * len) {
             dvec2 p = s[k];
             outp[k] = p + n0 * (max(h0 - dot(n0, p), 0.0) / l0) + n1 * (max(h1 - dot(n1, p), 0.0) / l1);
         } else {

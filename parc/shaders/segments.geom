@@ -114,7 +114,7 @@ void face_constants(int a, int u, int v, double c, dvec4 rect, double tlo, doubl
         // 8 * 2^-24 doubles it. abs64 covers the float64 coefficients and
         // the caster's own rounding of o (2^-52 of the coordinates).
         double fa = fwd[a];
-        valid = abs(fa) > 1e-100;
+        valid = abs(fa) > 1e-100lf;
         double ia = valid ? 1.0 / fa : 0.0;
         dvec3 kt = dvec3((w - aff0[a]) * ia, -affx[a] * ia, -affy[a] * ia);
         dvec3 ku = dvec3(aff0[u], affx[u], affy[u]) + fwd[u] * kt;
@@ -199,7 +199,7 @@ void main() {
     // forward = clip_near is cut there (nothing is projected from behind
     // the eye) and takes the bounding box of what is left.
     dvec2 s[4];
-    dvec2 lo = dvec2(1e300), hi = dvec2(-1e300);
+    dvec2 lo = dvec2(1e300lf), hi = dvec2(-1e300lf);
     bool clipped = false;
     for (int k = 0; k < 4; k++) {
         dvec3 p0 = cam[k];
@@ -281,8 +281,8 @@ void main() {
         double sn = n0.x * n1.y - n0.y * n1.x;     // |n0| |n1| sin of the turn (> 0: convex)
         double cs = dot(n0, n1);                   // |n0| |n1| cos of the turn
         // Reflex, or a spike sharper than ~2.6 degrees: the bounding box.
-        ok = ok && !(sn < -1e-12 * len || cs < -0.999 * len);
-        if (sn < 1e-6 * len) {
+        ok = ok && !(sn < -1e-12lf * len || cs < -0.999lf * len);
+        if (sn < 1e-6lf * len) {
             // Nearly straight on: the two moved lines almost coincide; a
             // point beyond both (n . p >= h for each) stands in for the mitre.
             dvec2 p = s[k];
