@@ -26,8 +26,8 @@ render time of each candidate size from what it costs here:
 from __future__ import annotations
 
 import math
-import os
 
+import numba
 import numpy as np
 
 from .classify import MAX_SUPERCELLS, _axis_edges, _size_triple
@@ -131,7 +131,9 @@ def choose_supercell(index, iso=None, *, pixels=512 * 512, rays=None, cores=None
         Rays expected to meet the volume's box, of which the PC region
         takes its `projected_share`; default ``RAY_COVER * pixels``.
     cores : int or None
-        Cores the caster runs on; default ``os.cpu_count()``.
+        Threads the caster runs on; default Numba's (``numba.get_num_threads()``,
+        which ``NUMBA_NUM_THREADS`` and ``numba.set_num_threads`` set; the
+        machine's core count would overrate a caster held to fewer).
     candidates : sequence of sizes
         Cubic sizes (cells per supercell edge) to compare.
 
@@ -159,7 +161,7 @@ def choose_supercell(index, iso=None, *, pixels=512 * 512, rays=None, cores=None
     18.6**, 10: 20.3; bone 4: 16.7, 6: 17.0, **8: 14.0**, 10: 13.6;
     neghip **2: 9.2**, 3: 9.0, 4: 8.7, 8: 10.2.
     """
-    cores = cores or os.cpu_count() or 1
+    cores = cores or numba.get_num_threads()
     rays = RAY_COVER * pixels if rays is None else rays
     table = []
     vol = index.volume

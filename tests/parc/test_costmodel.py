@@ -98,6 +98,24 @@ def test_choose_supercell_reports_its_model():
         assert r["total_s"] == pytest.approx(r["raster_s"] + r["cast_s"])
 
 
+def test_cast_cost_divides_by_the_casters_threads():
+    # The caster runs on Numba's threads, which NUMBA_NUM_THREADS or
+    # set_num_threads may hold below the machine's core count.
+    import numba
+    from data_tools.synthetic import sphere
+    index = VolumeIndex.of(sphere(24))
+    saved = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        _, held = choose_supercell(index, 0.0, rays=100 * 100)
+    finally:
+        numba.set_num_threads(saved)
+    _, one = choose_supercell(index, 0.0, rays=100 * 100, cores=1)
+    _, two = choose_supercell(index, 0.0, rays=100 * 100, cores=2)
+    assert [r["cast_s"] for r in held] == [r["cast_s"] for r in one]
+    assert [r["cast_s"] for r in one] == pytest.approx([2.0 * r["cast_s"] for r in two])
+
+
 def test_flat_surfaces_pay_for_merged_polygons_not_faces():
     # A floor: the slab's faces merge into a few rectangles at every size, so
     # the model must not charge small supercells for their many unit faces.
