@@ -9,8 +9,11 @@ on the surface and on the machine, so `choose_supercell` estimates the
 render time of each candidate size from what it costs here:
 
 - **Rasterization** pays a fixed cost per frame (clear, fill, read-back)
-  and a cost per polygon drawn (geometry shader, triangle setup on
-  llvmpipe). The proxy merges coplanar faces (`parc.proxy.build_proxy`),
+  and a cost per polygon drawn (geometry shader, triangle setup), each
+  measured for two kinds of OpenGL: a software rasterizer (Mesa llvmpipe,
+  where a polygon costs about 0.3 us on the calling thread) and a GPU
+  (about 40 ns), told apart by the context's renderer string. On a GPU
+  polygons are cheap enough that finer supercells win. The proxy merges coplanar faces (`parc.proxy.build_proxy`),
   so the polygons drawn are far fewer than the supercell faces: the model
   counts the strips the merge's first stage makes (`count_face_strips`),
   an upper bound on the rectangles that costs a few array operations
@@ -43,6 +46,16 @@ from .proxy import outer_face_masks
 #: is the same for every size and does not change the choice.
 RASTER_FIXED_S = 2.6e-3
 RASTER_PER_STRIP_S = 0.325e-6
+#: The same on a GPU: an NVIDIA H100 (driver 580.159, EGL), the caster on
+#: 2 threads; least squares over `parc compare --sweep-supercell` on the
+#: CT head skin (2-8), bone (2-8) and neghip (1-4), median of 5: 1.14 ms
+#: per frame plus 42.5 ns per strip. There the sweeps' fastest sizes were
+#: 2 (skin: 6.9x against brute, 4.9x at 8), 2-4 (bone: 11.9x, 10.1x at 8)
+#: and 1.5 (neghip: 7.5x, 6.4x at 2).
+GPU_RASTER_FIXED_S = 1.14e-3
+GPU_RASTER_PER_STRIP_S = 42.5e-9
+#: Renderer strings (GL_RENDERER, lower case) of software rasterizers.
+SOFTWARE_RENDERERS = ("llvmpipe", "softpipe", "swrast", "software", "swiftshader")
 #: Rays that reach the PC region: ``RAY_COVER * pixels * share``, where
 #: ``share`` is the part of the volume box's projected area that the PC
 #: supercells cover (`projected_share`, along the three axes). Coarser
@@ -113,8 +126,26 @@ def projected_share(pc, edges):
     return covered / float(x * y + z * x + z * y)
 
 
+def raster_costs(renderer=None):
+    """``(seconds per 512x512 frame, seconds per strip)`` of the OpenGL pass.
+
+    ``renderer``: an OpenGL renderer string (``GL_RENDERER``); default the
+    process's context's, or a software rasterizer's costs where there is
+    no OpenGL (the model then only ranks sizes for a renderer to come).
+    """
+    if renderer is None:
+        from .gl import OpenGLUnavailable, get_context
+        try:
+            renderer = get_context().info["GL_RENDERER"]
+        except OpenGLUnavailable:
+            renderer = "software"
+    if any(name in renderer.lower() for name in SOFTWARE_RENDERERS):
+        return RASTER_FIXED_S, RASTER_PER_STRIP_S
+    return GPU_RASTER_FIXED_S, GPU_RASTER_PER_STRIP_S
+
+
 def choose_supercell(index, iso=None, *, pixels=512 * 512, rays=None, cores=None,
-                     candidates=CANDIDATE_SIZES, classify=None):
+                     candidates=CANDIDATE_SIZES, classify=None, renderer=None):
     """Pick a supercell size for an isovalue (or any classification) by estimated render time.
 
     Parameters
@@ -136,6 +167,9 @@ def choose_supercell(index, iso=None, *, pixels=512 * 512, rays=None, cores=None
         machine's core count would overrate a caster held to fewer).
     candidates : sequence of sizes
         Cubic sizes (cells per supercell edge) to compare.
+    renderer : str or None
+        The OpenGL renderer string the costs of rasterization are chosen
+        by (`raster_costs`); default the process's context's.
 
     Returns
     -------
@@ -150,18 +184,19 @@ def choose_supercell(index, iso=None, *, pixels=512 * 512, rays=None, cores=None
 
     Notes
     -----
-    ``raster_s = RASTER_FIXED_S * pixels / 512^2 + RASTER_PER_STRIP_S *
-    strips``; ``cast_s = rays_pc * (CAST_PER_RAY_S + WALK_CELLS (1 - 2^-m)
-    CAST_PER_CELL_S) / cores`` with ``rays_pc = rays * share``. Small
-    supercells cost polygons; large ones cover more of the screen and walk
-    a little further. The constants were measured on one machine (see the
-    module constants); the model ranks sizes, it does not predict times
-    elsewhere. Measured there (raster + cast, 2 cores, 512x512, median of
+    ``raster_s = fixed * pixels / 512^2 + per_strip * strips``, the costs
+    of this kind of rasterizer (`raster_costs`); ``cast_s = rays_pc *
+    (CAST_PER_RAY_S + WALK_CELLS (1 - 2^-m) CAST_PER_CELL_S) / cores``
+    with ``rays_pc = rays * share``. Small supercells cost polygons; large
+    ones cover more of the screen and walk a little further. The constants
+    were measured on two machines (see the module constants); the model
+    ranks sizes, it does not predict times elsewhere. Measured with llvmpipe (raster + cast, 2 cores, 512x512, median of
     5; the model's pick in bold): CT head skin 4: 20.5 ms, 6: 18.8, **8:
     18.6**, 10: 20.3; bone 4: 16.7, 6: 17.0, **8: 14.0**, 10: 13.6;
     neghip **2: 9.2**, 3: 9.0, 4: 8.7, 8: 10.2.
     """
     cores = cores or numba.get_num_threads()
+    fixed, per_strip = raster_costs(renderer)
     rays = RAY_COVER * pixels if rays is None else rays
     table = []
     vol = index.volume
@@ -172,7 +207,7 @@ def choose_supercell(index, iso=None, *, pixels=512 * 512, rays=None, cores=None
         pc = classify(m) if classify is not None else index.classify(iso, m)
         faces, strips = face_counts(pc)
         share = projected_share(pc, index.grid(m).world_edges(vol))
-        raster = RASTER_FIXED_S * pixels / (512 * 512) + RASTER_PER_STRIP_S * strips
+        raster = fixed * pixels / (512 * 512) + per_strip * strips
         rays_pc = rays * share
         cells = rays_pc * WALK_CELLS * (1.0 - 2.0 ** -float(np.mean(_size_triple(m))))
         cast = (rays_pc * CAST_PER_RAY_S + cells * CAST_PER_CELL_S) / cores

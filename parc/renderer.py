@@ -10,6 +10,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from data_tools import InputError
@@ -410,9 +411,10 @@ def _proxy(vis, supercell, size_px, timings, *, merge=True):
     if supercell is None:
         # The model classifies every candidate size: do it once per classification and image size.
         chosen = index.__dict__.setdefault("_chosen", {})
-        if (what, w * h) not in chosen:
-            chosen[(what, w * h)] = choose_supercell(index, classify=classify, pixels=w * h)
-        supercell, table = chosen[(what, w * h)]
+        key = (what, w * h, numba.get_num_threads())
+        if key not in chosen:
+            chosen[key] = choose_supercell(index, classify=classify, pixels=w * h)
+        supercell, table = chosen[key]
         extra["supercell_model"] = table
     size = _size_triple(supercell)
     proxies = index.__dict__.setdefault("_proxies", {})

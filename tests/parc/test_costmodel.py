@@ -6,6 +6,7 @@ Truth: slow loops over every supercell boundary, and the proxy itself
 import numpy as np
 import pytest
 
+from parc import costmodel
 from parc.classify import VolumeIndex, supercell_grid
 from parc.costmodel import choose_supercell, count_face_strips, count_outer_faces, face_counts, projected_share
 from parc.proxy import build_proxy
@@ -114,6 +115,29 @@ def test_cast_cost_divides_by_the_casters_threads():
     _, two = choose_supercell(index, 0.0, rays=100 * 100, cores=2)
     assert [r["cast_s"] for r in held] == [r["cast_s"] for r in one]
     assert [r["cast_s"] for r in one] == pytest.approx([2.0 * r["cast_s"] for r in two])
+
+
+@pytest.mark.parametrize("renderer, software", [
+    ("llvmpipe (LLVM 15.0.6, 256 bits)", True), ("softpipe", True), ("Mesa Software Rasterizer", True),
+    ("NVIDIA H100 80GB HBM3/PCIe/SSE2", False), ("AMD Radeon RX 7900 XTX (radeonsi, navi31, LLVM 17.0.6)", False)])
+def test_raster_costs_by_renderer(renderer, software):
+    fixed, per_strip = costmodel.raster_costs(renderer)
+    assert (per_strip == costmodel.RASTER_PER_STRIP_S) == software
+    assert fixed > 0 and per_strip > 0
+
+
+def test_cheap_polygons_choose_finer_supercells():
+    # With a GPU's cost per polygon, the rasterization term shrinks most for
+    # the finest sizes: llvmpipe's pick here is 3, the GPU's 1.
+    from data_tools.synthetic import blobs
+    index = VolumeIndex.of(blobs(96, seed=3))
+    soft, soft_table = choose_supercell(index, 100.0, cores=2, renderer="llvmpipe")
+    gpu, gpu_table = choose_supercell(index, 100.0, cores=2, renderer="NVIDIA H100")
+    assert gpu < soft
+    fixed, per_strip = costmodel.raster_costs("NVIDIA H100")
+    for row in gpu_table:
+        assert row["raster_s"] == pytest.approx(fixed + per_strip * row["strips"])
+    assert [r["cast_s"] for r in gpu_table] == [r["cast_s"] for r in soft_table]
 
 
 def test_flat_surfaces_pay_for_merged_polygons_not_faces():
