@@ -13,11 +13,11 @@ render time of each candidate size from what it costs here:
   measured for two kinds of OpenGL: a software rasterizer (Mesa llvmpipe,
   where a polygon costs about 0.3 us on the calling thread) and a GPU
   (about 40 ns), told apart by the context's renderer string. On a GPU
-  polygons are cheap enough that finer supercells win. The proxy merges coplanar faces (`parc.proxy.build_proxy`),
-  so the polygons drawn are far fewer than the supercell faces: the model
-  counts the strips the merge's first stage makes (`count_face_strips`),
-  an upper bound on the rectangles that costs a few array operations
-  instead of a merge. On a flat surface the difference decides the size:
+  polygons are cheap enough that finer supercells win. The proxy merges
+  coplanar faces (`parc.proxy.build_proxy`), so the polygons drawn are
+  far fewer than the supercell faces: the model counts the strips the
+  merge's first stage makes (`count_face_strips`), an upper bound on the
+  rectangles that costs a few array operations instead of a merge. On a flat surface the difference decides the size:
   the Fig. 13 floor at 2-cell supercells has 16,876 supercell faces, 508
   strips and 12 rectangles.
 - **Casting** pays per ray that reaches the PC region and per cell
@@ -190,10 +190,11 @@ def choose_supercell(index, iso=None, *, pixels=512 * 512, rays=None, cores=None
     with ``rays_pc = rays * share``. Small supercells cost polygons; large
     ones cover more of the screen and walk a little further. The constants
     were measured on two machines (see the module constants); the model
-    ranks sizes, it does not predict times elsewhere. Measured with llvmpipe (raster + cast, 2 cores, 512x512, median of
-    5; the model's pick in bold): CT head skin 4: 20.5 ms, 6: 18.8, **8:
-    18.6**, 10: 20.3; bone 4: 16.7, 6: 17.0, **8: 14.0**, 10: 13.6;
-    neghip **2: 9.2**, 3: 9.0, 4: 8.7, 8: 10.2.
+    ranks sizes, it does not predict times elsewhere. Measured with
+    llvmpipe (raster + cast, 2 cores, 512x512, median of 5; the model's
+    pick in bold): CT head skin 4: 20.5 ms, 6: 18.8, **8: 18.6**, 10:
+    20.3; bone 4: 16.7, 6: 17.0, **8: 14.0**, 10: 13.6; neghip **2:
+    9.2**, 3: 9.0, 4: 8.7, 8: 10.2.
     """
     cores = cores or numba.get_num_threads()
     fixed, per_strip = raster_costs(renderer)
