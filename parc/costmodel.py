@@ -17,9 +17,10 @@ render time of each candidate size from what it costs here:
   coplanar faces (`parc.proxy.build_proxy`), so the polygons drawn are
   far fewer than the supercell faces: the model counts the strips the
   merge's first stage makes (`count_face_strips`), an upper bound on the
-  rectangles that costs a few array operations instead of a merge. On a flat surface the difference decides the size:
-  the Fig. 13 floor at 2-cell supercells has 16,876 supercell faces, 508
-  strips and 12 rectangles.
+  rectangles that costs a few array operations instead of a merge. On a
+  flat surface the difference decides the size: the Fig. 13 floor at
+  2-cell supercells has 16,876 supercell faces, 508 strips and 12
+  rectangles.
 - **Casting** pays per ray that reaches the PC region and per cell
   walked. Coarser supercells reach more rays (the PC region's projection
   grows: `projected_share`), and each walks a little further from the
