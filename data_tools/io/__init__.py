@@ -8,13 +8,14 @@ from pathlib import Path
 
 from ..errors import InputError
 from ..volume import Volume
-from . import metaimage, npy, nrrd_format, raw, slc, vtk_legacy
+from . import metaimage, nifti, npy, nrrd_format, raw, slc, tiff, vtk_legacy
 from ._common import check_file, reading
 
 _READERS = {}
 for _mod, _fn in ((nrrd_format, nrrd_format.read_nrrd), (metaimage, metaimage.read_metaimage),
                   (vtk_legacy, vtk_legacy.read_vtk), (slc, slc.read_slc),
-                  (npy, npy.read_npy), (raw, raw.read_raw)):
+                  (npy, npy.read_npy), (nifti, nifti.read_nifti), (tiff, tiff.read_tiff),
+                  (raw, raw.read_raw)):
     for _ext in _mod.EXTENSIONS:
         _READERS[_ext] = _fn
 
@@ -26,6 +27,15 @@ WRITE_EXTENSIONS = (".nrrd", ".nhdr", ".npy", ".mhd", ".mha", ".vtk", ".raw")
 RAW_ONLY_OPTIONS = ("shape", "dtype", "byte_order", "offset", "mmap")
 
 
+def volume_extension(path) -> str:
+    """The extension that names a volume file's format, lower case: ``.nii.gz`` counts as one."""
+    name = Path(path).name.lower()
+    for ext in READ_EXTENSIONS:
+        if "." in ext[1:] and name.endswith(ext):
+            return ext
+    return Path(path).suffix.lower()
+
+
 def load_volume(path, **options) -> Volume:
     """Read a volume file, choosing the reader by extension (case-insensitive).
 
@@ -33,7 +43,8 @@ def load_volume(path, **options) -> Volume:
     ----------
     path : str or Path
         ``.nrrd``/``.nhdr``, ``.mhd``/``.mha``, ``.vtk``, ``.slc``, ``.npy``,
-        or headerless ``.raw``/``.bin``/``.dat``.
+        ``.nii``/``.nii.gz`` (needs nibabel), ``.tif``/``.tiff`` stacks (needs
+        tifffile), or headerless ``.raw``/``.bin``/``.dat``.
     **options
         For raw files: ``shape=(nx, ny, nz)``, ``dtype``, ``byte_order``,
         ``offset``, ``mmap`` (see :func:`data_tools.io.raw.read_raw`). ``spacing`` and
@@ -58,7 +69,7 @@ def load_volume(path, **options) -> Volume:
     if unknown:
         raise TypeError(f"load_volume() got unexpected options {sorted(unknown)}")
     options = {k: v for k, v in options.items() if v is not None and not (k == "mmap" and not v)}
-    ext = path.suffix.lower()
+    ext = volume_extension(path)
     if ext not in _READERS:
         if not path.exists():
             raise InputError(f"{path}: no such file")
@@ -77,11 +88,14 @@ def load_volume(path, **options) -> Volume:
         flags = ", ".join("--" + k.replace("_", "-") for k in extra)
         verb = "applies" if len(extra) == 1 else "apply"
         raise InputError(f"{path}: {flags} {verb} only to headerless raw files; this file has a header")
-    with reading(path, ext.lstrip(".").upper()):
+    with reading(path, ext.split(".")[1].upper()):
         vol = reader(path)
     if "spacing" in options or "origin" in options:
+        meta = vol.meta
+        if "spacing" in options and meta.get("spacing_unknown"):
+            meta = {k: v for k, v in meta.items() if k not in ("note", "spacing_unknown")}
         vol = Volume(vol.data, spacing=options.get("spacing", vol.spacing),
-                     origin=options.get("origin", vol.origin), name=vol.name, meta=vol.meta)
+                     origin=options.get("origin", vol.origin), name=vol.name, meta=meta)
     return vol
 
 
@@ -141,4 +155,4 @@ def save_volume(volume: Volume, path, **options) -> Path:
     return path
 
 
-__all__ = ["load_volume", "save_volume", "READ_EXTENSIONS", "WRITE_EXTENSIONS"]
+__all__ = ["load_volume", "save_volume", "volume_extension", "READ_EXTENSIONS", "WRITE_EXTENSIONS"]

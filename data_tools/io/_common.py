@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import contextlib
+import importlib
 import os
 import struct
 import zlib
@@ -33,6 +34,15 @@ def check_file(path: Path, what: str = "file") -> Path:
     if not os.access(path, os.R_OK):
         raise InputError(f"{path}: permission denied")
     return path
+
+
+def optional_library(name, path, kind, extra):
+    """The module ``name`` of an optional extra, or an InputError telling how to install it."""
+    try:
+        return importlib.import_module(name)
+    except ImportError:
+        raise InputError(f"{path}: reading {kind} files needs the {name} package: "
+                         f"pip install {name} (or the extra: pip install 'parc[{extra}]')") from None
 
 
 @contextlib.contextmanager

@@ -1,0 +1,100 @@
+"""NIfTI-1 and NIfTI-2 volumes (``.nii``, ``.nii.gz``), read with nibabel.
+
+nibabel is an optional extra (``pip install 'parc[nifti]'``): NIfTI has
+two header versions, qform and sform orientations and scaled storage, all
+of which nibabel already reads correctly.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from ..volume import Volume
+from ._common import one_line, optional_library, to_native
+
+EXTENSIONS = (".nii", ".nii.gz")
+
+
+def read_nifti(path) -> Volume:
+    """Read a 3-D NIfTI volume (NIfTI-1 or -2, gzipped or not).
+
+    Samples keep their stored type unless the header scales them
+    (``scl_slope``/``scl_inter``), in which case they are the scaled values
+    as float32. Spacing is the length of each voxel axis in the affine
+    (sform, else qform, else the pixel dimensions); origin is the affine's
+    translation, the position of voxel (0, 0, 0). Rotated or flipped axes
+    cannot be kept on an axis-aligned grid: they are reduced to their
+    lengths and ``meta['note']`` says so. A 4-D file with one volume (a
+    trailing axis of length 1) is read as 3-D.
+
+    Parameters
+    ----------
+    path : str or Path
+
+    Returns
+    -------
+    Volume
+    """
+    path = Path(path)
+    nib = optional_library("nibabel", path, "NIfTI", "nifti")
+    try:
+        img = nib.load(str(path), mmap=False)
+    except MemoryError:
+        raise InputError(f"{path}: not enough memory to load this NIfTI volume") from None
+    except Exception as exc:  # noqa: BLE001 - nibabel raises many kinds on bad files
+        raise InputError(f"{path}: cannot read NIfTI file: {one_line(exc) or type(exc).__name__}") from None
+    if not isinstance(img, (nib.Nifti1Image, nib.Nifti2Image)):
+        raise InputError(f"{path}: not a NIfTI image ({type(img).__name__})")
+    shape = tuple(int(n) for n in img.shape)
+    while len(shape) > 3 and shape[-1] == 1:
+        shape = shape[:-1]
+    if len(shape) != 3:
+        more = f"; it holds {int(np.prod(shape[3:]))} volumes, render one" if len(shape) > 3 else ""
+        raise InputError(f"{path}: NIfTI image has shape {img.shape}, expected a 3-D volume{more}")
+    try:
+        proxy = img.dataobj
+        scaled = _scaled(proxy)
+        data = np.asarray(img.get_fdata(dtype=np.float32) if scaled else np.asanyarray(proxy))
+    except MemoryError:
+        raise InputError(f"{path}: not enough memory to load this NIfTI volume") from None
+    except Exception as exc:  # noqa: BLE001 - truncated or corrupt data
+        raise InputError(f"{path}: cannot read NIfTI data: {one_line(exc) or type(exc).__name__}") from None
+    # The file stores x fastest, which nibabel gives as an [x, y, z] array in
+    # Fortran order: its transpose is [z, y, x] in C order, without a copy.
+    data = np.ascontiguousarray(to_native(data.reshape(shape, order="F")).T)
+    spacing, origin, note = _geometry(img.affine, img.header.get_zooms()[:3])
+    meta = {"format": "nifti", "version": 2 if isinstance(img, nib.Nifti2Image) else 1}
+    if scaled:
+        meta["scaling"] = {"slope": float(proxy.slope), "inter": float(proxy.inter)}
+    if note:
+        meta["note"] = note
+    return Volume(data, spacing=spacing, origin=origin, name=str(path), meta=meta)
+
+
+def _scaled(proxy):
+    """Whether the stored samples are scaled (slope other than 1, or an intercept)."""
+    slope = getattr(proxy, "slope", 1.0)
+    inter = getattr(proxy, "inter", 0.0)
+    return (np.isfinite(slope) and slope not in (0.0, 1.0)) or (np.isfinite(inter) and inter != 0.0)
+
+
+def _geometry(affine, zooms):
+    """``(spacing, origin, note)`` from the voxel-to-world affine (4x4)."""
+    a = np.asarray(affine, dtype=np.float64)
+    if a.shape != (4, 4) or not np.isfinite(a).all():
+        a = np.diag([*(float(z) for z in zooms), 1.0])
+    m = a[:3, :3]
+    lengths = np.linalg.norm(m, axis=0)          # column c: the step of voxel axis c
+    note = None
+    if not (lengths > 0).all():
+        lengths = np.where(lengths > 0, lengths, 1.0)
+        note = "the header gives a voxel axis no length; spacing 1 was used for it"
+    off = m - np.diag(np.diag(m))
+    if np.abs(off).max() > 1e-6 * lengths.max():
+        note = ("rotated voxel axes were reduced to axis-aligned spacings "
+                f"(their lengths {tuple(round(float(n), 6) for n in lengths)}); orientation is ignored")
+    elif (np.diag(m) < 0).any():
+        note = "flipped voxel axes (negative affine diagonal) were reduced to positive spacings"
+    return tuple(float(n) for n in lengths), tuple(float(v) for v in a[:3, 3]), note

@@ -1,0 +1,153 @@
+"""Multi-page TIFF stacks (``.tif``, ``.tiff``), read with tifffile: microscopy's usual volume file.
+
+tifffile is an optional extra (``pip install 'parc[tiff]'``): TIFF's many
+compressions and tilings, and the ImageJ and OME metadata conventions, are
+what it is made for.
+"""
+from __future__ import annotations
+
+import contextlib
+import logging
+import re
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from ..volume import Volume
+from ._common import one_line, optional_library, to_native
+
+EXTENSIONS = (".tif", ".tiff")
+
+#: TIFF ResolutionUnit "none": ImageJ stores pixels per unit of its own ``unit``.
+_RESUNIT_NONE = 1
+
+
+def read_tiff(path) -> Volume:
+    """Read a stack of grey-level TIFF pages as a volume, one page per z slice.
+
+    The stack is the file's first series (ImageJ hyperstacks and OME-TIFF
+    name their axes); axes of length 1 are dropped, and what is left must
+    be z, y, x. Plain pages that no metadata ties together are stacked in
+    file order when they all have the same shape and type.
+
+    Spacing, in the file's own unit: OME-TIFF ``PhysicalSizeX/Y/Z``;
+    ImageJ's ``XResolution``/``YResolution`` (pixels per unit) and
+    ``spacing`` (z); otherwise 1, 1, 1 and ``meta['note']`` says so.
+    Origin is 0, 0, 0.
+
+    Parameters
+    ----------
+    path : str or Path
+
+    Returns
+    -------
+    Volume
+    """
+    path = Path(path)
+    tifffile = optional_library("tifffile", path, "TIFF", "tiff")
+    try:
+        with _quiet(), tifffile.TiffFile(str(path)) as tif:
+            data, axes, spacing, note, meta = _stack(tif, path)
+    except InputError:
+        raise
+    except MemoryError:
+        raise InputError(f"{path}: not enough memory to load this TIFF volume") from None
+    except Exception as exc:  # noqa: BLE001 - tifffile raises many kinds on bad files
+        raise InputError(f"{path}: cannot read TIFF file: {one_line(exc) or type(exc).__name__}") from None
+    meta.update(format="tiff", axes=axes)
+    if note:
+        # `load_volume` drops it when the caller gives the spacing.
+        meta.update(note=note, spacing_unknown=True)
+    return Volume(np.ascontiguousarray(to_native(data)), spacing=spacing, origin=(0.0, 0.0, 0.0),
+                  name=str(path), meta=meta)
+
+
+@contextlib.contextmanager
+def _quiet():
+    """Silence tifffile's own log lines: a bad file gets our one error line, not theirs as well."""
+    log = logging.getLogger("tifffile")
+    was = log.disabled
+    log.disabled = True
+    try:
+        yield
+    finally:
+        log.disabled = was
+
+
+def _stack(tif, path):
+    """``(data [z, y, x], axes, spacing, note, meta)`` of an open TIFF file."""
+    if len(tif.pages) == 0 or not tif.series:
+        raise InputError(f"{path}: no readable image in this TIFF file")
+    page = tif.pages[0]
+    if page.samplesperpixel > 1:
+        raise InputError(f"{path}: TIFF pages hold {page.samplesperpixel} samples per pixel (colour or "
+                         "channels); a volume needs one grey value per pixel")
+    series = tif.series[0]
+    axes = series.axes
+    data = series.asarray()
+    if data.ndim == 2 and len(tif.pages) > 1:
+        pages = list(tif.pages)
+        if any(p.shape != page.shape or p.dtype != page.dtype for p in pages):
+            raise InputError(f"{path}: its {len(pages)} TIFF pages differ in size or sample type; "
+                             "a stack needs equal pages")
+        data = np.stack([p.asarray() for p in pages])
+        axes = "Z" + axes
+    keep = [i for i, n in enumerate(data.shape) if n != 1]
+    shape = " x ".join(f"{n} {a}" for n, a in zip(data.shape, axes))
+    if len(keep) < 3:
+        raise InputError(f"{path}: a single 2-D image ({shape}), not a stack of slices")
+    if len(keep) > 3:
+        raise InputError(f"{path}: TIFF axes {shape}: a volume needs 3 (z, y, x); "
+                         "save one channel and time point as its own stack")
+    data = data.reshape([data.shape[i] for i in keep])
+    axes = "".join(axes[i] for i in keep)
+    if axes[0] == "C":
+        raise InputError(f"{path}: the stack's slices are channels ({shape}), not z slices")
+    spacing, note, meta = _spacing(tif, path)
+    return data, axes, spacing, note, meta
+
+
+def _spacing(tif, path):
+    """``(spacing (x, y, z), note, meta)`` from OME or ImageJ metadata."""
+    if tif.is_ome and tif.ome_metadata:
+        found = {}
+        for a in "XYZ":
+            m = re.search(rf'PhysicalSize{a}="([^"]+)"', tif.ome_metadata)
+            if m:
+                found[a] = _positive(m.group(1))
+        unit = re.search(r'PhysicalSizeXUnit="([^"]+)"', tif.ome_metadata)
+        meta = {"unit": unit.group(1) if unit else "µm"}
+        if all(found.get(a) for a in "XYZ"):
+            return (found["X"], found["Y"], found["Z"]), None, meta
+        return _partial(found, meta)
+    if tif.is_imagej:
+        ij = tif.imagej_metadata or {}
+        page = tif.pages[0]
+        found = {"Z": _positive(ij.get("spacing"))}
+        if int(getattr(page.tags.get("ResolutionUnit"), "value", _RESUNIT_NONE)) == _RESUNIT_NONE:
+            for a, tag in (("X", "XResolution"), ("Y", "YResolution")):
+                res = page.tags.get(tag)
+                if res is not None:
+                    num, den = res.value
+                    found[a] = _positive(den / num) if num else None
+        meta = {"unit": ij.get("unit", "pixel")}
+        if all(found.get(a) for a in "XYZ"):
+            return (found["X"], found["Y"], found["Z"]), None, meta
+        return _partial(found, meta)
+    return (1.0, 1.0, 1.0), "the TIFF gives no voxel size: spacing 1, 1, 1 (give --spacing SX,SY,SZ)", {}
+
+
+def _partial(found, meta):
+    spacing = tuple(found.get(a) or 1.0 for a in "XYZ")
+    missing = ", ".join(a.lower() for a in "XYZ" if not found.get(a))
+    return spacing, f"the TIFF gives no voxel size along {missing}: 1 was used (give --spacing SX,SY,SZ)", meta
+
+
+def _positive(value):
+    """``value`` as a positive finite float, or None."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        return None
+    return v if np.isfinite(v) and v > 0 else None

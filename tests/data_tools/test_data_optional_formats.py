@@ -1,0 +1,195 @@
+"""NIfTI and TIFF stacks: read through nibabel and tifffile, the files written by those libraries themselves.
+
+Truth: the array and geometry each file was written with. Bad files, and a
+missing library, get one InputError line naming the file.
+"""
+from __future__ import annotations
+
+import sys
+
+import nibabel as nib
+import numpy as np
+import pytest
+import tifffile
+
+from data_tools import InputError, Volume, load_volume
+from data_tools.io import save_volume
+
+RNG = np.random.default_rng(7)
+ZYX = (7, 5, 6)
+
+
+def _data(dtype):
+    """A [z, y, x] array using much of ``dtype``'s range."""
+    if np.dtype(dtype).kind == "f":
+        return (RNG.normal(size=ZYX) * 1e3).astype(dtype)
+    info = np.iinfo(dtype)
+    return RNG.integers(info.min, info.max, ZYX, endpoint=True).astype(dtype)
+
+
+def _nifti(path, zyx, affine, cls=nib.Nifti1Image, slope_inter=None):
+    img = cls(zyx.T, affine)           # nibabel arrays are [x, y, z]
+    if slope_inter is not None:
+        img.header.set_slope_inter(*slope_inter)
+    nib.save(img, str(path))
+    return path
+
+
+def fails(path, match):
+    with pytest.raises(InputError) as info:
+        load_volume(path)
+    msg = str(info.value)
+    assert "\n" not in msg and str(path) in msg
+    assert match.lower() in msg.lower(), msg
+    return msg
+
+
+@pytest.mark.parametrize("ext", [".nii", ".nii.gz", ".NII.GZ"])
+@pytest.mark.parametrize("dtype", ["uint8", "int16", "uint16", "int32", "float32", "float64"])
+def test_nifti_round_trip(tmp_path, ext, dtype):
+    a = _data(dtype)
+    affine = np.diag([0.5, 0.75, 2.0, 1.0])
+    affine[:3, 3] = (10.0, -20.0, 30.5)
+    vol = load_volume(_nifti(tmp_path / f"v{ext}", a, affine))
+    assert vol.data.dtype == a.dtype and vol.data.flags.c_contiguous
+    assert np.array_equal(vol.data, a)
+    assert vol.spacing == (0.5, 0.75, 2.0) and vol.origin == (10.0, -20.0, 30.5)
+    assert vol.meta["format"] == "nifti" and "note" not in vol.meta
+
+
+def test_nifti2(tmp_path):
+    a = _data("int16")
+    vol = load_volume(_nifti(tmp_path / "v.nii", a, np.diag([1.0, 2.0, 3.0, 1.0]), cls=nib.Nifti2Image))
+    assert np.array_equal(vol.data, a) and vol.spacing == (1.0, 2.0, 3.0) and vol.meta["version"] == 2
+
+
+def test_nifti_scaled_samples_are_the_scaled_values(tmp_path):
+    a = _data("int16")
+    vol = load_volume(_nifti(tmp_path / "s.nii.gz", a, np.eye(4), slope_inter=(0.5, -1024.0)))
+    assert vol.data.dtype == np.float32
+    assert np.array_equal(vol.data, (a.astype(np.float64) * 0.5 - 1024.0).astype(np.float32))
+    assert vol.meta["scaling"] == {"slope": 0.5, "inter": -1024.0}
+
+
+@pytest.mark.parametrize("kind", ["flipped", "rotated"])
+def test_nifti_orientation_reduced_to_spacings_with_a_note(tmp_path, kind):
+    if kind == "flipped":
+        affine = np.diag([-0.8, 0.8, 1.6, 1.0])     # LAS, as many scanners write
+        words = "flipped"
+    else:
+        c, s = np.cos(0.3), np.sin(0.3)
+        affine = np.array([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]]) @ np.diag([0.8, 0.8, 1.6, 1])
+        words = "rotated"
+    affine[:3, 3] = (4.0, 5.0, 6.0)
+    a = _data("uint8")
+    vol = load_volume(_nifti(tmp_path / "o.nii", a, affine))
+    assert np.array_equal(vol.data, a)
+    assert np.allclose(vol.spacing, (0.8, 0.8, 1.6)) and vol.origin == (4.0, 5.0, 6.0)
+    assert words in vol.meta["note"]
+
+
+def test_nifti_trailing_axis_of_one_is_a_volume(tmp_path):
+    a = _data("uint8")
+    nib.save(nib.Nifti1Image(a.T[..., None], np.eye(4)), str(tmp_path / "t.nii"))
+    assert np.array_equal(load_volume(tmp_path / "t.nii").data, a)
+
+
+def test_nifti_time_series_is_refused(tmp_path):
+    nib.save(nib.Nifti1Image(np.zeros((6, 5, 7, 3), np.float32), np.eye(4)), str(tmp_path / "ts.nii"))
+    fails(tmp_path / "ts.nii", "3 volumes")
+
+
+def test_nifti_bad_files(tmp_path):
+    (tmp_path / "junk.nii").write_bytes(b"not a nifti header" * 30)
+    fails(tmp_path / "junk.nii", "cannot read NIfTI")
+    good = _nifti(tmp_path / "good.nii.gz", _data("float32"), np.eye(4)).read_bytes()
+    (tmp_path / "cut.nii.gz").write_bytes(good[: len(good) // 2])
+    fails(tmp_path / "cut.nii.gz", "NIfTI")
+
+
+def test_tiff_imagej_stack_with_its_voxel_size(tmp_path):
+    a = _data("uint16")
+    p = tmp_path / "ij.tif"
+    tifffile.imwrite(p, a, imagej=True, resolution=(1 / 0.25, 1 / 0.5),
+                     metadata={"spacing": 2.0, "unit": "um", "axes": "ZYX"})
+    vol = load_volume(p)
+    assert vol.data.dtype == np.uint16 and np.array_equal(vol.data, a)
+    assert vol.spacing == (0.25, 0.5, 2.0) and vol.meta["unit"] == "um" and "note" not in vol.meta
+
+
+def test_ome_tiff_physical_sizes(tmp_path):
+    a = _data("float32")
+    p = tmp_path / "v.ome.tiff"
+    tifffile.imwrite(p, a, ome=True,
+                     metadata={"axes": "ZYX", "PhysicalSizeX": 0.3, "PhysicalSizeY": 0.4, "PhysicalSizeZ": 1.5})
+    vol = load_volume(p)
+    assert np.array_equal(vol.data, a) and vol.spacing == (0.3, 0.4, 1.5)
+
+
+@pytest.mark.parametrize("byteorder", ["<", ">"])
+def test_plain_tiff_stack_gets_unit_spacing_and_a_note(tmp_path, byteorder):
+    a = _data("int16")
+    p = tmp_path / "plain.tiff"
+    tifffile.imwrite(p, a, photometric="minisblack", byteorder=byteorder)
+    vol = load_volume(p)
+    assert vol.data.dtype.isnative and np.array_equal(vol.data, a)
+    assert vol.spacing == (1.0, 1.0, 1.0) and "--spacing" in vol.meta["note"]
+    given = load_volume(p, spacing=(1, 2, 3))
+    assert given.spacing == (1, 2, 3) and "note" not in given.meta
+
+
+def test_tiff_pages_written_one_by_one_are_stacked(tmp_path):
+    a = _data("uint8")
+    p = tmp_path / "pages.tif"
+    with tifffile.TiffWriter(p) as w:
+        for page in a:
+            w.write(page, contiguous=False)
+    assert np.array_equal(load_volume(p).data, a)
+
+
+def test_tiff_refusals(tmp_path):
+    tifffile.imwrite(tmp_path / "rgb.tif", np.zeros((6, 5, 4, 3), np.uint8), photometric="rgb")
+    fails(tmp_path / "rgb.tif", "samples per pixel")
+    tifffile.imwrite(tmp_path / "one.tif", np.zeros((5, 4), np.uint8))
+    fails(tmp_path / "one.tif", "single 2-D image")
+    tifffile.imwrite(tmp_path / "hyper.tif", np.zeros((2, 3, 4, 5, 6), np.uint16), imagej=True,
+                     metadata={"axes": "TZCYX"})
+    fails(tmp_path / "hyper.tif", "needs 3")
+    tifffile.imwrite(tmp_path / "chan.tif", np.zeros((3, 5, 6), np.uint16), imagej=True, metadata={"axes": "CYX"})
+    fails(tmp_path / "chan.tif", "channels")
+    with tifffile.TiffWriter(tmp_path / "mixed.tif") as w:
+        w.write(np.zeros((5, 6), np.uint8), contiguous=False)
+        w.write(np.zeros((5, 7), np.uint8), contiguous=False)
+    fails(tmp_path / "mixed.tif", "differ")
+    (tmp_path / "junk.tif").write_bytes(b"II*\x00" + b"\xff" * 40)
+    fails(tmp_path / "junk.tif", "TIFF")
+
+
+@pytest.mark.parametrize("name, module, extra", [("v.nii.gz", "nibabel", "nifti"), ("v.tif", "tifffile", "tiff")])
+def test_missing_library_says_how_to_install_it(tmp_path, monkeypatch, name, module, extra):
+    p = tmp_path / name
+    p.write_bytes(b"\x00" * 400)
+    monkeypatch.setitem(sys.modules, module, None)    # import now raises ImportError
+    msg = fails(p, module)
+    assert f"parc[{extra}]" in msg
+
+
+def test_a_nifti_volume_renders_as_the_same_array_does(tmp_path):
+    from parc import Camera, Isosurface, Scene, render
+    k, j, i = np.mgrid[0:10, 0:12, 0:14]
+    a = (((i - 6.5) ** 2 + (j - 5.5) ** 2 + 2 * (k - 4.5) ** 2) ** 0.5).astype(np.float32)
+    affine = np.diag([1.0, 1.0, 0.5, 1.0])
+    affine[:3, 3] = (-3.0, 2.0, 1.0)
+    from_file = load_volume(_nifti(tmp_path / "ball.nii.gz", a, affine))
+    direct = Volume(a, spacing=(1.0, 1.0, 0.5), origin=(-3.0, 2.0, 1.0))
+    lo, hi = direct.bounds
+    images = [render(Scene(camera=Camera.framing(lo, hi), size=(24, 20), volumes=[Isosurface(v, 4.0)]),
+                     method="brute") for v in (from_file, direct)]
+    assert np.isfinite(images[1].depth).any()
+    assert np.array_equal(images[0].depth, images[1].depth) and np.array_equal(images[0].image, images[1].image)
+
+
+def test_writing_nifti_or_tiff_is_refused_clearly(tmp_path):
+    for name in ("v.nii", "v.tif"):
+        with pytest.raises(InputError, match="supported"):
+            save_volume(Volume(_data("uint8")), tmp_path / name)
