@@ -34,6 +34,7 @@ examples:
   parc compare scene.toml --size 256 256      flags override the scene file's view and size
   parc info CThead.nrrd                       dims, spacing, histogram, isovalues
   parc make ct_phantom --size 128 -o ct.nrrd  a synthetic volume
+  parc convert stack.tif --spacing 0.2,0.2,1 -o stack.nrrd   another format, with the spacing it lacked
   parc bench --quick --out report/            the benchmark suite: report.md and charts
 
 Axis order: positions, spacing and origin are x,y,z; arrays are [z,y,x].
@@ -234,6 +235,16 @@ def build_parser():
     i.add_argument("volume")
     _add_volume_options(i)
 
+    v = sub.add_parser("convert", help="write a volume in another format",
+                       description="Read a volume (any format render reads, with the same reading flags) and write "
+                                   "it in the format OUT's extension names. Samples keep their type; spacing and "
+                                   "origin go into the header (.npy: a .npy.json sidecar; .raw: samples only). "
+                                   "Use it to give a raw file or a TIFF stack its shape and spacing once.")
+    v.add_argument("volume", metavar="VOLUME", help="volume file to read (the formats render reads)")
+    v.add_argument("-o", "--output", required=True, metavar="OUT",
+                   help="output file: .nrrd (gzip) .nhdr .npy .mhd .mha .vtk .raw")
+    _add_volume_options(v)
+
     from data_tools.synthetic import DESCRIPTIONS
     m = sub.add_parser("make", help="write a synthetic volume",
                        description="Write a synthetic volume.\n\n" + "\n".join(
@@ -303,7 +314,7 @@ def _main(argv):
         return EXIT_USAGE
     args.argv = argv
     commands = {"render": cmd_render, "compare": cmd_compare, "info": cmd_info, "make": cmd_make,
-                "bench": cmd_bench}
+                "convert": cmd_convert, "bench": cmd_bench}
     return commands[args.command](args)
 
 
@@ -333,6 +344,20 @@ def cmd_make(args):
         raise InputError(f"{args.name} takes no --seed") from None
     save_volume(vol, out)  # all-or-nothing itself, and keeps sidecar names right
     print(f"wrote {out} ({'x'.join(map(str, vol.dims))} {vol.dtype})")
+    return 0
+
+
+def cmd_convert(args):
+    from data_tools.io import WRITE_EXTENSIONS, save_volume
+    out = check_output(args.output, WRITE_EXTENSIONS)
+    check_distinct(args.volume, [out])
+    vol = load_volume_flags(args)
+    save_volume(vol, out)  # all-or-nothing itself, and keeps sidecar names right
+    if "note" in vol.meta:
+        print(f"parc: {vol.meta['note']}", file=sys.stderr)
+    spacing = ", ".join(f"{s:g}" for s in vol.spacing)
+    origin = ", ".join(f"{o:g}" for o in vol.origin)
+    print(f"wrote {out} ({'x'.join(map(str, vol.dims))} {vol.dtype}, spacing {spacing}, origin {origin})")
     return 0
 
 

@@ -68,6 +68,45 @@ def test_info_and_make(tmp_path, capsys):
     assert rc == 0 and "20" in out and "uint8" in out
 
 
+def test_convert_gives_a_raw_file_its_header(tmp_path, capsys):
+    from data_tools.io import load_volume
+    data = np.arange(5 * 4 * 3, dtype=np.int16).reshape(5, 4, 3) * 37 - 900     # [z, y, x]
+    raw = tmp_path / "scan.raw"
+    raw.write_bytes(data.astype(">i2").tobytes())
+    out = tmp_path / "scan.nrrd"
+    rc, stdout, err = _run(["convert", raw, "--shape", "3,4,5", "--dtype", "int16", "--byte-order", "big",
+                            "--spacing", "0.5,0.5,2", "--origin", "-1,2,-3", "-o", out], capsys)
+    assert rc == 0, err
+    assert "3x4x5 int16" in stdout and "spacing 0.5, 0.5, 2" in stdout
+    vol = load_volume(out)
+    assert vol.data.dtype == np.int16 and np.array_equal(vol.data, data)
+    assert vol.spacing == (0.5, 0.5, 2.0) and vol.origin == (-1.0, 2.0, -3.0)
+
+
+def test_convert_a_tiff_stack_says_when_its_spacing_is_unknown(tmp_path, capsys):
+    import tifffile
+    from data_tools.io import load_volume
+    data = np.random.default_rng(3).integers(0, 255, (6, 5, 4)).astype(np.uint8)
+    tif = tmp_path / "stack.tif"
+    tifffile.imwrite(tif, data, photometric="minisblack")
+    rc, _, err = _run(["convert", tif, "-o", tmp_path / "a.npy"], capsys)
+    assert rc == 0 and "no voxel size" in err
+    rc, _, err = _run(["convert", tif, "--spacing", "0.2,0.2,1", "-o", tmp_path / "b.mha"], capsys)
+    assert rc == 0 and err == ""
+    vol = load_volume(tmp_path / "b.mha")
+    assert np.array_equal(vol.data, data) and vol.spacing == (0.2, 0.2, 1.0)
+
+
+@pytest.mark.parametrize("out_name, words", [("v.png", "output must end in"), ("ball.nrrd", "is the input file"),
+                                              ("none/v.nrrd", "does not exist")])
+def test_convert_refusals_write_nothing(vol_file, out_name, words, capsys):
+    before = sorted(vol_file.parent.iterdir())
+    stamp = vol_file.stat().st_mtime_ns
+    rc, _, err = _run(["convert", vol_file, "-o", vol_file.parent / out_name], capsys)
+    assert rc == 2 and err.count("\n") == 1 and words in err, err
+    assert sorted(vol_file.parent.iterdir()) == before and vol_file.stat().st_mtime_ns == stamp
+
+
 def _bad_files(tmp_path):
     """(name, argv maker) for each kind of bad input file."""
     files = {}
