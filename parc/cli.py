@@ -160,8 +160,8 @@ def build_parser():
                        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     r.add_argument("volume", nargs="?", metavar="VOLUME|SCENE.toml",
                    help="volume file (.nrrd .nhdr .mhd .mha .vtk .slc .npy .raw; .nii .nii.gz with nibabel, "
-                        ".tif .tiff stacks with tifffile), or a scene file (.toml) with several volumes, camera "
-                        "and lights")
+                        ".tif .tiff stacks with tifffile) or a folder of .tif slices, or a scene file (.toml) "
+                        "with several volumes, camera and lights")
     r.add_argument("-o", "--output", required=True, metavar="OUT",
                    help="image: .png (8-bit RGBA) or .npy (float32 RGBA array)")
     r.add_argument("--depth", metavar="D.npy", help="also write the float64 depth image (inf = no hit)")

@@ -44,7 +44,8 @@ def load_volume(path, **options) -> Volume:
     path : str or Path
         ``.nrrd``/``.nhdr``, ``.mhd``/``.mha``, ``.vtk``, ``.slc``, ``.npy``,
         ``.nii``/``.nii.gz`` (needs nibabel), ``.tif``/``.tiff`` stacks (needs
-        tifffile), or headerless ``.raw``/``.bin``/``.dat``.
+        tifffile), a folder of single-slice ``.tif`` files (an image
+        sequence, in natural order), or headerless ``.raw``/``.bin``/``.dat``.
     **options
         For raw files: ``shape=(nx, ny, nz)``, ``dtype``, ``byte_order``,
         ``offset``, ``mmap`` (see :func:`data_tools.io.raw.read_raw`). ``spacing`` and
@@ -69,6 +70,31 @@ def load_volume(path, **options) -> Volume:
     if unknown:
         raise TypeError(f"load_volume() got unexpected options {sorted(unknown)}")
     options = {k: v for k, v in options.items() if v is not None and not (k == "mmap" and not v)}
+    if path.is_dir():
+        reader, kind = tiff.read_tiff_folder, "TIFF"
+    else:
+        reader, kind = _file_reader(path)
+    if reader is raw.read_raw:
+        with reading(path, kind):
+            return raw.read_raw(path, **options)
+    extra = sorted(set(options) - {"spacing", "origin"})
+    if extra:
+        flags = ", ".join("--" + k.replace("_", "-") for k in extra)
+        verb = "applies" if len(extra) == 1 else "apply"
+        raise InputError(f"{path}: {flags} {verb} only to headerless raw files; this file has a header")
+    with reading(path, kind):
+        vol = reader(path)
+    if "spacing" in options or "origin" in options:
+        meta = vol.meta
+        if "spacing" in options and meta.get("spacing_unknown"):
+            meta = {k: v for k, v in meta.items() if k not in ("note", "spacing_unknown")}
+        vol = Volume(vol.data, spacing=options.get("spacing", vol.spacing),
+                     origin=options.get("origin", vol.origin), name=vol.name, meta=meta)
+    return vol
+
+
+def _file_reader(path):
+    """``(reader, kind)`` for a volume file, after the checks every file gets."""
     ext = volume_extension(path)
     if ext not in _READERS:
         if not path.exists():
@@ -80,23 +106,7 @@ def load_volume(path, **options) -> Volume:
     if path.stat().st_size == 0:
         raise InputError(f"{path}: file is empty")
     reader = _READERS[ext]
-    if reader is raw.read_raw:
-        with reading(path, "raw"):
-            return raw.read_raw(path, **options)
-    extra = sorted(set(options) - {"spacing", "origin"})
-    if extra:
-        flags = ", ".join("--" + k.replace("_", "-") for k in extra)
-        verb = "applies" if len(extra) == 1 else "apply"
-        raise InputError(f"{path}: {flags} {verb} only to headerless raw files; this file has a header")
-    with reading(path, ext.split(".")[1].upper()):
-        vol = reader(path)
-    if "spacing" in options or "origin" in options:
-        meta = vol.meta
-        if "spacing" in options and meta.get("spacing_unknown"):
-            meta = {k: v for k, v in meta.items() if k not in ("note", "spacing_unknown")}
-        vol = Volume(vol.data, spacing=options.get("spacing", vol.spacing),
-                     origin=options.get("origin", vol.origin), name=vol.name, meta=meta)
-    return vol
+    return reader, "raw" if reader is raw.read_raw else ext.split(".")[1].upper()
 
 
 def save_volume(volume: Volume, path, **options) -> Path:

@@ -19,6 +19,9 @@ from ._common import one_line, optional_library, to_native
 
 EXTENSIONS = (".tif", ".tiff")
 
+#: Files in a folder that say it holds a DICOM series rather than slices.
+_DICOM = (".dcm", ".dicom", ".ima")
+
 #: TIFF ResolutionUnit "none": ImageJ stores pixels per unit of its own ``unit``.
 _RESUNIT_NONE = 1
 
@@ -151,3 +154,71 @@ def _positive(value):
     except (TypeError, ValueError):
         return None
     return v if np.isfinite(v) and v > 0 else None
+
+
+def read_tiff_folder(path) -> Volume:
+    """Read a folder of single-slice TIFF files (an image sequence) as a volume.
+
+    The slices are the folder's ``.tif``/``.tiff`` files in natural order
+    (``z2`` before ``z10``), one z slice each, all of one shape and type.
+    Spacing along x and y comes from the first slice's ImageJ or OME
+    metadata where it has some; along z the files say nothing, so it is 1
+    and ``meta['note']`` says so (give ``spacing``).
+
+    Parameters
+    ----------
+    path : str or Path
+        The folder.
+
+    Returns
+    -------
+    Volume
+    """
+    path = Path(path)
+    files = sorted((f for f in path.iterdir() if f.suffix.lower() in EXTENSIONS and f.is_file()),
+                   key=lambda f: _natural_key(f.name))
+    if not files:
+        if any(f.suffix.lower() in _DICOM for f in path.iterdir()):
+            raise InputError(f"{path}: a DICOM series is not read here; convert it to NRRD or NIfTI first "
+                             "(e.g. with dcm2niix)")
+        raise InputError(f"{path}: is a directory with no .tif slices, not a volume file")
+    if len(files) < 2:
+        raise InputError(f"{path}: holds one .tif slice ({files[0].name}); a volume needs at least 2")
+    tifffile = optional_library("tifffile", path, "TIFF", "tiff")
+    slices = []
+    spacing = (1.0, 1.0, 1.0)
+    for n, f in enumerate(files):
+        try:
+            with _quiet(), tifffile.TiffFile(str(f)) as tif:
+                if len(tif.pages) == 0 or not tif.series:
+                    raise InputError(f"{f}: no readable image in this TIFF file")
+                if tif.pages[0].samplesperpixel > 1:
+                    raise InputError(f"{f}: TIFF pages hold {tif.pages[0].samplesperpixel} samples per pixel "
+                                     "(colour or channels); a volume needs one grey value per pixel")
+                image = tif.series[0].asarray()
+                if n == 0:
+                    spacing, _, _ = _spacing(tif, f)
+        except InputError:
+            raise
+        except MemoryError:
+            raise InputError(f"{path}: not enough memory to load these TIFF slices") from None
+        except Exception as exc:  # noqa: BLE001 - tifffile raises many kinds on bad files
+            raise InputError(f"{f}: cannot read TIFF file: {one_line(exc) or type(exc).__name__}") from None
+        image = image.reshape([d for d in image.shape if d != 1] or [1])
+        if image.ndim != 2:
+            raise InputError(f"{f}: holds a {image.ndim}-D image; a folder of slices needs one 2-D image a file")
+        if slices and (image.shape != slices[0].shape or image.dtype != slices[0].dtype):
+            raise InputError(f"{f}: {image.shape[1]}x{image.shape[0]} {image.dtype}, but {files[0].name} is "
+                             f"{slices[0].shape[1]}x{slices[0].shape[0]} {slices[0].dtype}; slices must match")
+        slices.append(to_native(image))
+    note = (f"{len(files)} slices; the files give no spacing between them: 1 was used along z "
+            "(give --spacing SX,SY,SZ)")
+    meta = {"format": "tiff slices", "files": len(files), "note": note, "spacing_unknown": True}
+    return Volume(np.stack(slices), spacing=(spacing[0], spacing[1], 1.0), origin=(0.0, 0.0, 0.0),
+                  name=str(path), meta=meta)
+
+
+def _natural_key(name):
+    """Sort key that orders the numbers in a name by value: ``z2`` before ``z10``."""
+    return [(0, int(part), "") if part.isdigit() else (1, 0, part.lower()) for part in re.split(r"(\d+)", name)]
+

@@ -193,3 +193,37 @@ def test_writing_nifti_or_tiff_is_refused_clearly(tmp_path):
     for name in ("v.nii", "v.tif"):
         with pytest.raises(InputError, match="supported"):
             save_volume(Volume(_data("uint8")), tmp_path / name)
+
+
+def _slices(folder, zyx, names=None, **kw):
+    folder.mkdir()
+    names = names or [f"slice{z + 1}.tif" for z in range(len(zyx))]
+    for name, image in zip(names, zyx):
+        tifffile.imwrite(folder / name, image, **kw)
+    return folder
+
+
+def test_folder_of_slices_in_natural_order(tmp_path):
+    a = RNG.integers(0, 4000, (12, 5, 6)).astype(np.uint16)      # 12 slices: slice10 sorts after slice9
+    folder = _slices(tmp_path / "seq", a, imagej=True, resolution=(1 / 0.25, 1 / 0.5), metadata={"unit": "um"})
+    (folder / "notes.txt").write_text("not a slice")
+    vol = load_volume(folder)
+    assert np.array_equal(vol.data, a) and vol.spacing == (0.25, 0.5, 1.0)
+    assert "12 slices" in vol.meta["note"] and "--spacing" in vol.meta["note"]
+    given = load_volume(folder, spacing=(0.25, 0.5, 2.0))
+    assert given.spacing == (0.25, 0.5, 2.0) and "note" not in given.meta
+
+
+def test_folder_refusals(tmp_path):
+    a = _data("uint8")
+    folder = _slices(tmp_path / "mixed", a[:3])
+    tifffile.imwrite(folder / "slice4.tif", np.zeros((5, 7), np.uint8))
+    fails(folder, "slices must match")
+    fails(_slices(tmp_path / "one", a[:1]), "at least 2")
+    (tmp_path / "dicom").mkdir()
+    (tmp_path / "dicom" / "IM0001.dcm").write_bytes(b"\0" * 132 + b"DICM")
+    fails(tmp_path / "dicom", "DICOM")
+    (tmp_path / "empty").mkdir()
+    fails(tmp_path / "empty", "no .tif slices")
+    stacks = _slices(tmp_path / "stacks", [a, a], photometric="minisblack")
+    fails(stacks, "2-D image")
