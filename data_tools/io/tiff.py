@@ -49,15 +49,8 @@ def read_tiff(path) -> Volume:
     """
     path = Path(path)
     tifffile = optional_library("tifffile", path, "TIFF", "tiff")
-    try:
-        with _quiet(), tifffile.TiffFile(str(path)) as tif:
-            data, axes, spacing, note, meta = _stack(tif, path)
-    except InputError:
-        raise
-    except MemoryError:
-        raise InputError(f"{path}: not enough memory to load this TIFF volume") from None
-    except Exception as exc:  # noqa: BLE001 - tifffile raises many kinds on bad files
-        raise InputError(f"{path}: cannot read TIFF file: {one_line(exc) or type(exc).__name__}") from None
+    with _reading_tiff(path), tifffile.TiffFile(str(path)) as tif:
+        data, axes, spacing, note, meta = _stack(tif, path)
     meta.update(format="tiff", axes=axes)
     if note:
         # `load_volume` drops it when the caller gives the spacing.
@@ -67,13 +60,20 @@ def read_tiff(path) -> Volume:
 
 
 @contextlib.contextmanager
-def _quiet():
-    """Silence tifffile's own log lines: a bad file gets our one error line, not theirs as well."""
+def _reading_tiff(path):
+    """tifffile's failures on ``path`` as one InputError line; its own log lines silenced,
+    so that a bad file gets that line alone."""
     log = logging.getLogger("tifffile")
     was = log.disabled
     log.disabled = True
     try:
         yield
+    except InputError:
+        raise
+    except MemoryError:
+        raise InputError(f"{path}: not enough memory to load this TIFF volume") from None
+    except Exception as exc:  # noqa: BLE001 - tifffile raises many kinds on bad files
+        raise InputError(f"{path}: cannot read TIFF file: {one_line(exc) or type(exc).__name__}") from None
     finally:
         log.disabled = was
 
@@ -188,22 +188,15 @@ def read_tiff_folder(path) -> Volume:
     slices = []
     spacing = (1.0, 1.0, 1.0)
     for n, f in enumerate(files):
-        try:
-            with _quiet(), tifffile.TiffFile(str(f)) as tif:
-                if len(tif.pages) == 0 or not tif.series:
-                    raise InputError(f"{f}: no readable image in this TIFF file")
-                if tif.pages[0].samplesperpixel > 1:
-                    raise InputError(f"{f}: TIFF pages hold {tif.pages[0].samplesperpixel} samples per pixel "
-                                     "(colour or channels); a volume needs one grey value per pixel")
-                image = tif.series[0].asarray()
-                if n == 0:
-                    spacing, _, _ = _spacing(tif, f)
-        except InputError:
-            raise
-        except MemoryError:
-            raise InputError(f"{path}: not enough memory to load these TIFF slices") from None
-        except Exception as exc:  # noqa: BLE001 - tifffile raises many kinds on bad files
-            raise InputError(f"{f}: cannot read TIFF file: {one_line(exc) or type(exc).__name__}") from None
+        with _reading_tiff(f), tifffile.TiffFile(str(f)) as tif:
+            if len(tif.pages) == 0 or not tif.series:
+                raise InputError(f"{f}: no readable image in this TIFF file")
+            if tif.pages[0].samplesperpixel > 1:
+                raise InputError(f"{f}: TIFF pages hold {tif.pages[0].samplesperpixel} samples per pixel "
+                                 "(colour or channels); a volume needs one grey value per pixel")
+            image = tif.series[0].asarray()
+            if n == 0:
+                spacing, _, _ = _spacing(tif, f)
         image = image.reshape([d for d in image.shape if d != 1] or [1])
         if image.ndim != 2:
             raise InputError(f"{f}: holds a {image.ndim}-D image; a folder of slices needs one 2-D image a file")
