@@ -1,8 +1,9 @@
 """Multi-page TIFF stacks (``.tif``, ``.tiff``), read with tifffile: microscopy's usual volume file.
 
-tifffile is an optional extra (``pip install 'parc[tiff]'``): TIFF's many
-compressions and tilings, and the ImageJ and OME metadata conventions, are
-what it is made for.
+tifffile is an optional extra (``pip install 'parc[tiff]'``, with
+imagecodecs for LZW and the other compressions): TIFF's many compressions
+and tilings, and the ImageJ and OME metadata conventions, are what it is
+made for.
 """
 from __future__ import annotations
 
@@ -73,7 +74,11 @@ def _reading_tiff(path):
     except MemoryError:
         raise InputError(f"{path}: not enough memory to load this TIFF volume") from None
     except Exception as exc:  # noqa: BLE001 - tifffile raises many kinds on bad files
-        raise InputError(f"{path}: cannot read TIFF file: {one_line(exc) or type(exc).__name__}") from None
+        detail = one_line(exc) or type(exc).__name__
+        if "imagecodecs" in detail:
+            # LZW and most other compressions: tifffile decodes them with imagecodecs.
+            detail += " (pip install imagecodecs, or the extra: pip install 'parc[tiff]')"
+        raise InputError(f"{path}: cannot read TIFF file: {detail}") from None
     finally:
         log.disabled = was
 

@@ -227,3 +227,17 @@ def test_folder_refusals(tmp_path):
     fails(tmp_path / "empty", "no .tif slices")
     stacks = _slices(tmp_path / "stacks", [a, a], photometric="minisblack")
     fails(stacks, "2-D image")
+
+
+def test_lzw_tiff_reads_or_says_to_install_imagecodecs(tmp_path):
+    from PIL import Image
+    a = _data("uint8")
+    p = tmp_path / "lzw.tif"
+    pages = [Image.fromarray(page) for page in a]
+    pages[0].save(p, compression="tiff_lzw", save_all=True, append_images=pages[1:])
+    try:
+        import imagecodecs  # noqa: F401
+    except ImportError:
+        fails(p, "pip install imagecodecs")
+    else:
+        assert np.array_equal(load_volume(p).data, a)
