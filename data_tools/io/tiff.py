@@ -83,14 +83,20 @@ def _reading_tiff(path):
         log.disabled = was
 
 
-def _stack(tif, path):
-    """``(data [z, y, x], axes, spacing, note, meta)`` of an open TIFF file."""
+def _grey_pages(tif, path):
+    """The first page of an open TIFF file, after checking it holds grey-level images."""
     if len(tif.pages) == 0 or not tif.series:
         raise InputError(f"{path}: no readable image in this TIFF file")
     page = tif.pages[0]
     if page.samplesperpixel > 1:
         raise InputError(f"{path}: TIFF pages hold {page.samplesperpixel} samples per pixel (colour or "
                          "channels); a volume needs one grey value per pixel")
+    return page
+
+
+def _stack(tif, path):
+    """``(data [z, y, x], axes, spacing, note, meta)`` of an open TIFF file."""
+    page = _grey_pages(tif, path)
     series = tif.series[0]
     axes = series.axes
     data = series.asarray()
@@ -194,11 +200,7 @@ def read_tiff_folder(path) -> Volume:
     spacing = (1.0, 1.0, 1.0)
     for n, f in enumerate(files):
         with _reading_tiff(f), tifffile.TiffFile(str(f)) as tif:
-            if len(tif.pages) == 0 or not tif.series:
-                raise InputError(f"{f}: no readable image in this TIFF file")
-            if tif.pages[0].samplesperpixel > 1:
-                raise InputError(f"{f}: TIFF pages hold {tif.pages[0].samplesperpixel} samples per pixel "
-                                 "(colour or channels); a volume needs one grey value per pixel")
+            _grey_pages(tif, f)
             image = tif.series[0].asarray()
             if n == 0:
                 spacing, _, _ = _spacing(tif, f)
