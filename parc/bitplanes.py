@@ -48,11 +48,12 @@ for this project's caster:
 
 Boundaries: strict bits (the default) and halo mode
 ---------------------------------------------------
-The caster (`raycast.composite.plane_bit`) maps a sample at index
-coordinate ``pos`` to plane ``floor(pos / m_a)``, and where ``pos`` lies
-within its tolerance of a boundary (``PLANE_TOL`` planes plus the
-rounding of ``pos`` itself, ``POS_ROUNDING`` of its terms: large when the
-eye is far away) it tests the bit of the plane across as well. For that caster
+The caster (`raycast.composite.clear_planes`) maps the span of index
+coordinates ``pos`` a ray covers in a cell to the planes ``floor(pos / m_a)``
+it meets, and where an end of the span lies within its tolerance of a
+boundary (``PLANE_TOL`` planes plus the rounding of ``pos`` itself,
+``POS_ROUNDING`` of its terms: large when the eye is far away) it tests
+the bit of the plane across as well. For that caster
 the strict bits suffice (``halo=False``, the default): exactly the planes
 whose PC boxes the ray meets (closed boxes, ``t >= 0``), plus the float32
 margins. Halo mode (``halo=True``) serves a caster that tests only

@@ -9,6 +9,17 @@ samples every quarter of a unit by default). A sample interpolates the
 data trilinearly (post-classification: interpolate the value, then look it
 up in the transfer function).
 
+The ray walks cell by cell, with the isosurface caster's traversal
+(`raycast.traverse`), and each cell takes the lattice points in its
+interval ``[c0, c1)`` of the walk (`cell_lattice`), interpolated from its
+eight corners read once. A cell's interval depends on the ray and the
+cell alone, so a walk started anywhere takes the same samples from there
+on, in the same cells. Interpolating per cell rather than locating every
+sample's cell by ``floor`` made the CT head at 300x300 cast 1.15x faster
+unaccelerated and 1.3x faster with PARC, and lets PARC pass over a
+transparent cell, or a plane of supercells whose bit is clear, without
+touching its samples.
+
 - *composite*: front-to-back ``C += (1 - A) a c``, ``A += (1 - A) a`` with
   the opacity corrected for the step (`raycast.transfer.correct_opacity`)
   and, optionally, the colour shaded with the gradient (headlight,
@@ -37,7 +48,8 @@ from .config import TILE_H, TILE_W, kernel
 from .rays import camera_ray, dealt_tile, tile_count
 from .shade import blinn_phong, trilinear_gradient
 from .transfer import correct_opacity, tf_color, tf_lookup, tf_opacity
-from .traverse import cell_corners, clip_box, entry_anchor, grid_shape, to_index_space
+from .traverse import (advance, axis_state, cell_corners, clip_box, cube_exit, entry_anchor, grid_shape, start_index,
+                       step_cell, to_index_space)
 
 MODE_COMPOSITE = 0
 MODE_MIP = 1
@@ -60,41 +72,31 @@ N_PARAMS = 15
 
 
 @kernel
-def sample_value(data, x, y, z):
-    """Trilinear value at index-space ``(x, y, z)``, and the cell and local coordinates used.
-
-    The value leaves the cell's corner range by at most `INTERP_ROUNDING` of the corners' magnitude.
-    """
-    i, j, k = sample_cell(data, x, y, z)
-    val, u, v, w = interpolate(data, x, y, z, i, j, k)
-    return val, i, j, k, u, v, w
-
-
-@kernel
-def sample_cell(data, x, y, z):
-    """The cell `sample_value` interpolates in at index-space ``(x, y, z)``: the floor, clamped to the grid."""
-    nz, ny, nx = grid_shape(data)
-    return (min(max(int(math.floor(x)), 0), nx - 2), min(max(int(math.floor(y)), 0), ny - 2),
-            min(max(int(math.floor(z)), 0), nz - 2))
-
-
-@kernel
 def interpolate(data, x, y, z, i, j, k):
     """Trilinear value at ``(x, y, z)`` in cell ``(i, j, k)``, and the local coordinates ``(u, v, w)``."""
     u = x - i
     v = y - j
     w = z - k
     v000, v100, v010, v110, v001, v101, v011, v111 = cell_corners(data, i, j, k)
+    return trilinear(v000, v100, v010, v110, v001, v101, v011, v111, u, v, w), u, v, w
+
+
+@kernel(inline="always")
+def trilinear(v000, v100, v010, v110, v001, v101, v011, v111, u, v, w):
+    """The trilinear interpolant of corners ``vIJK`` at local ``(u, v, w)``, by nested lerps.
+
+    The value leaves the corners' range by at most `INTERP_ROUNDING` of their magnitude for ``u, v, w`` in [0, 1].
+    """
     c00 = v000 + u * (v100 - v000)
     c10 = v010 + u * (v110 - v010)
     c01 = v001 + u * (v101 - v001)
     c11 = v011 + u * (v111 - v011)
     c0 = c00 + v * (c10 - c00)
     c1 = c01 + v * (c11 - c01)
-    return c0 + w * (c1 - c0), u, v, w
+    return c0 + w * (c1 - c0)
 
 
-#: The nested lerps of `interpolate` can round past the corners' range (a
+#: The nested lerps of `trilinear` can round past the corners' range (a
 #: difference like ``c10 - c00`` is inexact): by at most a few units of
 #: 2^-53 of the corners' largest magnitude (about 1 sample in 1,000 on
 #: corners mixing 1 and -1e-16). Classifying a cell for a transfer
@@ -106,8 +108,8 @@ def interpolate(data, x, y, z, i, j, k):
 INTERP_ROUNDING = 2.0 ** -44
 
 
-#: A sample this close (in planes) to a boundary between planes of
-#: supercells tests the bits of both: its float position may round to
+#: A span this close (in planes) to a boundary between planes of
+#: supercells tests the bits of both: its float positions may round to
 #: either side of where the OpenGL pass saw the ray cross.
 PLANE_TOL = 1e-6
 
@@ -128,50 +130,98 @@ def _bit(bits, py, px, q, params):
 
 
 @kernel(inline="always")
-def plane_bit(bits, py, px, pos, err, params):
-    """Whether a bit is set for the supercell plane holding index coordinate ``pos``
-    (rounded by up to ``err`` cells: see `POS_ROUNDING`)."""
+def clear_planes(bits, py, px, params, Aa, Da, Ua, ta, c0, c1):
+    """Whether every plane of supercells the ray meets over ``[c0, c1]`` has a clear bit,
+    and if so the time it may skip to: within tolerance of the far side of the last of them.
+
+    The ray's position along the plane axis is ``Aa + t Da`` (anchored
+    at ``t = ta`` from an origin ``Ua``: its rounding, `POS_ROUNDING`);
+    positions within `PLANE_TOL` planes of a boundary test both planes.
+    """
     m = params[P_PLANE_SIZE]
-    f = pos / m
+    p0 = Aa + c0 * Da
+    p1 = Aa + c1 * Da
+    err = POS_ROUNDING * (abs(Ua) + max(abs((ta + c0) * Da), abs((ta + c1) * Da)))
     tol = PLANE_TOL + err / m
-    lo = int(math.floor(f - tol))
-    hi = int(math.floor(f + tol))
-    return _bit(bits, py, px, lo, params) or (hi != lo and _bit(bits, py, px, hi, params))
+    q_lo = int(math.floor(min(p0, p1) / m - tol))
+    q_hi = int(math.floor(max(p0, p1) / m + tol))
+    for q in range(q_lo, q_hi + 1):
+        if _bit(bits, py, px, q, params):
+            return False, 0.0
+    if Da > 0.0:
+        return True, ((q_hi + 1 - tol) * m - Aa) / Da
+    if Da < 0.0:
+        return True, ((q_lo + tol) * m - Aa) / Da
+    return True, math.inf
 
 
-@kernel
-def next_plane_sample(n, t_in, step, O, D, pos, params):
-    """A lattice index safely before the ray leaves the plane holding ``pos``.
+#: The skip table `accumulate_ray` takes has one int8 per cell
+#: (`parc.classify.VolumeIndex.tf_skip`): this where the cell may
+#: contribute, else ``r + 1`` where every cell within Chebyshev distance
+#: ``r`` is transparent (its samples need no interpolation, and a ray may
+#: jump to the cube's exit).
+MAY_CONTRIBUTE = 0
 
-    The samples skipped up to it lie strictly inside that plane (two steps
-    of slack absorb the rounding of the crossing time), so when the plane's
-    bit is clear they are all transparent.
+
+@kernel(inline="always")
+def cell_lattice(c0, c1, t_in, t_out, step, n_last):
+    """``(n_lo, n_hi)``: the lattice points ``t_in + n step`` in a cell's interval ``[c0, c1)``
+    (the last cell, ``c1 = t_out``, keeps its end).
+
+    Consecutive cells share their crossing time, so every lattice point
+    belongs to exactly one cell, whichever cell a walk started from.
     """
-    if D == 0.0:
-        return 1 << 62
-    m = params[P_PLANE_SIZE]
-    q = math.floor(pos / m)
-    b = (q + 1.0) * m if D > 0.0 else q * m
-    t_b = (b - O) / D
-    target = int(math.floor((t_b - t_in) / step)) - 2
-    return max(n + 1, target)
+    n_lo = int(math.ceil((c0 - t_in) / step))
+    if c1 >= t_out:
+        return n_lo, n_last
+    return n_lo, int(math.ceil((c1 - t_in) / step)) - 1
 
 
-@kernel
-def lattice_range(t_in, t_out, step, seg0, seg1):
-    """``(n0, n1, n_last)``: the lattice points ``t_in + n step`` to take, ``n0 <= n <= n1``, of ``0 .. n_last``.
+#: What `visit_cell` tells the walk to do with a cell.
+TAKE = 0            # take its lattice points
+PASS = 1            # pass it: step on to the next cell
+MOVED = 2           # a jump landed the walk on another cell: visit that one
+END = 3             # nothing more to take along this ray
 
-    The segment bounds only pick lattice points; one extra point at each
-    end is harmless (PARC's segments end in transparent space).
+
+@kernel(inline="always")
+def visit_cell(A, s, inv, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1, c0, c1, t_end,
+               skip, jump_min, bits, py, px, use_bits, params, plane):
+    """What the walk does at cell ``(i, j, k)`` (interval ``[c0, c1]``):
+    ``(action, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1)``, ``action`` one of
+    `TAKE`, `PASS`, `MOVED` (the state is then the landing cell's) or `END`.
+
+    A cell is passed over when the skip table marks it transparent (a
+    cube of such cells of radius ``jump_min`` or more is jumped, to the
+    cell the walk is in where the ray leaves it) or, with ``use_bits``,
+    when every plane of supercells it meets has a clear bit (the planes'
+    clear stretch is jumped too). Either way its samples are all
+    transparent. ``A``, ``s`` and ``inv``: the anchored ray's origin, and
+    its steps and ``1 / D`` along each axis; ``plane``: ``(Aa, Da, Ua, ta)``
+    as `clear_planes` takes them. (Tuples: Numba inlines no function of
+    more than about 30 arguments.)
     """
-    n_last = int(math.floor((t_out - t_in) / step))
-    n0 = 0
-    n1 = n_last
-    if seg0 > t_in:
-        n0 = max(0, int(math.floor((seg0 - t_in) / step)))
-    if seg1 < t_out:
-        n1 = min(n_last, int(math.ceil((seg1 - t_in) / step)))
-    return n0, n1, n_last
+    e = skip[k, j, i] if jump_min >= 0 else MAY_CONTRIBUTE
+    if e == MAY_CONTRIBUTE:
+        if not use_bits:
+            return TAKE, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1
+        Aa, Da, Ua, ta = plane
+        clear, tb = clear_planes(bits, py, px, params, Aa, Da, Ua, ta, c0, c1)
+        if not clear:
+            return TAKE, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1
+    else:
+        if e - 1 < jump_min:
+            return PASS, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1
+        tb = cube_exit(A[0], A[1], A[2], s[0], s[1], s[2], inv[0], inv[1], inv[2], i, j, k, e - 1)
+    if tb >= t_end:
+        return END, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1
+    if tb <= c1:
+        return PASS, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1
+    # A jump: to the cell the walk is in at tb, by its own crossing times.
+    i, tx0, tx1 = advance(A[0], inv[0], s[0], i, tx0, tx1, tb)
+    j, ty0, ty1 = advance(A[1], inv[1], s[1], j, ty0, ty1, tb)
+    k, tz0, tz1 = advance(A[2], inv[2], s[2], k, tz0, tz1, tb)
+    return MOVED, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1
 
 
 @kernel
@@ -204,30 +254,148 @@ def composite_sample(data, spc, v, i, j, k, u, vv, w, a, dx, dy, dz, params, col
     return a, cr, cg, cb
 
 
-@kernel
-def _cube_exit_axis(O, D, c, r):
-    if D == 0.0:
-        return math.inf
-    b = c + r + 1 if D > 0.0 else c - r
-    return (b - O) / D
+@kernel(inline="always")
+def ray_span(data, Ox, Oy, Oz, Dx, Dy, Dz, seg0, seg1, t_stop, step):
+    """What a ray's walk covers: ``(ta, Ax, Ay, Az, t_in, t_out, n_last, t_start, t_end)``.
+
+    The ray is anchored at its entry into the volume (`entry_anchor`: ``A``
+    is its point at ``t = ta``, and the walk's times count from there); its
+    lattice points are ``t_in + n step``, ``n = 0 .. n_last``; the walk
+    goes from ``t_start`` (the segment's start, or the entry) and need not
+    pass ``t_end`` (the segment's end, the stop or the exit).
+    ``t_start > t_end`` when there is nothing to walk.
+    """
+    nz, ny, nx = grid_shape(data)
+    ta, Ax, Ay, Az = entry_anchor(Ox, Oy, Oz, Dx, Dy, Dz, nx, ny, nz)
+    t_in, t_out = clip_box(Ax, Ay, Az, Dx, Dy, Dz, nx, ny, nz)
+    if not t_in <= t_out:
+        return ta, Ax, Ay, Az, t_in, t_out, -1, 1.0, 0.0
+    n_last = int(math.floor((t_out - t_in) / step))
+    return ta, Ax, Ay, Az, t_in, t_out, n_last, max(t_in, seg0 - ta), min(t_out, min(seg1, t_stop) - ta)
 
 
-@kernel
-def cube_last_sample(n, t_in, step, Ox, Oy, Oz, Dx, Dy, Dz, i, j, k, r):
-    """A lattice index safely before the ray leaves the cube of cells within ``r`` of cell ``(i, j, k)``,
-    at least ``n``; as `next_plane_sample`, two steps of slack."""
-    t_b = min(_cube_exit_axis(Ox, Dx, i, r), min(_cube_exit_axis(Oy, Dy, j, r), _cube_exit_axis(Oz, Dz, k, r)))
-    if t_b == math.inf:
-        return 1 << 62
-    return max(n, int(math.floor((t_b - t_in) / step)) - 2)
+@kernel(inline="always")
+def walk_from(Ax, Ay, Az, Dx, Dy, Dz, t, nx, ny, nz):
+    """The walk's state in the cell holding ``t``: ``(i, j, k, sx, sy, sz, ix, iy, iz, tx0, tx1, ty0, ty1, tz0, tz1)``."""
+    i = start_index(Ax, Dx, t, nx)
+    j = start_index(Ay, Dy, t, ny)
+    k = start_index(Az, Dz, t, nz)
+    sx, ix, tx0, tx1 = axis_state(Ax, Dx, i)
+    sy, iy, ty0, ty1 = axis_state(Ay, Dy, j)
+    sz, iz, tz0, tz1 = axis_state(Az, Dz, k)
+    return i, j, k, sx, sy, sz, ix, iy, iz, tx0, tx1, ty0, ty1, tz0, tz1
 
 
-#: The skip table `accumulate_ray` takes has one int8 per cell
-#: (`parc.classify.VolumeIndex.tf_skip`): this where the cell may
-#: contribute, else ``r + 1`` where every cell within Chebyshev distance
-#: ``r`` is transparent (its samples need no interpolation, and a ray may
-#: jump to the cube's exit).
-MAY_CONTRIBUTE = 0
+@kernel(inline="always")
+def local_coords(Ax, Ay, Az, Dx, Dy, Dz, i, j, k, t):
+    """Local ``(u, v, w)`` of the anchored ray's point at ``t`` in cell ``(i, j, k)``, clamped to the cell:
+    the walk's cell and the point's rounded position may disagree by an ulp at a face."""
+    u = min(max((Ax - i) + t * Dx, 0.0), 1.0)
+    v = min(max((Ay - j) + t * Dy, 0.0), 1.0)
+    w = min(max((Az - k) + t * Dz, 0.0), 1.0)
+    return u, v, w
+
+
+def _accumulator(shaded, planes):
+    """The body of `accumulate_ray`, with gradient shading (``shaded``) and the bit-plane test
+    (``planes``) compiled in or out.
+
+    Four kernels rather than tests in the walk: code left in the loop, even
+    untaken, made LLVM keep the loop's values around it (the shading call,
+    the planes' test), and PARC's unshaded CT head frame without bit
+    planes took 1.15x as long, `brute`'s 1.1x.
+    """
+    @kernel
+    def accumulate(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, seg0, seg1, t_stop, params,
+                   op_x, op_y, col_x, col_rgb, bits, py, px, use_bits, skip, jump_min):
+        nz, ny, nx = grid_shape(data)
+        step = params[P_STEP]
+        mode = int(params[P_MODE])
+        threshold = params[P_THRESHOLD]
+        ta, Ax, Ay, Az, t_in, t_out, n_last, t_start, t_end = ray_span(data, Ox, Oy, Oz, Dx, Dy, Dz, seg0, seg1,
+                                                                       t_stop, step)
+        if not t_start <= t_end:
+            return 0.0, 0.0, 0.0, 0.0, 0          # every mode's empty ray
+        i, j, k, sx, sy, sz, ix, iy, iz, tx0, tx1, ty0, ty1, tz0, tz1 = walk_from(Ax, Ay, Az, Dx, Dy, Dz,
+                                                                                 t_start, nx, ny, nz)
+        # Bit planes: the ray along the plane axis, anchored and as given (its rounding).
+        axis = int(params[P_PLANE_AXIS])
+        Aa, Da, Ua = (Ax, Dx, Ox) if axis == 0 else ((Ay, Dy, Oy) if axis == 1 else (Az, Dz, Oz))
+        r = 0.0
+        g = 0.0
+        b = 0.0
+        acc = 0.0
+        vmax = -math.inf
+        total = 0.0
+        samples = 0
+        while True:
+            c0 = max(t_in, max(tx0, max(ty0, tz0)))
+            c1 = min(t_out, min(tx1, min(ty1, tz1)))
+            action, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1 = visit_cell(
+                (Ax, Ay, Az), (sx, sy, sz), (ix, iy, iz), i, j, k, tx0, tx1, ty0, ty1, tz0, tz1, c0, c1, t_end,
+                skip, jump_min, bits, py, px, planes, params, (Aa, Da, Ua, ta))
+            if action == MOVED:
+                continue
+            if action == END:
+                break
+            done = False
+            if action == TAKE:
+                n_lo, n_hi = cell_lattice(c0, c1, t_in, t_out, step, n_last)
+                if n_lo <= n_hi:
+                    v000, v100, v010, v110, v001, v101, v011, v111 = cell_corners(data, i, j, k)
+                    for n in range(n_lo, n_hi + 1):
+                        tl = t_in + n * step
+                        if ta + tl >= t_stop:
+                            done = True
+                            break
+                        u, vv, w = local_coords(Ax, Ay, Az, Dx, Dy, Dz, i, j, k, tl)
+                        v = trilinear(v000, v100, v010, v110, v001, v101, v011, v111, u, vv, w)
+                        samples += 1
+                        a = tf_opacity(op_x, op_y, v)
+                        if not a > 0.0:
+                            continue
+                        if mode == MODE_COMPOSITE:
+                            a = correct_opacity(a, params[P_RATIO])
+                            cr, cg, cb = tf_color(col_x, col_rgb, v)
+                            if shaded:
+                                cr, cg, cb = shade_color(data, spc, i, j, k, u, vv, w, dx, dy, dz, params,
+                                                         cr, cg, cb)
+                            wgt = (1.0 - acc) * a
+                            r += wgt * cr
+                            g += wgt * cg
+                            b += wgt * cb
+                            acc += wgt
+                            if acc >= threshold:
+                                done = True
+                                break
+                        elif mode == MODE_MIP:
+                            if v > vmax:
+                                vmax = v
+                        else:
+                            total += v
+            if done or c1 >= t_end:
+                break
+            inside, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1 = step_cell(Ax, Ay, Az, sx, sy, sz, ix, iy, iz, i, j, k,
+                                                                      tx0, tx1, ty0, ty1, tz0, tz1, nx, ny, nz)
+            if not inside:
+                break
+        if mode == MODE_COMPOSITE:
+            return min(r, 1.0), min(g, 1.0), min(b, 1.0), min(acc, 1.0), samples
+        if mode == MODE_MIP:
+            if vmax == -math.inf:
+                return 0.0, 0.0, 0.0, 0.0, samples
+            cr, cg, cb, a = tf_lookup(op_x, op_y, col_x, col_rgb, vmax)
+            return cr * a, cg * a, cb * a, a, samples
+        grey = average_grey(total, n_last + 1, params)
+        return grey, grey, grey, grey, samples
+    return accumulate
+
+
+_ACCUMULATORS = {(shaded, planes): _accumulator(shaded, planes) for shaded in (False, True) for planes in (False, True)}
+_accumulate = _ACCUMULATORS[False, False]
+_accumulate_shaded = _ACCUMULATORS[True, False]
+_accumulate_planes = _ACCUMULATORS[False, True]
+_accumulate_shaded_planes = _ACCUMULATORS[True, True]
 
 
 @kernel
@@ -237,98 +405,18 @@ def accumulate_ray(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, seg0, seg1, t_
 
     Returns premultiplied ``(r, g, b, a, samples)``; ``samples`` counts the
     trilinear interpolations done. Lattice points at ``t >= t_stop`` (an
-    opaque surface, a light) are not taken. With ``use_bits``, samples in a
-    plane of supercells whose bit in ``bits[py, px]`` is clear are skipped.
-    With ``jump_min >= 0``, ``skip[k, j, i]`` (the skip table above)
-    tells for each cell whether it is transparent: a sample there is not
-    interpolated, and one in a cell whose cube of transparent cells has a
-    radius of at least ``jump_min`` skips the samples up to the cube's exit.
-    The unaccelerated caster passes `raycast.iso.NO_SKIP` and -1.
+    opaque surface, a light) are not taken. The walk goes cell by cell and
+    takes each cell's lattice points from its eight corners (module
+    docstring); `visit_cell` passes over the cells it can prove
+    transparent: by the skip table ``skip[k, j, i]`` when ``jump_min >= 0``
+    (the unaccelerated caster passes `raycast.iso.NO_SKIP` and -1), and,
+    with ``use_bits``, by the bit planes ``bits[py, px]``.
     """
-    nz, ny, nx = grid_shape(data)
-    t_in, t_out = clip_box(Ox, Oy, Oz, Dx, Dy, Dz, nx, ny, nz)
-    if not t_in <= t_out:
-        return 0.0, 0.0, 0.0, 0.0, 0
-    step = params[P_STEP]
-    mode = int(params[P_MODE])
-    n0, n1, n_last = lattice_range(t_in, t_out, step, seg0, seg1)
-    axis = int(params[P_PLANE_AXIS])
-    threshold = params[P_THRESHOLD]
-    r = 0.0
-    g = 0.0
-    b = 0.0
-    acc = 0.0
-    vmax = -math.inf
-    total = 0.0
-    samples = 0
-    # Positions from the entry of a ray from a distant eye (`raycast.iso.cast_iso_ray`
-    # says why): lattice point n at A + (base + n step) D, ``base`` 0 there and t_in otherwise.
-    ta, Ax, Ay, Az = entry_anchor(Ox, Oy, Oz, Dx, Dy, Dz, nx, ny, nz)
-    base = t_in - ta
-    if axis == 0:
-        Oa, Aa, Da = Ox, Ax, Dx
-    elif axis == 1:
-        Oa, Aa, Da = Oy, Ay, Dy
-    else:
-        Oa, Aa, Da = Oz, Az, Dz
-    n = n0 - 1
-    while n < n1:
-        n += 1
-        tl = base + n * step
-        t = ta + tl               # t_in + n step, as before anchoring (ta is 0 or t_in)
-        if t >= t_stop:
-            break
-        x = Ax + tl * Dx
-        y = Ay + tl * Dy
-        z = Az + tl * Dz
-        i, j, k = sample_cell(data, x, y, z)
-        if jump_min >= 0:
-            clear = skip[k, j, i]
-            if clear != MAY_CONTRIBUTE:
-                if clear - 1 >= jump_min:
-                    # The samples up to where the ray leaves the cube are transparent.
-                    n = min(n1, cube_last_sample(n, t_in, step, Ox, Oy, Oz, Dx, Dy, Dz, i, j, k, clear - 1))
-                continue
-        # The plane test comes after the table's: a cell that may contribute
-        # lies in a possibly contributing supercell, whose plane's bit the
-        # ray has, so behind a table the test seldom skips anything; it is
-        # taken only for the samples the table leaves (depth+bits on the CT
-        # head at 300x300: 0.20 s with the test first, 0.14 s after).
-        if use_bits:
-            pos = Aa + tl * Da
-            if not plane_bit(bits, py, px, pos, POS_ROUNDING * (abs(Oa) + abs(t * Da)), params):
-                # Skip the rest of this plane: its samples are all transparent.
-                n = max(n, min(n1, next_plane_sample(n, t_in, step, Oa, Da, pos, params)) - 1)
-                continue
-        samples += 1
-        v, u, vv, w = interpolate(data, x, y, z, i, j, k)
-        a = tf_opacity(op_x, op_y, v)
-        if not a > 0.0:
-            continue
-        if mode == MODE_COMPOSITE:
-            a, cr, cg, cb = composite_sample(data, spc, v, i, j, k, u, vv, w, a, dx, dy, dz, params,
-                                             col_x, col_rgb)
-            wgt = (1.0 - acc) * a
-            r += wgt * cr
-            g += wgt * cg
-            b += wgt * cb
-            acc += wgt
-            if acc >= threshold:
-                break
-        elif mode == MODE_MIP:
-            if v > vmax:
-                vmax = v
-        else:
-            total += v
-    if mode == MODE_COMPOSITE:
-        return min(r, 1.0), min(g, 1.0), min(b, 1.0), min(acc, 1.0), samples
-    if mode == MODE_MIP:
-        if vmax == -math.inf:
-            return 0.0, 0.0, 0.0, 0.0, samples
-        cr, cg, cb, a = tf_lookup(op_x, op_y, col_x, col_rgb, vmax)
-        return cr * a, cg * a, cb * a, a, samples
-    grey = average_grey(total, n_last + 1, params)
-    return grey, grey, grey, grey, samples
+    args = (data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, seg0, seg1, t_stop, params,
+            op_x, op_y, col_x, col_rgb, bits, py, px, use_bits, skip, jump_min)
+    if params[P_SHADE] != 0.0:
+        return _accumulate_shaded_planes(*args) if use_bits else _accumulate_shaded(*args)
+    return _accumulate_planes(*args) if use_bits else _accumulate(*args)
 
 
 @kernel
@@ -344,7 +432,48 @@ def average_grey(total, count, params):
     return grey
 
 
-@kernel(parallel=True)
+def _image_caster(accumulate):
+    """A parallel driver of one `_accumulator` kernel over image tiles (`cast_accumulate_image`)."""
+    @kernel(parallel=True)
+    def cast(data, org, spc, cam, width, height, params, op_x, op_y, col_x, col_rgb,
+             seg, use_seg, stop, use_stop, bits, use_bits, skip, jump_min, image, counts, row0, row1):
+        tiles = tile_count(width, row0, row1, TILE_W, TILE_H)
+        samples = 0
+        for it in prange(tiles):
+            x0, x1, y0, y1 = dealt_tile(it, tiles, width, row0, row1)
+            for y in range(y0, y1):
+                for x in range(x0, x1):
+                    s0 = -math.inf
+                    s1 = math.inf
+                    if use_seg:
+                        s0 = seg[y, x, 0]
+                        s1 = seg[y, x, 1]
+                        if not s0 <= s1:
+                            counts[y * width + x] = 0
+                            for c in range(4):
+                                image[y, x, c] = 0.0
+                            continue
+                    ox, oy, oz, dx, dy, dz = camera_ray(cam, width, height, x, y)
+                    Ox, Oy, Oz, Dx, Dy, Dz = to_index_space(ox, oy, oz, dx, dy, dz, org, spc)
+                    r, g, b, a, n = accumulate(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, s0, s1,
+                                               stop[y, x] if use_stop else math.inf, params, op_x, op_y, col_x,
+                                               col_rgb, bits, y, x, use_bits, skip, jump_min)
+                    image[y, x, 0] = r
+                    image[y, x, 1] = g
+                    image[y, x, 2] = b
+                    image[y, x, 3] = a
+                    counts[y * width + x] = n
+                    samples += n
+        return samples
+    return cast
+
+
+#: One driver per `_accumulator` kernel: a driver that called all four
+#: (choosing per ray) ran `brute`'s CT head frame 1.1x slower.
+_IMAGE_CASTERS = {(shaded, planes): _image_caster(kernel)
+                  for (shaded, planes), kernel in _ACCUMULATORS.items()}
+
+
 def cast_accumulate_image(data, org, spc, cam, width, height, params, op_x, op_y, col_x, col_rgb,
                           seg, use_seg, stop, use_stop, bits, use_bits, skip, jump_min, image, counts,
                           row0, row1):
@@ -357,34 +486,9 @@ def cast_accumulate_image(data, org, spc, cam, width, height, params, op_x, op_y
     ``skip``/``jump_min``: the skip table (`accumulate_ray`).
     Returns the samples taken over the rows cast.
     """
-    tiles = tile_count(width, row0, row1, TILE_W, TILE_H)
-    samples = 0
-    for it in prange(tiles):
-        x0, x1, y0, y1 = dealt_tile(it, tiles, width, row0, row1)
-        for y in range(y0, y1):
-            for x in range(x0, x1):
-                s0 = -math.inf
-                s1 = math.inf
-                if use_seg:
-                    s0 = seg[y, x, 0]
-                    s1 = seg[y, x, 1]
-                    if not s0 <= s1:
-                        counts[y * width + x] = 0
-                        for c in range(4):
-                            image[y, x, c] = 0.0
-                        continue
-                ox, oy, oz, dx, dy, dz = camera_ray(cam, width, height, x, y)
-                Ox, Oy, Oz, Dx, Dy, Dz = to_index_space(ox, oy, oz, dx, dy, dz, org, spc)
-                r, g, b, a, n = accumulate_ray(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, s0, s1,
-                                               stop[y, x] if use_stop else math.inf, params, op_x, op_y, col_x, col_rgb,
-                                               bits, y, x, use_bits, skip, jump_min)
-                image[y, x, 0] = r
-                image[y, x, 1] = g
-                image[y, x, 2] = b
-                image[y, x, 3] = a
-                counts[y * width + x] = n
-                samples += n
-    return samples
+    cast = _IMAGE_CASTERS[bool(params[P_SHADE] != 0.0), bool(use_bits)]
+    return cast(data, org, spc, cam, width, height, params, op_x, op_y, col_x, col_rgb, seg, use_seg, stop,
+                use_stop, bits, use_bits, skip, jump_min, image, counts, row0, row1)
 
 
 @kernel(inline="always")
@@ -399,6 +503,106 @@ def _next_layer(layer_t, used, y, x, before):
     return best
 
 
+# The walk state `cast_merged_image` keeps per volume (a row of floats).
+_W_A = 0            # anchored ray: A (3), D (3)
+_W_D = 3
+_W_INV = 6          # 1 / D (3) and the step along each axis, -1, 0, 1 (3)
+_W_STEP = 9
+_W_CELL = 12        # i, j, k
+_W_T = 15           # tx0, tx1, ty0, ty1, tz0, tz1
+_W_T_IN = 21
+_W_T_OUT = 22
+_W_T_END = 23
+_W_N_LAST = 24
+_W_TA = 25
+_W_N = 26           # next lattice point to take, and the last in the current cell
+_W_N_HI = 27
+_W_C1 = 28          # the current cell's exit
+_W_LIVE = 29
+_W_CORNERS = 30     # the current cell's eight corners
+_W_SIZE = 38
+
+
+@kernel(inline="always")
+def _merged_advance(st, q, data, skip, jump_min, step, params, nobits, fresh):
+    """Move volume ``q``'s walk on to its next cell with lattice points to take (from its
+    current cell itself when ``fresh``); ``st[q, _W_LIVE] = 0`` once there is none."""
+    nz, ny, nx = grid_shape(data)
+    Ax, Ay, Az = st[q, _W_A], st[q, _W_A + 1], st[q, _W_A + 2]
+    ix, iy, iz = st[q, _W_INV], st[q, _W_INV + 1], st[q, _W_INV + 2]
+    sx, sy, sz = int(st[q, _W_STEP]), int(st[q, _W_STEP + 1]), int(st[q, _W_STEP + 2])
+    i, j, k = int(st[q, _W_CELL]), int(st[q, _W_CELL + 1]), int(st[q, _W_CELL + 2])
+    tx0, tx1, ty0, ty1 = st[q, _W_T], st[q, _W_T + 1], st[q, _W_T + 2], st[q, _W_T + 3]
+    tz0, tz1 = st[q, _W_T + 4], st[q, _W_T + 5]
+    t_in, t_out, t_end = st[q, _W_T_IN], st[q, _W_T_OUT], st[q, _W_T_END]
+    n_last = int(st[q, _W_N_LAST])
+    c1 = st[q, _W_C1]
+    live = True
+    while True:
+        if not fresh:
+            if c1 >= t_end:
+                live = False
+                break
+            inside, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1 = step_cell(Ax, Ay, Az, sx, sy, sz, ix, iy, iz, i, j, k,
+                                                                      tx0, tx1, ty0, ty1, tz0, tz1, nx, ny, nz)
+            if not inside:
+                live = False
+                break
+        fresh = False
+        c0 = max(t_in, max(tx0, max(ty0, tz0)))
+        c1 = min(t_out, min(tx1, min(ty1, tz1)))
+        action, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1 = visit_cell(
+            (Ax, Ay, Az), (sx, sy, sz), (ix, iy, iz), i, j, k, tx0, tx1, ty0, ty1, tz0, tz1, c0, c1, t_end,
+            skip, jump_min, nobits, 0, 0, False, params, (0.0, 0.0, 0.0, 0.0))
+        if action == MOVED:
+            fresh = True
+            continue
+        if action == END:
+            live = False
+            break
+        if action == PASS:
+            continue
+        n_lo, n_hi = cell_lattice(c0, c1, t_in, t_out, step, n_last)
+        if n_lo <= n_hi:
+            st[q, _W_N] = n_lo
+            st[q, _W_N_HI] = n_hi
+            (st[q, _W_CORNERS], st[q, _W_CORNERS + 1], st[q, _W_CORNERS + 2], st[q, _W_CORNERS + 3],
+             st[q, _W_CORNERS + 4], st[q, _W_CORNERS + 5], st[q, _W_CORNERS + 6],
+             st[q, _W_CORNERS + 7]) = cell_corners(data, i, j, k)
+            break
+    st[q, _W_LIVE] = 1.0 if live else 0.0
+    st[q, _W_CELL], st[q, _W_CELL + 1], st[q, _W_CELL + 2] = i, j, k
+    st[q, _W_T], st[q, _W_T + 1], st[q, _W_T + 2], st[q, _W_T + 3] = tx0, tx1, ty0, ty1
+    st[q, _W_T + 4], st[q, _W_T + 5] = tz0, tz1
+    st[q, _W_C1] = c1
+
+
+@kernel(inline="always")
+def _merged_start(st, q, data, Ox, Oy, Oz, Dx, Dy, Dz, seg0, seg1, t_stop, skip, jump_min, params, nobits):
+    """Volume ``q``'s walk over ``[seg0, seg1]``, on its first cell with lattice points to take (`_merged_advance`)."""
+    nz, ny, nx = grid_shape(data)
+    step = params[P_STEP]
+    ta, Ax, Ay, Az, t_in, t_out, n_last, t_start, t_end = ray_span(data, Ox, Oy, Oz, Dx, Dy, Dz, seg0, seg1,
+                                                                   t_stop, step)
+    if not t_start <= t_end:
+        st[q, _W_LIVE] = 0.0
+        return
+    i, j, k, sx, sy, sz, ix, iy, iz, tx0, tx1, ty0, ty1, tz0, tz1 = walk_from(Ax, Ay, Az, Dx, Dy, Dz, t_start,
+                                                                             nx, ny, nz)
+    st[q, _W_A], st[q, _W_A + 1], st[q, _W_A + 2] = Ax, Ay, Az
+    st[q, _W_D], st[q, _W_D + 1], st[q, _W_D + 2] = Dx, Dy, Dz
+    st[q, _W_INV], st[q, _W_INV + 1], st[q, _W_INV + 2] = ix, iy, iz
+    st[q, _W_STEP], st[q, _W_STEP + 1], st[q, _W_STEP + 2] = sx, sy, sz
+    st[q, _W_CELL], st[q, _W_CELL + 1], st[q, _W_CELL + 2] = i, j, k
+    st[q, _W_T], st[q, _W_T + 1], st[q, _W_T + 2], st[q, _W_T + 3] = tx0, tx1, ty0, ty1
+    st[q, _W_T + 4], st[q, _W_T + 5] = tz0, tz1
+    st[q, _W_T_IN], st[q, _W_T_OUT], st[q, _W_T_END] = t_in, t_out, t_end
+    st[q, _W_N_LAST] = n_last
+    st[q, _W_TA] = ta
+    st[q, _W_C1] = -math.inf
+    _merged_advance(st, q, data, skip, jump_min, step, params, nobits, True)
+
+
 @kernel(parallel=True)
 def cast_merged_image(datas, orgs, spcs, cam, width, height, params, op_x, op_y, col_x, col_rgb, tf_len,
                       seg, use_seg, skip, jump_mins, stop, layer_t, layer_rgba, image, counts):
@@ -408,8 +612,8 @@ def cast_merged_image(datas, orgs, spcs, cam, width, height, params, op_x, op_y,
     placement (``orgs[k]``, ``spcs[k]``), ``params[k]`` (composite mode),
     transfer function (rows ``k`` of the padded tables, lengths
     ``tf_len[k] = (opacity points, colour points)``) and PARC segments
-    ``seg[k]``. Each volume keeps its own sample lattice (anchored where the
-    ray enters it, as for one volume), so every sample is the one a
+    ``seg[k]``. Each volume keeps its own walk and sample lattice (as for
+    one volume: `accumulate_ray`), so every sample is the one a
     single-volume cast would take; the samples of all volumes are taken in
     order of ``t`` (ties: the first volume first), composited front to
     back, and stop at ``stop[y, x]`` (an opaque surface) or once the
@@ -423,49 +627,41 @@ def cast_merged_image(datas, orgs, spcs, cam, width, height, params, op_x, op_y,
     """
     nvol = len(datas)
     thr = 0.0
-    for k in range(nvol):
-        thr = max(thr, params[k, P_THRESHOLD])
+    for q in range(nvol):
+        thr = max(thr, params[q, P_THRESHOLD])
     tiles = tile_count(width, 0, height, TILE_W, TILE_H)
     for it in prange(tiles):
         x0, x1, y0, y1 = dealt_tile(it, tiles, width, 0, height)
-        st = np.empty((nvol, 13))
+        st = np.zeros((nvol, _W_SIZE))
         used = np.zeros(layer_t.shape[0], np.bool_)
+        nobits = np.zeros((1, 1, 1), np.uint32)
         for y in range(y0, y1):
             for x in range(x0, x1):
                 ox, oy, oz, dx, dy, dz = camera_ray(cam, width, height, x, y)
-                for k in range(nvol):
-                    Ox, Oy, Oz, Dx, Dy, Dz = to_index_space(ox, oy, oz, dx, dy, dz, orgs[k], spcs[k])
-                    nz, ny, nx = grid_shape(datas[k])
-                    t_in, t_out = clip_box(Ox, Oy, Oz, Dx, Dy, Dz, nx, ny, nz)
-                    n0, n1 = 0, -1
-                    if t_in <= t_out:
-                        s0 = -math.inf
-                        s1 = math.inf
-                        if use_seg:
-                            s0 = seg[k, y, x, 0]
-                            s1 = seg[k, y, x, 1]
-                        if s0 <= s1:
-                            n0, n1, _ = lattice_range(t_in, t_out, params[k, P_STEP], s0, s1)
-                    st[k, 0], st[k, 1], st[k, 2] = Ox, Oy, Oz
-                    st[k, 3], st[k, 4], st[k, 5] = Dx, Dy, Dz
-                    st[k, 6], st[k, 7], st[k, 8] = t_in, n0, n1
-                    ta, st[k, 9], st[k, 10], st[k, 11] = entry_anchor(Ox, Oy, Oz, Dx, Dy, Dz, nx, ny, nz)
-                    st[k, 12] = t_in - ta
+                t_stop = stop[y, x]
+                for q in range(nvol):
+                    Ox, Oy, Oz, Dx, Dy, Dz = to_index_space(ox, oy, oz, dx, dy, dz, orgs[q], spcs[q])
+                    s0 = -math.inf
+                    s1 = math.inf
+                    if use_seg:
+                        s0 = seg[q, y, x, 0]
+                        s1 = seg[q, y, x, 1]
+                    _merged_start(st, q, datas[q], Ox, Oy, Oz, Dx, Dy, Dz, s0, s1, t_stop, skip[q], jump_mins[q],
+                                  params[q], nobits)
                 used[:] = False
                 r = 0.0
                 g = 0.0
                 b = 0.0
                 acc = 0.0
                 samples = 0
-                t_stop = stop[y, x]
                 while True:
                     best = -1
                     bt = t_stop
-                    for k in range(nvol):
-                        if st[k, 7] <= st[k, 8]:
-                            t = st[k, 6] + st[k, 7] * params[k, P_STEP]
+                    for q in range(nvol):
+                        if st[q, _W_LIVE] != 0.0:
+                            t = st[q, _W_TA] + (st[q, _W_T_IN] + st[q, _W_N] * params[q, P_STEP])
                             if t < bt:
-                                best = k
+                                best = q
                                 bt = t
                     # Layers in front of the next sample (all of them at the end).
                     while True:
@@ -480,32 +676,24 @@ def cast_merged_image(datas, orgs, spcs, cam, width, height, params, op_x, op_y,
                         acc += wgt * layer_rgba[j, y, x, 3]
                     if best < 0 or acc >= thr:
                         break
-                    tl = st[best, 12] + st[best, 7] * params[best, P_STEP]    # as accumulate_ray
-                    st[best, 7] += 1.0
-                    data = datas[best]
-                    x_ = st[best, 9] + tl * st[best, 3]
-                    y_ = st[best, 10] + tl * st[best, 4]
-                    z_ = st[best, 11] + tl * st[best, 5]
-                    i, j, k = sample_cell(data, x_, y_, z_)
-                    jump_min = jump_mins[best]
-                    if jump_min >= 0:
-                        e = skip[best][k, j, i]
-                        if e != MAY_CONTRIBUTE:
-                            if e - 1 >= jump_min:
-                                n = int(st[best, 7]) - 1
-                                last = cube_last_sample(n, st[best, 6], params[best, P_STEP],
-                                                        st[best, 0], st[best, 1], st[best, 2],
-                                                        st[best, 3], st[best, 4], st[best, 5], i, j, k, e - 1)
-                                st[best, 7] = min(float(last), st[best, 8]) + 1.0
-                            continue
+                    tl = st[best, _W_T_IN] + st[best, _W_N] * params[best, P_STEP]
+                    i, j, k = int(st[best, _W_CELL]), int(st[best, _W_CELL + 1]), int(st[best, _W_CELL + 2])
+                    u, vv, w = local_coords(st[best, _W_A], st[best, _W_A + 1], st[best, _W_A + 2],
+                                            st[best, _W_D], st[best, _W_D + 1], st[best, _W_D + 2], i, j, k, tl)
+                    c = _W_CORNERS
+                    v = trilinear(st[best, c], st[best, c + 1], st[best, c + 2], st[best, c + 3],
+                                  st[best, c + 4], st[best, c + 5], st[best, c + 6], st[best, c + 7], u, vv, w)
                     samples += 1
-                    v, u, vv, w = interpolate(data, x_, y_, z_, i, j, k)
+                    st[best, _W_N] += 1.0
+                    if st[best, _W_N] > st[best, _W_N_HI]:
+                        _merged_advance(st, best, datas[best], skip[best], jump_mins[best], params[best, P_STEP],
+                                        params[best], nobits, False)
                     no = int(tf_len[best, 0])
                     nc = int(tf_len[best, 1])
                     a = tf_opacity(op_x[best, :no], op_y[best, :no], v)
                     if not a > 0.0:
                         continue
-                    a, cr, cg, cb = composite_sample(data, spcs[best], v, i, j, k, u, vv, w, a, dx, dy, dz,
+                    a, cr, cg, cb = composite_sample(datas[best], spcs[best], v, i, j, k, u, vv, w, a, dx, dy, dz,
                                                      params[best], col_x[best, :nc], col_rgb[best, :nc])
                     wgt = (1.0 - acc) * a
                     r += wgt * cr

@@ -12,14 +12,14 @@ on `parc.classify.cell_minmax` gives exactly this classification,
 ``contrib[k, j, i]``).
 
 For each pixel `ideal_ray_samples` walks exactly the unaccelerated
-caster's sample lattice: the same `clip_box`, `lattice_range` (no
-segment), `sample_value`, `tf_opacity`, `correct_opacity`, the same
-``t >= t_stop`` rule and, in composite mode, the same early termination
-once the accumulated opacity reaches the threshold (maximum and average
-intensity never stop early). It counts the samples that lie in a
-contributing cell, the cell being the one `sample_value` assigns the
-sample (a sample exactly on a face between cells belongs to the cell
-``floor`` picks, clamped to the grid). The count is therefore exactly the
+caster's cells and sample lattice: the same `ray_span` (no segment),
+cell walk, `cell_lattice`, `trilinear`, `tf_opacity`, `correct_opacity`,
+the same ``t >= t_stop`` rule and, in composite mode, the same early
+termination once the accumulated opacity reaches the threshold (maximum
+and average intensity never stop early). It counts the samples that lie
+in a contributing cell, the cell being the one whose walk interval holds
+the sample (a sample exactly on a face between cells belongs to the cell
+the walk enters there). The count is therefore exactly the
 subset of ``accumulate_ray``'s samples (no segment, no bits) taken inside
 contributing cells:
 
@@ -40,11 +40,12 @@ import math
 
 from numba import prange
 
-from .composite import MODE_COMPOSITE, P_MODE, P_RATIO, P_STEP, P_THRESHOLD, lattice_range, sample_value
+from .composite import (MODE_COMPOSITE, P_MODE, P_RATIO, P_STEP, P_THRESHOLD, cell_lattice, local_coords, ray_span,
+                        trilinear, walk_from)
 from .config import TILE_H, TILE_W, kernel
 from .rays import camera_ray, dealt_tile, tile_count
 from .transfer import correct_opacity, tf_opacity
-from .traverse import clip_box, entry_anchor, to_index_space
+from .traverse import cell_corners, step_cell, to_index_space
 
 
 @kernel
@@ -56,35 +57,46 @@ def ideal_ray_samples(data, contrib, Ox, Oy, Oz, Dx, Dy, Dz, t_stop, params, op_
     ray stops where `accumulate_ray` stops.
     """
     nz, ny, nx = data.shape
-    t_in, t_out = clip_box(Ox, Oy, Oz, Dx, Dy, Dz, nx, ny, nz)
-    if not t_in <= t_out:
-        return 0
     step = params[P_STEP]
     composite = int(params[P_MODE]) == MODE_COMPOSITE
     threshold = params[P_THRESHOLD]
-    # No segment: every lattice point of the ray in the volume, as the brute caster takes them.
-    n0, n1, _ = lattice_range(t_in, t_out, step, -math.inf, math.inf)
+    # No segment: every cell of the ray in the volume, as the brute caster walks them.
+    ta, Ax, Ay, Az, t_in, t_out, n_last, t_start, t_end = ray_span(data, Ox, Oy, Oz, Dx, Dy, Dz, -math.inf,
+                                                                   math.inf, t_stop, step)
+    if not t_start <= t_end:
+        return 0
+    i, j, k, sx, sy, sz, ix, iy, iz, tx0, tx1, ty0, ty1, tz0, tz1 = walk_from(Ax, Ay, Az, Dx, Dy, Dz, t_start,
+                                                                             nx, ny, nz)
     acc = 0.0
     count = 0
-    # The lattice as `accumulate_ray` places it.
-    ta, Ax, Ay, Az = entry_anchor(Ox, Oy, Oz, Dx, Dy, Dz, nx, ny, nz)
-    base = t_in - ta
-    for n in range(n0, n1 + 1):
-        tl = base + n * step
-        t = ta + tl
-        if t >= t_stop:
+    while True:
+        c0 = max(t_in, max(tx0, max(ty0, tz0)))
+        c1 = min(t_out, min(tx1, min(ty1, tz1)))
+        n_lo, n_hi = cell_lattice(c0, c1, t_in, t_out, step, n_last)
+        if n_lo <= n_hi:
+            inside = contrib[k, j, i] != 0
+            v000, v100, v010, v110, v001, v101, v011, v111 = cell_corners(data, i, j, k)
+            for n in range(n_lo, n_hi + 1):
+                tl = t_in + n * step
+                if ta + tl >= t_stop:
+                    return count
+                if inside:
+                    count += 1
+                if not composite:
+                    continue            # maximum and average intensity take every lattice point
+                u, vv, w = local_coords(Ax, Ay, Az, Dx, Dy, Dz, i, j, k, tl)
+                a = tf_opacity(op_x, op_y, trilinear(v000, v100, v010, v110, v001, v101, v011, v111, u, vv, w))
+                if not a > 0.0:
+                    continue
+                # The step-corrected opacity exactly as the caster composites it; the colour is not needed.
+                acc += (1.0 - acc) * correct_opacity(a, params[P_RATIO])
+                if acc >= threshold:
+                    return count
+        if c1 >= t_end:
             break
-        v, i, j, k, u, vv, w = sample_value(data, Ax + tl * Dx, Ay + tl * Dy, Az + tl * Dz)
-        if contrib[k, j, i] != 0:
-            count += 1
-        if not composite:
-            continue            # maximum and average intensity take every lattice point
-        a = tf_opacity(op_x, op_y, v)
-        if not a > 0.0:
-            continue
-        # The step-corrected opacity exactly as the caster composites it; the colour is not needed.
-        acc += (1.0 - acc) * correct_opacity(a, params[P_RATIO])
-        if acc >= threshold:
+        more, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1 = step_cell(Ax, Ay, Az, sx, sy, sz, ix, iy, iz, i, j, k,
+                                                                tx0, tx1, ty0, ty1, tz0, tz1, nx, ny, nz)
+        if not more:
             break
     return count
 

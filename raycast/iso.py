@@ -32,8 +32,8 @@ from .config import TILE_H, TILE_W, kernel
 from .cubic import cubic_along_ray, eval_cubic, first_root, trilinear_coefficients
 from .rays import camera_ray, dealt_tile, spread_run, spread_runs, tile_count
 from .shade import headlight_pixel
-from .traverse import (advance, axis_state, cell_corners, clip_box, entry_anchor, grid_shape, next_exit, start_index,
-                       step_axis, to_index_space)
+from .traverse import (advance, axis_state, cell_corners, clip_box, cube_exit, entry_anchor, grid_shape, next_exit,
+                       start_index, step_axis, to_index_space)
 
 #: The table a walk without one takes (with ``jump_min = -1``).
 NO_SKIP = np.zeros((1, 1, 1), np.int8)
@@ -119,21 +119,6 @@ def _entry_sign(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, i, j, k, sx, sy, sz,
 
 
 @kernel
-def _cube_exit(Ox, Oy, Oz, sx, sy, sz, ix, iy, iz, i, j, k, r):
-    """Time the ray leaves the cube of cells within ``r`` of cell ``(i, j, k)``, by the walk's crossing times."""
-    ex = math.inf
-    ey = math.inf
-    ez = math.inf
-    if sx != 0:
-        ex = next_exit(Ox, ix, sx, i + sx * r)
-    if sy != 0:
-        ey = next_exit(Oy, iy, sy, j + sy * r)
-    if sz != 0:
-        ez = next_exit(Oz, iz, sz, k + sz * r)
-    return min(ex, min(ey, ez))
-
-
-@kernel
 def _cell_sign(entry):
     """The sign (+1, -1, 0) a sign-table entry gives its cell."""
     if entry > 0:
@@ -210,7 +195,7 @@ def _walk_iso(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, seg0, seg1, skip, jump_min):
             sign = _cell_sign(entry)
             r = abs(entry) - 1
             if r >= jump_min:
-                tb = _cube_exit(Ox, Oy, Oz, sx, sy, sz, ix, iy, iz, i, j, k, r)
+                tb = cube_exit(Ox, Oy, Oz, sx, sy, sz, ix, iy, iz, i, j, k, r)
                 if tb >= t_end:
                     break
                 # A cube exit at or before the cell's own (rounding at a

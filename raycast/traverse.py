@@ -185,6 +185,51 @@ def step_axis(tx1, ty1, tz1):
     return 2
 
 
+@kernel
+def cube_exit(Ox, Oy, Oz, sx, sy, sz, ix, iy, iz, i, j, k, r):
+    """Time the ray leaves the cube of cells within ``r`` of cell ``(i, j, k)``, by the walk's crossing times."""
+    ex = math.inf
+    ey = math.inf
+    ez = math.inf
+    if sx != 0:
+        ex = next_exit(Ox, ix, sx, i + sx * r)
+    if sy != 0:
+        ey = next_exit(Oy, iy, sy, j + sy * r)
+    if sz != 0:
+        ez = next_exit(Oz, iz, sz, k + sz * r)
+    return min(ex, min(ey, ez))
+
+
+@kernel(inline="always")
+def step_cell(Ox, Oy, Oz, sx, sy, sz, ix, iy, iz, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1, nx, ny, nz):
+    """The walk's next cell: ``(inside, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1)``, ``inside``
+    False once the ray leaves the grid (`step_axis` picks the face)."""
+    axis = step_axis(tx1, ty1, tz1)
+    inside = True
+    if axis == 0:
+        i += sx
+        if i < 0 or i > nx - 2:
+            inside = False
+        else:
+            tx0 = tx1
+            tx1 = next_exit(Ox, ix, sx, i)
+    elif axis == 1:
+        j += sy
+        if j < 0 or j > ny - 2:
+            inside = False
+        else:
+            ty0 = ty1
+            ty1 = next_exit(Oy, iy, sy, j)
+    else:
+        k += sz
+        if k < 0 or k > nz - 2:
+            inside = False
+        else:
+            tz0 = tz1
+            tz1 = next_exit(Oz, iz, sz, k)
+    return inside, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1
+
+
 def cell_corners(data, i, j, k):
     """The eight corner samples of cell ``(i, j, k)`` as float64, ``vIJK`` at local ``(I, J, K)``.
 

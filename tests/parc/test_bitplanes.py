@@ -208,7 +208,7 @@ def caster_required(camera, width, height, vol, grid, pc, axis, step):
     ``t_out`` from `clip_box`, ``t = t_in + n step``. Returns arrays
     ``(y, x, f, tol)``, one row per sample that may have non-zero opacity;
     the caster tests the bits of planes ``floor(f -+ tol)``, its tolerance
-    in planes (`raycast.composite.plane_bit`).
+    in planes (`raycast.composite.clear_planes` tests the span of a cell's samples so).
     """
     o, d = caster_rays(camera, width, height)
     org = np.asarray(vol.origin, np.float64)

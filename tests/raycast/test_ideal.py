@@ -1,15 +1,15 @@
 """The ideal caster's sample count (`raycast.ideal`, `parc.ideal`).
 
 Truth: a slow plain-Python walk of the unaccelerated caster's lattice,
-written from the definition (its own ray, clipping, lattice, cell
-assignment and cell ranges), which must give the kernel's per-pixel
-counts exactly; and the order ``ideal <= parc <= brute`` of
-``stats["samples"]`` on random scenes, which must hold without tolerance.
-The reference repeats the kernels' floating-point operations in the same
-order (Python floats are IEEE doubles, and the kernels run without
-fastmath), because samples on cell faces, which the axis-aligned view
-produces on purpose, belong to the cell ``floor`` picks and a rounding
-difference would move them.
+written from the definition (its own ray, clipping, lattice, cell walk
+and cell ranges), which must give the kernel's per-pixel counts exactly;
+and the order ``ideal <= parc <= brute`` of ``stats["samples"]`` on
+random scenes, which must hold without tolerance. The reference repeats
+the kernels' floating-point operations in the same order (Python floats
+are IEEE doubles, and the kernels run without fastmath), because samples
+on cell faces, which the axis-aligned view produces on purpose, belong
+to the cell the walk enters there and a rounding difference would move
+them.
 """
 import math
 
@@ -59,16 +59,61 @@ def _clip(O, D, dims):
     return t_in, t_out
 
 
-def _value(data, p):
-    """Trilinear value at index point ``p`` and its cell ``(i, j, k)``: floor, clamped to the grid."""
-    nz, ny, nx = data.shape
-    i, j, k = (min(max(int(math.floor(c)), 0), n - 2) for c, n in zip(p, (nx, ny, nz)))
-    u, v, w = p[0] - i, p[1] - j, p[2] - k
+def _value(data, O, D, t, cell):
+    """Trilinear value at the ray's point ``O + t D`` in ``cell``, local coordinates clamped to [0, 1]."""
+    i, j, k = cell
+    u, v, w = (min(max((O[a] - cell[a]) + t * D[a], 0.0), 1.0) for a in range(3))
     c = data[k:k + 2, j:j + 2, i:i + 2].astype(np.float64)
     # Nested lerps along x, then y, then z, as the kernel rounds them.
     cx = [[float(c[b, a, 0]) + u * (float(c[b, a, 1]) - float(c[b, a, 0])) for a in range(2)] for b in range(2)]
     cy = [cx[b][0] + v * (cx[b][1] - cx[b][0]) for b in range(2)]
-    return cy[0] + w * (cy[1] - cy[0]), (i, j, k)
+    return cy[0] + w * (cy[1] - cy[0])
+
+
+def _lattice_cells(O, D, dims, t_in, t_out, step):
+    """``(n, cell)`` for the lattice points ``t_in + n step``, cell by cell along the ray.
+
+    A cell's interval runs from the latest of its entry crossings to the
+    earliest of its exits (each ``(plane - O) / D``), and holds the lattice
+    points in ``[c0, c1)``; the last cell keeps its end.
+    """
+    n_last = int(math.floor((t_out - t_in) / step))
+    idx, steps, inv, t0, t1 = [], [], [], [], []
+    for o, d, n in zip(O, D, dims):
+        i = min(max(int(math.floor(o + t_in * d)), 0), n - 2)
+        if abs(d) < TINY_DIRECTION:
+            idx.append(i), steps.append(0), inv.append(0.0), t0.append(-math.inf), t1.append(math.inf)
+            continue
+        iv = 1.0 / d
+        # The cell entered at or before t_in and left after it, by the crossing times.
+        if d > 0.0:
+            while i > 0 and (i - o) * iv >= t_in:
+                i -= 1
+            while i < n - 2 and (i + 1.0 - o) * iv < t_in:
+                i += 1
+        else:
+            while i < n - 2 and (i + 1.0 - o) * iv >= t_in:
+                i += 1
+            while i > 0 and (i - o) * iv < t_in:
+                i -= 1
+        s = 1 if d > 0.0 else -1
+        lo, hi = (i - o) * iv, (i + 1.0 - o) * iv
+        idx.append(i), steps.append(s), inv.append(iv)
+        t0.append(lo if s > 0 else hi), t1.append(hi if s > 0 else lo)
+    while True:
+        c0, c1 = max(t_in, *t0), min(t_out, *t1)
+        n_lo = int(math.ceil((c0 - t_in) / step))
+        n_hi = n_last if c1 >= t_out else int(math.ceil((c1 - t_in) / step)) - 1
+        for n in range(n_lo, n_hi + 1):
+            yield n, tuple(idx)
+        if c1 >= t_out:
+            return
+        a = t1.index(min(t1))                 # ties: x, then y, then z
+        idx[a] += steps[a]
+        if not 0 <= idx[a] <= dims[a] - 2:
+            return
+        t0[a] = t1[a]
+        t1[a] = ((idx[a] + 1.0 - O[a]) if steps[a] > 0 else (idx[a] - O[a])) * inv[a]
 
 
 def _contributing(data, tf):
@@ -103,11 +148,11 @@ def _slow_counts(vis, cam, width, height, stop=None):
                 continue
             t_stop = math.inf if stop is None else stop[y, x]
             acc = 0.0
-            for n in range(int(math.floor((t_out - t_in) / vis.step)) + 1):
+            for n, (i, j, k) in _lattice_cells(O, D, dims, t_in, t_out, vis.step):
                 t = t_in + n * vis.step
                 if t >= t_stop:
                     break
-                v, (i, j, k) = _value(data, [O[a] + t * D[a] for a in range(3)])
+                v = _value(data, O, D, t, (i, j, k))
                 out[y, x] += contrib[k, j, i]
                 if vis.mode != "composite":
                     continue
