@@ -131,12 +131,16 @@ def _bit(bits, py, px, q, params):
 
 @kernel(inline="always")
 def clear_planes(bits, py, px, params, Aa, Da, Ua, ta, c0, c1):
-    """Whether every plane of supercells the ray meets over ``[c0, c1]`` has a clear bit,
-    and if so the time it may skip to: within tolerance of the far side of the last of them.
+    """Whether every plane of supercells the ray meets over ``[c0, c1]`` has a clear bit:
+    ``(clear, t, t0, t1)``.
 
-    The ray's position along the plane axis is ``Aa + t Da`` (anchored
-    at ``t = ta`` from an origin ``Ua``: its rounding, `POS_ROUNDING`);
-    positions within `PLANE_TOL` planes of a boundary test both planes.
+    If so, ``t`` is the time the ray may skip to: within tolerance of the
+    far side of the last of them. If not, ``[t0, t1]`` is the stretch of
+    the ray in a plane whose bit is set, so that a cell meeting it is taken
+    without a test. The ray's position along the plane axis is
+    ``Aa + t Da`` (anchored at ``t = ta`` from an origin ``Ua``: its
+    rounding, `POS_ROUNDING`); positions within `PLANE_TOL` planes of a
+    boundary test both planes.
     """
     m = params[P_PLANE_SIZE]
     p0 = Aa + c0 * Da
@@ -147,12 +151,16 @@ def clear_planes(bits, py, px, params, Aa, Da, Ua, ta, c0, c1):
     q_hi = int(math.floor(max(p0, p1) / m + tol))
     for q in range(q_lo, q_hi + 1):
         if _bit(bits, py, px, q, params):
-            return False, 0.0
+            if Da == 0.0:
+                return False, 0.0, -math.inf, math.inf
+            ta_ = (q * m - Aa) / Da
+            tb_ = ((q + 1) * m - Aa) / Da
+            return False, 0.0, min(ta_, tb_), max(ta_, tb_)
     if Da > 0.0:
-        return True, ((q_hi + 1 - tol) * m - Aa) / Da
+        return True, ((q_hi + 1 - tol) * m - Aa) / Da, 0.0, 0.0
     if Da < 0.0:
-        return True, ((q_lo + tol) * m - Aa) / Da
-    return True, math.inf
+        return True, ((q_lo + tol) * m - Aa) / Da, 0.0, 0.0
+    return True, math.inf, 0.0, 0.0
 
 
 #: The skip table `accumulate_ray` takes has one int8 per cell
@@ -188,8 +196,9 @@ END = 3             # nothing more to take along this ray
 def visit_cell(A, s, inv, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1, c0, c1, t_end,
                skip, jump_min, bits, py, px, use_bits, params, plane):
     """What the walk does at cell ``(i, j, k)`` (interval ``[c0, c1]``):
-    ``(action, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1)``, ``action`` one of
-    `TAKE`, `PASS`, `MOVED` (the state is then the landing cell's) or `END`.
+    ``(action, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1, tq0, tq1)``, ``action``
+    one of `TAKE`, `PASS`, `MOVED` (the state is then the landing cell's)
+    or `END`.
 
     A cell is passed over when the skip table marks it transparent (a
     cube of such cells of radius ``jump_min`` or more is jumped, to the
@@ -198,30 +207,34 @@ def visit_cell(A, s, inv, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1, c0, c1, t_end,
     clear stretch is jumped too). Either way its samples are all
     transparent. ``A``, ``s`` and ``inv``: the anchored ray's origin, and
     its steps and ``1 / D`` along each axis; ``plane``: ``(Aa, Da, Ua, ta)``
-    as `clear_planes` takes them. (Tuples: Numba inlines no function of
-    more than about 30 arguments.)
+    as `clear_planes` takes them, and ``(tq0, tq1)``, a stretch of the ray
+    in a plane whose bit is set (empty: ``(inf, -inf)``), returned updated.
+    (Tuples: Numba inlines no function of more than about 30 arguments.)
     """
+    tq0, tq1 = plane[4], plane[5]
     e = skip[k, j, i] if jump_min >= 0 else MAY_CONTRIBUTE
     if e == MAY_CONTRIBUTE:
         if not use_bits:
-            return TAKE, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1
-        Aa, Da, Ua, ta = plane
-        clear, tb = clear_planes(bits, py, px, params, Aa, Da, Ua, ta, c0, c1)
+            return TAKE, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1, tq0, tq1
+        Aa, Da, Ua, ta, tq0, tq1 = plane
+        if c0 <= tq1 and c1 >= tq0:
+            return TAKE, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1, tq0, tq1
+        clear, tb, tq0, tq1 = clear_planes(bits, py, px, params, Aa, Da, Ua, ta, c0, c1)
         if not clear:
-            return TAKE, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1
+            return TAKE, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1, tq0, tq1
     else:
         if e - 1 < jump_min:
-            return PASS, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1
+            return PASS, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1, tq0, tq1
         tb = cube_exit(A[0], A[1], A[2], s[0], s[1], s[2], inv[0], inv[1], inv[2], i, j, k, e - 1)
     if tb >= t_end:
-        return END, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1
+        return END, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1, tq0, tq1
     if tb <= c1:
-        return PASS, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1
+        return PASS, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1, tq0, tq1
     # A jump: to the cell the walk is in at tb, by its own crossing times.
     i, tx0, tx1 = advance(A[0], inv[0], s[0], i, tx0, tx1, tb)
     j, ty0, ty1 = advance(A[1], inv[1], s[1], j, ty0, ty1, tb)
     k, tz0, tz1 = advance(A[2], inv[2], s[2], k, tz0, tz1, tb)
-    return MOVED, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1
+    return MOVED, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1, tq0, tq1
 
 
 @kernel
@@ -321,6 +334,8 @@ def _accumulator(shaded, planes):
         # Bit planes: the ray along the plane axis, anchored and as given (its rounding).
         axis = int(params[P_PLANE_AXIS])
         Aa, Da, Ua = (Ax, Dx, Ox) if axis == 0 else ((Ay, Dy, Oy) if axis == 1 else (Az, Dz, Oz))
+        tq0 = math.inf
+        tq1 = -math.inf
         r = 0.0
         g = 0.0
         b = 0.0
@@ -331,9 +346,9 @@ def _accumulator(shaded, planes):
         while True:
             c0 = max(t_in, max(tx0, max(ty0, tz0)))
             c1 = min(t_out, min(tx1, min(ty1, tz1)))
-            action, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1 = visit_cell(
+            action, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1, tq0, tq1 = visit_cell(
                 (Ax, Ay, Az), (sx, sy, sz), (ix, iy, iz), i, j, k, tx0, tx1, ty0, ty1, tz0, tz1, c0, c1, t_end,
-                skip, jump_min, bits, py, px, planes, params, (Aa, Da, Ua, ta))
+                skip, jump_min, bits, py, px, planes, params, (Aa, Da, Ua, ta, tq0, tq1))
             if action == MOVED:
                 continue
             if action == END:
@@ -551,9 +566,9 @@ def _merged_advance(st, q, data, skip, jump_min, step, params, nobits, fresh):
         fresh = False
         c0 = max(t_in, max(tx0, max(ty0, tz0)))
         c1 = min(t_out, min(tx1, min(ty1, tz1)))
-        action, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1 = visit_cell(
+        action, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1, _, _ = visit_cell(
             (Ax, Ay, Az), (sx, sy, sz), (ix, iy, iz), i, j, k, tx0, tx1, ty0, ty1, tz0, tz1, c0, c1, t_end,
-            skip, jump_min, nobits, 0, 0, False, params, (0.0, 0.0, 0.0, 0.0))
+            skip, jump_min, nobits, 0, 0, False, params, (0.0, 0.0, 0.0, 0.0, math.inf, -math.inf))
         if action == MOVED:
             fresh = True
             continue
