@@ -258,11 +258,12 @@ def shade_color(data, spc, i, j, k, u, vv, w, dx, dy, dz, params, cr, cg, cb):
 
 
 @kernel(inline="always")
-def composite_sample(data, spc, v, i, j, k, u, vv, w, a, dx, dy, dz, params, col_x, col_rgb):
-    """Step-corrected opacity and (shaded) colour of a composite sample of value ``v`` and opacity ``a > 0``."""
+def composite_sample(data, spc, v, i, j, k, u, vv, w, a, dx, dy, dz, params, col_x, col_rgb, shade):
+    """Step-corrected opacity and colour of a composite sample of value ``v`` and opacity ``a > 0``,
+    shaded when ``shade`` (the casters pass a constant where they can, so that the call is compiled out)."""
     a = correct_opacity(a, params[P_RATIO])
     cr, cg, cb = tf_color(col_x, col_rgb, v)
-    if params[P_SHADE] != 0.0:
+    if shade:
         cr, cg, cb = shade_color(data, spc, i, j, k, u, vv, w, dx, dy, dz, params, cr, cg, cb)
     return a, cr, cg, cb
 
@@ -289,7 +290,8 @@ def ray_span(data, Ox, Oy, Oz, Dx, Dy, Dz, seg0, seg1, t_stop, step):
 
 @kernel(inline="always")
 def walk_from(Ax, Ay, Az, Dx, Dy, Dz, t, nx, ny, nz):
-    """The walk's state in the cell holding ``t``: ``(i, j, k, sx, sy, sz, ix, iy, iz, tx0, tx1, ty0, ty1, tz0, tz1)``."""
+    """The walk's state in the cell holding ``t``:
+    ``(i, j, k, sx, sy, sz, ix, iy, iz, tx0, tx1, ty0, ty1, tz0, tz1)``."""
     i = start_index(Ax, Dx, t, nx)
     j = start_index(Ay, Dy, t, ny)
     k = start_index(Az, Dz, t, nz)
@@ -370,11 +372,8 @@ def _accumulator(shaded, planes):
                         if not a > 0.0:
                             continue
                         if mode == MODE_COMPOSITE:
-                            a = correct_opacity(a, params[P_RATIO])
-                            cr, cg, cb = tf_color(col_x, col_rgb, v)
-                            if shaded:
-                                cr, cg, cb = shade_color(data, spc, i, j, k, u, vv, w, dx, dy, dz, params,
-                                                         cr, cg, cb)
+                            a, cr, cg, cb = composite_sample(data, spc, v, i, j, k, u, vv, w, a, dx, dy, dz,
+                                                             params, col_x, col_rgb, shaded)
                             wgt = (1.0 - acc) * a
                             r += wgt * cr
                             g += wgt * cg
@@ -406,7 +405,8 @@ def _accumulator(shaded, planes):
     return accumulate
 
 
-_ACCUMULATORS = {(shaded, planes): _accumulator(shaded, planes) for shaded in (False, True) for planes in (False, True)}
+_ACCUMULATORS = {(shaded, planes): _accumulator(shaded, planes)
+                 for shaded in (False, True) for planes in (False, True)}
 _accumulate = _ACCUMULATORS[False, False]
 _accumulate_shaded = _ACCUMULATORS[True, False]
 _accumulate_planes = _ACCUMULATORS[False, True]
@@ -618,7 +618,98 @@ def _merged_start(st, q, data, Ox, Oy, Oz, Dx, Dy, Dz, seg0, seg1, t_stop, skip,
     _merged_advance(st, q, data, skip, jump_min, step, params, nobits, True)
 
 
-@kernel(parallel=True)
+def _merged_caster(shaded):
+    """`cast_merged_image`'s kernel, with gradient shading compiled in (``shaded``) or out (as `_accumulator`)."""
+    @kernel(parallel=True)
+    def cast(datas, orgs, spcs, cam, width, height, params, op_x, op_y, col_x, col_rgb, tf_len,
+             seg, use_seg, skip, jump_mins, stop, layer_t, layer_rgba, image, counts):
+        nvol = len(datas)
+        thr = 0.0
+        for q in range(nvol):
+            thr = max(thr, params[q, P_THRESHOLD])
+        tiles = tile_count(width, 0, height, TILE_W, TILE_H)
+        for it in prange(tiles):
+            x0, x1, y0, y1 = dealt_tile(it, tiles, width, 0, height)
+            st = np.zeros((nvol, _W_SIZE))
+            used = np.zeros(layer_t.shape[0], np.bool_)
+            nobits = np.zeros((1, 1, 1), np.uint32)
+            for y in range(y0, y1):
+                for x in range(x0, x1):
+                    ox, oy, oz, dx, dy, dz = camera_ray(cam, width, height, x, y)
+                    t_stop = stop[y, x]
+                    for q in range(nvol):
+                        Ox, Oy, Oz, Dx, Dy, Dz = to_index_space(ox, oy, oz, dx, dy, dz, orgs[q], spcs[q])
+                        s0 = -math.inf
+                        s1 = math.inf
+                        if use_seg:
+                            s0 = seg[q, y, x, 0]
+                            s1 = seg[q, y, x, 1]
+                        _merged_start(st, q, datas[q], Ox, Oy, Oz, Dx, Dy, Dz, s0, s1, t_stop, skip[q], jump_mins[q],
+                                      params[q], nobits)
+                    used[:] = False
+                    r = 0.0
+                    g = 0.0
+                    b = 0.0
+                    acc = 0.0
+                    samples = 0
+                    while True:
+                        best = -1
+                        bt = t_stop
+                        for q in range(nvol):
+                            if st[q, _W_LIVE] != 0.0:
+                                t = st[q, _W_TA] + (st[q, _W_T_IN] + st[q, _W_N] * params[q, P_STEP])
+                                if t < bt:
+                                    best = q
+                                    bt = t
+                        # Layers in front of the next sample (all of them at the end).
+                        while True:
+                            j = _next_layer(layer_t, used, y, x, bt if best >= 0 else math.inf)
+                            if j < 0:
+                                break
+                            used[j] = True
+                            wgt = 1.0 - acc
+                            r += wgt * layer_rgba[j, y, x, 0]
+                            g += wgt * layer_rgba[j, y, x, 1]
+                            b += wgt * layer_rgba[j, y, x, 2]
+                            acc += wgt * layer_rgba[j, y, x, 3]
+                        if best < 0 or acc >= thr:
+                            break
+                        tl = st[best, _W_T_IN] + st[best, _W_N] * params[best, P_STEP]
+                        i, j, k = int(st[best, _W_CELL]), int(st[best, _W_CELL + 1]), int(st[best, _W_CELL + 2])
+                        u, vv, w = local_coords(st[best, _W_A], st[best, _W_A + 1], st[best, _W_A + 2],
+                                                st[best, _W_D], st[best, _W_D + 1], st[best, _W_D + 2], i, j, k, tl)
+                        c = _W_CORNERS
+                        v = trilinear(st[best, c], st[best, c + 1], st[best, c + 2], st[best, c + 3],
+                                      st[best, c + 4], st[best, c + 5], st[best, c + 6], st[best, c + 7], u, vv, w)
+                        samples += 1
+                        st[best, _W_N] += 1.0
+                        if st[best, _W_N] > st[best, _W_N_HI]:
+                            _merged_advance(st, best, datas[best], skip[best], jump_mins[best], params[best, P_STEP],
+                                            params[best], nobits, False)
+                        no = int(tf_len[best, 0])
+                        nc = int(tf_len[best, 1])
+                        a = tf_opacity(op_x[best, :no], op_y[best, :no], v)
+                        if not a > 0.0:
+                            continue
+                        a, cr, cg, cb = composite_sample(datas[best], spcs[best], v, i, j, k, u, vv, w, a, dx, dy, dz,
+                                                         params[best], col_x[best, :nc], col_rgb[best, :nc],
+                                                         shaded and params[best, P_SHADE] != 0.0)
+                        wgt = (1.0 - acc) * a
+                        r += wgt * cr
+                        g += wgt * cg
+                        b += wgt * cb
+                        acc += wgt
+                    image[y, x, 0] = min(r, 1.0)
+                    image[y, x, 1] = min(g, 1.0)
+                    image[y, x, 2] = min(b, 1.0)
+                    image[y, x, 3] = min(acc, 1.0)
+                    counts[y * width + x] = samples
+    return cast
+
+
+_MERGED_CASTERS = {shaded: _merged_caster(shaded) for shaded in (False, True)}
+
+
 def cast_merged_image(datas, orgs, spcs, cam, width, height, params, op_x, op_y, col_x, col_rgb, tf_len,
                       seg, use_seg, skip, jump_mins, stop, layer_t, layer_rgba, image, counts):
     """Composite several overlapping volumes along each pixel's ray, samples merged in depth order.
@@ -640,86 +731,9 @@ def cast_merged_image(datas, orgs, spcs, cam, width, height, params, op_x, op_y,
     adds nothing, so the layers and the other volumes' samples keep their
     order.
     """
-    nvol = len(datas)
-    thr = 0.0
-    for q in range(nvol):
-        thr = max(thr, params[q, P_THRESHOLD])
-    tiles = tile_count(width, 0, height, TILE_W, TILE_H)
-    for it in prange(tiles):
-        x0, x1, y0, y1 = dealt_tile(it, tiles, width, 0, height)
-        st = np.zeros((nvol, _W_SIZE))
-        used = np.zeros(layer_t.shape[0], np.bool_)
-        nobits = np.zeros((1, 1, 1), np.uint32)
-        for y in range(y0, y1):
-            for x in range(x0, x1):
-                ox, oy, oz, dx, dy, dz = camera_ray(cam, width, height, x, y)
-                t_stop = stop[y, x]
-                for q in range(nvol):
-                    Ox, Oy, Oz, Dx, Dy, Dz = to_index_space(ox, oy, oz, dx, dy, dz, orgs[q], spcs[q])
-                    s0 = -math.inf
-                    s1 = math.inf
-                    if use_seg:
-                        s0 = seg[q, y, x, 0]
-                        s1 = seg[q, y, x, 1]
-                    _merged_start(st, q, datas[q], Ox, Oy, Oz, Dx, Dy, Dz, s0, s1, t_stop, skip[q], jump_mins[q],
-                                  params[q], nobits)
-                used[:] = False
-                r = 0.0
-                g = 0.0
-                b = 0.0
-                acc = 0.0
-                samples = 0
-                while True:
-                    best = -1
-                    bt = t_stop
-                    for q in range(nvol):
-                        if st[q, _W_LIVE] != 0.0:
-                            t = st[q, _W_TA] + (st[q, _W_T_IN] + st[q, _W_N] * params[q, P_STEP])
-                            if t < bt:
-                                best = q
-                                bt = t
-                    # Layers in front of the next sample (all of them at the end).
-                    while True:
-                        j = _next_layer(layer_t, used, y, x, bt if best >= 0 else math.inf)
-                        if j < 0:
-                            break
-                        used[j] = True
-                        wgt = 1.0 - acc
-                        r += wgt * layer_rgba[j, y, x, 0]
-                        g += wgt * layer_rgba[j, y, x, 1]
-                        b += wgt * layer_rgba[j, y, x, 2]
-                        acc += wgt * layer_rgba[j, y, x, 3]
-                    if best < 0 or acc >= thr:
-                        break
-                    tl = st[best, _W_T_IN] + st[best, _W_N] * params[best, P_STEP]
-                    i, j, k = int(st[best, _W_CELL]), int(st[best, _W_CELL + 1]), int(st[best, _W_CELL + 2])
-                    u, vv, w = local_coords(st[best, _W_A], st[best, _W_A + 1], st[best, _W_A + 2],
-                                            st[best, _W_D], st[best, _W_D + 1], st[best, _W_D + 2], i, j, k, tl)
-                    c = _W_CORNERS
-                    v = trilinear(st[best, c], st[best, c + 1], st[best, c + 2], st[best, c + 3],
-                                  st[best, c + 4], st[best, c + 5], st[best, c + 6], st[best, c + 7], u, vv, w)
-                    samples += 1
-                    st[best, _W_N] += 1.0
-                    if st[best, _W_N] > st[best, _W_N_HI]:
-                        _merged_advance(st, best, datas[best], skip[best], jump_mins[best], params[best, P_STEP],
-                                        params[best], nobits, False)
-                    no = int(tf_len[best, 0])
-                    nc = int(tf_len[best, 1])
-                    a = tf_opacity(op_x[best, :no], op_y[best, :no], v)
-                    if not a > 0.0:
-                        continue
-                    a, cr, cg, cb = composite_sample(datas[best], spcs[best], v, i, j, k, u, vv, w, a, dx, dy, dz,
-                                                     params[best], col_x[best, :nc], col_rgb[best, :nc])
-                    wgt = (1.0 - acc) * a
-                    r += wgt * cr
-                    g += wgt * cg
-                    b += wgt * cb
-                    acc += wgt
-                image[y, x, 0] = min(r, 1.0)
-                image[y, x, 1] = min(g, 1.0)
-                image[y, x, 2] = min(b, 1.0)
-                image[y, x, 3] = min(acc, 1.0)
-                counts[y * width + x] = samples
+    cast = _MERGED_CASTERS[bool((params[:, P_SHADE] != 0.0).any())]
+    cast(datas, orgs, spcs, cam, width, height, params, op_x, op_y, col_x, col_rgb, tf_len, seg, use_seg, skip,
+         jump_mins, stop, layer_t, layer_rgba, image, counts)
 
 
 @kernel(parallel=True)
