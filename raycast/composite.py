@@ -312,8 +312,8 @@ def local_coords(Ax, Ay, Az, Dx, Dy, Dz, i, j, k, t):
 
 
 def _accumulator(shaded, planes):
-    """The body of `accumulate_ray`, with gradient shading (``shaded``) and the bit-plane test
-    (``planes``) compiled in or out.
+    """`accumulate_ray` with gradient shading (``shaded``) and the bit-plane test (``planes``)
+    compiled in or out.
 
     Four kernels rather than tests in the walk: code left in the loop, even
     untaken, made LLVM keep the loop's values around it (the shading call,
@@ -323,6 +323,18 @@ def _accumulator(shaded, planes):
     @kernel
     def accumulate(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, seg0, seg1, t_stop, params,
                    op_x, op_y, col_x, col_rgb, bits, py, px, use_bits, skip, jump_min):
+        """Accumulate one ray (index space ``O + t D``; world direction ``d``) over ``[seg0, seg1]``.
+
+        Returns premultiplied ``(r, g, b, a, samples)``; ``samples`` counts the
+        trilinear interpolations done. Lattice points at ``t >= t_stop`` (an
+        opaque surface, a light) are not taken. The walk goes cell by cell and
+        takes each cell's lattice points from its eight corners (module
+        docstring); `visit_cell` passes over the cells it can prove
+        transparent: by the skip table ``skip[k, j, i]`` when ``jump_min >= 0``
+        (the unaccelerated caster passes `raycast.iso.NO_SKIP` and -1), and,
+        in the kernels with the planes' test, by the bit planes ``bits[py, px]``
+        (``use_bits`` is that kernel's own, and ignored).
+        """
         nz, ny, nx = grid_shape(data)
         step = params[P_STEP]
         mode = int(params[P_MODE])
@@ -407,31 +419,10 @@ def _accumulator(shaded, planes):
 
 _ACCUMULATORS = {(shaded, planes): _accumulator(shaded, planes)
                  for shaded in (False, True) for planes in (False, True)}
-_accumulate = _ACCUMULATORS[False, False]
-_accumulate_shaded = _ACCUMULATORS[True, False]
-_accumulate_planes = _ACCUMULATORS[False, True]
-_accumulate_shaded_planes = _ACCUMULATORS[True, True]
-
-
-@kernel
-def accumulate_ray(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, seg0, seg1, t_stop, params,
-                   op_x, op_y, col_x, col_rgb, bits, py, px, use_bits, skip, jump_min):
-    """Accumulate one ray (index space ``O + t D``; world direction ``d``) over ``[seg0, seg1]``.
-
-    Returns premultiplied ``(r, g, b, a, samples)``; ``samples`` counts the
-    trilinear interpolations done. Lattice points at ``t >= t_stop`` (an
-    opaque surface, a light) are not taken. The walk goes cell by cell and
-    takes each cell's lattice points from its eight corners (module
-    docstring); `visit_cell` passes over the cells it can prove
-    transparent: by the skip table ``skip[k, j, i]`` when ``jump_min >= 0``
-    (the unaccelerated caster passes `raycast.iso.NO_SKIP` and -1), and,
-    with ``use_bits``, by the bit planes ``bits[py, px]``.
-    """
-    args = (data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, seg0, seg1, t_stop, params,
-            op_x, op_y, col_x, col_rgb, bits, py, px, use_bits, skip, jump_min)
-    if params[P_SHADE] != 0.0:
-        return _accumulate_shaded_planes(*args) if use_bits else _accumulate_shaded(*args)
-    return _accumulate_planes(*args) if use_bits else _accumulate(*args)
+#: One ray, without shading or bit planes: what a shadow ray through a
+#: translucent volume takes (its opacity does not depend on the shading).
+#: The image casters take the kernel the volume needs (`cast_accumulate_image`).
+accumulate_ray = _ACCUMULATORS[False, False]
 
 
 @kernel
