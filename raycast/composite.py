@@ -48,8 +48,8 @@ from .config import TILE_H, TILE_W, kernel
 from .rays import camera_ray, dealt_tile, tile_count
 from .shade import blinn_phong, trilinear_gradient
 from .transfer import correct_opacity, tf_color, tf_lookup, tf_opacity
-from .traverse import (advance, axis_state, cell_corners, clip_box, cube_exit, entry_anchor, grid_shape, start_index,
-                       step_cell, to_index_space)
+from .traverse import (advance, cell_corners, clip_box, cube_exit, entry_anchor, grid_shape, step_cell, to_index_space,
+                       walk_from)
 
 MODE_COMPOSITE = 0
 MODE_MIP = 1
@@ -286,19 +286,6 @@ def ray_span(data, Ox, Oy, Oz, Dx, Dy, Dz, seg0, seg1, t_stop, step):
         return ta, Ax, Ay, Az, t_in, t_out, -1, 1.0, 0.0
     n_last = int(math.floor((t_out - t_in) / step))
     return ta, Ax, Ay, Az, t_in, t_out, n_last, max(t_in, seg0 - ta), min(t_out, min(seg1, t_stop) - ta)
-
-
-@kernel(inline="always")
-def walk_from(Ax, Ay, Az, Dx, Dy, Dz, t, nx, ny, nz):
-    """The walk's state in the cell holding ``t``:
-    ``(i, j, k, sx, sy, sz, ix, iy, iz, tx0, tx1, ty0, ty1, tz0, tz1)``."""
-    i = start_index(Ax, Dx, t, nx)
-    j = start_index(Ay, Dy, t, ny)
-    k = start_index(Az, Dz, t, nz)
-    sx, ix, tx0, tx1 = axis_state(Ax, Dx, i)
-    sy, iy, ty0, ty1 = axis_state(Ay, Dy, j)
-    sz, iz, tz0, tz1 = axis_state(Az, Dz, k)
-    return i, j, k, sx, sy, sz, ix, iy, iz, tx0, tx1, ty0, ty1, tz0, tz1
 
 
 @kernel(inline="always")

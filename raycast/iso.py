@@ -32,8 +32,8 @@ from .config import TILE_H, TILE_W, kernel
 from .cubic import cubic_along_ray, eval_cubic, first_root, trilinear_coefficients
 from .rays import camera_ray, dealt_tile, spread_run, spread_runs, tile_count
 from .shade import headlight_pixel
-from .traverse import (advance, axis_state, cell_corners, clip_box, cube_exit, entry_anchor, grid_shape, next_exit,
-                       start_index, step_axis, to_index_space)
+from .traverse import (advance, axis_state, cell_corners, clip_box, cube_exit, entry_anchor, grid_shape, step_cell,
+                       to_index_space, walk_from)
 
 #: The table a walk without one takes (with ``jump_min = -1``).
 NO_SKIP = np.zeros((1, 1, 1), np.int8)
@@ -172,12 +172,8 @@ def _walk_iso(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, seg0, seg1, skip, jump_min):
     t_end = min(t_out, seg1)
     if not t_start <= t_end:
         return math.inf, -1, -1, -1, 0.0, 0.0, 0.0, 0, 0
-    i = start_index(Ox, Dx, t_start, nx)
-    j = start_index(Oy, Dy, t_start, ny)
-    k = start_index(Oz, Dz, t_start, nz)
-    sx, ix, tx0, tx1 = axis_state(Ox, Dx, i)
-    sy, iy, ty0, ty1 = axis_state(Oy, Dy, j)
-    sz, iz, tz0, tz1 = axis_state(Oz, Dz, k)
+    i, j, k, sx, sy, sz, ix, iy, iz, tx0, tx1, ty0, ty1, tz0, tz1 = walk_from(Ox, Oy, Oz, Dx, Dy, Dz, t_start,
+                                                                             nx, ny, nz)
     # Sign at the end of the previous cell (0: none). The walk's previous
     # cell is the neighbour across the face of the latest entry time (ties:
     # the last axis, as `step_axis` steps x, then y, then z).
@@ -241,25 +237,10 @@ def _walk_iso(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, seg0, seg1, skip, jump_min):
         first = False
         if c1 >= t_end:
             break
-        axis = step_axis(tx1, ty1, tz1)
-        if axis == 0:
-            i += sx
-            if i < 0 or i > nx - 2:
-                break
-            tx0 = tx1
-            tx1 = next_exit(Ox, ix, sx, i)
-        elif axis == 1:
-            j += sy
-            if j < 0 or j > ny - 2:
-                break
-            ty0 = ty1
-            ty1 = next_exit(Oy, iy, sy, j)
-        else:
-            k += sz
-            if k < 0 or k > nz - 2:
-                break
-            tz0 = tz1
-            tz1 = next_exit(Oz, iz, sz, k)
+        inside, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1 = step_cell(Ox, Oy, Oz, sx, sy, sz, ix, iy, iz, i, j, k,
+                                                                  tx0, tx1, ty0, ty1, tz0, tz1, nx, ny, nz)
+        if not inside:
+            break
     return math.inf, -1, -1, -1, 0.0, 0.0, 0.0, cells, solves
 
 

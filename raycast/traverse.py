@@ -201,6 +201,19 @@ def cube_exit(Ox, Oy, Oz, sx, sy, sz, ix, iy, iz, i, j, k, r):
 
 
 @kernel(inline="always")
+def walk_from(Ox, Oy, Oz, Dx, Dy, Dz, t, nx, ny, nz):
+    """The walk's state in the cell holding ``t``:
+    ``(i, j, k, sx, sy, sz, ix, iy, iz, tx0, tx1, ty0, ty1, tz0, tz1)``."""
+    i = start_index(Ox, Dx, t, nx)
+    j = start_index(Oy, Dy, t, ny)
+    k = start_index(Oz, Dz, t, nz)
+    sx, ix, tx0, tx1 = axis_state(Ox, Dx, i)
+    sy, iy, ty0, ty1 = axis_state(Oy, Dy, j)
+    sz, iz, tz0, tz1 = axis_state(Oz, Dz, k)
+    return i, j, k, sx, sy, sz, ix, iy, iz, tx0, tx1, ty0, ty1, tz0, tz1
+
+
+@kernel(inline="always")
 def step_cell(Ox, Oy, Oz, sx, sy, sz, ix, iy, iz, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1, nx, ny, nz):
     """The walk's next cell: ``(inside, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1)``, ``inside``
     False once the ray leaves the grid (`step_axis` picks the face)."""
