@@ -16,7 +16,7 @@ How a pixel is made
 3. Translucent volumes are sampled up to the depth (nothing behind an
    opaque surface shows): composite volumes together, their samples merged
    in order of ``t`` so that overlapping volumes interleave
-   (`raycast.composite.cast_merged_image`); a maximum- or average-intensity
+   (`raycast.merged.cast_merged_image`); a maximum- or average-intensity
    volume is a finished layer placed where the ray enters its box. The
    result goes over the lit surface.
 
@@ -30,7 +30,8 @@ import time
 
 import numpy as np
 
-from raycast.composite import N_PARAMS, cast_accumulate_image, cast_merged_image
+from raycast.composite import N_PARAMS, cast_accumulate_image
+from raycast.merged import cast_merged_image
 from raycast.iso import NO_SHADING, cast_iso_image, keep_nearest
 from raycast.shadow import (KIND_HEADLIGHT, combine_lights, light_terms, shadow_accumulate, shadow_iso,
                             surface_frames)

@@ -1,0 +1,249 @@
+"""Several overlapping composite volumes along one ray: their samples merged in depth order.
+
+Each volume keeps the walk and sample lattice it has alone (`raycast.composite`:
+the same `ray_span`, `walk_from`, `visit_cell`, `cell_lattice`, `trilinear`
+and `composite_sample`), held between samples in a row of floats per volume;
+the next sample is always the nearest of the volumes' next ones.
+"""
+import math
+
+import numpy as np
+from numba import prange
+
+from .composite import (END, MOVED, P_SHADE, P_STEP, P_THRESHOLD, PASS, cell_lattice, composite_sample, local_coords,
+                        ray_span, trilinear, visit_cell)
+from .config import TILE_H, TILE_W, kernel
+from .rays import camera_ray, dealt_tile, tile_count
+from .transfer import tf_opacity
+from .traverse import cell_corners, grid_shape, step_cell, to_index_space, walk_from
+
+
+@kernel(inline="always")
+def _next_layer(layer_t, used, y, x, before):
+    """The unused layer with the smallest ``t < before`` at pixel (y, x), or -1."""
+    best = -1
+    bt = before
+    for j in range(layer_t.shape[0]):
+        if not used[j] and layer_t[j, y, x] < bt:
+            best = j
+            bt = layer_t[j, y, x]
+    return best
+
+
+# The walk state `cast_merged_image` keeps per volume (a row of floats).
+_W_A = 0            # anchored ray: A (3), D (3)
+_W_D = 3
+_W_INV = 6          # 1 / D (3) and the step along each axis, -1, 0, 1 (3)
+_W_STEP = 9
+_W_CELL = 12        # i, j, k
+_W_T = 15           # tx0, tx1, ty0, ty1, tz0, tz1
+_W_T_IN = 21
+_W_T_OUT = 22
+_W_T_END = 23
+_W_N_LAST = 24
+_W_TA = 25
+_W_N = 26           # next lattice point to take, and the last in the current cell
+_W_N_HI = 27
+_W_C1 = 28          # the current cell's exit
+_W_LIVE = 29
+_W_CORNERS = 30     # the current cell's eight corners
+_W_SIZE = 38
+
+
+@kernel(inline="always")
+def _merged_advance(st, q, data, skip, jump_min, step, params, nobits, fresh):
+    """Move volume ``q``'s walk on to its next cell with lattice points to take (from its
+    current cell itself when ``fresh``); ``st[q, _W_LIVE] = 0`` once there is none."""
+    nz, ny, nx = grid_shape(data)
+    Ax, Ay, Az = st[q, _W_A], st[q, _W_A + 1], st[q, _W_A + 2]
+    ix, iy, iz = st[q, _W_INV], st[q, _W_INV + 1], st[q, _W_INV + 2]
+    sx, sy, sz = int(st[q, _W_STEP]), int(st[q, _W_STEP + 1]), int(st[q, _W_STEP + 2])
+    i, j, k = int(st[q, _W_CELL]), int(st[q, _W_CELL + 1]), int(st[q, _W_CELL + 2])
+    tx0, tx1, ty0, ty1 = st[q, _W_T], st[q, _W_T + 1], st[q, _W_T + 2], st[q, _W_T + 3]
+    tz0, tz1 = st[q, _W_T + 4], st[q, _W_T + 5]
+    t_in, t_out, t_end = st[q, _W_T_IN], st[q, _W_T_OUT], st[q, _W_T_END]
+    n_last = int(st[q, _W_N_LAST])
+    c1 = st[q, _W_C1]
+    live = True
+    while True:
+        if not fresh:
+            if c1 >= t_end:
+                live = False
+                break
+            inside, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1 = step_cell(Ax, Ay, Az, sx, sy, sz, ix, iy, iz, i, j, k,
+                                                                      tx0, tx1, ty0, ty1, tz0, tz1, nx, ny, nz)
+            if not inside:
+                live = False
+                break
+        fresh = False
+        c0 = max(t_in, max(tx0, max(ty0, tz0)))
+        c1 = min(t_out, min(tx1, min(ty1, tz1)))
+        action, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1, _, _ = visit_cell(
+            (Ax, Ay, Az), (sx, sy, sz), (ix, iy, iz), i, j, k, tx0, tx1, ty0, ty1, tz0, tz1, c0, c1, t_end,
+            skip, jump_min, nobits, 0, 0, False, params, (0.0, 0.0, 0.0, 0.0, math.inf, -math.inf))
+        if action == MOVED:
+            fresh = True
+            continue
+        if action == END:
+            live = False
+            break
+        if action == PASS:
+            continue
+        n_lo, n_hi = cell_lattice(c0, c1, t_in, t_out, step, n_last)
+        if n_lo <= n_hi:
+            st[q, _W_N] = n_lo
+            st[q, _W_N_HI] = n_hi
+            (st[q, _W_CORNERS], st[q, _W_CORNERS + 1], st[q, _W_CORNERS + 2], st[q, _W_CORNERS + 3],
+             st[q, _W_CORNERS + 4], st[q, _W_CORNERS + 5], st[q, _W_CORNERS + 6],
+             st[q, _W_CORNERS + 7]) = cell_corners(data, i, j, k)
+            break
+    st[q, _W_LIVE] = 1.0 if live else 0.0
+    st[q, _W_CELL], st[q, _W_CELL + 1], st[q, _W_CELL + 2] = i, j, k
+    st[q, _W_T], st[q, _W_T + 1], st[q, _W_T + 2], st[q, _W_T + 3] = tx0, tx1, ty0, ty1
+    st[q, _W_T + 4], st[q, _W_T + 5] = tz0, tz1
+    st[q, _W_C1] = c1
+
+
+@kernel(inline="always")
+def _merged_start(st, q, data, Ox, Oy, Oz, Dx, Dy, Dz, seg0, seg1, t_stop, skip, jump_min, params, nobits):
+    """Volume ``q``'s walk over ``[seg0, seg1]``, on its first cell with lattice points to take (`_merged_advance`)."""
+    nz, ny, nx = grid_shape(data)
+    step = params[P_STEP]
+    ta, Ax, Ay, Az, t_in, t_out, n_last, t_start, t_end = ray_span(data, Ox, Oy, Oz, Dx, Dy, Dz, seg0, seg1,
+                                                                   t_stop, step)
+    if not t_start <= t_end:
+        st[q, _W_LIVE] = 0.0
+        return
+    i, j, k, sx, sy, sz, ix, iy, iz, tx0, tx1, ty0, ty1, tz0, tz1 = walk_from(Ax, Ay, Az, Dx, Dy, Dz, t_start,
+                                                                             nx, ny, nz)
+    st[q, _W_A], st[q, _W_A + 1], st[q, _W_A + 2] = Ax, Ay, Az
+    st[q, _W_D], st[q, _W_D + 1], st[q, _W_D + 2] = Dx, Dy, Dz
+    st[q, _W_INV], st[q, _W_INV + 1], st[q, _W_INV + 2] = ix, iy, iz
+    st[q, _W_STEP], st[q, _W_STEP + 1], st[q, _W_STEP + 2] = sx, sy, sz
+    st[q, _W_CELL], st[q, _W_CELL + 1], st[q, _W_CELL + 2] = i, j, k
+    st[q, _W_T], st[q, _W_T + 1], st[q, _W_T + 2], st[q, _W_T + 3] = tx0, tx1, ty0, ty1
+    st[q, _W_T + 4], st[q, _W_T + 5] = tz0, tz1
+    st[q, _W_T_IN], st[q, _W_T_OUT], st[q, _W_T_END] = t_in, t_out, t_end
+    st[q, _W_N_LAST] = n_last
+    st[q, _W_TA] = ta
+    st[q, _W_C1] = -math.inf
+    _merged_advance(st, q, data, skip, jump_min, step, params, nobits, True)
+
+
+def _merged_caster(shaded):
+    """`cast_merged_image`'s kernel, with gradient shading compiled in (``shaded``) or out,
+    as `raycast.composite` does for one volume."""
+    @kernel(parallel=True)
+    def cast(datas, orgs, spcs, cam, width, height, params, op_x, op_y, col_x, col_rgb, tf_len,
+             seg, use_seg, skip, jump_mins, stop, layer_t, layer_rgba, image, counts):
+        nvol = len(datas)
+        thr = 0.0
+        for q in range(nvol):
+            thr = max(thr, params[q, P_THRESHOLD])
+        tiles = tile_count(width, 0, height, TILE_W, TILE_H)
+        for it in prange(tiles):
+            x0, x1, y0, y1 = dealt_tile(it, tiles, width, 0, height)
+            st = np.zeros((nvol, _W_SIZE))
+            used = np.zeros(layer_t.shape[0], np.bool_)
+            nobits = np.zeros((1, 1, 1), np.uint32)
+            for y in range(y0, y1):
+                for x in range(x0, x1):
+                    ox, oy, oz, dx, dy, dz = camera_ray(cam, width, height, x, y)
+                    t_stop = stop[y, x]
+                    for q in range(nvol):
+                        Ox, Oy, Oz, Dx, Dy, Dz = to_index_space(ox, oy, oz, dx, dy, dz, orgs[q], spcs[q])
+                        s0 = -math.inf
+                        s1 = math.inf
+                        if use_seg:
+                            s0 = seg[q, y, x, 0]
+                            s1 = seg[q, y, x, 1]
+                        _merged_start(st, q, datas[q], Ox, Oy, Oz, Dx, Dy, Dz, s0, s1, t_stop, skip[q], jump_mins[q],
+                                      params[q], nobits)
+                    used[:] = False
+                    r = 0.0
+                    g = 0.0
+                    b = 0.0
+                    acc = 0.0
+                    samples = 0
+                    while True:
+                        best = -1
+                        bt = t_stop
+                        for q in range(nvol):
+                            if st[q, _W_LIVE] != 0.0:
+                                t = st[q, _W_TA] + (st[q, _W_T_IN] + st[q, _W_N] * params[q, P_STEP])
+                                if t < bt:
+                                    best = q
+                                    bt = t
+                        # Layers in front of the next sample (all of them at the end).
+                        while True:
+                            j = _next_layer(layer_t, used, y, x, bt if best >= 0 else math.inf)
+                            if j < 0:
+                                break
+                            used[j] = True
+                            wgt = 1.0 - acc
+                            r += wgt * layer_rgba[j, y, x, 0]
+                            g += wgt * layer_rgba[j, y, x, 1]
+                            b += wgt * layer_rgba[j, y, x, 2]
+                            acc += wgt * layer_rgba[j, y, x, 3]
+                        if best < 0 or acc >= thr:
+                            break
+                        tl = st[best, _W_T_IN] + st[best, _W_N] * params[best, P_STEP]
+                        i, j, k = int(st[best, _W_CELL]), int(st[best, _W_CELL + 1]), int(st[best, _W_CELL + 2])
+                        u, vv, w = local_coords(st[best, _W_A], st[best, _W_A + 1], st[best, _W_A + 2],
+                                                st[best, _W_D], st[best, _W_D + 1], st[best, _W_D + 2], i, j, k, tl)
+                        c = _W_CORNERS
+                        v = trilinear(st[best, c], st[best, c + 1], st[best, c + 2], st[best, c + 3],
+                                      st[best, c + 4], st[best, c + 5], st[best, c + 6], st[best, c + 7], u, vv, w)
+                        samples += 1
+                        st[best, _W_N] += 1.0
+                        if st[best, _W_N] > st[best, _W_N_HI]:
+                            _merged_advance(st, best, datas[best], skip[best], jump_mins[best], params[best, P_STEP],
+                                            params[best], nobits, False)
+                        no = int(tf_len[best, 0])
+                        nc = int(tf_len[best, 1])
+                        a = tf_opacity(op_x[best, :no], op_y[best, :no], v)
+                        if not a > 0.0:
+                            continue
+                        a, cr, cg, cb = composite_sample(datas[best], spcs[best], v, i, j, k, u, vv, w, a, dx, dy, dz,
+                                                         params[best], col_x[best, :nc], col_rgb[best, :nc],
+                                                         shaded and params[best, P_SHADE] != 0.0)
+                        wgt = (1.0 - acc) * a
+                        r += wgt * cr
+                        g += wgt * cg
+                        b += wgt * cb
+                        acc += wgt
+                    image[y, x, 0] = min(r, 1.0)
+                    image[y, x, 1] = min(g, 1.0)
+                    image[y, x, 2] = min(b, 1.0)
+                    image[y, x, 3] = min(acc, 1.0)
+                    counts[y * width + x] = samples
+    return cast
+
+
+_MERGED_CASTERS = {shaded: _merged_caster(shaded) for shaded in (False, True)}
+
+
+def cast_merged_image(datas, orgs, spcs, cam, width, height, params, op_x, op_y, col_x, col_rgb, tf_len,
+                      seg, use_seg, skip, jump_mins, stop, layer_t, layer_rgba, image, counts):
+    """Composite several overlapping volumes along each pixel's ray, samples merged in depth order.
+
+    ``datas`` is a tuple of K volumes of one dtype, each with its own
+    placement (``orgs[k]``, ``spcs[k]``), ``params[k]`` (composite mode),
+    transfer function (rows ``k`` of the padded tables, lengths
+    ``tf_len[k] = (opacity points, colour points)``) and PARC segments
+    ``seg[k]``. Each volume keeps its own walk and sample lattice (as for
+    one volume: `accumulate_ray`), so every sample is the one a
+    single-volume cast would take; the samples of all volumes are taken in
+    order of ``t`` (ties: the first volume first), composited front to
+    back, and stop at ``stop[y, x]`` (an opaque surface) or once the
+    opacity reaches the largest threshold. ``layer_t[j]``, ``layer_rgba[j]``
+    are finished per-pixel layers (maximum or average intensity of another
+    volume) composited where the ray reaches ``t = layer_t``. ``skip[k]``
+    and ``jump_mins[k]``: volume k's skip table, as `accumulate_ray`
+    takes it (`raycast.iso.NO_SKIP` and -1 for none); a skipped sample
+    adds nothing, so the layers and the other volumes' samples keep their
+    order.
+    """
+    cast = _MERGED_CASTERS[bool((params[:, P_SHADE] != 0.0).any())]
+    cast(datas, orgs, spcs, cam, width, height, params, op_x, op_y, col_x, col_rgb, tf_len, seg, use_seg, skip,
+         jump_mins, stop, layer_t, layer_rgba, image, counts)
