@@ -161,16 +161,37 @@ def _classify(vol, size, frac=0.35):
     return idx.grid(size), pc
 
 
+def pc_runs(proxy):
+    """Closed world boxes ``(lo, hi)`` whose union is the PC supercells, and the plane of each.
+
+    Consecutive PC supercells along a row (an axis other than the plane
+    axis) share a face at the same float edge, so a run of them is one
+    closed box, and a ray meets the run (by `planes_met`'s slab test, with
+    its ``touch``) exactly when it meets one of them: fewer boxes, the
+    same answers (the 1/8-cell tests have 36,864 supercells in 768 runs).
+    """
+    edges = proxy.world_edges                    # x, y, z
+    along = 0 if proxy.plane_axis != 0 else 1    # merge along x, or y when x is the plane axis
+    np_axis = 2 - along                          # its axis in pc's (z, y, x) order
+    pc = np.moveaxis(np.asarray(proxy.pc, bool), np_axis, -1)
+    pad = np.zeros(pc.shape[:-1] + (1,), bool)
+    padded = np.concatenate([pad, pc, pad], axis=-1)
+    starts = np.nonzero(pc & ~padded[..., :-2])
+    ends = np.nonzero(pc & ~padded[..., 2:])     # same rows, same order as starts
+    rows = [r for r in starts[:-1]]
+    k_lo = rows[:np_axis] + [starts[-1]] + rows[np_axis:]      # (kz, ky, kx) of each run's first supercell
+    k_hi = rows[:np_axis] + [ends[-1]] + rows[np_axis:]        # ... and of its last
+    lo = np.stack([edges[a][k_lo[2 - a]] for a in range(3)], axis=1)
+    hi = np.stack([edges[a][k_hi[2 - a] + 1] for a in range(3)], axis=1)
+    return lo, hi, k_lo[2 - proxy.plane_axis]
+
+
 def planes_met(camera, width, height, proxy, *, touch=0.0):
     """Per pixel, the planes whose PC boxes the ray meets (closed, t >= 0): bool (H, W, planes)."""
     o, d = caster_rays(camera, width, height)
     o = o.reshape(-1, 1, 3)
     d = d.reshape(-1, 1, 3)
-    ex, ey, ez = proxy.world_edges
-    kz, ky, kx = np.nonzero(proxy.pc)
-    lo = np.stack([ex[kx], ey[ky], ez[kz]], axis=1)
-    hi = np.stack([ex[kx + 1], ey[ky + 1], ez[kz + 1]], axis=1)
-    plane = (kx, ky, kz)[proxy.plane_axis]
+    lo, hi, plane = pc_runs(proxy)
     n_planes = len(proxy.world_edges[proxy.plane_axis]) - 1
     out = np.zeros((o.shape[0], n_planes), bool)
     for b0 in range(0, len(lo), 256):
@@ -260,14 +281,18 @@ def caster_required(camera, width, height, vol, grid, pc, axis, step):
 def _check_bits(camera, vol, grid, pc, width, height, label, report, *, axis=None, steps=(0.25,)):
     """Both modes against the geometric reference and against the caster's samples."""
     results = {}
+    met = None
     for halo in (True, False):
         pb = plane_buffers(camera, width, height, vol, pc, grid, axis=axis, halo=halo)
         assert isinstance(pb, PlaneBits)
         assert pb.bits.dtype == np.uint32 and pb.bits.shape[:2] == (height, width)
         assert pb.bits.shape[2] == max(1, -(-pb.count // 32))
-        proxy = build_plane_proxy(grid, pc, grid.world_edges(vol), pb.axis)
         n_planes = grid.counts[pb.axis]
-        met = planes_met(camera, width, height, proxy, touch=1e-12 * pb.info["scale"])
+        if met is None:      # the same planes for both passes (same axis, same boxes)
+            proxy = build_plane_proxy(grid, pc, grid.world_edges(vol), pb.axis)
+            met = planes_met(camera, width, height, proxy, touch=1e-12 * pb.info["scale"])
+            met_axis = pb.axis
+        assert pb.axis == met_axis
         assert met.any(), "test camera sees no PC supercell"
         have = _bit_array(pb.bits, pb.first, n_planes)
         missing = met & ~have
