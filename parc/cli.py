@@ -16,7 +16,7 @@ import numpy as np
 from data_tools import InputError
 
 from .flagscene import load_volume_flags, scene_and_notes
-from .outputs import Progress, atomic_write_all, check_distinct, check_output, to_json, write_png
+from .outputs import Progress, atomic_write_all, check_distinct, check_output, compile_notice, to_json, write_png
 
 EXIT_USAGE = 2
 
@@ -371,6 +371,7 @@ def cmd_render(args):
     say = (lambda *a: None) if args.quiet else (lambda msg: print(f"parc: {msg}", file=sys.stderr))
     scene, notes = scene_and_notes(args)
     w, h = scene.size
+    compile_notice(say)
     progress = None if args.quiet else Progress(f"rendering {w}x{h}")
     kwargs = ({"supercell": args.supercell, "buffers": _buffers(args, scene), "blocks": not args.no_blocks}
               if args.method == "parc" else {})
@@ -432,6 +433,8 @@ def cmd_compare(args):
         if not steps or not all(np.isfinite(steps)) or min(steps) <= 0:
             raise InputError(f"--sweep-step must be comma-separated positive numbers, got {args.sweep_step!r}")
     scene, notes = scene_and_notes(args)
+    if warming is not None:
+        compile_notice(say)
     if steps is not None:
         from .compare import format_step_table, step_sweep
         rows = step_sweep(scene, steps, repeats=args.repeats, progress=warming)

@@ -118,3 +118,19 @@ class Progress:
     def done(self):
         if self.tty and self.last >= 0:
             print(f"\rparc: {self.what}: done in {time.perf_counter() - self.start:.1f} s", file=sys.stderr)
+
+
+def compile_notice(say):
+    """Say that the casters compile now, when this machine has no compiled kernels for these sources.
+
+    Numba compiles every kernel on its first use and caches it (`raycast.config`
+    names the folder after the kernel sources), so the first render after a
+    clone or an update spends several seconds, up to a minute for `parc
+    bench`, before its progress starts; without a word it looks hung.
+    """
+    from raycast.config import cache_folder
+
+    folder = cache_folder()
+    if next(folder.rglob("*.nbi"), None) is None:     # Numba's index of a cached kernel
+        say(f"compiling the ray casters for this machine, once (kept in {folder})")
+

@@ -39,6 +39,11 @@ os.environ.setdefault("NUMBA_CACHE_DIR", os.path.join(
     f"numba-{_source_digest()}-{SPREAD_WAYS}t"))
 numba.core.config.CACHE_DIR = os.environ["NUMBA_CACHE_DIR"]
 
+
+def cache_folder():
+    """The folder this version of the kernels is cached in."""
+    return Path(numba.core.config.CACHE_DIR)
+
 #: Flags shared by all kernels. fastmath stays off: PARC and the
 #: unaccelerated caster must round identically, and the root finder relies
 #: on IEEE comparisons with inf.

@@ -33,6 +33,7 @@ import numpy as np
 
 from data_tools import InputError
 
+from ..outputs import compile_notice
 from .scenes import default_data_dir
 
 
@@ -308,6 +309,7 @@ def main(args):
     def say(msg):
         print(f"parc bench: {msg}  ({time.perf_counter() - t0:.0f} s)", file=sys.stderr, flush=True)
 
+    compile_notice(say)
     res = run_bench(out, suite, progress=say, command="parc " + " ".join(args.argv))
     failed = [c for c in res["checks"] if not c["ok"]]
     print(f"{out / 'report.md'}: {len(res['checks']) - len(failed)} of {len(res['checks'])} checks pass "

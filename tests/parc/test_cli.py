@@ -466,3 +466,20 @@ def test_outputs_are_ordinary_files(vol_file, tmp_path, capsys):
         os.umask(old)
     assert rc == 0, err
     assert stat.S_IMODE(out.stat().st_mode) == 0o644
+
+
+def test_a_first_run_says_the_casters_compile(vol_file, tmp_path, capsys, monkeypatch):
+    """With no compiled kernel cached for these sources, render says why its progress is late; once one is, not."""
+    import numba.core.config
+    empty = tmp_path / "cache"
+    (empty / "raycast_0123").mkdir(parents=True)      # Numba makes its folders before it compiles anything
+    monkeypatch.setattr(numba.core.config, "CACHE_DIR", str(empty))
+    render = ["render", vol_file, "--iso", 4, "--size", 8, 8, "-o"]
+    rc, _, err = _run(render + [tmp_path / "a.png"], capsys)
+    assert rc == 0 and "compiling the ray casters for this machine, once" in err
+    (empty / "raycast_0123" / "iso.cast_iso_image-260.py311.nbi").write_bytes(b"")
+    rc, _, err = _run(render + [tmp_path / "b.png"], capsys)
+    assert rc == 0 and err and "compiling" not in err
+    (empty / "raycast_0123" / "iso.cast_iso_image-260.py311.nbi").unlink()
+    rc, _, err = _run(render + [tmp_path / "c.png", "--quiet"], capsys)
+    assert rc == 0 and err == ""
