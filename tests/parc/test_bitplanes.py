@@ -168,7 +168,7 @@ def pc_runs(proxy):
     axis) share a face at the same float edge, so a run of them is one
     closed box, and a ray meets the run (by `planes_met`'s slab test, with
     its ``touch``) exactly when it meets one of them: fewer boxes, the
-    same answers (the 1/8-cell tests have 36,864 supercells in 768 runs).
+    same answers (the 1/8-cell tests have 36,864 supercells in 1,536 runs).
     """
     edges = proxy.world_edges                    # x, y, z
     along = 0 if proxy.plane_axis != 0 else 1    # merge along x, or y when x is the plane axis
