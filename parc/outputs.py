@@ -133,4 +133,3 @@ def compile_notice(say):
     folder = cache_folder()
     if next(folder.rglob("*.nbi"), None) is None:     # Numba's index of a cached kernel
         say(f"compiling the ray casters for this machine, once (kept in {folder})")
-

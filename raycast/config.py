@@ -44,6 +44,7 @@ def cache_folder():
     """The folder this version of the kernels is cached in."""
     return Path(numba.core.config.CACHE_DIR)
 
+
 #: Flags shared by all kernels. fastmath stays off: PARC and the
 #: unaccelerated caster must round identically, and the root finder relies
 #: on IEEE comparisons with inf.

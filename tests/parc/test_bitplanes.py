@@ -178,7 +178,7 @@ def pc_runs(proxy):
     padded = np.concatenate([pad, pc, pad], axis=-1)
     starts = np.nonzero(pc & ~padded[..., :-2])
     ends = np.nonzero(pc & ~padded[..., 2:])     # same rows, same order as starts
-    rows = [r for r in starts[:-1]]
+    rows = list(starts[:-1])
     k_lo = rows[:np_axis] + [starts[-1]] + rows[np_axis:]      # (kz, ky, kx) of each run's first supercell
     k_hi = rows[:np_axis] + [ends[-1]] + rows[np_axis:]        # ... and of its last
     lo = np.stack([edges[a][k_lo[2 - a]] for a in range(3)], axis=1)
@@ -281,18 +281,18 @@ def caster_required(camera, width, height, vol, grid, pc, axis, step):
 def _check_bits(camera, vol, grid, pc, width, height, label, report, *, axis=None, steps=(0.25,)):
     """Both modes against the geometric reference and against the caster's samples."""
     results = {}
+    plane_axis = major_axis(camera, vol.bounds) if axis is None else axis
+    proxy = build_plane_proxy(grid, pc, grid.world_edges(vol), plane_axis)
+    n_planes = grid.counts[plane_axis]
     met = None
     for halo in (True, False):
         pb = plane_buffers(camera, width, height, vol, pc, grid, axis=axis, halo=halo)
         assert isinstance(pb, PlaneBits)
+        assert pb.axis == plane_axis
         assert pb.bits.dtype == np.uint32 and pb.bits.shape[:2] == (height, width)
         assert pb.bits.shape[2] == max(1, -(-pb.count // 32))
-        n_planes = grid.counts[pb.axis]
-        if met is None:      # the same planes for both passes (same axis, same boxes)
-            proxy = build_plane_proxy(grid, pc, grid.world_edges(vol), pb.axis)
+        if met is None:      # both passes meet the same planes; the touch scales with the pass's scene
             met = planes_met(camera, width, height, proxy, touch=1e-12 * pb.info["scale"])
-            met_axis = pb.axis
-        assert pb.axis == met_axis
         assert met.any(), "test camera sees no PC supercell"
         have = _bit_array(pb.bits, pb.first, n_planes)
         missing = met & ~have
