@@ -14,7 +14,7 @@ from parc import Camera, Isosurface, Scene, render
 from parc.classify import VolumeIndex
 
 SUPERCELLS = (0.5, 1, 2, 3, 4.5, 8, (2, 3, 1.5))
-VIEWS = ("perspective", "parallel", "axis_perspective", "axis_parallel", "inside", "inside_pc")
+VIEWS = ("perspective", "parallel", "closeup", "axis_perspective", "axis_parallel", "inside", "inside_pc")
 SIZE = (40, 32)
 
 
@@ -51,6 +51,11 @@ def _camera(rng, vol, view, iso, supercell):
         return Camera.framing(lo, hi, azimuth=rng.uniform(0, 360), elevation=rng.uniform(-80, 80),
                               zoom=rng.uniform(0.8, 2.5), parallel=view == "parallel",
                               fov=rng.uniform(15, 70))
+    if view == "closeup":
+        # A few cells across the image, nearly pole-on at times: one supercell
+        # face covers many pixels, and rays graze faces at any angle.
+        return Camera.framing(lo, hi, azimuth=rng.uniform(0, 360), elevation=rng.uniform(-89.9, 89.9),
+                              zoom=rng.uniform(4, 12), parallel=rng.random() < 0.5, fov=rng.uniform(3, 120))
     if view.startswith("axis"):
         axis = rng.integers(3)
         e = np.zeros(3)
@@ -85,7 +90,7 @@ def _camera(rng, vol, view, iso, supercell):
 KINDS = ("noise_uint8", "noise_float32", "blobs", "ct_int16", "ct_uint16", "trilinear")
 
 
-@pytest.mark.parametrize("seed", range(216))
+@pytest.mark.random_scenes(216)
 def test_parc_equals_brute(seed, gl):
     rng = np.random.default_rng(seed)
     kind = KINDS[seed % len(KINDS)]

@@ -19,6 +19,7 @@ from parc import Camera, DirectionalLight, Isosurface, PointLight, Scene, Transl
 
 SIZE = (28, 24)
 LIGHT_PLACES = ("outside", "on_box", "inside", "sun", "sun_axis")
+KINDS = ("blobs", "noise", "sparse", "field")
 
 
 def _volume(rng, kind, dims=None):
@@ -90,15 +91,10 @@ def _assert_same(scene, **kw):
     return b, p
 
 
-def _scene_cases():
-    cases = []
-    for n in range(100):
-        cases.append((n, LIGHT_PLACES[n % len(LIGHT_PLACES)], ("blobs", "noise", "sparse", "field")[n % 4]))
-    return cases
-
-
-@pytest.mark.parametrize("seed,place,kind", _scene_cases())
-def test_shadow_parc_equals_brute(gl, seed, place, kind):
+@pytest.mark.random_scenes(100)
+def test_shadow_parc_equals_brute(gl, seed):
+    place = LIGHT_PLACES[seed % len(LIGHT_PLACES)]
+    kind = KINDS[seed % len(KINDS)]
     rng = np.random.default_rng(1000 + seed)
     vol = _volume(rng, kind)
     vols = [_iso(rng, vol)]

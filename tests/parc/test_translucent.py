@@ -75,7 +75,7 @@ def _camera(rng, vol, seed):
                   parallel_scale=0.4 * float(np.linalg.norm(hi - lo)))
 
 
-@pytest.mark.parametrize("seed", range(210))
+@pytest.mark.random_scenes(210)
 def test_parc_equals_brute_translucent(seed, gl):
     rng = np.random.default_rng(1000 + seed)
     vol = _volume(rng, seed)

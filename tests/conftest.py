@@ -1,0 +1,52 @@
+"""Options shared by every test package: `--soak`, more random scenes than the suite runs.
+
+The random-scene tests (`parc` against `brute`) take their scene from a
+seed. The suite runs a fixed set of seeds, enough to cover every kind of
+volume, view and supercell; ``--soak N`` adds ``N`` more seeds to each such
+test, from ``--soak-start`` on, for a longer check before a release or
+after a change to the raster or the walk::
+
+    ./dev.sh test tests/parc -k equals_brute --soak 2000
+
+A failure names its seed in the test id, so that scene runs alone again with::
+
+    ./dev.sh test "tests/parc/test_parc_equals_brute.py::test_parc_equals_brute[1000123]" \
+        --soak 1 --soak-start 1000123
+"""
+import argparse
+
+#: The first seed `--soak` adds: past every seed the suite runs by itself.
+SOAK_START = 1_000_000
+
+
+def _count(text):
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if n < 0:
+        raise argparse.ArgumentTypeError(f"must be 0 or more, got {n}")
+    return n
+
+
+def pytest_addoption(parser):
+    group = parser.getgroup("parc", "random scenes")
+    group.addoption("--soak", type=_count, default=0, metavar="N",
+                    help="run N more random scenes in each random-scene test (parc against brute), "
+                         "seeds from --soak-start on")
+    group.addoption("--soak-start", type=_count, default=SOAK_START, metavar="SEED",
+                    help=f"the first extra seed --soak runs (default {SOAK_START:,})")
+
+
+def pytest_configure(config):
+    config.addinivalue_line("markers", "random_scenes(n): parametrize the test's `seed` with seeds 0 .. n-1, "
+                                       "and the extra seeds --soak asks for")
+
+
+def pytest_generate_tests(metafunc):
+    marker = metafunc.definition.get_closest_marker("random_scenes")
+    if marker is None:
+        return
+    extra = metafunc.config.getoption("soak")
+    start = metafunc.config.getoption("soak_start")
+    metafunc.parametrize("seed", [*range(marker.args[0]), *range(start, start + extra)])
