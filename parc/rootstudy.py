@@ -67,7 +67,7 @@ from raycast.config import kernel
 from raycast.cubic import eval_cubic, first_root
 from raycast.iso import cell_cubic, corners
 from raycast.roots_alt import MARMITT_ITER, first_root_closed_form, first_root_marmitt
-from raycast.traverse import axis_state, clip_box, entry_anchor, next_exit, start_index, step_axis, to_index_space
+from raycast.traverse import clip_box, entry_anchor, step_cell, to_index_space, walk_from
 
 #: Variant codes of the kernels' switch.
 PROJECT, CLOSED_FORM, MARMITT = 0, 1, 2
@@ -127,12 +127,8 @@ def _walk_anchored(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, variant, rec, n0):
     solves = 0
     if not t_in <= t_out:
         return math.inf, -1, -1, -1, 0.0, 0.0, 0.0, solves
-    i = start_index(Ox, Dx, t_in, nx)
-    j = start_index(Oy, Dy, t_in, ny)
-    k = start_index(Oz, Dz, t_in, nz)
-    sx, ix, tx0, tx1 = axis_state(Ox, Dx, i)
-    sy, iy, ty0, ty1 = axis_state(Oy, Dy, j)
-    sz, iz, tz0, tz1 = axis_state(Oz, Dz, k)
+    i, j, k, sx, sy, sz, ix, iy, iz, tx0, tx1, ty0, ty1, tz0, tz1 = walk_from(Ox, Oy, Oz, Dx, Dy, Dz, t_in,
+                                                                             nx, ny, nz)
     prev = 0.0
     record = rec.shape[0] > 0
     while True:
@@ -164,25 +160,10 @@ def _walk_anchored(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, variant, rec, n0):
             prev = 1.0 if f > 0.0 else (-1.0 if f < 0.0 else 0.0)
         if c1 >= t_out:
             break
-        axis = step_axis(tx1, ty1, tz1)
-        if axis == 0:
-            i += sx
-            if i < 0 or i > nx - 2:
-                break
-            tx0 = tx1
-            tx1 = next_exit(Ox, ix, sx, i)
-        elif axis == 1:
-            j += sy
-            if j < 0 or j > ny - 2:
-                break
-            ty0 = ty1
-            ty1 = next_exit(Oy, iy, sy, j)
-        else:
-            k += sz
-            if k < 0 or k > nz - 2:
-                break
-            tz0 = tz1
-            tz1 = next_exit(Oz, iz, sz, k)
+        inside, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1 = step_cell(Ox, Oy, Oz, sx, sy, sz, ix, iy, iz, i, j, k,
+                                                                  tx0, tx1, ty0, ty1, tz0, tz1, nx, ny, nz)
+        if not inside:
+            break
     return math.inf, -1, -1, -1, 0.0, 0.0, 0.0, solves
 
 
