@@ -129,6 +129,8 @@ def _add_view_options(p):
                    help="parallel projection; SCALE is half the view height in world units")
     g.add_argument("--size", type=int, nargs=2, metavar=("W", "H"),
                    help="image size in pixels (default 512 512)")
+    g.add_argument("--background", type=_floats(3, "--background"), metavar="R,G,B",
+                   help="opaque background colour in [0,1] (default transparent)")
 
 
 def _add_light_options(p):
@@ -176,8 +178,6 @@ def build_parser():
     r.add_argument("--no-blocks", action="store_true",
                    help="parc: walk the whole of each OpenGL segment, without skipping the empty "
                         "cells and cubes of such cells inside it (same image, slower)")
-    r.add_argument("--background", type=_floats(3, "--background"), metavar="R,G,B",
-                   help="opaque background colour in [0,1] (default transparent); replaces a scene file's")
     r.add_argument("--quiet", action="store_true", help="no progress or notes on stderr")
     _add_look_options(r)
     _add_view_options(r)

@@ -483,3 +483,55 @@ def test_a_first_run_says_the_casters_compile(vol_file, tmp_path, capsys, monkey
     (empty / "raycast_0123" / "iso.cast_iso_image-260.py311.nbi").unlink()
     rc, _, err = _run(render + [tmp_path / "c.png", "--quiet"], capsys)
     assert rc == 0 and err == ""
+
+
+
+def _readme_synopsis():
+    """``{command: set of flags}`` from the README's "Command line" block, comments dropped."""
+    import re
+    from pathlib import Path
+    text = (Path(__file__).parents[2] / "README.md").read_text()
+    block = text.split("## Command line", 1)[1].split("```", 2)[1]
+    flags = {}
+    command = None
+    for line in block.splitlines():
+        words = line.split("#", 1)[0].split()
+        if words[:1] == ["parc"]:
+            command = words[1]
+        if command is not None:
+            flags.setdefault(command, set()).update(
+                re.findall(r"(?<![\w-])-(?:-[a-z][a-z-]*|[a-z])\b", " ".join(words)))
+    return flags
+
+
+def _parser_options():
+    """``{command: [set of one option's spellings, ...]}`` from the parsers, help left out."""
+    from parc.cli import build_parser
+    sub = next(a for a in build_parser()._actions if isinstance(a.choices, dict))
+    return {name: [set(a.option_strings) for a in p._actions if a.option_strings and a.dest != "help"]
+            for name, p in sub.choices.items()}
+
+
+def test_the_readme_synopsis_is_the_command_line():
+    """Every flag the README's synopsis gives exists, and every option the parsers take is given
+    (in either spelling; compare names render's flags of what, how and where to look instead of
+    repeating them)."""
+    documented = _readme_synopsis()
+    options = _parser_options()
+    assert set(documented) == set(options)
+    taken = {command: set().union(*spellings) for command, spellings in options.items()}
+    for command, flags in documented.items():
+        assert flags <= taken[command], f"parc {command}: the README gives {sorted(flags - taken[command])}"
+    documented["compare"] |= documented["render"] & taken["compare"]
+    for command, spellings in options.items():
+        missing = [sorted(s) for s in spellings if not s & documented[command]]
+        assert not missing, f"parc {command}: the README leaves out {missing}"
+
+
+def test_compare_takes_a_background(vol_file, capsys, gl):
+    rc, out, err = _run(["compare", vol_file, "--iso", 4.0, "--size", 24, 20, "--repeats", 1,
+                         "--background", "0.2,0.3,0.4", "--json", "--quiet"], capsys)
+    assert rc == 0, err
+    rows = json.loads(out)
+    assert [r["method"] for r in rows] == ["brute", "parc"]
+    assert rows[1]["hit_mismatches"] == 0 and rows[1]["max_color"] == 0.0
