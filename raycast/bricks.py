@@ -16,7 +16,7 @@ measured on, bricks made the unaccelerated caster 1-28% slower (the
 tables cost more than the cache lines they save, and the hardware
 prefetcher already follows a linear walk); PARC's isosurface cast was
 within noise of linear on the real volumes and 4-7% faster only on a
-910 MB one, and its translucent cast 10% slower (README, Benchmark).
+910 MB one, and its translucent cast 4-10% slower (benchmarks/README.md).
 """
 from collections import namedtuple
 
