@@ -1,14 +1,16 @@
 """The command line: good runs write what they say; bad input gets one line, status 2, no file."""
 import json
+import re
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from data_tools import Volume
 from data_tools.io import save_volume
-from parc.cli import main
+from parc.cli import build_parser, main
 
 
 @pytest.fixture
@@ -485,11 +487,8 @@ def test_a_first_run_says_the_casters_compile(vol_file, tmp_path, capsys, monkey
     assert rc == 0 and err == ""
 
 
-
 def _readme_synopsis():
     """``{command: set of flags}`` from the README's "Command line" block, comments dropped."""
-    import re
-    from pathlib import Path
     text = (Path(__file__).parents[2] / "README.md").read_text()
     block = text.split("## Command line", 1)[1].split("```", 2)[1]
     flags = {}
@@ -506,7 +505,6 @@ def _readme_synopsis():
 
 def _parser_options():
     """``{command: [set of one option's spellings, ...]}`` from the parsers, help left out."""
-    from parc.cli import build_parser
     sub = next(a for a in build_parser()._actions if isinstance(a.choices, dict))
     return {name: [set(a.option_strings) for a in p._actions if a.option_strings and a.dest != "help"]
             for name, p in sub.choices.items()}
