@@ -39,23 +39,32 @@ def best_ms(cast, repeats):
     return best * 1e3
 
 
+def frame(vis, size):
+    """What the casting kernels take for ``vis`` seen from the default view at ``size``x``size``:
+    ``(cam, org, spc, seg, skip, jump_min, extra)``, the segments PARC's OpenGL pass finds and its stats."""
+    from parc import Camera, Scene
+    from parc.renderer import _parc_segments, skip_table
+
+    vol = vis.volume
+    scene = Scene(Camera.framing(*vol.bounds), (size, size), [vis])
+    seg, extra, _ = _parc_segments(scene, vis, None, {})
+    skip, jump_min = skip_table(vis, True)
+    return (scene.camera.as_array(), np.array(vol.origin), np.array(vol.spacing), seg.copy(), skip, jump_min,
+            extra)
+
+
 def iso_parts(vol, iso, size, repeats):
-    from parc import Camera, Isosurface, Scene
-    from parc.renderer import _parc_segments, iso_work, skip_table
+    from parc import Isosurface
+    from parc.renderer import iso_work
     from raycast.iso import NO_SKIP, cast_iso_image
 
     vis = Isosurface(vol, iso)
-    scene = Scene(Camera.framing(*vol.bounds), (size, size), [vis])
-    seg, extra, _ = _parc_segments(scene, vis, None, {})
-    seg = seg.copy()
-    cam = scene.camera.as_array()
-    org, spc = np.array(vol.origin), np.array(vol.spacing)
+    cam, org, spc, seg, skip, jump_min, extra = frame(vis, size)
     n = size * size
     t = np.empty(n)
     cell, uvw, counts = (a.copy() for a in iso_work(n))
     image = np.zeros((size, size, 4), np.float32)
     color, material = np.array(vis.color, np.float64), np.array(vis.material, np.float64)
-    skip, jump_min = skip_table(vis, True)
     started = seg.copy()
     has = seg[..., 0] <= seg[..., 1]
     started[..., 1] = np.where(has, seg[..., 0], seg[..., 1])
@@ -89,24 +98,19 @@ def iso_parts(vol, iso, size, repeats):
 
 
 def translucent_parts(vol, tf_name, size, repeats):
-    from parc import Camera, Scene, Translucent, load_transfer_function
-    from parc.renderer import _NO_STOP, _parc_segments, accumulation_params, skip_table
+    from parc import Translucent, load_transfer_function
+    from parc.renderer import _NO_STOP, accumulation_params
     from raycast.composite import cast_accumulate_image
     from raycast.iso import NO_SKIP
 
     tf = load_transfer_function(tf_name, vol.value_range())
     vis = Translucent(vol, tf)
-    scene = Scene(Camera.framing(*vol.bounds), (size, size), [vis])
-    seg, extra, _ = _parc_segments(scene, vis, None, {})
-    seg = seg.copy()
-    cam = scene.camera.as_array()
-    org, spc = np.array(vol.origin), np.array(vol.spacing)
+    cam, org, spc, seg, skip, jump_min, extra = frame(vis, size)
     params = accumulation_params(vis)
     op_x, op_y, col_x, col_rgb = tf.arrays()
     image = np.empty((size, size, 4), np.float32)
     counts = np.empty(size * size, np.int64)
     bits = np.zeros((1, 1, 1), np.uint32)
-    skip, jump_min = skip_table(vis, True)
 
     def cast(use_seg, table, jm):
         return cast_accumulate_image(vol.data, org, spc, cam, size, size, params, op_x, op_y, col_x, col_rgb,
