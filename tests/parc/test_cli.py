@@ -487,13 +487,17 @@ def test_a_first_run_says_the_casters_compile(vol_file, tmp_path, capsys, monkey
     assert rc == 0 and err == ""
 
 
+def _readme_command_lines():
+    """The lines of the README's "Command line" block."""
+    text = (Path(__file__).parents[2] / "README.md").read_text()
+    return text.split("## Command line", 1)[1].split("```", 2)[1].splitlines()
+
+
 def _readme_synopsis():
     """``{command: set of flags}`` from the README's "Command line" block, comments dropped."""
-    text = (Path(__file__).parents[2] / "README.md").read_text()
-    block = text.split("## Command line", 1)[1].split("```", 2)[1]
     flags = {}
     command = None
-    for line in block.splitlines():
+    for line in _readme_command_lines():
         words = line.split("#", 1)[0].split()
         if words[:1] == ["parc"]:
             command = words[1]
@@ -505,9 +509,13 @@ def _readme_synopsis():
 
 def _parser_options():
     """``{command: [set of one option's spellings, ...]}`` from the parsers, help left out."""
-    sub = next(a for a in build_parser()._actions if isinstance(a.choices, dict))
     return {name: [set(a.option_strings) for a in p._actions if a.option_strings and a.dest != "help"]
-            for name, p in sub.choices.items()}
+            for name, p in _subparsers().items()}
+
+
+def _subparsers():
+    """``{command: its parser}``."""
+    return next(a for a in build_parser()._actions if isinstance(a.choices, dict)).choices
 
 
 def test_the_readme_synopsis_is_the_command_line():
@@ -524,6 +532,20 @@ def test_the_readme_synopsis_is_the_command_line():
     for command, spellings in options.items():
         missing = [sorted(s) for s in spellings if not s & documented[command]]
         assert not missing, f"parc {command}: the README leaves out {missing}"
+
+
+def test_the_readme_names_every_synthetic_volume():
+    """The synopsis's ``parc make`` comment lists exactly the names the parser takes."""
+    lines = _readme_command_lines()
+    at = next(n for n, line in enumerate(lines) if line.startswith("parc make "))
+    comment = lines[at].split("#", 1)[1]
+    for line in lines[at + 1:]:
+        if not line.lstrip().startswith("#"):
+            break
+        comment += line.split("#", 1)[1]
+    named = {w.strip() for w in comment.split(",")}
+    make = next(a for a in _subparsers()["make"]._actions if a.dest == "name")
+    assert named == set(make.choices)
 
 
 def test_compare_takes_a_background(vol_file, capsys, gl):
