@@ -37,9 +37,10 @@ for this project's caster:
   kept. No ``t`` is needed: a crossing behind the ray start can only add
   bits, and the clipping keeps every crossing at ``t >= 0``.
 - **Clipping.** Perspective, eye outside the PC region: faces are clipped
-  below ``d_min cos(theta_max) / 2`` as in the depth pass; every face lies
-  at least ``d_min`` from the eye, so nothing visible is cut. Eye inside
-  (or on) a PC supercell: faces are clipped a tiny distance in front of
+  below ``d_min cos(theta_max) / 2`` (`parc.raster.perspective_clip`,
+  shared with the depth pass); every face lies at least ``d_min`` from
+  the eye, so nothing visible is cut. Eye inside (or on) a PC
+  supercell: faces are clipped a tiny distance in front of
   the eye and every pixel gets the bits of the planes whose slabs come
   within that distance (plus the boundary band) of the eye: the only
   crossings the clip can cut lie there. Parallel: faces are clipped a
@@ -115,9 +116,7 @@ import numpy as np
 from data_tools import InputError
 
 from .gl import get_context, moderngl_module, program, set_uniform
-from .origins import distance_to_pc
-from .raster import (ABS_TOL, COVERAGE_PAD_PX, GUARD_PX, INSIDE_CLIP_REL, TOL_REL, _scene_scale,
-                     set_view_uniforms)
+from .raster import ABS_TOL, COVERAGE_PAD_PX, GUARD_PX, TOL_REL, _scene_scale, perspective_clip, set_view_uniforms
 
 #: Width of the boundary band (halo mode), in cells along the plane axis:
 #: far above the caster's mismatch between ``floor(pos / m)`` and the
@@ -362,10 +361,8 @@ def raster_bits(camera, width, height, plane_proxy, *, first, count, halo=True, 
             back += 4.0 * band / abs(f[axis])
         clip_near = -back
     else:
-        d_min = distance_to_pc(eye, proxy)
+        d_min, cos_max, clip_near = perspective_clip(eye, proxy, th, aspect, ndc_limit, scale)
         eye_inside = d_min == 0.0
-        cos_max = 1.0 / math.sqrt(1.0 + th * th * ((aspect * ndc_limit[0]) ** 2 + ndc_limit[1] ** 2))
-        clip_near = INSIDE_CLIP_REL * scale if eye_inside else 0.5 * d_min * cos_max
     seconds["prepare"] = time.perf_counter() - t0
 
     bits = np.zeros((height, width, nwords), np.uint32)

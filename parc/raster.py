@@ -187,6 +187,22 @@ TOL_REL = 2.0 ** -32
 INSIDE_CLIP_REL = 2.0 ** -30
 
 
+def perspective_clip(eye, proxy, th, aspect, ndc_limit, scale):
+    """Where a perspective pass clips its faces: ``(d_min, cos_max, clip_near)``.
+
+    ``d_min`` is the eye's distance to the PC region (0 inside it). Every
+    face lies at least ``d_min`` from the eye, and a point seen at that
+    distance lies at least ``d_min * cos_max`` ahead of it, ``cos_max`` the
+    cosine of the widest angle to the view direction (the guard band's
+    corner ray); half of that cuts nothing visible. An eye inside clips at
+    `INSIDE_CLIP_REL` of the scene scale, and the caller covers the sliver.
+    """
+    d_min = distance_to_pc(eye, proxy)
+    cos_max = 1.0 / math.sqrt(1.0 + th * th * ((aspect * ndc_limit[0]) ** 2 + ndc_limit[1] ** 2))
+    clip_near = INSIDE_CLIP_REL * scale if d_min == 0.0 else 0.5 * d_min * cos_max
+    return d_min, cos_max, clip_near
+
+
 #: Cleared value: "no fragment" in both channels (near inf, far -inf).
 EMPTY = math.inf
 
@@ -359,12 +375,8 @@ def raster_segments(camera, width, height, proxy, *, pad_px=COVERAGE_PAD_PX, fac
         inside_px = parallel_inside(camera, width, height, proxy)
         eye_inside = bool(inside_px.any())
     else:
-        d_min = distance_to_pc(eye, proxy)
+        d_min, cos_max, clip_near = perspective_clip(eye, proxy, th, aspect, ndc_limit, scale)
         eye_inside = d_min == 0.0
-        # Visible points have forward distance >= d * cos(angle to f) and
-        # the guard band's corner ray has the largest angle.
-        cos_max = 1.0 / math.sqrt(1.0 + th * th * ((aspect * ndc_limit[0]) ** 2 + ndc_limit[1] ** 2))
-        clip_near = INSIDE_CLIP_REL * scale if eye_inside else 0.5 * d_min * cos_max
     seconds["prepare"] = time.perf_counter() - t0
 
     if proxy.n_polygons:
