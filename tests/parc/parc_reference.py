@@ -102,22 +102,15 @@ def pc_boxes(proxy):
     return lo, hi
 
 
-def segments_reference(camera, width, height, proxy, *, touch=0.0):
-    """Exact first entry and last exit of each pixel's ray over the PC boxes, (H, W) each.
-
-    ``inf`` / ``-inf`` where the ray meets no box. A ray passing within
-    ``touch`` (t units) of meeting a box counts as meeting it, so rays
-    through box edges and corners are demanded even when the slab test's
-    own rounding would call them a miss.
+def ray_box_batches(o, d, lo, hi, touch, batch=256):
+    """The slab test of rays ``o + t d`` (each (..., 3), R rays) against boxes ``[lo, hi]`` (each (B, 3)),
+    ``batch`` boxes at a time: yields ``(b0, enter, leave, meet)``, each (R, boxes in the batch)
+    for boxes ``b0 ..``, ``enter`` clamped to ``t >= 0``; ``meet`` where ``enter <= leave + touch``.
     """
-    o, d = caster_rays(camera, width, height)
     o = o.reshape(-1, 1, 3)
     d = d.reshape(-1, 1, 3)
-    lo, hi = pc_boxes(proxy)
-    near = np.full(o.shape[0], np.inf)
-    far = np.full(o.shape[0], -np.inf)
-    for b0 in range(0, len(lo), 256):
-        blo, bhi = lo[None, b0:b0 + 256], hi[None, b0:b0 + 256]
+    for b0 in range(0, len(lo), batch):
+        blo, bhi = lo[None, b0:b0 + batch], hi[None, b0:b0 + batch]
         with np.errstate(divide="ignore", invalid="ignore"):
             t0 = (blo - o) / d
             t1 = (bhi - o) / d
@@ -127,7 +120,22 @@ def segments_reference(camera, width, height, proxy, *, touch=0.0):
         tmax = np.where(par, np.where(ins, np.inf, -np.inf), np.maximum(t0, t1))
         enter = np.maximum(tmin.max(axis=2), 0.0)
         leave = tmax.min(axis=2)
-        meet = enter <= leave + touch
+        yield b0, enter, leave, enter <= leave + touch
+
+
+def segments_reference(camera, width, height, proxy, *, touch=0.0):
+    """Exact first entry and last exit of each pixel's ray over the PC boxes, (H, W) each.
+
+    ``inf`` / ``-inf`` where the ray meets no box. A ray passing within
+    ``touch`` (t units) of meeting a box counts as meeting it, so rays
+    through box edges and corners are demanded even when the slab test's
+    own rounding would call them a miss.
+    """
+    o, d = caster_rays(camera, width, height)
+    lo, hi = pc_boxes(proxy)
+    near = np.full(width * height, np.inf)
+    far = np.full(width * height, -np.inf)
+    for _, enter, leave, meet in ray_box_batches(o, d, lo, hi, touch):
         near = np.minimum(near, np.where(meet, enter, np.inf).min(axis=1))
         far = np.maximum(far, np.where(meet, np.maximum(leave, enter), -np.inf).max(axis=1))
     return near.reshape(height, width), far.reshape(height, width)

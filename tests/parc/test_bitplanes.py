@@ -32,7 +32,7 @@ from parc.bitplanes import PlaneBits, major_axis, plane_buffers, plane_range, ra
 from parc.camera import Camera
 from parc.classify import VolumeIndex, supercell_grid
 from parc.proxy import build_plane_proxy, build_proxy
-from parc_reference import caster_rays
+from parc_reference import caster_rays, ray_box_batches
 from raycast.composite import PLANE_TOL, POS_ROUNDING
 from raycast.iso import NO_SKIP
 
@@ -189,24 +189,11 @@ def pc_runs(proxy):
 def planes_met(camera, width, height, proxy, *, touch=0.0):
     """Per pixel, the planes whose PC boxes the ray meets (closed, t >= 0): bool (H, W, planes)."""
     o, d = caster_rays(camera, width, height)
-    o = o.reshape(-1, 1, 3)
-    d = d.reshape(-1, 1, 3)
     lo, hi, plane = pc_runs(proxy)
     n_planes = len(proxy.world_edges[proxy.plane_axis]) - 1
-    out = np.zeros((o.shape[0], n_planes), bool)
-    for b0 in range(0, len(lo), 256):
-        blo, bhi = lo[None, b0:b0 + 256], hi[None, b0:b0 + 256]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t0 = (blo - o) / d
-            t1 = (bhi - o) / d
-        par = d == 0.0
-        ins = (o >= blo) & (o <= bhi)
-        tmin = np.where(par, np.where(ins, -np.inf, np.inf), np.minimum(t0, t1))
-        tmax = np.where(par, np.where(ins, np.inf, -np.inf), np.maximum(t0, t1))
-        enter = np.maximum(tmin.max(axis=2), 0.0)
-        leave = tmax.min(axis=2)
-        meet = enter <= leave + touch
-        for j, p in enumerate(plane[b0:b0 + 256]):
+    out = np.zeros((width * height, n_planes), bool)
+    for b0, _, _, meet in ray_box_batches(o, d, lo, hi, touch):
+        for j, p in enumerate(plane[b0:b0 + meet.shape[1]]):
             out[:, p] |= meet[:, j]
     return out.reshape(height, width, n_planes)
 
