@@ -13,10 +13,16 @@ Sources of truth
   `raycast.rays.camera_ray`) against every PC supercell box by the slab
   test on closed boxes; the exact entry (clamped to the ray start) and
   exit over all boxes the ray meets.
+
+Also the smooth random volumes the raster and bit-plane tests share
+(`smooth_volume`, `band_classes`): PC regions that are blobs with holes.
 """
 import math
 
 import numpy as np
+
+from data_tools import Volume
+from parc.classify import VolumeIndex
 
 
 def cell_minmax_loop(data):
@@ -66,6 +72,26 @@ def _in_cell(data, i, j, k, u, v, w):
                              + v * ((1 - u) * c[0, 1, 0] + u * c[0, 1, 1]))
                   + w * ((1 - v) * ((1 - u) * c[1, 0, 0] + u * c[1, 0, 1])
                          + v * ((1 - u) * c[1, 1, 0] + u * c[1, 1, 1]))))
+
+
+def smooth_volume(seed, dims=(9, 8, 7), spacing=(1.0, 1.0, 1.0), origin=(0.0, 0.0, 0.0)):
+    """A smooth random field: PC regions are blobs with holes, not noise."""
+    rng = np.random.default_rng(seed)
+    nx, ny, nz = dims
+    data = rng.standard_normal((nz, ny, nx))
+    for axis in range(3):
+        data = (np.roll(data, 1, axis) + 2 * data + np.roll(data, -1, axis)) / 4
+    return Volume(data.astype(np.float32), spacing=spacing, origin=origin)
+
+
+def band_classes(vol, size, frac=0.35):
+    """``(grid, pc)``: the PC supercells of ``size`` for an isovalue that leaves the top ``frac`` of supercell maxima PC."""
+    idx = VolumeIndex.of(vol)
+    mn, mx = idx.ranges(size)
+    iso = float(np.quantile(np.asarray(mx, np.float64), 1 - frac))
+    pc = idx.classify(iso, size)
+    assert pc.any() and not pc.all()
+    return idx.grid(size), pc
 
 
 def caster_rays(camera, width, height):

@@ -32,7 +32,7 @@ from parc.bitplanes import PlaneBits, major_axis, plane_buffers, plane_range, ra
 from parc.camera import Camera
 from parc.classify import VolumeIndex, supercell_grid
 from parc.proxy import build_plane_proxy, build_proxy
-from parc_reference import caster_rays, ray_box_batches
+from parc_reference import band_classes, caster_rays, ray_box_batches, smooth_volume
 from raycast.composite import PLANE_TOL, POS_ROUNDING
 from raycast.iso import NO_SKIP
 
@@ -140,26 +140,6 @@ def test_plane_proxy_merge_keeps_planes():
 # --------------------------------------------------------------------------
 # References
 # --------------------------------------------------------------------------
-
-def _volume(seed, dims=(9, 8, 7), spacing=(1.0, 1.0, 1.0), origin=(0.0, 0.0, 0.0)):
-    """A smooth random field: PC regions are blobs with holes, not noise."""
-    rng = np.random.default_rng(seed)
-    nx, ny, nz = dims
-    data = rng.standard_normal((nz, ny, nx))
-    for axis in range(3):
-        data = (np.roll(data, 1, axis) + 2 * data + np.roll(data, -1, axis)) / 4
-    return Volume(data.astype(np.float32), spacing=spacing, origin=origin)
-
-
-def _classify(vol, size, frac=0.35):
-    """PC supercells for an isovalue band: the top ``frac`` of supercell maxima."""
-    idx = VolumeIndex.of(vol)
-    mn, mx = idx.ranges(size)
-    iso = float(np.quantile(np.asarray(mx, np.float64), 1 - frac))
-    pc = idx.classify(iso, size)
-    assert pc.any() and not pc.all()
-    return idx.grid(size), pc
-
 
 def pc_runs(proxy):
     """Closed world boxes ``(lo, hi)`` whose union is the PC supercells, and the plane of each.
@@ -325,8 +305,8 @@ def planes_report(looseness):
 @pytest.mark.parametrize("seed", [0, 1])
 @pytest.mark.parametrize("parallel", [False, True], ids=["persp", "parallel"])
 def test_random_views(gl, planes_report, size, seed, parallel):
-    vol = _volume(seed, spacing=(1.0, 0.8, 1.3), origin=(2.0, -1.0, 0.5))
-    grid, pc = _classify(vol, size)
+    vol = smooth_volume(seed, spacing=(1.0, 0.8, 1.3), origin=(2.0, -1.0, 0.5))
+    grid, pc = band_classes(vol, size)
     rng = np.random.default_rng(100 + seed)
     cam = Camera.framing(*vol.bounds, azimuth=rng.uniform(0, 360), elevation=rng.uniform(-80, 80),
                          parallel=parallel, zoom=rng.uniform(0.8, 1.6), fov=rng.uniform(20, 70))
@@ -342,8 +322,8 @@ AXES = [((0, 0, -1), (0, 1, 0)), ((0, 0, 1), (0, 1, 0)), ((-1, 0, 0), (0, 0, 1))
 @pytest.mark.parametrize("view", AXES, ids=lambda v: "f=" + ",".join(map(str, v[0])))
 def test_axis_aligned_parallel(gl, planes_report, size, view):
     """Rays along grid lines, and samples exactly on plane boundaries (step 0.25 from an integer)."""
-    vol = _volume(7, dims=(9, 9, 9))
-    grid, pc = _classify(vol, size, frac=0.5)
+    vol = smooth_volume(7, dims=(9, 9, 9))
+    grid, pc = band_classes(vol, size, frac=0.5)
     f, up = np.array(view[0], float), view[1]
     eye = np.full(3, 4.25) - 20.0 * f
     cam = Camera(eye=tuple(eye), look_at=tuple(eye + f), up=up, parallel_scale=8.0)
@@ -355,8 +335,8 @@ def test_axis_aligned_parallel(gl, planes_report, size, view):
 @pytest.mark.parametrize("size", [1, 1.5], ids=str)
 @pytest.mark.parametrize("view", AXES, ids=lambda v: "f=" + ",".join(map(str, v[0])))
 def test_axis_aligned_perspective(gl, planes_report, size, view):
-    vol = _volume(8, dims=(9, 9, 9))
-    grid, pc = _classify(vol, size, frac=0.5)
+    vol = smooth_volume(8, dims=(9, 9, 9))
+    grid, pc = band_classes(vol, size, frac=0.5)
     f, up = np.array(view[0], float), view[1]
     eye = np.full(3, 4.0) - 14.0 * f
     cam = Camera(eye=tuple(eye), look_at=tuple(eye + f), up=up, fov=50.0)
@@ -378,8 +358,8 @@ def _centre(vol, grid, kx, ky, kz):
 @pytest.mark.parametrize("where", ["empty", "pc", "pc_corner", "pc_face"])
 def test_eye_inside(gl, planes_report, size, seed, where):
     """Eye inside the volume: in an empty supercell, inside a PC one, on a PC corner or face."""
-    vol = _volume(seed, spacing=(1.0, 0.8, 1.3))
-    grid, pc = _classify(vol, size)
+    vol = smooth_volume(seed, spacing=(1.0, 0.8, 1.3))
+    grid, pc = band_classes(vol, size)
     rng = np.random.default_rng(seed + 7)
     kz, ky, kx = _pick(rng, ~pc if where == "empty" else pc)
     eye = _centre(vol, grid, kx, ky, kz)
@@ -398,8 +378,8 @@ def test_eye_inside(gl, planes_report, size, seed, where):
 @pytest.mark.parametrize("seed", [0, 1])
 def test_parallel_view_plane_cuts_volume(gl, planes_report, size, seed):
     """Parallel rays starting inside the volume (some inside PC supercells)."""
-    vol = _volume(seed)
-    grid, pc = _classify(vol, size)
+    vol = smooth_volume(seed)
+    grid, pc = band_classes(vol, size)
     rng = np.random.default_rng(seed + 30)
     kz, ky, kx = _pick(rng, pc)
     eye = _centre(vol, grid, kx, ky, kz)
@@ -411,8 +391,8 @@ def test_parallel_view_plane_cuts_volume(gl, planes_report, size, seed):
 @pytest.mark.parametrize("axis", [0, 1, 2])
 def test_explicit_axis(gl, planes_report, axis):
     """Any plane axis is correct (the major one is only the efficient one)."""
-    vol = _volume(3, spacing=(1.0, 0.8, 1.3))
-    grid, pc = _classify(vol, 1.5)
+    vol = smooth_volume(3, spacing=(1.0, 0.8, 1.3))
+    grid, pc = band_classes(vol, 1.5)
     cam = Camera.framing(*vol.bounds, azimuth=20.0, elevation=30.0)
     res = _check_bits(cam, vol, grid, pc, 40, 32, f"axis={axis}", planes_report, axis=axis)
     assert res[True].axis == axis
@@ -425,7 +405,7 @@ def test_many_planes(gl, planes_report):
     for a in range(3):
         data = (np.roll(data, 1, a) + 2 * data + np.roll(data, -1, a)) / 4
     vol = Volume(data.astype(np.float32), spacing=(0.5, 1.0, 1.0))
-    grid, pc = _classify(vol, 1, frac=0.5)
+    grid, pc = band_classes(vol, 1, frac=0.5)
     for parallel in (False, True):
         lo, hi = vol.bounds
         c = (lo + hi) / 2
@@ -451,7 +431,7 @@ def test_major_axis():
 
 
 def test_plane_range_and_empty(gl):
-    vol = _volume(2)
+    vol = smooth_volume(2)
     grid = VolumeIndex.of(vol).grid(2)
     pc = np.zeros(grid.shape, bool)
     assert plane_range(pc, 0) is None
@@ -464,8 +444,8 @@ def test_plane_range_and_empty(gl):
 
 def test_raster_bits_drops_out_of_range_planes(gl):
     """first/count cut the bits: a window of planes gives exactly those bits of the full pass."""
-    vol = _volume(4, dims=(12, 9, 8))
-    grid, pc = _classify(vol, 1)
+    vol = smooth_volume(4, dims=(12, 9, 8))
+    grid, pc = band_classes(vol, 1)
     cam = Camera.framing(*vol.bounds, azimuth=80.0, elevation=10.0)
     axis = major_axis(cam, vol.bounds)
     proxy = build_plane_proxy(grid, pc, grid.world_edges(vol), axis)
@@ -538,7 +518,7 @@ def test_caster_with_bits_equals_brute(gl, planes_report, mode, size, seed):
     rng = np.random.default_rng(1000 + seed)
     dims = tuple(int(n) for n in rng.integers(8, 14, 3))
     spacing = (1.0, 1.0, 1.0) if seed == 0 else tuple(rng.uniform(0.6, 1.6, 3))
-    vol = _volume(seed + 50, dims=dims, spacing=spacing, origin=(0.0, 0.0, 0.0) if seed == 0 else (3.0, -2.0, 1.0))
+    vol = smooth_volume(seed + 50, dims=dims, spacing=spacing, origin=(0.0, 0.0, 0.0) if seed == 0 else (3.0, -2.0, 1.0))
     tf = _scene_tf(vol, rng)
     idx = VolumeIndex.of(vol)
     grid = idx.grid(size)
@@ -570,8 +550,8 @@ def test_caster_with_bits_equals_brute(gl, planes_report, mode, size, seed):
 @pytest.mark.parametrize("tilt", [0.0, 1e-7, 1e-3], ids=str)
 def test_grazing_views(gl, planes_report, parallel, offset, tilt):
     """Rays nearly parallel to the y faces, from an eye on, next to or near the grid plane y = 4."""
-    vol = _volume(12, dims=(9, 9, 9))
-    grid, pc = _classify(vol, 1, frac=0.5)
+    vol = smooth_volume(12, dims=(9, 9, 9))
+    grid, pc = band_classes(vol, 1, frac=0.5)
     eye = np.array([-12.0, 4.0 + offset, 4.3])
     look = eye + np.array([1.0, tilt, 0.02])
     kw = {"parallel_scale": 5.0} if parallel else {"fov": 40.0}
@@ -585,8 +565,8 @@ def test_grazing_views(gl, planes_report, parallel, offset, tilt):
 @pytest.mark.parametrize("inside", [True, False], ids=["pc", "empty"])
 def test_eye_on_plane_boundary(gl, planes_report, size, inside):
     """Eye exactly on a boundary plane of the plane axis, a wide view: some rays run in that plane."""
-    vol = _volume(5, spacing=(1.0, 0.8, 1.3))
-    grid, pc = _classify(vol, size)
+    vol = smooth_volume(5, spacing=(1.0, 0.8, 1.3))
+    grid, pc = band_classes(vol, size)
     rng = np.random.default_rng(11)
     kz, ky, kx = _pick(rng, pc if inside else ~pc)
     eye = _centre(vol, grid, kx, ky, kz)
@@ -600,8 +580,8 @@ def test_eye_on_plane_boundary(gl, planes_report, size, inside):
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_wide_fov_near_volume(gl, planes_report, seed):
     """A 160-degree view from just outside the volume: rays at every angle to the plane axis."""
-    vol = _volume(seed, spacing=(1.0, 0.8, 1.3))
-    grid, pc = _classify(vol, 1.5)
+    vol = smooth_volume(seed, spacing=(1.0, 0.8, 1.3))
+    grid, pc = band_classes(vol, 1.5)
     lo, hi = vol.bounds
     c = (lo + hi) / 2
     eye = np.array([lo[0] - 0.3, c[1] + 0.1, c[2] - 0.2])
@@ -615,7 +595,7 @@ def test_distant_eye_fine_planes(gl, planes_report, distance, parallel):
     """An eye far away with planes of 1/8 cell: a sample's position ``O + t D`` rounds by
     ~1e-7 cells from 1e9-cell terms, past a fixed tolerance of 1e-6 planes."""
     from parc.transfer import TransferFunction
-    vol = _volume(7, dims=(4, 7, 5), spacing=(5.2, 0.17, 2.0), origin=(3.4, 3.4, 0.2))
+    vol = smooth_volume(7, dims=(4, 7, 5), spacing=(5.2, 0.17, 2.0), origin=(3.4, 3.4, 0.2))
     size = 0.125
     idx = VolumeIndex.of(vol)
     grid = idx.grid(size)

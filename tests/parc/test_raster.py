@@ -17,28 +17,13 @@ from parc.camera import Camera
 from parc.classify import VolumeIndex
 from parc.proxy import build_proxy
 from parc.raster import Segments, margin, raster_segments
-from parc_reference import segments_reference
+from parc_reference import band_classes, segments_reference, smooth_volume
 
 SIZES = [1, 0.5, 1.5, (2, 3, 1.5)]
 
 
-def _volume(seed, dims=(9, 8, 7), spacing=(1.0, 1.0, 1.0), origin=(0.0, 0.0, 0.0)):
-    """A smooth random field: PC regions are blobs with holes, not noise."""
-    rng = np.random.default_rng(seed)
-    nx, ny, nz = dims
-    data = rng.standard_normal((nz, ny, nx))
-    for axis in range(3):
-        data = (np.roll(data, 1, axis) + 2 * data + np.roll(data, -1, axis)) / 4
-    return Volume(data.astype(np.float32), spacing=spacing, origin=origin)
-
-
 def _proxy(vol, size, frac=0.35):
-    idx = VolumeIndex.of(vol)
-    mn, mx = idx.ranges(size)
-    iso = float(np.quantile(np.asarray(mx, np.float64), 1 - frac))
-    grid = idx.grid(size)
-    pc = idx.classify(iso, size)
-    assert pc.any() and not pc.all()
+    grid, pc = band_classes(vol, size, frac)
     return build_proxy(grid, pc, grid.world_edges(vol), merge=True)
 
 
@@ -71,7 +56,7 @@ def _check(camera, proxy, width, height, label, report, *, cell=1.0):
 @pytest.mark.parametrize("seed", [0, 1, 2])
 @pytest.mark.parametrize("parallel", [False, True], ids=["persp", "parallel"])
 def test_random_views(gl, looseness, size, seed, parallel):
-    vol = _volume(seed, spacing=(1.0, 0.8, 1.3), origin=(2.0, -1.0, 0.5))
+    vol = smooth_volume(seed, spacing=(1.0, 0.8, 1.3), origin=(2.0, -1.0, 0.5))
     proxy = _proxy(vol, size)
     rng = np.random.default_rng(100 + seed)
     cam = Camera.framing(*vol.bounds, azimuth=rng.uniform(0, 360), elevation=rng.uniform(-80, 80),
@@ -87,7 +72,7 @@ AXES = [((0, 0, -1), (0, 1, 0)), ((0, 0, 1), (0, 1, 0)), ((-1, 0, 0), (0, 0, 1))
 @pytest.mark.parametrize("view", AXES, ids=lambda v: "f=" + ",".join(map(str, v[0])))
 def test_axis_aligned_parallel_rays_on_grid_edges(gl, looseness, size, view):
     """Parallel rays along grid lines: every other pixel's ray runs exactly along cell edges."""
-    vol = _volume(7, dims=(9, 9, 9))
+    vol = smooth_volume(7, dims=(9, 9, 9))
     proxy = _proxy(vol, size, frac=0.5)
     f, up = np.array(view[0], float), view[1]
     # With 32 pixels and scale 8, ray origins step by 0.5 from 4.25 -+ 8, so
@@ -109,7 +94,7 @@ def _origins(cam, w, h):
 @pytest.mark.parametrize("view", AXES, ids=lambda v: "f=" + ",".join(map(str, v[0])))
 def test_axis_aligned_perspective(gl, looseness, size, view):
     """Eye on a grid line looking along an axis: the centre ray runs along cell edges."""
-    vol = _volume(8, dims=(9, 9, 9))
+    vol = smooth_volume(8, dims=(9, 9, 9))
     proxy = _proxy(vol, size, frac=0.5)
     f, up = np.array(view[0], float), view[1]
     eye = np.full(3, 4.0) - 14.0 * f
@@ -127,7 +112,7 @@ def test_grazing_views(gl, looseness, parallel, offset, tilt):
     face axis, planes through or next to the eye); they must stay
     conservative.
     """
-    vol = _volume(12, dims=(9, 9, 9))
+    vol = smooth_volume(12, dims=(9, 9, 9))
     proxy = _proxy(vol, 1, frac=0.5)
     eye = np.array([-12.0, 4.0 + offset, 4.3])
     look = eye + np.array([1.0, tilt, 0.02])
@@ -142,7 +127,7 @@ def test_grazing_views(gl, looseness, parallel, offset, tilt):
 @pytest.mark.parametrize("size", SIZES, ids=str)
 @pytest.mark.parametrize("seed", [0, 1])
 def test_eye_inside_volume_empty_supercell(gl, looseness, size, seed):
-    vol = _volume(seed)
+    vol = smooth_volume(seed)
     proxy = _proxy(vol, size)
     rng = np.random.default_rng(seed)
     kz, ky, kx = _pick(rng, ~proxy.pc)
@@ -167,7 +152,7 @@ def _centre(proxy, kx, ky, kz):
 @pytest.mark.parametrize("where", ["centre", "corner", "face"])
 def test_eye_inside_pc_supercell(gl, looseness, size, where):
     """The paper's special case: every ray starts inside, so near is 0 for every pixel."""
-    vol = _volume(3)
+    vol = smooth_volume(3)
     proxy = _proxy(vol, size)
     rng = np.random.default_rng(5)
     kz, ky, kx = _pick(rng, proxy.pc)
@@ -186,7 +171,7 @@ def test_eye_inside_pc_supercell(gl, looseness, size, where):
 @pytest.mark.parametrize("gap", [1e-9, 1e-4, 0.3])
 def test_eye_just_outside_pc(gl, looseness, gap):
     """A PC box a hair in front of the eye: the clip plane must sit below it."""
-    vol = _volume(4)
+    vol = smooth_volume(4)
     data = vol.data.copy()
     data[:2, :2, :2] = 0.0
     data[0, 0, 0] = 10.0          # cell (0, 0, 0) spans the isovalue
@@ -206,7 +191,7 @@ def test_eye_just_outside_pc(gl, looseness, gap):
 @pytest.mark.parametrize("size", SIZES, ids=str)
 def test_parallel_view_plane_through_volume(gl, looseness, size):
     """Parallel rays start on the view plane: inside a PC box some start at t = 0."""
-    vol = _volume(6)
+    vol = smooth_volume(6)
     proxy = _proxy(vol, size, frac=0.5)
     c = vol.center
     cam = Camera(eye=tuple(c), look_at=tuple(c + np.array([0.3, -0.5, 0.8])), up=(0, 1, 0),
@@ -221,14 +206,14 @@ def test_parallel_view_plane_through_volume(gl, looseness, size):
 def test_far_from_origin_anisotropic(gl, looseness, parallel):
     """Coordinates ~1e4 with small cells: the margins scale with the scene, not with 1."""
     spacing = (0.05, 0.07, 0.2)
-    vol = _volume(9, dims=(10, 9, 8), spacing=spacing, origin=(1.0e4, -2.5e3, 7.7e3))
+    vol = smooth_volume(9, dims=(10, 9, 8), spacing=spacing, origin=(1.0e4, -2.5e3, 7.7e3))
     proxy = _proxy(vol, 1.5)
     cam = Camera.framing(*vol.bounds, azimuth=200, elevation=35, parallel=parallel, zoom=1.3)
     _check(cam, proxy, 48, 40, f"far origin {'par' if parallel else 'per'}", looseness, cell=min(spacing))
 
 
 def test_wide_fov_eye_inside_volume(gl, looseness):
-    vol = _volume(11, dims=(12, 10, 9))
+    vol = smooth_volume(11, dims=(12, 10, 9))
     proxy = _proxy(vol, 1)
     idx = np.argwhere(~proxy.pc)[len(np.argwhere(~proxy.pc)) // 2]
     eye = _centre(proxy, idx[2], idx[1], idx[0])
@@ -327,7 +312,7 @@ def test_cavity_views_parallel(gl, looseness, through):
 
 
 def test_empty_proxy_has_no_segments(gl):
-    vol = _volume(1)
+    vol = smooth_volume(1)
     idx = VolumeIndex.of(vol)
     grid = idx.grid(2)
     pc = idx.classify(1e9, 2)
@@ -338,7 +323,7 @@ def test_empty_proxy_has_no_segments(gl):
 
 
 def test_reuses_upload_and_reports_timing(gl):
-    vol = _volume(2)
+    vol = smooth_volume(2)
     proxy = _proxy(vol, 1)
     cam = Camera.framing(*vol.bounds)
     a = raster_segments(cam, 20, 10, proxy)
@@ -379,7 +364,7 @@ def test_opengl_unavailable_is_an_input_error(monkeypatch):
 
 @pytest.mark.parametrize("w, h", [(1, 1), (3, 61), (57, 2)])
 def test_extreme_image_shapes(gl, looseness, w, h):
-    vol = _volume(5)
+    vol = smooth_volume(5)
     proxy = _proxy(vol, 1, frac=0.6)
     cam = Camera.framing(*vol.bounds, azimuth=10, elevation=30, zoom=3.0)
     seg = raster_segments(cam, w, h, proxy)
@@ -391,7 +376,7 @@ def test_extreme_image_shapes(gl, looseness, w, h):
 def test_parallel_inside_in_bands(gl, monkeypatch):
     """The CPU test of parallel ray origins gives the same answer band by band."""
     from parc import origins
-    vol = _volume(6)
+    vol = smooth_volume(6)
     proxy = _proxy(vol, 1.5, frac=0.5)
     c = vol.center
     cam = Camera(eye=tuple(c), look_at=tuple(c + np.array([0.3, -0.5, 0.8])), up=(0, 1, 0),
