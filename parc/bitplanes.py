@@ -37,15 +37,14 @@ for this project's caster:
   kept. No ``t`` is needed: a crossing behind the ray start can only add
   bits, and the clipping keeps every crossing at ``t >= 0``.
 - **Clipping.** Perspective, eye outside the PC region: faces are clipped
-  below ``d_min cos(theta_max) / 2`` (`parc.raster.perspective_clip`,
-  shared with the depth pass); every face lies at least ``d_min`` from
-  the eye, so nothing visible is cut. Eye inside (or on) a PC
-  supercell: faces are clipped a tiny distance in front of
-  the eye and every pixel gets the bits of the planes whose slabs come
-  within that distance (plus the boundary band) of the eye: the only
-  crossings the clip can cut lie there. Parallel: faces are clipped a
-  little behind the view plane (a rounding, plus the band's width over
-  ``|f_a|`` in halo mode, see below).
+  below ``d_min cos(theta_max) / 2`` (`parc.raster.perspective_clip`, shared
+  with the depth pass); every face lies at least ``d_min`` from the eye, so
+  nothing visible is cut. Eye inside (or on) a PC supercell: faces are
+  clipped a tiny distance in front of the eye and every pixel gets the bits
+  of the planes whose slabs come within that distance (plus the boundary
+  band) of the eye: the only crossings the clip can cut lie there. Parallel:
+  faces are clipped a little behind the view plane (a rounding, plus the
+  band's width over ``|f_a|`` in halo mode, see below).
 
 Boundaries: strict bits (the default) and halo mode
 ---------------------------------------------------
