@@ -48,11 +48,17 @@ class RenderResult:
     stats : dict
         ``method``, ``seconds`` per phase, ``pixels``, ``rays``, ``cells_visited``,
         ``cubic_solves``, ``samples``, ``hits``, ``polygons`` and the parameters used.
+    work : ndarray (H, W) int64 or None
+        With ``render(..., work=True)``: per pixel, the cells its ray visited
+        (an isosurface) or the samples it took (a translucent volume), so
+        that the methods' work can be compared where it is spent. Sums to
+        ``stats["cells_visited"]`` or ``stats["samples"]``.
     """
 
     image: np.ndarray
     depth: np.ndarray
     stats: dict
+    work: np.ndarray | None = None
 
 
 PARC_BUFFERS = ("depth", "bits")
@@ -65,7 +71,7 @@ DEFAULT_BUFFERS = ("depth",)
 
 
 def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAULT_BUFFERS,
-           progress=None, light_buffer=None, blocks=True) -> RenderResult:
+           progress=None, light_buffer=None, blocks=True, work=False) -> RenderResult:
     """Ray cast a scene.
 
     Parameters
@@ -103,6 +109,9 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
         transfer function.
         The image is the same either way; False measures the OpenGL
         segments alone.
+    work : bool, default False
+        Also return each pixel's work (`RenderResult.work`), for scenes of
+        one volume without lights. Copied out after the frame is timed.
 
     Returns
     -------
@@ -127,6 +136,8 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
         raise InputError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
     if not isinstance(blocks, (bool, np.bool_)):
         raise InputError(f"blocks must be True or False, got {blocks!r}")
+    if not isinstance(work, (bool, np.bool_)):
+        raise InputError(f"work must be True or False, got {work!r}")
     if progress is not None and not callable(progress):
         raise InputError(f"progress must be a function of the fraction done, got {progress!r}")
     if supercell is not None:
@@ -140,6 +151,8 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
     light_buffer = _light_buffer_size(light_buffer)
     check_frame_memory(*scene.size, layers=len(scene.volumes))
     if len(scene.volumes) != 1 or scene.lights:
+        if work:
+            raise InputError("per-pixel work is counted for scenes of one volume without lights")
         return _render_general(scene, method, supercell, progress, light_buffer, skip_blocks)
     vis = scene.volumes[0]
     timings = {}
@@ -194,7 +207,8 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
         stats["parameters"].update({"mode": vis.mode, "step": vis.step, "threshold": vis.threshold,
                                     "transfer_function": vis.tf.name or "custom"})
     stats.update(extra)
-    return RenderResult(image=image, depth=depth, stats=stats)
+    per_pixel = counts["per_pixel"].reshape(h, w).copy() if work else None
+    return RenderResult(image=image, depth=depth, stats=stats, work=per_pixel)
 
 
 def _render_general(scene, method, supercell, progress, light_buffer, skip_blocks):
@@ -268,7 +282,7 @@ def _render_iso(scene, iso, seg, use_seg, skip_blocks, timings, progress):
             progress((n + 1) / len(bands))
     timings["cast"] = time.perf_counter() - t0
     hits, cells, solves = (int(v) for v in totals)
-    return image, t.reshape(h, w), {"hits": hits, "cells": cells, "solves": solves}
+    return image, t.reshape(h, w), {"hits": hits, "cells": cells, "solves": solves, "per_pixel": counts[:, 0]}
 
 
 #: Largest side of a light buffer, pixels (a buffer per light and view face).
@@ -362,7 +376,7 @@ def _render_translucent(scene, vis, seg, use_seg, skip_blocks, timings, progress
         if progress is not None:
             progress((n + 1) / len(bands))
     timings["cast"] = time.perf_counter() - t0
-    return image, np.full((h, w), np.inf), {"hits": 0, "samples": int(samples)}
+    return image, np.full((h, w), np.inf), {"hits": 0, "samples": int(samples), "per_pixel": counts}
 
 
 def _classifier(index, vis):
