@@ -278,6 +278,10 @@ def consistency(res):
                   0 < r[key] <= brute[r["size"]])
             check(f"table{n} {r['method']} {r['size']}²: times positive, casting ≤ total",
                   0 < r.get("cast_seconds", r.get("primary_cast_seconds", 0)) <= r["total_seconds"])
+    work = res["supercells"].get("work_checks")
+    if work is not None:
+        check("supercell sweep: each method's cells per pixel sum to its cells visited", work["sums"])
+        check("supercell sweep: parc visits no more cells than brute at any pixel", work["parc_within_brute"])
     project = next(r for r in res["roots"]["rows"] if r["name"] == "project")
     check("root finders: the project's finder has no failure on the hard-ray suite", project["failures"] == 0)
     for r in res["threads"]["rows"]:

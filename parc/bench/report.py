@@ -122,8 +122,17 @@ def sweeps(res, out):
                           for r in sc["rows"]],
                          title="Supercell size: time against error (skin)", x_label="max colour difference against brute",
                          y_label="seconds per frame")
-    md += ["", "![supercell sweep](sweep_supercell.png)", "",
-           f"### Sample step: CT translucent at {st['size']}²", "",
+    md += ["", "![supercell sweep](sweep_supercell.png)", ""]
+    maps = sc.pop("work_maps", None)
+    if maps is not None:
+        charts.heat_maps(out / "work_per_pixel.png", maps,
+                         title=f"Cells visited per pixel: CT skin ({sc['isovalue']:g}) at {sc['size']}x{sc['size']}",
+                         label="cells visited per pixel (log scale; white: none)")
+        md += ["Where the work goes: the cells each pixel's ray visited, `brute` and `parc` (the cost model's "
+               "supercells) on one colour scale. `brute` walks every ray from the volume's entry to its hit; "
+               "`parc` casts only the pixels its OpenGL pass flags, from the first possibly contributing "
+               "supercell on, and jumps the empty cubes of cells inside.", "", "![cells visited per pixel](work_per_pixel.png)", ""]
+    md += [f"### Sample step: CT translucent at {st['size']}²", "",
            f"Error against `brute` at step {st['reference_step']:g}; `parc≠brute` is `parc` against `brute` "
            "at the same step.", ""]
     md.append(_table(("step", "brute (s)", "parc (s)", "speedup", "brute samples (×10³)", "parc samples (×10³)",

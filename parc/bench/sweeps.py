@@ -49,7 +49,14 @@ def supercell_sweep(suite, progress):
                     "seconds": r["seconds"], "speedup": r["speedup"],
                     "hit_mismatches": r["hit_mismatches"], "max_depth_cells": r["max_depth_cells"],
                     "max_color": r["max_color"]})
-    return {"source": source, "size": suite.parker_size, "isovalue": 600.0, "rows": out}
+    progress("supercell sweep: cells visited per pixel")
+    runs = {m: render(scene, m, work=True) for m in ("brute", "parc")}
+    maps = {m: run.work for m, run in runs.items()}
+    return {"source": source, "size": suite.parker_size, "isovalue": 600.0, "rows": out,
+            # Drawn by the report (`parc.bench.report.sweeps`), which drops them from results.json.
+            "work_maps": maps,
+            "work_checks": {"sums": all(int(maps[m].sum()) == runs[m].stats["cells_visited"] for m in maps),
+                            "parc_within_brute": bool((maps["parc"] <= maps["brute"]).all())}}
 
 
 def step_size_sweep(suite, progress):

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from parc.bench.charts import (PALETTE, _data_axis, axis_mapping, bar_chart, fmt_number,
+from parc.bench.charts import (PALETTE, _data_axis, _viridis_lut, axis_mapping, bar_chart, fmt_number, heat_maps,
                                line_chart, scatter_chart, stack_segments, stacked_bar_chart)
 
 KW = dict(title="t", x_label="x", y_label="y")
@@ -215,3 +215,41 @@ def test_write_replaces_existing_file(tmp_path):
     load(bar_chart(str(path), [("g", {"s": 1})], title="t", y_label="v", size=(320, 240)),
          size=(320, 240))
     assert sorted(os.listdir(tmp_path)) == ["same.png"]
+
+
+def _cell_colours(img, panel_x, cells, size):
+    """The colour at the centre of each of ``cells`` x ``cells`` blocks of a square panel at column ``panel_x``,
+    found below the title by the panel's frame (the first dark row of its left edge)."""
+    col = img[:, panel_x - 1]
+    top = int(np.argmax(col.sum(axis=1) < 200)) + 1
+    step = size / cells
+    return [[tuple(img[int(top + (r + 0.5) * step), int(panel_x + (c + 0.5) * step)]) for c in range(cells)]
+            for r in range(cells)]
+
+
+def test_heat_maps_share_one_log_scale(tmp_path):
+    a = np.array([[100, 1], [10, 0]])
+    b = np.array([[100, 0], [0, 1]])
+    out = heat_maps(tmp_path / "h.png", {"brute": a, "parc": b}, title="t", label="cells", panel=100)
+    with Image.open(out) as im:
+        img = np.asarray(im.convert("RGB"))
+    lut = _viridis_lut()
+    ca, cb = _cell_colours(img, 16, 2, 100), _cell_colours(img, 16 + 116, 2, 100)
+    white = (255, 255, 255)
+    assert ca[0][0] == cb[0][0] == tuple(lut[255])          # the largest count, in both maps
+    assert ca[1][1] == cb[0][1] == cb[1][0] == white          # no work
+    assert ca[0][1] == cb[1][1] == tuple(lut[round(255 * math.log(2) / math.log(101))])   # 1, on log(1 + n)
+    assert ca[1][0] == tuple(lut[round(255 * math.log(11) / math.log(101))])
+
+
+@pytest.mark.parametrize("maps", [{"zeros": np.zeros((3, 4))}, {"one": np.ones((1, 1))},
+                                  {"nan": np.full((2, 2), np.nan), "inf": np.full((2, 2), np.inf)}])
+def test_heat_maps_degenerate_input_renders(tmp_path, maps):
+    out = heat_maps(tmp_path / "h.png", maps, title="t", label="cells")
+    with Image.open(out) as im:
+        im.verify()
+
+
+def test_heat_maps_need_a_map(tmp_path):
+    with pytest.raises(ValueError):
+        heat_maps(tmp_path / "h.png", {}, title="t", label="cells")
