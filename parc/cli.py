@@ -169,6 +169,10 @@ def build_parser():
     r.add_argument("--depth", metavar="D.npy", help="also write the float64 depth image (inf = no hit)")
     r.add_argument("--stats", metavar="S.json",
                    help="also write timings and counts as JSON (strict: a non-finite number is null)")
+    r.add_argument("--work", metavar="W.png|W.npy",
+                   help="also write the work per pixel: cells visited (isosurface) or samples taken "
+                        "(translucent), as a heat map (.png, log scale, white where none) or an int64 array "
+                        "(.npy); scenes of one volume without lights")
     r.add_argument("--method", default="brute", choices=("brute", "parc"),
                    help="brute: unaccelerated casting (default); parc: walk only the ray segments "
                         "OpenGL finds from a polygon proxy of the possibly contributing supercells "
@@ -367,7 +371,8 @@ def cmd_render(args):
     out = check_output(args.output, (".png", ".npy"))
     depth_out = check_output(args.depth, (".npy",)) if args.depth else None
     stats_out = check_output(args.stats, (".json",)) if args.stats else None
-    check_distinct(args.volume, [out, depth_out, stats_out])
+    work_out = check_output(args.work, (".png", ".npy")) if args.work else None
+    check_distinct(args.volume, [out, depth_out, stats_out, work_out])
     say = (lambda *a: None) if args.quiet else (lambda msg: print(f"parc: {msg}", file=sys.stderr))
     scene, notes = scene_and_notes(args)
     w, h = scene.size
@@ -377,7 +382,7 @@ def cmd_render(args):
               if args.method == "parc" else {})
     if args.method != "parc":
         _refuse_parc_flags(args, "applies to --method parc")
-    result = parc.render(scene, method=args.method, progress=progress, **kwargs)
+    result = parc.render(scene, method=args.method, progress=progress, work=work_out is not None, **kwargs)
     if progress is not None:
         progress.done()
     for note in notes:
@@ -389,6 +394,8 @@ def cmd_render(args):
         writes.append((depth_out, lambda tmp: np.save(tmp, result.depth)))
     if stats_out:
         writes.append((stats_out, lambda tmp: tmp.write_text(to_json(result.stats) + "\n")))
+    if work_out:
+        writes.append((work_out, lambda tmp: _write_work(result, scene, args.method, tmp)))
     atomic_write_all(writes)
     s = result.stats
     vis = scene.volumes[0]
@@ -402,6 +409,19 @@ def cmd_render(args):
         say(f"wrote {out}: {vis.mode} of {vis.tf.name or 'the transfer function'}, step {vis.step:g}; "
             f"{s['seconds']['total']:.3f} s, {s['samples']:,} samples")
     return 0
+
+
+def _write_work(result, scene, method, path):
+    """The work per pixel of a one-volume render: an int64 array (.npy) or a heat map (.png)."""
+    if path.suffix.lower() == ".npy":
+        np.save(path, result.work)
+        return
+    from .bench.charts import heat_maps
+    from .scene import Isosurface
+    w, h = scene.size
+    what = "cells visited" if isinstance(scene.volumes[0], Isosurface) else "samples taken"
+    heat_maps(path, {method: result.work}, title=f"{what.capitalize()} per pixel, {w}x{h}",
+              label=f"{what} per pixel (log scale; white: none)")
 
 
 def _shown(vis):

@@ -40,6 +40,31 @@ def test_render_writes_png_depth_and_stats(vol_file, tmp_path, capsys):
     assert stats["method"] == "brute" and stats["hits"] == int(np.isfinite(depth).sum())
 
 
+@pytest.mark.parametrize("method", ["brute", "parc"])
+@pytest.mark.parametrize("look, count", [(["--iso", 4.0], "cells_visited"), (["--tf", "greyscale"], "samples")])
+def test_render_writes_the_work_per_pixel(vol_file, tmp_path, capsys, method, look, count, gl):
+    st, arr, pic = tmp_path / "s.json", tmp_path / "w.npy", tmp_path / "w.png"
+    argv = ["render", vol_file, *look, "--size", 40, 30, "--method", method, "--stats", st]
+    rc, _, err = _run(argv + ["-o", tmp_path / "a.png", "--work", arr], capsys)
+    assert rc == 0, err
+    work = np.load(arr)
+    assert work.shape == (30, 40) and work.dtype == np.int64
+    assert work.sum() == json.loads(st.read_text())[count] > 0
+    rc, _, err = _run(argv + ["-o", tmp_path / "b.png", "--work", pic], capsys)
+    assert rc == 0, err
+    from PIL import Image
+    with Image.open(pic) as im:
+        assert im.format == "PNG"
+
+
+def test_work_of_a_lit_scene_is_refused_and_nothing_written(vol_file, tmp_path, capsys):
+    out, work = tmp_path / "a.png", tmp_path / "w.npy"
+    rc, _, err = _run(["render", vol_file, "--iso", 4.0, "--size", 8, 8, "--light", "30,30,30",
+                       "-o", out, "--work", work], capsys)
+    assert rc == 2 and err.count("\n") == 1 and "one volume without lights" in err
+    assert not out.exists() and not work.exists()
+
+
 def test_render_npy_matches_the_library(vol_file, tmp_path, capsys):
     import parc
     out = tmp_path / "a.npy"
