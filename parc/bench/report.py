@@ -131,7 +131,8 @@ def sweeps(res, out):
         md += ["Where the work goes: the cells each pixel's ray visited, `brute` and `parc` (the cost model's "
                "supercells) on one colour scale. `brute` walks every ray from the volume's entry to its hit; "
                "`parc` casts only the pixels its OpenGL pass flags, from the first possibly contributing "
-               "supercell on, and jumps the empty cubes of cells inside.", "", "![cells visited per pixel](work_per_pixel.png)", ""]
+               "supercell on, and jumps the empty cubes of cells inside.", "",
+               "![cells visited per pixel](work_per_pixel.png)", ""]
     md += [f"### Sample step: CT translucent at {st['size']}²", "",
            f"Error against `brute` at step {st['reference_step']:g}; `parc≠brute` is `parc` against `brute` "
            "at the same step.", ""]

@@ -85,7 +85,8 @@ def smooth_volume(seed, dims=(9, 8, 7), spacing=(1.0, 1.0, 1.0), origin=(0.0, 0.
 
 
 def band_classes(vol, size, frac=0.35):
-    """``(grid, pc)``: the PC supercells of ``size`` for an isovalue that leaves the top ``frac`` of supercell maxima PC."""
+    """``(grid, pc)``: the PC supercells of ``size`` for an isovalue that leaves the top ``frac``
+    of supercell maxima PC."""
     idx = VolumeIndex.of(vol)
     mn, mx = idx.ranges(size)
     iso = float(np.quantile(np.asarray(mx, np.float64), 1 - frac))
