@@ -237,7 +237,7 @@ def _report(res, out, report):
           "Every speedup is a ratio of two times measured in this run on this machine: each the median of "
           f"{s['repeats']} renders after a warm-up. `brute` is the unaccelerated caster; `parc` casts the same "
           "rays over OpenGL-rasterized segments with the same traversal and intersection code.", ""]
-    md += report.paper_tables(res)
+    md += report.paper_tables(res, out)
     md += report.parker(res, out)
     md += report.sweeps(res, out)
     md += report.scale(res, out)
@@ -278,10 +278,12 @@ def consistency(res):
                   0 < r[key] <= brute[r["size"]])
             check(f"table{n} {r['method']} {r['size']}²: times positive, casting ≤ total",
                   0 < r.get("cast_seconds", r.get("primary_cast_seconds", 0)) <= r["total_seconds"])
-    work = res["supercells"].get("work_checks")
-    if work is not None:
-        check("supercell sweep: each method's cells per pixel sum to its cells visited", work["sums"])
-        check("supercell sweep: parc visits no more cells than brute at any pixel", work["parc_within_brute"])
+    for key, what in (("supercells", "cells visited"), ("table1", "samples taken")):
+        work = res[key].get("work")
+        if work is not None:
+            check(f"{key} work maps: each method's {what} per pixel sum to its total", work["checks"]["sums"])
+            check(f"{key} work maps: parc's {what} at most brute's at every pixel",
+                  work["checks"]["parc_within_brute"])
     project = next(r for r in res["roots"]["rows"] if r["name"] == "project")
     check("root finders: the project's finder has no failure on the hard-ray suite", project["failures"] == 0)
     for r in res["threads"]["rows"]:

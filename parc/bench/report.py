@@ -39,7 +39,19 @@ def _exact(r):
         f"no ({r['hit_mismatches']} px, Δ {r['max_color']:.1e})")
 
 
-def paper_tables(res):
+def work_map_md(section, out, name, what, scene, why):
+    """Draw a section's work maps (`parc.bench.tables.work_maps`) to ``out/name``, dropping the
+    arrays from the results, and return the paragraph and picture that show them."""
+    work = section.get("work")
+    if work is None or "maps" not in work:
+        return []
+    charts.heat_maps(out / name, work.pop("maps"), title=f"{what.capitalize()} per pixel: {scene}",
+                     label=f"{what} per pixel (log scale; white: none)")
+    return [f"Where the work goes: the {what} per pixel by `brute` and `parc` (default settings), on one "
+            f"colour scale. {why}", "", f"![{what} per pixel]({name})", ""]
+
+
+def paper_tables(res, out):
     t1, t2, t3 = res["table1"], res["table2"], res["table3"]
     md = ["## 1. Sobierajski & Avila, Tables 1–3", "",
           "Columns as in the paper: casting time includes rasterizing the proxy; total time is the whole "
@@ -51,8 +63,11 @@ def paper_tables(res):
                       "total (s)", "speedup", "exact"),
                      [(r["method"], r["size"], _k(r["samples"]), _k(r["ideal_samples"]), _s(r["cast_seconds"]),
                        _s(r["total_seconds"]), _x(r["speedup"]), _exact(r)) for r in t1["rows"]]))
-    md += ["", "![Table 1 scene](images/table1.png)", "",
-           "### Table 2: iron protein, isosurface inside a translucent volume (Fig. 12)", "",
+    md += ["", "![Table 1 scene](images/table1.png)", ""]
+    md += work_map_md(t1, out, "work_table1.png", "samples taken", f"CT ct_skin_bone at {t1['work_size']}x"
+                      f"{t1['work_size']}", "`brute` samples every ray through the whole volume; `parc` only "
+                      "the rays its OpenGL pass flags, and only in cells the transfer function shows.")
+    md += ["### Table 2: iron protein, isosurface inside a translucent volume (Fig. 12)", "",
            f"Volumes: {t2['source']}.", ""]
     md.append(_table(("method", "image (px²)", "cells (×10³)", "ideal cells (×10³)", "samples (×10³)",
                       "ideal samples (×10³)", "casting (s)", "total (s)", "speedup", "exact"),
@@ -123,16 +138,11 @@ def sweeps(res, out):
                          title="Supercell size: time against error (skin)", x_label="max colour difference against brute",
                          y_label="seconds per frame")
     md += ["", "![supercell sweep](sweep_supercell.png)", ""]
-    maps = sc.pop("work_maps", None)
-    if maps is not None:
-        charts.heat_maps(out / "work_per_pixel.png", maps,
-                         title=f"Cells visited per pixel: CT skin ({sc['isovalue']:g}) at {sc['size']}x{sc['size']}",
-                         label="cells visited per pixel (log scale; white: none)")
-        md += ["Where the work goes: the cells each pixel's ray visited, `brute` and `parc` (the cost model's "
-               "supercells) on one colour scale. `brute` walks every ray from the volume's entry to its hit; "
-               "`parc` casts only the pixels its OpenGL pass flags, from the first possibly contributing "
-               "supercell on, and jumps the empty cubes of cells inside.", "",
-               "![cells visited per pixel](work_per_pixel.png)", ""]
+    md += work_map_md(sc, out, "work_per_pixel.png", "cells visited",
+                      f"CT skin ({sc['isovalue']:g}) at {sc['size']}x{sc['size']}",
+                      "`brute` walks every ray from the volume's entry to its hit; `parc` casts only the pixels "
+                      "its OpenGL pass flags, from the first possibly contributing supercell on, and jumps the "
+                      "empty cubes of cells inside.")
     md += [f"### Sample step: CT translucent at {st['size']}²", "",
            f"Error against `brute` at step {st['reference_step']:g}; `parc≠brute` is `parc` against `brute` "
            "at the same step.", ""]

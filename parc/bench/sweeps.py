@@ -28,6 +28,7 @@ from ..renderer import render
 from ..rootstudy import root_study
 from ..scene import Isosurface, Scene
 from . import scenes
+from .tables import work_maps
 
 
 def supercell_sweep(suite, progress):
@@ -50,13 +51,8 @@ def supercell_sweep(suite, progress):
                     "hit_mismatches": r["hit_mismatches"], "max_depth_cells": r["max_depth_cells"],
                     "max_color": r["max_color"]})
     progress("supercell sweep: cells visited per pixel")
-    runs = {m: render(scene, m, work=True) for m in ("brute", "parc")}
-    maps = {m: run.work for m, run in runs.items()}
     return {"source": source, "size": suite.parker_size, "isovalue": 600.0, "rows": out,
-            # Drawn by the report (`parc.bench.report.sweeps`), which drops them from results.json.
-            "work_maps": maps,
-            "work_checks": {"sums": all(int(maps[m].sum()) == runs[m].stats["cells_visited"] for m in maps),
-                            "parc_within_brute": bool((maps["parc"] <= maps["brute"]).all())}}
+            "work": work_maps(scene, "cells_visited")}
 
 
 def step_size_sweep(suite, progress):

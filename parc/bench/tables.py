@@ -33,6 +33,22 @@ def _error(row):
     return {k: row[k] for k in ("hit_mismatches", "max_depth_cells", "max_color", "psnr")}
 
 
+def work_maps(scene, count):
+    """``brute``'s and ``parc``'s work per pixel on ``scene`` (`parc.render`'s ``work``), with checks.
+
+    Returns ``{"maps": {method: (H, W) array}, "checks": {...}}``: whether
+    each map sums to the method's ``stats[count]`` (``"cells_visited"`` or
+    ``"samples"``) and whether ``parc`` does no more than ``brute`` at any
+    pixel. The report draws the maps (`parc.bench.report.work_map_md`) and
+    keeps the checks; the maps stay out of results.json.
+    """
+    runs = {m: render(scene, m, work=True) for m in ("brute", "parc")}
+    maps = {m: run.work for m, run in runs.items()}
+    return {"maps": maps,
+            "checks": {"sums": all(int(maps[m].sum()) == runs[m].stats[count] for m in maps),
+                       "parc_within_brute": bool((maps["parc"] <= maps["brute"]).all())}}
+
+
 def _rows(scene, methods, options, suite, progress, label):
     return compare(scene, methods=methods, options=options, repeats=suite.repeats,
                    warmup=1, progress=lambda m: progress(f"{label}: {m}"))
@@ -44,9 +60,12 @@ def table1(suite, progress, images):
     Also `parc` with depth buffers alone, without the empty-block jumps
     inside its segments (``blocks=False``): the paper's depth-buffer PARC.
     """
-    out, source = [], None
+    out, source, work = [], None, None
     for size in suite.sizes:
         scene, source = scenes.ct_translucent(size, suite.data_dir, suite.small_volumes)
+        if work is None:
+            progress(f"Table 1, {size}²: samples per pixel")
+            work = work_maps(scene, "samples")
         options = {"parc:segments": {"buffers": ("depth",), "blocks": False},
                    "parc": {"buffers": ("depth",)}, "parc:bits": {"buffers": ("depth", "bits")}}
         rows = _rows(scene, ["brute", "parc:segments", "parc", "parc:bits"], options, suite, progress,
@@ -60,7 +79,7 @@ def table1(suite, progress, images):
                         "cast_seconds": _cast_seconds(r), "total_seconds": r["seconds"],
                         "speedup": r["speedup"], "polygons": r["polygons"], **_error(r)})
         images["table1"] = scene
-    return {"source": source, "rows": out}
+    return {"source": source, "rows": out, "work": work, "work_size": suite.sizes[0]}
 
 
 def table2(suite, progress, images):
