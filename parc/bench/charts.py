@@ -509,12 +509,9 @@ def stacked_bar_chart(path, bars, *, title, y_label="share of time (%)", size=(7
 
 
 def _viridis_lut():
-    """Viridis as 256 RGB rows (uint8), from the transfer-function preset's control points."""
-    from ..transfer.presets import VIRIDIS
-    at = np.array([c[0] for c in VIRIDIS], np.float64)
-    rgb = np.array([c[1:] for c in VIRIDIS], np.float64)
-    idx = np.arange(256.0)
-    return np.rint(255.0 * np.stack([np.interp(idx, at, rgb[:, c]) for c in range(3)], axis=1)).astype(np.uint8)
+    """Viridis as 256 RGB rows (uint8): the ``viridis`` transfer-function preset's colours over 0..255."""
+    from ..transfer import load_transfer_function
+    return np.rint(255.0 * load_transfer_function("viridis", (0.0, 255.0)).color(np.arange(256.0))).astype(np.uint8)
 
 
 def _log_ticks(vmax):
