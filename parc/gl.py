@@ -2,12 +2,16 @@
 
 One context per process, created on first use through EGL (Mesa llvmpipe
 on CPU-only machines, the vendor driver where there is a GPU), with the
-programs compiled from ``parc/shaders`` once per context. The passes that
-draw with them: `parc.raster` (near and far ray distances), `parc.bitplanes`
-(planes of supercells), `parc.lights` (light buffers, through `parc.raster`).
+programs compiled from ``parc/shaders`` once per context; llvmpipe's
+rasterizer threads are pinned one to a CPU (`spread_rasterizer_threads`).
+The passes that draw with them: `parc.raster` (near and far ray
+distances), `parc.bitplanes` (planes of supercells), `parc.lights` (light
+buffers, through `parc.raster`).
 """
 from __future__ import annotations
 
+import os
+import re
 from pathlib import Path
 
 from data_tools import InputError
@@ -52,8 +56,64 @@ def get_context():
                                 f"OpenGL 4.3 ({reason})") from None
     # Buffers uploaded for a proxy are released when the proxy goes away.
     ctx.gc_mode = "auto"
+    spread_rasterizer_threads()
     _CONTEXT = ctx
     return ctx
+
+
+#: Mesa's CPU rasterizer names its threads ``llvmpipe-0``, ``llvmpipe-1``, ...
+_RASTERIZER_THREAD = re.compile(r"llvmpipe-(\d+)")
+
+
+def rasterizer_cpus(threads, cpus):
+    """Which CPU each rasterizer thread gets: ``{tid: cpu}``, or ``{}`` to leave them be.
+
+    ``threads``: ``(tid, name)`` of the process's threads; ``cpus``: the
+    CPUs it may run on. Thread ``llvmpipe-n`` gets the n-th CPU, and only
+    where there are at least as many of those threads as CPUs (llvmpipe's
+    default: one a CPU), so that no CPU is favoured over another when
+    several processes render at once; and only with two CPUs or more.
+    """
+    cpus = sorted(cpus)
+    numbered = sorted((int(m.group(1)), tid) for tid, name in threads
+                      if (m := _RASTERIZER_THREAD.fullmatch(name)))
+    if len(cpus) < 2 or len(numbered) < len(cpus):
+        return {}
+    return {tid: cpus[n % len(cpus)] for n, tid in numbered}
+
+
+def spread_rasterizer_threads():
+    """Pin llvmpipe's rasterizer threads one to a CPU (`rasterizer_cpus`); Linux only, best effort.
+
+    An OpenGL pass is a burst of a few milliseconds. The scheduler can
+    start both of a 2-core machine's rasterizer threads on one core and
+    leave them there: the burst is over before it moves one, and the pass
+    runs at one thread's speed in that process. Pinned, a CT head skin
+    pass at 512x512 took 2.6-2.9 ms, against 2.6-4.3 ms unpinned
+    (``benchmarks/rasterizer_threads.py``). A GPU driver has no such
+    threads, and nothing changes.
+
+    Returns
+    -------
+    dict
+        ``{tid: cpu}`` of the threads pinned.
+    """
+    if not hasattr(os, "sched_setaffinity"):
+        return {}
+    try:
+        tasks = Path("/proc/self/task")
+        threads = [(int(t.name), (t / "comm").read_text().strip()) for t in tasks.iterdir()]
+        plan = rasterizer_cpus(threads, os.sched_getaffinity(0))
+    except OSError:
+        return {}
+    pinned = {}
+    for tid, cpu in plan.items():
+        try:
+            os.sched_setaffinity(tid, {cpu})
+        except OSError:
+            continue
+        pinned[tid] = cpu
+    return pinned
 
 
 def load_shader(name):

@@ -1,0 +1,71 @@
+"""llvmpipe's rasterizer threads pinned one to a CPU, or left where the scheduler puts them.
+
+`parc.gl` pins them when it makes the context (`spread_rasterizer_threads`).
+This script times `parc.compare` (brute and parc) both ways: the OpenGL
+pass's time in the median parc frame, and the speedup. Where the threads
+run is settled when the context is made and lasts the process, so every
+run is a process of its own, pinned and unpinned alternated --rounds times.
+On a GPU driver there are no such threads and the two ways are the same.
+
+Run: ./dev.sh python benchmarks/rasterizer_threads.py [--volume PATH --iso V | --synthetic NAME --n N]
+     [--size 512] [--repeats 21] [--rounds 3]
+Without --volume: CThead skin (../shared/data) when present, else a CT-like phantom.
+"""
+import argparse
+import json
+import subprocess
+import sys
+
+import numpy as np
+
+from volumes import add_volume_flags, pick_volume   # beside this script
+
+WAYS = ("pinned", "unpinned")
+
+
+def one_run(args):
+    """One process's `parc.compare`: a JSON line with the parc row's figures."""
+    import parc.gl
+    from parc import Camera, Isosurface, Scene, compare
+    if args.one == "unpinned":
+        parc.gl.spread_rasterizer_threads = dict
+    vol, iso = pick_volume(args)
+    scene = Scene(Camera.framing(*vol.bounds), (args.size, args.size), [Isosurface(vol, iso)])
+    brute, fast = compare(scene, repeats=args.repeats)
+    same = fast["hit_mismatches"] == 0 and fast["max_depth_cells"] == 0.0 and fast["max_color"] == 0.0
+    print(json.dumps({"raster_ms": fast["phases"]["raster"] * 1e3, "parc_s": fast["seconds"],
+                      "brute_s": brute["seconds"], "speedup": fast["speedup"], "same": bool(same),
+                      "renderer": parc.gl.get_context().info["GL_RENDERER"]}))
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_volume_flags(ap)
+    ap.add_argument("--size", type=int, default=512, help="image side in pixels (default 512)")
+    ap.add_argument("--repeats", type=int, default=21, help="timed frames a method in each run (default 21)")
+    ap.add_argument("--rounds", type=int, default=3, help="runs each way, alternated (default 3)")
+    ap.add_argument("--one", choices=WAYS, help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.one:
+        one_run(args)
+        return
+    runs = {way: [] for way in WAYS}
+    for _ in range(args.rounds):
+        for way in WAYS:
+            child = subprocess.run([sys.executable, __file__, *sys.argv[1:], "--one", way],
+                                   capture_output=True, text=True, check=True)
+            row = json.loads(child.stdout.strip().splitlines()[-1])
+            runs[way].append(row)
+            print(f"  {way:9s} OpenGL pass {row['raster_ms']:6.2f} ms  parc {row['parc_s'] * 1e3:7.2f} ms  "
+                  f"brute {row['brute_s'] * 1e3:7.2f} ms  {row['speedup']:5.2f}x  ({row['renderer']})", flush=True)
+    for way in WAYS:
+        r = runs[way]
+        raster = [x["raster_ms"] for x in r]
+        speed = [x["speedup"] for x in r]
+        print(f"{way:9s} OpenGL pass {min(raster):.2f}-{max(raster):.2f} ms (median {np.median(raster):.2f}), "
+              f"speedup {min(speed):.2f}-{max(speed):.2f}x (median {np.median(speed):.2f})")
+    print(f"same as brute: {all(x['same'] for way in WAYS for x in runs[way])}")
+
+
+if __name__ == "__main__":
+    main()
