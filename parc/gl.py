@@ -101,11 +101,17 @@ def spread_rasterizer_threads():
     if not hasattr(os, "sched_setaffinity"):
         return {}
     try:
-        tasks = Path("/proc/self/task")
-        threads = [(int(t.name), (t / "comm").read_text().strip()) for t in tasks.iterdir()]
-        plan = rasterizer_cpus(threads, os.sched_getaffinity(0))
+        cpus = os.sched_getaffinity(0)
+        tasks = list(Path("/proc/self/task").iterdir())
     except OSError:
         return {}
+    threads = []
+    for task in tasks:
+        try:
+            threads.append((int(task.name), (task / "comm").read_text().strip()))
+        except (OSError, ValueError):   # a thread that ended meanwhile
+            continue
+    plan = rasterizer_cpus(threads, cpus)
     pinned = {}
     for tid, cpu in plan.items():
         try:
