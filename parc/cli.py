@@ -416,12 +416,11 @@ def _write_work(result, scene, method, path):
     if path.suffix.lower() == ".npy":
         np.save(path, result.work)
         return
-    from .bench.charts import heat_maps
+    from .bench.charts import work_heat_maps
     from .scene import Isosurface
     w, h = scene.size
     what = "cells visited" if isinstance(scene.volumes[0], Isosurface) else "samples taken"
-    heat_maps(path, {method: result.work}, title=f"{what.capitalize()} per pixel, {w}x{h}",
-              label=f"{what} per pixel (log scale; white: none)")
+    work_heat_maps(path, {method: result.work}, what, f"{w}x{h}")
 
 
 def _shown(vis):

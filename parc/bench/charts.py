@@ -592,3 +592,10 @@ def heat_maps(path, maps, *, title, label, panel=300) -> Path:
         _put(d, bar_x + 26, y, fmt_number(v), font, ha=0)
     _put(d, w / 2, h - 8, label, font, va=1, fill=_MUTED)
     return _save(img, path)
+
+
+def work_heat_maps(path, maps, what, where) -> Path:
+    """`heat_maps` of each method's work per pixel (`parc.RenderResult.work`), titled and labelled
+    alike wherever they are drawn: ``what`` is counted ("cells visited", "samples taken") in ``where``."""
+    return heat_maps(path, maps, title=f"{what.capitalize()} per pixel: {where}",
+                     label=f"{what} per pixel (log scale; white: none)")

@@ -45,8 +45,7 @@ def work_map_md(section, out, name, what, scene, why):
     work = section.get("work")
     if work is None or "maps" not in work:
         return []
-    charts.heat_maps(out / name, work.pop("maps"), title=f"{what.capitalize()} per pixel: {scene}",
-                     label=f"{what} per pixel (log scale; white: none)")
+    charts.work_heat_maps(out / name, work.pop("maps"), what, scene)
     return [f"Where the work goes: the {what} per pixel by `brute` and `parc` (default settings), on one "
             f"colour scale. {why}", "", f"![{what} per pixel]({name})", ""]
 
