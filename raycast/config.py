@@ -75,7 +75,15 @@ def kernel(fn=None, **extra):
     (the per-sample bit-plane test, the transfer function's colour, the
     light-buffer lookup of every shadow ray). Inlining them in Numba's IR
     made PARC's translucent cast 1.3x and its shadow rays 1.8x faster (CT
-    head and Fig. 13 scenes).
+    head and Fig. 13 scenes). The same goes for what an isosurface ray
+    calls once, or once per cubic: `raycast.iso.cast_iso_ray` and
+    `raycast.cubic.first_root` inlined took 4% off PARC's CT head bone
+    frame (`brute`'s as fast as before) for about 10 s more compiling in a
+    cold test run. Not inlined, for compile time: `raycast.iso._walk_iso`
+    into its three callers (the iso kernels' compile time tripled for
+    another few percent) and the traversal's `start_index` and
+    `entry_anchor` (with them inlined too, the iso, hard-ray, PARC-equals-
+    brute and shadow tests took 200 s from a cold cache instead of 150).
     """
     flags = dict(JIT, **extra)
     if fn is None:

@@ -70,7 +70,7 @@ def eval_cubic(a, b, c, d, s):
     return ((a * s + b) * s + c) * s + d
 
 
-@kernel
+@kernel(inline="always")
 def _bracketed_root(a, b, c, d, lo, hi, flo, fhi):
     """The root of a cubic with exactly one root in [lo, hi], where its ends differ in sign."""
     tol = ROOT_REL_TOL * (hi - lo)
@@ -166,7 +166,7 @@ def surely_no_root(a, b, c, d, length):
     return sign_changes(*bernstein(a, b, c, d, length)) == 0
 
 
-@kernel
+@kernel(inline="always")
 def first_root(a, b, c, d, length):
     """Smallest root of ``a s^3 + b s^2 + c s + d`` in ``[0, length]``, or -1.
 

@@ -128,7 +128,7 @@ def _cell_sign(entry):
     return 0
 
 
-@kernel
+@kernel(inline="always")
 def cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, seg0, seg1, skip, jump_min):
     """First isosurface hit along an index-space ray, within ``[seg0, seg1]``.
 
