@@ -42,7 +42,7 @@ import numpy as np
 from data_tools import InputError
 from raycast.composite import INTERP_ROUNDING
 
-from .skip import ISO_JUMP_MIN, SKIP_CAP, TF_JUMP_MIN, skip_radius
+from .skip import ISO_JUMP_MIN, OCTANTS, SKIP_CAP, TF_JUMP_MIN, octant_radius, skip_radius
 
 #: Supercell boundaries this close to an integer (in cells) are snapped to
 #: it, so that e.g. ``10 * 0.1`` does not leave a 2e-16-cell sliver.
@@ -501,6 +501,31 @@ class VolumeIndex:
             return skip_radius(sign_iso(mn, mx, iso), SKIP_CAP)
 
         return self._skip(("iso", float(iso)), table, ISO_JUMP_MIN)
+
+    def iso_octant_skip(self, iso, octants):
+        """Skip tables for isovalue ``iso`` by ray octant, and the smallest radius worth a jump.
+
+        An int8 array ``(8, nz, ny, nx)``: entry ``o`` is `octant_radius` of
+        the cells' `sign_iso` for the rays of octant ``o``
+        (`raycast.iso.octant`), built for the octants in ``octants`` (and any
+        built before). The others hold 0, "may contribute", everywhere: a
+        ray of such an octant still gets the same hit, reading every cell's
+        corners. The array is allocated zeroed, so an octant never built
+        takes no memory (Linux maps zero pages on first touch).
+        """
+        mn, mx = self.cell_minmax()
+
+        def table():
+            return np.zeros((OCTANTS,) + mn.shape, np.int8), set()
+
+        (tables, built), jump_min = self._skip(("iso octants", float(iso)), table, ISO_JUMP_MIN)
+        missing = sorted(set(int(o) for o in octants) - built)
+        if missing:
+            classes = sign_iso(mn, mx, iso)
+            for o in missing:
+                octant_radius(classes, o, SKIP_CAP, tables[o])
+                built.add(o)
+        return tables, jump_min
 
     def tf_skip(self, tf):
         """The skip table for transfer function ``tf`` and the smallest radius worth a jump, kept for the last few.

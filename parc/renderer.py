@@ -16,7 +16,7 @@ import numpy as np
 from data_tools import InputError
 from raycast.composite import (MODE_AVERAGE, MODE_COMPOSITE, MODE_MIP, N_PARAMS, P_AMBIENT, P_HI, P_LO, P_MODE,
                                P_RATIO, P_SHADE, P_STEP, P_THRESHOLD, cast_accumulate_image, over_background)
-from raycast.iso import NO_SKIP, cast_iso_image
+from raycast.iso import NO_SKIP, NO_SKIP_OCTANTS, cast_iso_image, octant
 
 from .scene import Isosurface, Scene, Translucent
 from .workspace import check_frame_memory, work_array
@@ -265,7 +265,7 @@ def _render_iso(scene, iso, seg, use_seg, skip_blocks, timings, progress):
     spc = np.array(vol.spacing)
     t = np.empty(w * h)
     cell, uvw, counts = iso_work(w * h)
-    skip, jump_min = skip_table(iso, skip_blocks)
+    skip, jump_min = octant_skip_tables(iso, skip_blocks, scene.camera, w, h)
     image = np.zeros((h, w, 4), np.float32)
     color = np.array(iso.color, dtype=np.float64)
     material = np.array(iso.material, dtype=np.float64)
@@ -331,6 +331,35 @@ def skip_table(vis, use):
     if isinstance(vis, Isosurface):
         return index.iso_skip(vis.value)
     return index.tf_skip(vis.tf)
+
+
+def octant_skip_tables(iso, use, camera, width, height):
+    """``(tables, jump_min)`` for an isosurface's camera rays: its skip tables by ray octant
+    (`parc.classify.VolumeIndex.iso_octant_skip`), built for the octants of the view's rays, when
+    ``use``, else none."""
+    if not use:
+        return NO_SKIP_OCTANTS, -1
+    from .classify import VolumeIndex
+    return VolumeIndex.of(iso.volume).iso_octant_skip(iso.value, ray_octants(camera, width, height))
+
+
+def ray_octants(camera, width, height):
+    """The octants (`raycast.iso.octant`) of the camera's pixel rays.
+
+    Before it is normalized, a pixel's ray direction is affine in the
+    pixel's indices (`raycast.rays.camera_ray`), so each component's sign
+    over the image is one of those at its corners; a ray that rounding puts
+    in another octant walks with no skip table there, slower but exact.
+    """
+    from raycast.rays import camera_ray
+    cam = camera.as_array()
+    signs = [set(), set(), set()]
+    for x in (0, width - 1):
+        for y in (0, height - 1):
+            d = camera_ray(cam, width, height, x, y)[3:]
+            for a in range(3):
+                signs[a].add(octant(*(d[a] if b == a else 1.0 for b in range(3))))
+    return sorted(sx + sy + sz for sx in signs[0] for sy in signs[1] for sz in signs[2])
 
 
 def accumulation_params(vis):

@@ -22,11 +22,23 @@ table's, and the jump lands on the cell the full walk would be in at that
 time (the cube's exit and the landing cell both by the walk's own crossing
 times, `advance`), so the hits are bit for bit the unaccelerated caster's. The
 unaccelerated caster passes `NO_SKIP`.
+
+A ray leaves that cube through its far faces only, those ahead of it in
+the directions it steps. So a table may as well give, per cell, the side
+``r + 1`` of the largest box of one sign that starts at the cell and grows
+that way: the jump is the same, to the cube's far faces, and the ray stays
+inside the box until then. Such boxes depend on the ray's octant
+(`octant`), and near a surface they are larger than the cubes around the
+cell. PARC's camera rays walk with a table per octant
+(`parc.classify.VolumeIndex.iso_octant_skip`, ``(8, nz, ny, nx)``), each
+ray with its own (`ray_table`); shadow rays and the volumes of multi-volume
+scenes with the centred table.
 """
 import math
 
 import numpy as np
-from numba import prange
+from numba import prange, types
+from numba.extending import overload
 
 from .config import TILE_H, TILE_W, kernel
 from .cubic import cubic_along_ray, eval_cubic, first_root, trilinear_coefficients
@@ -37,9 +49,35 @@ from .traverse import (advance, axis_state, cell_corners, clip_box, cube_exit, e
 
 #: The table a walk without one takes (with ``jump_min = -1``).
 NO_SKIP = np.zeros((1, 1, 1), np.int8)
+#: The same in the shape of a table by octant (`ray_table`), so that a caller
+#: passing octant tables to PARC and none to `brute` compiles one kernel.
+NO_SKIP_OCTANTS = np.zeros((8, 1, 1, 1), np.int8)
 
 #: The last four arguments of a `cast_iso_image` call that only casts (no shading).
 NO_SHADING = (False, np.zeros(3), np.zeros(4), np.zeros((1, 1, 4), np.float32))
+
+
+@kernel
+def octant(Dx, Dy, Dz):
+    """The octant (0-7) of direction ``D``: bit 0 set where ``Dx < 0``, bit 1 for y, bit 2 for z."""
+    return (1 if Dx < 0.0 else 0) + (2 if Dy < 0.0 else 0) + (4 if Dz < 0.0 else 0)
+
+
+def ray_table(skip, Dx, Dy, Dz):
+    """The skip table a ray of direction ``D`` walks with: ``skip`` itself (one table for
+    every ray, ``(nz, ny, nx)``) or its entry for the ray's `octant` (``(8, nz, ny, nx)``,
+    `parc.classify.VolumeIndex.iso_octant_skip`). In kernels the call compiles to the one
+    that matches the table's dimensions."""
+    return skip if skip.ndim == 3 else skip[octant(Dx, Dy, Dz)]
+
+
+@overload(ray_table, jit_options=dict(nogil=True, fastmath=False, error_model="numpy"))
+def _ray_table(skip, Dx, Dy, Dz):
+    if isinstance(skip, types.Array) and skip.ndim == 3:
+        return lambda skip, Dx, Dy, Dz: skip
+    if isinstance(skip, types.Array) and skip.ndim == 4:
+        return lambda skip, Dx, Dy, Dz: skip[octant(Dx, Dy, Dz)]
+    return None
 
 
 @kernel
@@ -159,7 +197,7 @@ def cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, seg0, seg1, skip, jump_min):
     nz, ny, nx = grid_shape(data)
     ta, Ox, Oy, Oz = entry_anchor(Ox, Oy, Oz, Dx, Dy, Dz, nx, ny, nz)
     t, i, j, k, u, v, w, cells, solves = _walk_iso(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, seg0 - ta, seg1 - ta,
-                                                   skip, jump_min)
+                                                   ray_table(skip, Dx, Dy, Dz), jump_min)
     return ta + t, i, j, k, u, v, w, cells, solves
 
 

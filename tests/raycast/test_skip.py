@@ -8,7 +8,10 @@ and their cube radii by repeated erosion (independent of
 `parc.skip.skip_radius`'s separable scans). A jump minimum of 0 or 1
 makes nearly every empty cell a jump, landing on the cube's exit faces,
 edges and corners; larger ones leave signed cells the walk steps on the
-table's sign alone; a small cap cuts the cubes short.
+table's sign alone; a small cap cuts the cubes short. Tables by ray
+octant (boxes ahead of the cell instead of cubes around it) are built
+here by directional erosion, independent of `parc.skip.octant_radius`'s
+separable scans, and walked by rays of every direction.
 """
 import zlib
 
@@ -17,7 +20,7 @@ import pytest
 
 from data_tools.synthetic import blobs
 from parc.classify import VolumeIndex, cell_minmax, sign_iso
-from parc.skip import SKIP_CAP, skip_radius
+from parc.skip import OCTANTS, SKIP_CAP, octant_radius, octant_steps, skip_radius
 from raycast.hardcases import CATEGORIES, cast, hard_batches
 from raycast.hardrays import random_dirs
 
@@ -84,9 +87,49 @@ def radius_table(classes, cap):
     return out.astype(np.int8)
 
 
+def octant_reference(classes, octant, cap):
+    """``c * min(cap, q)`` with ``q`` the largest side of a box of class ``c`` starting at the
+    cell and growing the way ``octant`` steps (outside the grid counting as any class)."""
+    steps = octant_steps(octant)
+    out = np.zeros(classes.shape, np.int64)
+    for c in np.unique(classes):
+        if c == 0:
+            continue
+        mask = classes == c
+        depth = mask.astype(np.int64)
+        for _ in range(cap - 1):
+            # A box of side q + 1 at a cell: boxes of side q at it and its 7 neighbours ahead.
+            grown = mask.copy()
+            for d in range(1, 8):
+                shifted = mask
+                for axis, bit in ((2, 1), (1, 2), (0, 4)):
+                    if d & bit:
+                        step = steps[2 - axis]
+                        n = shifted.shape[axis]
+                        pad = np.pad(shifted, [(1, 1) if a == axis else (0, 0) for a in range(3)],
+                                     constant_values=True)
+                        shifted = pad.take(range(1 + step, n + 1 + step), axis)
+                grown &= shifted
+            mask = grown
+            depth += mask
+        out += c * depth * (classes == c)
+    return out.astype(np.int8)
+
+
+def octant_tables(data, iso, cap=SKIP_CAP):
+    """The walk's skip tables by ray octant, ``(8, nz, ny, nx)``."""
+    classes = block_table(data, iso, 0)
+    return np.stack([octant_reference(classes, o, cap) for o in range(OCTANTS)])
+
+
 def sign_table(data, iso, cap=SKIP_CAP):
     """The walk's per-cell skip table: the cell's sign times one plus its cube radius."""
     return radius_table(block_table(data, iso, 0), cap)
+
+
+def skip_tables(data, iso):
+    """Per cap of `SKIPS`: the centred table and the tables by octant."""
+    return {cap: (sign_table(data, iso, cap), octant_tables(data, iso, cap)) for cap in {c for _, c in SKIPS}}
 
 
 def same_hits(a, b):
@@ -119,14 +162,15 @@ def test_hard_rays_same_with_skip_tables(category):
             m = batch.isos == iso
             o, d = batch.origins[m], batch.dirs[m]
             span = float(np.linalg.norm(sc.hi_world - sc.lo_world)) + 50.0
+            tables = skip_tables(sc.data, iso)
             for seg in (None, random_segments(rng, len(o), span)):
                 ref = cast(sc, o, d, iso, seg)
                 for jump_min, cap in SKIPS:
-                    table = sign_table(sc.data, iso, cap)
-                    got = cast(sc, o, d, iso, seg, skip=(table, jump_min))
-                    assert same_hits(ref, got), (category, sc.name, iso, jump_min, cap)
-                    assert np.array_equal(ref[3][:, 1], got[3][:, 1])      # the same cubics solved
-                    jumps += int((got[3][:, 0] < ref[3][:, 0]).sum())
+                    for table in tables[cap]:
+                        got = cast(sc, o, d, iso, seg, skip=(table, jump_min))
+                        assert same_hits(ref, got), (category, sc.name, iso, jump_min, cap, table.ndim)
+                        assert np.array_equal(ref[3][:, 1], got[3][:, 1])      # the same cubics solved
+                        jumps += int((got[3][:, 0] < ref[3][:, 0]).sum())
     if category not in ("grazing", "near-double", "face-edge-vertex", "iso-sample"):
         assert jumps > 0       # the tables did skip cells
 
@@ -180,12 +224,14 @@ def test_random_volumes_same_with_skip_tables(name, data, origin, spacing):
     skipped = 0
     for iso in isos:
         seg = random_segments(rng, n, float(np.linalg.norm(hi - sc.origin)) + 80.0)
+        tables = skip_tables(data, iso)
         for s in (None, seg):
             ref = cast(sc, eyes, dirs, iso, s)
             for jump_min, cap in SKIPS:
-                got = cast(sc, eyes, dirs, iso, s, skip=(sign_table(data, iso, cap), jump_min))
-                assert same_hits(ref, got), (name, iso, jump_min, cap)
-                skipped += int(ref[3][:, 0].sum() - got[3][:, 0].sum())
+                for table in tables[cap]:
+                    got = cast(sc, eyes, dirs, iso, s, skip=(table, jump_min))
+                    assert same_hits(ref, got), (name, iso, jump_min, cap, table.ndim)
+                    skipped += int(ref[3][:, 0].sum() - got[3][:, 0].sum())
     assert skipped > 0
 
 
@@ -249,3 +295,69 @@ def test_skip_radius_matches_repeated_erosion(cap):
         assert (np.abs(got) <= cap).all()
     with pytest.raises(ValueError):
         skip_radius(classes, 128)
+
+
+@pytest.mark.parametrize("cap", [1, 2, 5, 16, 127])
+def test_octant_radius_matches_directional_erosion(cap):
+    rng = np.random.default_rng(100 + cap)
+    for shape, p_zero in (((9, 11, 13), 0.05), ((20, 7, 31), 0.002), ((1, 1, 40), 0.1), ((6, 30, 2), 0.0)):
+        classes = rng.choice(np.array([-1, 1], np.int8), size=shape)
+        classes[:, :shape[1] // 2] = 1
+        classes[rng.random(shape) < p_zero] = 0
+        for o in range(OCTANTS):
+            got = np.full(shape, 99, np.int8)
+            octant_radius(classes, o, cap, got)
+            assert np.array_equal(got, octant_reference(classes, o, cap)), (shape, o)
+    with pytest.raises(ValueError):
+        octant_radius(classes, 0, 128, got)
+
+
+def test_octant_boxes_reach_past_centred_cubes():
+    """A box ahead is never smaller than the cube around the cell, and near a wall it is larger."""
+    classes = np.ones((12, 12, 12), np.int8)
+    classes[:, :, 0] = -1                    # a wall of the other class at x = 0
+    centred = skip_radius(classes, 8)
+    away = np.empty_like(classes)
+    octant_radius(classes, 0, 8, away)       # rays stepping +x, away from the wall
+    towards = np.empty_like(classes)
+    octant_radius(classes, 1, 8, towards)    # stepping -x, towards it
+    assert (np.abs(away) >= np.abs(centred)).all() and (np.abs(towards) >= np.abs(centred)).all()
+    assert away[6, 6, 1] == 8 and centred[6, 6, 1] == 1 and towards[6, 6, 1] == 1
+
+
+def test_volume_index_octant_tables_follow_the_isovalue():
+    vol = blobs((24, 26, 28), count=3, seed=4)
+    index = VolumeIndex.of(vol)
+    for iso in (3.5, 90.5):
+        tables, jump_min = index.iso_octant_skip(iso, [2, 5])
+        assert jump_min >= 0 and tables.shape == (OCTANTS,) + tuple(n - 1 for n in vol.data.shape)
+        want = octant_tables(vol.data, iso)
+        for o in range(OCTANTS):
+            # Octants not asked for hold 0, "may contribute": exact, only slower.
+            assert np.array_equal(tables[o], want[o] if o in (2, 5) else 0 * want[o]), (iso, o)
+        again, _ = index.iso_octant_skip(iso, [7])
+        assert again is tables and np.array_equal(tables[7], want[7])     # kept, and grown
+
+
+@pytest.mark.parametrize("parallel", [False, True])
+def test_ray_octants_cover_every_pixel(parallel):
+    """`parc.renderer.ray_octants` names the octant of every camera ray it is asked about."""
+    from parc.camera import Camera
+    from parc.renderer import ray_octants
+    from raycast.iso import octant
+    from raycast.rays import camera_ray
+    rng = np.random.default_rng(int(parallel))
+    for _ in range(20):
+        eye = rng.normal(size=3) * 30
+        look = rng.normal(size=3) * 5
+        if rng.random() < 0.3:
+            look = eye.copy()
+            look[rng.integers(3)] += 10.0           # axis-aligned views: components exactly 0
+        fwd = np.abs(look - eye) / np.linalg.norm(look - eye)
+        up = (0.0, 0.0, 1.0) if fwd[2] < 0.9 else (0.0, 1.0, 0.0)
+        cam = Camera(eye=tuple(eye), look_at=tuple(look), up=up, fov=float(rng.uniform(10, 120)),
+                     parallel_scale=5.0 if parallel else None)
+        w, h = (int(v) for v in rng.integers(3, 40, 2))
+        arr = cam.as_array()
+        seen = {octant(*camera_ray(arr, w, h, x, y)[3:]) for x in range(w) for y in range(h)}
+        assert seen <= set(ray_octants(cam, w, h)), (eye, look)
