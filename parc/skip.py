@@ -197,27 +197,31 @@ def _octant_runs(c, sx, cap, out):
 @kernel(parallel=True)
 def _octant_grow(c, inner, axis, step, cap, out):
     """The largest side ``q`` with ``inner >= q`` at every cell ``0 .. q - 1`` steps ahead along
-    array axis ``axis`` (0: z, 1: y) that lies in the grid and has the cell's class."""
+    array axis ``axis`` (0: z, 1: y) that lies in the grid and has the cell's class.
+
+    Row by row along x, as `_radius_columns` and for the same reason: the
+    smallest ``inner`` so far only falls as the steps grow and the side
+    they allow only rises, so each step adds one to the side of the cells
+    still growing, a branch-free pass over the row.
+    """
     nz, ny, nx = c.shape
     n = nz if axis == 0 else ny
     for kk in prange(nz):
         k = np.int64(kk)
+        low = np.empty(nx, np.int8)
         for j in range(ny):
             m0 = k if axis == 0 else j
             for i in range(nx):
-                s = c[k, j, i]
-                low = np.int64(inner[k, j, i])
-                side = min(low, np.int64(1))
-                for d in range(1, cap):
-                    if low < d + 1:
-                        break
-                    q = m0 + d * step
-                    if q >= 0 and q < n:
-                        qk = q if axis == 0 else k
-                        qj = j if axis == 0 else q
-                        v = np.int64(inner[qk, qj, i]) if c[qk, qj, i] == s else np.int64(0)
-                        low = min(low, v)
-                        if low < d + 1:
-                            break
-                    side = d + 1
-                out[k, j, i] = side
+                low[i] = inner[k, j, i]
+                out[k, j, i] = min(low[i], np.int8(1))
+            for d in range(1, cap):
+                q = m0 + d * step
+                if q >= 0 and q < n:
+                    qk = q if axis == 0 else k
+                    qj = j if axis == 0 else q
+                    for i in range(nx):
+                        v = inner[qk, qj, i] if c[qk, qj, i] == c[k, j, i] else np.int8(0)
+                        low[i] = min(low[i], v)
+                dd = np.int8(d + 1)
+                for i in range(nx):
+                    out[k, j, i] += np.int8(low[i] >= dd)
