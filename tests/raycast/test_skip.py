@@ -71,9 +71,9 @@ def erode(mask):
     return out
 
 
-def radius_table(classes, cap):
-    """``c * min(cap, 1 + r)`` with ``r`` the largest cube radius around a cell of class ``c != 0``
-    holding only class ``c`` (outside the grid counts as any class); 0 where ``c == 0``."""
+def class_depths(classes, cap, shrink):
+    """``c * min(cap, 1 + n)`` per cell of class ``c != 0``, with ``n`` how many times
+    ``shrink`` keeps it in the mask of its class; 0 where ``c == 0``."""
     out = np.zeros(classes.shape, np.int64)
     for c in np.unique(classes):
         if c == 0:
@@ -81,39 +81,39 @@ def radius_table(classes, cap):
         mask = classes == c
         depth = mask.astype(np.int64)
         for _ in range(cap - 1):
-            mask = erode(mask)
+            mask = shrink(mask)
             depth += mask
         out += c * depth * (classes == c)
     return out.astype(np.int8)
+
+
+def radius_table(classes, cap):
+    """``c * min(cap, 1 + r)`` with ``r`` the largest cube radius around a cell of class ``c != 0``
+    holding only class ``c`` (outside the grid counts as any class); 0 where ``c == 0``."""
+    return class_depths(classes, cap, erode)
 
 
 def octant_reference(classes, octant, cap):
     """``c * min(cap, q)`` with ``q`` the largest side of a box of class ``c`` starting at the
     cell and growing the way ``octant`` steps (outside the grid counting as any class)."""
     steps = octant_steps(octant)
-    out = np.zeros(classes.shape, np.int64)
-    for c in np.unique(classes):
-        if c == 0:
-            continue
-        mask = classes == c
-        depth = mask.astype(np.int64)
-        for _ in range(cap - 1):
-            # A box of side q + 1 at a cell: boxes of side q at it and its 7 neighbours ahead.
-            grown = mask.copy()
-            for d in range(1, 8):
-                shifted = mask
-                for axis, bit in ((2, 1), (1, 2), (0, 4)):
-                    if d & bit:
-                        step = steps[2 - axis]
-                        n = shifted.shape[axis]
-                        pad = np.pad(shifted, [(1, 1) if a == axis else (0, 0) for a in range(3)],
-                                     constant_values=True)
-                        shifted = pad.take(range(1 + step, n + 1 + step), axis)
-                grown &= shifted
-            mask = grown
-            depth += mask
-        out += c * depth * (classes == c)
-    return out.astype(np.int8)
+
+    def shrink_ahead(mask):
+        # A box of side q + 1 at a cell: boxes of side q at it and its 7 neighbours ahead.
+        grown = mask.copy()
+        for d in range(1, 8):
+            shifted = mask
+            for axis, bit in ((2, 1), (1, 2), (0, 4)):
+                if d & bit:
+                    step = steps[2 - axis]
+                    n = shifted.shape[axis]
+                    pad = np.pad(shifted, [(1, 1) if a == axis else (0, 0) for a in range(3)],
+                                 constant_values=True)
+                    shifted = pad.take(range(1 + step, n + 1 + step), axis)
+            grown &= shifted
+        return grown
+
+    return class_depths(classes, cap, shrink_ahead)
 
 
 def octant_tables(data, iso, cap=SKIP_CAP):
