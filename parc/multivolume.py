@@ -57,7 +57,7 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
     PARC's walks and shadow rays skip the volumes' empty cells
     (`parc.renderer.render`).
     """
-    from .renderer import _parc_segments, accumulation_params, iso_work, skip_table
+    from .renderer import _parc_segments, accumulation_params, iso_work, octant_skip_tables, skip_table
 
     w, h = scene.size
     npx = w * h
@@ -97,7 +97,7 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
         t = work_array("iso_t", (npx,))
         c, uv, cnt = iso_work(npx)
         seg = segs.get(n, np.empty((1, 1, 2)))
-        skip, jump_min = skip_table(iso, parc and blocks)
+        skip, jump_min = octant_skip_tables(iso, parc and blocks, scene.camera, w, h)
         _, cells, solves = cast_iso_image(vol.data, np.array(vol.origin), np.array(vol.spacing), cam, w, h,
                                           iso.value, seg, parc, skip, jump_min, t, c, uv, cnt, 0, h, *NO_SHADING)
         keep_nearest(t, c, uv, n, depth, cell, uvw, winner)

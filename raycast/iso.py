@@ -31,8 +31,10 @@ inside the box until then. Such boxes depend on the ray's octant
 (`octant`), and near a surface they are larger than the cubes around the
 cell. PARC's camera rays walk with a table per octant
 (`parc.classify.VolumeIndex.iso_octant_skip`, ``(8, nz, ny, nx)``), each
-ray with its own (`ray_table`); shadow rays and the volumes of multi-volume
-scenes with the centred table.
+ray with its own (`ray_table`). Shadow rays keep the centred table
+(``(nz, ny, nx)``, which `ray_table` passes through): from the hits
+towards a point light they go every way, and with a table per octant the
+shadow rays of the neuron-and-floor scene took 9.9 ms a frame against 7.3.
 """
 import math
 
