@@ -356,9 +356,9 @@ def ray_octants(camera, width, height):
     signs = [set(), set(), set()]
     for x in (0, width - 1):
         for y in (0, height - 1):
-            d = camera_ray(cam, width, height, x, y)[3:]
+            o = octant(*camera_ray(cam, width, height, x, y)[3:])
             for a in range(3):
-                signs[a].add(octant(*(d[a] if b == a else 1.0 for b in range(3))))
+                signs[a].add(o & (1 << a))
     return sorted(sx + sy + sz for sx in signs[0] for sy in signs[1] for sz in signs[2])
 
 
