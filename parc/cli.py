@@ -416,7 +416,7 @@ def _write_work(result, scene, method, path):
     if path.suffix.lower() == ".npy":
         np.save(path, result.work)
         return
-    from .bench.charts import work_heat_maps
+    from .bench.heatmaps import work_heat_maps
     from .scene import Isosurface
     w, h = scene.size
     what = "cells visited" if isinstance(scene.volumes[0], Isosurface) else "samples taken"

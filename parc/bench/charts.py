@@ -1,4 +1,4 @@
-"""PNG charts for the benchmark report: speed against error, timings, time breakdowns, work per pixel.
+"""PNG charts for the benchmark report: speed against error, timings, time breakdowns.
 
 Pillow only (no matplotlib), so the report can be built wherever the renderer
 runs. The charts are plain on purpose: white background, the Okabe-Ito
@@ -16,8 +16,6 @@ import math
 import os
 from dataclasses import dataclass, replace
 from pathlib import Path
-
-import numpy as np
 
 from PIL import Image, ImageDraw, ImageFont
 
@@ -507,95 +505,3 @@ def stacked_bar_chart(path, bars, *, title, y_label="share of time (%)", size=(7
                 _put(d, (x0 + x1) / 2, (y0 + y1) / 2, f"{e - s:.0f}%", fonts[0], fill=ink)
     return _save(img, path)
 
-
-def _viridis_lut():
-    """Viridis as 256 RGB rows (uint8): the ``viridis`` transfer-function preset's colours over 0..255."""
-    from ..transfer import load_transfer_function
-    return np.rint(255.0 * load_transfer_function("viridis", (0.0, 255.0)).color(np.arange(256.0))).astype(np.uint8)
-
-
-def _log_ticks(vmax):
-    """Values 0, 1, 10, 100, ... up to ``vmax``, and ``vmax`` itself when far from the last decade."""
-    ticks = [0.0]
-    v = 1.0
-    while v <= vmax:
-        ticks.append(v)
-        v *= 10.0
-    if vmax > 0 and math.log1p(vmax) - math.log1p(ticks[-1]) > 0.15 * math.log1p(vmax):
-        ticks.append(float(vmax))
-    return ticks
-
-
-def heat_maps(path, maps, *, title, label, panel=300) -> Path:
-    """Count maps side by side on one logarithmic colour scale: e.g. cells visited per pixel, per method.
-
-    A count of 0 is drawn white (no work there), counts from 1 up on
-    viridis by ``log(1 + count)``, one scale for every map so that they
-    compare; the colour bar on the right gives the counts.
-
-    Parameters
-    ----------
-    path : str or Path
-        PNG to write.
-    maps : dict of str -> ndarray (H, W)
-        Non-negative counts, all of one shape; each panel is titled with its
-        name and its mean per pixel.
-    title : str
-    label : str
-        What is counted, under the colour bar (e.g. "cells per pixel").
-    panel : int
-        Width of a panel in pixels (maps are scaled to it, nearest neighbour).
-
-    Returns
-    -------
-    Path
-    """
-    if not maps:
-        raise ValueError("heat_maps needs at least one map")
-    fonts = _fonts()
-    font, tfont = fonts
-    arrays = {str(k): np.nan_to_num(np.asarray(v, np.float64), nan=0.0, posinf=0.0).clip(min=0.0)
-              for k, v in maps.items()}
-    h0, w0 = next(iter(arrays.values())).shape
-    ph = max(1, int(round(panel * h0 / max(w0, 1))))
-    vmax = max(float(a.max()) if a.size else 0.0 for a in arrays.values())
-    scale = math.log1p(vmax) if vmax > 0 else 1.0
-    lut = _viridis_lut()
-    probe = ImageDraw.Draw(Image.new("RGB", (1, 1)))
-    lh, th = _height(probe, font), _height(probe, tfont)
-    ticks = _log_ticks(vmax)
-    tick_w = max(_width(probe, fmt_number(v), font) for v in ticks)
-    top = 16 + th + 14 + lh + 8
-    bar_x = 16 + len(arrays) * (panel + 16) + 8
-    w = bar_x + 18 + 8 + tick_w + 16
-    h = top + ph + 16 + lh + 12
-    img = Image.new("RGB", (w, h), "white")
-    d = ImageDraw.Draw(img)
-    _put(d, w / 2, 12, title, tfont, va=0)
-    for i, (name, a) in enumerate(arrays.items()):
-        x = 16 + i * (panel + 16)
-        rgb = lut[np.rint(255.0 * np.log1p(a) / scale).astype(np.int64).clip(0, 255)]
-        rgb[a == 0] = 255
-        img.paste(Image.fromarray(np.ascontiguousarray(rgb, np.uint8), "RGB").resize((panel, ph), Image.NEAREST),
-                  (x, top))
-        d.rectangle((x - 1, top - 1, x + panel, top + ph), outline=_INK)
-        _put(d, x + panel / 2, top - 8, f"{name}: {fmt_number(a.mean())} a pixel", font, va=1)
-    # The colour bar: 0 (white) at the bottom, then log(1 + count) upward.
-    for y in range(ph):
-        f = 1.0 - y / max(ph - 1, 1)
-        d.line((bar_x, top + y, bar_x + 18, top + y), fill=tuple(int(c) for c in lut[int(round(255 * f))]))
-    d.rectangle((bar_x, top + ph - 6, bar_x + 18, top + ph), fill="white")
-    d.rectangle((bar_x - 1, top - 1, bar_x + 18, top + ph), outline=_INK)
-    for v in ticks:
-        y = top + ph - 3 if v == 0 else top + (ph - 1) * (1.0 - math.log1p(v) / scale)
-        d.line((bar_x + 18, y, bar_x + 22, y), fill=_INK)
-        _put(d, bar_x + 26, y, fmt_number(v), font, ha=0)
-    _put(d, w / 2, h - 8, label, font, va=1, fill=_MUTED)
-    return _save(img, path)
-
-
-def work_heat_maps(path, maps, what, where) -> Path:
-    """`heat_maps` of each method's work per pixel (`parc.RenderResult.work`), titled and labelled
-    alike wherever they are drawn: ``what`` is counted ("cells visited", "samples taken") in ``where``."""
-    return heat_maps(path, maps, title=f"{what.capitalize()} per pixel: {where}",
-                     label=f"{what} per pixel (log scale; white: none)")

@@ -4,7 +4,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from . import charts
+from . import charts, heatmaps
 
 
 def _scatter(path, points, **kw):
@@ -45,7 +45,7 @@ def work_map_md(section, out, name, what, scene, why):
     work = section.get("work")
     if work is None or "maps" not in work:
         return []
-    charts.work_heat_maps(out / name, work.pop("maps"), what, scene)
+    heatmaps.work_heat_maps(out / name, work.pop("maps"), what, scene)
     return [f"Where the work goes: the {what} per pixel by `brute` and `parc` (default settings), on one "
             f"colour scale. {why}", "", f"![{what} per pixel]({name})", ""]
 

@@ -11,8 +11,9 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from parc.bench.charts import (PALETTE, _data_axis, _viridis_lut, axis_mapping, bar_chart, fmt_number, heat_maps,
-                               line_chart, scatter_chart, stack_segments, stacked_bar_chart)
+from parc.bench.charts import (PALETTE, _data_axis, axis_mapping, bar_chart, fmt_number, line_chart, scatter_chart,
+                               stack_segments, stacked_bar_chart)
+from parc.bench.heatmaps import _viridis_lut, heat_maps
 
 KW = dict(title="t", x_label="x", y_label="y")
 
