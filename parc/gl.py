@@ -3,7 +3,9 @@
 One context per process, created on first use through EGL (Mesa llvmpipe
 on CPU-only machines, the vendor driver where there is a GPU), with the
 programs compiled from ``parc/shaders`` once per context; llvmpipe's
-rasterizer threads are pinned one to a CPU (`spread_rasterizer_threads`).
+rasterizer threads are pinned one to a CPU (`spread_rasterizer_threads`),
+and NVIDIA's driver waits for the GPU by ``usleep(0)`` rather than
+``sched_yield()`` (`prefer_short_waits`).
 The passes that draw with them: `parc.raster` (near and far ray
 distances), `parc.bitplanes` (planes of supercells), `parc.lights` (light
 buffers, through `parc.raster`).
@@ -21,6 +23,10 @@ SHADER_DIR = Path(__file__).with_name("shaders")
 
 _CONTEXT = None
 _PROGRAMS = {}
+
+#: How NVIDIA's driver waits for the GPU (read when the context is made):
+#: ``USLEEP`` unless the user chose otherwise (`prefer_short_waits`).
+DRIVER_WAIT = ("__GL_YIELD", "USLEEP")
 
 
 class OpenGLUnavailable(InputError):
@@ -48,6 +54,7 @@ def get_context():
         import moderngl
     except ImportError as exc:  # pragma: no cover - moderngl is a dependency
         raise OpenGLUnavailable(f"OpenGL is not available: cannot import moderngl ({exc})") from None
+    prefer_short_waits(os.environ)
     try:
         ctx = moderngl.create_standalone_context(backend="egl", require=430)
     except Exception as exc:  # moderngl raises plain Exceptions from the driver
@@ -59,6 +66,22 @@ def get_context():
     spread_rasterizer_threads()
     _CONTEXT = ctx
     return ctx
+
+
+def prefer_short_waits(environ):
+    """Set NVIDIA's wait policy to `DRIVER_WAIT` in ``environ`` unless it is set already.
+
+    A PARC pass waits for the GPU once a frame (the read-back), for about
+    a millisecond. With the driver's default wait (``sched_yield()``;
+    NVIDIA's README, "OpenGL environment variables"), the CT head skin's
+    near/far draw took 3.2-3.4 ms on an H100, against 0.85-0.97 ms with
+    ``USLEEP`` (``usleep(0)``) or ``NOTHING`` (never yield); the bone's,
+    of as many faces, took 0.75 ms in every mode (`parc compare`,
+    2026-11-26; benchmarks README, "On a GPU"). Other drivers ignore the
+    variable.
+    """
+    name, value = DRIVER_WAIT
+    environ.setdefault(name, value)
 
 
 #: Mesa's CPU rasterizer names its threads ``llvmpipe-0``, ``llvmpipe-1``, ...
