@@ -113,7 +113,7 @@ def spread_rasterizer_threads():
     leave them there: the burst is over before it moves one, and the pass
     runs at one thread's speed in that process. Pinned, a CT head skin
     pass at 512x512 took 2.6-2.9 ms, against 2.6-4.3 ms unpinned
-    (``benchmarks/rasterizer_threads.py``). A GPU driver has no such
+    (``benchmarks/context_settings.py``). A GPU driver has no such
     threads, and nothing changes.
 
     Returns

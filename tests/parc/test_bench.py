@@ -166,8 +166,11 @@ BENCH_SCRIPTS = {
                             "--tf", "greyscale"], ["ns a sample", "same as brute: True"]),
     "caster_speed.py": (["--size", "16"], ["M cells/s", "skin iso 600", "bone iso 1500"]),
     "raster_speed.py": (["--synthetic", "sphere", "--n", "16", "--size", "64"], ["same as brute: True", "fit: draw"]),
-    "rasterizer_threads.py": (["--synthetic", "sphere", "--n", "16", "--size", "32", "--repeats", "1",
-                               "--rounds", "1"], ["pinned ", "unpinned ", "same as brute: True"]),
+    "context_settings.py": (["--synthetic", "sphere", "--n", "16", "--size", "32", "--repeats", "1",
+                             "--rounds", "1"], ["pinned ", "unpinned ", "same as brute: True"]),
+    "context_settings.py --setting wait": (["--setting", "wait", "--synthetic", "sphere", "--n", "16", "--size", "32",
+                                            "--repeats", "1", "--rounds", "1"],
+                                           ["USLEEP ", "default ", "NOTHING ", "same as brute: True"]),
     "raster_speed.py --stages": (["--synthetic", "sphere", "--n", "16", "--size", "64", "--stages"],
                                  ["draw", "readback", "total"]),
 }

@@ -1,14 +1,20 @@
-"""llvmpipe's rasterizer threads pinned one to a CPU, or left where the scheduler puts them.
+"""The OpenGL context's settings, each way in a process of its own: `parc compare`'s OpenGL pass and speedup.
 
-`parc.gl` pins them when it makes the context (`spread_rasterizer_threads`).
-This script times `parc.compare` (brute and parc) both ways: the OpenGL
-pass's time in the median parc frame, and the speedup. Where the threads
-run is settled when the context is made and lasts the process, so every
-run is a process of its own, pinned and unpinned alternated --rounds times.
-On a GPU driver there are no such threads and the two ways are the same.
+--setting threads (default): llvmpipe's rasterizer threads pinned one to a
+CPU, as `parc.gl` leaves them when it makes the context
+(`spread_rasterizer_threads`), or left where the scheduler puts them. On a
+GPU driver there are no such threads and the two ways are the same.
 
-Run: ./dev.sh python benchmarks/rasterizer_threads.py [--volume PATH --iso V | --synthetic NAME --n N]
-     [--size 512] [--repeats 21] [--rounds 3]
+--setting wait: how NVIDIA's driver waits for the GPU (``__GL_YIELD``):
+``USLEEP``, as `parc.gl` asks (`prefer_short_waits`), the driver's default,
+or ``NOTHING``. Other drivers ignore it.
+
+Either is settled when the context is made and lasts the process, so every
+run is a process of its own, the ways alternated --rounds times. Printed:
+the OpenGL pass's time in the median parc frame, and the speedup.
+
+Run: ./dev.sh python benchmarks/context_settings.py [--setting threads|wait]
+     [--volume PATH --iso V | --synthetic NAME --n N] [--size 512] [--repeats 21] [--rounds 3]
 Without --volume: CThead skin (../shared/data) when present, else a CT-like phantom.
 """
 import argparse
@@ -20,15 +26,21 @@ import numpy as np
 
 from volumes import add_volume_flags, pick_volume   # beside this script
 
-WAYS = ("pinned", "unpinned")
+WAYS = {"threads": ("pinned", "unpinned"), "wait": ("USLEEP", "default", "NOTHING")}
 
 
 def one_run(args):
     """One process's `parc.compare`: a JSON line with the parc row's figures."""
+    import os
     import parc.gl
     from parc import Camera, Isosurface, Scene, compare
     if args.one == "unpinned":
         parc.gl.spread_rasterizer_threads = dict
+    elif args.one == "default":
+        parc.gl.prefer_short_waits = lambda environ: None
+        os.environ.pop(parc.gl.DRIVER_WAIT[0], None)
+    elif args.one in WAYS["wait"]:
+        os.environ[parc.gl.DRIVER_WAIT[0]] = args.one
     vol, iso = pick_volume(args)
     scene = Scene(Camera.framing(*vol.bounds), (args.size, args.size), [Isosurface(vol, iso)])
     brute, fast = compare(scene, repeats=args.repeats)
@@ -40,31 +52,34 @@ def one_run(args):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--setting", choices=sorted(WAYS), default="threads",
+                    help="the context setting to vary (default threads; see above)")
     add_volume_flags(ap)
     ap.add_argument("--size", type=int, default=512, help="image side in pixels (default 512)")
     ap.add_argument("--repeats", type=int, default=21, help="timed frames a method in each run (default 21)")
     ap.add_argument("--rounds", type=int, default=3, help="runs each way, alternated (default 3)")
-    ap.add_argument("--one", choices=WAYS, help=argparse.SUPPRESS)
+    ap.add_argument("--one", choices=[w for ways in WAYS.values() for w in ways], help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.one:
         one_run(args)
         return
-    runs = {way: [] for way in WAYS}
+    ways = WAYS[args.setting]
+    runs = {way: [] for way in ways}
     for _ in range(args.rounds):
-        for way in WAYS:
+        for way in ways:
             child = subprocess.run([sys.executable, __file__, *sys.argv[1:], "--one", way],
                                    capture_output=True, text=True, check=True)
             row = json.loads(child.stdout.strip().splitlines()[-1])
             runs[way].append(row)
             print(f"  {way:9s} OpenGL pass {row['raster_ms']:6.2f} ms  parc {row['parc_s'] * 1e3:7.2f} ms  "
                   f"brute {row['brute_s'] * 1e3:7.2f} ms  {row['speedup']:5.2f}x  ({row['renderer']})", flush=True)
-    for way in WAYS:
+    for way in ways:
         r = runs[way]
         raster = [x["raster_ms"] for x in r]
         speed = [x["speedup"] for x in r]
         print(f"{way:9s} OpenGL pass {min(raster):.2f}-{max(raster):.2f} ms (median {np.median(raster):.2f}), "
               f"speedup {min(speed):.2f}-{max(speed):.2f}x (median {np.median(speed):.2f})")
-    print(f"same as brute: {all(x['same'] for way in WAYS for x in runs[way])}")
+    print(f"same as brute: {all(x['same'] for way in ways for x in runs[way])}")
 
 
 if __name__ == "__main__":
