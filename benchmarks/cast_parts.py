@@ -5,7 +5,7 @@ the view); then the isosurface kernel (`raycast.iso.cast_iso_image`) is
 timed, best of --repeats, on the same rays:
 
 - ``brute``: whole rays, no skip table, hits shaded (the unaccelerated cast);
-- ``parc``: the segments and the skip table, hits shaded (PARC's cast);
+- ``parc``: the segments and the renderer's skip tables (by ray octant), hits shaded (PARC's cast);
 - ``parc, unshaded``: the same without shading, so the difference is the shading;
 - ``parc, rays started only``: every segment cut to its first point, so each ray
   is set up and its first cell visited, and the walk stops there;
@@ -41,14 +41,18 @@ def best_ms(cast, repeats):
 
 def frame(vis, size):
     """What the casting kernels take for ``vis`` seen from the default view at ``size``x``size``:
-    ``(cam, org, spc, seg, skip, jump_min, extra)``, the segments PARC's OpenGL pass finds and its stats."""
-    from parc import Camera, Scene
-    from parc.renderer import _parc_segments, skip_table
+    ``(cam, org, spc, seg, skip, jump_min, extra)``, the segments PARC's OpenGL pass finds and its stats,
+    and the skip tables the renderer gives these rays (by ray octant for an isosurface)."""
+    from parc import Camera, Isosurface, Scene
+    from parc.renderer import _parc_segments, octant_skip_tables, skip_table
 
     vol = vis.volume
     scene = Scene(Camera.framing(*vol.bounds), (size, size), [vis])
     seg, extra, _ = _parc_segments(scene, vis, None, {})
-    skip, jump_min = skip_table(vis, True)
+    if isinstance(vis, Isosurface):
+        skip, jump_min = octant_skip_tables(vis, True, scene.camera, size, size)
+    else:
+        skip, jump_min = skip_table(vis, True)
     return (scene.camera.as_array(), np.array(vol.origin), np.array(vol.spacing), seg.copy(), skip, jump_min,
             extra)
 
@@ -56,7 +60,7 @@ def frame(vis, size):
 def iso_parts(vol, iso, size, repeats):
     from parc import Isosurface
     from parc.renderer import iso_work
-    from raycast.iso import NO_SKIP, cast_iso_image
+    from raycast.iso import NO_SKIP_OCTANTS as NO_SKIP, cast_iso_image
 
     vis = Isosurface(vol, iso)
     cam, org, spc, seg, skip, jump_min, extra = frame(vis, size)
