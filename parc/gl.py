@@ -78,7 +78,8 @@ def prefer_short_waits(environ):
     ``USLEEP`` (``usleep(0)``) or ``NOTHING`` (never yield); the bone's,
     of as many faces, took 0.75 ms in every mode (`parc compare`,
     2026-11-26; benchmarks README, "On a GPU"). Other drivers ignore the
-    variable.
+    variable. It stays in the process's environment, so child processes
+    inherit it.
     """
     name, value = DRIVER_WAIT
     environ.setdefault(name, value)
