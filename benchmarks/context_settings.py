@@ -19,6 +19,7 @@ Without --volume: CThead skin (../shared/data) when present, else a CT-like phan
 """
 import argparse
 import json
+import os
 import subprocess
 import sys
 
@@ -31,7 +32,6 @@ WAYS = {"threads": ("pinned", "unpinned"), "wait": ("USLEEP", "default", "NOTHIN
 
 def one_run(args):
     """One process's `parc.compare`: a JSON line with the parc row's figures."""
-    import os
     import parc.gl
     from parc import Camera, Isosurface, Scene, compare
     if args.one == "unpinned":
