@@ -49,6 +49,9 @@ def cache_folder():
 #: unaccelerated caster must round identically, and the root finder relies
 #: on IEEE comparisons with inf.
 JIT = dict(cache=True, nogil=True, fastmath=False, error_model="numpy")
+#: The same for an ``@overload``'s implementation, which is compiled into
+#: the kernels that call it and cached with them.
+OVERLOAD_JIT = {key: value for key, value in JIT.items() if key != "cache"}
 
 #: Image tiles, as in Parker et al. §2.2: 32 pixels wide (a cache line of
 #: float32 per row) and 4 high.

@@ -42,7 +42,7 @@ import numpy as np
 from numba import prange, types
 from numba.extending import overload
 
-from .config import TILE_H, TILE_W, kernel
+from .config import OVERLOAD_JIT, TILE_H, TILE_W, kernel
 from .cubic import cubic_along_ray, eval_cubic, first_root, trilinear_coefficients
 from .rays import camera_ray, dealt_tile, spread_run, spread_runs, tile_count
 from .shade import headlight_pixel
@@ -73,7 +73,7 @@ def ray_table(skip, Dx, Dy, Dz):
     return skip if skip.ndim == 3 else skip[octant(Dx, Dy, Dz)]
 
 
-@overload(ray_table, jit_options=dict(nogil=True, fastmath=False, error_model="numpy"))
+@overload(ray_table, jit_options=OVERLOAD_JIT)
 def _ray_table(skip, Dx, Dy, Dz):
     if isinstance(skip, types.Array) and skip.ndim == 3:
         return lambda skip, Dx, Dy, Dz: skip

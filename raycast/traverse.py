@@ -27,7 +27,7 @@ from numba import types
 from numba.extending import overload
 
 from .bricks import BrickedSamples, bricked_corners
-from .config import kernel
+from .config import OVERLOAD_JIT, kernel
 
 #: Below this an index-space direction component counts as zero: its
 #: reciprocal would overflow, and the ray moves less than 1e-200 cells per
@@ -293,7 +293,7 @@ def _linear_corners(data, i, j, k):
             np.float64(data[k + 1, j + 1, i]), np.float64(data[k + 1, j + 1, i + 1]))
 
 
-@overload(cell_corners, jit_options=dict(nogil=True, fastmath=False, error_model="numpy"))
+@overload(cell_corners, jit_options=OVERLOAD_JIT)
 def _cell_corners(data, i, j, k):
     """`cell_corners` in kernels: chosen by the type of ``data`` when a kernel compiles."""
     return {"linear": _linear_corners, "bricked": bricked_corners}.get(_layout(data))
