@@ -41,8 +41,9 @@ import numpy as np
 
 from data_tools import InputError
 from raycast.composite import INTERP_ROUNDING
+from raycast.iso import OCTANTS
 
-from .skip import ISO_JUMP_MIN, OCTANTS, SKIP_CAP, TF_JUMP_MIN, octant_radius, skip_radius
+from .skip import ISO_JUMP_MIN, SKIP_CAP, TF_JUMP_MIN, octant_radius, skip_radius
 
 #: Supercell boundaries this close to an integer (in cells) are snapped to
 #: it, so that e.g. ``10 * 0.1`` does not leave a 2e-16-cell sliver.

@@ -132,11 +132,6 @@ def _radius_columns(c, inner, axis, cap, out):
                             out[k, j, i] = v
 
 
-#: Octants of ray directions, numbered as `raycast.iso.octant` numbers them:
-#: bit 0 set for a negative x step, bit 1 for y, bit 2 for z.
-OCTANTS = 8
-
-
 @kernel
 def octant_steps(octant):
     """``(sx, sy, sz)``, each +1 or -1: the directions octant ``octant`` walks."""

@@ -49,11 +49,14 @@ from .shade import headlight_pixel
 from .traverse import (advance, axis_state, cell_corners, clip_box, cube_exit, entry_anchor, grid_shape, step_cell,
                        to_index_space, walk_from)
 
+#: Octants of ray directions, numbered by `octant`.
+OCTANTS = 8
+
 #: The table a walk without one takes (with ``jump_min = -1``).
 NO_SKIP = np.zeros((1, 1, 1), np.int8)
 #: The same in the shape of a table by octant (`ray_table`), so that a caller
 #: passing octant tables to PARC and none to `brute` compiles one kernel.
-NO_SKIP_OCTANTS = np.zeros((8, 1, 1, 1), np.int8)
+NO_SKIP_OCTANTS = np.zeros((OCTANTS, 1, 1, 1), np.int8)
 
 #: The last four arguments of a `cast_iso_image` call that only casts (no shading).
 NO_SHADING = (False, np.zeros(3), np.zeros(4), np.zeros((1, 1, 4), np.float32))

@@ -20,9 +20,10 @@ import pytest
 
 from data_tools.synthetic import blobs
 from parc.classify import VolumeIndex, cell_minmax, sign_iso
-from parc.skip import OCTANTS, SKIP_CAP, octant_radius, octant_steps, skip_radius
+from parc.skip import SKIP_CAP, octant_radius, octant_steps, skip_radius
 from raycast.hardcases import CATEGORIES, cast, hard_batches
 from raycast.hardrays import random_dirs
+from raycast.iso import OCTANTS
 
 SHIFTS = (0, 1, 2, 3)
 #: (jump minimum, cap) pairs the walks are checked with.
