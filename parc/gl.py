@@ -75,11 +75,15 @@ def prefer_short_waits(environ):
     a millisecond. With the driver's default wait (``sched_yield()``;
     NVIDIA's README, "OpenGL environment variables"), the CT head skin's
     near/far draw took 3.2-3.4 ms on an H100, against 0.85-0.97 ms with
-    ``USLEEP`` (``usleep(0)``) or ``NOTHING`` (never yield); the bone's,
-    of as many faces, took 0.75 ms in every mode (`parc compare`,
-    2026-11-26; benchmarks README, "On a GPU"). Other drivers ignore the
-    variable. It stays in the process's environment, so child processes
-    inherit it.
+    ``USLEEP`` (``usleep(0)``) or ``NOTHING`` (never yield) (`parc
+    compare`, 2026-11-26; benchmarks README, "On a GPU"). Later runs
+    there found every process's draws turning that slow about 3 s after
+    its first, whichever the wait (the card's clocks, most likely), and
+    the default's run was probably past that point before its first
+    timed frame: the default may be no slower. ``usleep(0)`` costs
+    nothing where it is not needed, so it stays until an alternated run
+    with the default settles it. Other drivers ignore the variable. It
+    stays in the process's environment, so child processes inherit it.
     """
     name, value = DRIVER_WAIT
     environ.setdefault(name, value)
