@@ -132,7 +132,6 @@ def _radius_columns(c, inner, axis, cap, out):
                             out[k, j, i] = v
 
 
-@kernel
 def octant_steps(octant):
     """``(sx, sy, sz)``, each +1 or -1: the directions octant ``octant`` walks."""
     return -1 if octant & 1 else 1, -1 if octant & 2 else 1, -1 if octant & 4 else 1
