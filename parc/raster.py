@@ -110,6 +110,21 @@ setup on the calling thread (~2 ms for 3.7k faces), then llvmpipe's
 rasterization (~2/3, measured with a constant fragment shader) and the
 fragment shader (~1/3) on its threads; clear and read-back take ~0.4 ms
 each, the unpacking into float64 segments ~0.2 ms (`unpack_segments`).
+
+That table's supercells were smaller than the renderer picks now, and its
+post included faulting in a fresh 4 MB segment array every frame, which
+the renderer never does (it writes into a kept one, `parc.workspace`).
+With today's supercells, and the benchmark writing into one array as the
+renderer does (its view, median of 30 frames, 2026-11-26):
+
+================================  ======  ========  ======
+scene (faces, of which drawn)     draw    post      total
+================================  ======  ========  ======
+CT head skin, 600 (1903, 1879)    4.2 ms  0.19 ms   4.5 ms
+CT head bone, 1500 (1352, 961)    2.1 ms  0.14 ms   2.5 ms
+neghip, 80 (2244, 1286)           2.4 ms  0.16 ms   2.7 ms
+================================  ======  ========  ======
+
 Faces bordering only cavities (bone: 1.1k of 6.9k, neghip: 1.0k of
 2.2k) are skipped while no ray starts in one (`parc.origins.open_faces`).
 Looseness against the exact segments
