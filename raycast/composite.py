@@ -425,8 +425,40 @@ def average_grey(total, count, params):
     return grey
 
 
-def _image_caster(accumulate):
-    """A parallel driver of one `_accumulator` kernel over image tiles (`cast_accumulate_image`)."""
+_ACCUMULATE_PLAIN = _ACCUMULATORS[False, False]
+_ACCUMULATE_SHADED = _ACCUMULATORS[True, False]
+_ACCUMULATE_PLANES = _ACCUMULATORS[False, True]
+_ACCUMULATE_SHADED_PLANES = _ACCUMULATORS[True, True]
+
+
+@kernel(inline="always")
+def _accumulate_kind(shaded, planes, data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, seg0, seg1, t_stop, params,
+                     op_x, op_y, col_x, col_rgb, bits, py, px, use_bits, skip, jump_min):
+    """The `_accumulator` kernel for ``(shaded, planes)``, called; the drivers pass constants, and
+    the three calls not taken are compiled out."""
+    if shaded:
+        if planes:
+            return _ACCUMULATE_SHADED_PLANES(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, seg0, seg1, t_stop,
+                                             params, op_x, op_y, col_x, col_rgb, bits, py, px, use_bits, skip,
+                                             jump_min)
+        return _ACCUMULATE_SHADED(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, seg0, seg1, t_stop, params,
+                                  op_x, op_y, col_x, col_rgb, bits, py, px, use_bits, skip, jump_min)
+    if planes:
+        return _ACCUMULATE_PLANES(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, seg0, seg1, t_stop, params,
+                                  op_x, op_y, col_x, col_rgb, bits, py, px, use_bits, skip, jump_min)
+    return _ACCUMULATE_PLAIN(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, seg0, seg1, t_stop, params,
+                             op_x, op_y, col_x, col_rgb, bits, py, px, use_bits, skip, jump_min)
+
+
+def _image_caster(shaded, planes):
+    """A parallel driver of the `_accumulator` kernel for ``(shaded, planes)`` over image tiles
+    (`cast_accumulate_image`).
+
+    It closes over the two flags, not over the kernel: Numba keys a
+    closure's cache entry by its pickled closure, and a kernel pickles
+    with an id new in every process, so a driver closing over one was
+    compiled again in each process (2.3 s of a translucent `parc render`).
+    """
     @kernel(parallel=True)
     def cast(data, org, spc, cam, width, height, params, op_x, op_y, col_x, col_rgb,
              seg, use_seg, stop, use_stop, bits, use_bits, skip, jump_min, image, counts, row0, row1):
@@ -448,9 +480,10 @@ def _image_caster(accumulate):
                             continue
                     ox, oy, oz, dx, dy, dz = camera_ray(cam, width, height, x, y)
                     Ox, Oy, Oz, Dx, Dy, Dz = to_index_space(ox, oy, oz, dx, dy, dz, org, spc)
-                    r, g, b, a, n = accumulate(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, s0, s1,
-                                               stop[y, x] if use_stop else math.inf, params, op_x, op_y, col_x,
-                                               col_rgb, bits, y, x, use_bits, skip, jump_min)
+                    r, g, b, a, n = _accumulate_kind(shaded, planes, data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy,
+                                                     dz, s0, s1, stop[y, x] if use_stop else math.inf, params,
+                                                     op_x, op_y, col_x, col_rgb, bits, y, x, use_bits, skip,
+                                                     jump_min)
                     image[y, x, 0] = r
                     image[y, x, 1] = g
                     image[y, x, 2] = b
@@ -463,8 +496,7 @@ def _image_caster(accumulate):
 
 #: One driver per `_accumulator` kernel: a driver that called all four
 #: (choosing per ray) ran `brute`'s CT head frame 1.1x slower.
-_IMAGE_CASTERS = {(shaded, planes): _image_caster(kernel)
-                  for (shaded, planes), kernel in _ACCUMULATORS.items()}
+_IMAGE_CASTERS = {key: _image_caster(*key) for key in _ACCUMULATORS}
 
 
 def cast_accumulate_image(data, org, spc, cam, width, height, params, op_x, op_y, col_x, col_rgb,
