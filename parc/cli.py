@@ -176,7 +176,10 @@ def build_parser():
     r.add_argument("--method", default="brute", choices=("brute", "parc"),
                    help="brute: unaccelerated casting (default); parc: walk only the ray segments "
                         "OpenGL finds from a polygon proxy of the possibly contributing supercells "
-                        "(same image, faster)")
+                        "(the same image, faster frame for frame; but the first frame of a volume also pays "
+                        "for its cell ranges, skip tables and the OpenGL context, so for a single picture "
+                        "brute is often quicker: parc pays over many frames, as in parc compare or the "
+                        "Python API)")
     r.add_argument("--supercell", type=_supercell, metavar="M[,N,P]",
                    help="parc: supercell size in cells, fractional allowed (default: chosen by a cost model)")
     r.add_argument("--no-blocks", action="store_true",
