@@ -11,6 +11,7 @@ import json
 import pkgutil
 import subprocess
 import sys
+from pathlib import Path
 
 from numba.core.dispatcher import Dispatcher
 
@@ -69,7 +70,7 @@ print(json.dumps(sorted(name for name, k in kernels() if sum(k.stats.cache_misse
 
 
 def test_a_new_process_loads_the_casters_from_the_cache():
-    script = _SCRIPT.format(tests=str(__import__("pathlib").Path(__file__).parent))
+    script = _SCRIPT.format(tests=str(Path(__file__).parent))
 
     def misses():
         run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=600)
