@@ -6,8 +6,8 @@ CPU, as `parc.gl` leaves them when it makes the context
 GPU driver there are no such threads and the two ways are the same.
 
 --setting wait: how NVIDIA's driver waits for the GPU (``__GL_YIELD``):
-``USLEEP``, as `parc.gl` asks (`prefer_short_waits`), the driver's default,
-or ``NOTHING``. Other drivers ignore it.
+its default (``sched_yield()``), as `parc.gl` leaves it, ``USLEEP``
+(``usleep(0)``) or ``NOTHING`` (spin). Other drivers ignore it.
 
 Either is settled when the context is made and lasts the process, so every
 run is a process of its own, the ways alternated --rounds times. Printed:
@@ -27,7 +27,10 @@ import numpy as np
 
 from volumes import add_volume_flags, pick_volume   # beside this script
 
-WAYS = {"threads": ("pinned", "unpinned"), "wait": ("USLEEP", "default", "NOTHING")}
+WAYS = {"threads": ("pinned", "unpinned"), "wait": ("default", "USLEEP", "NOTHING")}
+
+#: NVIDIA's variable for how its driver waits for the GPU.
+DRIVER_WAIT = "__GL_YIELD"
 
 
 def one_run(args):
@@ -37,10 +40,9 @@ def one_run(args):
     if args.one == "unpinned":
         parc.gl.spread_rasterizer_threads = dict
     elif args.one == "default":
-        parc.gl.prefer_short_waits = lambda environ: None
-        os.environ.pop(parc.gl.DRIVER_WAIT[0], None)
+        os.environ.pop(DRIVER_WAIT, None)
     elif args.one in WAYS["wait"]:
-        os.environ[parc.gl.DRIVER_WAIT[0]] = args.one
+        os.environ[DRIVER_WAIT] = args.one
     vol, iso = pick_volume(args)
     scene = Scene(Camera.framing(*vol.bounds), (args.size, args.size), [Isosurface(vol, iso)])
     brute, fast = compare(scene, repeats=args.repeats)

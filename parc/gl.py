@@ -3,9 +3,7 @@
 One context per process, created on first use through EGL (Mesa llvmpipe
 on CPU-only machines, the vendor driver where there is a GPU), with the
 programs compiled from ``parc/shaders`` once per context; llvmpipe's
-rasterizer threads are pinned one to a CPU (`spread_rasterizer_threads`),
-and NVIDIA's driver waits for the GPU by ``usleep(0)`` rather than
-``sched_yield()`` (`prefer_short_waits`).
+rasterizer threads are pinned one to a CPU (`spread_rasterizer_threads`).
 The passes that draw with them: `parc.raster` (near and far ray
 distances), `parc.bitplanes` (planes of supercells), `parc.lights` (light
 buffers, through `parc.raster`).
@@ -23,11 +21,6 @@ SHADER_DIR = Path(__file__).with_name("shaders")
 
 _CONTEXT = None
 _PROGRAMS = {}
-
-#: How NVIDIA's driver waits for the GPU (read when the context is made):
-#: ``USLEEP`` unless the user chose otherwise (`prefer_short_waits`).
-DRIVER_WAIT = ("__GL_YIELD", "USLEEP")
-
 
 class OpenGLUnavailable(InputError):
     """No usable OpenGL 4.3 context (headless EGL) on this machine."""
@@ -54,7 +47,6 @@ def get_context():
         import moderngl
     except ImportError as exc:  # pragma: no cover - moderngl is a dependency
         raise OpenGLUnavailable(f"OpenGL is not available: cannot import moderngl ({exc})") from None
-    prefer_short_waits(os.environ)
     try:
         ctx = moderngl.create_standalone_context(backend="egl", require=430)
     except Exception as exc:  # moderngl raises plain Exceptions from the driver
@@ -66,27 +58,6 @@ def get_context():
     spread_rasterizer_threads()
     _CONTEXT = ctx
     return ctx
-
-
-def prefer_short_waits(environ):
-    """Set NVIDIA's wait policy to `DRIVER_WAIT` in ``environ`` unless it is set already.
-
-    A PARC pass waits for the GPU once a frame (the read-back), for about
-    a millisecond. With the driver's default wait (``sched_yield()``;
-    NVIDIA's README, "OpenGL environment variables"), the CT head skin's
-    near/far draw took 3.2-3.4 ms on an H100, against 0.85-0.97 ms with
-    ``USLEEP`` (``usleep(0)``) or ``NOTHING`` (never yield) (`parc
-    compare`, 2026-11-26; benchmarks README, "On a GPU"). Later runs
-    there found every process's draws turning that slow about 3 s after
-    its first, whichever the wait (the card's clocks, most likely), and
-    the default's run was probably past that point before its first
-    timed frame: the default may be no slower. ``usleep(0)`` costs
-    nothing where it is not needed, so it stays until an alternated run
-    with the default settles it. Other drivers ignore the variable. It
-    stays in the process's environment, so child processes inherit it.
-    """
-    name, value = DRIVER_WAIT
-    environ.setdefault(name, value)
 
 
 #: Mesa's CPU rasterizer names its threads ``llvmpipe-0``, ``llvmpipe-1``, ...

@@ -1,10 +1,9 @@
-"""The OpenGL context's set-up: llvmpipe's rasterizer threads spread over the CPUs, and the
-vendor driver's wait policy."""
+"""The OpenGL context's set-up: llvmpipe's rasterizer threads spread over the CPUs."""
 import os
 
 import pytest
 
-from parc.gl import DRIVER_WAIT, prefer_short_waits, rasterizer_cpus, spread_rasterizer_threads
+from parc.gl import rasterizer_cpus, spread_rasterizer_threads
 
 
 def test_each_rasterizer_thread_gets_its_own_cpu():
@@ -41,18 +40,3 @@ def test_the_context_leaves_llvmpipe_threads_one_to_a_cpu(gl):
     assert set().union(*given.values()) == cpus
     # Asking again changes nothing and pins the same way.
     assert spread_rasterizer_threads() == {tid: next(iter(c)) for tid, c in given.items()}
-
-
-def test_the_driver_waits_briefly_unless_the_user_chose():
-    name, value = DRIVER_WAIT
-    environ = {"PATH": "/bin"}
-    prefer_short_waits(environ)
-    assert environ == {"PATH": "/bin", name: value}
-    chosen = {name: "NOTHING"}
-    prefer_short_waits(chosen)
-    assert chosen == {name: "NOTHING"}
-
-
-def test_the_context_is_made_with_a_wait_policy_set(gl):
-    # Ours, or one the user had set before.
-    assert DRIVER_WAIT[0] in os.environ
