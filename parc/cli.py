@@ -8,12 +8,16 @@ place only once whole.
 from __future__ import annotations
 
 import argparse
+import os
 import re
+import signal
 import sys
+from pathlib import Path
 
 import numpy as np
 
 from data_tools import InputError
+from data_tools.io.npy import save_array
 
 from .flagscene import load_volume_flags, scene_and_notes
 from .outputs import Progress, atomic_write_all, check_distinct, check_output, compile_notice, to_json, write_png
@@ -297,6 +301,12 @@ def main(argv=None):
     except InputError as exc:
         print(f"parc: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
+    except BrokenPipeError:
+        # The reader went away (`parc compare ... | head`): stop quietly, as
+        # a command killed by SIGPIPE would, and let nothing flush into the
+        # closed pipe at exit.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 128 + signal.SIGPIPE
     except OSError as exc:
         # A path the system refuses (too long, not a folder, no permission)
         # found only when it is used.
@@ -354,11 +364,25 @@ def cmd_make(args):
     return 0
 
 
+def _refuse_overwriting_input(out, inputs):
+    """Refuse an output whose detached data file (``.mhd``, ``.nhdr``: ``STEM.raw``) is a file
+    the volume was read from: the header and its samples, or a raw file itself."""
+    from data_tools.io import data_file_written
+    data = data_file_written(out)
+    if data is None:
+        return
+    for source in inputs:
+        if source is not None and Path(source).resolve() == data.resolve():
+            raise InputError(f"{out}: would write its samples to {data}, which the volume is read from; "
+                             "write the output elsewhere or under another name")
+
+
 def cmd_convert(args):
     from data_tools.io import WRITE_EXTENSIONS, save_volume
     out = check_output(args.output, WRITE_EXTENSIONS)
     check_distinct(args.volume, [out])
     vol = load_volume_flags(args)
+    _refuse_overwriting_input(out, [args.volume, vol.meta.get("data_file")])
     save_volume(vol, out)  # all-or-nothing itself, and keeps sidecar names right
     if "note" in vol.meta:
         print(f"parc: {vol.meta['note']}", file=sys.stderr)
@@ -392,9 +416,9 @@ def cmd_render(args):
         say(note)
 
     writes = [(out, (lambda tmp: write_png(result.image, tmp)) if out.suffix.lower() == ".png"
-               else (lambda tmp: np.save(tmp, result.image)))]
+               else (lambda tmp: save_array(tmp, result.image)))]
     if depth_out:
-        writes.append((depth_out, lambda tmp: np.save(tmp, result.depth)))
+        writes.append((depth_out, lambda tmp: save_array(tmp, result.depth)))
     if stats_out:
         writes.append((stats_out, lambda tmp: tmp.write_text(to_json(result.stats) + "\n")))
     if work_out:
@@ -417,7 +441,7 @@ def cmd_render(args):
 def _write_work(result, scene, method, path):
     """The work per pixel of a one-volume render: an int64 array (.npy) or a heat map (.png)."""
     if path.suffix.lower() == ".npy":
-        np.save(path, result.work)
+        save_array(path, result.work)
         return
     from .bench.heatmaps import work_heat_maps
     from .scene import Isosurface
@@ -502,13 +526,15 @@ def cmd_bench(args):
 
 def _buffers(args, scene=None):
     """PARC's buffers from --buffers (parsed, refused where no volume of ``scene`` is translucent)."""
-    from .renderer import DEFAULT_BUFFERS, parse_buffers
+    from .renderer import DEFAULT_BUFFERS, bits_refused, parse_buffers
     from .scene import Translucent
     if args.buffers is None:
         return DEFAULT_BUFFERS
     buffers = parse_buffers(args.buffers)
     if scene is not None and not any(isinstance(v, Translucent) for v in scene.volumes):
         raise InputError("--buffers applies to translucent volumes (--tf); isosurfaces use the depth buffers")
+    if scene is not None and "bits" in buffers and bits_refused(scene):
+        raise InputError(f"--buffers {args.buffers}: {bits_refused(scene)}")
     return buffers
 
 

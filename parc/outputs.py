@@ -68,6 +68,7 @@ def atomic_write_all(writes):
     an image without the depth and stats asked for with it.
     """
     done = []
+    path = writes[0][0]
     try:
         for path, write in writes:
             fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=path.parent or ".")
@@ -81,8 +82,8 @@ def atomic_write_all(writes):
         for tmp, path in done:
             os.replace(tmp, path)
     except OSError as exc:
-        path = done[-1][1] if done else writes[0][0]
-        raise InputError(f"{exc.filename or path}: cannot write ({exc.strerror or exc})") from None
+        # Name the user's file: the temporary one beside it means nothing to them.
+        raise InputError(f"{path}: cannot write ({exc.strerror or exc})") from None
     finally:
         for tmp, _ in done:
             if tmp.exists():

@@ -93,7 +93,8 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
         ``--buffers`` does: ``"depth"``, ``"bits"``, ``"depth,bits"``;
         ``+`` joins them too): near/far ray distances
         (depth-buffer PARC, §3) and planes of supercells the ray meets
-        (color-buffer PARC, §4). Isosurfaces use the depth buffers.
+        (color-buffer PARC, §4). Isosurfaces use the depth buffers, and
+        so do scenes of several volumes or with lights.
     progress : callable(done_fraction) or None
         Called as bands of image rows finish, for long renders.
     light_buffer : int, optional
@@ -151,6 +152,8 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
     light_buffer = _light_buffer_size(light_buffer)
     check_frame_memory(*scene.size, layers=len(scene.volumes))
     if len(scene.volumes) != 1 or scene.lights:
+        if "bits" in buffers:
+            raise InputError(f"buffers {','.join(buffers)}: {bits_refused(scene)}")
         if work:
             raise InputError("per-pixel work is counted for scenes of one volume without lights")
         return _render_general(scene, method, supercell, progress, light_buffer, skip_blocks)
@@ -298,6 +301,16 @@ def _light_buffer_size(light_buffer):
         raise InputError(f"light buffers take a whole number of pixels from 2 to {MAX_LIGHT_BUFFER}, "
                          f"got {light_buffer!r}")
     return int(light_buffer)
+
+
+def bits_refused(scene):
+    """Why ``scene`` cannot use bit planes, or None: they are drawn for one translucent volume
+    without lights (`_render_general` bounds each volume's rays by its depth buffers)."""
+    if len(scene.volumes) == 1 and not scene.lights:
+        return None
+    what = f"{len(scene.volumes)} volumes" if len(scene.volumes) != 1 else "lights"
+    return (f"bit planes are drawn for a scene of one translucent volume without lights, "
+            f"and this one has {what}; use depth")
 
 
 def parse_buffers(buffers):

@@ -109,6 +109,13 @@ def _file_reader(path):
     return reader, "raw" if reader is raw.read_raw else ext.split(".")[1].upper()
 
 
+def data_file_written(path):
+    """The detached data file `save_volume` writes beside ``path`` (``.mhd``, ``.nhdr``: the
+    same name with ``.raw``), or None."""
+    path = Path(path)
+    return path.with_suffix(".raw") if path.suffix.lower() in (".mhd", ".nhdr") else None
+
+
 def save_volume(volume: Volume, path, **options) -> Path:
     """Write ``volume`` to ``path`` in the format its extension names, all or nothing.
 
@@ -165,4 +172,4 @@ def save_volume(volume: Volume, path, **options) -> Path:
     return path
 
 
-__all__ = ["load_volume", "save_volume", "volume_extension", "READ_EXTENSIONS", "WRITE_EXTENSIONS"]
+__all__ = ["load_volume", "save_volume", "data_file_written", "volume_extension", "READ_EXTENSIONS", "WRITE_EXTENSIONS"]

@@ -127,6 +127,7 @@ def _build(path, fields, data_start):
             raise InputError(f"{path}: data file {data_path} (ElementDataFile) is not a regular file")
         if data_path.resolve() == path.resolve():
             raise InputError(f"{path}: ElementDataFile names this header itself; write LOCAL for attached data")
+        meta["data_file"] = str(data_path)
         offset = 0
     nx, ny, nz = dims
     itemsize = np.dtype(dtype).itemsize

@@ -69,6 +69,17 @@ def read_npy(path) -> Volume:
     return Volume(data, spacing=spacing, origin=origin, name=str(path), meta=meta)
 
 
+def save_array(path, array):
+    """Write ``array`` as a ``.npy`` file at exactly ``path``.
+
+    Given a name, `numpy.save` appends ``.npy`` unless the name ends in it
+    in lower case, so ``x.NPY`` would be written to ``x.NPY.npy``; an open
+    file keeps the name.
+    """
+    with open(path, "wb") as f:
+        np.save(f, array, allow_pickle=False)
+
+
 def write_npy(volume: Volume, path, *, sidecar=None) -> Path:
     """Write the array, and a ``.json`` sidecar with spacing and origin.
 
@@ -76,7 +87,7 @@ def write_npy(volume: Volume, path, *, sidecar=None) -> Path:
     ``True`` always (so an existing sidecar cannot go stale).
     """
     path = Path(path)
-    np.save(path, volume.data, allow_pickle=False)
+    save_array(path, volume.data)
     plain = volume.spacing == (1.0, 1.0, 1.0) and volume.origin == (0.0, 0.0, 0.0)
     if sidecar or not plain:
         sidecar_path(path).write_text(

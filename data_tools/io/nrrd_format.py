@@ -31,7 +31,7 @@ def read_nrrd(path) -> Volume:
     Volume
     """
     path = Path(path)
-    _check_data_file(path)
+    data_file = _check_data_file(path)
     try:
         data, header = nrrd.read(str(path), index_order="C")
     except MemoryError:
@@ -41,6 +41,8 @@ def read_nrrd(path) -> Volume:
     if data.ndim != 3:
         raise InputError(f"{path}: NRRD has {data.ndim} axes, expected a 3-D scalar volume")
     meta = {"format": "nrrd", "encoding": header.get("encoding")}
+    if data_file is not None:
+        meta["data_file"] = str(data_file)
     spacing, note = _spacing(header, path)
     if note:
         meta["note"] = note
@@ -51,19 +53,21 @@ def read_nrrd(path) -> Volume:
 
 
 def _check_data_file(path):
-    """Refuse a detached data file that is not a regular file (a pipe or a device would
-    block the read or never end it); other header faults are left to the read."""
+    """The detached data file a header names, or None; refuse one that is not a regular file
+    (a pipe or a device would block the read or never end it). Other header faults are left
+    to the read."""
     try:
         with open(path, "rb") as fh:
             header = nrrd.read_header(fh)
     except Exception:  # noqa: BLE001 - reported by the read itself
-        return
+        return None
     name = header.get("data file") or header.get("datafile")
     if not isinstance(name, str) or name.startswith("LIST") or " " in name.strip():
-        return
+        return None
     data = Path(name) if Path(name).is_absolute() else path.parent / name
     if data.exists() and not data.is_file():
         raise InputError(f"{path}: data file {data} is not a regular file")
+    return data
 
 
 def _explain(exc) -> str:
