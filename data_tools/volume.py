@@ -106,10 +106,10 @@ class Volume:
             raise InputError(f"{self.name}: unsupported sample type {data.dtype}")
         if not data.flags.c_contiguous:
             data = np.ascontiguousarray(data)
-        if data.dtype.kind == "f" and not isinstance(data, np.memmap):
+        if data.dtype.kind == "f":
             # Policy: non-finite samples have no isosurface or colour; refuse them.
-            if not np.isfinite(data).all():
-                bad = int(np.size(data) - np.count_nonzero(np.isfinite(data)))
+            bad = _count_non_finite(data)
+            if bad:
                 raise InputError(f"{self.name}: {bad} non-finite samples (NaN or inf); replace them before rendering")
         if data.flags.writeable:
             data = data.view()
@@ -171,6 +171,14 @@ class Volume:
         if "_range" not in self.meta:
             self.meta["_range"] = (float(self.data.min()), float(self.data.max()))
         return self.meta["_range"]
+
+
+def _count_non_finite(data, slab_bytes=64 << 20):
+    """NaN and inf samples in ``data``, counted a slab of z-slices at a time: a memory-mapped
+    file is read through once, and no mask as large as the volume is made."""
+    per = max(1, slab_bytes // max(data[0].nbytes, 1))
+    return sum(int(slab.size - np.count_nonzero(np.isfinite(slab)))
+               for slab in (data[z:z + per] for z in range(0, data.shape[0], per)))
 
 
 def _triple(value, what, name, *, positive):

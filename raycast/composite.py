@@ -44,7 +44,7 @@ import math
 import numpy as np
 from numba import prange
 
-from .config import TILE_H, TILE_W, kernel
+from .config import TILE_H, TILE_W, kernel, named_for
 from .rays import camera_ray, dealt_tile, tile_count
 from .shade import blinn_phong, trilinear_gradient
 from .transfer import correct_opacity, tf_color, tf_lookup, tf_opacity
@@ -308,6 +308,7 @@ def _accumulator(shaded, planes):
     planes took 1.15x as long, `brute`'s 1.1x.
     """
     @kernel
+    @named_for(shaded=shaded, planes=planes)
     def accumulate(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, seg0, seg1, t_stop, params,
                    op_x, op_y, col_x, col_rgb, bits, py, px, use_bits, skip, jump_min):
         """Accumulate one ray (index space ``O + t D``; world direction ``d``) over ``[seg0, seg1]``.
@@ -460,6 +461,7 @@ def _image_caster(shaded, planes):
     compiled again in each process (2.3 s of a translucent `parc render`).
     """
     @kernel(parallel=True)
+    @named_for(shaded=shaded, planes=planes)
     def cast(data, org, spc, cam, width, height, params, op_x, op_y, col_x, col_rgb,
              seg, use_seg, stop, use_stop, bits, use_bits, skip, jump_min, image, counts, row0, row1):
         tiles = tile_count(width, row0, row1, TILE_W, TILE_H)

@@ -53,6 +53,27 @@ JIT = dict(cache=True, nogil=True, fastmath=False, error_model="numpy")
 #: the kernels that call it and cached with them.
 OVERLOAD_JIT = {key: value for key, value in JIT.items() if key != "cache"}
 
+def named_for(**flags):
+    """Rename a kernel's Python function for the flags its factory closes over, before `kernel`.
+
+    ``accumulate`` made with ``shaded=True, planes=False`` becomes
+    ``accumulate_shaded``; with neither, ``accumulate_plain``. Numba names a
+    compiled kernel by its qualified name and a counter that starts again in
+    every process, and links kernels loaded from the cache by that name: two
+    variants of one factory, compiled in different processes, could get the
+    same name, and a process that loaded both ran the first one's code for
+    both (a shaded image came out unshaded). Distinct names also give each
+    variant its own cache index.
+    """
+    suffix = "_".join(name for name, on in flags.items() if on) or "plain"
+
+    def rename(fn):
+        fn.__name__ = f"{fn.__name__}_{suffix}"
+        fn.__qualname__ = f"{fn.__qualname__}_{suffix}"
+        return fn
+    return rename
+
+
 #: Image tiles, as in Parker et al. §2.2: 32 pixels wide (a cache line of
 #: float32 per row) and 4 high.
 TILE_W = 32

@@ -12,7 +12,7 @@ from numba import prange
 
 from .composite import (END, MOVED, P_SHADE, P_STEP, P_THRESHOLD, PASS, cell_lattice, composite_sample, local_coords,
                         ray_span, trilinear, visit_cell)
-from .config import TILE_H, TILE_W, kernel
+from .config import TILE_H, TILE_W, kernel, named_for
 from .rays import camera_ray, dealt_tile, tile_count
 from .transfer import tf_opacity
 from .traverse import cell_corners, grid_shape, step_cell, to_index_space, walk_from
@@ -134,6 +134,7 @@ def _merged_caster(shaded):
     """`cast_merged_image`'s kernel, with gradient shading compiled in (``shaded``) or out,
     as `raycast.composite` does for one volume."""
     @kernel(parallel=True)
+    @named_for(shaded=shaded)
     def cast(datas, orgs, spcs, cam, width, height, params, op_x, op_y, col_x, col_rgb, tf_len,
              seg, use_seg, skip, jump_mins, stop, layer_t, layer_rgba, image, counts):
         nvol = len(datas)

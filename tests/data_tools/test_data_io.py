@@ -294,6 +294,23 @@ def test_raw_mmap_maps_the_file_read_only(tmp_path):
     assert not loaded.flags.writeable and loaded.base.flags.writeable
 
 
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+@pytest.mark.parametrize("slab_bytes", [None, 1])
+def test_a_mapped_float_file_with_non_finite_samples_is_refused(tmp_path, bad, slab_bytes, monkeypatch):
+    # The count goes slab by slab; slabs of one z-slice must find the sample too.
+    import data_tools.volume
+    if slab_bytes is not None:
+        real = data_tools.volume._count_non_finite
+        monkeypatch.setattr(data_tools.volume, "_count_non_finite", lambda data: real(data, slab_bytes))
+    data = np.ones((6, 5, 4), np.float32)
+    data[4, 2, 1] = bad
+    data[5, 0, 0] = bad
+    path = tmp_path / "field_4x5x6_float32.raw"
+    data.tofile(path)
+    with pytest.raises(InputError, match="2 non-finite samples"):
+        load_volume(path, mmap=True)
+
+
 def test_raw_mmap_refuses_the_other_byte_order(tmp_path):
     path = tmp_path / "ct_5x4x3_int16.raw"
     np.zeros((3, 4, 5), ">i2").tofile(path)

@@ -1,18 +1,25 @@
-"""Compiled kernels come back from Numba's on-disk cache in a new process.
+"""Compiled kernels come back from Numba's on-disk cache in a new process, each as itself.
 
 Numba keys the cache entry of a kernel built in a closure by the pickle of
 its closure, and a kernel pickles with an id that is new in every process:
 a driver closing over another kernel was compiled again in every process
 (2.3 s of each translucent `parc render`), and its cache folder grew by an
 entry each time.
+
+Numba also names a compiled kernel by its qualified name and a counter
+that starts again in every process: variants of one factory compiled in
+different processes could share a name, and a process that loaded both
+from the cache ran one variant's code for both (`raycast.config.named_for`).
 """
 import importlib
 import json
+import os
 import pkgutil
 import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 from numba.core.dispatcher import Dispatcher
 
 import parc
@@ -40,6 +47,51 @@ def test_no_kernel_closes_over_another():
     closing = [name for name, k in ks
                if any(isinstance(c.cell_contents, Dispatcher) for c in k.py_func.__closure__ or ())]
     assert closing == []
+
+
+def test_no_two_kernels_share_a_name():
+    names = {}
+    for name, k in kernels():
+        names.setdefault((k.py_func.__module__, k.py_func.__qualname__), []).append(name)
+    assert {key: found for key, found in names.items() if len(found) > 1} == {}
+
+
+# A translucent render per argument, "float32:plain" or "uint8:shaded", each
+# image saved to OUT/<argument>.npy.
+_VARIANTS = """
+import sys
+import numpy as np
+from parc import Camera, Scene, TransferFunction, Translucent, Volume, render
+z, y, x = np.mgrid[0:24, 0:24, 0:24]
+ball = (255 - 20 * np.sqrt((x - 11.5) ** 2 + (y - 11.5) ** 2 + (z - 11.5) ** 2)).clip(0, 255)
+tf = TransferFunction([[0, 0.0], [120, 0.5], [250, 0.0]])
+for arg in sys.argv[2:]:
+    dtype, shade = arg.split(":")
+    vol = Volume(ball.astype(dtype))
+    scene = Scene(camera=Camera.framing(*vol.bounds), size=(16, 16),
+                  volumes=[Translucent(vol, tf, shade=shade == "shaded")])
+    np.save(f"{sys.argv[1]}/{arg}.npy", render(scene, "brute").image)
+"""
+
+
+def test_variants_compiled_in_different_processes_load_as_themselves(tmp_path):
+    # One order of processes in which the unshaded and shaded drivers, each
+    # compiled by a process of its own, had come to the same name: the last
+    # process, loading both, drew both images with the first one's code.
+    env = dict(os.environ, PARC_CACHE_DIR=str(tmp_path / "cache"))
+    env.pop("NUMBA_CACHE_DIR", None)
+    alone = {}
+    for n, runs in enumerate((["float32:plain"], ["uint8:plain"], ["uint8:shaded"], ["uint8:shaded", "uint8:plain"])):
+        out = tmp_path / f"run{n}"
+        out.mkdir()
+        run = subprocess.run([sys.executable, "-c", _VARIANTS, str(out), *runs], capture_output=True, text=True,
+                             timeout=600, env=env)
+        assert run.returncode == 0, run.stderr[-2000:]
+        for arg in runs:
+            image = np.load(out / f"{arg}.npy")
+            assert np.array_equal(image, alone.setdefault(arg, image)), arg
+    # Shading changes the picture, so a variant standing in for the other shows.
+    assert not np.array_equal(alone["uint8:plain"], alone["uint8:shaded"])
 
 
 # Frames that compile the casters' kernels: isosurfaces with shadows, and
