@@ -113,8 +113,8 @@ def _add_look_options(p):
     g.add_argument("--step", type=float, metavar="S",
                    help="with --tf: world distance between samples (default a quarter of the smallest spacing)")
     g.add_argument("--threshold", type=float, metavar="A",
-                   help="with --tf: stop a ray once its opacity reaches A (default 0.99)")
-    g.add_argument("--shade", action="store_true", help="with --tf: shade samples with the gradient")
+                   help="with --tf, composite: stop a ray once its opacity reaches A (default 0.99)")
+    g.add_argument("--shade", action="store_true", help="with --tf, composite: shade samples with the gradient")
     g.add_argument("--buffers", metavar="LIST",
                    help="with --tf and --method parc, PARC's buffers: depth (near/far, default), bits "
                         "(planes of supercells), or depth,bits")
@@ -130,7 +130,7 @@ def _add_view_options(p):
     g.add_argument("--fov", type=float, metavar="DEG",
                    help="vertical field of view in degrees (default 30)")
     g.add_argument("--parallel", type=float, metavar="SCALE",
-                   help="parallel projection; SCALE is half the view height in world units")
+                   help="parallel projection, instead of --fov; SCALE is half the view height in world units")
     g.add_argument("--size", type=int, nargs=2, metavar=("W", "H"),
                    help="image size in pixels (default 512 512)")
     g.add_argument("--background", type=_floats(3, "--background"), metavar="R,G,B",

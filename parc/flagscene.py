@@ -30,6 +30,8 @@ def _is_scene_file(args):
 
 def scene_from_flags(args, say):
     """The Scene the arguments describe: a scene file or one volume, with the flags' lights."""
+    if args.fov is not None and args.parallel is not None:
+        raise InputError("give --fov (a perspective view) or --parallel (a parallel projection), not both")
     scene = _file_scene(args) if _is_scene_file(args) else _volume_scene(args, say)
     return _add_flag_lights(scene, args, say)
 
@@ -99,6 +101,11 @@ def _volume_scene(args, say):
     if args.tf is not None:
         if args.iso is not None:
             raise InputError("give --iso (an isosurface) or --tf (a translucent volume), not both")
+        if args.mode not in (None, "composite"):
+            for flag in ("threshold", "shade"):
+                if getattr(args, flag) not in (None, False):
+                    raise InputError(f"--{flag} applies to --mode composite; {args.mode} neither shades samples "
+                                     "nor stops rays early")
         vis = parc.Translucent(vol, args.tf, mode=args.mode or "composite", step=args.step,
                                threshold=0.99 if args.threshold is None else args.threshold, shade=args.shade)
         return parc.Scene(camera=_camera(args, vol), size=(w, h), volumes=[vis],

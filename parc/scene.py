@@ -113,7 +113,7 @@ class Translucent:
         except (TypeError, ValueError):
             raise InputError(f"step must be a number, got {self.step!r}") from None
         if not (math.isfinite(self.step) and self.step > 0.0):
-            raise InputError(f"step must be positive, got {self.step}")
+            raise InputError(f"step must be a positive, finite distance, got {self.step}")
         if self.step < 1e-4 * min(self.volume.spacing):
             raise InputError(f"step {self.step:g} is below 1e-4 of the smallest spacing; "
                              f"that is too many samples per ray")
@@ -238,8 +238,10 @@ class Scene:
                 bg = np.asarray(self.background, dtype=np.float64)
             except (TypeError, ValueError):
                 bg = np.zeros(0)
-            if bg.shape not in ((3,), (4,)) or not ((bg >= 0) & (bg <= 1)).all():
+            if bg.shape not in ((3,), (4,)):
                 raise InputError(f"background must be 3 or 4 numbers in [0, 1], got {self.background!r}")
+            if not ((bg >= 0) & (bg <= 1)).all():
+                raise InputError(f"background components must be in [0, 1], got {self.background!r}")
             self.background = tuple(bg) + ((1.0,) if bg.shape == (3,) else ())
         for v in self.volumes:
             if not isinstance(v, (Isosurface, Translucent)):

@@ -40,6 +40,23 @@ def test_render_writes_png_depth_and_stats(vol_file, tmp_path, capsys):
     assert stats["method"] == "brute" and stats["hits"] == int(np.isfinite(depth).sum())
 
 
+def test_a_png_keeps_the_colour_of_faint_pixels(tmp_path):
+    # Straight colour c with alpha a, premultiplied as the renderer gives it:
+    # the PNG holds round(255 c) and round(255 a), whatever a is.
+    from PIL import Image
+    from parc.outputs import write_png
+    # (No value lands on a half step of 1/255, where float32 could round either way.)
+    alpha = np.array([0.0, 0.02, 0.05, 0.31, 1.0])
+    colour = np.array([[0.3, 0.6, 0.9], [0.11, 0.52, 0.97], [0.31, 0.62, 0.93], [0.07, 0.52, 0.95],
+                       [0.25, 0.55, 0.75]])
+    image = np.concatenate([colour * alpha[:, None], alpha[:, None]], axis=1)[None].astype(np.float32)
+    write_png(image, tmp_path / "faint.png")
+    with Image.open(tmp_path / "faint.png") as im:
+        png = np.asarray(im)[0]
+    assert np.array_equal(png[:, 3], np.rint(alpha * 255))
+    assert np.array_equal(png[1:, :3], np.rint(colour[1:] * 255)) and not png[0, :3].any()
+
+
 @pytest.mark.parametrize("method", ["brute", "parc"])
 @pytest.mark.parametrize("look, count", [(["--iso", 4.0], "cells_visited"), (["--tf", "greyscale"], "samples")])
 def test_render_writes_the_work_per_pixel(vol_file, tmp_path, capsys, method, look, count, gl):
@@ -296,12 +313,26 @@ def test_a_vector_starting_with_a_minus_sign_is_a_value(vol_file, tmp_path, caps
     (["--method", "brute", "--buffers", "bits"], "--buffers applies to --method parc"),
     (["--method", "parc", "--buffers", "bits"], "--buffers applies to translucent volumes"),
     (["--output-twice"], "given for two outputs"),
+    (["--fov", "20", "--parallel", "40"], "not both"),
 ])
 def test_more_bad_arguments(extra, words, vol_file, tmp_path, capsys):
     out = tmp_path / "out.npy"
     if extra == ["--output-twice"]:
         extra = ["--depth", str(out)]
     rc, _, err = _run(["render", vol_file, "--iso", 4, "--size", 8, 8, "-o", out] + extra, capsys)
+    assert rc == 2 and err.count("\n") == 1 and words in err, err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("extra, words", [
+    (["--mode", "mip", "--shade"], "--shade applies to --mode composite"),
+    (["--mode", "average", "--threshold", "0.5"], "--threshold applies to --mode composite"),
+    (["--step", "inf"], "step must be a positive, finite distance"),
+    (["--background", "2,0,0"], "background components must be in [0, 1]"),
+])
+def test_translucent_flags_that_cannot_apply_are_refused(extra, words, vol_file, tmp_path, capsys):
+    out = tmp_path / "o.png"
+    rc, _, err = _run(["render", vol_file, "--tf", "greyscale", "--size", 8, 8, "-o", out, *extra], capsys)
     assert rc == 2 and err.count("\n") == 1 and words in err, err
     assert not out.exists()
 
