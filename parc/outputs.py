@@ -105,16 +105,23 @@ def write_png(image, path):
 
 
 class Progress:
-    """Progress on stderr: a live percentage on a terminal, a few lines otherwise."""
+    """Progress on stderr: a live percentage on a terminal, a few lines otherwise.
 
-    def __init__(self, what):
+    Nothing is shown for work done within ``delay`` seconds, so that a
+    quick render prints only its result, whatever its size.
+    """
+
+    def __init__(self, what, delay=1.0):
         self.what = what
         self.tty = sys.stderr.isatty()
         self.start = time.perf_counter()
+        self.delay = delay
         self.last = -1
 
     def __call__(self, fraction):
         pct = int(100 * fraction)
+        if time.perf_counter() - self.start < self.delay:
+            return
         if self.tty:
             print(f"\rparc: {self.what}: {pct:3d}%", end="", file=sys.stderr, flush=True)
         elif pct // 25 > self.last // 25 and pct < 100:

@@ -276,7 +276,7 @@ def _render_iso(scene, iso, seg, use_seg, skip_blocks, timings, progress):
 
     # The cast shades each hit as it finds it (the phase holds both).
     t0 = time.perf_counter()
-    bands = _row_bands(h, w, progress)
+    bands = _row_bands(h, progress)
     totals = np.zeros(3, np.int64)
     for n, (y0, y1) in enumerate(bands):
         totals += cast_iso_image(vol.data, org, spc, cam, w, h, iso.value, seg, use_seg, skip, jump_min,
@@ -409,7 +409,7 @@ def _render_translucent(scene, vis, seg, use_seg, skip_blocks, timings, progress
     timings["setup"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    bands = _row_bands(h, w, progress)
+    bands = _row_bands(h, progress)
     samples = 0
     for n, (y0, y1) in enumerate(bands):
         samples += cast_accumulate_image(vol.data, org, spc, cam, w, h, params, op_x, op_y, col_x, col_rgb,
@@ -504,9 +504,10 @@ def column_totals(counts):
     return tuple(int(counts[:, c].sum()) for c in range(counts.shape[1]))
 
 
-def _row_bands(h, w, progress):
-    """Row ranges cast one call at a time: one band, or ~16 when progress is reported."""
-    if progress is None or w * h < 250_000:
+def _row_bands(h, progress):
+    """Row ranges cast one call at a time: one band, or ~16 when progress is reported
+    (`parc.outputs.Progress` shows it only for a render that takes a while)."""
+    if progress is None:
         return [(0, h)]
     step = max(4, -(-h // 16))
     step += (-step) % 4

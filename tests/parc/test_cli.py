@@ -40,6 +40,24 @@ def test_render_writes_png_depth_and_stats(vol_file, tmp_path, capsys):
     assert stats["method"] == "brute" and stats["hits"] == int(np.isfinite(depth).sum())
 
 
+def test_progress_shows_only_for_work_that_takes_a_while(monkeypatch, capsys):
+    import parc.outputs
+    now = [100.0]
+    monkeypatch.setattr(parc.outputs.time, "perf_counter", lambda: now[0])
+    quick, slow = parc.outputs.Progress("quick"), parc.outputs.Progress("slow")
+    for n in range(1, 17):
+        now[0] += 0.05                      # quick: 0.8 s in all; slow: 16 s
+        quick(n / 16)
+    quick.done()
+    assert capsys.readouterr().err == ""
+    slow.start = now[0]
+    for n in range(1, 17):
+        now[0] += 1.0
+        slow(n / 16)
+    slow.done()
+    assert capsys.readouterr().err.splitlines() == [f"parc: slow: {p}%" for p in (6, 25, 50, 75)]
+
+
 def test_a_png_keeps_the_colour_of_faint_pixels(tmp_path):
     # Straight colour c with alpha a, premultiplied as the renderer gives it:
     # the PNG holds round(255 c) and round(255 a), whatever a is.
