@@ -10,6 +10,7 @@ points; cell ``(i, j, k)`` is the box between samples ``i..i+1``,
 from __future__ import annotations
 
 import functools
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -115,6 +116,8 @@ class Volume:
             data = data.view()
             data.flags.writeable = False
         self.data = data
+        if self.meta is not None and not isinstance(self.meta, Mapping):
+            raise InputError(f"{self.name}: meta must be a dict, got {type(self.meta).__name__}")
         self.meta = {k: v for k, v in dict(self.meta or {}).items() if not str(k).startswith("_")}
         self.spacing = _triple(self.spacing, "spacing", self.name, positive=True)
         self.origin = _triple(self.origin, "origin", self.name, positive=False)

@@ -70,7 +70,7 @@ class Camera:
             object.__setattr__(self, "fov", float(self.fov))
         else:
             try:
-                scale = float(self.parallel_scale)
+                scale = math.nan if isinstance(self.parallel_scale, (str, bool)) else float(self.parallel_scale)
             except (TypeError, ValueError):
                 scale = math.nan
             if not (math.isfinite(scale) and scale > 0.0):

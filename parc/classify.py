@@ -187,7 +187,10 @@ def supercell_grid(dims, size):
 def _size_triple(size):
     """``(m, n, p)`` floats from a number or three numbers, validated."""
     try:
-        t = (float(size),) * 3 if np.ndim(size) == 0 else tuple(float(s) for s in size)
+        parts = [size] * 3 if np.ndim(size) == 0 else list(size)
+        if any(isinstance(s, (str, bytes, bool, np.bool_)) for s in parts):
+            raise TypeError             # float() would take "4" and True
+        t = tuple(float(s) for s in parts)
     except (TypeError, ValueError):
         raise InputError(f"supercell size must be a number or three numbers, got {size!r}") from None
     if len(t) != 3 or not all(math.isfinite(s) and s > 0 for s in t):
