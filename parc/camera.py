@@ -70,7 +70,8 @@ class Camera:
             object.__setattr__(self, "fov", float(self.fov))
         else:
             try:
-                scale = math.nan if isinstance(self.parallel_scale, (str, bool)) else float(self.parallel_scale)
+                text_or_flag = isinstance(self.parallel_scale, (str, bool, np.bool_))
+                scale = math.nan if text_or_flag else float(self.parallel_scale)
             except (TypeError, ValueError):
                 scale = math.nan
             if not (math.isfinite(scale) and scale > 0.0):

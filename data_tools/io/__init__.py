@@ -172,4 +172,5 @@ def save_volume(volume: Volume, path, **options) -> Path:
     return path
 
 
-__all__ = ["load_volume", "save_volume", "data_file_written", "volume_extension", "READ_EXTENSIONS", "WRITE_EXTENSIONS"]
+__all__ = ["load_volume", "save_volume", "data_file_written", "volume_extension", "READ_EXTENSIONS",
+           "WRITE_EXTENSIONS"]
