@@ -144,5 +144,16 @@ def compile_notice(say):
     from raycast.config import cache_folder
 
     folder = cache_folder()
-    if next(folder.rglob("*.nbi"), None) is None:     # Numba's index of a cached kernel
+    if next(folder.rglob("*.nbi"), None) is not None:     # Numba's index of a cached kernel
+        return
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        writable = os.access(folder, os.W_OK)
+    except OSError:
+        writable = False
+    if writable:
         say(f"compiling the ray casters for this machine, once (kept in {folder})")
+    else:
+        # Numba then compiles in every process, silently.
+        say(f"compiling the ray casters; {folder} cannot be written, so every run compiles them again "
+            "(set PARC_CACHE_DIR to a writable folder)")

@@ -608,6 +608,14 @@ def test_outputs_are_ordinary_files(vol_file, tmp_path, capsys):
     assert stat.S_IMODE(out.stat().st_mode) == 0o644
 
 
+def test_a_cache_folder_that_cannot_be_written_is_named(vol_file, tmp_path, capsys, monkeypatch):
+    import numba.core.config
+    (tmp_path / "a file").write_text("")
+    monkeypatch.setattr(numba.core.config, "CACHE_DIR", str(tmp_path / "a file" / "cache"))
+    rc, _, err = _run(["render", vol_file, "--iso", 4, "--size", 8, 8, "-o", tmp_path / "a.png"], capsys)
+    assert rc == 0 and "cannot be written, so every run compiles them again" in err, err
+
+
 def test_a_first_run_says_the_casters_compile(vol_file, tmp_path, capsys, monkeypatch):
     """With no compiled kernel cached for these sources, render says why its progress is late; once one is, not."""
     import numba.core.config
