@@ -481,25 +481,25 @@ def cmd_compare(args):
     scene, notes = scene_and_notes(args)
     if warming is not None:
         compile_notice(say)
+    common = {"buffers": _buffers(args, scene), "blocks": not args.no_blocks}
     if steps is not None:
         from .compare import format_step_table, step_sweep
-        rows = step_sweep(scene, steps, repeats=args.repeats, progress=warming)
+        rows = step_sweep(scene, steps, repeats=args.repeats, progress=warming, options=common)
         for note in notes:
             say(note)
         print(to_json(rows) if args.json else format_step_table(rows))
         return 0
-    common = {"buffers": _buffers(args, scene), "blocks": not args.no_blocks}
-    options = {"parc": dict(common)}
+    # Every parc method gets the flags, labelled ones ("parc:x") too.
+    options = {m: dict(common) for m in methods if m.split(":")[0] == "parc"}
     if args.sweep_supercell is not None:
         sizes = [_supercell_or_error(v) for v in args.sweep_supercell.split(";" if ";" in args.sweep_supercell else ",")]
         labels = [f"parc:{_size_label(s)}" for s in sizes]
         methods = ["brute"] + labels
         options = {label: {"supercell": s, **common} for label, s in zip(labels, sizes)}
     elif args.supercell is not None:
-        options = {"parc": {"supercell": args.supercell, **common}}
-    if not any(m.startswith("parc") for m in methods):
+        options = {m: {"supercell": args.supercell, **opts} for m, opts in options.items()}
+    if not options:
         _refuse_parc_flags(args, "applies to parc, which --methods leaves out")
-    options = {k: v for k, v in options.items() if k in methods}
     rows = compare(scene, methods=methods, repeats=args.repeats, options=options, progress=warming)
     for note in notes:
         say(note)

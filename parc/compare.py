@@ -227,7 +227,7 @@ def format_table(rows):
     return "\n".join(out)
 
 
-def step_sweep(scene, steps, *, repeats=3, warmup=1, progress=None):
+def step_sweep(scene, steps, *, repeats=3, warmup=1, progress=None, options=None):
     """Speed against error over sample steps, for a translucent volume.
 
     Each step is rendered with ``brute`` and ``parc``; the error is taken
@@ -240,6 +240,9 @@ def step_sweep(scene, steps, *, repeats=3, warmup=1, progress=None):
         Per step: ``step``, ``brute_seconds``, ``parc_seconds``, ``speedup``,
         ``brute_samples``, ``parc_samples``, ``max_color`` / ``rmse`` / ``psnr``
         against the reference, and ``parc_vs_brute`` (max |Δcolour|).
+
+    ``options``: `render` keyword arguments for ``parc`` (``buffers``,
+    ``blocks``, ``supercell``...), as in `compare`.
     """
     from dataclasses import replace
 
@@ -247,6 +250,11 @@ def step_sweep(scene, steps, *, repeats=3, warmup=1, progress=None):
     vis = scene.volumes[0]
     if len(scene.volumes) != 1 or not isinstance(vis, Translucent):
         raise InputError("a step sweep takes a scene of one translucent volume (--tf)")
+    options = dict(options or {})
+    unknown = sorted(set(options) - RENDER_OPTIONS)
+    if unknown:
+        raise InputError(f"parc options {', '.join(map(repr, unknown))}: not render() options; "
+                         f"known: {', '.join(sorted(RENDER_OPTIONS))}")
     steps = sorted({float(s) for s in steps}, reverse=True)
     if not steps or not all(np.isfinite(steps)) or min(steps) <= 0:
         raise InputError("sweep steps must be positive numbers")
@@ -276,12 +284,13 @@ def step_sweep(scene, steps, *, repeats=3, warmup=1, progress=None):
         row = {"step": step}
         results = {}
         for method in ("brute", "parc"):
+            kwargs = options if method == "parc" else {}
             for _ in range(warmup):
-                render(at(step), method=method)
+                render(at(step), method=method, **kwargs)
             times = []
             for _ in range(repeats):
                 t0 = time.perf_counter()
-                results[method] = render(at(step), method=method)
+                results[method] = render(at(step), method=method, **kwargs)
                 times.append(time.perf_counter() - t0)
             row[f"{method}_seconds"] = statistics.median(times)
             row[f"{method}_samples"] = results[method].stats["samples"]

@@ -573,6 +573,32 @@ def test_compare_json_and_step_sweep(vol_file, capsys):
     assert rows[1]["brute_samples"] > rows[0]["brute_samples"] > 0
 
 
+@pytest.mark.parametrize("extra, parc_options", [
+    (["--sweep-step", "1"], {"buffers": ("depth", "bits"), "blocks": False}),
+    (["--methods", "brute,parc:a,parc:b", "--supercell", "3"],
+     {"buffers": ("depth", "bits"), "blocks": False, "supercell": (3.0, 3.0, 3.0)}),
+])
+def test_compare_gives_parc_flags_to_every_parc_run(extra, parc_options, vol_file, capsys, monkeypatch, gl):
+    # Every render compare times, with the options it was given; brute gets none.
+    compare_module = sys.modules["parc.compare"]       # `parc.compare` names the function
+    render = compare_module.render
+    calls = []
+
+    def recording(scene, method="brute", **kw):
+        calls.append((method, kw))
+        return render(scene, method=method, **kw)
+    monkeypatch.setattr(compare_module, "render", recording)
+    rc, _, err = _run(["compare", vol_file, "--tf", "greyscale", "--size", 8, 8, "--repeats", 1,
+                       "--buffers", "depth,bits", "--no-blocks", "--json", *extra], capsys)
+    assert rc == 0, err
+    assert {m for m, _ in calls} == {"brute", "parc"}
+    for method, kw in calls:
+        kw = {k: (tuple(v) if isinstance(v, (list, tuple)) else v) for k, v in kw.items()}
+        if "supercell" in kw and not isinstance(kw["supercell"], tuple):
+            kw["supercell"] = (float(kw["supercell"]),) * 3
+        assert kw == (parc_options if method == "parc" else {}), (method, kw)
+
+
 @pytest.mark.parametrize("look", [["--iso", 4], ["--tf", "greyscale", "--buffers", "depth,bits"]])
 def test_supercell_sweep_times_no_proxy_builds(vol_file, capsys, gl, look):
     # The sweep's methods take turns repeat by repeat: each size's proxy
