@@ -216,8 +216,8 @@ def format_table(rows):
     out.append("speedup: median against median; rounds: the lowest and highest ratio within one round "
                "(every method once).")
     out.append("OpenGL: the share of the frame spent in OpenGL passes (phases " + ", ".join(OPENGL_PHASES) + ").")
-    out.append("cubics/px: cells whose range holds the isovalue, up to the hit: "
-               "the fewest cells per pixel an exact caster can visit.")
+    out.append("cubics/px: cells whose range holds the isovalue, up to the hit: the fewest cells per pixel "
+               "a caster that bounds whole cells can visit (sub-cell supercells can visit fewer).")
     phases = sorted({k for r in rows for k in r["phases"]})
     out.append("")
     out.append("seconds per phase (the median run): " + ", ".join(phases))

@@ -17,7 +17,10 @@ took.
   solves the cubic in exactly the cells whose range holds the isovalue, up
   to the first hit, and that is the unaccelerated caster's own
   ``cubic_solves`` statistic (it solves only in such cells, and stops at
-  the hit).
+  the hit). It bounds casters that classify whole cells: PARC with
+  supercells smaller than a cell bounds parts of cells, skips a cell whose
+  range holds the isovalue where the ray crosses only a part that cannot,
+  and can solve fewer cubics for the same image.
 """
 from __future__ import annotations
 

@@ -24,6 +24,8 @@ def to_json(obj):
             return [clean(x) for x in v]
         if isinstance(v, np.generic):
             v = v.item()
+        if isinstance(v, Path):
+            return str(v)
         if isinstance(v, float) and not np.isfinite(v):
             return None
         return v

@@ -21,7 +21,6 @@ the tests: its numbers check the report's consistency, not speed).
 from __future__ import annotations
 
 import contextlib
-import json
 import os
 import platform
 import sys
@@ -33,7 +32,7 @@ import numpy as np
 
 from data_tools import InputError
 
-from ..outputs import compile_notice
+from ..outputs import compile_notice, to_json
 from .scenes import default_data_dir
 
 
@@ -194,20 +193,8 @@ def run_bench(out, suite=None, *, progress=None, command=None):
     res["checks"] = consistency(res)
     md += _checks_md(res["checks"])
     _write(out / "report.md", "\n".join(md) + "\n")
-    _write(out / "results.json", json.dumps(res, indent=1, default=_json_default))
+    _write(out / "results.json", to_json(res))
     return res
-
-
-def _json_default(v):
-    if isinstance(v, (np.integer,)):
-        return int(v)
-    if isinstance(v, (np.floating,)):
-        return float(v)
-    if isinstance(v, Path):
-        return str(v)
-    if isinstance(v, tuple):
-        return list(v)
-    raise TypeError(f"not JSON serializable: {type(v).__name__}")
 
 
 def _write(path, text):

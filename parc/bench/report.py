@@ -234,7 +234,9 @@ def ideal(res):
     md = ["## 5. Ideal bound", "",
           "What the ideal caster (contributing cells only) would touch, against what each method touched. "
           "For isosurfaces the ideal is the cells whose range holds the isovalue before the hit: exactly the "
-          "cubics every method solves. For translucent volumes it is the samples inside cells whose value range "
+          "cubics `brute` solves, and `parc` too with supercells of a cell or more (sub-cell supercells bound "
+          "parts of cells, and can skip a cell whose range holds the isovalue where the ray misses that "
+          "part). For translucent volumes it is the samples inside cells whose value range "
           "has non-zero opacity, before the ray terminates (`parc.ideal`).", ""]
     md.append(_table(("scene", "image (px²)", "unit", "method", "ideal (×10³)", "touched (×10³)", "touched / ideal"),
                      [(s, n, u, m, _k(i), _k(t), f"{t / i:.1f}" if i else "–") for s, n, u, m, i, t in rows]))

@@ -27,6 +27,11 @@ def default_data_dir():
     return Path(__file__).resolve().parents[2].parent / "shared" / "data"
 
 
+def _missing(data_dir, names):
+    """Why a scene stands in a synthetic volume for the real one(s)."""
+    return "the tiny suite's stand-in" if data_dir is None else f"{names} not found"
+
+
 def _real(data_dir, name):
     if data_dir is None:
         return None
@@ -42,7 +47,7 @@ def ct_volume(data_dir, tiny):
     dims = (32, 32, 16) if tiny else (256, 256, 113)
     vol = ct_phantom(dims, spacing=(1.0, 1.0, 2.0))
     return vol, (f"synthetic CT phantom {dims[0]}×{dims[1]}×{dims[2]} int16, spacing 1, 1, 2 "
-                 f"(`CThead.nrrd` not found)")
+                 f"({_missing(data_dir, '`CThead.nrrd`')})")
 
 
 def _ct_camera(vol):
@@ -84,7 +89,7 @@ def iron_protein(size, data_dir=None, tiny=False):
         vp = _to_uint8(vp)
         vn = _to_uint8(vn)
         source = (f"synthetic blobs {n}³ uint8: an isosurface 80 inside a translucent field "
-                  f"(`poship.slc`/`neghip.slc` not found)")
+                  f"({_missing(data_dir, '`poship.slc`/`neghip.slc`')})")
     cam = Camera.framing(*vp.bounds, azimuth=30.0, elevation=20.0, zoom=1.1)
     scene = Scene(camera=cam, size=(size, size), background=(0.0, 0.0, 0.0),
                   volumes=[Isosurface(vp, 80.0, color=(1.0, 0.6, 0.3)), Translucent(vn, PROTEIN_TF)])
