@@ -541,6 +541,19 @@ def test_notes_are_held_back_when_the_scene_is_refused(vol_file, tmp_path, capsy
     assert rc == 0 and "no --iso given" in err
 
 
+def test_the_level_chosen_pasted_back_gives_the_same_image(tmp_path, capsys):
+    # Levels near 1e9 (int32 samples), where six digits are not the level.
+    k, j, i = np.mgrid[0:10, 0:10, 0:10]
+    ball = (((i - 4.5) ** 2 + (j - 4.5) ** 2 + (k - 4.5) ** 2) ** 0.5 * 2.1e8 + 12345).astype(np.int32)
+    vol = save_volume(Volume(ball), tmp_path / "deep.nrrd")
+    rc, _, err = _run(["render", vol, "--size", 16, 16, "-o", tmp_path / "a.npy"], capsys)
+    level = re.search(r"no --iso given; using (\S+),", err).group(1)
+    rc2, _, err2 = _run(["render", vol, "--size", 16, 16, "--iso", level, "-o", tmp_path / "b.npy"], capsys)
+    assert rc == rc2 == 0, err + err2
+    a, b = np.load(tmp_path / "a.npy"), np.load(tmp_path / "b.npy")
+    assert a[..., 3].any() and np.array_equal(a, b)
+
+
 def test_supercell_sweep_takes_sizes_per_axis(vol_file, capsys):
     rc, out, err = _run(["compare", vol_file, "--iso", 4, "--size", 12, 12, "--repeats", 1, "--json",
                          "--sweep-supercell", "1,2,3;2"], capsys)
