@@ -165,7 +165,10 @@ class Camera:
 
         The eye looks at the box centre from ``azimuth`` degrees around +z
         (0 = from -y) and ``elevation`` degrees above the xy-plane, far
-        enough that the bounding sphere fits the vertical field of view.
+        enough that the bounding sphere fits the vertical field of view
+        ``fov``. ``parallel=True`` gives a parallel projection whose view
+        height holds the sphere instead. ``zoom`` above 1 frames a sphere
+        that many times smaller (closer in), below 1 a larger one.
         """
         try:
             lo = np.asarray(lo, dtype=np.float64)

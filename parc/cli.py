@@ -116,7 +116,7 @@ def _add_look_options(p):
                    help="with --tf, composite: stop a ray once its opacity reaches A (default 0.99)")
     g.add_argument("--shade", action="store_true", help="with --tf, composite: shade samples with the gradient")
     g.add_argument("--buffers", metavar="LIST",
-                   help="with --tf and --method parc, PARC's buffers: depth (near/far, default), bits "
+                   help="with --tf, for parc: PARC's buffers: depth (near/far, default), bits "
                         "(planes of supercells), or depth,bits")
 
 

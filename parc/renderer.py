@@ -202,6 +202,7 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
         "cells_visited": counts.get("cells", 0),
         "cubic_solves": counts.get("solves", 0),
         "samples": counts.get("samples", 0),
+        "polygons": 0,              # brute draws none; parc's count comes with `extra`
         "parameters": {"size": [w, h], "volume": vol.name, "dims": list(vol.dims), "dtype": str(vol.dtype)},
     }
     if isinstance(vis, Isosurface):
@@ -243,8 +244,7 @@ def _render_general(scene, method, supercell, progress, light_buffer, skip_block
         "parameters": {"size": [w, h], "shadows": scene.shadows, "lights": len(scene.lights),
                        "volumes": [_describe(v) for v in scene.volumes]},
     }
-    if method == "parc":
-        stats["polygons"] = sum(v.get("polygons", 0) for v in extra["volumes"])
+    stats["polygons"] = sum(v.get("polygons", 0) for v in extra["volumes"]) if method == "parc" else 0
     stats.update(extra)
     return RenderResult(image=image, depth=depth, stats=stats)
 

@@ -203,12 +203,13 @@ class Scene:
     size : (width, height)
         Image size in pixels, both at least 1.
     volumes : list of Isosurface or Translucent
-        Kept as a tuple.
+        At least one (required, though it has a default); kept as a tuple.
     lights : list of PointLight or DirectionalLight
         Kept as a tuple.
         Light sources for isosurfaces; empty means a headlight at the eye.
-    background : (r, g, b, a) or None
-        Composited under the image; None leaves it transparent.
+    background : (r, g, b), (r, g, b, a) or None
+        Composited under the image, each component in [0, 1]; three are
+        opaque (a = 1). None leaves it transparent.
     shadows : bool, default False
         Cast shadow rays from every isosurface hit to every light: blocked
         by any isosurface, attenuated by translucent volumes on the way.

@@ -118,6 +118,8 @@ def load_scene(path, *, view=None, size=None) -> Scene:
     """
     if not isinstance(path, (str, os.PathLike)):
         raise InputError(f"load_scene takes the path of a scene file, got {type(path).__name__}")
+    if view is not None and (not isinstance(view, dict) or set(view) - set(CAMERA_KEYS)):
+        raise InputError(f"view takes camera settings keyed {', '.join(CAMERA_KEYS)}, got {view!r}")
     where = _Where(path)
     doc = where.read()
     top = _Table(where, "", doc, TOP_KEYS)

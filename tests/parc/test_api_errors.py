@@ -60,6 +60,7 @@ CASES = {
     "framing fov 1e-13": (lambda: parc.Camera.framing(*VOL.bounds, fov=1e-13), "too narrow"),
     "framing straight down": (lambda: parc.Camera.framing(*VOL.bounds, elevation=90), "elevation of 90"),
     "load_scene of None": (lambda: parc.load_scene(None), "path of a scene file"),
+    "load_scene view with a typo": (lambda: parc.load_scene("scene.toml", view={"fvo": 50}), "view takes camera"),
     "bit planes for an isosurface": (lambda: parc.render(_scene(), method="parc", buffers="bits"), "bit planes"),
     "bit planes for a lit scene": (lambda: parc.render(_scene(volumes=[parc.Translucent(VOL, "greyscale")],
                                                               lights=[parc.PointLight((1, 2, 3))]),

@@ -143,3 +143,17 @@ def test_cast_totals_are_the_sums_of_the_per_pixel_outputs(seed):
                                       False, np.empty((1, 1)), False, np.zeros((1, 1, 1), np.uint32), False,
                                       skip, jump_min, image, samples, y0, y1) for y0, y1 in bands)
     assert total == samples.sum() > 0
+
+
+@pytest.mark.parametrize("lit", [False, True])
+def test_stats_hold_the_documented_keys(lit):
+    # RenderResult's docstring: brute draws no polygons and says so.
+    from parc import PointLight
+    vol, c, r = _sphere(12, (1, 1, 1), (0, 0, 0), radius_cells=4.0)
+    scene = Scene(camera=Camera.framing(*vol.bounds), size=(8, 8), volumes=[Isosurface(vol, 0.0)],
+                  lights=[PointLight(position=(30.0, 30.0, 30.0))] if lit else [])
+    stats = render(scene, method="brute").stats
+    for key in ("method", "seconds", "pixels", "rays", "cells_visited", "cubic_solves", "samples", "hits",
+                "polygons", "parameters"):
+        assert key in stats, key
+    assert stats["polygons"] == 0 and stats["cells_visited"] > 0
