@@ -176,7 +176,10 @@ def suggest_isovalues(vol: Volume, k: int = 3, *, bins: int = 256) -> list:
     if k < 1:
         return []
     centers = 0.5 * (edges[:-1] + edges[1:])
-    cuts = _multi_otsu(counts, centers, k)
+    # Scaled to at most 1: the class sums are squared, and values past 1e154
+    # overflowed (the cut fell to the first bin). Otsu's cuts do not change
+    # when the values are scaled.
+    cuts = _multi_otsu(counts, centers / max(float(np.abs(centers).max()), 1e-300), k)
     result = []
     for j in cuts:
         left, right = j, j

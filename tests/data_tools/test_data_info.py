@@ -63,6 +63,14 @@ def test_two_level_data_gives_the_gap_middle():
     assert len(iso) == 1 and abs(iso[0] - 105) == 0.5   # x.5 next to the middle of 10..200
 
 
+@pytest.mark.parametrize("scale", [1.0, 1e-200, 1e100, 1e160, 1e200, 1e300])
+def test_two_level_data_gives_the_gap_middle_at_any_scale(scale):
+    # The middle of 0 and `scale`, however large its square.
+    data = np.zeros((8, 8, 8))
+    data[2:6, 2:6, 2:6] = scale
+    assert suggest_isovalues(Volume(data)) == [pytest.approx(0.5 * scale, rel=1e-12)]
+
+
 def test_constant_volume_has_no_suggestion():
     assert suggest_isovalues(Volume(np.full((3, 3, 3), 7, np.int16))) == []
     assert "none" in format_info(volume_info(Volume(np.zeros((3, 3, 3), np.float32))))
