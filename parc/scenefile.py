@@ -482,6 +482,14 @@ def _read_file(where, t, cache):
     if given and path.suffix.lower() not in raw.EXTENSIONS:
         raise t.error(given[0], f"applies only to headerless raw files ({', '.join(raw.EXTENSIONS)}); "
                                 f"{path.name} has a header")
+    if path.suffix.lower() in raw.EXTENSIONS:
+        # Said in this table's keys: the reader's own message names the command line's flags.
+        guess = raw.guess_from_name(path)
+        hints = {"shape": "shape = [NX, NY, NZ]", "dtype": 'dtype (e.g. "uint8")'}
+        missing = [key for key in hints if options[key] is None and key not in guess]
+        if missing:
+            raise t.error(missing[0], f"{path.name} is a raw file, which has no header; give "
+                          f"{' and '.join(hints[key] for key in missing)}, or name it like vol_64x64x64_uint8.raw")
     source = ("file", os.fspath(path)) + tuple(options[name] for name in RAW_KEYS)
     if source not in cache:
         with where.key(t.key("file")):

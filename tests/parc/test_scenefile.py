@@ -182,6 +182,21 @@ def test_raw_file_options(folder):
     np.testing.assert_array_equal(load_scene(path).volumes[0].volume.data, data)
 
 
+@pytest.mark.parametrize("keys, missing, words", [
+    ("", "shape", ["shape = [NX, NY, NZ] and dtype"]),
+    ("shape = [4, 3, 2]", "dtype", ['give dtype (e.g. "uint8")']),
+])
+def test_a_raw_file_without_its_keys_names_them(folder, keys, missing, words):
+    # In the table's own keys: the command line's --shape and --dtype mean nothing in a scene file.
+    (folder / "data" / "plain.raw").write_bytes(bytes(24))
+    path = write(folder, f"[[volume]]\nfile = 'data/plain.raw'\n{keys}\niso = 0\n")
+    with pytest.raises(InputError) as info:
+        load_scene(path)
+    msg = str(info.value)
+    assert msg.startswith(f"{path}: volume[1].{missing}: ") and "--" not in msg, msg
+    assert all(w in msg for w in words), msg
+
+
 VOLUME = """\
     [[volume]]
     file = "data/ball.nrrd"
