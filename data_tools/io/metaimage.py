@@ -53,8 +53,8 @@ def read_metaimage(path) -> Volume:
 
     Handles ``DimSize``, ``ElementType`` (MET_UCHAR ... MET_DOUBLE),
     ``ElementSpacing`` (or ``ElementSize``), ``Offset``/``Origin``/``Position``,
-    ``BinaryDataByteOrderMSB``/``ElementByteOrderMSB``, ``HeaderSize`` and
-    zlib ``CompressedData``. The data file is ``LOCAL`` (attached) or a
+    ``BinaryDataByteOrderMSB``/``ElementByteOrderMSB``, ``HeaderSize``,
+    zlib ``CompressedData`` and text samples (``BinaryData = False``). The data file is ``LOCAL`` (attached) or a
     path relative to the header.
 
     Parameters
@@ -131,6 +131,13 @@ def _build(path, fields, data_start):
         offset = 0
     nx, ny, nz = dims
     itemsize = np.dtype(dtype).itemsize
+    if (get("BinaryData") or "true").lower() not in _TRUE:
+        if compressed:
+            raise InputError(f"{path}: CompressedData with text samples (BinaryData = False) is not supported")
+        with open(data_path, "rb") as f:
+            f.seek(offset + max(header_size, 0))
+            data = _text_samples(f.read(), nx * ny * nz, dtype, data_path)
+        return Volume(data.reshape(nz, ny, nx), spacing=spacing, origin=origin, name=str(path), meta=meta)
     if compressed:
         with open(data_path, "rb") as f:
             f.seek(offset + max(header_size, 0))
@@ -148,6 +155,17 @@ def _build(path, fields, data_start):
         exact = data_path != path
         data = read_samples(data_path, offset, dims, dtype, big, exact=exact, kind="MetaImage")
     return Volume(data, spacing=spacing, origin=origin, name=str(path), meta=meta)
+
+
+def _text_samples(blob, count, dtype, path):
+    """``count`` samples written as text (``BinaryData = False``), in ``dtype``."""
+    words = blob.split()
+    if len(words) != count:
+        raise InputError(f"{path}: {len(words)} text samples, expected {count} (DimSize)")
+    try:
+        return np.array(words, dtype=dtype)
+    except (ValueError, OverflowError) as exc:
+        raise InputError(f"{path}: text samples are not all {np.dtype(dtype).name}: {exc}") from None
 
 
 def write_metaimage(volume: Volume, path, *, byte_order: str = "little") -> Path:

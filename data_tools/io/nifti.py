@@ -24,7 +24,8 @@ def read_nifti(path) -> Volume:
     (``scl_slope``/``scl_inter``), in which case they are the scaled values
     as float32. Spacing is the length of each voxel axis in the affine
     (sform, else qform, else the pixel dimensions); origin is the affine's
-    translation, the position of voxel (0, 0, 0). Rotated or flipped axes
+    translation, the position of voxel (0, 0, 0), or (0, 0, 0) with neither
+    form. Rotated or flipped axes
     cannot be kept on an axis-aligned grid: they are reduced to their
     lengths and ``meta['note']`` says so. A 4-D file with one volume (a
     trailing axis of length 1) is read as 3-D.
@@ -64,7 +65,12 @@ def read_nifti(path) -> Volume:
     # The file stores x fastest, which nibabel gives as an [x, y, z] array in
     # Fortran order: its transpose is [z, y, x] in C order, without a copy.
     data = np.ascontiguousarray(to_native(data.reshape(shape, order="F")).T)
-    spacing, origin, note = _geometry(img.affine, img.header.get_zooms()[:3])
+    zooms = img.header.get_zooms()[:3]
+    # With neither form (NIfTI's method 1) nibabel's affine is Analyze's: x
+    # flipped and the origin at the centre. The standard's is the pixel
+    # dimensions alone, from (0, 0, 0).
+    has_form = int(img.header["qform_code"]) > 0 or int(img.header["sform_code"]) > 0
+    spacing, origin, note = _geometry(img.affine if has_form else None, zooms)
     meta = {"format": "nifti", "version": 2 if isinstance(img, nib.Nifti2Image) else 1}
     if scaled:
         meta["scaling"] = {"slope": float(proxy.slope), "inter": float(proxy.inter)}
@@ -82,7 +88,7 @@ def _scaled(proxy):
 
 def _geometry(affine, zooms):
     """``(spacing, origin, note)`` from the voxel-to-world affine (4x4)."""
-    a = np.asarray(affine, dtype=np.float64)
+    a = np.asarray(affine if affine is not None else np.full((4, 4), np.nan), dtype=np.float64)
     if a.shape != (4, 4) or not np.isfinite(a).all():
         a = np.diag([*(float(z) for z in zooms), 1.0])
     m = a[:3, :3]

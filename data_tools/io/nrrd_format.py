@@ -19,6 +19,10 @@ def read_nrrd(path) -> Volume:
 
     Spacing comes from ``space directions`` (the length of each axis
     vector) or ``spacings``; origin from ``space origin`` or ``axis mins``.
+    With ``axis mins`` and ``axis maxs`` alone, both come from the extent
+    and the axes' ``centers`` (cell, NRRD's default, or node). An axis
+    whose ``kinds`` entry holds values rather than positions (RGB-color,
+    vector...) is refused.
     Oblique or mirrored directions cannot be kept on an axis-aligned grid:
     they are reduced to their lengths and ``meta['note']`` says so.
 
@@ -40,6 +44,11 @@ def read_nrrd(path) -> Volume:
         raise InputError(f"{path}: cannot read NRRD file: {_explain(exc)}") from None
     if data.ndim != 3:
         raise InputError(f"{path}: NRRD has {data.ndim} axes, expected a 3-D scalar volume")
+    kinds = _per_axis(header.get("kinds"))
+    for axis, kind in enumerate(kinds or ()):
+        if kind.lower() not in _DOMAIN_KINDS:
+            raise InputError(f"{path}: axis {axis + 1} holds {kind} values, not positions; "
+                             "only scalar volumes are supported")
     meta = {"format": "nrrd", "encoding": header.get("encoding")}
     if data_file is not None:
         meta["data_file"] = str(data_file)
@@ -47,6 +56,8 @@ def read_nrrd(path) -> Volume:
     if note:
         meta["note"] = note
     origin = _origin(header)
+    if spacing is None:
+        spacing, origin = _from_extent(header, data.shape[::-1])
     if "space" in header:
         meta["space"] = header["space"]
     return Volume(data, spacing=spacing, origin=origin, name=str(path), meta=meta)
@@ -82,6 +93,38 @@ def _explain(exc) -> str:
     return text or type(exc).__name__
 
 
+#: NRRD's kinds of an axis of positions; any other (RGB-color, vector, list...) holds
+#: several values a sample, which a scalar volume cannot show.
+_DOMAIN_KINDS = {"domain", "space", "time", "none", "???"}
+
+
+def _per_axis(value):
+    """A per-axis field as a list of words (pynrrd leaves some as one string)."""
+    if value is None:
+        return None
+    return value.split() if isinstance(value, str) else [str(v) for v in value]
+
+
+def _from_extent(header, sizes):
+    """Spacing and origin from ``axis mins`` and ``axis maxs`` (no spacings given).
+
+    With node centring the extremes are the first and last samples; with
+    cell centring, NRRD's default, the outer edges of the first and last
+    cells, the samples half a spacing inside them.
+    """
+    lo = np.asarray(header["axis mins"], dtype=np.float64)
+    hi = np.asarray(header["axis maxs"], dtype=np.float64)
+    centers = _per_axis(header.get("centers")) or ["cell"] * 3
+    spacing, origin = [], []
+    for n, a, b, c in zip(sizes, lo, hi, centers):
+        node = c.lower() == "node"
+        step = abs(b - a) / (n - 1 if node else n)
+        step = step if np.isfinite(step) and step > 0 else 1.0
+        spacing.append(float(step))
+        origin.append(float(min(a, b) + (0.0 if node else step / 2)))
+    return tuple(spacing), tuple(origin)
+
+
 def _spacing(header, path):
     dirs = header.get("space directions")
     if dirs is not None:
@@ -109,9 +152,22 @@ def _spacing(header, path):
     if spacings is not None:
         sp = np.asarray(spacings, dtype=np.float64)
         if sp.shape == (3,):
+            note = ("negative spacings (mirrored axes) were reduced to positive spacings"
+                    if (sp < 0).any() else None)
             sp = np.where(np.isfinite(sp), np.abs(sp), 1.0)
-            return tuple(float(s) for s in sp), None
+            return tuple(float(s) for s in sp), note
+    if _has_extent(header):
+        return None, None           # from axis mins and maxs (`_from_extent`), with the origin
     return (1.0, 1.0, 1.0), None
+
+
+def _has_extent(header):
+    try:
+        lo = np.asarray(header.get("axis mins"), dtype=np.float64)
+        hi = np.asarray(header.get("axis maxs"), dtype=np.float64)
+    except (TypeError, ValueError):
+        return False
+    return lo.shape == hi.shape == (3,) and np.isfinite(lo).all() and np.isfinite(hi).all()
 
 
 def _origin(header):

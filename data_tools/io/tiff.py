@@ -122,16 +122,32 @@ def _stack(tif, path):
     return data, axes, spacing, note, meta
 
 
+#: OME's length units as powers of ten of a metre (its default is µm; the micro sign comes in
+#: two code points). Whole powers, so that 2 µm is 2000 nm exactly.
+_OME_POWERS = {"m": 0, "dm": -1, "cm": -2, "mm": -3, "µm": -6, "μm": -6, "um": -6, "nm": -9, "Å": -10,
+               "pm": -12}
+
+
 def _spacing(tif, path):
     """``(spacing (x, y, z), note, meta)`` from OME or ImageJ metadata."""
     if tif.is_ome and tif.ome_metadata:
-        found = {}
+        found, units = {}, {}
         for a in "XYZ":
             m = re.search(rf'PhysicalSize{a}="([^"]+)"', tif.ome_metadata)
             if m:
                 found[a] = _positive(m.group(1))
-        unit = re.search(r'PhysicalSizeXUnit="([^"]+)"', tif.ome_metadata)
-        meta = {"unit": unit.group(1) if unit else "µm"}
+                u = re.search(rf'PhysicalSize{a}Unit="([^"]+)"', tif.ome_metadata)
+                units[a] = u.group(1) if u else "µm"
+        unit = units.get("X", next(iter(units.values()), "µm"))
+        meta = {"unit": unit}
+        for a, u in units.items():
+            # Each axis may have its own unit (nm across, µm between slices): all go to x's.
+            if u != unit and found[a]:
+                if u not in _OME_POWERS or unit not in _OME_POWERS:
+                    raise InputError(f"{path}: voxel sizes in {unit} and {u}, which cannot be converted; "
+                                     "give --spacing SX,SY,SZ")
+                k = _OME_POWERS[u] - _OME_POWERS[unit]
+                found[a] = found[a] * 10 ** k if k >= 0 else found[a] / 10 ** -k
         if all(found.get(a) for a in "XYZ"):
             return (found["X"], found["Y"], found["Z"]), None, meta
         return _partial(found, meta)

@@ -322,3 +322,58 @@ def test_mmap_is_for_raw_files_only(tmp_path):
     path = save_volume(Volume(np.zeros((3, 4, 5), np.uint8)), tmp_path / "v.nrrd")
     with pytest.raises(InputError, match="--mmap applies only to headerless raw"):
         load_volume(path, mmap=True)
+
+
+# --- fields read as the formats define them -----------------------------------
+# An array with a different extent along each axis, so that a transposition shows.
+_ZYX = (np.arange(60, dtype=np.int16) * 7 - 100).reshape(3, 4, 5)
+
+
+@pytest.mark.parametrize("local", [True, False])
+def test_metaimage_text_samples(tmp_path, local):
+    text = " ".join(map(str, _ZYX.ravel())).encode() + b"\n"
+    header = (b"ObjectType = Image\nNDims = 3\nBinaryData = False\nDimSize = 5 4 3\nElementType = MET_SHORT\n"
+              b"ElementSpacing = 0.5 1 2\nElementDataFile = " + (b"LOCAL\n" if local else b"samples.txt\n"))
+    path = tmp_path / ("text.mha" if local else "text.mhd")
+    path.write_bytes(header + (text if local else b""))
+    if not local:
+        (tmp_path / "samples.txt").write_bytes(text)
+    vol = load_volume(path)
+    assert np.array_equal(vol.data, _ZYX) and vol.spacing == (0.5, 1.0, 2.0)
+    path.write_bytes(header + b"1 2 3\n" if local else header)
+    if not local:
+        (tmp_path / "samples.txt").write_bytes(b"1 2 3\n")
+    with pytest.raises(InputError, match="3 text samples, expected 60"):
+        load_volume(path)
+
+
+@pytest.mark.parametrize("centers, spacing, origin", [
+    ("node node node", (0.5, 1.0, 2.25), (1.0, -1.0, 0.0)),
+    ("cell cell cell", (0.4, 0.75, 1.5), (1.2, -0.625, 0.75)),
+    (None, (0.4, 0.75, 1.5), (1.2, -0.625, 0.75)),        # NRRD's default centring: cell
+])
+def test_nrrd_axis_mins_and_maxs_give_spacing_and_origin(tmp_path, centers, spacing, origin):
+    # x: 5 samples over [1, 3]; y: 4 over [-1, 2]; z: 3 over [0, 4.5].
+    lines = ["NRRD0004", "type: short", "dimension: 3", "sizes: 5 4 3", "endian: little", "encoding: raw",
+             "axis mins: 1 -1 0", "axis maxs: 3 2 4.5"] + ([f"centers: {centers}"] if centers else [])
+    path = tmp_path / "extent.nrrd"
+    path.write_bytes(("\n".join(lines) + "\n\n").encode() + _ZYX.astype("<i2").tobytes())
+    vol = load_volume(path)
+    assert np.array_equal(vol.data, _ZYX)
+    assert vol.spacing == pytest.approx(spacing) and vol.origin == pytest.approx(origin)
+
+
+def test_nrrd_colour_axis_is_refused(tmp_path):
+    path = tmp_path / "rgb.nrrd"
+    path.write_bytes(b"NRRD0004\ntype: uchar\ndimension: 3\nsizes: 3 5 4\nkinds: RGB-color space space\n"
+                     b"encoding: raw\n\n" + bytes(60))
+    with pytest.raises(InputError, match="axis 1 holds RGB-color values"):
+        load_volume(path)
+
+
+def test_nrrd_negative_spacings_are_noted(tmp_path):
+    path = tmp_path / "mirror.nrrd"
+    path.write_bytes(b"NRRD0004\ntype: short\ndimension: 3\nsizes: 5 4 3\nendian: little\nencoding: raw\n"
+                     b"spacings: -0.5 1 2\n\n" + _ZYX.astype("<i2").tobytes())
+    vol = load_volume(path)
+    assert vol.spacing == (0.5, 1.0, 2.0) and "mirrored" in vol.meta["note"]

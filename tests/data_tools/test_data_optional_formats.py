@@ -241,3 +241,27 @@ def test_lzw_tiff_reads_or_says_to_install_imagecodecs(tmp_path):
         fails(p, "pip install imagecodecs")
     else:
         assert np.array_equal(load_volume(p).data, a)
+
+
+def test_nifti_without_qform_or_sform_is_placed_at_zero(tmp_path):
+    # NIfTI's method 1: the pixel dimensions alone, voxel (0, 0, 0) at the origin, nothing flipped.
+    data = np.arange(60, dtype=np.int16).reshape(5, 4, 3)         # [x, y, z] as nibabel holds it
+    img = nib.Nifti1Image(data, None)
+    img.header.set_zooms((0.5, 0.75, 2.25))
+    img.set_qform(None, 0)
+    img.set_sform(None, 0)
+    nib.save(img, tmp_path / "plain.nii")
+    vol = load_volume(tmp_path / "plain.nii")
+    assert np.array_equal(vol.data, data.T)
+    assert vol.spacing == (0.5, 0.75, 2.25) and vol.origin == (0.0, 0.0, 0.0) and "note" not in vol.meta
+
+
+def test_ome_tiff_units_of_each_axis(tmp_path):
+    # 500 nm across, 2 µm between slices: the z spacing in x's unit is 2000.
+    data = np.arange(60, dtype=np.uint16).reshape(3, 4, 5)
+    tifffile.imwrite(tmp_path / "u.ome.tif", data, ome=True, metadata={
+        "axes": "ZYX", "PhysicalSizeX": 500, "PhysicalSizeXUnit": "nm", "PhysicalSizeY": 500,
+        "PhysicalSizeYUnit": "nm", "PhysicalSizeZ": 2, "PhysicalSizeZUnit": "µm"})
+    vol = load_volume(tmp_path / "u.ome.tif")
+    assert np.array_equal(vol.data, data)
+    assert vol.spacing == (500.0, 500.0, 2000.0) and vol.meta["unit"] == "nm"
