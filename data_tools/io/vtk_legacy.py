@@ -12,12 +12,14 @@ from ._common import parse_dims, parse_numbers, read_samples, reading
 EXTENSIONS = (".vtk",)
 
 VTK_TYPES = {
-    "unsigned_char": "uint8", "char": "int8", "unsigned_short": "uint16", "short": "int16",
+    "unsigned_char": "uint8", "char": "int8", "signed_char": "int8", "unsigned_short": "uint16", "short": "int16",
     "unsigned_int": "uint32", "int": "int32", "float": "float32", "double": "float64",
     "vtktypeuint8": "uint8", "vtktypeint8": "int8", "vtktypeuint16": "uint16",
     "vtktypeint16": "int16", "vtktypeuint32": "uint32", "vtktypeint32": "int32",
     "vtktypefloat32": "float32", "vtktypefloat64": "float64",
 }
+# Alternative names this module reads but does not write ("char" is the one every reader knows).
+_READ_ONLY_TYPES = ("signed_char",)
 _MAX_HEADER_LINES = 200
 
 
@@ -40,8 +42,20 @@ class _Lines:
                 return line
 
 
+def _skip_lookup_table(f) -> bool:
+    """Move past a LOOKUP_TABLE line, blank lines allowed before it; False if there is none."""
+    for _ in range(_MAX_HEADER_LINES):
+        line = f.readline(4096).strip()
+        if line:
+            return line.upper().startswith(b"LOOKUP_TABLE")
+    return False
+
+
 def read_vtk(path) -> Volume:
     """Read a VTK legacy STRUCTURED_POINTS volume of point scalars.
+
+    ``COLOR_SCALARS`` with one component (how VTK itself writes uint8 data)
+    are read as uint8.
 
     Parameters
     ----------
@@ -98,19 +112,32 @@ def read_vtk(path) -> Volume:
             if npoints != dims[0] * dims[1] * dims[2]:
                 raise InputError(f"{path}: POINT_DATA {npoints} does not match DIMENSIONS {dims[0]}x{dims[1]}x{dims[2]}")
             words = lines.next("SCALARS").split()
-            if words[0].upper() != "SCALARS" or len(words) < 3:
-                raise InputError(f"{path}: expected SCALARS name type after POINT_DATA, got {' '.join(words)[:60]!r}")
-            vtype = words[2].lower()
-            if vtype not in VTK_TYPES:
-                raise InputError(f"{path}: unsupported VTK scalar type {words[2]}")
-            if len(words) > 3 and words[3] != "1":
-                raise InputError(f"{path}: scalars with {words[3]} components; only one per sample is supported")
-            dtype = VTK_TYPES[vtype]
-            pos = f.tell()
-            if not f.readline(4096).lstrip().upper().startswith(b"LOOKUP_TABLE"):
-                f.seek(pos)  # LOOKUP_TABLE is optional; the data start here
+            color = words[0].upper() == "COLOR_SCALARS"
+            if color:
+                # vtkDataWriter stores unsigned_char scalars this way, with no LOOKUP_TABLE line.
+                ncomp = parse_numbers(words[2:], 1, int, path, "COLOR_SCALARS")[0]
+                if ncomp != 1:
+                    raise InputError(f"{path}: COLOR_SCALARS with {ncomp} components; only one per sample is supported")
+                dtype = "uint8"
+            else:
+                if words[0].upper() != "SCALARS" or len(words) < 3:
+                    raise InputError(f"{path}: expected SCALARS name type after POINT_DATA, "
+                                     f"got {' '.join(words)[:60]!r}")
+                vtype = words[2].lower()
+                if vtype not in VTK_TYPES:
+                    raise InputError(f"{path}: unsupported VTK scalar type {words[2]}")
+                if len(words) > 3 and words[3] != "1":
+                    raise InputError(f"{path}: scalars with {words[3]} components; only one per sample is supported")
+                dtype = VTK_TYPES[vtype]
+                pos = f.tell()
+                if not _skip_lookup_table(f):
+                    # LOOKUP_TABLE is optional; the data start right after SCALARS, even
+                    # where their first bytes look like blank lines.
+                    f.seek(pos)
             offset = f.tell()
-            if encoding == "ASCII":
+            if encoding == "ASCII" and color:
+                data = _read_ascii_colors(f, dims, path)
+            elif encoding == "ASCII":
                 data = _read_ascii(f, dims, dtype, path)
         if encoding == "BINARY":
             # Legacy binary VTK is big-endian by definition; trailing sections are ignored.
@@ -136,10 +163,21 @@ def _read_ascii(f, dims, dtype, path):
     return values.astype(dt).reshape(dims[2], dims[1], dims[0])
 
 
+def _read_ascii_colors(f, dims, path):
+    # VTK writes uint8 COLOR_SCALARS in ASCII as value/255 (6 digits) and its reader
+    # scales them back the same way; so do we: it restores the exact bytes, and the
+    # ASCII and BINARY forms of one volume give the same uint8 data.
+    values = _read_ascii(f, dims, "float64", path)
+    if not (values.min() >= 0 and values.max() <= 1):  # NaN fails here too
+        raise InputError(f"{path}: ASCII VTK COLOR_SCALARS values outside [0, 1]")
+    return np.floor(values * 255 + 0.5).astype(np.uint8)
+
+
 def write_vtk(volume: Volume, path, *, ascii: bool = False) -> Path:
     """Write a VTK legacy STRUCTURED_POINTS file (big-endian binary, or ASCII)."""
     path = Path(path)
-    vtype = {v: k for k, v in VTK_TYPES.items() if not k.startswith("vtktype")}[volume.dtype.name]
+    vtype = {v: k for k, v in VTK_TYPES.items()
+             if not k.startswith("vtktype") and k not in _READ_ONLY_TYPES}[volume.dtype.name]
     nx, ny, nz = volume.dims
     header = (
         "# vtk DataFile Version 3.0\n"
