@@ -35,9 +35,10 @@ def read_tiff(path) -> Volume:
     be z, y, x. Plain pages that no metadata ties together are stacked in
     file order when they all have the same shape and type.
 
-    Spacing, in the file's own unit: OME-TIFF ``PhysicalSizeX/Y/Z``;
-    ImageJ's ``XResolution``/``YResolution`` (pixels per unit) and
-    ``spacing`` (z); otherwise 1, 1, 1 and ``meta['note']`` says so.
+    Spacing, in the file's own unit: OME-TIFF ``PhysicalSizeX/Y/Z``, each
+    axis's size converted to x's unit; ImageJ's ``XResolution``/
+    ``YResolution`` (pixels per unit, or per cm or inch) and ``spacing``
+    (z); otherwise 1, 1, 1 and ``meta['note']`` says so.
     Origin is 0, 0, 0.
 
     Parameters
@@ -155,17 +156,26 @@ def _spacing(tif, path):
         ij = tif.imagej_metadata or {}
         page = tif.pages[0]
         found = {"Z": _positive(ij.get("spacing"))}
-        if int(getattr(page.tags.get("ResolutionUnit"), "value", _RESUNIT_NONE)) == _RESUNIT_NONE:
+        unit = ij.get("unit", "pixel")
+        resunit = int(getattr(page.tags.get("ResolutionUnit"), "value", _RESUNIT_NONE))
+        # Pixels per unit: ImageJ's own unit, or (when it is cm or inch) the tag's.
+        scale = 1.0 if resunit == _RESUNIT_NONE else _IMAGEJ_RESOLUTION.get((resunit, unit))
+        if scale is not None:
             for a, tag in (("X", "XResolution"), ("Y", "YResolution")):
                 res = page.tags.get(tag)
                 if res is not None:
                     num, den = res.value
-                    found[a] = _positive(den / num) if num else None
-        meta = {"unit": ij.get("unit", "pixel")}
+                    found[a] = _positive(scale * den / num) if num else None
+        meta = {"unit": unit}
         if all(found.get(a) for a in "XYZ"):
             return (found["X"], found["Y"], found["Z"]), None, meta
         return _partial(found, meta)
     return (1.0, 1.0, 1.0), "the TIFF gives no voxel size: spacing 1, 1, 1 (give --spacing SX,SY,SZ)", {}
+
+
+#: TIFF ResolutionUnit inch (2) or cm (3), with ImageJ's unit: that unit's lengths per
+#: ResolutionUnit (ImageJ writes cm and inch this way).
+_IMAGEJ_RESOLUTION = {(2, "inch"): 1.0, (3, "cm"): 1.0, (3, "mm"): 10.0, (2, "cm"): 2.54}
 
 
 def _partial(found, meta):

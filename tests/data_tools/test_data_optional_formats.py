@@ -265,3 +265,14 @@ def test_ome_tiff_units_of_each_axis(tmp_path):
     vol = load_volume(tmp_path / "u.ome.tif")
     assert np.array_equal(vol.data, data)
     assert vol.spacing == (500.0, 500.0, 2000.0) and vol.meta["unit"] == "nm"
+
+
+@pytest.mark.parametrize("unit, xy", [("cm", 0.05), ("mm", 0.5)])
+def test_imagej_tiff_in_centimetres(tmp_path, unit, xy):
+    # ImageJ writes a cm calibration as pixels per cm (ResolutionUnit 3); the slices' spacing is in its unit.
+    data = np.arange(60, dtype=np.uint16).reshape(3, 4, 5)
+    tifffile.imwrite(tmp_path / "cm.tif", data, imagej=True, resolution=(20.0, 20.0), resolutionunit="CENTIMETER",
+                     metadata={"spacing": 0.2, "unit": unit, "axes": "ZYX"})
+    vol = load_volume(tmp_path / "cm.tif")
+    assert np.array_equal(vol.data, data) and "note" not in vol.meta
+    assert vol.spacing == pytest.approx((xy, xy, 0.2)) and vol.meta["unit"] == unit
