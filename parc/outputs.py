@@ -73,7 +73,8 @@ def atomic_write_all(writes):
     path = writes[0][0]
     try:
         for path, write in writes:
-            fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=path.parent or ".")
+            # A short name: the output's own, grown by a prefix, could pass the 255-byte limit.
+            fd, tmp = tempfile.mkstemp(prefix=".parc-", suffix=path.suffix, dir=path.parent or ".")
             os.close(fd)
             done.append((Path(tmp), path))
             write(Path(tmp))
@@ -143,19 +144,13 @@ def compile_notice(say):
     clone or an update spends several seconds, up to a minute for `parc
     bench`, before its progress starts; without a word it looks hung.
     """
-    from raycast.config import cache_folder
+    from raycast.config import cache_folder, cache_refused
 
-    folder = cache_folder()
-    if next(folder.rglob("*.nbi"), None) is not None:     # Numba's index of a cached kernel
-        return
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-        writable = os.access(folder, os.W_OK)
-    except OSError:
-        writable = False
-    if writable:
-        say(f"compiling the ray casters for this machine, once (kept in {folder})")
-    else:
-        # Numba then compiles in every process, silently.
-        say(f"compiling the ray casters; {folder} cannot be written, so every run compiles them again "
+    refused = cache_refused()
+    if refused is not None:
+        say(f"compiling the ray casters; {refused} cannot be written, so every run compiles them again "
             "(set PARC_CACHE_DIR to a writable folder)")
+        return
+    folder = cache_folder()
+    if next(folder.rglob("*.nbi"), None) is None:     # Numba's index of a cached kernel
+        say(f"compiling the ray casters for this machine, once (kept in {folder})")

@@ -1,6 +1,9 @@
 """Tunables and JIT flags for every kernel in `raycast`, in one place."""
+import atexit
 import hashlib
 import os
+import shutil
+import tempfile
 from pathlib import Path
 
 
@@ -26,6 +29,36 @@ import numba.core.config  # noqa: E402
 #: a kernel would keep it out of the cache), so the cache folder names it.
 SPREAD_WAYS = max(1, int(numba.config.NUMBA_NUM_THREADS))
 
+def choose_cache_folder(environ, name):
+    """``(folder, refused)``: where the kernels named ``name`` are cached, and the folder that
+    could not be written instead (None when it could).
+
+    The folder is ``name`` under ``NUMBA_CACHE_DIR`` (or ``PARC_CACHE_DIR``,
+    or ``~/.cache/parc``); a ``NUMBA_CACHE_DIR`` already ending in ``name``
+    is this one's, passed on to a child process. Where it cannot be written
+    the cache goes to a new temporary folder: Numba would otherwise fall
+    back to ``__pycache__`` beside the sources, whose entries it checks only
+    against the file that defines a kernel, and run stale code after an
+    edit to a function that kernel inlines.
+    """
+    given = environ.get("NUMBA_CACHE_DIR")
+    if given and Path(given).name == name:
+        folder = given
+    else:
+        base = given or environ.get("PARC_CACHE_DIR") or os.path.join(os.path.expanduser("~"), ".cache", "parc")
+        folder = os.path.join(base, name)
+    try:
+        os.makedirs(folder, exist_ok=True)
+        writable = os.access(folder, os.W_OK)
+    except OSError:
+        writable = False
+    if writable:
+        return folder, None
+    temporary = tempfile.mkdtemp(prefix="parc-kernels-")
+    atexit.register(shutil.rmtree, temporary, ignore_errors=True)
+    return temporary, folder
+
+
 # Compiled kernels are cached outside the package, in a folder named for
 # the kernels' sources and the thread count (`SPREAD_WAYS`): Numba
 # checks only the timestamp of the file that defines a kernel, so an edit
@@ -34,15 +67,20 @@ SPREAD_WAYS = max(1, int(numba.config.NUMBA_NUM_THREADS))
 # Numba reads NUMBA_CACHE_DIR when it is first imported, and `parc` modules
 # may import it before this one, so it gets the folder directly as well.
 # Kernels pick their cache folder when they are decorated, after this line.
-os.environ.setdefault("NUMBA_CACHE_DIR", os.path.join(
-    os.environ.get("PARC_CACHE_DIR", os.path.join(os.path.expanduser("~"), ".cache", "parc")),
-    f"numba-{_source_digest()}-{SPREAD_WAYS}t"))
-numba.core.config.CACHE_DIR = os.environ["NUMBA_CACHE_DIR"]
+_FOLDER, _REFUSED = choose_cache_folder(os.environ, f"numba-{_source_digest()}-{SPREAD_WAYS}t")
+os.environ["NUMBA_CACHE_DIR"] = _FOLDER
+numba.core.config.CACHE_DIR = _FOLDER
 
 
 def cache_folder():
     """The folder this version of the kernels is cached in."""
     return Path(numba.core.config.CACHE_DIR)
+
+
+def cache_refused():
+    """The cache folder asked for that could not be written (the kernels then compile in every
+    process, cached in a temporary folder), or None."""
+    return _REFUSED
 
 
 #: Flags shared by all kernels. fastmath stays off: PARC and the

@@ -131,3 +131,23 @@ def test_a_new_process_loads_the_casters_from_the_cache():
 
     misses()                 # compiles what the cache lacks
     assert misses() == []    # ... so that a second process compiles nothing
+
+
+def test_the_cache_folder_is_named_for_the_sources_wherever_it_is(tmp_path):
+    from raycast.config import choose_cache_folder
+    name = "numba-0123abcd-2t"
+    assert choose_cache_folder({"PARC_CACHE_DIR": str(tmp_path / "p")}, name) == (str(tmp_path / "p" / name), None)
+    # A folder the user gives Numba gets the sources' name under it too, or an edit would go unseen...
+    assert choose_cache_folder({"NUMBA_CACHE_DIR": str(tmp_path / "n")}, name) == (str(tmp_path / "n" / name), None)
+    # ... unless it is this one's already, handed to a child process.
+    assert choose_cache_folder({"NUMBA_CACHE_DIR": str(tmp_path / "n" / name)}, name)[0] == str(tmp_path / "n" / name)
+
+
+def test_a_cache_folder_that_cannot_be_written_is_not_replaced_by_the_sources_own(tmp_path):
+    # Numba's fallback, __pycache__ beside the sources, could hold stale kernels: a fresh folder instead.
+    from raycast.config import choose_cache_folder
+    (tmp_path / "a file").write_text("")
+    refused = str(tmp_path / "a file" / "cache")
+    folder, said = choose_cache_folder({"PARC_CACHE_DIR": refused}, "numba-0123abcd-2t")
+    assert said == str(Path(refused) / "numba-0123abcd-2t")
+    assert Path(folder).is_dir() and not list(Path(folder).iterdir()) and "__pycache__" not in folder
