@@ -292,6 +292,13 @@ def _join_signed_values(argv):
 
 def main(argv=None):
     """Entry point of the `parc` console script; returns the exit status."""
+    if sys.stderr is None:
+        # Started with stderr closed (2>&-): notes and progress go nowhere, not to stdout.
+        sys.stderr = open(os.devnull, "w")
+    for stream in (sys.stdout, sys.stderr):
+        # A terminal or pipe that is not UTF-8 still gets the tables' Δ and × (escaped), not a traceback.
+        if stream is not None and hasattr(stream, "reconfigure"):
+            stream.reconfigure(errors="backslashreplace")
     argv = _join_signed_values(list(sys.argv[1:] if argv is None else argv))
     try:
         # Extreme but valid numbers (an eye at 1e200) may overflow on the way to
@@ -359,14 +366,23 @@ def cmd_make(args):
         vol = make_synthetic(args.name, args.size, **kwargs)
     except TypeError:
         raise InputError(f"{args.name} takes no --seed") from None
+    _refuse_overwriting_input(out, [])
     save_volume(vol, out)  # all-or-nothing itself, and keeps sidecar names right
     print(f"wrote {out} ({'x'.join(map(str, vol.dims))} {vol.dtype})")
     return 0
 
 
+def _exists(path):
+    try:
+        return path.exists()
+    except OSError:         # a name too long to be a file (the other header's suffix is longer)
+        return False
+
+
 def _refuse_overwriting_input(out, inputs):
     """Refuse an output whose detached data file (``.mhd``, ``.nhdr``: ``STEM.raw``) is a file
-    the volume was read from: the header and its samples, or a raw file itself."""
+    the volume was read from (the header and its samples, or a raw file itself), or the data
+    file of the other kind of header beside it (``STEM.nhdr`` for ``STEM.mhd``)."""
     from data_tools.io import data_file_written
     data = data_file_written(out)
     if data is None:
@@ -375,6 +391,10 @@ def _refuse_overwriting_input(out, inputs):
         if source is not None and Path(source).resolve() == data.resolve():
             raise InputError(f"{out}: would write its samples to {data}, which the volume is read from; "
                              "write the output elsewhere or under another name")
+    for other in (out.with_suffix(".mhd"), out.with_suffix(".nhdr")):
+        if other.suffix != out.suffix.lower() and _exists(other) and data.exists():
+            raise InputError(f"{out}: would write its samples to {data}, which holds {other.name}'s; "
+                             "write the output under another name")
 
 
 def cmd_convert(args):

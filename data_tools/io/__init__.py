@@ -158,7 +158,7 @@ def save_volume(volume: Volume, path, **options) -> Path:
         options.setdefault("sidecar", True)  # rewrite it, or it would go stale
     tmpdir = None
     try:
-        tmpdir = Path(tempfile.mkdtemp(prefix=f".{path.name}.", dir=path.parent))
+        tmpdir = Path(tempfile.mkdtemp(prefix=".parc-", dir=path.parent))
         writers[ext](volume, tmpdir / path.name, **options)
         for f in sorted(tmpdir.iterdir()):
             if f.name != path.name:
@@ -166,6 +166,10 @@ def save_volume(volume: Volume, path, **options) -> Path:
         os.replace(tmpdir / path.name, path)
     except OSError as exc:
         raise InputError(f"{path}: cannot write: {exc.strerror or exc}") from None
+    except UnicodeEncodeError:
+        # MetaImage, NRRD and VTK headers are ASCII, and .mhd and .nhdr name their data file.
+        raise InputError(f"{path}: a {ext} header names its data file in ASCII; "
+                         "choose a name without other characters") from None
     finally:
         if tmpdir is not None:
             shutil.rmtree(tmpdir, ignore_errors=True)

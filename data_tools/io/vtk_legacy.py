@@ -179,9 +179,11 @@ def write_vtk(volume: Volume, path, *, ascii: bool = False) -> Path:
     vtype = {v: k for k, v in VTK_TYPES.items()
              if not k.startswith("vtktype") and k not in _READ_ONLY_TYPES}[volume.dtype.name]
     nx, ny, nz = volume.dims
+    # The title is one ASCII line of at most 256 characters; a volume's name may be neither.
+    title = "".join(c if " " <= c <= "~" else "?" for c in Path(volume.name).name)[:255] or "volume"
     header = (
         "# vtk DataFile Version 3.0\n"
-        f"{Path(volume.name).name}\n"
+        f"{title}\n"
         f"{'ASCII' if ascii else 'BINARY'}\n"
         "DATASET STRUCTURED_POINTS\n"
         f"DIMENSIONS {nx} {ny} {nz}\n"

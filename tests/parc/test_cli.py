@@ -213,6 +213,54 @@ def test_a_failed_write_names_the_output_not_its_temporary_file(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
+def test_a_name_near_the_length_limit_can_be_written(vol_file, tmp_path, capsys):
+    # 251 characters and ".png": a temporary name built from it had passed the 255-byte limit.
+    for out in (tmp_path / ("a" * 251 + ".png"), tmp_path / ("b" * 251 + ".mhd")):
+        argv = ["render", vol_file, "--iso", 4.0, "--size", 8, 8] if out.suffix == ".png" else ["convert", vol_file]
+        rc, _, err = _run(argv + ["-o", out], capsys)
+        assert rc == 0 and out.exists(), err
+
+
+def test_headers_that_name_their_data_file(vol_file, tmp_path, capsys):
+    # An ASCII header cannot name "ö.raw"; and STEM.raw is already STEM.mhd's when STEM.nhdr comes.
+    rc, _, err = _run(["convert", vol_file, "-o", tmp_path / "ö.mhd"], capsys)
+    assert rc == 2 and err.count("\n") == 1 and "names its data file in ASCII" in err, err
+    rc, _, err = _run(["convert", vol_file, "-o", tmp_path / "v.mhd"], capsys)
+    assert rc == 0, err
+    before = (tmp_path / "v.raw").read_bytes()
+    rc, _, err = _run(["make", "sphere", "--size", 8, "-o", tmp_path / "v.nhdr"], capsys)
+    assert rc == 2 and "which holds v.mhd's" in err, err
+    assert (tmp_path / "v.raw").read_bytes() == before and not (tmp_path / "v.nhdr").exists()
+
+
+def test_a_vtk_title_is_one_ascii_line(tmp_path, capsys):
+    from data_tools.io import load_volume
+    k, j, i = np.mgrid[0:4, 0:5, 0:6]
+    source = save_volume(Volume((i + 10 * j + 100 * k).astype(np.int16)), tmp_path / "a\nb ü.nrrd")
+    rc, _, err = _run(["convert", source, "-o", tmp_path / "t.vtk"], capsys)
+    assert rc == 0, err
+    assert (tmp_path / "t.vtk").read_bytes().split(b"\n")[1] == b"a?b ?.nrrd"
+    assert np.array_equal(load_volume(tmp_path / "t.vtk").data, load_volume(source).data)
+
+
+@pytest.mark.parametrize("how", ["stderr closed", "ascii output"])
+def test_odd_output_streams(vol_file, tmp_path, how):
+    # Closed stderr: the image is still made. An ASCII-only stdout: the tables escape Δ, no traceback.
+    import os
+    env = dict(os.environ, PYTHONIOENCODING="ascii")
+    if how == "stderr closed":
+        out = tmp_path / "o.png"
+        p = subprocess.run([sys.executable, "-m", "parc.cli", "render", str(vol_file), "--iso", "4", "--size", "8", "8",
+                            "-o", str(out)], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, close_fds=True,
+                           preexec_fn=lambda: os.close(2), timeout=300)
+        assert p.returncode == 0 and out.exists() and p.stdout == b""
+    else:
+        p = subprocess.run([sys.executable, "-m", "parc.cli", "compare", str(vol_file), "--tf", "greyscale",
+                            "--size", "8", "8", "--repeats", "1", "--sweep-step", "1", "--quiet"],
+                           capture_output=True, env=env, timeout=300)
+        assert p.returncode == 0 and b"\\u0394" in p.stdout and b"Traceback" not in p.stderr, p.stderr
+
+
 def test_a_closed_pipe_ends_the_command_quietly(vol_file):
     # As `parc info VOLUME | head -0`: the reader is gone before the first line.
     p = subprocess.Popen([sys.executable, "-m", "parc.cli", "info", str(vol_file)],
@@ -648,9 +696,8 @@ def test_outputs_are_ordinary_files(vol_file, tmp_path, capsys):
 
 
 def test_a_cache_folder_that_cannot_be_written_is_named(vol_file, tmp_path, capsys, monkeypatch):
-    import numba.core.config
-    (tmp_path / "a file").write_text("")
-    monkeypatch.setattr(numba.core.config, "CACHE_DIR", str(tmp_path / "a file" / "cache"))
+    import raycast.config
+    monkeypatch.setattr(raycast.config, "_REFUSED", str(tmp_path / "a file" / "cache"))
     rc, _, err = _run(["render", vol_file, "--iso", 4, "--size", 8, 8, "-o", tmp_path / "a.png"], capsys)
     assert rc == 0 and "cannot be written, so every run compiles them again" in err, err
 

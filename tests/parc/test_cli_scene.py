@@ -50,7 +50,7 @@ def _assert_refused(rc, err, out_file, *words):
     for w in words:
         assert w in lines[0], lines[0]
     assert not out_file.exists()
-    assert not list(out_file.parent.glob(f".{out_file.name}*"))     # no temporary left behind
+    assert not list(out_file.parent.glob(".parc-*"))     # no temporary left behind
 
 
 def test_render_scene_file_from_another_folder(scene_file, tmp_path_factory, monkeypatch, capsys):
