@@ -184,9 +184,15 @@ def _count_non_finite(data, slab_bytes=64 << 20):
                for slab in (data[z:z + per] for z in range(0, data.shape[0], per)))
 
 
+def text_or_flag(value):
+    """Whether ``value`` is text or a boolean: `float` takes ``"5"`` and ``True``, and a number
+    argument must not."""
+    return isinstance(value, (str, bytes, bool, np.bool_))
+
+
 def _triple(value, what, name, *, positive):
     try:
-        if isinstance(value, (str, bytes)) or any(isinstance(v, (bool, np.bool_)) for v in value):
+        if isinstance(value, (str, bytes)) or any(text_or_flag(v) for v in value):
             raise TypeError   # "123" would otherwise read as (1, 2, 3), True as 1
         t = tuple(float(v) for v in value)
     except (TypeError, ValueError):

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from data_tools import InputError
+from data_tools.volume import text_or_flag
 
 
 @dataclass(frozen=True)
@@ -70,8 +71,7 @@ class Camera:
             object.__setattr__(self, "fov", float(self.fov))
         else:
             try:
-                text_or_flag = isinstance(self.parallel_scale, (str, bool, np.bool_))
-                scale = math.nan if text_or_flag else float(self.parallel_scale)
+                scale = math.nan if text_or_flag(self.parallel_scale) else float(self.parallel_scale)
             except (TypeError, ValueError):
                 scale = math.nan
             if not (math.isfinite(scale) and scale > 0.0):

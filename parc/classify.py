@@ -40,6 +40,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from data_tools import InputError
+from data_tools.volume import text_or_flag
 from raycast.composite import INTERP_ROUNDING
 from raycast.iso import OCTANTS
 
@@ -188,8 +189,8 @@ def _size_triple(size):
     """``(m, n, p)`` floats from a number or three numbers, validated."""
     try:
         parts = [size] * 3 if np.ndim(size) == 0 else list(size)
-        if any(isinstance(s, (str, bytes, bool, np.bool_)) for s in parts):
-            raise TypeError             # float() would take "4" and True
+        if any(text_or_flag(s) for s in parts):
+            raise TypeError
         t = tuple(float(s) for s in parts)
     except (TypeError, ValueError):
         raise InputError(f"supercell size must be a number or three numbers, got {size!r}") from None

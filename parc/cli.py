@@ -553,8 +553,9 @@ def _buffers(args, scene=None):
     buffers = parse_buffers(args.buffers)
     if scene is not None and not any(isinstance(v, Translucent) for v in scene.volumes):
         raise InputError("--buffers applies to translucent volumes (--tf); isosurfaces use the depth buffers")
-    if scene is not None and "bits" in buffers and bits_refused(scene):
-        raise InputError(f"--buffers {args.buffers}: {bits_refused(scene)}")
+    refused = bits_refused(scene) if scene is not None and "bits" in buffers else None
+    if refused:
+        raise InputError(f"--buffers {args.buffers}: {refused}")
     return buffers
 
 

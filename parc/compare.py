@@ -82,10 +82,7 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
     if unused:
         raise InputError(f"options for {', '.join(map(repr, unused))}, which is not among the methods run")
     for name, opts in options.items():
-        unknown = sorted(set(opts) - RENDER_OPTIONS)
-        if unknown:
-            raise InputError(f"options for {name!r}: {', '.join(map(repr, unknown))} is not a render() option; "
-                             f"known: {', '.join(sorted(RENDER_OPTIONS))}")
+        _check_render_options(name, opts)
     if progress is not None and not callable(progress):
         raise InputError(f"progress must be a function of the method's name, got {progress!r}")
     check_frame_memory(*scene.size, layers=len(scene.volumes), kept_images=len(names))
@@ -170,6 +167,14 @@ def method_names(methods):
     return ["brute"] + [m for m in dict.fromkeys(names) if m != "brute"]
 
 
+def _check_render_options(name, opts):
+    """Refuse an option for method ``name`` that `render` does not take."""
+    unknown = sorted(set(opts) - RENDER_OPTIONS)
+    if unknown:
+        raise InputError(f"options for {name!r}: {', '.join(map(repr, unknown))} is not a render() option; "
+                         f"known: {', '.join(sorted(RENDER_OPTIONS))}")
+
+
 def _check_supercells(scene, options):
     """Refuse a supercell size no volume of the scene can take, before any render is timed."""
     from .classify import VolumeIndex
@@ -251,10 +256,7 @@ def step_sweep(scene, steps, *, repeats=3, warmup=1, progress=None, options=None
     if len(scene.volumes) != 1 or not isinstance(vis, Translucent):
         raise InputError("a step sweep takes a scene of one translucent volume (--tf)")
     options = dict(options or {})
-    unknown = sorted(set(options) - RENDER_OPTIONS)
-    if unknown:
-        raise InputError(f"parc options {', '.join(map(repr, unknown))}: not render() options; "
-                         f"known: {', '.join(sorted(RENDER_OPTIONS))}")
+    _check_render_options("parc", options)
     steps = sorted({float(s) for s in steps}, reverse=True)
     if not steps or not all(np.isfinite(steps)) or min(steps) <= 0:
         raise InputError("sweep steps must be positive numbers")

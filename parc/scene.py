@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from data_tools import InputError, Volume
-from data_tools.volume import settled
+from data_tools.volume import settled, text_or_flag
 
 from .camera import Camera, unit_vector
 
@@ -46,8 +46,8 @@ class Isosurface:
         if not isinstance(self.volume, Volume):
             raise InputError(f"Isosurface needs a Volume, got {type(self.volume).__name__}")
         try:
-            if isinstance(self.value, (str, bytes, bool, np.bool_)):
-                raise TypeError         # float() would take "5" and True
+            if text_or_flag(self.value):
+                raise TypeError
             self.value = float(self.value)
         except (TypeError, ValueError):
             raise InputError(f"isovalue must be a number, got {self.value!r}") from None
@@ -227,7 +227,7 @@ class Scene:
             raise InputError(f"Scene needs a Camera, got {type(self.camera).__name__}")
         try:
             w, h = (int(v) for v in self.size)
-            ok = (w, h) == tuple(self.size) and not any(isinstance(v, (str, bool, np.bool_)) for v in self.size)
+            ok = (w, h) == tuple(self.size) and not any(text_or_flag(v) for v in self.size)
         except (TypeError, ValueError, OverflowError):
             ok = False
         if not ok or w < 1 or h < 1:

@@ -29,6 +29,7 @@ import numba.core.config  # noqa: E402
 #: a kernel would keep it out of the cache), so the cache folder names it.
 SPREAD_WAYS = max(1, int(numba.config.NUMBA_NUM_THREADS))
 
+
 def choose_cache_folder(environ, name):
     """``(folder, refused)``: where the kernels named ``name`` are cached, and the folder that
     could not be written instead (None when it could).
@@ -90,6 +91,7 @@ JIT = dict(cache=True, nogil=True, fastmath=False, error_model="numpy")
 #: The same for an ``@overload``'s implementation, which is compiled into
 #: the kernels that call it and cached with them.
 OVERLOAD_JIT = {key: value for key, value in JIT.items() if key != "cache"}
+
 
 def named_for(**flags):
     """Rename a kernel's Python function for the flags its factory closes over, before `kernel`.

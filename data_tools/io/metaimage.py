@@ -54,8 +54,8 @@ def read_metaimage(path) -> Volume:
     Handles ``DimSize``, ``ElementType`` (MET_UCHAR ... MET_DOUBLE),
     ``ElementSpacing`` (or ``ElementSize``), ``Offset``/``Origin``/``Position``,
     ``BinaryDataByteOrderMSB``/``ElementByteOrderMSB``, ``HeaderSize``,
-    zlib ``CompressedData`` and text samples (``BinaryData = False``). The data file is ``LOCAL`` (attached) or a
-    path relative to the header.
+    zlib ``CompressedData`` and text samples (``BinaryData = False``).
+    The data file is ``LOCAL`` (attached) or a path relative to the header.
 
     Parameters
     ----------
@@ -131,17 +131,16 @@ def _build(path, fields, data_start):
         offset = 0
     nx, ny, nz = dims
     itemsize = np.dtype(dtype).itemsize
-    if (get("BinaryData") or "true").lower() not in _TRUE:
-        if compressed:
-            raise InputError(f"{path}: CompressedData with text samples (BinaryData = False) is not supported")
-        with open(data_path, "rb") as f:
-            f.seek(offset + max(header_size, 0))
-            data = _text_samples(f.read(), nx * ny * nz, dtype, data_path)
-        return Volume(data.reshape(nz, ny, nx), spacing=spacing, origin=origin, name=str(path), meta=meta)
-    if compressed:
+    text = (get("BinaryData") or "true").lower() not in _TRUE
+    if text and compressed:
+        raise InputError(f"{path}: CompressedData with text samples (BinaryData = False) is not supported")
+    if text or compressed:
         with open(data_path, "rb") as f:
             f.seek(offset + max(header_size, 0))
             blob = f.read()
+    if text:
+        data = _text_samples(blob, nx * ny * nz, dtype, data_path).reshape(nz, ny, nx)
+    elif compressed:
         raw = decompress(blob, nx * ny * nz * itemsize, data_path, "MetaImage")
         dt = np.dtype(dtype).newbyteorder(">" if big else "<") if itemsize > 1 else np.dtype(dtype)
         data = to_native(np.frombuffer(raw, dtype=dt).copy()).reshape(nz, ny, nx)

@@ -12,7 +12,8 @@ from ._common import parse_dims, parse_numbers, read_samples, reading
 EXTENSIONS = (".vtk",)
 
 VTK_TYPES = {
-    "unsigned_char": "uint8", "char": "int8", "signed_char": "int8", "unsigned_short": "uint16", "short": "int16",
+    "unsigned_char": "uint8", "char": "int8", "signed_char": "int8", "unsigned_short": "uint16",
+    "short": "int16",
     "unsigned_int": "uint32", "int": "int32", "float": "float32", "double": "float64",
     "vtktypeuint8": "uint8", "vtktypeint8": "int8", "vtktypeuint16": "uint16",
     "vtktypeint16": "int16", "vtktypeuint32": "uint32", "vtktypeint32": "int32",
