@@ -80,7 +80,8 @@ class Translucent:
     threshold : float, default 0.99
         Early ray termination once the accumulated opacity reaches it (composite).
     shade : bool, default False
-        Shade composite samples with the gradient (headlight, Blinn-Phong).
+        Shade composite samples with the gradient (headlight, Blinn-Phong);
+        refused with mip and average, which do not shade.
     material : (ambient, diffuse, specular, shininess)
 
     Raises
@@ -127,6 +128,8 @@ class Translucent:
             raise InputError(f"opacity threshold must be in (0, 1], got {self.threshold!r}")
         self.threshold = threshold
         self.shade = _flag(self.shade, "shade")
+        if self.shade and self.mode != "composite":
+            raise InputError(f"shade applies to mode composite; {self.mode} does not shade samples")
         self.material = _material(self.material)
 
 

@@ -424,6 +424,8 @@ def _load_volume(where, t, cache):
     if mode is not None and mode not in MODES:
         raise t.error("mode", f"unknown mode {mode!r}; choose one of {', '.join(MODES)}")
     step, threshold, shade = t.number("step"), t.number("threshold"), t.boolean("shade")
+    if threshold is not None and mode not in (None, "composite"):
+        raise t.error("threshold", f"applies to mode composite; {mode} does not stop rays early")
     vol = _volume_data(where, t, cache)
     if spec not in PRESETS:
         path = where.resolve(spec)

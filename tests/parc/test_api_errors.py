@@ -68,6 +68,7 @@ CASES = {
     "bit planes for two volumes": (lambda: parc.render(_scene(volumes=[parc.Translucent(VOL, "greyscale")] * 2),
                                                        method="parc", buffers="bits"), "has 2 volumes"),
     "supercell as text for brute": (lambda: parc.render(_scene(), supercell="a"), "supercell"),
+    "shade with mip": (lambda: parc.Translucent(VOL, "greyscale", mode="mip", shade=True), "mode composite"),
     "isovalue as text": (lambda: parc.Isosurface(VOL, str(ISO)), "isovalue must be a number"),
     "isovalue True": (lambda: parc.Isosurface(VOL, True), "isovalue must be a number"),
     "size of booleans": (lambda: _scene(size=(True, True)), "image size"),
