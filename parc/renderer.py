@@ -94,7 +94,7 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
         ``+`` joins them too): near/far ray distances
         (depth-buffer PARC, §3) and planes of supercells the ray meets
         (color-buffer PARC, §4). Isosurfaces use the depth buffers, and
-        so do scenes of several volumes or with lights.
+        so do scenes of several volumes.
     progress : callable(done_fraction) or None
         Called as bands of image rows finish, for long renders.
     light_buffer : int, optional
@@ -304,13 +304,13 @@ def _light_buffer_size(light_buffer):
 
 
 def bits_refused(scene):
-    """Why ``scene`` cannot use bit planes, or None: they are drawn for one translucent volume
-    without lights (`_render_general` bounds each volume's rays by its depth buffers)."""
-    if len(scene.volumes) == 1 and not scene.lights:
+    """Why ``scene`` cannot use bit planes, or None: they are drawn for a scene of one translucent
+    volume (`_render_general` bounds each volume's rays by its depth buffers)."""
+    n = len(scene.volumes)
+    if n == 1 and isinstance(scene.volumes[0], Translucent):
         return None
-    what = f"{len(scene.volumes)} volumes" if len(scene.volumes) != 1 else "lights"
-    return (f"bit planes are drawn for a scene of one translucent volume without lights, "
-            f"and this one has {what}; use depth")
+    what = f"{n} volumes" if n != 1 else "an isosurface"
+    return f"bit planes are drawn for a scene of one translucent volume, and this one has {what}; use depth"
 
 
 def parse_buffers(buffers):

@@ -209,7 +209,8 @@ class Scene:
         At least one (required, though it has a default); kept as a tuple.
     lights : list of PointLight or DirectionalLight
         Kept as a tuple.
-        Light sources for isosurfaces; empty means a headlight at the eye.
+        Light sources for isosurfaces (refused for a scene without one);
+        empty means a headlight at the eye.
     background : (r, g, b), (r, g, b, a) or None
         Composited under the image, each component in [0, 1]; three are
         opaque (a = 1). None leaves it transparent.
@@ -257,6 +258,11 @@ class Scene:
             if not isinstance(light, LIGHTS):
                 raise InputError(f"a light must be a PointLight or a DirectionalLight, got {type(light).__name__}")
         self.shadows = _flag(self.shadows, "shadows")
+        # Lights shine on isosurface hits only; a scene without one would take them and
+        # draw the same image, slower.
+        if self.lights and not any(isinstance(v, Isosurface) for v in self.volumes):
+            raise InputError("lights shine on isosurfaces and this scene has none; "
+                             "translucent volumes are shaded by a headlight at the eye")
 
     @property
     def width(self):

@@ -404,11 +404,13 @@ def test_translucent_flags_that_cannot_apply_are_refused(extra, words, vol_file,
 
 
 @pytest.mark.parametrize("command", ["render", "compare"])
-def test_bit_planes_for_a_lit_scene_are_refused(command, vol_file, tmp_path, capsys):
+@pytest.mark.parametrize("light", [["--light", "1,2,3"], ["--sun", "0,0,-1", "--shadows"]])
+def test_lights_on_a_translucent_volume_are_refused(command, light, vol_file, tmp_path, capsys):
+    # They would shine on no isosurface and leave the image as the headlight draws it.
     out = tmp_path / "o.png"
-    argv = [command, vol_file, "--tf", "greyscale", "--size", 8, 8, "--buffers", "bits", "--light", "1,2,3"]
-    rc, _, err = _run(argv + (["--method", "parc", "-o", out] if command == "render" else []), capsys)
-    assert rc == 2 and err.count("\n") == 1 and "this one has lights; use depth" in err, err
+    argv = [command, vol_file, "--tf", "greyscale", "--shade", "--size", 8, 8, *light]
+    rc, _, err = _run(argv + (["-o", out] if command == "render" else []), capsys)
+    assert rc == 2 and err.count("\n") == 1 and f"{light[0]}: lights shine on isosurfaces" in err, err
     assert not out.exists()
 
 
