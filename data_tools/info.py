@@ -8,6 +8,10 @@ import numpy as np
 from .volume import Volume
 
 PERCENTILES = (1, 5, 25, 50, 75, 95, 99)
+#: Bins of the histogram ``parc info`` draws between the data's min and max.
+HISTOGRAM_BINS = 16
+#: Characters of the longest histogram bar.
+BAR_WIDTH = 40
 #: Statistics beyond min/max and zeros use a strided subsample of at most this many samples.
 SAMPLE_LIMIT = 1 << 21
 
@@ -33,8 +37,11 @@ def volume_info(vol: Volume) -> dict:
         ``name``, ``dims`` (nx, ny, nz), ``dtype``, ``spacing``, ``origin``,
         ``extent``, ``nbytes``, ``min``, ``max``, ``mean``, ``percentiles``
         ({1: v, 5: v, ..., 99: v}), ``zero_fraction``, ``sampled`` (how many
-        samples the percentiles and mean came from), ``suggested_isovalues``
-        and, when the reader left one, ``note``.
+        samples the percentiles, mean and histogram came from),
+        ``histogram`` (``counts`` in at most `HISTOGRAM_BINS` bins from min
+        to max, and their ``edges``, at ``x.5`` for integer data; None for
+        a constant volume),
+        ``suggested_isovalues`` and, when the reader left one, ``note``.
     """
     lo, hi = vol.value_range()
     sample = _subsample(vol.data)
@@ -54,6 +61,7 @@ def volume_info(vol: Volume) -> dict:
         "percentiles": {p: float(v) for p, v in zip(PERCENTILES, pct)},
         "zero_fraction": 1.0 - np.count_nonzero(vol.data) / vol.data.size,
         "sampled": int(flat.size),
+        "histogram": _shown_histogram(flat, lo, hi),
         "suggested_isovalues": suggest_isovalues(vol),
     }
     for key in ("format", "note"):
@@ -62,8 +70,44 @@ def volume_info(vol: Volume) -> dict:
     return info
 
 
+def _shown_histogram(flat, lo, hi):
+    if not hi > lo:
+        return None
+    counts, edges = _histogram(flat, lo, hi, np.issubdtype(flat.dtype, np.integer), HISTOGRAM_BINS)
+    if counts is None:
+        return None
+    return {"edges": [float(e) for e in edges], "counts": [int(c) for c in counts]}
+
+
+def exact_text(value) -> str:
+    """A data value as short as ``:g`` writes it where that is exact, else in full: pasted
+    back as an isovalue it must give the same surface (``:g`` wrote 1073741823.5 as
+    1.07374e+09, and 0.9999994 as 0.999999, below the data's minimum)."""
+    short = f"{value:g}"
+    return short if float(short) == value else repr(float(value))
+
+
 def _fmt(v) -> str:
     return f"{v:.6g}" if isinstance(v, float) else str(v)
+
+
+def _histogram_lines(hist, sampled):
+    """One line per bin: its range, a bar whose length grows with the log of its count (a CT's
+    air would flatten every other bar), and its share of the samples."""
+    counts = hist["counts"]
+    top = math.log1p(max(counts))
+    # Enough digits to tell the edges apart (a range of 1e-6 about 1 needs more than six).
+    for digits in range(6, 18):
+        edges = [f"{e:.{digits}g}" for e in hist["edges"]]
+        if len(set(edges)) == len(edges):
+            break
+    wide = max(len(e) for e in edges)
+    lines = [f"histogram:   {len(counts)} bins, bars by the log of the count"]
+    for i, count in enumerate(counts):
+        bar = "#" * round(BAR_WIDTH * math.log1p(count) / top) if count else ""
+        lines.append(f"  {edges[i]:>{wide}} .. {edges[i + 1]:<{wide}}  {bar:<{BAR_WIDTH}} "
+                     f"{100 * count / sampled:5.1f}%")
+    return lines
 
 
 def format_info(info: dict) -> str:
@@ -77,13 +121,16 @@ def format_info(info: dict) -> str:
         f"spacing:     {triple(info['spacing'])}",
         f"origin:      {triple(info['origin'])}",
         f"extent:      {triple(info['extent'])}",
-        f"range:       {_fmt(info['min'])} .. {_fmt(info['max'])}, mean {_fmt(info['mean'])}",
+        f"range:       {exact_text(info['min'])} .. {exact_text(info['max'])}, mean {_fmt(info['mean'])}",
         "percentiles: " + ", ".join(f"{p}%: {_fmt(v)}" for p, v in info["percentiles"].items()),
         f"zeros:       {100 * info['zero_fraction']:.1f}%",
-        "suggested isovalues: " + (", ".join(_fmt(v) for v in info["suggested_isovalues"]) or "none (constant volume)"),
     ]
+    if info.get("histogram"):
+        lines += _histogram_lines(info["histogram"], info["sampled"])
+    lines.append("suggested isovalues: "
+                 + (", ".join(exact_text(v) for v in info["suggested_isovalues"]) or "none (constant volume)"))
     if info["sampled"] < nx * ny * nz:
-        lines.append(f"(mean and percentiles from a subsample of {info['sampled']} samples)")
+        lines.append(f"(mean, percentiles and histogram from a subsample of {info['sampled']} samples)")
     if "note" in info:
         lines.append(f"note:        {info['note']}")
     return "\n".join(lines)

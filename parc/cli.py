@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from data_tools import InputError
+from data_tools.info import exact_text
 from data_tools.io.npy import save_array
 
 from .flagscene import load_volume_flags, scene_and_notes
@@ -450,7 +451,7 @@ def cmd_render(args):
         say(f"wrote {out}: {len(scene.volumes)} volumes ({'; '.join(_describe(v) for v in scene.volumes)}); "
             f"{s['seconds']['total']:.3f} s")
     elif isinstance(vis, parc.Isosurface):
-        say(f"wrote {out}: {s['hits']} of {s['pixels']} pixels hit the isosurface {vis.value:g}; "
+        say(f"wrote {out}: {s['hits']} of {s['pixels']} pixels hit the isosurface {exact_text(vis.value)}; "
             f"{s['seconds']['total']:.3f} s, {s['cells_visited']:,} cells visited, {s['cubic_solves']:,} cubics")
     else:
         say(f"wrote {out}: {vis.mode} of {vis.tf.name or 'the transfer function'}, step {vis.step:g}; "
@@ -472,7 +473,7 @@ def _write_work(result, scene, method, path):
 
 def _shown(vis):
     """What a volume shows, in a few words: its isovalue, or its transfer function's mode and step."""
-    return (f"isovalue {vis.value:g}" if hasattr(vis, "value")
+    return (f"isovalue {exact_text(vis.value)}" if hasattr(vis, "value")
             else f"{vis.mode} of {vis.tf.name or 'transfer function'}, step {vis.step:g}")
 
 

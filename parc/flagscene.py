@@ -9,6 +9,7 @@ are refused in one line, not ignored.
 from __future__ import annotations
 
 from data_tools import InputError
+from data_tools.info import exact_text
 
 
 def load_volume_flags(args):
@@ -123,17 +124,10 @@ def _volume_scene(args, say):
             lo, hi = vol.value_range()
             raise InputError(f"{vol.name}: every sample is {lo:g}; there is no isosurface to show")
         iso = levels[len(levels) // 2]
-        say(f"no --iso given; using {_exact(iso)}, suggested from the histogram "
-            f"(others: {', '.join(_exact(v) for v in levels if v != iso) or 'none'})")
+        say(f"no --iso given; using {exact_text(iso)}, suggested from the histogram "
+            f"(others: {', '.join(exact_text(v) for v in levels if v != iso) or 'none'})")
     return parc.Scene(camera=_camera(args, vol), size=(w, h), volumes=[parc.Isosurface(vol, iso)],
                       background=getattr(args, "background", None))
-
-
-def _exact(value):
-    """A level as short as ``:g`` writes it where that is exact, else in full: pasted back as
-    --iso, it must give the same surface (``:g`` wrote 1073741823.5 as 1.07374e+09)."""
-    short = f"{value:g}"
-    return short if float(short) == value else repr(float(value))
 
 
 def _camera(args, vol):

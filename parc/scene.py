@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from data_tools import InputError, Volume
+from data_tools.info import exact_text
 from data_tools.volume import settled, text_or_flag
 
 from .camera import Camera, unit_vector
@@ -53,8 +54,8 @@ class Isosurface:
             raise InputError(f"isovalue must be a number, got {self.value!r}") from None
         lo, hi = self.volume.value_range()
         if not math.isfinite(self.value) or not lo <= self.value <= hi:
-            raise InputError(f"isovalue {self.value:g} is outside the data range "
-                             f"[{lo:g}, {hi:g}] of {self.volume.name}")
+            raise InputError(f"isovalue {exact_text(self.value)} is outside the data range "
+                             f"[{exact_text(lo)}, {exact_text(hi)}] of {self.volume.name}")
         self.color = _unit_triple(self.color, "surface colour")
         self.material = _material(self.material)
 

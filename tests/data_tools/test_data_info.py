@@ -92,3 +92,54 @@ def test_extreme_float_ranges_do_not_break():
     narrow = np.ones((3, 3, 3))
     narrow[0, 0, 0] = np.nextafter(1.0, 2.0)
     assert suggest_isovalues(Volume(narrow)) == []     # no float lies strictly between
+
+
+def _listed(text, label):
+    line = next(s for s in text.splitlines() if s.startswith(label))
+    return [float(v) for v in line[len(label):].replace("..", ",").split(",") if "mean" not in v]
+
+
+@pytest.mark.parametrize("data", [
+    1.0 + 1e-6 * np.cos(np.arange(4096).reshape(16, 16, 16) / 40.0),     # six digits cannot tell them apart
+    np.linspace(1073741800, 1073741823, 4096).reshape(16, 16, 16),
+    np.where(np.arange(4096).reshape(16, 16, 16) % 3, 1000, 1000.001).astype(np.float32),
+])
+def test_printed_range_and_isovalues_are_the_values(data):
+    # Pasted back as --iso they must give the same surface, and the range the same refusal.
+    info = volume_info(Volume(data))
+    text = format_info(info)
+    assert _listed(text, "suggested isovalues:") == info["suggested_isovalues"]
+    assert _listed(text, "range:")[:2] == [info["min"], info["max"]]
+
+
+@pytest.mark.parametrize("data", [np.arange(4096, dtype=np.int16).reshape(16, 16, 16) % 700,
+                                  np.linspace(-1, 1, 4096).reshape(16, 16, 16) ** 3,
+                                  np.full((4, 4, 4), 7, dtype=np.uint8)])
+def test_histogram_counts_every_sample_between_the_range(data):
+    info = volume_info(Volume(data))
+    hist, text = info["histogram"], format_info(info)
+    if data.min() == data.max():
+        assert hist is None and "histogram" not in text
+        return
+    counts, edges = np.array(hist["counts"]), np.array(hist["edges"])
+    assert counts.sum() == info["sampled"] and len(edges) == len(counts) + 1
+    assert edges[0] <= info["min"] and info["max"] <= edges[-1] and (np.diff(edges) > 0).all()
+    inside = [((data >= a) & (data < b)).sum() for a, b in zip(edges[:-2], edges[1:-1])]
+    assert list(counts[:-1]) == inside
+    if data.dtype.kind == "i":
+        assert all(e % 1 == 0.5 for e in edges)
+    bars = [s for s in text.splitlines() if s.startswith("  ") and "%" in s]
+    assert len(bars) == len(counts)
+    lengths = [b.count("#") for b in bars]
+    assert all(lengths[i] <= lengths[j] for i in range(len(counts)) for j in range(len(counts))
+               if counts[i] < counts[j])
+    assert all((n == 0) == (c == 0) for n, c in zip(lengths, counts))
+
+
+def test_isovalue_refusal_shows_the_range_exactly():
+    from data_tools import InputError
+    from parc import Isosurface
+    vol = Volume(np.linspace(0, 0.7, 64, dtype=np.float32).reshape(4, 4, 4))
+    with pytest.raises(InputError) as exc:
+        Isosurface(vol, 0.7)                      # above float32(0.7), which :g wrote as 0.7
+    assert "isovalue 0.7 is outside the data range [0, 0.699999988079071]" in str(exc.value)

@@ -330,8 +330,8 @@ def test_bad_arguments(extra, words, vol_file, tmp_path, capsys):
 
 def test_iso_outside_range_names_the_range(vol_file, tmp_path, capsys):
     rc, _, err = _run(["render", vol_file, "--iso", -1, "-o", tmp_path / "o.png"], capsys)
-    d = np.sqrt(3 * 0.5 ** 2), np.sqrt(3 * 5.5 ** 2)  # the ball's nearest and farthest samples
-    assert rc == 2 and f"[{d[0]:g}, {d[1]:g}]" in err
+    d = [float(np.float32(np.sqrt(3 * r ** 2))) for r in (0.5, 5.5)]  # the ball's nearest and farthest samples
+    assert rc == 2 and f"[{d[0]!r}, {d[1]!r}]" in err
 
 
 @pytest.mark.parametrize("target", ["missing_dir/out.png", "out.jpg", "."])
