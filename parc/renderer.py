@@ -189,7 +189,7 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
     else:
         raise InputError(f"cannot render a {type(vis).__name__}; give an Isosurface or a Translucent")
     if scene.background is not None:
-        over_background(image, np.asarray(scene.background, np.float32))
+        over_background(image, _premultiplied(scene.background))
     timings["total"] = time.perf_counter() - t0
     w, h = scene.size
     vol = vis.volume
@@ -225,7 +225,7 @@ def _render_general(scene, method, supercell, progress, light_buffer, skip_block
     image, depth, counts, timings, extra = render_scene(scene, method, supercell=supercell, progress=progress,
                                                         light_buffer=n, blocks=skip_blocks)
     if scene.background is not None:
-        over_background(image, np.asarray(scene.background, np.float32))
+        over_background(image, _premultiplied(scene.background))
     timings["total"] = time.perf_counter() - t0
     w, h = scene.size
     stats = {
@@ -301,6 +301,12 @@ def _light_buffer_size(light_buffer):
         raise InputError(f"light buffers take a whole number of pixels from 2 to {MAX_LIGHT_BUFFER}, "
                          f"got {light_buffer!r}")
     return int(light_buffer)
+
+
+def _premultiplied(background):
+    """A scene's background, given as colour and alpha, as the image holds colour: times alpha."""
+    r, g, b, a = background
+    return np.array([r * a, g * a, b * a, a], np.float32)
 
 
 def bits_refused(scene):

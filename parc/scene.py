@@ -214,7 +214,9 @@ class Scene:
         empty means a headlight at the eye.
     background : (r, g, b), (r, g, b, a) or None
         Composited under the image, each component in [0, 1]; three are
-        opaque (a = 1). None leaves it transparent.
+        opaque (a = 1). The colour is as seen, not yet multiplied by alpha
+        (the image's premultiplied pixels hold ``(a r, a g, a b, a)``).
+        None leaves it transparent.
     shadows : bool, default False
         Cast shadow rays from every isosurface hit to every light: blocked
         by any isosurface, attenuated by translucent volumes on the way.

@@ -520,7 +520,7 @@ def cast_accumulate_image(data, org, spc, cam, width, height, params, op_x, op_y
 
 @kernel(parallel=True)
 def over_background(image, background):
-    """Composite a premultiplied RGBA ``(H, W, 4)`` float32 image over ``background`` (RGBA), in place.
+    """Composite a premultiplied RGBA ``(H, W, 4)`` float32 image over ``background`` (premultiplied RGBA), in place.
 
     One pass over the pixels; NumPy's broadcast expression took 6-7 ms a
     frame at 512x512, a tenth of a PARC frame.

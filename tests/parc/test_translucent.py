@@ -320,3 +320,23 @@ def test_distant_parallel_eye_and_a_steep_field(mode, gl):
         for buffers in BUFFERS:
             res = render(scene, method="parc", supercell=supercell, buffers=buffers)
             assert np.abs(res.image - ref.image).max() <= 1e-6, (supercell, buffers)
+
+
+@pytest.mark.parametrize("background", [(0.2, 0.4, 0.6, 0.5), (1.0, 1.0, 1.0, 0.0), (0.1, 0.7, 0.3)])
+@pytest.mark.parametrize("two", [False, True])
+def test_background_goes_under_the_image_as_colour_times_alpha(background, two):
+    """The background is given as seen; the image's premultiplied pixels hold it times its alpha
+    (one volume, and several through the general path), and colour never exceeds alpha."""
+    from parc import Isosurface
+    vol = blobs(12, seed=3)
+    lo, hi = vol.value_range()
+    volumes = [Translucent(vol, "greyscale")] + ([Isosurface(vol, 0.8 * lo + 0.2 * hi)] if two else [])
+    scene = Scene(camera=Camera.framing(*vol.bounds), size=(20, 16), volumes=volumes)
+    bare = render(scene).image
+    r, g, b, *a = background
+    a = a[0] if a else 1.0
+    with_bg = render(Scene(camera=scene.camera, size=scene.size, volumes=volumes, background=background)).image
+    expect = bare + (1 - bare[..., 3:]) * np.array([r * a, g * a, b * a, a], np.float32)
+    assert np.abs(with_bg - expect).max() < 1e-6
+    assert (with_bg[..., :3] <= with_bg[..., 3:] + 1e-6).all()
+    assert (bare[..., 3] < 1).any()
