@@ -188,6 +188,10 @@ def _merged_caster(shaded):
                             acc += wgt * layer_rgba[j, y, x, 3]
                         if best < 0 or acc >= thr:
                             break
+                        if acc >= params[best, P_THRESHOLD]:
+                            # This volume's own threshold: it adds no more, as it would alone.
+                            st[best, _W_LIVE] = 0.0
+                            continue
                         tl = st[best, _W_T_IN] + st[best, _W_N] * params[best, P_STEP]
                         i, j, k = int(st[best, _W_CELL]), int(st[best, _W_CELL + 1]), int(st[best, _W_CELL + 2])
                         u, vv, w = local_coords(st[best, _W_A], st[best, _W_A + 1], st[best, _W_A + 2],
@@ -237,7 +241,8 @@ def cast_merged_image(datas, orgs, spcs, cam, width, height, params, op_x, op_y,
     single-volume cast would take; the samples of all volumes are taken in
     order of ``t`` (ties: the first volume first), composited front to
     back, and stop at ``stop[y, x]`` (an opaque surface) or once the
-    opacity reaches the largest threshold. ``layer_t[j]``, ``layer_rgba[j]``
+    opacity reaches the largest threshold; a volume's samples stop
+    counting once the opacity reaches its own. ``layer_t[j]``, ``layer_rgba[j]``
     are finished per-pixel layers (maximum or average intensity of another
     volume) composited where the ray reaches ``t = layer_t``. ``skip[k]``
     and ``jump_mins[k]``: volume k's skip table, as `accumulate_ray`

@@ -237,3 +237,19 @@ def test_translucent_in_front_of_surface_is_composited_over_it(gl):
     front = render(Scene(camera=cam, size=SIZE, volumes=[fog]), "brute")
     want = front.image + (1.0 - front.image[..., 3:4]) * surf.image
     assert np.abs(both.image - want).max() <= 1e-6
+
+
+@pytest.mark.parametrize("method", ["brute", "parc"])
+@pytest.mark.parametrize("seed", range(2))
+def test_a_volume_stops_at_its_own_threshold_beside_others(gl, method, seed):
+    """Each composite volume's samples stop counting at its own threshold: a volume the rays never
+    meet, with another threshold, leaves the image as it is alone (the largest threshold ruled)."""
+    rng = np.random.default_rng(90 + seed)
+    a = _volume(rng, "blobs")
+    far = Volume(a.data, spacing=a.spacing, origin=tuple(np.array(a.origin) + 1e4), name="far")
+    fog = Translucent(a, tf="greyscale", threshold=0.3)
+    cam = _camera(rng, *a.bounds)
+    alone = render(Scene(camera=cam, size=SIZE, volumes=[fog]), method)
+    beside = render(Scene(camera=cam, size=SIZE, volumes=[fog, Translucent(far, tf="greyscale")]), method)
+    assert alone.image[..., 3].max() >= 0.3
+    assert np.abs(alone.image - beside.image).max() <= 1e-6
