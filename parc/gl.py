@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import os
 import re
+import threading
 from pathlib import Path
 
 from data_tools import InputError
@@ -20,6 +21,8 @@ from data_tools import InputError
 SHADER_DIR = Path(__file__).with_name("shaders")
 
 _CONTEXT = None
+#: The thread the context was made on, the only one it is current in.
+_OWNER = None
 _PROGRAMS = {}
 
 class OpenGLUnavailable(InputError):
@@ -28,6 +31,9 @@ class OpenGLUnavailable(InputError):
 
 def get_context():
     """The process-wide headless OpenGL context, created on first call.
+
+    An OpenGL context is current in one thread: the one that first called,
+    the only one that may call again.
 
     Returns
     -------
@@ -39,9 +45,15 @@ def get_context():
     OpenGLUnavailable
         moderngl or EGL is missing, or the driver cannot give 4.3 with
         float64 shaders (the message is one line).
+    InputError
+        A call from another thread than the first.
     """
-    global _CONTEXT
+    global _CONTEXT, _OWNER
     if _CONTEXT is not None:
+        if threading.get_ident() != _OWNER.ident:
+            raise InputError(f"OpenGL work runs on the thread that first did it ({_OWNER.name}), and this is "
+                             f"{threading.current_thread().name}; render with method='parc' from that thread "
+                             "(method='brute' renders on any)")
         return _CONTEXT
     try:
         import moderngl
@@ -56,7 +68,7 @@ def get_context():
     # Buffers uploaded for a proxy are released when the proxy goes away.
     ctx.gc_mode = "auto"
     spread_rasterizer_threads()
-    _CONTEXT = ctx
+    _CONTEXT, _OWNER = ctx, threading.current_thread()
     return ctx
 
 

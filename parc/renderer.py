@@ -7,6 +7,7 @@ casting kernels are the same for both methods.
 """
 from __future__ import annotations
 
+import threading
 import time
 from dataclasses import dataclass
 
@@ -22,6 +23,8 @@ from .scene import Isosurface, Scene, Translucent
 from .workspace import check_frame_memory, work_array
 
 METHODS = ("brute", "parc")
+#: Held by every render (re-entrant, for renders inside a render's callbacks).
+_ONE_AT_A_TIME = threading.RLock()
 
 #: Proxies kept per volume (classification, supercell size), least recently
 #: used dropped first, so that only a camera change re-rasterizes: enough for
@@ -126,11 +129,24 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
     OpenGLUnavailable
         ``method="parc"`` without an OpenGL context.
 
+    Notes
+    -----
+    Any thread may render; renders run one at a time (each uses every
+    core already). OpenGL work stays on the thread that first did it
+    (`parc.gl.get_context`), so ``method="parc"`` renders from another
+    thread are refused.
+
     References
     ----------
     Parker et al. 1998, §2 and Appendix A (traversal, intersection, normals);
     Sobierajski & Avila 1995, §3 (depth-buffer PARC) and §4 (accumulation).
     """
+    # Renders share work arrays, Numba's thread pool and one OpenGL context: one at a time.
+    with _ONE_AT_A_TIME:
+        return _render(scene, method, supercell, buffers, progress, light_buffer, blocks, work)
+
+
+def _render(scene, method, supercell, buffers, progress, light_buffer, blocks, work):
     if not isinstance(scene, Scene):
         raise InputError(f"render takes a Scene, got {type(scene).__name__}")
     if method not in METHODS:

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import parc.workspace as workspace
-from data_tools import InputError, memory
+from data_tools import InputError, Volume, memory
 from data_tools.synthetic import blobs
 from parc import Camera, Isosurface, PointLight, Scene, render
 from parc.gl import OpenGLUnavailable
@@ -122,3 +122,42 @@ def _has_gl():
         return True
     except OpenGLUnavailable:
         return False
+
+
+def _ball(n=20):
+    z, y, x = np.mgrid[0:n, 0:n, 0:n]
+    c = (n - 1) / 2
+    return Volume(np.sqrt((x - c) ** 2 + (y - c) ** 2 + (z - c) ** 2).astype(np.float32))
+
+
+def test_renders_from_several_threads_equal_renders_one_by_one():
+    # They share work arrays and Numba's thread pool; each must come out as it does alone.
+    from concurrent.futures import ThreadPoolExecutor
+    vol = _ball()
+    scenes = [Scene(camera=Camera.framing(*vol.bounds, azimuth=30 * k), size=(40, 32),
+                    volumes=[Isosurface(vol, 3.0 + k)]) for k in range(6)]
+    alone = [render(s).image for s in scenes]
+    with ThreadPoolExecutor(4) as pool:
+        together = list(pool.map(lambda s: render(s).image, scenes * 3))
+    for k, image in enumerate(together):
+        assert np.array_equal(image, alone[k % len(scenes)])
+
+
+def test_parc_from_another_thread_than_opengl_s_is_refused_in_one_line(gl):
+    import threading
+    vol = _ball(12)
+    scene = Scene(camera=Camera.framing(*vol.bounds), size=(16, 16), volumes=[Isosurface(vol, 4.0)])
+    render(scene, "parc")                                # the context is made, or already was, here
+    caught = []
+
+    def other():
+        try:
+            render(scene, "parc")
+        except Exception as exc:                         # noqa: BLE001 - the test inspects whatever it is
+            caught.append(exc)
+    worker = threading.Thread(target=other, name="worker")
+    worker.start()
+    worker.join()
+    assert len(caught) == 1 and isinstance(caught[0], InputError), caught
+    assert "the thread that first did it" in str(caught[0]) and "\n" not in str(caught[0])
+    assert np.isfinite(render(scene, "brute").depth).any()
