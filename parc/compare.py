@@ -7,6 +7,7 @@ import time
 import numpy as np
 
 from data_tools import InputError
+from data_tools.volume import text_or_flag
 
 from .renderer import render
 from .workspace import check_frame_memory
@@ -68,12 +69,7 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
         ``speedup_high`` (the lowest and highest of the rounds' own ratios,
         each round timing every method once).
     """
-    from .scene import Scene
-    if not isinstance(scene, Scene):
-        raise InputError(f"compare takes a Scene, got {type(scene).__name__}")
-    for name, value, least in (("repeats", repeats, 1), ("warmup", warmup, 0)):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < least:
-            raise InputError(f"{name} must be a whole number >= {least}, got {value!r}")
+    _check_runs("compare", scene, repeats, warmup)
     names = method_names(methods)
     if not isinstance(options or {}, dict) or not all(isinstance(o, dict) for o in (options or {}).values()):
         raise InputError(f"options must map method names to dicts of render() arguments, got {options!r}")
@@ -83,8 +79,7 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
         raise InputError(f"options for {', '.join(map(repr, unused))}, which is not among the methods run")
     for name, opts in options.items():
         _check_render_options(name, opts)
-    if progress is not None and not callable(progress):
-        raise InputError(f"progress must be a function of the method's name, got {progress!r}")
+    _check_progress(progress, "the method's name")
     check_frame_memory(*scene.size, layers=len(scene.volumes), kept_images=len(names))
     _check_supercells(scene, options)
     vol = scene.volumes[0].volume
@@ -232,6 +227,20 @@ def format_table(rows):
     return "\n".join(out)
 
 
+def _check_runs(what, scene, repeats, warmup):
+    from .scene import Scene
+    if not isinstance(scene, Scene):
+        raise InputError(f"{what} takes a Scene, got {type(scene).__name__}")
+    for name, value, least in (("repeats", repeats, 1), ("warmup", warmup, 0)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < least:
+            raise InputError(f"{name} must be a whole number >= {least}, got {value!r}")
+
+
+def _check_progress(progress, of):
+    if progress is not None and not callable(progress):
+        raise InputError(f"progress must be a function of {of}, got {progress!r}")
+
+
 def step_sweep(scene, steps, *, repeats=3, warmup=1, progress=None, options=None):
     """Speed against error over sample steps, for a translucent volume.
 
@@ -252,14 +261,25 @@ def step_sweep(scene, steps, *, repeats=3, warmup=1, progress=None, options=None
     from dataclasses import replace
 
     from .scene import Scene, Translucent
+    _check_runs("a step sweep", scene, repeats, warmup)
+    _check_progress(progress, "a line of text")
     vis = scene.volumes[0]
     if len(scene.volumes) != 1 or not isinstance(vis, Translucent):
         raise InputError("a step sweep takes a scene of one translucent volume (--tf)")
+    if not isinstance(options or {}, dict):
+        raise InputError(f"options must be a dict of render() arguments, got {options!r}")
     options = dict(options or {})
     _check_render_options("parc", options)
-    steps = sorted({float(s) for s in steps}, reverse=True)
-    if not steps or not all(np.isfinite(steps)) or min(steps) <= 0:
-        raise InputError("sweep steps must be positive numbers")
+    try:
+        items = None if isinstance(steps, (str, bytes)) else list(steps)
+        if any(text_or_flag(v) for v in items):
+            raise TypeError
+        values = sorted({float(v) for v in items}, reverse=True)
+    except (TypeError, ValueError):
+        values = []
+    if not values or not all(np.isfinite(values)) or min(values) <= 0:
+        raise InputError(f"sweep steps must be a list of positive numbers, got {steps!r}")
+    steps = values
     check_frame_memory(*scene.size, kept_images=2 * len(steps) + 1)
 
     def at(step):

@@ -12,10 +12,15 @@ import pytest
 import parc
 from data_tools import InputError, Volume
 from data_tools.synthetic import blobs
+from parc.compare import step_sweep
 
 VOL = blobs(12, seed=3)
 ISO = float(VOL.data.mean())
 CAM = parc.Camera.framing(*VOL.bounds)
+
+
+def _fog():
+    return _scene(volumes=[parc.Translucent(VOL, "greyscale")])
 
 
 def _scene(**kw):
@@ -68,6 +73,12 @@ CASES = {
                                                        method="parc", buffers="bits"), "has 2 volumes"),
     "supercell as text for brute": (lambda: parc.render(_scene(), supercell="a"), "supercell"),
     "shade with mip": (lambda: parc.Translucent(VOL, "greyscale", mode="mip", shade=True), "mode composite"),
+    "step sweep repeats 0": (lambda: step_sweep(_fog(), [0.5], repeats=0), "repeats"),
+    "step sweep of one number": (lambda: step_sweep(_fog(), 0.5), "sweep steps"),
+    "step sweep of a word": (lambda: step_sweep(_fog(), ["fine"]), "sweep steps"),
+    "step sweep of a boolean": (lambda: step_sweep(_fog(), [True]), "sweep steps"),
+    "step sweep of a Translucent": (lambda: step_sweep(parc.Translucent(VOL, "greyscale"), [0.5]), "Scene"),
+    "step sweep progress 5": (lambda: step_sweep(_fog(), [0.5], progress=5), "progress"),
     "isovalue as text": (lambda: parc.Isosurface(VOL, str(ISO)), "isovalue must be a number"),
     "isovalue True": (lambda: parc.Isosurface(VOL, True), "isovalue must be a number"),
     "size of booleans": (lambda: _scene(size=(True, True)), "image size"),
