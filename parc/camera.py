@@ -212,11 +212,11 @@ class Camera:
 def check_fov(fov):
     """Refuse a field of view (degrees) that is not a number strictly between 0 and 180."""
     try:
-        ok = 0.0 < float(fov) < 180.0
+        ok = not text_or_flag(fov) and 0.0 < float(fov) < 180.0
     except (TypeError, ValueError):
         ok = False
     if not ok:
-        raise InputError(f"field of view must be between 0 and 180 degrees, got {fov}")
+        raise InputError(f"field of view must be a number of degrees between 0 and 180, got {fov!r}")
 
 
 def unit_vector(v):

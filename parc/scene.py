@@ -113,6 +113,8 @@ class Translucent:
         if self.step is None:
             self.step = reference_step(self.volume.spacing)
         try:
+            if text_or_flag(self.step):
+                raise TypeError
             self.step = float(self.step)
         except (TypeError, ValueError):
             raise InputError(f"step must be a number, got {self.step!r}") from None
@@ -122,7 +124,7 @@ class Translucent:
             raise InputError(f"step {self.step:g} is below 1e-4 of the smallest spacing; "
                              f"that is too many samples per ray")
         try:
-            threshold = float(self.threshold)
+            threshold = math.nan if text_or_flag(self.threshold) else float(self.threshold)
         except (TypeError, ValueError):
             threshold = math.nan
         if not 0.0 < threshold <= 1.0:
@@ -288,7 +290,7 @@ def _finite_triple(v, what):
 
 def _non_negative(v, what):
     try:
-        x = float(v)
+        x = math.nan if text_or_flag(v) else float(v)
     except (TypeError, ValueError):
         x = math.nan
     if not (math.isfinite(x) and x >= 0.0):
