@@ -58,7 +58,9 @@ class Volume:
     Parameters
     ----------
     data : ndarray, shape (nz, ny, nx)
-        Samples, C-contiguous, native byte order (converted if not).
+        Samples, C-contiguous, native byte order (converted if not), of one
+        of `SUPPORTED_DTYPES`; booleans become uint8, float16 float32, and
+        64-bit integers 32-bit ones when every value fits.
     spacing : (sx, sy, sz)
         Distance between neighbouring samples along x, y, z; positive.
     origin : (ox, oy, oz)
@@ -104,7 +106,7 @@ class Volume:
         if dt.byteorder not in ("=", "|") and dt.newbyteorder("=") in SUPPORTED_DTYPES:
             data = data.astype(dt.newbyteorder("="))
         if data.dtype not in SUPPORTED_DTYPES:
-            raise InputError(f"{self.name}: unsupported sample type {data.dtype}")
+            data = _narrowed(data, self.name)
         if not data.flags.c_contiguous:
             data = np.ascontiguousarray(data)
         if data.dtype.kind == "f":
@@ -182,6 +184,29 @@ def _count_non_finite(data, slab_bytes=64 << 20):
     per = max(1, slab_bytes // max(data[0].nbytes, 1))
     return sum(int(slab.size - np.count_nonzero(np.isfinite(slab)))
                for slab in (data[z:z + per] for z in range(0, data.shape[0], per)))
+
+
+def _narrowed(data, name):
+    """``data`` in a sample type the kernels read, where that loses nothing: a mask as uint8,
+    half floats as float32, 64-bit integers (NumPy's default for whole numbers) as 32-bit ones
+    when every value fits. Anything else is refused."""
+    kind = data.dtype.kind
+    target = None
+    if kind == "b":
+        target = np.uint8
+    elif kind == "f" and data.dtype.itemsize < 4:
+        target = np.float32
+    elif kind in "iu" and data.size:
+        lo, hi = int(data.min()), int(data.max())
+        for t in (np.int32, np.uint32):
+            if np.iinfo(t).min <= lo and hi <= np.iinfo(t).max:
+                target = t
+                break
+    if target is None:
+        names = ", ".join(t.name for t in SUPPORTED_DTYPES)
+        raise InputError(f"{name}: unsupported sample type {data.dtype}"
+                         + (" with values beyond 32 bits" if kind in "iu" else "") + f"; use one of {names}")
+    return data.astype(target)
 
 
 def text_or_flag(value):

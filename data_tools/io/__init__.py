@@ -145,6 +145,9 @@ def save_volume(volume: Volume, path, **options) -> Path:
     InputError
         Unknown extension, or the file cannot be written.
     """
+    if not isinstance(volume, Volume):
+        raise InputError(f"save_volume takes a Volume, got {type(volume).__name__}; "
+                         "wrap samples as Volume(array, spacing=..., origin=...)")
     path = Path(path)
     ext = path.suffix.lower()
     writers = {".nrrd": nrrd_format.write_nrrd, ".nhdr": nrrd_format.write_nrrd, ".npy": npy.write_npy,

@@ -170,8 +170,10 @@ def test_nrrd_2d_and_4d(tmp_path):
 
 
 def test_nrrd_unsupported_type(tmp_path):
-    nrrd.write(str(tmp_path / "i64.nrrd"), np.zeros((3, 3, 3), np.int64), index_order="C")
-    fails(tmp_path / "i64.nrrd", "unsupported")
+    nrrd.write(str(tmp_path / "i64.nrrd"), np.full((3, 3, 3), 2**40, np.int64), index_order="C")
+    fails(tmp_path / "i64.nrrd", "unsupported sample type int64 with values beyond 32 bits")
+    nrrd.write(str(tmp_path / "small.nrrd"), np.arange(27, dtype=np.int64).reshape(3, 3, 3), index_order="C")
+    assert load_volume(tmp_path / "small.nrrd").dtype == np.int32     # every value fits
 
 
 def test_nrrd_unknown_type_is_named(tmp_path):
@@ -382,3 +384,29 @@ def test_damaged_files_give_only_input_errors(tmp_path, writers, name):
             outcomes.add("error")
             assert "\n" not in str(exc)
     assert "error" in outcomes
+
+
+@pytest.mark.parametrize("data, kept_as", [
+    (np.arange(64).reshape(4, 4, 4), np.int32),                       # NumPy's default whole numbers
+    (np.arange(64).reshape(4, 4, 4) % 2 == 0, np.uint8),              # a mask
+    (np.linspace(-2, 2, 64, dtype=np.float16).reshape(4, 4, 4), np.float32),
+    (np.arange(64, dtype=np.uint64).reshape(4, 4, 4) + 4_000_000_000, np.uint32),
+    (-np.arange(64, dtype=np.int64).reshape(4, 4, 4) - 2**31 + 64, np.int32),
+])
+def test_samples_of_other_types_are_kept_exactly_in_one_the_kernels_read(data, kept_as):
+    vol = Volume(data)
+    assert vol.dtype == kept_as and np.array_equal(vol.data, data)
+
+
+@pytest.mark.parametrize("data", [np.arange(64, dtype=np.int64).reshape(4, 4, 4) * 2**40,
+                                  np.ones((4, 4, 4), np.complex64)])
+def test_samples_no_kernel_type_holds_are_refused_naming_the_types(data):
+    with pytest.raises(InputError, match=r"unsupported sample type .*; use one of uint8, .*float64$"):
+        Volume(data)
+
+
+def test_saving_an_array_asks_for_a_volume(tmp_path):
+    from data_tools.io import save_volume
+    with pytest.raises(InputError, match="save_volume takes a Volume, got ndarray"):
+        save_volume(np.zeros((4, 4, 4), np.uint8), tmp_path / "v.nrrd")
+    assert not any(tmp_path.iterdir())
