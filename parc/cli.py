@@ -171,7 +171,8 @@ def build_parser():
                         "with several volumes, camera and lights")
     r.add_argument("-o", "--output", required=True, metavar="OUT",
                    help="image: .png (8-bit RGBA) or .npy (float32 RGBA array)")
-    r.add_argument("--depth", metavar="D.npy", help="also write the float64 depth image (inf = no hit)")
+    r.add_argument("--depth", metavar="D.npy", help="also write the float64 depth image: world distance to the first isosurface hit, "
+                        "inf where none (translucent volumes have no surface)")
     r.add_argument("--stats", metavar="S.json",
                    help="also write timings and counts as JSON (strict: a non-finite number is null)")
     r.add_argument("--work", metavar="W.png|W.npy",

@@ -47,10 +47,14 @@ class RenderResult:
     image : ndarray (H, W, 4) float32
         Premultiplied RGBA in [0, 1].
     depth : ndarray (H, W) float64
-        World distance ``t`` along each pixel's ray to the first opaque hit, ``inf`` where none.
+        World distance ``t`` along each pixel's ray to the first isosurface hit, ``inf`` where
+        none: a translucent volume has no surface, so a scene of translucent volumes alone is
+        ``inf`` everywhere, and so ``hits`` counts isosurface hits only.
     stats : dict
-        ``method``, ``seconds`` per phase, ``pixels``, ``rays``, ``cells_visited``,
-        ``cubic_solves``, ``samples``, ``hits``, ``polygons`` and the parameters used.
+        ``method``, ``seconds`` per phase, ``pixels``, ``rays`` (one per pixel; with PARC,
+        ``segment_pixels`` are those whose ray is walked), ``cells_visited``,
+        ``cubic_solves``, ``samples``, ``hits``, ``polygons`` (all PARC drew: its proxy's and,
+        with bit planes, their ``plane_polygons``) and the parameters used.
     work : ndarray (H, W) int64 or None
         With ``render(..., work=True)``: per pixel, the cells its ray visited
         (an isosurface) or the samples it took (a translucent volume), so
@@ -227,6 +231,7 @@ def _render(scene, method, supercell, buffers, progress, light_buffer, blocks, w
         stats["parameters"].update({"mode": vis.mode, "step": vis.step, "threshold": vis.threshold,
                                     "transfer_function": vis.tf.name or "custom"})
     stats.update(extra)
+    stats["polygons"] = extra.get("polygons", 0) + extra.get("plane_polygons", 0)
     per_pixel = counts["per_pixel"].reshape(h, w).copy() if work else None
     return RenderResult(image=image, depth=depth, stats=stats, work=per_pixel)
 

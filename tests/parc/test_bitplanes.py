@@ -614,3 +614,15 @@ def test_distant_eye_fine_planes(gl, planes_report, distance, parallel):
         img, _ = _cast(vol, tf, mode, cam, w, h, bits=plane_buffers(cam, w, h, vol, pc, grid), step=3.0)
         assert n_ref > 0
         assert float(np.abs(img - ref).max()) <= 1e-6, mode
+
+
+def test_stats_count_every_polygon_drawn(gl):
+    """``polygons`` counts the bit planes' too: with bit planes alone they are all PARC draws."""
+    from data_tools.synthetic import blobs
+    from parc import Scene, Translucent, render
+    vol = blobs(16, seed=2)
+    scene = Scene(camera=Camera.framing(*vol.bounds), size=(24, 24), volumes=[Translucent(vol, "greyscale")])
+    drawn = {b: render(scene, "parc", supercell=2, buffers=b).stats for b in ("depth", "bits", "depth,bits")}
+    assert drawn["depth"]["polygons"] > 0 and drawn["bits"]["plane_polygons"] > 0
+    assert drawn["bits"]["polygons"] == drawn["bits"]["plane_polygons"]
+    assert drawn["depth,bits"]["polygons"] == drawn["depth"]["polygons"] + drawn["depth,bits"]["plane_polygons"]
