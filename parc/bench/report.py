@@ -4,6 +4,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+from ..rootstudy import FAILURE_KINDS
 from . import charts, heatmaps
 
 
@@ -161,9 +162,13 @@ def sweeps(res, out):
            f"{rows[0]['rays']:,} rays ({rows[0]['required']:,} with a required root), {rows[0]['solves']:,} "
            "cubics timed single-threaded (`python -m parc.rootstudy`); error |t − r| in smallest spacings "
            "against mpmath roots.", ""]
-    md.append(_table(("finder", "ns/solve", "max error", "median error", "failures", "missed", "wrong", "inaccurate"),
+    md.append(_table(("finder", "ns/solve", "max error", "median error", "failures", *FAILURE_KINDS),
                      [(r["name"], f"{r['ns_per_solve']:.1f}", _err(r["max_err_cells"]), _err(r["median_err_cells"]),
-                       f"{r['failures']:,}", r["missed"], r["wrong"], f"{r['inaccurate']:,}") for r in rows]))
+                       f"{r['failures']:,}", *(f"{r[k]:,}" for k in FAILURE_KINDS)) for r in rows]))
+    md += ["", "Failures by kind (they add up to the failures): missed, a required root and no hit; false, "
+           "a hit with no root within a cell; wrong, the first root skipped and a later one hit; "
+           "inaccurate, within a cell of the true root but outside its tolerance (1e-9 of a cell plus "
+           "the rounding of t); cell, cell or local coordinates inconsistent with t.", ""]
     _scatter(out / "sweep_roots.png",
                          [{"x": r["max_err_cells"], "y": r["ns_per_solve"], "label": f"{r['name']} ({r['failures']} fail)",
                            "series": r["name"]} for r in rows],

@@ -104,6 +104,17 @@ def test_sweeps_cover_what_the_suite_asked(bench):
     assert {r["dtype"] for r in res["precision"]["rows"]} >= {"float32", "float64"}
 
 
+def test_root_finder_table_shows_failures_and_every_kind_adding_up(bench):
+    out, _, res, _ = bench
+    md = (out / "report.md").read_text()
+    for r in res["roots"]["rows"]:
+        kinds = [r[k] for k in ("missed", "false", "wrong", "inaccurate", "cell")]
+        assert sum(kinds) == r["failures"]
+        line = next(s for s in md.splitlines() if s.startswith(f"| {r['name']} |"))
+        cells = [c.strip() for c in line.strip("|").split("|")]
+        assert [int(c.replace(",", "")) for c in cells[-6:]] == [r["failures"], *kinds]
+
+
 def test_visible_woman_section_maps_the_phantom_it_built(bench):
     _, suite, res, _ = bench
     vw = res["visible_woman"]
