@@ -65,7 +65,7 @@ import numpy as np
 
 from raycast.config import kernel
 from raycast.cubic import eval_cubic, first_root
-from raycast.iso import cell_cubic, corners
+from raycast.iso import cell_cubic, corners, entry_face_time, on_level_face
 from raycast.roots_alt import MARMITT_ITER, first_root_closed_form, first_root_marmitt
 from raycast.traverse import clip_box, entry_anchor, step_cell, to_index_space, walk_from
 
@@ -115,12 +115,12 @@ def walk_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, variant, rec, n0):
     """
     nz, ny, nx = data.shape
     ta, Ox, Oy, Oz = entry_anchor(Ox, Oy, Oz, Dx, Dy, Dz, nx, ny, nz)     # as cast_iso_ray
-    t, i, j, k, u, v, w, solves = _walk_anchored(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, variant, rec, n0)
+    t, i, j, k, u, v, w, solves = _walk_anchored(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, variant, rec, n0, ta > 0.0)
     return ta + t, i, j, k, u, v, w, solves
 
 
 @kernel
-def _walk_anchored(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, variant, rec, n0):
+def _walk_anchored(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, variant, rec, n0, anchored):
     """`walk_iso_ray` on an anchored ray."""
     nz, ny, nx = data.shape
     t_in, t_out = clip_box(Ox, Oy, Oz, Dx, Dy, Dz, nx, ny, nz)
@@ -142,7 +142,11 @@ def _walk_anchored(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, variant, rec, n0):
         elif c0 <= c1:
             A, B, C, D, u0, v0, w0 = cell_cubic(v000, v100, v010, v110, v001, v101, v011, v111,
                                                 Ox, Oy, Oz, Dx, Dy, Dz, i, j, k, c0)
-            if c0 > t_in and prev != 0.0 and D != 0.0 and (D < 0.0) != (prev < 0.0):
+            if c0 > t_in:
+                if prev != 0.0 and D != 0.0 and (D < 0.0) != (prev < 0.0):
+                    return c0, i, j, k, u0, v0, w0, solves
+            elif on_level_face(v000, v100, v010, v110, v001, v101, v011, v111, tx0, ty0, tz0,
+                               entry_face_time(tx0, ty0, tz0, c0, anchored), sx, sy, sz, False):
                 return c0, i, j, k, u0, v0, w0, solves
             L = c1 - c0
             if record:
@@ -156,6 +160,9 @@ def _walk_anchored(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, variant, rec, n0):
             s = _solve(variant, A, B, C, D, L)
             if s >= 0.0:
                 return c0 + s, i, j, k, u0 + s * Dx, v0 + s * Dy, w0 + s * Dz, solves
+            if c1 == t_out and on_level_face(v000, v100, v010, v110, v001, v101, v011, v111,
+                                             tx1, ty1, tz1, c1, sx, sy, sz, True):
+                return c1, i, j, k, u0 + L * Dx, v0 + L * Dy, w0 + L * Dz, solves
             f = eval_cubic(A, B, C, D, L)
             prev = 1.0 if f > 0.0 else (-1.0 if f < 0.0 else 0.0)
         if c1 >= t_out:

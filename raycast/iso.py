@@ -162,6 +162,61 @@ def _entry_sign(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, i, j, k, sx, sy, sz,
 
 
 @kernel
+def on_level_face(v000, v100, v010, v110, v001, v101, v011, v111, tx, ty, tz, t, sx, sy, sz, leaving):
+    """Whether the ray meets the cell at ``t`` on a face whose four corners all equal the isovalue.
+
+    ``tx, ty, tz`` are the cell's entry (``leaving`` False) or exit
+    (``leaving`` True) crossing times, ``sx, sy, sz`` the walk's steps: the
+    ray enters or leaves through the face of each axis whose time is ``t``:
+    entering, the face at local coordinate 0 of an axis it steps forwards
+    along, 1 backwards; leaving, the opposite one. The interpolant is the isovalue exactly all over such a face
+    (`corners` subtracts ``iso``, so the test is exact), and the ray is on it
+    at ``t`` by the walk's own crossing times, whatever the rounding of the
+    cell's cubic there.
+
+    The walk asks only where ``t`` is where the ray enters the volume
+    (``t_in``) or leaves it (``t_out``): inside, the cell on the other side of
+    the face settles a root there (the entry-sign rule of `cast_iso_ray`);
+    on the volume's own faces there is none.
+    """
+    if sx != 0 and tx == t:
+        if (sx > 0) == leaving:
+            if v100 == 0.0 and v110 == 0.0 and v101 == 0.0 and v111 == 0.0:
+                return True
+        elif v000 == 0.0 and v010 == 0.0 and v001 == 0.0 and v011 == 0.0:
+            return True
+    if sy != 0 and ty == t:
+        if (sy > 0) == leaving:
+            if v010 == 0.0 and v110 == 0.0 and v011 == 0.0 and v111 == 0.0:
+                return True
+        elif v000 == 0.0 and v100 == 0.0 and v001 == 0.0 and v101 == 0.0:
+            return True
+    if sz != 0 and tz == t:
+        if (sz > 0) == leaving:
+            if v001 == 0.0 and v101 == 0.0 and v011 == 0.0 and v111 == 0.0:
+                return True
+        elif v000 == 0.0 and v100 == 0.0 and v010 == 0.0 and v110 == 0.0:
+            return True
+    return False
+
+
+@kernel
+def entry_face_time(tx0, ty0, tz0, t_in, anchored):
+    """The crossing time of the face a ray enters the volume through at ``t_in``, for `on_level_face`.
+
+    ``t_in`` itself: where the ray comes from outside, the entry plane's
+    crossing and the volume's are the same product (`clip_box`,
+    `axis_state`). But a ray moved to its entry (`entry_anchor`) has its
+    origin on the face only to within a rounding: a hair inside, ``t_in``
+    is 0 and the plane's crossing a hair below it, so there it is the
+    latest of the cell's entry crossings.
+    """
+    if anchored:
+        return max(tx0, max(ty0, tz0))
+    return t_in
+
+
+@kernel
 def _cell_sign(entry):
     """The sign (+1, -1, 0) a sign-table entry gives its cell."""
     if entry > 0:
@@ -189,6 +244,15 @@ def cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, seg0, seg1, skip, jump_min):
     The walk carries that sign from cell to cell; for the first cell of a
     segment it is recomputed, so any start gives the same answers.
 
+    Where the ray enters or leaves the volume there is no neighbour to ask,
+    and an isosurface lying on the volume's own face (the isovalue is the
+    data's min or max, taken all over the face) was found only where the
+    cubic happened to round onto it. So a face whose four corners are all at
+    the isovalue is hit where the ray enters through it (``t_in``), or
+    leaves through it with no root before (``t_out``), by the walk's own
+    crossing times (`on_level_face`). The volume is closed: a ray that only
+    grazes such a face's edge or corner (``t_in == t_out``) hits it there, once.
+
     ``skip``/``jump_min``: the skip table and the smallest radius worth a
     jump (module docstring), or `NO_SKIP` and -1. ``cells`` counts the
     cells the walk looked at, not those a jump passed over.
@@ -202,13 +266,14 @@ def cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, seg0, seg1, skip, jump_min):
     nz, ny, nx = grid_shape(data)
     ta, Ox, Oy, Oz = entry_anchor(Ox, Oy, Oz, Dx, Dy, Dz, nx, ny, nz)
     t, i, j, k, u, v, w, cells, solves = _walk_iso(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, seg0 - ta, seg1 - ta,
-                                                   ray_table(skip, Dx, Dy, Dz), jump_min)
+                                                   ray_table(skip, Dx, Dy, Dz), jump_min, ta > 0.0)
     return ta + t, i, j, k, u, v, w, cells, solves
 
 
 @kernel
-def _walk_iso(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, seg0, seg1, skip, jump_min):
-    """`cast_iso_ray` on a ray already anchored near the volume (its ``t`` measured from there)."""
+def _walk_iso(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, seg0, seg1, skip, jump_min, anchored):
+    """`cast_iso_ray` on a ray already anchored near the volume (its ``t`` measured from there;
+    ``anchored``: moved to its entry into the volume, `entry_anchor`)."""
     nz, ny, nx = grid_shape(data)
     t_in, t_out = clip_box(Ox, Oy, Oz, Dx, Dy, Dz, nx, ny, nz)
     t_start = max(t_in, seg0)
@@ -268,13 +333,20 @@ def _walk_iso(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, seg0, seg1, skip, jump_min):
                     solves += 1
                     A, B, C, D, u0, v0, w0 = cell_cubic(v000, v100, v010, v110, v001, v101, v011, v111,
                                                         Ox, Oy, Oz, Dx, Dy, Dz, i, j, k, c0)
-                    if c0 > t_in and prev != 0.0 and D != 0.0 and (D < 0.0) != (prev < 0.0):
+                    if c0 > t_in:
+                        if prev != 0.0 and D != 0.0 and (D < 0.0) != (prev < 0.0):
+                            return c0, i, j, k, u0, v0, w0, cells, solves
+                    elif on_level_face(v000, v100, v010, v110, v001, v101, v011, v111, tx0, ty0, tz0,
+                                       entry_face_time(tx0, ty0, tz0, c0, anchored), sx, sy, sz, False):
                         return c0, i, j, k, u0, v0, w0, cells, solves
                     L = c1 - c0
                     s = first_root(A, B, C, D, L)
                     if s >= 0.0:
                         return (c0 + s, i, j, k, u0 + s * Dx, v0 + s * Dy, w0 + s * Dz,
                                 cells, solves)
+                    if c1 == t_out and on_level_face(v000, v100, v010, v110, v001, v101, v011, v111,
+                                                     tx1, ty1, tz1, c1, sx, sy, sz, True):
+                        return c1, i, j, k, u0 + L * Dx, v0 + L * Dy, w0 + L * Dz, cells, solves
                     f = eval_cubic(A, B, C, D, L)
                     prev = 1.0 if f > 0.0 else (-1.0 if f < 0.0 else 0.0)
         first = False

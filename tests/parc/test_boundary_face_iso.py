@@ -1,0 +1,76 @@
+"""An isosurface lying on the volume's own outer face (isovalue = data min or max, attained on a face).
+
+Truth: analytic. The bottom face (z index 0) holds the data minimum, the top
+face (z index nz - 1) the maximum, every other sample lies strictly between,
+so the isosurface at the minimum (maximum) is exactly that face: the
+interpolant equals the isovalue all over it and nowhere else. A ray that
+crosses the face hits it first, at the plane's ``t``; a ray that does not
+misses. Seen from either side the same face is where the ray enters the
+volume (near face) or leaves it (far face), where no neighbouring cell can
+settle the rounding of the cell's cubic, as it does inside (`raycast.iso`).
+"""
+import numpy as np
+import pytest
+
+from data_tools import Volume
+from parc import Camera, Isosurface, Scene, render
+
+SIZE = (24, 20)
+#: Rays crossing the face closer than this (in cells) to its edges are not judged.
+EDGE = 1e-6
+
+
+def _volume(dtype):
+    rng = np.random.default_rng(7)
+    nx, ny, nz = 7, 6, 5
+    data = rng.uniform(101, 899, (nz, ny, nx)).round()
+    data[0], data[-1] = 100, 900
+    return Volume(data.astype(dtype), spacing=(0.7, 1.3, 0.9), origin=(-2.0, 1.0, 5.0))
+
+
+def _camera(vol, below, view):
+    c = vol.center
+    # Oblique and off-centre, so no ray is aligned with the grid. "parallel_far": an eye
+    # 1e5 units away, past `raycast.traverse.FAR_ORIGIN`, so the caster moves each ray's
+    # origin to where it enters the volume, and only to within a rounding.
+    far = 1e5 / 11.0 if view == "parallel_far" else 1.0
+    eye = c + far * np.array([1.9, -1.3, (-1 if below else 1) * 11.0])
+    look = c + np.array([0.3, 0.2, 0.0])
+    if view == "perspective":
+        return Camera(eye=tuple(eye), look_at=tuple(look), up=(0.1, 1.0, 0.2), fov=45)
+    return Camera(eye=tuple(eye), look_at=tuple(look), up=(0.1, 1.0, 0.2), parallel_scale=4.0)
+
+
+@pytest.mark.parametrize("method", ["brute", "parc"])
+@pytest.mark.parametrize("view", ["perspective", "parallel", "parallel_far"])
+@pytest.mark.parametrize("below", [True, False], ids=["eye_below", "eye_above"])
+@pytest.mark.parametrize("top", [False, True], ids=["min_bottom_face", "max_top_face"])
+@pytest.mark.parametrize("dtype", [np.float32, np.uint16])
+def test_isosurface_on_the_volume_face_is_hit_by_every_ray_through_it(dtype, top, below, view, method, request):
+    if method == "parc":
+        request.getfixturevalue("gl")
+    vol = _volume(dtype)
+    iso = 900.0 if top else 100.0
+    cam = _camera(vol, below, view)
+    res = render(Scene(camera=cam, size=SIZE, volumes=[Isosurface(vol, iso)]), method=method)
+
+    lo, hi = vol.bounds
+    zf = hi[2] if top else lo[2]
+    o, d = cam.rays(*SIZE)
+    t = (zf - o[..., 2]) / d[..., 2]
+    p = o + t[..., None] * d
+    sp = np.array(vol.spacing)
+    inner = ((p[..., :2] > lo[:2] + EDGE * sp[:2]) & (p[..., :2] < hi[:2] - EDGE * sp[:2])).all(-1) & (t > 0)
+    outer = ((p[..., :2] >= lo[:2] - EDGE * sp[:2]) & (p[..., :2] <= hi[:2] + EDGE * sp[:2])).all(-1) & (t > 0)
+    assert inner.sum() > 50 and (~outer).sum() > 20        # not vacuous: hits and misses both
+
+    hit = np.isfinite(res.depth)
+    near = (top != below)                                   # the face is where rays enter the volume
+    where = f"{'near' if near else 'far'} face, iso={iso}"
+    assert hit[inner].all(), f"{(~hit[inner]).sum()} of {inner.sum()} rays through the face miss it ({where})"
+    assert not hit[~outer].any(), f"rays missing the face hit at {np.argwhere(hit & ~outer)[:5].tolist()}"
+    err = np.abs(res.depth[inner] - t[inner]).max()
+    assert err <= 1e-9 * sp.min(), f"depth off the face's plane by {err:g} ({where})"
+    if method == "parc":                                    # and bit for bit the unaccelerated caster's
+        ref = render(Scene(camera=cam, size=SIZE, volumes=[Isosurface(vol, iso)]), method="brute")
+        assert np.array_equal(res.depth, ref.depth)
