@@ -223,9 +223,12 @@ def builtin_volume(size=64) -> Volume:
 
 
 #: ``parc make NAME``: name → function(size=..., ...) returning a Volume.
-#: Peak memory of a generator per sample, with room (measured 27-36 bytes at
-#: 160 samples a side): float64 coordinate grids and field before conversion.
+#: Peak memory of a generator per sample, with room (measured 13-34 bytes at
+#: 48 and 96 samples a side): float64 coordinate grids and field before conversion.
 SYNTHETIC_BYTES_PER_SAMPLE = 48
+#: The same for generators built slab by slab, whose peak is little beyond the
+#: output (ct_phantom: about 4.4 bytes a sample at 600 and 700 a side).
+SLAB_BYTES_PER_SAMPLE = {"ct_phantom": 6}
 
 SYNTHETIC = {
     "sphere": sphere,
@@ -254,9 +257,14 @@ DESCRIPTIONS = {
 }
 
 
-def check_synthetic_size(size, what):
-    """Refuse a size (samples per axis: one number or three) whose volume would not fit in memory."""
-    check_memory(SYNTHETIC_BYTES_PER_SAMPLE * float(np.prod(np.broadcast_to(size, 3), dtype=float)), what)
+def check_synthetic_size(size, what, name=None):
+    """Refuse a size (samples per axis: one number or three) whose volume ``name`` would not
+    fit in memory while it is made."""
+    dims = np.broadcast_to(np.asarray(size, dtype=float), 3).copy()
+    if name == "floor" and np.ndim(size) == 0:
+        dims[2] = max(8, int(size) // 8)          # a floor is thin (`floor`)
+    per_sample = SLAB_BYTES_PER_SAMPLE.get(name, SYNTHETIC_BYTES_PER_SAMPLE)
+    check_memory(per_sample * float(np.prod(dims)), what)
 
 
 def make_synthetic(name, size=None, **kwargs) -> Volume:

@@ -21,7 +21,8 @@ from data_tools.info import exact_text
 from data_tools.io.npy import save_array
 
 from .flagscene import load_volume_flags, scene_and_notes
-from .outputs import Progress, atomic_write_all, check_distinct, check_output, compile_notice, to_json, write_png
+from .outputs import (Progress, atomic_write_all, check_distinct, check_output, compile_notice, end_progress_line,
+                      to_json, write_png)
 
 EXIT_USAGE = 2
 
@@ -264,7 +265,8 @@ def build_parser():
                            f"  {k:16s} {v}" for k, v in DESCRIPTIONS.items()),
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     m.add_argument("name", choices=sorted(DESCRIPTIONS), metavar="NAME", help="which volume (see above)")
-    m.add_argument("-o", "--output", required=True, metavar="OUT", help="output file: .nrrd or .npy")
+    m.add_argument("-o", "--output", required=True, metavar="OUT",
+                   help="output file: .nrrd (gzip) .nhdr .npy .mhd .mha .vtk .raw")
     m.add_argument("--size", type=int, metavar="N", help="samples per axis (default depends on the volume)")
     m.add_argument("--seed", type=int, help="random seed, for the random volumes")
     return p
@@ -302,13 +304,14 @@ def main(argv=None):
         if stream is not None and hasattr(stream, "reconfigure"):
             stream.reconfigure(errors="backslashreplace")
     argv = _join_signed_values(list(sys.argv[1:] if argv is None else argv))
+    stops = _stop_on_signals()
     try:
         # Extreme but valid numbers (an eye at 1e200) may overflow on the way to
         # a clean error or a picture; NumPy's warnings would only add lines.
         with np.errstate(all="ignore"):
             return _main(argv)
     except InputError as exc:
-        print(f"parc: error: {exc}", file=sys.stderr)
+        _error(f"error: {exc}")
         return EXIT_USAGE
     except BrokenPipeError:
         # The reader went away (`parc compare ... | head`): stop quietly, as
@@ -320,17 +323,55 @@ def main(argv=None):
         # A path the system refuses (too long, not a folder, no permission)
         # found only when it is used.
         where = f"{exc.filename}: " if exc.filename else ""
-        print(f"parc: error: {where}{exc.strerror or exc}", file=sys.stderr)
+        _error(f"error: {where}{exc.strerror or exc}")
         return EXIT_USAGE
     except MemoryError as exc:
         # NumPy says how much it could not allocate; the usual cause is a
         # --size too large for this machine.
         detail = f": {exc}" if str(exc) else ""
-        print(f"parc: error: out of memory{detail}; try a smaller --size", file=sys.stderr)
+        _error(f"error: out of memory{detail}; try a smaller --size")
         return 1
     except KeyboardInterrupt:
-        print("parc: interrupted", file=sys.stderr)
+        _error("interrupted")
         return 130
+    except _Stopped as exc:
+        _error(f"stopped by {signal.Signals(exc.signum).name}")
+        return 128 + exc.signum
+    finally:
+        for signum, handler in stops.items():
+            if handler is not None:                 # None: set outside Python, not ours to restore
+                signal.signal(signum, handler)
+
+
+class _Stopped(BaseException):
+    """SIGTERM or SIGHUP, raised where the program is, so that the writes under way clean up
+    their temporary files (`atomic_write_all`, `save_volume`) as on Ctrl-C."""
+
+    def __init__(self, signum):
+        super().__init__(signum)
+        self.signum = signum
+
+
+def _stop_on_signals():
+    """Turn SIGTERM and SIGHUP into `_Stopped` for the run; the handlers they replace, to restore."""
+    def stop(signum, frame):
+        raise _Stopped(signum)
+    replaced = {}
+    for signum in (signal.SIGTERM, signal.SIGHUP):
+        try:
+            replaced[signum] = signal.signal(signum, stop)
+        except (ValueError, OSError):     # not the main thread, or no such signal here
+            pass
+    return replaced
+
+
+def _error(text):
+    """``parc: text`` on stderr, on a line of its own after any unfinished progress."""
+    end_progress_line()
+    try:
+        print(f"parc: {text}", file=sys.stderr)
+    except (OSError, ValueError):
+        pass
 
 
 def _main(argv):
@@ -363,7 +404,7 @@ def cmd_make(args):
     if args.seed is not None and args.seed < 0:
         raise InputError(f"--seed must be 0 or more, got {args.seed}")
     if args.size is not None:
-        check_synthetic_size(args.size, f"--size {args.size}")
+        check_synthetic_size(args.size, f"--size {args.size}", args.name)
     try:
         vol = make_synthetic(args.name, args.size, **kwargs)
     except TypeError:

@@ -111,8 +111,13 @@ class Progress:
     """Progress on stderr: a live percentage on a terminal, a few lines otherwise.
 
     Nothing is shown for work done within ``delay`` seconds, so that a
-    quick render prints only its result, whatever its size.
+    quick render prints only its result, whatever its size. Progress is
+    only news: a stderr that cannot be written (a closed pipe, a full disk)
+    silences it and leaves the work to finish.
     """
+
+    #: The Progress whose terminal line is unfinished (no newline yet), if any.
+    open_line = None
 
     def __init__(self, what, delay=1.0):
         self.what = what
@@ -120,20 +125,39 @@ class Progress:
         self.start = time.perf_counter()
         self.delay = delay
         self.last = -1
+        self.mute = False
 
     def __call__(self, fraction):
         pct = int(100 * fraction)
-        if time.perf_counter() - self.start < self.delay:
+        if self.mute or time.perf_counter() - self.start < self.delay:
             return
         if self.tty:
-            print(f"\rparc: {self.what}: {pct:3d}%", end="", file=sys.stderr, flush=True)
+            self._say(f"\rparc: {self.what}: {pct:3d}%", end="")
+            Progress.open_line = self
         elif pct // 25 > self.last // 25 and pct < 100:
-            print(f"parc: {self.what}: {pct}%", file=sys.stderr, flush=True)
+            self._say(f"parc: {self.what}: {pct}%")
         self.last = pct
 
     def done(self):
         if self.tty and self.last >= 0:
-            print(f"\rparc: {self.what}: done in {time.perf_counter() - self.start:.1f} s", file=sys.stderr)
+            self._say(f"\rparc: {self.what}: done in {time.perf_counter() - self.start:.1f} s")
+            Progress.open_line = None
+
+    def _say(self, text, end="\n"):
+        if self.mute:
+            return
+        try:
+            print(text, end=end, file=sys.stderr, flush=True)
+        except (OSError, ValueError):
+            self.mute = True
+            Progress.open_line = None
+
+
+def end_progress_line():
+    """End an unfinished progress line, so that what follows (an error) starts a line of its own."""
+    line, Progress.open_line = Progress.open_line, None
+    if line is not None:
+        line._say("")
 
 
 def compile_notice(say):

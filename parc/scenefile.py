@@ -515,7 +515,7 @@ def _make_synthetic(where, t, cache):
             raise t.error("size", f"must be at least 2 samples per axis, got {size}")
     if size is not None:
         with where.key(t.key("size")):
-            check_synthetic_size(size, str(size))
+            check_synthetic_size(size, str(size), name)
     kwargs = {}
     if "seed" in t:
         seed = t.raw["seed"]

@@ -215,3 +215,17 @@ def test_builtin_volume_has_a_surface():
     iso = vol.meta["iso"]
     assert vol.dtype == np.uint8 and iso % 1 == 0.5
     assert 0.02 < (vol.data > iso).mean() < 0.5
+
+
+@pytest.mark.parametrize("name, fits", [("floor", True), ("ct_phantom", True), ("sphere", False)])
+def test_make_refuses_by_what_the_volume_needs_while_made(name, fits, monkeypatch):
+    # A floor is n x n x n/8 samples, and the CT phantom is made slab by slab: neither needs
+    # the 48 bytes a sample of a whole n^3 float64 grid that the other volumes do.
+    from data_tools import memory
+    from data_tools.synthetic import check_synthetic_size
+    monkeypatch.setattr(memory, "available_memory", lambda: 4 * 2**30)
+    if fits:
+        check_synthetic_size(800, "--size 800", name)
+    else:
+        with pytest.raises(InputError, match="--size 800 needs about 22.9 GB of memory; 4.0 GB is available"):
+            check_synthetic_size(800, "--size 800", name)

@@ -795,3 +795,53 @@ def test_compare_takes_a_background(vol_file, capsys, gl):
     rows = json.loads(out)
     assert [r["method"] for r in rows] == ["brute", "parc"]
     assert rows[1]["hit_mismatches"] == 0 and rows[1]["max_color"] == 0.0
+
+
+@pytest.mark.parametrize("signum", ["SIGTERM", "SIGHUP"])
+def test_a_stop_signal_while_writing_leaves_no_temporary_file(signum, vol_file, tmp_path, capsys, monkeypatch):
+    """SIGTERM or SIGHUP unwinds as Ctrl-C does: the temporary output is removed, one line, 128 + signal."""
+    import os
+    import signal
+    import parc.cli as cli
+    real = cli.write_png
+
+    def write_then_stop(image, path):
+        real(image, path)
+        os.kill(os.getpid(), getattr(signal, signum))
+    monkeypatch.setattr(cli, "write_png", write_then_stop)
+    before = signal.getsignal(getattr(signal, signum))
+    out = tmp_path / "o.png"
+    rc, _, err = _run(["render", vol_file, "--iso", 4, "--size", 8, 8, "-o", out], capsys)
+    assert rc == 128 + getattr(signal, signum) and err == f"parc: stopped by {signum}\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ball.nrrd"]
+    assert signal.getsignal(getattr(signal, signum)) == before
+
+
+def test_an_error_after_live_progress_starts_a_line_of_its_own(vol_file, tmp_path, capsys, monkeypatch):
+    from parc import outputs
+    monkeypatch.setattr(outputs.sys.stderr, "isatty", lambda: True)
+    live = outputs.Progress("rendering 8x8", delay=0.0)
+    live(0.43)
+    cli_error = __import__("parc.cli", fromlist=["_error"])._error
+    cli_error("interrupted")
+    assert capsys.readouterr().err == "\rparc: rendering 8x8:  43%\nparc: interrupted\n"
+
+
+def test_progress_that_cannot_be_written_leaves_the_work_alone(monkeypatch):
+    from parc import outputs
+
+    class Closed:
+        def write(self, text):
+            raise BrokenPipeError(32, "Broken pipe")
+
+        def flush(self):
+            pass
+
+        def isatty(self):
+            return True
+    monkeypatch.setattr(outputs.sys, "stderr", Closed())
+    live = outputs.Progress("rendering 8x8", delay=0.0)
+    live(0.5)
+    live(0.9)
+    live.done()
+    assert live.mute and outputs.Progress.open_line is None
