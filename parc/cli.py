@@ -528,7 +528,7 @@ def cmd_compare(args):
     from .compare import method_names, compare, format_table
 
     say = (lambda *a: None) if args.quiet else (lambda msg: print(f"parc: {msg}", file=sys.stderr))
-    warming = None if args.json or args.quiet else (lambda m: say(f"warming up {m} ..."))
+    warming = None if args.quiet else (lambda line: say(f"{line} ..."))
     methods = method_names(args.methods)
     if args.repeats < 1:
         raise InputError(f"--repeats must be at least 1, got {args.repeats}")

@@ -55,7 +55,8 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
         ``{"parc": {"supercell": 4}}``. A method name may carry a label after
         a colon (``"parc:4"``) so one method appears with several options.
     progress : callable(str) or None
-        Told which method is warming up.
+        Told, as a line of text, which method warms up and, when a round
+        lasts a while (`SLOW_ROUND` seconds), which round is timed.
 
     Returns
     -------
@@ -79,18 +80,22 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
         raise InputError(f"options for {', '.join(map(repr, unused))}, which is not among the methods run")
     for name, opts in options.items():
         _check_render_options(name, opts)
-    _check_progress(progress, "the method's name")
+    _check_progress(progress, "a line of text")
     check_frame_memory(*scene.size, layers=len(scene.volumes), kept_images=len(names))
     _check_supercells(scene, options)
     vol = scene.volumes[0].volume
     cell = float(min(vol.spacing))
     runs = {name: [] for name in names}
     first = {}
+    t0 = time.perf_counter()
     for name in names:
         if progress:
-            progress(name)
+            progress(f"warming up {name}")
         for _ in range(warmup):
             render(scene, method=name.split(":")[0], **options.get(name, {}))
+    # Rounds are announced once one is known to take a while: the warm-up renders
+    # each method as a round does (or, with none, the first round tells).
+    slow = warmup > 0 and time.perf_counter() - t0 > warmup * SLOW_ROUND
     # Round by round, every method once per round: the machine's speed
     # drifts (by up to 1.5x over a minute on a shared one), and timing all
     # of brute's runs before any of parc's let the drift into the ratio.
@@ -98,7 +103,10 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
     # run's image made each later render fault in fresh pages, 7 ms of a
     # 512x512 shading phase that a method timed once memory was being
     # reused did not pay.
-    for _ in range(repeats):
+    for r in range(repeats):
+        if progress and slow:
+            progress(f"timing round {r + 1} of {repeats}")
+        t_round = time.perf_counter()
         for name in names:
             t0 = time.perf_counter()
             out = render(scene, method=name.split(":")[0], **options.get(name, {}))
@@ -106,6 +114,7 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
             runs[name].append(out.stats)
             first.setdefault(name, out)
             del out
+        slow = slow or time.perf_counter() - t_round > SLOW_ROUND
     reference = first["brute"]
     rows = []
     for name in names:
@@ -225,6 +234,10 @@ def format_table(rows):
         out.append(f"  {r['method']:<10} " + "  ".join(f"{k}={r['phases'].get(k, 0.0):.4f}" for k in phases))
     out += [f"  {k}: {PHASE_NOTES[k]}" for k in phases if k in PHASE_NOTES]
     return "\n".join(out)
+
+
+#: A round of `compare` (every method once) longer than this, in seconds, is announced.
+SLOW_ROUND = 2.0
 
 
 def _check_runs(what, scene, repeats, warmup):

@@ -57,7 +57,7 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
     PARC's walks and shadow rays skip the volumes' empty cells
     (`parc.renderer.render`).
     """
-    from .renderer import _parc_segments, accumulation_params, iso_work, octant_skip_tables, skip_table
+    from .renderer import _parc_segments, _row_bands, accumulation_params, iso_work, octant_skip_tables, skip_table
 
     w, h = scene.size
     npx = w * h
@@ -67,7 +67,10 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
                             "shadow_samples", "shadow_rays"), 0)
     extra = {"volumes": []}
     parc = method == "parc"
-    report = progress or (lambda f: None)
+    bands = _row_bands(h, w, progress)
+    isos = [(n, v) for n, v in enumerate(scene.volumes) if isinstance(v, Isosurface)]
+    trans = [(n, v) for n, v in enumerate(scene.volumes) if not isinstance(v, Isosurface)]
+    report = _Report(progress, len(isos), len(trans), scene.shadows and bool(scene.lights))
 
     # PARC buffers from the camera, one volume at a time.
     segs = {}
@@ -82,7 +85,7 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
             sizes[n] = info["supercell"]
             extra["volumes"].append({k: info[k] for k in ("supercell", "polygons", "pc_supercells",
                                                            "segment_pixels") if k in info})
-    report(0.1)
+    report.done("buffers")
 
     # Isosurfaces: nearest hit.
     t0 = time.perf_counter()
@@ -91,20 +94,22 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
     winner.fill(-1)
     # The nearest hit's cell and local coordinates, read only where winner >= 0.
     cell, uvw, _ = iso_work(npx, slot="nearest")
-    isos = [(n, v) for n, v in enumerate(scene.volumes) if isinstance(v, Isosurface)]
-    for n, iso in isos:
+    for q, (n, iso) in enumerate(isos):
         vol = iso.volume
         t = work_array("iso_t", (npx,))
         c, uv, cnt = iso_work(npx)
         seg = segs.get(n, np.empty((1, 1, 2)))
         skip, jump_min = octant_skip_tables(iso, parc and blocks, scene.camera, w, h)
-        _, cells, solves = cast_iso_image(vol.data, np.array(vol.origin), np.array(vol.spacing), cam, w, h,
-                                          iso.value, seg, parc, skip, jump_min, t, c, uv, cnt, 0, h, *NO_SHADING)
+        for b, (y0, y1) in enumerate(bands):
+            _, cells, solves = cast_iso_image(vol.data, np.array(vol.origin), np.array(vol.spacing), cam, w, h,
+                                              iso.value, seg, parc, skip, jump_min, t, c, uv, cnt, y0, y1,
+                                              *NO_SHADING)
+            counts["cells"] += int(cells)
+            counts["solves"] += int(solves)
+            report.part("surfaces", (q + (b + 1) / len(bands)) / len(isos))
         keep_nearest(t, c, uv, n, depth, cell, uvw, winner)
-        counts["cells"] += int(cells)
-        counts["solves"] += int(solves)
     timings["cast"] = time.perf_counter() - t0
-    report(0.4)
+    report.done("surfaces")
 
     # Lighting and shadows of the hits.
     image = np.zeros((h, w, 4), np.float32)
@@ -144,10 +149,9 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
         t0 = time.perf_counter()
         combine_lights(colors, materials, lights, diffuse, specular, vis, hit, image.reshape(npx, 4))
         timings["shade"] += time.perf_counter() - t0
-    report(0.8)
+    report.done("lighting")
 
     # Translucent volumes in front of the surfaces.
-    trans = [(n, v) for n, v in enumerate(scene.volumes) if not isinstance(v, Isosurface)]
     if trans:
         t0 = time.perf_counter()
         stop = depth.reshape(h, w)
@@ -160,10 +164,12 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
             vol = v.volume
             op_x, op_y, col_x, col_rgb = v.tf.arrays()
             cnt = np.empty(npx, np.int64)
-            cast_accumulate_image(vol.data, np.array(vol.origin), np.array(vol.spacing), cam, w, h,
-                                  accumulation_params(v), op_x, op_y, col_x, col_rgb,
-                                  segs.get(n, np.empty((1, 1, 2))), parc, stop, True, nobits, False,
-                                  *skip_table(v, parc and blocks), layer_rgba[j], cnt, 0, h)
+            for b, (y0, y1) in enumerate(bands):
+                cast_accumulate_image(vol.data, np.array(vol.origin), np.array(vol.spacing), cam, w, h,
+                                      accumulation_params(v), op_x, op_y, col_x, col_rgb,
+                                      segs.get(n, np.empty((1, 1, 2))), parc, stop, True, nobits, False,
+                                      *skip_table(v, parc and blocks), layer_rgba[j], cnt, y0, y1)
+                report.part("translucent", (j + (b + 1) / len(bands)) / len(trans))
             counts["samples"] += int(cnt.sum())
             layer_t[j] = _box_entry(scene, vol)
         front = np.zeros((h, w, 4), np.float32)
@@ -172,16 +178,41 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
             seg = (np.stack([segs[n] for n, _ in comp]) if parc else np.empty((1, 1, 1, 2)))
             skips = [skip_table(v, parc and blocks) for _, v in comp]
             cnt = np.empty(npx, np.int64)
-            cast_merged_image(datas, orgs, spcs, cam, w, h, params, *tables, tf_len, seg, parc,
-                              tuple(c for c, _ in skips), np.array([m for _, m in skips], np.int64), stop,
-                              layer_t, layer_rgba, front, cnt)
+            for b, (y0, y1) in enumerate(bands):
+                cast_merged_image(datas, orgs, spcs, cam, w, h, params, *tables, tf_len, seg, parc,
+                                  tuple(c for c, _ in skips), np.array([m for _, m in skips], np.int64), stop,
+                                  layer_t, layer_rgba, front, cnt, y0, y1)
+                report.part("translucent", (len(layers) + len(comp) * (b + 1) / len(bands)) / len(trans))
             counts["samples"] += int(cnt.sum())
         else:
             _composite_layers(layer_t, layer_rgba, front)
         image = front + (1.0 - front[..., 3:4]) * image
         timings["cast"] += time.perf_counter() - t0
-    report(1.0)
+    report.done("translucent")
     return image, depth.reshape(h, w), counts, timings, extra
+
+
+class _Report:
+    """`render_scene`'s progress: each phase a share of the bar by its expected work (a
+    translucent volume's samples take longer than a surface's cells), filled as its bands finish."""
+
+    def __init__(self, progress, n_iso, n_trans, shadows):
+        self.progress = progress
+        weights = {"buffers": 0.3 * (n_iso + n_trans), "surfaces": n_iso,
+                   "lighting": (0.2 + (n_iso if shadows else 0.0)) if n_iso else 0.0, "translucent": 3.0 * n_trans}
+        total = sum(weights.values())
+        self.spans, start = {}, 0.0
+        for phase, weight in weights.items():
+            self.spans[phase] = (start, start + weight / total)
+            start += weight / total
+
+    def part(self, phase, fraction):
+        if self.progress is not None:
+            a, b = self.spans[phase]
+            self.progress(min(1.0, a + (b - a) * fraction))
+
+    def done(self, phase):
+        self.part(phase, 1.0)
 
 
 def _shadows(scene, method, lights, points, vis, segs, sizes, light_buffer, blocks, timings, counts, extra):

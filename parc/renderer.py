@@ -297,7 +297,7 @@ def _render_iso(scene, iso, seg, use_seg, skip_blocks, timings, progress):
 
     # The cast shades each hit as it finds it (the phase holds both).
     t0 = time.perf_counter()
-    bands = _row_bands(h, progress)
+    bands = _row_bands(h, w, progress)
     totals = np.zeros(3, np.int64)
     for n, (y0, y1) in enumerate(bands):
         totals += cast_iso_image(vol.data, org, spc, cam, w, h, iso.value, seg, use_seg, skip, jump_min,
@@ -436,7 +436,7 @@ def _render_translucent(scene, vis, seg, use_seg, skip_blocks, timings, progress
     timings["setup"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    bands = _row_bands(h, progress)
+    bands = _row_bands(h, w, progress)
     samples = 0
     for n, (y0, y1) in enumerate(bands):
         samples += cast_accumulate_image(vol.data, org, spc, cam, w, h, params, op_x, op_y, col_x, col_rgb,
@@ -531,11 +531,17 @@ def column_totals(counts):
     return tuple(int(counts[:, c].sum()) for c in range(counts.shape[1]))
 
 
-def _row_bands(h, progress):
-    """Row ranges cast one call at a time: one band, or ~16 when progress is reported
-    (`parc.outputs.Progress` shows it only for a render that takes a while)."""
-    if progress is None:
-        return [(0, h)]
-    step = max(4, -(-h // 16))
+#: Most pixels a cast covers in one call: Ctrl-C (and SIGTERM) act between calls, not
+#: within a Numba kernel, so a large frame is cast in bands of about this many.
+BAND_PIXELS = 1 << 18
+
+
+def _row_bands(h, w, progress):
+    """Row ranges cast one call at a time: bands of at most about `BAND_PIXELS` (one for a
+    frame up to 512 x 512), and ~16 when progress is reported (`parc.outputs.Progress`
+    shows it only for a render that takes a while). Whole tiles of 4 rows."""
+    step = max(4, BAND_PIXELS // max(w, 1))
+    if progress is not None:
+        step = min(step, max(4, -(-h // 16)))
     step += (-step) % 4
     return [(y, min(h, y + step)) for y in range(0, h, step)]

@@ -136,14 +136,14 @@ def _merged_caster(shaded):
     @kernel(parallel=True)
     @named_for(shaded=shaded)
     def cast(datas, orgs, spcs, cam, width, height, params, op_x, op_y, col_x, col_rgb, tf_len,
-             seg, use_seg, skip, jump_mins, stop, layer_t, layer_rgba, image, counts):
+             seg, use_seg, skip, jump_mins, stop, layer_t, layer_rgba, image, counts, row0, row1):
         nvol = len(datas)
         thr = 0.0
         for q in range(nvol):
             thr = max(thr, params[q, P_THRESHOLD])
-        tiles = tile_count(width, 0, height, TILE_W, TILE_H)
+        tiles = tile_count(width, row0, row1, TILE_W, TILE_H)
         for it in prange(tiles):
-            x0, x1, y0, y1 = dealt_tile(it, tiles, width, 0, height)
+            x0, x1, y0, y1 = dealt_tile(it, tiles, width, row0, row1)
             st = np.zeros((nvol, _W_SIZE))
             used = np.zeros(layer_t.shape[0], np.bool_)
             nobits = np.zeros((1, 1, 1), np.uint32)
@@ -229,7 +229,7 @@ _MERGED_CASTERS = {shaded: _merged_caster(shaded) for shaded in (False, True)}
 
 
 def cast_merged_image(datas, orgs, spcs, cam, width, height, params, op_x, op_y, col_x, col_rgb, tf_len,
-                      seg, use_seg, skip, jump_mins, stop, layer_t, layer_rgba, image, counts):
+                      seg, use_seg, skip, jump_mins, stop, layer_t, layer_rgba, image, counts, row0=0, row1=None):
     """Composite several overlapping volumes along each pixel's ray, samples merged in depth order.
 
     ``datas`` is a tuple of K volumes of one dtype, each with its own
@@ -248,8 +248,8 @@ def cast_merged_image(datas, orgs, spcs, cam, width, height, params, op_x, op_y,
     and ``jump_mins[k]``: volume k's skip table, as `accumulate_ray`
     takes it (`raycast.iso.NO_SKIP` and -1 for none); a skipped sample
     adds nothing, so the layers and the other volumes' samples keep their
-    order.
+    order. Only rows ``row0 <= y < row1`` (default all) are cast.
     """
     cast = _MERGED_CASTERS[bool((params[:, P_SHADE] != 0.0).any())]
     cast(datas, orgs, spcs, cam, width, height, params, op_x, op_y, col_x, col_rgb, tf_len, seg, use_seg, skip,
-         jump_mins, stop, layer_t, layer_rgba, image, counts)
+         jump_mins, stop, layer_t, layer_rgba, image, counts, row0, height if row1 is None else row1)

@@ -845,3 +845,14 @@ def test_progress_that_cannot_be_written_leaves_the_work_alone(monkeypatch):
     live(0.9)
     live.done()
     assert live.mute and outputs.Progress.open_line is None
+
+
+@pytest.mark.parametrize("slow", [True, False])
+def test_compare_says_what_it_times_on_stderr_json_or_not(slow, vol_file, capsys, monkeypatch):
+    import importlib
+    monkeypatch.setattr(importlib.import_module("parc.compare"), "SLOW_ROUND", 0.0 if slow else 1e9)
+    rc, out, err = _run(["compare", vol_file, "--iso", 4, "--size", 12, 12, "--repeats", 2, "--json"], capsys)
+    assert rc == 0 and [r["method"] for r in json.loads(out)] == ["brute", "parc"]
+    rounds = ["parc: timing round 1 of 2 ...", "parc: timing round 2 of 2 ..."] if slow else []
+    lines = [s for s in err.splitlines() if "compiling" not in s]
+    assert lines == ["parc: warming up brute ...", "parc: warming up parc ...", *rounds]

@@ -253,3 +253,26 @@ def test_a_volume_stops_at_its_own_threshold_beside_others(gl, method, seed):
     beside = render(Scene(camera=cam, size=SIZE, volumes=[fog, Translucent(far, tf="greyscale")]), method)
     assert alone.image[..., 3].max() >= 0.3
     assert np.abs(alone.image - beside.image).max() <= 1e-6
+
+
+@pytest.mark.parametrize("method", ["brute", "parc"])
+def test_a_scene_cast_in_bands_is_the_scene_cast_whole_with_progress_through_each(gl, method, monkeypatch):
+    """Large frames are cast a band of rows at a time (Ctrl-C acts between bands): the image is
+    the same, and progress moves through every phase, the translucent one included."""
+    import parc.renderer as renderer
+    rng = np.random.default_rng(11)
+    a = _volume(rng, "blobs")
+    b = Volume(a.data, spacing=a.spacing, origin=tuple(np.array(a.origin) + 2.0), name="b")
+    lo, hi = _union([a, b])
+    vols = [_iso(rng, a), Translucent(b, tf="greyscale"), Translucent(a, tf="viridis", mode="mip")]
+    scene = Scene(camera=_camera(rng, lo, hi), size=SIZE, volumes=vols,
+                  lights=[_light(rng, "outside", lo, hi)], shadows=True)
+    whole = render(scene, method)
+    monkeypatch.setattr(renderer, "BAND_PIXELS", 4 * SIZE[0])
+    seen = []
+    banded = render(scene, method, progress=seen.append)
+    assert np.array_equal(whole.image, banded.image) and np.array_equal(whole.depth, banded.depth)
+    assert {k: whole.stats[k] for k in ("cells_visited", "cubic_solves", "samples")} == \
+        {k: banded.stats[k] for k in ("cells_visited", "cubic_solves", "samples")}
+    assert seen == sorted(seen) and seen[-1] == 1.0
+    assert len(seen) >= 3 * (SIZE[1] // 4) and len({round(f, 6) for f in seen if f > 0.5}) >= SIZE[1] // 4
