@@ -458,6 +458,8 @@ def cmd_convert(args):
 def cmd_render(args):
     import parc
 
+    from .renderer import DEFAULT_BUFFERS, casters_for
+
     out = check_output(args.output, (".png", ".npy"))
     depth_out = check_output(args.depth, (".npy",)) if args.depth else None
     stats_out = check_output(args.stats, (".json",)) if args.stats else None
@@ -466,12 +468,12 @@ def cmd_render(args):
     say = (lambda *a: None) if args.quiet else (lambda msg: print(f"parc: {msg}", file=sys.stderr))
     scene, notes = scene_and_notes(args)
     w, h = scene.size
-    compile_notice(say)
-    progress = None if args.quiet else Progress(f"rendering {w}x{h}")
     kwargs = ({"supercell": args.supercell, "buffers": _buffers(args, scene), "blocks": not args.no_blocks}
               if args.method == "parc" else {})
     if args.method != "parc":
         _refuse_parc_flags(args, "applies to --method parc")
+    compile_notice(say, casters_for(scene, (args.method,), kwargs.get("buffers", DEFAULT_BUFFERS)))
+    progress = None if args.quiet else Progress(f"rendering {w}x{h}")
     result = parc.render(scene, method=args.method, progress=progress, work=work_out is not None, **kwargs)
     if progress is not None:
         progress.done()
@@ -526,6 +528,7 @@ def _describe(vis):
 
 def cmd_compare(args):
     from .compare import method_names, compare, format_table
+    from .renderer import casters_for
 
     say = (lambda *a: None) if args.quiet else (lambda msg: print(f"parc: {msg}", file=sys.stderr))
     warming = None if args.quiet else (lambda line: say(f"{line} ..."))
@@ -542,9 +545,9 @@ def cmd_compare(args):
         if not steps or not all(np.isfinite(steps)) or min(steps) <= 0:
             raise InputError(f"--sweep-step must be comma-separated positive numbers, got {args.sweep_step!r}")
     scene, notes = scene_and_notes(args)
-    if warming is not None:
-        compile_notice(say)
     common = {"buffers": _buffers(args, scene), "blocks": not args.no_blocks}
+    if warming is not None:
+        compile_notice(say, casters_for(scene, ["brute"] + [m.split(":")[0] for m in methods], common["buffers"]))
     if steps is not None:
         from .compare import format_step_table, step_sweep
         rows = step_sweep(scene, steps, repeats=args.repeats, progress=warming, options=common)

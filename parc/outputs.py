@@ -160,13 +160,17 @@ def end_progress_line():
         line._say("")
 
 
-def compile_notice(say):
-    """Say that the casters compile now, when this machine has no compiled kernels for these sources.
+def compile_notice(say, kernels=()):
+    """Say that the casters compile now, when this machine has none of ``kernels`` (Numba
+    dispatchers: the casters a run needs, `parc.renderer.casters_for`) compiled for these
+    sources, or, without any named, no kernel at all.
 
     Numba compiles every kernel on its first use and caches it (`raycast.config`
     names the folder after the kernel sources), so the first render after a
     clone or an update spends several seconds, up to a minute for `parc
-    bench`, before its progress starts; without a word it looks hung.
+    bench`, before its progress starts, and so does the first render of
+    another kind (translucent after isosurfaces, shadows...); without a word
+    it looks hung.
     """
     from raycast.config import cache_folder, cache_refused
 
@@ -176,5 +180,14 @@ def compile_notice(say):
             "(set PARC_CACHE_DIR to a writable folder)")
         return
     folder = cache_folder()
-    if next(folder.rglob("*.nbi"), None) is None:     # Numba's index of a cached kernel
+    # Numba's index of a cached kernel, named after the kernel.
+    indexes = [_index_name(k) for k in kernels] or ["*.nbi"]
+    if any(next(folder.rglob(name), None) is None for name in indexes):
         say(f"compiling the ray casters for this machine, once (kept in {folder})")
+
+
+def _index_name(kernel):
+    try:
+        return Path(kernel._cache._cache_file._index_path).name
+    except AttributeError:          # another Numba: any index will do
+        return "*.nbi"

@@ -324,6 +324,26 @@ def _light_buffer_size(light_buffer):
     return int(light_buffer)
 
 
+def casters_for(scene, methods=("brute",), buffers=DEFAULT_BUFFERS):
+    """The Numba casters rendering ``scene`` with ``methods`` runs, the kernels whose first
+    compile takes seconds (`parc.outputs.compile_notice`)."""
+    from raycast import composite, iso, merged, shadow
+    bits = "parc" in methods and "bits" in parse_buffers(buffers)
+    trans = [v for v in scene.volumes if isinstance(v, Translucent)]
+    if len(scene.volumes) == 1 and not scene.lights:
+        if not trans:
+            return [iso.cast_iso_image]
+        return [composite._IMAGE_CASTERS[bool(trans[0].shade), bits]]
+    kernels = [iso.cast_iso_image, shadow.surface_frames] if len(trans) < len(scene.volumes) else []
+    if scene.shadows and scene.lights:
+        kernels += [shadow.shadow_iso] + ([shadow.shadow_accumulate] if trans else [])
+    if any(v.mode != "composite" for v in trans):
+        kernels.append(composite._IMAGE_CASTERS[False, False])
+    if any(v.mode == "composite" for v in trans):
+        kernels.append(merged._MERGED_CASTERS[any(v.shade for v in trans)])
+    return kernels
+
+
 def _premultiplied(background):
     """A scene's background, given as colour and alpha, as the image holds colour: times alpha."""
     r, g, b, a = background

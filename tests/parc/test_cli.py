@@ -719,12 +719,42 @@ def test_a_first_run_says_the_casters_compile(vol_file, tmp_path, capsys, monkey
     render = ["render", vol_file, "--iso", 4, "--size", 8, 8, "-o"]
     rc, _, err = _run(render + [tmp_path / "a.png"], capsys)
     assert rc == 0 and "compiling the ray casters for this machine, once" in err
-    (empty / "raycast_0123" / "iso.cast_iso_image-260.py311.nbi").write_bytes(b"")
+    from raycast.iso import cast_iso_image
+    index = empty / "raycast_0123" / Path(cast_iso_image._cache._cache_file._index_path).name
+    index.write_bytes(b"")
     rc, _, err = _run(render + [tmp_path / "b.png"], capsys)
     assert rc == 0 and err and "compiling" not in err
-    (empty / "raycast_0123" / "iso.cast_iso_image-260.py311.nbi").unlink()
+    # Another kind of render compiles casters of its own, and says so too.
+    rc, _, err = _run(["render", vol_file, "--tf", "greyscale", "--size", 8, 8, "-o", tmp_path / "t.png"], capsys)
+    assert rc == 0 and "compiling the ray casters for this machine, once" in err
+    index.unlink()
     rc, _, err = _run(render + [tmp_path / "c.png", "--quiet"], capsys)
     assert rc == 0 and err == ""
+
+
+def test_the_casters_a_render_is_said_to_compile_are_those_it_runs(gl):
+    """`parc.renderer.casters_for` (which the first-compile notice checks) names kernels each kind of
+    render runs: after the render, each has a compiled or loaded signature."""
+    import parc
+    from data_tools.synthetic import blobs
+    from parc.renderer import casters_for
+    vol = blobs(10, seed=1)
+    lo, hi = vol.value_range()
+    cam = parc.Camera.framing(*vol.bounds)
+    iso = parc.Isosurface(vol, (lo + hi) / 2)
+    far = tuple(2.0 * np.array(vol.bounds[1]))
+    kinds = [
+        ([iso], [], "brute", "depth"),
+        ([parc.Translucent(vol, "greyscale", shade=True)], [], "brute", "depth"),
+        ([parc.Translucent(vol, "greyscale")], [], "parc", "depth,bits"),
+        ([iso, parc.Translucent(vol, "greyscale", mode="mip"), parc.Translucent(vol, "viridis", shade=True)],
+         [parc.PointLight(far)], "parc", "depth"),
+    ]
+    for volumes, lights, method, buffers in kinds:
+        scene = parc.Scene(camera=cam, size=(8, 8), volumes=volumes, lights=lights, shadows=bool(lights))
+        parc.render(scene, method, **({"buffers": buffers} if method == "parc" else {}))
+        named = casters_for(scene, (method,), buffers)
+        assert named and all(k.signatures for k in named), [k.py_func.__qualname__ for k in named]
 
 
 def _readme_command_lines():
