@@ -6,6 +6,7 @@ import json
 import os
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -118,6 +119,8 @@ class Progress:
 
     #: The Progress whose terminal line is unfinished (no newline yet), if any.
     open_line = None
+    #: The Progress made last, whose first report may still be pending.
+    latest = None
 
     def __init__(self, what, delay=1.0):
         self.what = what
@@ -126,9 +129,23 @@ class Progress:
         self.delay = delay
         self.last = -1
         self.mute = False
+        self.lock = threading.Lock()        # the first report may come from the timer's thread
+        # Work before the first report (cell ranges of a large volume, the OpenGL pass)
+        # can take seconds: once the delay is over, 0% says the work has begun.
+        self.pending = threading.Timer(delay, self._begun)
+        self.pending.daemon = True
+        self.pending.start()
+        Progress.latest = self
+
+    def _begun(self):
+        if self.last < 0:
+            self(0.0)
 
     def __call__(self, fraction):
-        pct = int(100 * fraction)
+        with self.lock:
+            self._report(int(100 * fraction))
+
+    def _report(self, pct):
         if self.mute or time.perf_counter() - self.start < self.delay:
             return
         if self.tty:
@@ -139,6 +156,7 @@ class Progress:
         self.last = pct
 
     def done(self):
+        self.pending.cancel()
         if self.tty and self.last >= 0:
             self._say(f"\rparc: {self.what}: done in {time.perf_counter() - self.start:.1f} s")
             Progress.open_line = None
@@ -155,6 +173,8 @@ class Progress:
 
 def end_progress_line():
     """End an unfinished progress line, so that what follows (an error) starts a line of its own."""
+    if Progress.latest is not None:
+        Progress.latest.pending.cancel()
     line, Progress.open_line = Progress.open_line, None
     if line is not None:
         line._say("")

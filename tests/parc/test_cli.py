@@ -850,11 +850,26 @@ def test_a_stop_signal_while_writing_leaves_no_temporary_file(signum, vol_file, 
 def test_an_error_after_live_progress_starts_a_line_of_its_own(vol_file, tmp_path, capsys, monkeypatch):
     from parc import outputs
     monkeypatch.setattr(outputs.sys.stderr, "isatty", lambda: True)
-    live = outputs.Progress("rendering 8x8", delay=0.0)
+    live = outputs.Progress("rendering 8x8", delay=60.0)
+    live.start -= 60.0
     live(0.43)
     cli_error = __import__("parc.cli", fromlist=["_error"])._error
     cli_error("interrupted")
     assert capsys.readouterr().err == "\rparc: rendering 8x8:  43%\nparc: interrupted\n"
+
+
+def test_progress_says_the_work_has_begun_before_its_first_report(capsys):
+    # A large volume's cell ranges or the OpenGL pass come before the first band is cast.
+    import time
+    from parc import outputs
+    slow = outputs.Progress("rendering 8x8", delay=0.05)
+    for _ in range(200):
+        if slow.last >= 0:
+            break
+        time.sleep(0.01)
+    slow(0.5)
+    slow.done()
+    assert capsys.readouterr().err.splitlines() == ["parc: rendering 8x8: 0%", "parc: rendering 8x8: 50%"]
 
 
 def test_progress_that_cannot_be_written_leaves_the_work_alone(monkeypatch):
