@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError
+from .errors import InputError, os_reason
 from .grids import grid_dims, soft_inside, volume_label
 from .volume import Volume
 
@@ -171,5 +171,5 @@ def ct_phantom_to_disk(path, shape=(512, 512, 512), *, seed=0, dtype="int16",
             for _, _, slab in _ct_slabs(dims, (sx, sy, sz), seed, noise, dt):
                 slab.astype(dt.newbyteorder("<"), copy=False).tofile(f)
     except OSError as exc:
-        raise InputError(f"{path}: cannot write: {exc.strerror or exc}") from None
+        raise InputError(f"{path}: cannot write: {os_reason(exc)}") from None
     return path

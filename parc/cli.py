@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from data_tools import InputError
+from data_tools.errors import os_reason
 from data_tools.info import exact_text
 from data_tools.io.npy import save_array
 
@@ -323,7 +324,7 @@ def main(argv=None):
         # A path the system refuses (too long, not a folder, no permission)
         # found only when it is used.
         where = f"{exc.filename}: " if exc.filename else ""
-        _error(f"error: {where}{exc.strerror or exc}")
+        _error(f"error: {where}{os_reason(exc)}")
         return EXIT_USAGE
     except MemoryError as exc:
         # NumPy says how much it could not allocate; the usual cause is a

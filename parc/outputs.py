@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from data_tools import InputError
+from data_tools.errors import os_reason
 
 
 def to_json(obj):
@@ -87,7 +88,7 @@ def atomic_write_all(writes):
             os.replace(tmp, path)
     except OSError as exc:
         # Name the user's file: the temporary one beside it means nothing to them.
-        raise InputError(f"{path}: cannot write ({exc.strerror or exc})") from None
+        raise InputError(f"{path}: cannot write ({os_reason(exc)})") from None
     finally:
         for tmp, _ in done:
             if tmp.exists():

@@ -67,6 +67,7 @@ from pathlib import Path
 import numpy as np
 
 from data_tools import InputError, Volume
+from data_tools.errors import os_reason
 
 from .camera import Camera, unit_vector
 from .scene import MODES, DirectionalLight, Isosurface, PointLight, Scene, Translucent
@@ -219,7 +220,7 @@ class _Where:
         except UnicodeDecodeError:
             raise InputError(f"{self.path}: not a UTF-8 text file") from None
         except OSError as exc:
-            raise InputError(f"{self.path}: cannot read: {exc.strerror or exc}") from None
+            raise InputError(f"{self.path}: cannot read: {os_reason(exc)}") from None
         try:
             return tomllib.loads(text)
         except tomllib.TOMLDecodeError as exc:

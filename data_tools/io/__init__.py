@@ -6,7 +6,7 @@ import shutil
 import tempfile
 from pathlib import Path
 
-from ..errors import InputError
+from ..errors import InputError, os_reason
 from ..volume import Volume
 from . import metaimage, nifti, npy, nrrd_format, raw, slc, tiff, vtk_legacy
 from ._common import check_file, reading
@@ -168,7 +168,7 @@ def save_volume(volume: Volume, path, **options) -> Path:
                 os.replace(f, path.parent / f.name)
         os.replace(tmpdir / path.name, path)
     except OSError as exc:
-        raise InputError(f"{path}: cannot write: {exc.strerror or exc}") from None
+        raise InputError(f"{path}: cannot write: {os_reason(exc)}") from None
     except UnicodeEncodeError:
         # MetaImage, NRRD and VTK headers are ASCII, and .mhd and .nhdr name their data file.
         raise InputError(f"{path}: a {ext} header names its data file in ASCII; "

@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from data_tools import InputError
+from data_tools.errors import os_reason
 
 from .function import TransferFunction, control_points, is_number, short_repr
 from .presets import PRESETS, data_range_of, preset, ramp_opacity
@@ -85,7 +86,7 @@ def load_transfer_function(spec, data_range=None):
     except UnicodeDecodeError:
         raise InputError(f"{where}: not a UTF-8 text file") from None
     except OSError as exc:
-        raise InputError(f"{where}: cannot read: {exc.strerror or exc}") from None
+        raise InputError(f"{where}: cannot read: {os_reason(exc)}") from None
     if ext == ".toml":
         try:
             doc = tomllib.loads(raw)

@@ -410,3 +410,17 @@ def test_saving_an_array_asks_for_a_volume(tmp_path):
     with pytest.raises(InputError, match="save_volume takes a Volume, got ndarray"):
         save_volume(np.zeros((4, 4, 4), np.uint8), tmp_path / "v.nrrd")
     assert not any(tmp_path.iterdir())
+
+
+def test_a_short_write_names_the_full_disk(tmp_path, monkeypatch):
+    # NumPy reports a write cut short (a full disk) with byte counts and no reason.
+    from data_tools.io import raw
+
+    def short(volume, path, **k):
+        raise OSError("1440000 requested and 153568 written")     # what ndarray.tofile raises
+    monkeypatch.setattr(raw, "write_raw", short)
+    with pytest.raises(InputError) as exc:
+        save_volume(Volume(np.zeros((4, 4, 4), np.uint8)), tmp_path / "v.raw")
+    assert str(exc.value).endswith("v.raw: cannot write: only 153,568 of 1,440,000 bytes were written; "
+                                   "is the disk full?")
+    assert not any(tmp_path.iterdir())
