@@ -111,9 +111,12 @@ class Volume:
             data = np.ascontiguousarray(data)
         if data.dtype.kind == "f":
             # Policy: non-finite samples have no isosurface or colour; refuse them.
-            bad = _count_non_finite(data)
+            bad, top = _count_non_finite(data)
             if bad:
                 raise InputError(f"{self.name}: {bad} non-finite samples (NaN or inf); replace them before rendering")
+            if top > MAX_SAMPLE:
+                raise InputError(f"{self.name}: samples reach {top:.3g}, beyond the {MAX_SAMPLE:g} a cell's cubic "
+                                 "holds without overflow (a fill value?); replace them before rendering")
         if data.flags.writeable:
             data = data.view()
             data.flags.writeable = False
@@ -178,12 +181,26 @@ class Volume:
         return self.meta["_range"]
 
 
+#: Largest sample magnitude, and the range of spacings, for which a cell's cubic (solved in
+#: world units, its coefficients up to 8 samples over spacing^3) stays within float64:
+#: 8e200 x 1e90 is far from overflow, and real data (float32 at most 3.4e38) far inside.
+MAX_SAMPLE = 1e200
+MIN_SPACING, MAX_SPACING = 1e-30, 1e30
+
+
 def _count_non_finite(data, slab_bytes=64 << 20):
-    """NaN and inf samples in ``data``, counted a slab of z-slices at a time: a memory-mapped
-    file is read through once, and no mask as large as the volume is made."""
+    """NaN and inf samples in float ``data``, and the largest finite magnitude (float64 only:
+    float32 cannot pass `MAX_SAMPLE`), a slab of z-slices at a time: a memory-mapped file is
+    read through once, and no mask as large as the volume is made."""
     per = max(1, slab_bytes // max(data[0].nbytes, 1))
-    return sum(int(slab.size - np.count_nonzero(np.isfinite(slab)))
-               for slab in (data[z:z + per] for z in range(0, data.shape[0], per)))
+    bad, top = 0, 0.0
+    for z in range(0, data.shape[0], per):
+        slab = data[z:z + per]
+        finite = np.isfinite(slab)
+        bad += int(slab.size - np.count_nonzero(finite))
+        if data.dtype.itemsize == 8 and not bad:
+            top = max(top, float(np.abs(slab).max()))
+    return bad, top
 
 
 def _narrowed(data, name):
@@ -226,4 +243,7 @@ def _triple(value, what, name, *, positive):
         raise InputError(f"{name}: {what} must be three finite numbers, got {value!r}")
     if positive and min(t) <= 0:
         raise InputError(f"{name}: {what} must be positive, got {t}")
+    if positive and not all(MIN_SPACING <= v <= MAX_SPACING for v in t):
+        # A cell's cubic is solved in world units: its coefficients scale as 1/spacing^3.
+        raise InputError(f"{name}: {what} must lie between {MIN_SPACING:g} and {MAX_SPACING:g}, got {t}")
     return t

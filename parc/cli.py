@@ -381,6 +381,9 @@ def _main(argv):
         build_parser().print_help()
         return EXIT_USAGE
     args.argv = argv
+    if sys.stdout is None and args.command in ("info", "compare"):
+        # Started with stdout closed (>&-): what it prints would be lost without a word.
+        raise InputError(f"standard output is closed; parc {args.command} prints its result there")
     commands = {"render": cmd_render, "compare": cmd_compare, "info": cmd_info, "make": cmd_make,
                 "convert": cmd_convert, "bench": cmd_bench}
     return commands[args.command](args)

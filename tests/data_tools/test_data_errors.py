@@ -424,3 +424,28 @@ def test_a_short_write_names_the_full_disk(tmp_path, monkeypatch):
     assert str(exc.value).endswith("v.raw: cannot write: only 153,568 of 1,440,000 bytes were written; "
                                    "is the disk full?")
     assert not any(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("fill, ok", [(-1e308, False), (-np.finfo(np.float64).max, False), (1e200, True),
+                                      (-3.4e38, True)])
+def test_samples_a_cubic_cannot_hold_are_refused(fill, ok):
+    # The cubic's coefficients (differences of 8 samples, over spacing^3) overflow near 1e308:
+    # the surface quietly vanished.
+    data = np.linspace(0.0, 1.0, 64).reshape(4, 4, 4)
+    data[0, 0, 0] = fill
+    if ok:
+        assert fill in Volume(data).value_range()
+    else:
+        with pytest.raises(InputError, match="beyond the 1e\\+200 a cell's cubic holds without overflow"):
+            Volume(data)
+
+
+@pytest.mark.parametrize("spacing, ok", [((1e-30, 1, 1), True), ((1, 1e30, 1), True), ((1, 1, 1e-31), False),
+                                         ((2.0 ** 400, 1, 1), False)])
+def test_spacings_a_cubic_cannot_hold_are_refused(spacing, ok):
+    data = np.zeros((2, 2, 2), np.float32)
+    if ok:
+        assert Volume(data, spacing=spacing).spacing == spacing
+    else:
+        with pytest.raises(InputError, match="spacing must lie between 1e-30 and 1e\\+30"):
+            Volume(data, spacing=spacing)
