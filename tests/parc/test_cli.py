@@ -901,3 +901,12 @@ def test_compare_says_what_it_times_on_stderr_json_or_not(slow, vol_file, capsys
     rounds = ["parc: timing round 1 of 2 ...", "parc: timing round 2 of 2 ..."] if slow else []
     lines = [s for s in err.splitlines() if "compiling" not in s]
     assert lines == ["parc: warming up brute ...", "parc: warming up parc ...", *rounds]
+
+
+@pytest.mark.parametrize("command", ["info", "compare"])
+def test_a_closed_stdout_is_refused_where_the_result_goes_there(command, vol_file, capsys, monkeypatch):
+    monkeypatch.setattr(sys, "stdout", None)            # started with >&-
+    rc = main([command, str(vol_file)] + (["--iso", "4", "--size", "8", "8"] if command == "compare" else []))
+    monkeypatch.undo()
+    err = capsys.readouterr().err
+    assert rc == 2 and err == f"parc: error: standard output is closed; parc {command} prints its result there\n"
