@@ -459,6 +459,10 @@ def cmd_convert(args):
     return 0
 
 
+#: Images from this many pixels up take seconds to write (a 4000 x 4000 PNG about 4 s): say so.
+LARGE_WRITE_PIXELS = 1 << 22
+
+
 def cmd_render(args):
     import parc
 
@@ -492,6 +496,8 @@ def cmd_render(args):
         writes.append((stats_out, lambda tmp: tmp.write_text(to_json(result.stats) + "\n")))
     if work_out:
         writes.append((work_out, lambda tmp: _write_work(result, scene, args.method, tmp)))
+    if w * h >= LARGE_WRITE_PIXELS:
+        say(f"writing {', '.join(str(path) for path, _ in writes)} ...")   # seconds, after the progress ends
     atomic_write_all(writes)
     s = result.stats
     vis = scene.volumes[0]

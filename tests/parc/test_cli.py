@@ -910,3 +910,13 @@ def test_a_closed_stdout_is_refused_where_the_result_goes_there(command, vol_fil
     monkeypatch.undo()
     err = capsys.readouterr().err
     assert rc == 2 and err == f"parc: error: standard output is closed; parc {command} prints its result there\n"
+
+
+def test_a_large_image_says_it_is_being_written(vol_file, tmp_path, capsys, monkeypatch):
+    import parc.cli as cli
+    monkeypatch.setattr(cli, "LARGE_WRITE_PIXELS", 64)
+    out = tmp_path / "o.png"
+    rc, _, err = _run(["render", vol_file, "--iso", 4, "--size", 8, 8, "-o", out], capsys)
+    assert rc == 0 and f"parc: writing {out} ...\n" in err and out.exists()
+    rc, _, err = _run(["render", vol_file, "--iso", 4, "--size", 7, 9, "-o", out], capsys)
+    assert rc == 0 and "writing" not in err
