@@ -26,9 +26,11 @@ touching its samples.
   Blinn-Phong); the ray stops once ``A`` reaches the threshold.
 - *mip*: the largest value among samples with non-zero opacity; the pixel
   takes the transfer function's colour and opacity there.
-- *average*: the sum of the values of samples with non-zero opacity over
-  all ``N`` lattice samples of the ray in the volume, normalized by the
-  data range: an X-ray-like grey level of what the transfer function shows.
+- *average*: the sum over samples with non-zero opacity of their height
+  above the data's minimum, over all ``N`` lattice samples of the ray in
+  the volume and the data range: an X-ray-like grey level of what the
+  transfer function shows, the same whatever constant the data are offset
+  by (a transparent sample counts as the minimum).
 
 Why every mode is defined through non-zero opacity: PARC skips samples it
 has proven transparent (outside ``[near, far]``, in a plane of
@@ -265,6 +267,9 @@ def composite_sample(data, spc, v, i, j, k, u, vv, w, a, dx, dy, dz, params, col
     cr, cg, cb = tf_color(col_x, col_rgb, v)
     if shade:
         cr, cg, cb = shade_color(data, spc, i, j, k, u, vv, w, dx, dy, dz, params, cr, cg, cb)
+        # Specular light can pass 1; clamped per sample, as a lit surface's is, the
+        # premultiplied colour stays within the opacity.
+        cr, cg, cb = min(cr, 1.0), min(cg, 1.0), min(cb, 1.0)
     return a, cr, cg, cb
 
 
@@ -327,6 +332,7 @@ def _accumulator(shaded, planes):
         step = params[P_STEP]
         mode = int(params[P_MODE])
         threshold = params[P_THRESHOLD]
+        lo = params[P_LO]
         ta, Ax, Ay, Az, t_in, t_out, n_last, t_start, t_end = ray_span(data, Ox, Oy, Oz, Dx, Dy, Dz, seg0, seg1,
                                                                        t_stop, step)
         if not t_start <= t_end:
@@ -386,7 +392,7 @@ def _accumulator(shaded, planes):
                             if v > vmax:
                                 vmax = v
                         else:
-                            total += v
+                            total += v - lo
             if done or c1 >= t_end:
                 break
             inside, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1 = step_cell(Ax, Ay, Az, sx, sy, sz, ix, iy, iz, i, j, k,
@@ -415,15 +421,12 @@ accumulate_ray = _ACCUMULATORS[False, False]
 
 @kernel
 def average_grey(total, count, params):
-    """The average mode's grey level: the mean of ``count`` lattice samples' values (``total``) in the data range."""
-    lo = params[P_LO]
-    hi = params[P_HI]
-    grey = 0.0
-    if hi > lo:
-        grey = min(max((total / count - lo) / (hi - lo), 0.0), 1.0)
-    if total == 0.0:
-        grey = 0.0
-    return grey
+    """The average mode's grey level: ``total``, the sum of the visible samples' heights above
+    the data's minimum, over ``count`` lattice samples and the data range."""
+    span = params[P_HI] - params[P_LO]
+    if not span > 0.0:
+        return 0.0          # a constant volume: every sample at the minimum
+    return min(max(total / count / span, 0.0), 1.0)
 
 
 _ACCUMULATE_PLAIN = _ACCUMULATORS[False, False]

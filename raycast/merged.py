@@ -175,9 +175,11 @@ def _merged_caster(shaded):
                                 if t < bt:
                                     best = q
                                     bt = t
-                        # Layers in front of the next sample (all of them at the end).
+                        # Layers in front of the next sample; all the rest once the samples end or the
+                        # ray is opaque enough (they are finished, and a surface behind shows too).
                         while True:
-                            j = _next_layer(layer_t, used, y, x, bt if best >= 0 else math.inf)
+                            last = best < 0 or acc >= thr
+                            j = _next_layer(layer_t, used, y, x, math.inf if last else bt)
                             if j < 0:
                                 break
                             used[j] = True

@@ -15,7 +15,7 @@ import pytest
 
 from data_tools import Volume
 from data_tools.synthetic import blobs, trilinear_field
-from parc import Camera, DirectionalLight, Isosurface, PointLight, Scene, Translucent, render
+from parc import Camera, DirectionalLight, Isosurface, PointLight, Scene, TransferFunction, Translucent, render
 
 SIZE = (28, 24)
 LIGHT_PLACES = ("outside", "on_box", "inside", "sun", "sun_axis")
@@ -276,3 +276,20 @@ def test_a_scene_cast_in_bands_is_the_scene_cast_whole_with_progress_through_eac
         {k: banded.stats[k] for k in ("cells_visited", "cubic_solves", "samples")}
     assert seen == sorted(seen) and seen[-1] == 1.0
     assert len(seen) >= 3 * (SIZE[1] // 4) and len({round(f, 6) for f in seen if f > 0.5}) >= SIZE[1] // 4
+
+
+@pytest.mark.parametrize("method", ["brute", "parc"])
+def test_a_layer_behind_a_ray_stopped_early_still_shows(gl, method):
+    """A composite volume that stops rays at threshold 0.5, a maximum-intensity volume behind it:
+    the layer goes under the stopped ray as a surface behind would (it was dropped)."""
+    z, y, x = np.mgrid[0:9, 0:9, 0:9]
+    ball = np.where((x - 4) ** 2 + (y - 4) ** 2 + (z - 4) ** 2 <= 12, 200.0, 10.0).astype(np.float32)
+    front = Translucent(Volume(ball), tf="greyscale", threshold=0.5)
+    back = Translucent(Volume(ball, origin=(0, 0, 20)), mode="mip",
+                       tf=TransferFunction(opacity=[[0, 0], [100, 0], [200, 0.8]], color=[[0, 0.2, 0.9, 0.4]]))
+    cam = Camera(eye=(4, 4, -40), look_at=(4, 4, 4), up=(0, 1, 0), parallel_scale=5.0)
+    alone = [render(Scene(camera=cam, size=(12, 12), volumes=[v]), method).image for v in (front, back)]
+    both = render(Scene(camera=cam, size=(12, 12), volumes=[front, back]), method).image
+    assert alone[0][..., 3].max() >= 0.5 and alone[1][..., 3].max() > 0.5
+    expect = alone[0] + (1 - alone[0][..., 3:]) * alone[1]
+    assert np.abs(both - expect).max() <= 1e-6

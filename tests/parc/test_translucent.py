@@ -340,3 +340,35 @@ def test_background_goes_under_the_image_as_colour_times_alpha(background, two):
     assert np.abs(with_bg - expect).max() < 1e-6
     assert (with_bg[..., :3] <= with_bg[..., 3:] + 1e-6).all()
     assert (bare[..., 3] < 1).any()
+
+
+@pytest.mark.parametrize("offset", [0.0, 1000.0, -1000.0])
+def test_average_is_the_visible_samples_height_above_the_minimum(offset):
+    """Average intensity: the visible samples' heights above the data's minimum, over all N
+    lattice samples and the range; the same picture whatever constant the data carry (with
+    the raw values summed, +1000 made the ball vanish and -1000 saturated it)."""
+    z, y, x = np.mgrid[0:9, 0:9, 0:9]
+    data = np.where((x - 4) ** 2 + (y - 4) ** 2 + (z - 4) ** 2 <= 6, 80.0, 5.0).astype(np.float32) + offset
+    data[0, 0, 0] = 100 + offset
+    tf = TransferFunction(opacity=[[offset + 40, 0], [offset + 50, 0.5]])      # shows the ball only
+    cam = Camera(eye=(4, 4, -40), look_at=(4, 4, 4), up=(0, 1, 0), parallel_scale=5.0)
+    scene = Scene(camera=cam, size=(9, 9), volumes=[Translucent(Volume(data), tf, mode="average")])
+    img = render(scene).image
+    # The centre pixel's ray runs along z through x = y = 4: samples every 0.25 from z = 0 to 8.
+    zs = np.arange(33) * 0.25
+    v = np.interp(zs, np.arange(9), data[:, 4, 4].astype(np.float64))
+    lo, hi = float(data.min()), float(data.max())
+    grey = np.where(tf.opacity(v) > 0, v - lo, 0.0).sum() / len(zs) / (hi - lo)
+    assert grey > 0.3 and img[4, 4] == pytest.approx([grey] * 4, abs=1e-6)
+    assert img[0, 8, 3] == 0.0                  # a ray that meets only the transparent shell
+
+
+def test_shaded_samples_keep_colour_within_opacity():
+    """Specular light passes 1: clamped per sample, a shaded composite stays premultiplied in [0, 1]."""
+    data = np.broadcast_to(np.arange(9, dtype=np.float32)[:, None, None] * 10, (9, 9, 9)).copy()
+    tf = TransferFunction(opacity=[[0, 0.05], [80, 0.05]])
+    cam = Camera(eye=(4, 4, -40), look_at=(4, 4, 4), up=(0, 1, 0), parallel_scale=5.0)
+    for background in (None, (1, 1, 1)):
+        img = render(Scene(camera=cam, size=(9, 9), volumes=[Translucent(Volume(data), tf, shade=True)],
+                           background=background)).image
+        assert img[4, 4, 3] > 0.5 and (img[..., :3] <= img[..., 3:] + 1e-6).all() and img.max() <= 1.0
