@@ -91,10 +91,10 @@ def _ints(n, what):
     return parse
 
 
-def _add_volume_options(p):
+def _add_volume_options(p, scenes=True):
     g = p.add_argument_group("reading the volume (headerless raw files need shape and dtype "
-                             "unless the name says, e.g. bucky_32x32x32_uint8.raw; a scene file sets "
-                             "these per volume instead)")
+                             "unless the name says, e.g. bucky_32x32x32_uint8.raw"
+                             + ("; a scene file sets these per volume instead)" if scenes else ")"))
     g.add_argument("--shape", type=_ints(3, "--shape"), metavar="NX,NY,NZ", help="raw: samples along x, y, z")
     g.add_argument("--dtype", metavar="TYPE", help="raw: sample type, e.g. uint8, int16, uint16, float32")
     g.add_argument("--byte-order", choices=("little", "big"), help="raw: byte order (default little)")
@@ -129,7 +129,7 @@ def _add_view_options(p):
     g.add_argument("--eye", type=_floats(3, "--eye"), metavar="X,Y,Z", help="camera position")
     g.add_argument("--look-at", type=_floats(3, "--look-at"), metavar="X,Y,Z",
                    help="point looked at (default: the centre of the volume, or of all a scene file's)")
-    g.add_argument("--up", type=_floats(3, "--up"), metavar="X,Y,Z", help="up direction (default 0,0,1)")
+    g.add_argument("--up", type=_floats(3, "--up"), metavar="X,Y,Z", help="up direction (default 0,0,1, or 0,1,0 when the view is along z)")
     g.add_argument("--fov", type=float, metavar="DEG",
                    help="vertical field of view in degrees (default 30)")
     g.add_argument("--parallel", type=float, metavar="SCALE",
@@ -248,7 +248,7 @@ def build_parser():
 
     i = sub.add_parser("info", help="describe a volume and suggest isovalues")
     i.add_argument("volume")
-    _add_volume_options(i)
+    _add_volume_options(i, scenes=False)
 
     v = sub.add_parser("convert", help="write a volume in another format",
                        description="Read a volume (any format render reads, with the same reading flags) and write "
@@ -258,7 +258,7 @@ def build_parser():
     v.add_argument("volume", metavar="VOLUME", help="volume file to read (the formats render reads)")
     v.add_argument("-o", "--output", required=True, metavar="OUT",
                    help="output file: .nrrd (gzip) .nhdr .npy .mhd .mha .vtk .raw")
-    _add_volume_options(v)
+    _add_volume_options(v, scenes=False)
 
     from data_tools.synthetic import DESCRIPTIONS
     m = sub.add_parser("make", help="write a synthetic volume",

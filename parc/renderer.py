@@ -100,8 +100,8 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
         ``--buffers`` does: ``"depth"``, ``"bits"``, ``"depth,bits"``;
         ``+`` joins them too): near/far ray distances
         (depth-buffer PARC, §3) and planes of supercells the ray meets
-        (color-buffer PARC, §4). Isosurfaces use the depth buffers, and
-        so do scenes of several volumes.
+        (color-buffer PARC, §4). Isosurfaces and scenes of several volumes
+        use the depth buffers only: asking them for bit planes is an error.
     progress : callable(done_fraction) or None
         Called as bands of image rows finish, for long renders.
     light_buffer : int, optional

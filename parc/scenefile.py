@@ -5,7 +5,8 @@ them; in Python, ``parc.load_scene("scene.toml")`` returns the `Scene`.
 
 Schema
 ------
-Every key is optional unless marked required::
+Every key is optional unless marked required; each ``[[volume]]`` needs
+one of ``file`` and ``synthetic``, and one of ``iso`` and ``tf``::
 
     size = [600, 600]               # image width, height (default 512 x 512)
     background = [0, 0, 0]          # r, g, b (or r, g, b, a) in [0, 1]; default transparent
@@ -40,7 +41,7 @@ Every key is optional unless marked required::
     threshold = 0.99                # early ray termination opacity (composite)
     shade = false                   # gradient shading of composite samples
 
-    [[light]]                       # none: a headlight at the eye
+    [[light]]                       # none: a headlight at the eye; lights need an isosurface
     position = [0, -200, 150]       # a point light; or
     # direction = [-1, 1, -1]       #   a directional light travelling along this vector
     color = [1, 1, 1]
@@ -60,9 +61,13 @@ from __future__ import annotations
 import difflib
 import math
 import os
-import tomllib
 from contextlib import contextmanager
 from pathlib import Path
+
+try:
+    import tomllib
+except ModuleNotFoundError:          # Python 3.10: the same parser, as a package
+    import tomli as tomllib
 
 import numpy as np
 

@@ -26,8 +26,12 @@ from __future__ import annotations
 
 import json
 import os
-import tomllib
 from pathlib import Path
+
+try:
+    import tomllib
+except ModuleNotFoundError:          # Python 3.10: the same parser, as a package
+    import tomli as tomllib
 
 import numpy as np
 
