@@ -34,6 +34,11 @@ def scene_from_flags(args, say):
     if args.fov is not None and args.parallel is not None:
         raise InputError("give --fov (a perspective view) or --parallel (a parallel projection), not both")
     scene = _file_scene(args) if _is_scene_file(args) else _volume_scene(args, say)
+    for vis in scene.volumes:
+        if hasattr(vis, "tf") and not vis.tf.nonzero_in(*vis.volume.value_range()):
+            lo, hi = vis.volume.value_range()
+            say(f"{vis.tf.name or 'the transfer function'} is transparent over the data range "
+                f"[{exact_text(lo)}, {exact_text(hi)}] of {vis.volume.name}: that volume shows nothing")
     return _add_flag_lights(scene, args, say)
 
 

@@ -136,6 +136,10 @@ class Translucent:
         self.material = _material(self.material)
 
 
+#: Largest coordinate of a point light's position.
+MAX_LIGHT_DISTANCE = 1e150
+
+
 @settled
 @dataclass(eq=False)
 class PointLight:
@@ -144,7 +148,8 @@ class PointLight:
     Parameters
     ----------
     position : (x, y, z)
-        World position; may lie inside a volume.
+        World position; may lie inside a volume, or on a surface (its shadow
+        rays stop just short of it); coordinates up to 1e150.
     color : (r, g, b) in [0, 1]
     intensity : float >= 0
         Scales the colour.
@@ -156,6 +161,10 @@ class PointLight:
 
     def __post_init__(self):
         self.position = _finite_triple(self.position, "light position")
+        if max(abs(c) for c in self.position) > MAX_LIGHT_DISTANCE:
+            # Its direction's length would overflow in the shading; from there it is the sun.
+            raise InputError(f"light position {self.position} is beyond {MAX_LIGHT_DISTANCE:g}; "
+                             "a light that far is a DirectionalLight")
         self.color = _unit_triple(self.color, "light colour")
         self.intensity = _non_negative(self.intensity, "light intensity")
 

@@ -226,11 +226,8 @@ class _Where:
             raise InputError(f"{self.path}: not a UTF-8 text file") from None
         except OSError as exc:
             raise InputError(f"{self.path}: cannot read: {os_reason(exc)}") from None
-        try:
-            return tomllib.loads(text)
-        except tomllib.TOMLDecodeError as exc:
-            # tomllib's message ends with "(at line L, column C)".
-            raise InputError(f"{self.path}: malformed TOML: {exc}") from None
+        from .transfer.files import parse_text
+        return parse_text(tomllib.loads, text, self.path, "TOML")
 
     def resolve(self, name):
         """A path from the file, relative to the file's folder."""

@@ -4,7 +4,9 @@ A shadow ray leaves a hit point ``P`` towards a light: towards a point
 light's position (its length is the distance ``D``), or against a
 directional light's direction (unbounded). It starts ``eps`` along its
 way (``P' = P + eps l``, ``t = 0`` there), so the surface it leaves is not
-found again at ``t = 0``, with the same rounding for every method. Along
+found again at ``t = 0``, with the same rounding for every method, and
+ends ``eps`` short of a point light, so a surface the light stands on
+does not hide it (as rounding would decide, ray by ray). Along
 it, each volume of the scene either blocks the light (an isosurface with
 a root on the ray: `cast_iso_ray`, the primary rays' walk) or lets
 through ``1 - a``, where ``a`` is the opacity the volume's accumulation
@@ -101,7 +103,7 @@ def light_segment(views, near, far, px, py, pz):
 def shadow_span(light, views, near, far, use_seg, px, py, pz, eps, dist):
     """The shadow ray's ``[s0, s1]`` (from ``P' = P + eps l``), ``s0 > s1`` if it meets nothing."""
     s0 = 0.0
-    s1 = dist - eps
+    s1 = dist - 2.0 * eps       # P' is eps along; the ray stops eps short of the light
     if not use_seg:
         return s0, s1
     lo, hi = light_segment(views, near, far, px, py, pz)
@@ -187,7 +189,7 @@ def shadow_accumulate(data, org, spc, params, op_x, op_y, col_x, col_rgb, points
             if not s0 <= s1:
                 continue
             r, g, b, a, samples = accumulate_ray(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, lx, ly, lz, s0, s1,
-                                                 dist - eps, params, op_x, op_y, col_x, col_rgb,
+                                                 dist - 2.0 * eps, params, op_x, op_y, col_x, col_rgb,
                                                  nobits, 0, 0, False, skip, jump_min)
             counts[n, 2] += samples
             vis[n] *= 1.0 - a

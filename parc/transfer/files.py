@@ -44,6 +44,20 @@ from .presets import PRESETS, data_range_of, preset, ramp_opacity
 
 _OUR_KEYS = ("color", "description", "name", "opacity", "space")
 
+def parse_text(loads, text, where, kind):
+    """``loads(text)`` (`tomllib.loads`, `json.loads`), any failure an InputError naming ``where``."""
+    try:
+        return loads(text)
+    except (tomllib.TOMLDecodeError, json.JSONDecodeError) as exc:
+        # tomllib's and json's messages end with where: "(at line L, column C)", "line L column C".
+        raise InputError(f"{where}: malformed {kind}: {exc}") from None
+    except ValueError:
+        # The only other: an integer of thousands of digits, which Python will not convert.
+        raise InputError(f"{where}: malformed {kind}: a number too long to read") from None
+    except RecursionError:
+        raise InputError(f"{where}: malformed {kind}: arrays or tables nested too deeply") from None
+
+
 def load_transfer_function(spec, data_range=None):
     """A transfer function from a preset name or a file.
 
@@ -92,15 +106,9 @@ def load_transfer_function(spec, data_range=None):
     except OSError as exc:
         raise InputError(f"{where}: cannot read: {os_reason(exc)}") from None
     if ext == ".toml":
-        try:
-            doc = tomllib.loads(raw)
-        except tomllib.TOMLDecodeError as exc:
-            raise InputError(f"{where}: malformed TOML: {exc}") from None
+        doc = parse_text(tomllib.loads, raw, where, "TOML")
     else:
-        try:
-            doc = json.loads(raw)
-        except json.JSONDecodeError as exc:
-            raise InputError(f"{where}: malformed JSON: {exc}") from None
+        doc = parse_text(json.loads, raw, where, "JSON")
         if isinstance(doc, list) or (isinstance(doc, dict) and "RGBPoints" in doc):
             return _from_paraview(doc, where, text, data_range)
         paraview_keys = {"ColorSpace", "Name", "Points"}

@@ -129,7 +129,9 @@ class TransferFunction:
             col = np.array([[op[0, 0], 1.0, 1.0, 1.0]])
         else:
             col = control_points(color, "color", ("r", "g", "b"), where)
-        self.name = str(name)
+        # A label for notes and reports: one line of printable text (a file's name may hold
+        # newlines or terminal escapes), "" for none.
+        self.name = " ".join("".join(c if c.isprintable() else " " for c in str(name or "")).split())
         self.description = str(description)
         self.source = str(source)
         self._op_x = _frozen(op[:, 0])

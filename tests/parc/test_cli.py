@@ -920,3 +920,12 @@ def test_a_large_image_says_it_is_being_written(vol_file, tmp_path, capsys, monk
     assert rc == 0 and f"parc: writing {out} ...\n" in err and out.exists()
     rc, _, err = _run(["render", vol_file, "--iso", 4, "--size", 7, 9, "-o", out], capsys)
     assert rc == 0 and "writing" not in err
+
+
+def test_a_transfer_function_transparent_over_the_data_gets_a_note(vol_file, tmp_path, capsys):
+    tf = tmp_path / "far.toml"
+    tf.write_text("opacity = [[1000, 0], [2000, 1]]\n")
+    rc, _, err = _run(["render", vol_file, "--tf", tf, "--size", 8, 8, "-o", tmp_path / "o.png"], capsys)
+    assert rc == 0 and "is transparent over the data range [0.8660253882408142, 9.52627944946289]" in err
+    rc, _, err = _run(["render", vol_file, "--tf", "greyscale", "--size", 8, 8, "-o", tmp_path / "g.png"], capsys)
+    assert rc == 0 and "transparent" not in err

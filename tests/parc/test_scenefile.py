@@ -206,6 +206,8 @@ VOLUME = """\
 #: (scene file text, the key named, words of the message). {V} is a valid [[volume]] table.
 BAD = [
     ("size = [32, 32\n{V}", None, "malformed TOML", "(at line 2, column 1)"),
+    ("size = " + "[" * 100000 + "]" * 100000 + "\n{V}", None, "malformed TOML", "nested too deeply"),
+    ("size = [1" + "0" * 5000 + ", 32]\n{V}", None, "malformed TOML", "a number too long to read"),
     ("volumes = 1\n{V}", "volumes", "unknown key; did you mean volume?"),
     ("[camera]\nfvo = 20\n{V}", "camera.fvo", "unknown key; did you mean fov? (known: eye, look_at, up, fov, parallel)"),
     ("camera = 3\n{V}", "camera", "must be a table"),

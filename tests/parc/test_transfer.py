@@ -499,6 +499,10 @@ BAD_FILES = [
     ("empty.toml", 'opacity = []', ["empty.toml", "opacity", "empty"]),
     ("nan.json", '{"opacity": [[0, NaN]]}', ["nan.json", "opacity[0]", "finite"]),
     ("huge.json", '{"opacity": [[1' + "0" * 400 + ', 0.5]]}', ["huge.json", "opacity[0]", "finite"]),
+    ("digits.json", '{"opacity": [[1' + "0" * 5000 + ', 0.5]]}', ["digits.json", "malformed JSON", "too long"]),
+    ("digits.toml", 'opacity = [[1' + "0" * 5000 + ', 0.5]]', ["digits.toml", "malformed TOML", "too long"]),
+    ("deep.json", "[" * 100000 + "]" * 100000, ["deep.json", "malformed JSON", "nested too deeply"]),
+    ("deep.toml", "opacity = " + "[" * 100000 + "]" * 100000, ["deep.toml", "malformed TOML", "nested too deeply"]),
     ("space.toml", 'space = "log"\nopacity = [[0, 0]]', ["space.toml", "space"]),
     ("normout.toml", 'space = "normalized"\nopacity = [[0, 0], [1.5, 0.1]]',
      ["normout.toml", "opacity[1]", "normalized"]),
@@ -604,3 +608,10 @@ def test_nonzero_in_widens_by_the_casters_rounding(dtype):
     # ... and no farther than that.
     far = TransferFunction([[m + 1e-6 * m, 0.0], [m + 1.0, 0.5]])
     assert not far.nonzero_in(np.array([100], dtype), np.array([m], dtype), rounding=INTERP_ROUNDING)[0]
+
+
+@pytest.mark.parametrize("name, label", [(None, ""), ("line1\nline2\x1b[31mRED", "line1 line2 [31mRED"),
+                                         ("ct skin", "ct skin")])
+def test_a_name_is_one_line_of_printable_text(name, label):
+    # It is printed in notes ("composite of NAME"): None was "None", a newline split the line.
+    assert TransferFunction([[0, 1]], name=name).name == label
