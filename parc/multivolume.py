@@ -129,10 +129,12 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
         colors = np.empty((nh, 3))
         materials = np.empty((nh, 4))
         owner = winner[hit]
+        groups = []                 # (first, end, volume) of each surface's hits
         for n, iso in isos:
             a, b = np.searchsorted(owner, n, "left"), np.searchsorted(owner, n, "right")
             if a == b:
                 continue
+            groups.append((a, b, iso.volume))
             surface_frames(iso.volume.data, np.array(iso.volume.spacing), cam, w, h, hit[a:b], depth, cell, uvw,
                            points[a:b], normals[a:b], views[a:b])
             colors[a:b] = iso.color
@@ -144,8 +146,8 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
         vis = (diffuse > 0.0).astype(np.float64)
         timings["shade"] = time.perf_counter() - t0
         if scene.shadows and scene.lights:
-            _shadows(scene, method, lights, points, vis, segs, sizes, light_buffer, blocks, timings, counts,
-                     extra)
+            _shadows(scene, method, lights, points, groups, vis, segs, sizes, light_buffer, blocks, timings,
+                     counts)
         t0 = time.perf_counter()
         combine_lights(colors, materials, lights, diffuse, specular, vis, hit, image.reshape(npx, 4))
         timings["shade"] += time.perf_counter() - t0
@@ -215,11 +217,15 @@ class _Report:
         self.part(phase, 1.0)
 
 
-def _shadows(scene, method, lights, points, vis, segs, sizes, light_buffer, blocks, timings, counts, extra):
-    """Shadow rays from every hit to every light, volume by volume; ``vis`` scaled in place."""
+def _shadows(scene, method, lights, points, groups, vis, segs, sizes, light_buffer, blocks, timings, counts):
+    """Shadow rays from every hit to every light, volume by volume; ``vis`` scaled in place.
+
+    ``groups``: ``(first, end, volume)``, the hits ``points[first:end]`` on each volume's
+    surface. A shadow ray starts and ends `SHADOW_EPS` of its own surface's smallest spacing
+    off (the smallest in the scene let a tiny volume anywhere make surfaces shadow themselves).
+    """
     from .renderer import _proxy, accumulation_params, skip_table
 
-    eps = SHADOW_EPS * min(min(v.volume.spacing) for v in scene.volumes)
     nh = len(points)
     cnt = np.zeros((nh, 3), np.int64)
     for l, light in enumerate(scene.lights):
@@ -240,13 +246,16 @@ def _shadows(scene, method, lights, points, vis, segs, sizes, light_buffer, bloc
             org = np.array(vol.origin)
             spc = np.array(vol.spacing)
             skip, jump_min = skip_table(v, method == "parc" and blocks)
-            if isinstance(v, Isosurface):
-                shadow_iso(vol.data, org, spc, v.value, points, row, eps, views, near, far,
-                           method == "parc", skip, jump_min, v_l, cnt)
-            else:
-                op_x, op_y, col_x, col_rgb = v.tf.arrays()
-                shadow_accumulate(vol.data, org, spc, accumulation_params(v), op_x, op_y, col_x, col_rgb,
-                                  points, row, eps, views, near, far, method == "parc", skip, jump_min, v_l, cnt)
+            for a, b, surface in groups:
+                eps = SHADOW_EPS * min(surface.spacing)
+                if isinstance(v, Isosurface):
+                    shadow_iso(vol.data, org, spc, v.value, points[a:b], row, eps, views, near, far,
+                               method == "parc", skip, jump_min, v_l[a:b], cnt[a:b])
+                else:
+                    op_x, op_y, col_x, col_rgb = v.tf.arrays()
+                    shadow_accumulate(vol.data, org, spc, accumulation_params(v), op_x, op_y, col_x, col_rgb,
+                                      points[a:b], row, eps, views, near, far, method == "parc", skip, jump_min,
+                                      v_l[a:b], cnt[a:b])
             timings["shadow"] += time.perf_counter() - t0
     from .renderer import column_totals
     cells, solves, samples = column_totals(cnt)[:3]
