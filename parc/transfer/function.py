@@ -241,6 +241,7 @@ class TransferFunction:
         """`nonzero_in` for one chunk, in float64."""
         a = a.astype(np.float64, copy=False)
         b = b.astype(np.float64, copy=False)
+        ordered = a <= b                                 # before widening: mn > mx is no range
         if rounding:
             with np.errstate(invalid="ignore"):
                 pad = rounding * np.maximum(np.abs(a), np.abs(b))
@@ -250,7 +251,7 @@ class TransferFunction:
         k = np.searchsorted(hi, a, side="left")          # first interval with hi >= mn
         hit = k < len(lo)
         hit &= lo[np.minimum(k, len(lo) - 1)] <= b       # ... starts at or below mx
-        hit &= a <= b
+        hit &= ordered
         hit |= np.isnan(a) | np.isnan(b)
         return hit
 

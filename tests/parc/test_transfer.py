@@ -615,3 +615,10 @@ def test_nonzero_in_widens_by_the_casters_rounding(dtype):
 def test_a_name_is_one_line_of_printable_text(name, label):
     # It is printed in notes ("composite of NAME"): None was "None", a newline split the line.
     assert TransferFunction([[0, 1]], name=name).name == label
+
+
+def test_a_reversed_range_meets_nothing_however_widened():
+    tf = TransferFunction([[0, 0], [1, 1]])
+    assert not tf.nonzero_in(np.array([0.5]), np.array([0.4999999]), rounding=1e-3)[0]
+    assert not tf.nonzero_in(np.array([5], np.uint8), np.array([4], np.uint8), rounding=1e-3)[0]
+    assert tf.nonzero_in(np.array([0.5]), np.array([0.5]), rounding=1e-3)[0]
