@@ -85,9 +85,18 @@ def load_transfer_function(spec, data_range=None):
     text = os.fspath(spec)
     if text in PRESETS:
         return preset(text, data_range)
+    if not text.strip():
+        raise InputError(f"a transfer function is a preset ({', '.join(PRESETS)}) or a .toml or .json file; "
+                         "got an empty name")
     path = Path(text)
     ext = path.suffix.lower()
-    if not path.exists():
+    try:
+        exists = path.exists()
+    except OSError as exc:                  # a name too long for the system, say
+        raise InputError(f"transfer function {text}: {os_reason(exc)}") from None
+    if not exists:
+        if path.is_symlink():
+            raise InputError(f"transfer function {text}: a link that leads nowhere (or in a loop)")
         if ext in (".toml", ".json") or os.sep in text or "/" in text:
             raise InputError(f"transfer function file not found: {text}")
         raise InputError(f"unknown transfer function preset {text!r}; known: {', '.join(PRESETS)}; "
@@ -109,6 +118,9 @@ def load_transfer_function(spec, data_range=None):
         doc = parse_text(tomllib.loads, raw, where, "TOML")
     else:
         doc = parse_text(json.loads, raw, where, "JSON")
+        if isinstance(doc, dict) and "RGBPoints" in doc and {"opacity", "color"} & set(doc):
+            raise InputError(f"{where}: holds ParaView's RGBPoints and our opacity/color keys; "
+                             "keep one kind (a file is read as one or the other)")
         if isinstance(doc, list) or (isinstance(doc, dict) and "RGBPoints" in doc):
             return _from_paraview(doc, where, text, data_range)
         paraview_keys = {"ColorSpace", "Name", "Points"}

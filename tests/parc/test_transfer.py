@@ -521,6 +521,7 @@ BAD_FILES = [
     ("null.json", 'null', ["null.json", "object", "got null"]),
     ("pv_name.json", '[{"Name": 5, "RGBPoints": [0, 0, 0, 0]}]', ["pv_name.json", "Name"]),
     ("tf.yaml", "opacity: []", ["tf.yaml", ".yaml", ".toml or .json"]),
+    ("both.json", '{"RGBPoints": [0, 0, 0, 0], "opacity": [[0, 1]]}', ["both.json", "keep one kind"]),
 ]
 
 
@@ -622,3 +623,14 @@ def test_a_reversed_range_meets_nothing_however_widened():
     assert not tf.nonzero_in(np.array([0.5]), np.array([0.4999999]), rounding=1e-3)[0]
     assert not tf.nonzero_in(np.array([5], np.uint8), np.array([4], np.uint8), rounding=1e-3)[0]
     assert tf.nonzero_in(np.array([0.5]), np.array([0.5]), rounding=1e-3)[0]
+
+
+def test_names_that_are_no_file_say_so(tmp_path):
+    loop = tmp_path / "loop.toml"
+    loop.symlink_to(loop)
+    for spec, words in (("", "got an empty name"), ("  ", "got an empty name"),
+                        (str(loop), "a link that leads nowhere"),
+                        (str(tmp_path / ("a" * 300 + ".toml")), "File name too long")):
+        with pytest.raises(InputError) as exc:
+            T.load_transfer_function(spec)
+        assert words in str(exc.value) and "\n" not in str(exc.value), str(exc.value)
