@@ -71,6 +71,12 @@ class Camera:
             object.__setattr__(self, "fov", float(self.fov))
         else:
             try:
+                check_fov(self.fov)
+            except InputError:
+                # Ignored by a parallel projection, whatever was given: a number it can hold.
+                object.__setattr__(self, "fov", 30.0)
+            object.__setattr__(self, "fov", float(self.fov))
+            try:
                 scale = math.nan if text_or_flag(self.parallel_scale) else float(self.parallel_scale)
             except (TypeError, ValueError):
                 scale = math.nan
@@ -160,29 +166,35 @@ class Camera:
 
     @classmethod
     def framing(cls, lo, hi, *, fov=30.0, azimuth=35.0, elevation=25.0, up=(0.0, 0.0, 1.0),
-                parallel=False, zoom=1.0):
+                parallel=False, zoom=1.0, aspect=1.0):
         """A three-quarter view that frames the box ``[lo, hi]`` whole.
 
         The eye looks at the box centre from ``azimuth`` degrees around +z
         (0 = from -y) and ``elevation`` degrees above the xy-plane, far
-        enough that the bounding sphere fits the vertical field of view
-        ``fov``. ``parallel=True`` gives a parallel projection whose view
-        height holds the sphere instead. ``zoom`` above 1 frames a sphere
-        that many times smaller (closer in), below 1 a larger one.
+        enough that the bounding sphere fits the field of view ``fov``
+        (vertical) across an image ``aspect`` = width / height wide: a
+        tall image fits it across. ``parallel=True`` gives a parallel
+        projection whose view holds the sphere instead. ``zoom`` above 1
+        frames a sphere that many times smaller (closer in; a parallel view
+        only magnifies), below 1 a larger one.
         """
         try:
             lo = np.asarray(lo, dtype=np.float64)
             hi = np.asarray(hi, dtype=np.float64)
             zoom, azimuth, elevation = float(zoom), float(azimuth), float(elevation)
+            aspect = float(aspect)
         except (TypeError, ValueError):
-            raise InputError("framing needs two corners of three numbers and numeric zoom, azimuth "
-                             "and elevation") from None
+            raise InputError("framing needs two corners of three numbers and numeric zoom, azimuth, "
+                             "elevation and aspect") from None
+        if not (math.isfinite(aspect) and aspect > 0.0):
+            raise InputError(f"aspect (width / height) must be positive, got {aspect}")
         if lo.shape != (3,) or hi.shape != (3,) or not (np.isfinite(lo).all() and np.isfinite(hi).all()):
             raise InputError(f"framing needs two corners of three finite numbers, got {lo} and {hi}")
         if not (math.isfinite(zoom) and zoom > 0.0):
             raise InputError(f"zoom must be positive, got {zoom}")
         c = 0.5 * (lo + hi)
-        radius = 0.5 * float(np.linalg.norm(hi - lo)) / zoom
+        whole = 0.5 * float(np.linalg.norm(hi - lo))
+        radius = whole / zoom
         az, el = math.radians(azimuth), math.radians(elevation)
         back = np.array([math.cos(el) * math.sin(az), -math.cos(el) * math.cos(az), math.sin(el)])
         try:
@@ -193,10 +205,12 @@ class Camera:
             raise InputError(f"an elevation of {elevation:g} degrees looks along up {tuple(up)}: "
                              f"give another elevation or up")
         if parallel:
-            return cls(eye=tuple(c + back * radius * 3.0), look_at=tuple(c), up=up,
-                       parallel_scale=radius * 1.02)
+            # The eye stays outside the whole box: in a parallel view, zoom only magnifies.
+            return cls(eye=tuple(c + back * max(radius, whole) * 3.0), look_at=tuple(c), up=up,
+                       parallel_scale=radius * 1.02 / min(1.0, aspect))
         check_fov(fov)
-        half = math.sin(math.radians(fov) / 2.0)
+        # The narrower of the vertical half-angle and the horizontal one (a tall image).
+        half = math.sin(min(math.radians(fov) / 2.0, math.atan(aspect * math.tan(math.radians(fov) / 2.0))))
         if not half >= 2.0 ** -32:
             # The eye would stand over 2^32 box sizes away: the box is then below
             # float64's resolution at the eye, and rays through it are ill defined.

@@ -8,8 +8,12 @@ are refused in one line, not ignored.
 """
 from __future__ import annotations
 
+import numpy as np
+
 from data_tools import InputError
 from data_tools.info import exact_text
+
+from .camera import unit_vector
 
 
 def load_volume_flags(args):
@@ -117,7 +121,7 @@ def _volume_scene(args, say):
                                      "nor stops rays early")
         vis = parc.Translucent(vol, args.tf, mode=args.mode or "composite", step=args.step,
                                threshold=0.99 if args.threshold is None else args.threshold, shade=args.shade)
-        return parc.Scene(camera=_camera(args, vol), size=(w, h), volumes=[vis],
+        return parc.Scene(camera=_camera(args, vol, (w, h)), size=(w, h), volumes=[vis],
                           background=getattr(args, "background", None))
     for flag in ("mode", "step", "threshold", "shade"):
         if getattr(args, flag) not in (None, False):
@@ -131,14 +135,18 @@ def _volume_scene(args, say):
         iso = levels[len(levels) // 2]
         say(f"no --iso given; using {exact_text(iso)}, suggested from the histogram "
             f"(others: {', '.join(exact_text(v) for v in levels if v != iso) or 'none'})")
-    return parc.Scene(camera=_camera(args, vol), size=(w, h), volumes=[parc.Isosurface(vol, iso)],
+    return parc.Scene(camera=_camera(args, vol, (w, h)), size=(w, h), volumes=[parc.Isosurface(vol, iso)],
                       background=getattr(args, "background", None))
 
 
-def _camera(args, vol):
+def _camera(args, vol, size):
     import parc
 
     from .scenefile import resolve_view
     lo, hi = vol.bounds
-    return parc.Camera(**resolve_view(lo, hi, eye=args.eye, look_at=args.look_at, up=args.up, fov=args.fov,
-                                      parallel=args.parallel))
+    view = resolve_view(lo, hi, eye=args.eye, look_at=args.look_at, up=args.up, fov=args.fov,
+                        parallel=args.parallel, aspect=size[0] / size[1])
+    if args.look_at is None and unit_vector(np.subtract(view["look_at"], view["eye"])) is None:
+        raise InputError(f"--eye {','.join(f'{c:g}' for c in view['eye'])} is the centre of the volume, "
+                         "where the camera looks by default: move it or give --look-at")
+    return parc.Camera(**view)

@@ -132,15 +132,15 @@ def load_scene(path, *, view=None, size=None) -> Scene:
 
     volumes = _load_volumes(where, doc.get("volume"))
     lights = _load_lights(where, doc.get("light"))
-    camera_table = _Table(where, "camera", doc.get("camera", {}), CAMERA_KEYS)
-    camera = _load_camera(where, camera_table, volumes, {k: v for k, v in (view or {}).items() if v is not None})
-
     if size is not None:
         image_size = tuple(size)
         with where.key("size (given on the command line)"):
             _check_size(image_size)
     else:
         image_size = top.integers("size", 2, default=DEFAULT_SIZE, minimum=1)
+    camera_table = _Table(where, "camera", doc.get("camera", {}), CAMERA_KEYS)
+    camera = _load_camera(where, camera_table, volumes, {k: v for k, v in (view or {}).items() if v is not None},
+                          image_size[0] / image_size[1])
     background = top.numbers("background", (3, 4), default=None)
     if background is not None and not all(0.0 <= c <= 1.0 for c in background):
         raise where.error("background", f"must be numbers in [0, 1], got {list(background)}")
@@ -150,7 +150,7 @@ def load_scene(path, *, view=None, size=None) -> Scene:
                      background=background, shadows=shadows)
 
 
-def resolve_view(lo, hi, *, eye=None, look_at=None, up=None, fov=None, parallel=None):
+def resolve_view(lo, hi, *, eye=None, look_at=None, up=None, fov=None, parallel=None, aspect=1.0):
     """The camera settings for a view of the box ``[lo, hi]``, with defaults filled in.
 
     The command line and scene files frame volumes the same way: with
@@ -167,6 +167,8 @@ def resolve_view(lo, hi, *, eye=None, look_at=None, up=None, fov=None, parallel=
         Vertical field of view in degrees (default 30).
     parallel : float or None
         Parallel scale: a parallel projection when given.
+    aspect : float
+        The image's width / height: a tall image is framed across.
 
     Returns
     -------
@@ -178,12 +180,12 @@ def resolve_view(lo, hi, *, eye=None, look_at=None, up=None, fov=None, parallel=
     explicit_up = up is not None
     up = tuple(up) if explicit_up else DEFAULT_UP
     if eye is None and look_at is None:
-        framed = Camera.framing(lo, hi, fov=fov, up=up, parallel=parallel is not None)
+        framed = Camera.framing(lo, hi, fov=fov, up=up, parallel=parallel is not None, aspect=aspect)
         return {"eye": framed.eye, "look_at": framed.look_at, "up": up, "fov": fov,
                 "parallel_scale": parallel}
     look_at = tuple(look_at) if look_at is not None else tuple(0.5 * (np.asarray(lo) + np.asarray(hi)))
     if eye is None:
-        framed = Camera.framing(lo, hi, fov=fov, up=up)
+        framed = Camera.framing(lo, hi, fov=fov, up=up, aspect=aspect)
         eye = tuple(np.asarray(look_at) + np.subtract(framed.eye, framed.look_at))
     if not explicit_up:
         # The default up must not be parallel to the view: fall back to +y.
@@ -554,7 +556,7 @@ def _load_lights(where, raw):
     return lights
 
 
-def _load_camera(where, t, volumes, view):
+def _load_camera(where, t, volumes, view, aspect):
     settings = {"eye": t.numbers("eye", 3), "look_at": t.numbers("look_at", 3), "up": t.numbers("up", 3),
                 "fov": t.number("fov"), "parallel": t.number("parallel")}
     if settings["fov"] is not None and settings["parallel"] is not None:
@@ -580,7 +582,7 @@ def _load_camera(where, t, volumes, view):
     if settings["up"] is not None and unit_vector(settings["up"]) is None:
         raise where.error(label("up"), f"up {list(settings['up'])} is zero: give a direction")
     with where.key("camera"):
-        cam = resolve_view(lo, hi, **settings)
+        cam = resolve_view(lo, hi, **settings, aspect=aspect)
     f = unit_vector(np.subtract(cam["look_at"], cam["eye"]))
     if f is None:
         if settings["look_at"] is None:

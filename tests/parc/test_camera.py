@@ -91,14 +91,28 @@ def test_huge_and_tiny_vectors_give_the_basis_of_their_direction(scale):
     np.testing.assert_allclose(far.basis()[0], -np.array([3.0, -4.0, 2.0]) / math.sqrt(29.0), atol=1e-15)
 
 
-def test_framing_keeps_the_whole_box_in_view():
+@pytest.mark.parametrize("size", [(64, 64), (96, 64), (32, 96), (10, 200)])
+@pytest.mark.parametrize("parallel", [False, True])
+@pytest.mark.parametrize("zoom", [1.0, 4.0])
+def test_framing_keeps_the_whole_box_in_view(size, parallel, zoom):
+    # A tall image is framed across (only the vertical angle was fitted: the box's ends were cut),
+    # and a parallel view zoomed in keeps its eye outside the box (it clipped the front away).
     lo, hi = np.array([-3.0, 2.0, 10.0]), np.array([40.0, 30.0, 25.0])
-    cam = Camera.framing(lo, hi)
-    w = h = 64
+    w, h = size
+    cam = Camera.framing(lo, hi, parallel=parallel, aspect=w / h, zoom=zoom)
+    eye = np.array(cam.eye)
+    assert not ((lo <= eye) & (eye <= hi)).all()
+    if zoom != 1.0:
+        return
     mvp = cam.projection_matrix(w, h, 0.01, 1e4) @ cam.view_matrix()
     for corner in np.array(np.meshgrid(*zip(lo, hi))).T.reshape(-1, 3):
         clip = mvp @ np.append(corner, 1.0)
         assert np.all(np.abs(clip[:2] / clip[3]) <= 1.0)
+
+
+def test_a_parallel_camera_ignores_its_field_of_view():
+    cam = Camera(eye=(8, -40, 8), look_at=(8, 8, 8), up=(0, 0, 1), fov=None, parallel_scale=10)
+    assert cam.parallel and np.isfinite(cam.as_array()).all()
 
 
 def test_the_cached_basis_and_kernel_array_cannot_be_changed_through_a_caller():

@@ -929,3 +929,21 @@ def test_a_transfer_function_transparent_over_the_data_gets_a_note(vol_file, tmp
     assert rc == 0 and "is transparent over the data range [0.8660253882408142, 9.52627944946289]" in err
     rc, _, err = _run(["render", vol_file, "--tf", "greyscale", "--size", 8, 8, "-o", tmp_path / "g.png"], capsys)
     assert rc == 0 and "transparent" not in err
+
+
+@pytest.mark.parametrize("size", [(32, 96), (96, 32)])
+def test_the_default_view_frames_a_long_volume_whole_in_a_tall_image(size, tmp_path, capsys):
+    data = np.zeros((16, 16, 256), np.float32)
+    data[1:-1, 1:-1, 1:-1] = 1.0                        # a long bar, 255 x 15 x 75 in the world
+    bar = save_volume(Volume(data, spacing=(1, 1, 5)), tmp_path / "bar.nrrd")
+    depth = tmp_path / "d.npy"
+    rc, _, err = _run(["render", bar, "--iso", 0.5, "--size", *size, "-o", tmp_path / "o.png", "--depth", depth],
+                      capsys)
+    hit = np.isfinite(np.load(depth))
+    assert rc == 0 and hit.sum() > 20, err
+    assert not (hit[0].any() or hit[-1].any() or hit[:, 0].any() or hit[:, -1].any())
+
+
+def test_an_eye_at_the_centre_looked_at_by_default_is_named(vol_file, tmp_path, capsys):
+    rc, _, err = _run(["render", vol_file, "--iso", 4, "--eye", "5.5,5.5,5.5", "-o", tmp_path / "o.png"], capsys)
+    assert rc == 2 and "--eye 5.5,5.5,5.5 is the centre of the volume" in err and "--look-at" in err
