@@ -179,25 +179,18 @@ def on_level_face(v000, v100, v010, v110, v001, v101, v011, v111, tx, ty, tz, t,
     the face settles a root there (the entry-sign rule of `cast_iso_ray`);
     on the volume's own faces there is none.
     """
-    if sx != 0 and tx == t:
-        if (sx > 0) == leaving:
-            if v100 == 0.0 and v110 == 0.0 and v101 == 0.0 and v111 == 0.0:
-                return True
-        elif v000 == 0.0 and v010 == 0.0 and v001 == 0.0 and v011 == 0.0:
-            return True
-    if sy != 0 and ty == t:
-        if (sy > 0) == leaving:
-            if v010 == 0.0 and v110 == 0.0 and v011 == 0.0 and v111 == 0.0:
-                return True
-        elif v000 == 0.0 and v100 == 0.0 and v001 == 0.0 and v101 == 0.0:
-            return True
-    if sz != 0 and tz == t:
-        if (sz > 0) == leaving:
-            if v001 == 0.0 and v101 == 0.0 and v011 == 0.0 and v111 == 0.0:
-                return True
-        elif v000 == 0.0 and v100 == 0.0 and v010 == 0.0 and v110 == 0.0:
-            return True
-    return False
+    return ((sx != 0 and tx == t and _level((sx > 0) == leaving, v000, v010, v001, v011, v100, v110, v101, v111))
+            or (sy != 0 and ty == t and _level((sy > 0) == leaving, v000, v100, v001, v101, v010, v110, v011, v111))
+            or (sz != 0 and tz == t and _level((sz > 0) == leaving, v000, v100, v010, v110, v001, v101, v011, v111)))
+
+
+@kernel(inline="always")
+def _level(far, a0, a1, a2, a3, b0, b1, b2, b3):
+    """Whether the four corners of one face of a cell are zero: ``b`` (local coordinate 1 on the
+    axis) when ``far``, else ``a`` (0)."""
+    if far:
+        return b0 == 0.0 and b1 == 0.0 and b2 == 0.0 and b3 == 0.0
+    return a0 == 0.0 and a1 == 0.0 and a2 == 0.0 and a3 == 0.0
 
 
 @kernel
