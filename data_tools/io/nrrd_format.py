@@ -55,7 +55,7 @@ def read_nrrd(path) -> Volume:
     spacing, note = _spacing(header, path)
     if note:
         meta["note"] = note
-    origin = _origin(header)
+    origin = _origin(header, spacing)
     if spacing is None:
         spacing, origin = _from_extent(header, data.shape[::-1])
     if "space" in header:
@@ -170,12 +170,18 @@ def _has_extent(header):
     return lo.shape == hi.shape == (3,) and np.isfinite(lo).all() and np.isfinite(hi).all()
 
 
-def _origin(header):
+def _origin(header, spacing):
+    """The first sample's position: ``space origin`` is it; ``axis mins`` is the lower edge of
+    the first cell with cell centring (NRRD's default), the sample half a spacing inside, as in
+    `_from_extent`."""
     for key in ("space origin", "axis mins", "axismins"):
         val = header.get(key)
         if val is not None:
             arr = np.asarray(val, dtype=np.float64)
             if arr.shape == (3,) and np.isfinite(arr).all():
+                if key != "space origin" and spacing is not None:
+                    centers = _per_axis(header.get("centers")) or ["cell"] * 3
+                    arr = arr + [0.0 if c.lower() == "node" else s / 2 for s, c in zip(spacing, centers)]
                 return tuple(float(v) for v in arr)
     return (0.0, 0.0, 0.0)
 

@@ -352,10 +352,14 @@ def test_metaimage_text_samples(tmp_path, local):
     ("cell cell cell", (0.4, 0.75, 1.5), (1.2, -0.625, 0.75)),
     (None, (0.4, 0.75, 1.5), (1.2, -0.625, 0.75)),        # NRRD's default centring: cell
 ])
-def test_nrrd_axis_mins_and_maxs_give_spacing_and_origin(tmp_path, centers, spacing, origin):
-    # x: 5 samples over [1, 3]; y: 4 over [-1, 2]; z: 3 over [0, 4.5].
+@pytest.mark.parametrize("spacings", [False, True])
+def test_nrrd_axis_mins_and_maxs_give_spacing_and_origin(tmp_path, centers, spacing, origin, spacings):
+    # x: 5 samples over [1, 3]; y: 4 over [-1, 2]; z: 3 over [0, 4.5]. The spacings, when
+    # given too, agree with the extent: the first sample is where the centring puts it either way.
     lines = ["NRRD0004", "type: short", "dimension: 3", "sizes: 5 4 3", "endian: little", "encoding: raw",
              "axis mins: 1 -1 0", "axis maxs: 3 2 4.5"] + ([f"centers: {centers}"] if centers else [])
+    if spacings:
+        lines.append("spacings: " + " ".join(map(repr, spacing)))
     path = tmp_path / "extent.nrrd"
     path.write_bytes(("\n".join(lines) + "\n\n").encode() + _ZYX.astype("<i2").tobytes())
     vol = load_volume(path)
