@@ -54,13 +54,19 @@ def scene_and_notes(args):
     return scene, notes
 
 
+def _given(value):
+    """Whether a flag was given: not its default None, nor a switch left off. (``0.0 in (None,
+    False)`` is true, so a test by membership took ``--iso 0`` for no flag at all.)"""
+    return value is not None and value is not False
+
+
 def _file_scene(args):
     """The scene file's Scene, with the view flags given replacing its camera settings and size."""
     from dataclasses import replace
 
     from .scenefile import load_scene
     for name in _VOLUME_FLAGS:
-        if getattr(args, name, None) not in (None, False):
+        if _given(getattr(args, name, None)):
             flag = "--" + name.replace("_", "-")
             raise InputError(f"{flag} does not apply to a scene file ({args.volume}); "
                              f"set {name} in its [[volume]] tables")
@@ -116,7 +122,7 @@ def _volume_scene(args, say):
             raise InputError("give --iso (an isosurface) or --tf (a translucent volume), not both")
         if args.mode not in (None, "composite"):
             for flag in ("threshold", "shade"):
-                if getattr(args, flag) not in (None, False):
+                if _given(getattr(args, flag)):
                     raise InputError(f"--{flag} applies to --mode composite; {args.mode} neither shades samples "
                                      "nor stops rays early")
         vis = parc.Translucent(vol, args.tf, mode=args.mode or "composite", step=args.step,
@@ -124,7 +130,7 @@ def _volume_scene(args, say):
         return parc.Scene(camera=_camera(args, vol, (w, h)), size=(w, h), volumes=[vis],
                           background=getattr(args, "background", None))
     for flag in ("mode", "step", "threshold", "shade"):
-        if getattr(args, flag) not in (None, False):
+        if _given(getattr(args, flag)):
             raise InputError(f"--{flag} applies to translucent volumes (--tf)")
     if iso is None:
         from data_tools.info import suggest_isovalues

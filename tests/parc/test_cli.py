@@ -386,6 +386,7 @@ def test_a_vector_starting_with_a_minus_sign_is_a_value(vol_file, tmp_path, caps
     (["--method", "parc", "--buffers", "bits"], "--buffers applies to translucent volumes"),
     (["--output-twice"], "given for two outputs"),
     (["--fov", "20", "--parallel", "40"], "not both"),
+    (["--threshold", "0"], "--threshold applies to translucent volumes"),     # 0 is given, not absent
 ])
 def test_more_bad_arguments(extra, words, vol_file, tmp_path, capsys):
     out = tmp_path / "out.npy"
@@ -399,6 +400,7 @@ def test_more_bad_arguments(extra, words, vol_file, tmp_path, capsys):
 @pytest.mark.parametrize("extra, words", [
     (["--mode", "mip", "--shade"], "--shade applies to --mode composite"),
     (["--mode", "average", "--threshold", "0.5"], "--threshold applies to --mode composite"),
+    (["--mode", "mip", "--threshold", "0"], "--threshold applies to --mode composite"),
     (["--step", "inf"], "step must be a positive, finite distance"),
     (["--background", "2,0,0"], "background components must be in [0, 1]"),
 ])

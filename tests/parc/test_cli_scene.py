@@ -113,6 +113,9 @@ def test_multi_volume_scene_file_loads(tmp_path):
 
 @pytest.mark.parametrize("extra, words", [
     (["--iso", "3"], ["--iso does not apply to a scene file", "[[volume]]"]),
+    (["--iso", "0"], ["--iso does not apply to a scene file"]),        # 0 is a value, not "not given"
+    (["--step", "0"], ["--step does not apply to a scene file"]),
+    (["--threshold", "0"], ["--threshold does not apply to a scene file"]),
     (["--tf", "greyscale"], ["--tf does not apply to a scene file"]),
     (["--mode", "mip"], ["--mode does not apply"]),
     (["--spacing", "1,1,2"], ["--spacing does not apply"]),
