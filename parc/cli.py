@@ -148,8 +148,28 @@ def cmd_make(args):
         raise InputError(f"{args.name} takes no --seed") from None
     _refuse_overwriting_input(out, [])
     save_volume(vol, out)  # all-or-nothing itself, and keeps sidecar names right
-    print(f"wrote {out} ({'x'.join(map(str, vol.dims))} {vol.dtype})")
+    print(f"wrote {_written(out)} ({'x'.join(map(str, vol.dims))} {vol.dtype}{_placement(vol, out)})")
     return 0
+
+
+def _written(out):
+    """``out`` and the files written beside it (a header's data file, a ``.npy``'s sidecar)."""
+    from data_tools.io import data_file_written
+    from data_tools.io.npy import sidecar_path
+    beside = data_file_written(out) or (sidecar_path(out) if out.suffix.lower() == ".npy" else None)
+    return f"{out} and {beside}" if beside is not None and beside.exists() else str(out)
+
+
+def _placement(vol, out):
+    """The spacing and origin written, for the "wrote" line; a ``.raw`` file keeps neither."""
+    spacing = ", ".join(f"{s:g}" for s in vol.spacing)
+    origin = ", ".join(f"{o:g}" for o in vol.origin)
+    if out.suffix.lower() != ".raw":
+        return f", spacing {spacing}, origin {origin}"
+    if vol.spacing == (1.0, 1.0, 1.0) and vol.origin == (0.0, 0.0, 0.0):
+        return ", samples only"
+    return (f", samples only: give --spacing {spacing.replace(' ', '')} --origin {origin.replace(' ', '')} "
+            "when reading it, a .raw file keeps neither")
 
 
 def _exists(path):
@@ -175,6 +195,10 @@ def _refuse_overwriting_input(out, inputs):
         if other.suffix != out.suffix.lower() and _exists(other) and data.exists():
             raise InputError(f"{out}: would write its samples to {data}, which holds {other.name}'s; "
                              "write the output under another name")
+    if data.exists() and not _exists(out):
+        # Rewriting an earlier output replaces its data file too; any other file of that name is not ours.
+        raise InputError(f"{out}: would write its samples to {data}, which exists and is no earlier "
+                         f"{out.name}'s; remove it or write the output under another name")
 
 
 def cmd_convert(args):
@@ -182,13 +206,13 @@ def cmd_convert(args):
     out = check_output(args.output, WRITE_EXTENSIONS)
     check_distinct(args.volume, [out])
     vol = load_volume_flags(args)
-    _refuse_overwriting_input(out, [args.volume, vol.meta.get("data_file")])
+    files = vol.meta.get("files", ())
+    check_distinct(args.volume, [out], read=files)     # a header's own data file, say
+    _refuse_overwriting_input(out, [args.volume, *files])
     save_volume(vol, out)  # all-or-nothing itself, and keeps sidecar names right
     if "note" in vol.meta:
         print(f"parc: {vol.meta['note']}", file=sys.stderr)
-    spacing = ", ".join(f"{s:g}" for s in vol.spacing)
-    origin = ", ".join(f"{o:g}" for o in vol.origin)
-    print(f"wrote {out} ({'x'.join(map(str, vol.dims))} {vol.dtype}, spacing {spacing}, origin {origin})")
+    print(f"wrote {_written(out)} ({'x'.join(map(str, vol.dims))} {vol.dtype}{_placement(vol, out)})")
     return 0
 
 
@@ -208,6 +232,7 @@ def cmd_render(args):
     check_distinct(args.volume, [out, depth_out, stats_out, work_out])
     say = (lambda *a: None) if args.quiet else (lambda msg: print(f"parc: {msg}", file=sys.stderr))
     scene, notes = scene_and_notes(args)
+    check_distinct(args.volume, [out, depth_out, stats_out, work_out], read=_files_read(scene))
     w, h = scene.size
     kwargs = ({"supercell": args.supercell, "buffers": _buffers(args, scene), "blocks": not args.no_blocks}
               if args.method == "parc" else {})
@@ -244,6 +269,17 @@ def cmd_render(args):
         say(f"wrote {out}: {vis.mode} of {vis.tf.name or 'the transfer function'}, step {vis.step:g}; "
             f"{s['seconds']['total']:.3f} s, {s['samples']:,} samples")
     return 0
+
+
+def _files_read(scene):
+    """The files a scene's volumes and transfer functions were read from."""
+    files = []
+    for vis in scene.volumes:
+        files += vis.volume.meta.get("files", ())
+        tf = getattr(vis, "tf", None)
+        if tf is not None and tf.source and Path(tf.source).is_file():
+            files.append(tf.source)
+    return files
 
 
 def _write_work(result, scene, method, path):

@@ -49,18 +49,24 @@ def check_output(path, allowed):
     return path
 
 
-def check_distinct(source, outputs):
-    """Refuse two outputs on one file, or an output on ``source`` (the volume or scene file read, or None)."""
+def check_distinct(source, outputs, read=()):
+    """Refuse two outputs on one file, or an output on a file read: ``source`` (the volume or
+    scene file named, or None) or one of ``read`` (a header's data file, a sidecar, a scene's
+    volumes and transfer functions)."""
     seen = {}
-    inputs = [Path(source).resolve()] if source is not None else []
+    named = Path(source).resolve() if source is not None else None
+    others = {Path(p).resolve() for p in read}
     for path in outputs:
         if path is None:
             continue
         key = path.resolve()
         if key in seen:
             raise InputError(f"{path}: given for two outputs ({seen[key]} and {path})")
-        if key in inputs:
+        if key == named:
             raise InputError(f"{path}: is the input file; write the output elsewhere")
+        if key in others:
+            raise InputError(f"{path}: is read by this run (a volume, its data file or sidecar, or a "
+                             "transfer function); write the output elsewhere")
         seen[key] = path
 
 

@@ -55,7 +55,8 @@ def load_volume(path, **options) -> Volume:
     Returns
     -------
     Volume
-        ``data`` indexed ``[z, y, x]`` in the file's sample type.
+        ``data`` indexed ``[z, y, x]`` in the file's sample type; ``meta['files']`` the
+        files read (with a header's data file and a ``.npy``'s sidecar).
 
     Raises
     ------
@@ -76,7 +77,7 @@ def load_volume(path, **options) -> Volume:
         reader, kind = _file_reader(path)
     if reader is raw.read_raw:
         with reading(path, kind):
-            return raw.read_raw(path, **options)
+            return _read_from(raw.read_raw(path, **options), path)
     extra = sorted(set(options) - {"spacing", "origin"})
     if extra:
         flags = ", ".join("--" + k.replace("_", "-") for k in extra)
@@ -90,6 +91,13 @@ def load_volume(path, **options) -> Volume:
             meta = {k: v for k, v in meta.items() if k not in ("note", "spacing_unknown")}
         vol = Volume(vol.data, spacing=options.get("spacing", vol.spacing),
                      origin=options.get("origin", vol.origin), name=vol.name, meta=meta)
+    return _read_from(vol, path)
+
+
+def _read_from(vol, path):
+    """``vol`` with ``meta['files']``: every file it was read from (the file named, a header's
+    detached data file, a sidecar), which the command line never writes over."""
+    vol.meta["files"] = tuple(str(p) for p in (path, vol.meta.get("data_file"), vol.meta.get("sidecar")) if p)
     return vol
 
 

@@ -176,10 +176,11 @@ def test_convert_refusals_write_nothing(vol_file, out_name, words, capsys):
 
 
 @pytest.mark.parametrize("source, out_name", [("scan.raw", "scan.mhd"), ("scan.raw", "scan.nhdr"),
-                                               ("head.mhd", "head.nhdr"), ("head.nhdr", "head.mhd")])
+                                               ("head.mhd", "head.nhdr"), ("head.nhdr", "head.mhd"),
+                                               ("head.mhd", "head.raw"), ("head.nhdr", "head.raw")])
 def test_convert_refuses_to_write_samples_over_the_input(tmp_path, source, out_name, capsys):
     # .mhd and .nhdr write their samples to STEM.raw: here the raw file read,
-    # or the data file the input header names.
+    # or the data file the input header names; a .raw output can be that data file itself.
     data = np.arange(4 * 3 * 2, dtype=np.int16).reshape(4, 3, 2) * 37 - 300
     raw = tmp_path / "scan.raw"
     raw.write_bytes(data.astype(">i2").tobytes())
@@ -189,8 +190,35 @@ def test_convert_refuses_to_write_samples_over_the_input(tmp_path, source, out_n
         argv = ["convert", tmp_path / source]
     before = {f.name: f.read_bytes() for f in tmp_path.iterdir()}
     rc, _, err = _run(argv + ["-o", tmp_path / out_name], capsys)
-    assert rc == 2 and err.count("\n") == 1 and "which the volume is read from" in err, err
+    words = "is read by this run" if out_name.endswith(".raw") else "which the volume is read from"
+    assert rc == 2 and err.count("\n") == 1 and words in err, err
     assert {f.name: f.read_bytes() for f in tmp_path.iterdir()} == before
+
+
+@pytest.mark.parametrize("command", ["make", "convert"])
+def test_a_header_never_writes_over_a_data_file_not_its_own(vol_file, tmp_path, command, capsys):
+    # scan.mhd's samples go to scan.raw: an unrelated scan.raw stays; an earlier scan.mhd's is rewritten.
+    argv = ["make", "sphere", "--size", 5] if command == "make" else ["convert", vol_file]
+    (tmp_path / "scan.raw").write_bytes(b"someone else's samples")
+    rc, _, err = _run(argv + ["-o", tmp_path / "scan.mhd"], capsys)
+    assert rc == 2 and err.count("\n") == 1 and "scan.raw, which exists" in err, err
+    assert (tmp_path / "scan.raw").read_bytes() == b"someone else's samples"
+    assert not (tmp_path / "scan.mhd").exists()
+    (tmp_path / "scan.raw").unlink()
+    for _ in range(2):
+        rc, out, err = _run(argv + ["-o", tmp_path / "scan.mhd"], capsys)
+        assert rc == 0 and f"wrote {tmp_path / 'scan.mhd'} and {tmp_path / 'scan.raw'} (" in out, err
+
+
+def test_a_raw_output_says_it_keeps_no_spacing(tmp_path, capsys):
+    from data_tools.io import load_volume
+    rc, out, err = _run(["make", "marschner_lobb", "--size", 5, "-o", tmp_path / "ml.raw"], capsys)
+    assert rc == 0 and "samples only: give --spacing 0.5,0.5,0.5 --origin -1,-1,-1 when reading it" in out, err
+    vol = load_volume(tmp_path / "ml.raw", shape=(5, 5, 5), dtype="float32", spacing=(0.5,) * 3, origin=(-1,) * 3)
+    rc, out, err = _run(["convert", tmp_path / "ml.raw", "--shape", "5,5,5", "--dtype", "float32",
+                         "--spacing", "0.5,0.5,0.5", "--origin", "-1,-1,-1", "-o", tmp_path / "ml.nrrd"], capsys)
+    assert rc == 0 and "spacing 0.5, 0.5, 0.5, origin -1, -1, -1" in out, err
+    assert np.array_equal(load_volume(tmp_path / "ml.nrrd").data, vol.data)
 
 
 @pytest.mark.parametrize("command", ["render", "make", "convert"])

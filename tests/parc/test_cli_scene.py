@@ -157,3 +157,20 @@ def test_help_explains_scene_files_and_lights(capsys):
         for words in ("SCENE.toml", "lights and shadows", "--light X,Y,Z", "--sun DX,DY,DZ", "--shadows",
                       "headlight", "parc render scene.toml"):
             assert words in text, (command, words)
+
+
+def test_no_output_is_written_over_a_file_the_render_reads(tmp_path, capsys):
+    # A scene's volumes, a .npy's sidecar, a transfer-function file: each is read, none may be written.
+    save_volume(make_synthetic("sphere", 8), tmp_path / "ball.npy", sidecar=True)
+    (tmp_path / "tf.json").write_text('{"opacity": [[-1, 0], [1, 0.5]]}')
+    (tmp_path / "scene.toml").write_text("size = [8, 8]\n[[volume]]\nfile = 'ball.npy'\ntf = 'tf.json'\n")
+    before = {f.name: f.read_bytes() for f in tmp_path.iterdir()}
+    for argv in (["render", tmp_path / "scene.toml", "-o", tmp_path / "ball.npy"],
+                 ["render", tmp_path / "scene.toml", "-o", tmp_path / "a.png", "--stats", tmp_path / "tf.json"],
+                 ["render", tmp_path / "ball.npy", "--iso", 0, "--size", 8, 8, "-o", tmp_path / "a.png",
+                  "--stats", tmp_path / "ball.npy.json"],
+                 ["render", tmp_path / "ball.npy", "--tf", tmp_path / "tf.json", "--size", 8, 8,
+                  "-o", tmp_path / "a.png", "--stats", tmp_path / "tf.json"]):
+        rc, _, err = _run(argv, capsys)
+        _assert_refused(rc, err, tmp_path / "a.png", "is read by this run")
+        assert {f.name: f.read_bytes() for f in tmp_path.iterdir()} == before
