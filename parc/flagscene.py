@@ -91,7 +91,8 @@ def _add_flag_lights(scene, args, say):
         try:
             scene = replace(scene, lights=[*scene.lights, *lights], shadows=scene.shadows or args.shadows)
         except InputError as exc:
-            raise InputError(f"--{'light' if args.light else 'sun'}: {exc}") from None
+            flag = "light" if args.light else "sun" if args.sun else "shadows"
+            raise InputError(f"--{flag}: {exc}") from None
     if scene.shadows and not scene.lights:
         say("shadows with only the headlight show nothing (the light sits at the eye); add --light or --sun")
     return scene

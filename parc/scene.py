@@ -274,9 +274,13 @@ class Scene:
         self.shadows = _flag(self.shadows, "shadows")
         # Lights shine on isosurface hits only; a scene without one would take them and
         # draw the same image, slower.
-        if self.lights and not any(isinstance(v, Isosurface) for v in self.volumes):
-            raise InputError("lights shine on isosurfaces and this scene has none; "
-                             "translucent volumes are shaded by a headlight at the eye")
+        if not any(isinstance(v, Isosurface) for v in self.volumes):
+            if self.lights:
+                raise InputError("lights shine on isosurfaces and this scene has none; "
+                                 "translucent volumes are shaded by a headlight at the eye")
+            if self.shadows:
+                raise InputError("shadows fall on isosurfaces and this scene has none; "
+                                 "translucent volumes are shaded by a headlight at the eye")
 
     @property
     def width(self):

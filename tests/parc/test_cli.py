@@ -440,13 +440,15 @@ def test_translucent_flags_that_cannot_apply_are_refused(extra, words, vol_file,
 
 
 @pytest.mark.parametrize("command", ["render", "compare"])
-@pytest.mark.parametrize("light", [["--light", "1,2,3"], ["--sun", "0,0,-1", "--shadows"]])
+@pytest.mark.parametrize("light", [["--light", "1,2,3"], ["--sun", "0,0,-1", "--shadows"], ["--shadows"]])
 def test_lights_on_a_translucent_volume_are_refused(command, light, vol_file, tmp_path, capsys):
-    # They would shine on no isosurface and leave the image as the headlight draws it.
+    # They would shine on no isosurface and leave the image as the headlight draws it; --shadows
+    # alone had a note advising --light or --sun, which were then refused.
     out = tmp_path / "o.png"
     argv = [command, vol_file, "--tf", "greyscale", "--shade", "--size", 8, 8, *light]
     rc, _, err = _run(argv + (["-o", out] if command == "render" else []), capsys)
-    assert rc == 2 and err.count("\n") == 1 and f"{light[0]}: lights shine on isosurfaces" in err, err
+    words = "shadows fall on isosurfaces" if light == ["--shadows"] else "lights shine on isosurfaces"
+    assert rc == 2 and err.count("\n") == 1 and f"{light[0]}: {words}" in err, err
     assert not out.exists()
 
 
