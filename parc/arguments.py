@@ -228,8 +228,14 @@ def build_parser():
                       help="tiny synthetic volumes and images, seconds: checks the report, not the speed")
     b.add_argument("--data", metavar="DIR", help="folder of real volumes (default ../shared/data beside the checkout)")
 
-    i = sub.add_parser("info", help="describe a volume and suggest isovalues")
-    i.add_argument("volume")
+    i = sub.add_parser("info", help="describe a volume and suggest isovalues",
+                       description="Describe a volume: its dimensions, sample type, spacing and origin, the "
+                                   "range, mean, percentiles and a histogram of its values, and isovalues worth "
+                                   "trying with render --iso (multi-level Otsu thresholds between the "
+                                   "histogram's classes, the minimum left out). Reads "
+                                   "what render reads, with the same reading flags.")
+    i.add_argument("volume", metavar="VOLUME",
+                   help="volume file (the formats render reads) or a folder of .tif slices")
     _add_volume_options(i, scenes=False)
 
     v = sub.add_parser("convert", help="write a volume in another format",

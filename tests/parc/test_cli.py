@@ -979,3 +979,12 @@ def test_the_default_view_frames_a_long_volume_whole_in_a_tall_image(size, tmp_p
 def test_an_eye_at_the_centre_looked_at_by_default_is_named(vol_file, tmp_path, capsys):
     rc, _, err = _run(["render", vol_file, "--iso", 4, "--eye", "5.5,5.5,5.5", "-o", tmp_path / "o.png"], capsys)
     assert rc == 2 and "--eye 5.5,5.5,5.5 is the centre of the volume" in err and "--look-at" in err
+
+
+def test_every_command_and_argument_is_explained_in_its_help():
+    # `parc info --help` had no description and a bare "volume" positional.
+    for name, parser in _subparsers().items():
+        assert parser.description and len(parser.description) > 40, name
+        for action in parser._actions:
+            if action.dest != "help":
+                assert action.help, (name, action.dest)
