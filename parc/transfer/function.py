@@ -305,8 +305,8 @@ class TransferFunction:
         col = self.color_points
         op[:, 0] = f(op[:, 0])
         col[:, 0] = f(col[:, 0])
-        return TransferFunction(op, col, name=self.name, description=self.description,
-                                source=self.source)
+        return TransferFunction(_jumps_kept(op), _jumps_kept(col), name=self.name,
+                                description=self.description, source=self.source)
 
     def to_dict(self):
         """Our file format as a dict (``space = "data"``): what `save_transfer_function` writes."""
@@ -415,3 +415,17 @@ def _support(x, y):
         else:
             merged.append([lo, hi])
     return np.array(merged, dtype=np.float64).reshape(-1, 2)
+
+
+def _jumps_kept(points):
+    """Control points with each run of equal values cut to its first and last (one jump).
+
+    Mapped onto a range a few floats wide (a nearly constant volume), several
+    points of a preset land on one value; the function jumps there from the
+    first's value to the last's, and the points between say nothing more.
+    """
+    x = points[:, 0]
+    inner = np.zeros(len(x), dtype=bool)
+    inner[1:-1] = (x[1:-1] == x[:-2]) & (x[1:-1] == x[2:])
+    return points[~inner]
+

@@ -634,3 +634,22 @@ def test_names_that_are_no_file_say_so(tmp_path):
         with pytest.raises(InputError) as exc:
             T.load_transfer_function(spec)
         assert words in str(exc.value) and "\n" not in str(exc.value), str(exc.value)
+
+
+@pytest.mark.parametrize("name", ["greyscale", "viridis", "file"])
+def test_normalized_functions_map_onto_a_range_a_few_floats_wide(name, tmp_path):
+    # A nearly constant float64 volume: viridis's many colour points fell three on one value,
+    # which a file may not say, and the preset was refused. The jump they make is kept.
+    lo = 1.0
+    hi = lo + 2 * np.finfo(float).eps
+    if name == "file":
+        name = tmp_path / "n.toml"
+        name.write_text('space = "normalized"\nopacity = [[0, 0.1], [0.2, 0.2], [0.3, 0.3], [0.4, 0.4], '
+                        '[0.6, 0.5], [1, 0.6]]\n')
+    tf = T.load_transfer_function(str(name), data_range=(lo, hi))
+    unit = T.load_transfer_function(str(name), data_range=(0.0, 1.0))
+    # The points rounded onto the range's floats move by under a float: the opacities still
+    # rise from within the function's range to its value at the top, as they do over [0, 1].
+    alphas = [float(tf.opacity(v)) for v in (lo, np.nextafter(lo, 2.0), hi)]
+    assert alphas == sorted(alphas) and alphas[-1] == unit.opacity(1.0) and alphas[0] >= unit.opacity(0.0)
+    assert np.array_equal(tf.color_points[-1, 1:], unit.color_points[-1, 1:])
