@@ -226,9 +226,10 @@ def cmd_render(args):
     from .renderer import DEFAULT_BUFFERS, casters_for
 
     out = check_output(args.output, (".png", ".npy"))
-    depth_out = check_output(args.depth, (".npy",)) if args.depth else None
-    stats_out = check_output(args.stats, (".json",)) if args.stats else None
-    work_out = check_output(args.work, (".png", ".npy")) if args.work else None
+    # An empty path is a mistake to name, not a flag to ignore.
+    depth_out = check_output(args.depth, (".npy",)) if args.depth is not None else None
+    stats_out = check_output(args.stats, (".json",)) if args.stats is not None else None
+    work_out = check_output(args.work, (".png", ".npy")) if args.work is not None else None
     check_distinct(args.volume, [out, depth_out, stats_out, work_out])
     say = (lambda *a: None) if args.quiet else (lambda msg: print(f"parc: {msg}", file=sys.stderr))
     scene, notes = scene_and_notes(args)
@@ -332,7 +333,11 @@ def cmd_compare(args):
         rows = step_sweep(scene, steps, repeats=args.repeats, progress=warming, options=common)
         for note in notes:
             say(note)
-        print(to_json(rows) if args.json else format_step_table(rows))
+        if args.json:
+            print(to_json(rows))
+        else:
+            print(_heading(args, scene, sweeping_step=True))
+            print(format_step_table(rows))
         return 0
     # Every parc method gets the flags, labelled ones ("parc:x") too.
     options = {m: dict(common) for m in methods if m.split(":")[0] == "parc"}
@@ -351,17 +356,20 @@ def cmd_compare(args):
     if args.json:
         print(to_json(rows))
     else:
-        w, h = scene.size
-        vis = scene.volumes[0]
-        if len(scene.volumes) > 1:
-            print(f"{args.volume}: {len(scene.volumes)} volumes "
-                  f"({'; '.join(_describe(v) for v in scene.volumes)}), "
-                  f"{w}x{h} pixels, median of {args.repeats} after a warm-up")
-        else:
-            print(f"{vis.volume.name}: {'x'.join(map(str, vis.volume.dims))} {vis.volume.dtype}, {_shown(vis)}, "
-                  f"{w}x{h} pixels, median of {args.repeats} after a warm-up")
+        print(_heading(args, scene))
         print(format_table(rows))
     return 0
+
+
+def _heading(args, scene, sweeping_step=False):
+    """The line above compare's table: what was rendered, how large, how often."""
+    w, h = scene.size
+    vis = scene.volumes[0]
+    runs = f"{w}x{h} pixels, median of {args.repeats} after a warm-up"
+    if len(scene.volumes) > 1:
+        return f"{args.volume}: {len(scene.volumes)} volumes ({'; '.join(_describe(v) for v in scene.volumes)}), {runs}"
+    shown = f"{vis.mode} of {vis.tf.name or 'the transfer function'}" if sweeping_step else _shown(vis)
+    return f"{vis.volume.name}: {'x'.join(map(str, vis.volume.dims))} {vis.volume.dtype}, {shown}, {runs}"
 
 
 def cmd_bench(args):

@@ -65,7 +65,8 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
         ``phases`` (seconds per phase of the median run), ``speedup`` against brute,
         the `image_error` fields, ``cells_visited``, ``cubic_solves``,
         ``samples``, ``shadow_cells``, ``shadow_solves``, ``hits``,
-        ``polygons``, ``supercell``, ``pixels``, ``opengl_share`` (the
+        ``polygons``, ``supercell`` (for a scene of several volumes the size they
+        share, else None, and ``supercells`` each's), ``pixels``, ``opengl_share`` (the
         median run's share of time in `OPENGL_PHASES`), ``speedup_low`` and
         ``speedup_high`` (the lowest and highest of the rounds' own ratios,
         each round timing every method once).
@@ -131,6 +132,11 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
                "shadow_cells": s.get("shadow_cells", 0), "shadow_solves": s.get("shadow_solves", 0),
                "hits": s["hits"], "pixels": s["pixels"], "polygons": s.get("polygons", 0),
                "supercell": s.get("supercell")}
+        if "volumes" in s:
+            # A scene's volumes each have their grid: the one size they share, if they do, and each's.
+            sizes = [v.get("supercell") for v in s["volumes"]]
+            row["supercells"] = sizes
+            row["supercell"] = sizes[0] if sizes and all(z == sizes[0] for z in sizes) else None
         total = phases.get("total", 0.0)
         row["opengl_share"] = (sum(phases.get(k, 0.0) for k in OPENGL_PHASES) / total) if total > 0 else 0.0
         row.update(image_error(res, reference, cell))
@@ -346,4 +352,8 @@ def format_step_table(rows):
         out.append(f"{r['step']:>8g}  {r['brute_seconds']:>8.4f}  {r['parc_seconds']:>8.4f}  "
                    f"{r['speedup']:>6.2f}x  {r['brute_samples']:>13,}  {r['parc_samples']:>12,}  "
                    f"{r['max_color']:>13.2e}  {psnr:>6}  {r['parc_vs_brute']:>10.1e}")
+    if rows:
+        fine = min(r["step"] for r in rows) / 4
+        out.append(f"max Δ vs fine, PSNR: brute's image against brute's at step {fine:g} (a quarter of the "
+                   "finest), the reference; parc≠brute: max |Δcolour| between the methods at one step.")
     return "\n".join(out)

@@ -36,6 +36,8 @@ def to_json(obj):
 
 def check_output(path, allowed):
     """Refuse an output path before any work: wrong extension, missing or unwritable folder."""
+    if str(path) == "":
+        raise InputError(f"the output path is empty; give a file ending in {' or '.join(allowed)}")
     path = Path(path)
     if path.suffix.lower() not in allowed:
         raise InputError(f"{path}: output must end in {' or '.join(allowed)}")

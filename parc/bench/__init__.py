@@ -290,6 +290,9 @@ def _checks_md(checks):
 def main(args):
     """`parc bench` (see `parc.cli`): run a suite, print progress on stderr, say where the report is."""
     suite = Suite.tiny() if args.tiny else Suite.quick() if args.quick else Suite.full()
+    for flag, value in (("--out", args.out), ("--data", args.data)):
+        if value == "":     # Path("") is the working folder: never what was meant
+            raise InputError(f"{flag}: the folder is empty; give a folder's path")
     if args.data is not None:
         if not Path(args.data).is_dir():
             raise InputError(f"--data {args.data}: no such folder")

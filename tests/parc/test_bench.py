@@ -157,6 +157,15 @@ def test_cli_refuses_an_output_that_is_a_file(tmp_path, capsys):
     assert len(err) == 1 and err[0].startswith("parc: error:") and "not a folder" in err[0]
 
 
+@pytest.mark.parametrize("flag", ["--out", "--data"])
+def test_cli_refuses_an_empty_folder_name(flag, tmp_path, monkeypatch, capsys):
+    # Path("") is the working folder: the report went there, or the data were looked for there.
+    monkeypatch.chdir(tmp_path)
+    assert main(["bench", "--tiny", flag, ""]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"{flag}: the folder is empty" in err[0] and list(tmp_path.iterdir()) == []
+
+
 def test_cli_help_explains_the_report(capsys):
     with pytest.raises(SystemExit):
         main(["bench", "--help"])

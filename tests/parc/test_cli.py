@@ -415,6 +415,7 @@ def test_a_vector_starting_with_a_minus_sign_is_a_value(vol_file, tmp_path, caps
     (["--output-twice"], "given for two outputs"),
     (["--fov", "20", "--parallel", "40"], "not both"),
     (["--threshold", "0"], "--threshold applies to translucent volumes"),     # 0 is given, not absent
+    (["--stats", ""], "the output path is empty"),                             # was ".: output must end in"
 ])
 def test_more_bad_arguments(extra, words, vol_file, tmp_path, capsys):
     out = tmp_path / "out.npy"
@@ -672,6 +673,12 @@ def test_compare_json_and_step_sweep(vol_file, capsys):
     rows = json.loads(out)
     assert [r["step"] for r in rows] == [1.0, 0.5] and all(r["parc_vs_brute"] == 0 for r in rows)
     assert rows[1]["brute_samples"] > rows[0]["brute_samples"] > 0
+    # The table says what it measured, as compare's own table does, and against which reference.
+    rc, out, err = _run(["compare", vol_file, "--tf", "greyscale", "--size", 12, 12, "--repeats", 1,
+                         "--sweep-step", "1,0.5"], capsys)
+    lines = out.splitlines()
+    assert rc == 0 and lines[0].startswith(f"{vol_file}: ") and "composite of greyscale, 12x12 pixels" in lines[0]
+    assert [line.split()[0] for line in lines[2:4]] == ["1", "0.5"] and "at step 0.125" in lines[4], out
 
 
 @pytest.mark.parametrize("extra, parc_options", [

@@ -148,6 +148,20 @@ def test_compare_scene_file(scene_file, capsys):
     assert rows[1]["hit_mismatches"] == 0
 
 
+def test_a_supercell_sweep_over_a_scene_reports_each_size(scene_file, capsys):
+    # Rows of a scene with several volumes gave "supercell": null, the size only in the label.
+    scene_file.write_text(scene_file.read_text() + "[[volume]]\nfile = 'data/ball.nrrd'\ntf = 'greyscale'\n"
+                          "origin = [20, 0, 0]\n")
+    rc, out, err = _run(["compare", scene_file, "--size", 12, 12, "--repeats", 1, "--json",
+                         "--sweep-supercell", "2,3"], capsys)
+    assert rc == 0, err
+    rows = json.loads(out)
+    assert [r["method"] for r in rows] == ["brute", "parc:2", "parc:3"]
+    assert [r["supercell"] for r in rows] == [None, [2.0] * 3, [3.0] * 3]
+    assert [r["supercells"] for r in rows] == [[], [[2.0] * 3] * 2, [[3.0] * 3] * 2]
+    assert all(r["hit_mismatches"] == 0 and r["max_color"] <= 1e-6 for r in rows)
+
+
 def test_help_explains_scene_files_and_lights(capsys):
     for command in ("render", "compare"):
         with pytest.raises(SystemExit) as info:
