@@ -33,7 +33,8 @@ def get_context():
     """The process-wide headless OpenGL context, created on first call.
 
     An OpenGL context is current in one thread: the one that first called,
-    the only one that may call again.
+    the only one that may call again while it runs. Once it has ended, the
+    context is made current in the next thread that calls.
 
     Returns
     -------
@@ -46,14 +47,19 @@ def get_context():
         moderngl or EGL is missing, or the driver cannot give 4.3 with
         float64 shaders (the message is one line).
     InputError
-        A call from another thread than the first.
+        A call from another thread while the first still runs.
     """
     global _CONTEXT, _OWNER
     if _CONTEXT is not None:
-        if threading.get_ident() != _OWNER.ident:
-            raise InputError(f"OpenGL work runs on the thread that first did it ({_OWNER.name}), and this is "
-                             f"{threading.current_thread().name}; render with method='parc' from that thread "
-                             "(method='brute' renders on any)")
+        # The thread itself, not its id: a new thread may get the id of one that has ended,
+        # and the context is not current in it.
+        here = threading.current_thread()
+        if here is not _OWNER:
+            if _OWNER.is_alive():
+                raise InputError(f"OpenGL work runs on the thread that first did it ({_OWNER.name}), and this is "
+                                 f"{here.name}; render with method='parc' from that thread "
+                                 "(method='brute' renders on any)")
+            _adopt(here)
         return _CONTEXT
     try:
         import moderngl
@@ -70,6 +76,18 @@ def get_context():
     spread_rasterizer_threads()
     _CONTEXT, _OWNER = ctx, threading.current_thread()
     return ctx
+
+
+def _adopt(thread):
+    """Make the context current in ``thread``, its first thread having ended (a worker's, say)."""
+    global _OWNER
+    try:
+        _CONTEXT.__enter__()
+    except Exception as exc:  # moderngl raises plain Exceptions from the driver
+        reason = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+        raise InputError(f"OpenGL work ran on thread {_OWNER.name}, which has ended, and the driver cannot "
+                         f"move its context to {thread.name} ({reason}); method='brute' renders on any") from None
+    _OWNER = thread
 
 
 #: Mesa's CPU rasterizer names its threads ``llvmpipe-0``, ``llvmpipe-1``, ...

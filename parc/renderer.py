@@ -23,8 +23,11 @@ from .scene import Isosurface, Scene, Translucent
 from .workspace import check_frame_memory, work_array
 
 METHODS = ("brute", "parc")
-#: Held by every render (re-entrant, for renders inside a render's callbacks).
+#: Held by every render. Re-entrant, so that a render asked for inside a render's
+#: progress callback is refused (`_RENDERING`) rather than left waiting for ever.
 _ONE_AT_A_TIME = threading.RLock()
+#: Whether a render is under way: one inside it would overwrite its work arrays and buffers.
+_RENDERING = [False]
 
 #: Proxies kept per volume (classification, supercell size), least recently
 #: used dropped first, so that only a camera change re-rasterizes: enough for
@@ -136,9 +139,10 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
     Notes
     -----
     Any thread may render; renders run one at a time (each uses every
-    core already). OpenGL work stays on the thread that first did it
-    (`parc.gl.get_context`), so ``method="parc"`` renders from another
-    thread are refused.
+    core already), and a render called from another's progress callback is
+    refused. OpenGL work stays on the thread that first did it
+    (`parc.gl.get_context`): ``method="parc"`` renders from another thread
+    are refused while that thread runs, and move the context once it has ended.
 
     References
     ----------
@@ -147,7 +151,14 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
     """
     # Renders share work arrays, Numba's thread pool and one OpenGL context: one at a time.
     with _ONE_AT_A_TIME:
-        return _render(scene, method, supercell, buffers, progress, light_buffer, blocks, work)
+        if _RENDERING[0]:
+            raise InputError("render was called while a render is under way (from its progress callback); "
+                             "renders share their work arrays: render once it has returned")
+        _RENDERING[0] = True
+        try:
+            return _render(scene, method, supercell, buffers, progress, light_buffer, blocks, work)
+        finally:
+            _RENDERING[0] = False
 
 
 def _render(scene, method, supercell, buffers, progress, light_buffer, blocks, work):
