@@ -76,7 +76,10 @@ def _flood(cells, ny, nx, start):
     every run in the 8 neighbouring rows that touches it (x - 1 to x + 1:
     neighbours through faces, edges and corners).
     """
-    stack = np.empty(cells.size, dtype=np.int64)
+    # A run is cleared when popped, not when pushed, so several popped runs can push it: the
+    # pending seeds can outnumber the cells (a grid one cell thick along x, all runs of
+    # one cell), and the stack grows as needed.
+    stack = np.empty(max(64, cells.size // 8), dtype=np.int64)
     stack[0] = start
     top = 1
     while top > 0:
@@ -101,6 +104,10 @@ def _flood(cells, ny, nx, start):
                 for j in range(lo - 1 + off, hi + 2 + off):
                     if cells[j]:
                         if not inrun:
+                            if top == stack.size:
+                                grown = np.empty(2 * stack.size, dtype=np.int64)
+                                grown[:top] = stack
+                                stack = grown
                             stack[top] = j
                             top += 1
                             inrun = True

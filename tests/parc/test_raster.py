@@ -233,11 +233,12 @@ def _shell_proxy(size):
     return vol, build_proxy(grid, idx.classify(0.5, size), grid.world_edges(vol))
 
 
-def _cavity_reference(pc):
-    """Empty supercells not reachable from outside through faces, edges or corners (plain BFS)."""
+def _reached(empty):
+    """Cells of ``empty`` reachable from ``empty[0, 0, 0]`` through faces, edges or corners (plain BFS)."""
     from collections import deque
-    empty = ~np.pad(pc, 1)
     seen = np.zeros_like(empty)
+    if not empty[0, 0, 0]:
+        return seen
     seen[0, 0, 0] = True
     todo = deque([(0, 0, 0)])
     while todo:
@@ -249,7 +250,42 @@ def _cavity_reference(pc):
                     if all(0 <= c < s for c, s in zip(q, empty.shape)) and empty[q] and not seen[q]:
                         seen[q] = True
                         todo.append(q)
-    return (empty & ~seen)[1:-1, 1:-1, 1:-1]
+    return seen
+
+
+def _cavity_reference(pc):
+    """Empty supercells not reachable from outside through faces, edges or corners."""
+    empty = ~np.pad(pc, 1)
+    return (empty & ~_reached(empty))[1:-1, 1:-1, 1:-1]
+
+
+def _thin_grids():
+    # Two walls one cell apart, as an open_faces grid one supercell thick along x has (a head
+    # MR scan, iso 1.5, supercell (47, 1, 1)): more seeds pending than cells, and the fill's
+    # stack overran its array (heap corruption, the process aborted).
+    walls = np.ones((43, 63, 3), dtype=bool)
+    walls[1:-1, 1:-1, 1] = False
+    yield walls
+    rng = np.random.default_rng(5)
+    for _ in range(6):
+        shape = tuple(rng.permutation([int(rng.integers(20, 50)), int(rng.integers(20, 50)), 3]))
+        grid = rng.random(shape) < 0.8
+        grid[0, 0, 0] = True
+        yield grid
+    yield walls.transpose(2, 0, 1).copy()
+
+
+@pytest.mark.parametrize("empty", list(_thin_grids()), ids=lambda e: "x".join(map(str, e.shape)))
+def test_flood_fill_of_a_thin_grid(empty):
+    from parc import origins
+    np.testing.assert_array_equal(origins.flood_from_corner(empty), _reached(empty))
+    # The kernel's Python twin raises where the compiled one would write past its stack.
+    nz, ny, nx = (n + 2 for n in empty.shape)
+    cells = np.pad(empty, 1).ravel()
+    left = cells.copy()
+    origins._flood.py_func(left, ny, nx, (ny + 1) * nx + 1)
+    cleared = (cells & ~left).reshape(nz, ny, nx)[1:-1, 1:-1, 1:-1]
+    np.testing.assert_array_equal(cleared, _reached(empty))
 
 
 @pytest.mark.parametrize("size", [1, 1.5, 2], ids=str)
