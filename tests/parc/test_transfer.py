@@ -482,6 +482,9 @@ BAD_FILES = [
     # (file name, content, parts the message must contain)
     ("bad.toml", "opacity = [[0, 0]", ["bad.toml", "malformed TOML"]),
     ("bad.json", '{"opacity": [[0, 0]', ["bad.json", "malformed JSON"]),
+    # JSON keeps the last of a repeated key, silently; TOML refuses it.
+    ("twice.json", '{"opacity": [[0, 0], [1, 1]], "opacity": [[0, 1]]}', ["twice.json", "'opacity' is given twice"]),
+    ("twice.toml", 'opacity = [[0, 0], [1, 1]]\nopacity = [[0, 1]]', ["twice.toml", "malformed TOML"]),
     ("keys.toml", 'opacty = [[0, 0.1]]\ncolour = [[0, 1, 1, 1]]\nopacity = [[0, 0]]',
      ["keys.toml", "'colour'", "'opacty'", "unknown keys"]),
     ("missing.toml", 'color = [[0, 1, 1, 1]]', ["missing.toml", "opacity", "missing"]),
