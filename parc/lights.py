@@ -189,6 +189,14 @@ def view_array(cameras):
     return out
 
 
+def no_views():
+    """``(views, near, far)`` for shadow rays that no buffer bounds: one view that sees nothing
+    (a zero forward axis, which `raycast.shadow.light_segment` passes by), never none. Numba's
+    parallel loops read the first view's row once before the loop, however deep in a branch
+    the code reads it: from an empty array that read was out of bounds."""
+    return np.zeros((1, N_VIEW)), np.full((1, 1, 1), np.inf), np.full((1, 1, 1), -np.inf)
+
+
 def light_buffers(light, proxy, *, size=LIGHT_BUFFER_SIZE):
     """Rasterize ``proxy`` (unmerged faces) from ``light``: a `LightBuffers`."""
     from .raster import raster_segments
@@ -196,8 +204,7 @@ def light_buffers(light, proxy, *, size=LIGHT_BUFFER_SIZE):
     t0 = time.perf_counter()
     lo, hi = proxy.bounds
     if not proxy.pc.any():
-        empty = np.empty((0, size, size))
-        return LightBuffers(np.zeros((0, N_VIEW)), empty, empty.copy(), 0, time.perf_counter() - t0)
+        return LightBuffers(*no_views(), 0, time.perf_counter() - t0)
     cams = light_views(light, lo, hi)
     near = np.empty((len(cams), size, size))
     far = np.empty((len(cams), size, size))

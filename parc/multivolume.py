@@ -36,15 +36,13 @@ from raycast.iso import NO_SHADING, cast_iso_image, keep_nearest
 from raycast.shadow import (KIND_HEADLIGHT, combine_lights, light_terms, shadow_accumulate, shadow_iso,
                             surface_frames)
 
-from .lights import CACHE_SIZE, LIGHT_BUFFER_SIZE, N_VIEW, light_array, light_buffers
+from .lights import CACHE_SIZE, LIGHT_BUFFER_SIZE, light_array, light_buffers, no_views
 from .scene import DirectionalLight, Isosurface
 from .workspace import work_array
 
 #: Shadow rays start this far (times the smallest spacing in the scene) from their hit point.
 SHADOW_EPS = 1e-5
 
-_NONE_VIEWS = np.zeros((0, N_VIEW))
-_NONE_BUF = np.zeros((0, 1, 1))
 
 
 def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=LIGHT_BUFFER_SIZE, blocks=True):
@@ -234,7 +232,7 @@ def _shadows(scene, method, lights, points, groups, vis, segs, sizes, light_buff
         counts["shadow_rays"] += int(np.count_nonzero(v_l))
         for n, v in enumerate(scene.volumes):
             vol = v.volume
-            views, near, far = _NONE_VIEWS, _NONE_BUF, _NONE_BUF
+            views, near, far = no_views()
             if method == "parc":
                 phase = {}
                 proxy, _ = _proxy(v, sizes[n], scene.size, phase, merge=False)

@@ -328,3 +328,34 @@ def test_a_tiny_volume_elsewhere_changes_no_shadow(gl, method):
     images = [render(Scene(camera=cam, size=(64, 64), volumes=vols, lights=[sun], shadows=True), method).image
               for vols in ([floor, ball], [floor, ball, tiny])]
     assert np.array_equal(images[0], images[1])
+
+
+def _shadow_kernel_args(kernel, views, near, far, use_seg):
+    """Arguments of `raycast.shadow`'s ``kernel`` for three shadow rays through a small field."""
+    from parc.lights import KIND_DIRECTIONAL
+    from parc.renderer import accumulation_params
+    from raycast.iso import NO_SKIP
+    vol = trilinear_field(6, seed=2)
+    data, org, spc = vol.data, np.array(vol.origin), np.array(vol.spacing)
+    points = np.array([[1.0, 1.5, 2.0], [2.5, 2.5, 2.5], [4.0, 1.0, 0.5]])
+    light = np.array([KIND_DIRECTIONAL, 0.0, 0.0, -1.0, 1.0, 1.0, 1.0])
+    tail = (points, light, 1e-5, views, near, far, use_seg, NO_SKIP, -1, np.ones(3), np.zeros((3, 3), np.int64))
+    if kernel == "shadow_iso":
+        return (data, org, spc, float(vol.meta["iso"])) + tail
+    clear = Translucent(vol, TransferFunction([[-1e9, 0.2], [1e9, 0.2]]))
+    return (data, org, spc, accumulation_params(clear), *clear.tf.arrays()) + tail
+
+
+@pytest.mark.parametrize("kernel", ["shadow_iso", "shadow_accumulate"])
+def test_shadow_kernels_read_only_views_they_are_given(kernel):
+    # Numba's parallel loop reads the first view's row before the loop, even for brute (no
+    # buffers) or a volume without possibly contributing supercells: an empty array was read
+    # out of bounds. Compiled here with bounds checks, which the cached kernels leave out.
+    import numba
+    from parc.lights import N_VIEW, no_views
+    from raycast import shadow
+    checked = numba.njit(parallel=True, boundscheck=True)(getattr(shadow, kernel).py_func)
+    for use_seg in (False, True):
+        checked(*_shadow_kernel_args(kernel, *no_views(), use_seg))
+    with pytest.raises((IndexError, SystemError)):     # the arrays passed before
+        checked(*_shadow_kernel_args(kernel, np.zeros((0, N_VIEW)), np.zeros((0, 1, 1)), np.zeros((0, 1, 1)), False))
