@@ -137,6 +137,20 @@ def _add_light_options(p):
                         "block them, translucent volumes dim them (the headlight casts no visible shadows)")
 
 
+def _add_common_options(p):
+    """What render and compare both take: parc's settings, --quiet, and what, how and where to look."""
+    p.add_argument("--supercell", type=supercell_size, metavar="M[,N,P]",
+                   help="parc: supercell size in cells, fractional allowed (default: chosen by a cost model)")
+    p.add_argument("--no-blocks", action="store_true",
+                   help="parc: walk the whole of each OpenGL segment, without skipping the empty "
+                        "cells and cubes of such cells inside it (same image, slower)")
+    p.add_argument("--quiet", action="store_true", help="no progress or notes on stderr")
+    _add_look_options(p)
+    _add_view_options(p)
+    _add_light_options(p)
+    _add_volume_options(p)
+
+
 def build_parser():
     p = _Parser(prog="parc", description="Ray cast 3D scalar volumes, exactly, with OpenGL-assisted acceleration.",
                 epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -170,16 +184,7 @@ def build_parser():
                         "for its cell ranges, skip tables and the OpenGL context, so for a single picture "
                         "brute is often quicker: parc pays over many frames, as in parc compare or the "
                         "Python API)")
-    r.add_argument("--supercell", type=supercell_size, metavar="M[,N,P]",
-                   help="parc: supercell size in cells, fractional allowed (default: chosen by a cost model)")
-    r.add_argument("--no-blocks", action="store_true",
-                   help="parc: walk the whole of each OpenGL segment, without skipping the empty "
-                        "cells and cubes of such cells inside it (same image, slower)")
-    r.add_argument("--quiet", action="store_true", help="no progress or notes on stderr")
-    _add_look_options(r)
-    _add_view_options(r)
-    _add_light_options(r)
-    _add_volume_options(r)
+    _add_common_options(r)
 
     c = sub.add_parser("compare", help="time PARC against unaccelerated casting, with image errors",
                        description="Render one scene with each method (after a warm-up), report the median "
@@ -192,11 +197,6 @@ def build_parser():
                    help="volume file or scene file (.toml) (default: the built-in volume)")
     c.add_argument("--methods", default="brute,parc", metavar="LIST",
                    help="comma-separated methods (default brute,parc; brute always runs as the reference)")
-    c.add_argument("--supercell", type=supercell_size, metavar="M[,N,P]",
-                   help="parc's supercell size (default: chosen by the cost model)")
-    c.add_argument("--no-blocks", action="store_true",
-                   help="parc walks the whole of each OpenGL segment, without skipping the empty "
-                        "cells and cubes of such cells inside it (same image, slower)")
     c.add_argument("--sweep-supercell", metavar="LIST",
                    help="run parc once per supercell size, e.g. 0.5,1,2,4,8: speed against error")
     c.add_argument("--sweep-step", metavar="LIST",
@@ -205,11 +205,7 @@ def build_parser():
     c.add_argument("--repeats", type=int, default=3, help="timed renders per method; the median is reported")
     c.add_argument("--json", action="store_true",
                    help="print the rows as JSON instead of a table (strict JSON: psnr null means identical images)")
-    c.add_argument("--quiet", action="store_true", help="no progress or notes on stderr")
-    _add_look_options(c)
-    _add_view_options(c)
-    _add_light_options(c)
-    _add_volume_options(c)
+    _add_common_options(c)
 
     b = sub.add_parser("bench", help="run the benchmark suite: the papers' tables, sweeps, Visible Woman scale",
                        description="Run the fixed benchmark suite and write OUT/report.md, OUT/results.json, "

@@ -61,7 +61,7 @@ def parse_text(loads, text, where, kind):
 
 
 class _RepeatedKey(ValueError):
-    pass
+    """A JSON object gave this key twice (`_strict_json`)."""
 
 
 def _strict_json(text):
