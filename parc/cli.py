@@ -223,7 +223,7 @@ LARGE_WRITE_PIXELS = 1 << 22
 def cmd_render(args):
     import parc
 
-    from .renderer import DEFAULT_BUFFERS, casters_for
+    from .renderer import DEFAULT_BUFFERS, casters_for, check_request
 
     out = check_output(args.output, (".png", ".npy"))
     # An empty path is a mistake to name, not a flag to ignore.
@@ -239,6 +239,7 @@ def cmd_render(args):
               if args.method == "parc" else {})
     if args.method != "parc":
         _refuse_parc_flags(args, "applies to --method parc")
+    check_request(scene, kwargs.get("buffers", DEFAULT_BUFFERS), work_out is not None)
     compile_notice(say, casters_for(scene, (args.method,), kwargs.get("buffers", DEFAULT_BUFFERS)))
     progress = None if args.quiet else Progress(f"rendering {w}x{h}")
     result = parc.render(scene, method=args.method, progress=progress, work=work_out is not None, **kwargs)

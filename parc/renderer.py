@@ -161,6 +161,21 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
             _RENDERING[0] = False
 
 
+def check_request(scene, buffers, work):
+    """The buffers parsed, or what a render of ``scene`` refuses about them and the work map:
+    the command line asks before its compile notice, so that a refusal is its only line."""
+    buffers = parse_buffers(buffers)
+    if "depth" not in buffers and not any(isinstance(v, Translucent) for v in scene.volumes):
+        raise InputError(f"buffers {buffers!r} leave out the depth buffers isosurfaces use; "
+                         "bit planes apply to translucent volumes")
+    if len(scene.volumes) != 1 or scene.lights:
+        if "bits" in buffers:
+            raise InputError(f"buffers {','.join(buffers)}: {bits_refused(scene)}")
+        if work:
+            raise InputError("per-pixel work is counted for scenes of one volume without lights")
+    return buffers
+
+
 def _render(scene, method, supercell, buffers, progress, light_buffer, blocks, work):
     if not isinstance(scene, Scene):
         raise InputError(f"render takes a Scene, got {type(scene).__name__}")
@@ -176,17 +191,10 @@ def _render(scene, method, supercell, buffers, progress, light_buffer, blocks, w
         from .classify import _size_triple
         _size_triple(supercell)
     skip_blocks = method == "parc" and bool(blocks)
-    buffers = parse_buffers(buffers)
-    if "depth" not in buffers and not any(isinstance(v, Translucent) for v in scene.volumes):
-        raise InputError(f"buffers {buffers!r} leave out the depth buffers isosurfaces use; "
-                         "bit planes apply to translucent volumes")
+    buffers = check_request(scene, buffers, work)
     light_buffer = _light_buffer_size(light_buffer)
     check_frame_memory(*scene.size, layers=len(scene.volumes))
     if len(scene.volumes) != 1 or scene.lights:
-        if "bits" in buffers:
-            raise InputError(f"buffers {','.join(buffers)}: {bits_refused(scene)}")
-        if work:
-            raise InputError("per-pixel work is counted for scenes of one volume without lights")
         return _render_general(scene, method, supercell, progress, light_buffer, skip_blocks)
     vis = scene.volumes[0]
     timings = {}
