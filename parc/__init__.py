@@ -1,14 +1,44 @@
-"""PARC: polygon-assisted ray casting of 3D scalar volumes (public API)."""
-from data_tools import InputError, Volume
-from data_tools.io import load_volume, save_volume
+"""PARC: polygon-assisted ray casting of 3D scalar volumes (public API).
 
-from .camera import Camera
-from .compare import compare
-from .gl import OpenGLUnavailable
-from .renderer import RenderResult, render
-from .scene import DirectionalLight, Isosurface, PointLight, Scene, Translucent
-from .scenefile import load_scene
-from .transfer import TransferFunction, load_transfer_function
+The names below are imported on first use (PEP 562), as scikit-image does:
+``import parc`` loads neither NumPy nor Numba, so the `parc` command
+(`parc.console`) starts inside its own error handling, and a Ctrl-C while
+the libraries load ends in one line like any other.
+"""
+import importlib
 
-__all__ = ["Camera", "compare", "DirectionalLight", "InputError", "Isosurface", "OpenGLUnavailable", "PointLight", "RenderResult", "Scene", "TransferFunction", "Translucent",
-           "Volume", "load_scene", "load_transfer_function", "load_volume", "render", "save_volume"]
+#: Public name -> the module that defines it.
+_WHERE = {
+    "Camera": ".camera",
+    "compare": ".comparison",
+    "DirectionalLight": ".scene",
+    "InputError": "data_tools",
+    "Isosurface": ".scene",
+    "OpenGLUnavailable": ".gl",
+    "PointLight": ".scene",
+    "RenderResult": ".renderer",
+    "Scene": ".scene",
+    "TransferFunction": ".transfer",
+    "Translucent": ".scene",
+    "Volume": "data_tools",
+    "load_scene": ".scenefile",
+    "load_transfer_function": ".transfer",
+    "load_volume": "data_tools.io",
+    "render": ".renderer",
+    "save_volume": "data_tools.io",
+}
+
+__all__ = sorted(_WHERE, key=str.lower)
+
+
+def __getattr__(name):
+    where = _WHERE.get(name)
+    if where is None:
+        raise AttributeError(f"module 'parc' has no attribute {name!r}")
+    value = getattr(importlib.import_module(where, __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_WHERE))

@@ -308,7 +308,7 @@ def _describe(vis):
 
 
 def cmd_compare(args):
-    from .compare import method_names, compare, format_table
+    from .comparison import method_names, compare, format_table
     from .renderer import casters_for
 
     say = (lambda *a: None) if args.quiet else (lambda msg: print(f"parc: {msg}", file=sys.stderr))
@@ -330,7 +330,7 @@ def cmd_compare(args):
     if warming is not None:
         compile_notice(say, casters_for(scene, ["brute"] + [m.split(":")[0] for m in methods], common["buffers"]))
     if steps is not None:
-        from .compare import format_step_table, step_sweep
+        from .comparison import format_step_table, step_sweep
         rows = step_sweep(scene, steps, repeats=args.repeats, progress=warming, options=common)
         for note in notes:
             say(note)

@@ -29,7 +29,7 @@ import numpy as np
 
 from raycast.shade import shade_headlight
 
-from ..compare import compare
+from ..comparison import compare
 from ..rootstudy import PROJECT, solve_all, walk
 from . import scenes
 

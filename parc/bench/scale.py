@@ -78,7 +78,7 @@ def measure(path, size, repeats, say):
 
     from ..camera import Camera
     from ..classify import VolumeIndex
-    from ..compare import image_error
+    from ..comparison import image_error
     from ..renderer import render
     from ..scene import Isosurface, Scene
 

@@ -7,7 +7,7 @@ argued:
 * *supercell size*: polygons, OpenGL time, cells walked and total time of
   `parc`, and its error against `brute` (zero: PARC is exact at any size);
 * *sample step*: time of `brute` and `parc` against the error to a
-  reference at a quarter of the finest step (`parc.compare.step_sweep`);
+  reference at a quarter of the finest step (`parc.comparison.step_sweep`);
 * *root finder*: `parc.rootstudy` on the hard-ray suite: nanoseconds per
   solve against the largest error to mpmath, and failures;
 * *storage precision*: the caster computes in float64 whatever the
@@ -23,7 +23,7 @@ from data_tools import Volume
 from data_tools.synthetic import trilinear_field
 
 from ..camera import Camera
-from ..compare import compare, image_error, step_sweep
+from ..comparison import compare, image_error, step_sweep
 from ..renderer import render
 from ..rootstudy import root_study
 from ..scene import Isosurface, Scene

@@ -17,7 +17,7 @@ each image against `brute`'s (zero is what exactness means).
 """
 from __future__ import annotations
 
-from ..compare import compare
+from ..comparison import compare
 from ..ideal import ideal_samples
 from ..renderer import render
 from ..scene import Translucent

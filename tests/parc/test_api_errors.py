@@ -12,7 +12,7 @@ import pytest
 import parc
 from data_tools import InputError, Volume
 from data_tools.synthetic import blobs
-from parc.compare import step_sweep
+from parc.comparison import step_sweep
 
 VOL = blobs(12, seed=3)
 ISO = float(VOL.data.mean())

@@ -582,7 +582,7 @@ def test_compare_quiet_keeps_stderr_empty(vol_file, capsys):
 def test_every_phase_a_render_reports_is_explained_under_the_table():
     from data_tools.synthetic import blobs
     from parc import Camera, Isosurface, PointLight, Scene, Translucent, compare
-    from parc.compare import PHASE_NOTES, format_table
+    from parc.comparison import PHASE_NOTES, format_table
     vol = blobs(16, seed=2)
     mid = float(vol.data.mean())
     cam = Camera.framing(*vol.bounds)
@@ -688,7 +688,7 @@ def test_compare_json_and_step_sweep(vol_file, capsys):
 ])
 def test_compare_gives_parc_flags_to_every_parc_run(extra, parc_options, vol_file, capsys, monkeypatch, gl):
     # Every render compare times, with the options it was given; brute gets none.
-    compare_module = sys.modules["parc.compare"]       # `parc.compare` names the function
+    compare_module = sys.modules["parc.comparison"]
     render = compare_module.render
     calls = []
 
@@ -886,6 +886,48 @@ def test_a_stop_signal_while_writing_leaves_no_temporary_file(signum, vol_file, 
     assert signal.getsignal(getattr(signal, signum)) == before
 
 
+#: The `parc` script's own lines, with a Ctrl-C arriving as Python imports ``{module}``.
+_INTERRUPTED_WHILE_LOADING = """
+import sys
+class CtrlC:
+    @staticmethod
+    def find_spec(name, path=None, target=None):
+        if name == {module!r}:
+            raise KeyboardInterrupt
+sys.meta_path.insert(0, CtrlC)
+from parc.console import main
+sys.exit(main())
+"""
+
+
+@pytest.mark.parametrize("module", ["numpy", "numba"])
+def test_ctrl_c_while_the_libraries_load_is_one_line(module, vol_file, tmp_path):
+    # They take about 0.3 s to load: the console script loads them inside its error handling.
+    out = tmp_path / "o.png"
+    p = subprocess.run([sys.executable, "-c", _INTERRUPTED_WHILE_LOADING.format(module=module),
+                        "render", vol_file, "--iso", "4", "--size", "8", "8", "-o", out],
+                       capture_output=True, text=True, timeout=300)
+    assert (p.returncode, p.stderr) == (130, "parc: interrupted\n")
+    assert not out.exists()
+
+
+def test_importing_parc_loads_no_library_until_a_name_is_used():
+    p = subprocess.run([sys.executable, "-c", "import sys, parc, parc.console; "
+                        "print(sorted({'numpy', 'numba', 'moderngl'} & set(sys.modules))); "
+                        "print(parc.compare.__module__, parc.render.__module__, parc.Volume.__module__)"],
+                       capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0, p.stderr
+    assert p.stdout.splitlines() == ["[]", "parc.comparison parc.renderer data_tools.volume"]
+
+
+def test_every_public_name_resolves_and_is_listed():
+    import parc
+    for name in parc.__all__:
+        assert getattr(parc, name).__name__ == name and name in dir(parc)
+    with pytest.raises(AttributeError, match="no attribute 'nothing'"):
+        parc.nothing
+
+
 def test_an_error_after_live_progress_starts_a_line_of_its_own(vol_file, tmp_path, capsys, monkeypatch):
     from parc import outputs
     monkeypatch.setattr(outputs.sys.stderr, "isatty", lambda: True)
@@ -934,7 +976,7 @@ def test_progress_that_cannot_be_written_leaves_the_work_alone(monkeypatch):
 @pytest.mark.parametrize("slow", [True, False])
 def test_compare_says_what_it_times_on_stderr_json_or_not(slow, vol_file, capsys, monkeypatch):
     import importlib
-    monkeypatch.setattr(importlib.import_module("parc.compare"), "SLOW_ROUND", 0.0 if slow else 1e9)
+    monkeypatch.setattr(importlib.import_module("parc.comparison"), "SLOW_ROUND", 0.0 if slow else 1e9)
     rc, out, err = _run(["compare", vol_file, "--iso", 4, "--size", 12, 12, "--repeats", 2, "--json"], capsys)
     assert rc == 0 and [r["method"] for r in json.loads(out)] == ["brute", "parc"]
     rounds = ["parc: timing round 1 of 2 ...", "parc: timing round 2 of 2 ..."] if slow else []
