@@ -234,7 +234,11 @@ def save_transfer_function(tf, path):
         lines = []
         for key in ("name", "description", "space"):
             if key in d:
-                # A JSON string is a TOML basic string, once DEL is escaped too.
+                # A JSON string is a TOML basic string, once DEL is escaped too;
+                # a lone surrogate (JSON's "\ud800") is neither TOML nor UTF-8.
+                if any("\ud800" <= c <= "\udfff" for c in d[key]):
+                    raise InputError(f"transfer function {path}: the {key} holds a lone surrogate, which TOML "
+                                     "cannot hold; save it as .json")
                 value = json.dumps(d[key], ensure_ascii=False).replace("\x7f", "\\u007f")
                 lines.append(f"{key} = {value}")
         for key in ("opacity", "color"):
@@ -245,4 +249,5 @@ def save_transfer_function(tf, path):
     else:
         raise InputError(f"transfer function {path}: unknown file type {ext or '(none)'!r}; "
                          "use .toml or .json")
-    path.write_text(text, encoding="utf-8")
+    data = text.encode("utf-8")             # before the file is opened: a failure leaves no empty file
+    path.write_bytes(data)

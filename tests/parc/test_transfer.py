@@ -415,6 +415,19 @@ def test_round_trip(tmp_path, ext):
         assert load_transfer_function(str(tmp_path / f"p{ext}")) == tf
 
 
+def test_a_lone_surrogate_is_refused_by_toml_and_kept_by_json(tmp_path):
+    # JSON may escape half of a surrogate pair ("\ud800"); TOML and UTF-8 cannot hold it.
+    src = tmp_path / "odd.json"
+    src.write_text('{"description": "\\ud800 notes", "opacity": [[0, 0], [1, 1]]}')
+    tf = load_transfer_function(src)
+    assert tf.description == "\ud800 notes"
+    with pytest.raises(InputError, match="description holds a lone surrogate.*save it as .json"):
+        save_transfer_function(tf, tmp_path / "odd.toml")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["odd.json"]
+    save_transfer_function(tf, tmp_path / "back.json")
+    assert load_transfer_function(tmp_path / "back.json").description == tf.description
+
+
 def test_our_format_by_hand(tmp_path):
     p = tmp_path / "skin.toml"
     p.write_text('name = "skin"\nopacity = [[500, 0.0], [650, 0.05], [1000, 0]]\n'
