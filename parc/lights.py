@@ -151,7 +151,8 @@ def light_views(light, lo, hi):
         mid = centre + r * 0.5 * (pr.max() + pr.min()) + u * 0.5 * (pu.max() + pu.min())
         half = 0.5 * max(pr.max() - pr.min(), pu.max() - pu.min()) * (1.0 + 1e-6) + 1e-9 * size
         eye = mid + f * (pf.min() - 0.05 * size - 1e-9)
-        return [Camera(eye=tuple(eye), look_at=tuple(eye + f), up=_up_for(f), parallel_scale=half)]
+        reach = max(1.0, float(np.abs(eye).max()))     # eye + f rounds to eye past 2^53, and turns below
+        return [Camera(eye=tuple(eye), look_at=tuple(eye + f * reach), up=_up_for(f), parallel_scale=half)]
     L = np.asarray(light.position)
     inside = bool(np.all(L >= lo - 1e-9 * size) and np.all(L <= hi + 1e-9 * size))
     if not inside:

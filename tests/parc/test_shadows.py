@@ -136,6 +136,23 @@ def test_a_very_far_point_light_shadows_as_brute_does(gl, distance):
         PointLight(position=(2e150, 0.0, 0.0))
 
 
+@pytest.mark.parametrize("scale", [1e12, 1e16, 1e20, 1e30])
+def test_a_sun_over_a_volume_far_from_the_origin_shadows_as_brute_does(gl, scale):
+    # The sun's view starts before the box: a point so large that its plus the unit
+    # direction rounds back to it (or turns the direction) past 2^53.
+    from parc.lights import light_views
+    rng = np.random.default_rng(5)
+    vol = _volume(rng, "blobs")
+    vol = Volume(vol.data, spacing=tuple(scale * np.array(vol.spacing)), origin=tuple(scale * np.array(vol.origin)))
+    sun = DirectionalLight((0.3, -0.8, -0.52))
+    f = light_views(sun, *vol.bounds)[0].basis()[0]
+    assert np.allclose(f, sun.direction, rtol=0, atol=1e-12)
+    scene = Scene(camera=_camera(rng, *vol.bounds), size=SIZE, volumes=[_iso(rng, vol)], lights=[sun],
+                  shadows=True)
+    b, p = _assert_same(scene, supercell=2, light_buffer=16)
+    assert b.stats["shadow_rays"] == p.stats["shadow_rays"] > 0
+
+
 def test_tiny_features_below_a_light_pixel(gl):
     """Single bright samples, 0.5-cell supercells, a 4x4 light buffer: every occluder still found."""
     data = np.zeros((12, 12, 12), np.uint8)
