@@ -57,7 +57,12 @@ class Camera:
             if v.shape != (3,) or not np.isfinite(v).all():
                 raise InputError(f"camera {name} must be three finite numbers, got {getattr(self, name)!r}")
             object.__setattr__(self, name, tuple(float(c) for c in v))
-        f = unit_vector(np.subtract(self.look_at, self.eye))
+        with np.errstate(over="ignore"):
+            view = np.subtract(self.look_at, self.eye)
+        if not np.isfinite(view).all():
+            raise InputError(f"camera eye {self.eye} and look-at {self.look_at} are too far apart: "
+                             "their difference overflows")
+        f = unit_vector(view)
         if f is None:
             raise InputError(f"camera eye equals look-at {self.look_at}: no view direction")
         up = unit_vector(self.up)

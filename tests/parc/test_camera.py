@@ -4,6 +4,7 @@ Truth: the formula written out independently here, and geometric facts
 (the centre ray looks at look_at, parallel rays share one direction).
 """
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -68,10 +69,13 @@ def test_projection_puts_pixel_centres_where_the_rays_go():
     (dict(eye=(0, 0, math.nan), look_at=(0, 0, 0)), "finite"),
     (dict(eye=(0, 0, 5), look_at=(0, 0, 0), up=(0, 0, 0)), "is zero"),
     (dict(eye=(0, 0, 5), look_at=(0, 0, 0), fov=math.nan), "field of view"),
+    (dict(eye=(1e308, 0, 0), look_at=(-1e308, 0, 0), up=(0, 0, 1)), "too far apart: their difference overflows"),
 ])
 def test_bad_cameras_are_refused(kwargs, words):
-    with pytest.raises(InputError, match=words):
-        Camera(**kwargs)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")          # one clear error, no NumPy warning before it
+        with pytest.raises(InputError, match=words):
+            Camera(**kwargs)
 
 
 @pytest.mark.parametrize("fov", [0.0, 5e-324, math.inf, math.nan, 1e-320])
