@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import tokenize
 from pathlib import Path
 
 import numpy as np
@@ -41,7 +42,8 @@ def read_npy(path) -> Volume:
                 raise InputError(f"{path}: not a NumPy .npy file (bad magic bytes)")
         try:
             data = np.load(path, allow_pickle=False)
-        except ValueError as exc:
+        except (ValueError, SyntaxError, tokenize.TokenError) as exc:
+            # NumPy parses the header as a Python literal: a broken one can fail as the parser does.
             if "pickle" in str(exc):
                 raise InputError(f"{path}: holds Python objects, not a numeric array") from None
             raise InputError(f"{path}: not a valid .npy array file ({one_line(exc)})") from None
