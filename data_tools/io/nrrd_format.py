@@ -37,7 +37,9 @@ def read_nrrd(path) -> Volume:
     path = Path(path)
     data_file = _check_data_file(path)
     try:
-        data, header = nrrd.read(str(path), index_order="C")
+        data, header = _read(path, data_file)
+    except InputError:
+        raise
     except MemoryError:
         raise InputError(f"{path}: not enough memory to load this NRRD volume") from None
     except Exception as exc:  # noqa: BLE001 - pynrrd raises many kinds (even StopIteration) on bad files
@@ -63,6 +65,35 @@ def read_nrrd(path) -> Volume:
     return Volume(data, spacing=spacing, origin=origin, name=str(path), meta=meta)
 
 
+#: The encodings pynrrd reads as text.
+_TEXT = ("ascii", "text", "txt")
+
+
+def _read(path, data_file):
+    """``(data, header)`` as `nrrd.read` gives them, with two faults of its caught first:
+    a line skip past the end of the data (it calls ``readline`` that many times: a
+    header's 1e20 never returned), and text samples outside the header's integer type
+    (it parses them into that type, and -1 became 255)."""
+    with open(path, "rb") as fh:
+        header = nrrd.read_header(fh)
+        start = fh.tell()
+        lines = header.get("lineskip", header.get("line skip", 0))
+        size = (data_file.stat().st_size if data_file is not None and data_file.is_file()
+                else path.stat().st_size - start)
+        if isinstance(lines, int) and lines > size:
+            raise InputError(f"{path}: line skip {lines} passes the end of the data ({size} bytes)")
+        data = nrrd.read_data(header, fh, str(path), index_order="C")
+        if str(header.get("encoding")).lower() in _TEXT and data.dtype.kind in "iu":
+            fh.seek(start)
+            exact = nrrd.read_data(dict(header, type="double"), fh, str(path), index_order="C")
+            wrong = np.flatnonzero(exact.ravel() != data.ravel())
+            if wrong.size:
+                raise InputError(f"{path}: the text sample {exact.ravel()[wrong[0]]:.17g} is outside the "
+                                 f"header's type {header.get('type')} ({np.iinfo(data.dtype).min} to "
+                                 f"{np.iinfo(data.dtype).max})")
+    return data, header
+
+
 def _check_data_file(path):
     """The detached data file a header names, or None; refuse one that is not a regular file
     (a pipe or a device would block the read or never end it). Other header faults are left
@@ -73,9 +104,11 @@ def _check_data_file(path):
     except Exception:  # noqa: BLE001 - reported by the read itself
         return None
     name = header.get("data file") or header.get("datafile")
-    if not isinstance(name, str) or name.startswith("LIST") or " " in name.strip():
+    if not isinstance(name, str) or name.startswith("LIST"):
         return None
     data = Path(name) if Path(name).is_absolute() else path.parent / name
+    if " " in name.strip() and not data.exists():
+        return None             # a list of files by a format ("slice%03d.raw 1 40 1"), which the read refuses
     if data.exists() and not data.is_file():
         raise InputError(f"{path}: data file {data} is not a regular file")
     return data
@@ -151,11 +184,12 @@ def _spacing(header, path):
     spacings = header.get("spacings")
     if spacings is not None:
         sp = np.asarray(spacings, dtype=np.float64)
-        if sp.shape == (3,):
-            note = ("negative spacings (mirrored axes) were reduced to positive spacings"
-                    if (sp < 0).any() else None)
-            sp = np.where(np.isfinite(sp), np.abs(sp), 1.0)
-            return tuple(float(s) for s in sp), note
+        if sp.shape != (3,):
+            raise InputError(f"{path}: spacings gives {sp.size} values for 3 axes")
+        note = ("negative spacings (mirrored axes) were reduced to positive spacings"
+                if (sp < 0).any() else None)
+        sp = np.where(np.isfinite(sp), np.abs(sp), 1.0)
+        return tuple(float(s) for s in sp), note
     if _has_extent(header):
         return None, None           # from axis mins and maxs (`_from_extent`), with the origin
     return (1.0, 1.0, 1.0), None

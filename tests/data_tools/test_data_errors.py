@@ -126,6 +126,16 @@ def test_npy_nan_and_wrong_rank(tmp_path):
     fails(tmp_path / "obj.npy")
 
 
+@pytest.mark.parametrize("header", [b"{'descr': '<f4', 'fortran_order': False, 'shape': (3, 4, 5, }",
+                                    b"{'descr': '<02', 'fortran_order': False, 'shape': (3, 4, 5), }"])
+def test_npy_with_a_header_python_cannot_parse(tmp_path, header):
+    # NumPy reads the header as a Python literal: these failed as the tokenizer and parser do.
+    header = header.ljust(117) + b"\n"
+    p = tmp_path / "bad.npy"
+    p.write_bytes(b"\x93NUMPY\x01\x00" + len(header).to_bytes(2, "little") + header + bytes(240))
+    fails(p, "not a valid .npy array file")
+
+
 @pytest.mark.parametrize("text, match", [("{not json", "bad sidecar"),
                                          ('{"spacing": "123"}', "spacing must be an array of three numbers"),
                                          ('{"spacing": [true, true, true]}', "spacing must be"),
@@ -186,6 +196,38 @@ def test_nrrd_corrupt_header_field(tmp_path):
     p = tmp_path / "h.nrrd"
     p.write_bytes(b"NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 two 2\nencoding: raw\n\n" + bytes(8))
     fails(p)
+
+
+def _nrrd_text(path, fields, data=b""):
+    path.write_bytes(b"NRRD0004\n" + "".join(f"{k}: {v}\n" for k, v in fields.items()).encode() + b"\n" + data)
+    return path
+
+
+@pytest.mark.parametrize("kind, value", [("uchar", -1), ("uint8", 256), ("signed char", 200), ("short", 70000),
+                                         ("ushort", -5), ("int", 3000000000)])
+def test_nrrd_text_sample_outside_its_type_is_named(tmp_path, kind, value):
+    # pynrrd parses text straight into the type: -1 became 255.
+    p = _nrrd_text(tmp_path / "t.nrrd", {"type": kind, "dimension": 3, "sizes": "2 2 2", "encoding": "ascii"},
+                   f"{value} 1 2 3 4 5 6 7\n".encode())
+    fails(p, f"the text sample {value} is outside the header's type {kind}")
+    ok = _nrrd_text(tmp_path / "ok.nrrd", {"type": kind, "dimension": 3, "sizes": "2 2 2", "encoding": "ascii"},
+                    b"0 1 2 3 4 5 6 7\n")
+    assert load_volume(ok).data.ravel().tolist() == list(range(8))
+
+
+@pytest.mark.parametrize("lines", [9, 10**20])
+def test_nrrd_line_skip_past_the_data_is_refused_at_once(tmp_path, lines):
+    # pynrrd reads that many lines, even past the end: 1e20 never returned.
+    p = _nrrd_text(tmp_path / "s.nrrd", {"type": "uchar", "dimension": 3, "sizes": "2 2 2", "encoding": "raw",
+                                         "line skip": lines}, bytes(8))
+    fails(p, f"line skip {lines} passes the end of the data (8 bytes)")
+
+
+@pytest.mark.parametrize("spacings", ["2 3", "2 3 4 5"])
+def test_nrrd_spacings_for_another_number_of_axes_are_refused(tmp_path, spacings):
+    p = _nrrd_text(tmp_path / "s.nrrd", {"type": "uchar", "dimension": 3, "sizes": "2 2 2", "encoding": "raw",
+                                         "spacings": spacings}, bytes(8))
+    fails(p, f"spacings gives {len(spacings.split())} values for 3 axes")
 
 
 # --- MetaImage -------------------------------------------------------------
