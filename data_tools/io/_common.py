@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import contextlib
 import importlib
+import logging
 import os
 import struct
 import zlib
@@ -34,6 +35,19 @@ def check_file(path: Path, what: str = "file") -> Path:
     if not os.access(path, os.R_OK):
         raise InputError(f"{path}: permission denied")
     return path
+
+
+@contextlib.contextmanager
+def silenced(logger):
+    """The library logger named ``logger`` disabled: what it writes to stderr would come
+    before our one error line, or beside a good read."""
+    log = logging.getLogger(logger)
+    was = log.disabled
+    log.disabled = True
+    try:
+        yield
+    finally:
+        log.disabled = was
 
 
 def optional_library(name, path, kind, extra):

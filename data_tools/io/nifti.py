@@ -12,7 +12,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..volume import Volume
-from ._common import one_line, optional_library, to_native
+from ._common import one_line, optional_library, silenced, to_native
 
 EXTENSIONS = (".nii", ".nii.gz")
 
@@ -40,6 +40,11 @@ def read_nifti(path) -> Volume:
     """
     path = Path(path)
     nib = optional_library("nibabel", path, "NIfTI", "nifti")
+    with silenced("nibabel.global"):        # its header checks ("pixdim[1,2,3] should be positive")
+        return _read(nib, path)
+
+
+def _read(nib, path):
     try:
         img = nib.load(str(path), mmap=False)
     except MemoryError:

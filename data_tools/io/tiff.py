@@ -8,7 +8,6 @@ made for.
 from __future__ import annotations
 
 import contextlib
-import logging
 import re
 from pathlib import Path
 
@@ -16,7 +15,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..volume import Volume
-from ._common import one_line, optional_library, to_native
+from ._common import one_line, optional_library, silenced, to_native
 
 EXTENSIONS = (".tif", ".tiff")
 
@@ -65,11 +64,9 @@ def read_tiff(path) -> Volume:
 def _reading_tiff(path):
     """tifffile's failures on ``path`` as one InputError line; its own log lines silenced,
     so that a bad file gets that line alone."""
-    log = logging.getLogger("tifffile")
-    was = log.disabled
-    log.disabled = True
     try:
-        yield
+        with silenced("tifffile"):
+            yield
     except InputError:
         raise
     except MemoryError:
@@ -80,8 +77,6 @@ def _reading_tiff(path):
             # LZW and most other compressions: tifffile decodes them with imagecodecs.
             detail += " (pip install imagecodecs, or the extra: pip install 'parc[tiff]')"
         raise InputError(f"{path}: cannot read TIFF file: {detail}") from None
-    finally:
-        log.disabled = was
 
 
 def _grey_pages(tif, path):

@@ -276,3 +276,18 @@ def test_imagej_tiff_in_centimetres(tmp_path, unit, xy):
     vol = load_volume(tmp_path / "cm.tif")
     assert np.array_equal(vol.data, data) and "note" not in vol.meta
     assert vol.spacing == pytest.approx((xy, xy, 0.2)) and vol.meta["unit"] == unit
+
+
+def test_nibabel_writes_nothing_of_its_own_on_stderr(tmp_path, caplog):
+    # Its header checks log "pixdim[1,2,3] should be positive": a line before or beside ours.
+    img = nib.Nifti1Image(np.zeros((5, 4, 3), np.uint8), None)
+    img.set_qform(None, 0)
+    img.set_sform(None, 0)
+    nib.save(img, tmp_path / "neg.nii")
+    raw = bytearray((tmp_path / "neg.nii").read_bytes())
+    raw[80:92] = np.array([-2.0, 3.0, 4.0], "<f4").tobytes()          # pixdim[1:4]
+    (tmp_path / "neg.nii").write_bytes(bytes(raw))
+    (tmp_path / "cut.nii").write_bytes(bytes(raw[:-10]))
+    assert load_volume(tmp_path / "neg.nii").spacing == (2.0, 3.0, 4.0)
+    fails(tmp_path / "cut.nii", "cannot read NIfTI")
+    assert [r.getMessage() for r in caplog.records] == []
