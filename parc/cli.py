@@ -24,7 +24,7 @@ from data_tools.io.npy import save_array
 from .arguments import build_parser, join_signed_values, supercell_size
 from .flagscene import load_volume_flags, scene_and_notes
 from .outputs import (Progress, atomic_write_all, check_distinct, check_output, compile_notice, end_progress_line,
-                      to_json, write_png)
+                      printable, to_json, write_png)
 
 EXIT_USAGE = 2
 
@@ -103,7 +103,7 @@ def _error(text):
     """``parc: text`` on stderr, on a line of its own after any unfinished progress."""
     end_progress_line()
     try:
-        print(f"parc: {text}", file=sys.stderr)
+        print(f"parc: {printable(text)}", file=sys.stderr)
     except (OSError, ValueError):
         pass
 
@@ -211,7 +211,7 @@ def cmd_convert(args):
     _refuse_overwriting_input(out, [args.volume, *files])
     save_volume(vol, out)  # all-or-nothing itself, and keeps sidecar names right
     if "note" in vol.meta:
-        print(f"parc: {vol.meta['note']}", file=sys.stderr)
+        print(f"parc: {printable(vol.meta['note'])}", file=sys.stderr)
     print(f"wrote {_written(out)} ({'x'.join(map(str, vol.dims))} {vol.dtype}{_placement(vol, out)})")
     return 0
 
@@ -231,7 +231,7 @@ def cmd_render(args):
     stats_out = check_output(args.stats, (".json",)) if args.stats is not None else None
     work_out = check_output(args.work, (".png", ".npy")) if args.work is not None else None
     check_distinct(args.volume, [out, depth_out, stats_out, work_out])
-    say = (lambda *a: None) if args.quiet else (lambda msg: print(f"parc: {msg}", file=sys.stderr))
+    say = (lambda *a: None) if args.quiet else (lambda msg: print(f"parc: {printable(msg)}", file=sys.stderr))
     scene, notes = scene_and_notes(args)
     check_distinct(args.volume, [out, depth_out, stats_out, work_out], read=_files_read(scene))
     w, h = scene.size
@@ -311,7 +311,7 @@ def cmd_compare(args):
     from .comparison import method_names, compare, format_table
     from .renderer import casters_for
 
-    say = (lambda *a: None) if args.quiet else (lambda msg: print(f"parc: {msg}", file=sys.stderr))
+    say = (lambda *a: None) if args.quiet else (lambda msg: print(f"parc: {printable(msg)}", file=sys.stderr))
     warming = None if args.quiet else (lambda line: say(f"{line} ..."))
     methods = method_names(args.methods)
     if args.repeats < 1:

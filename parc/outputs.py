@@ -180,6 +180,14 @@ class Progress:
             Progress.open_line = None
 
 
+def printable(text):
+    """``text`` for one line of a terminal: characters that are not printable (a newline or
+    a carriage return, a terminal escape, a lone surrogate), which can come with a file name
+    or a key the user gave, shown as their escapes (``\\n``, ``\\x1b``)."""
+    return "".join(c if c.isprintable() else c.encode("unicode_escape", "backslashreplace").decode("ascii")
+                   for c in str(text))
+
+
 def end_progress_line():
     """End an unfinished progress line, so that what follows (an error) starts a line of its own."""
     if Progress.latest is not None:

@@ -59,8 +59,10 @@ array are counted from 1 in file order: ``volume[1]`` is the first
 from __future__ import annotations
 
 import difflib
+import json
 import math
 import os
+import re
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -209,11 +211,15 @@ class _Where:
 
     @contextmanager
     def key(self, key):
-        """Re-raise an InputError from a constructor or reader with the file and key in front."""
+        """Re-raise an InputError from a constructor or reader, or a path the system refuses
+        (a name too long), with the file and key in front."""
         try:
             yield
         except InputError as exc:
             raise self.error(key, str(exc)) from None
+        except OSError as exc:
+            where = f"{exc.filename}: " if exc.filename else ""
+            raise self.error(key, f"{where}{os_reason(exc)}") from None
 
     def read(self):
         if not self.path.exists():
@@ -274,11 +280,13 @@ class _Table:
         for name in raw:
             if name not in known:
                 close = (difflib.get_close_matches(name, known, n=1, cutoff=0.5)
-                         or [k for k in known if name.startswith(k) or k.startswith(name)])
+                         or [k for k in known if name and (name.startswith(k) or k.startswith(name))])
                 hint = f"; did you mean {close[0]}?" if close else ""
                 raise where.error(self.key(name), f"unknown key{hint} (known: {', '.join(known)})")
 
     def key(self, name):
+        # As TOML would write it: a key that is not bare ("", "a b") in quotes.
+        name = name if re.fullmatch(r"[A-Za-z0-9_-]+", name) else json.dumps(name, ensure_ascii=False)
         return f"{self.prefix}.{name}" if self.prefix else name
 
     def __contains__(self, name):

@@ -1048,3 +1048,13 @@ def test_every_command_and_argument_is_explained_in_its_help():
         for action in parser._actions:
             if action.dest != "help":
                 assert action.help, (name, action.dest)
+
+
+def test_a_file_name_with_a_newline_or_an_escape_stays_on_the_error_line(vol_file, tmp_path, capsys):
+    out = tmp_path / "o.png"
+    for name, shown in [("no\nsuch.nrrd", r"no\nsuch.nrrd"), ("x\x1b[31m.toml", r"x\x1b[31m.toml")]:
+        argv = (["render", tmp_path / name, "--iso", 1] if name.endswith(".nrrd") else
+                ["render", vol_file, "--tf", tmp_path / name])
+        rc, _, err = _run(argv + ["-o", out], capsys)
+        assert rc == 2 and err.count("\n") == 1 and "\x1b" not in err and shown in err, err
+        assert not out.exists()

@@ -140,6 +140,25 @@ def test_bad_scene_file_is_one_line(scene_file, tmp_path, capsys):
     _assert_refused(rc, err, out, "missing.toml: no such scene file")
 
 
+@pytest.mark.parametrize("text, words", [
+    ('file = "no\\nsuch.nrrd"', r"volume[1].file: {dir}/no\nsuch.nrrd: no such file"),
+    ('file = "x\\u001b[2Jred.nrrd"', r"volume[1].file: {dir}/x\x1b[2Jred.nrrd: no such file"),
+    ('file = "' + "y" * 300 + '.nrrd"', "volume[1].file: {dir}/" + "y" * 300 + ".nrrd: "),
+    ('"a\\rparc: all good" = 1', r'volume[1]."a\rparc: all good": unknown key'),
+    ('"" = 1', 'volume[1]."": unknown key (known'),
+])
+def test_a_name_or_key_from_the_file_stays_on_the_error_line(scene_file, tmp_path, capsys, text, words):
+    # Newlines, carriage returns and terminal escapes shown escaped; a path the system
+    # refuses (a name too long) and an empty key named with the file and the key.
+    scene_file.write_text(scene_file.read_text().replace('file = "data/ball.nrrd"',
+                                                         text if text.startswith("file") else
+                                                         'file = "data/ball.nrrd"\n' + text))
+    out = tmp_path / "o.png"
+    rc, _, err = _run(["render", scene_file, "-o", out], capsys)
+    _assert_refused(rc, err, out, f"{scene_file}: {words.replace('{dir}', str(tmp_path))}")
+    assert "did you mean" not in err
+
+
 def test_compare_scene_file(scene_file, capsys):
     rc, out, err = _run(["compare", scene_file, "--size", 12, 12, "--repeats", 1, "--json"], capsys)
     assert rc == 0, err
