@@ -22,7 +22,8 @@ def read_nrrd(path) -> Volume:
     With ``axis mins`` and ``axis maxs`` alone, both come from the extent
     and the axes' ``centers`` (cell, NRRD's default, or node). An axis
     whose ``kinds`` entry holds values rather than positions (RGB-color,
-    vector...) is refused.
+    vector...) is refused; one of length 1 (one sample a voxel, one time
+    step) is dropped, as NIfTI's trailing ones are.
     Oblique or mirrored directions cannot be kept on an axis-aligned grid:
     they are reduced to their lengths and ``meta['note']`` says so.
 
@@ -44,6 +45,7 @@ def read_nrrd(path) -> Volume:
         raise InputError(f"{path}: not enough memory to load this NRRD volume") from None
     except Exception as exc:  # noqa: BLE001 - pynrrd raises many kinds (even StopIteration) on bad files
         raise InputError(f"{path}: cannot read NRRD file: {_explain(exc)}") from None
+    data, header = _one_volume(data, header)
     if data.ndim != 3:
         raise InputError(f"{path}: NRRD has {data.ndim} axes, expected a 3-D scalar volume")
     kinds = _per_axis(header.get("kinds"))
@@ -92,6 +94,37 @@ def _read(path, data_file):
                                  f"header's type {header.get('type')} ({np.iinfo(data.dtype).min} to "
                                  f"{np.iinfo(data.dtype).max})")
     return data, header
+
+
+#: Per-axis header fields: an axis dropped takes its entry in each.
+_PER_AXIS = ("sizes", "kinds", "centers", "centerings", "labels", "units", "spacings", "thicknesses",
+             "axis mins", "axismins", "axis maxs", "axismaxs", "space directions")
+
+
+def _one_volume(data, header):
+    """``(data, header)`` with the axes of length 1 that hold no position dropped, as a NIfTI
+    file's trailing ones are: one sample a voxel (kind vector, list...), one time step. Without
+    ``kinds``, trailing axes. A file left with other than three axes is the caller's to refuse."""
+    if data.ndim <= 3:
+        return data, header
+    sizes = [int(n) for n in header["sizes"]]                   # file order: x fastest
+    kinds = _per_axis(header.get("kinds"))
+    if kinds is not None and len(kinds) == len(sizes):
+        keep = [a for a, n in enumerate(sizes) if n != 1 or kinds[a].lower() in ("domain", "space")]
+    else:
+        keep = list(range(len(sizes)))
+        while len(keep) > 3 and sizes[keep[-1]] == 1:
+            keep.pop()
+    if len(keep) != 3:
+        return data, header
+    header = dict(header)
+    for key in _PER_AXIS:
+        value = header.get(key)
+        if isinstance(value, str):
+            value = value.split()
+        if value is not None and len(value) == len(sizes):
+            header[key] = np.asarray(value)[keep] if isinstance(value, np.ndarray) else [value[a] for a in keep]
+    return data.reshape([sizes[a] for a in reversed(keep)]), header
 
 
 def _check_data_file(path):

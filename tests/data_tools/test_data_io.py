@@ -381,3 +381,36 @@ def test_nrrd_negative_spacings_are_noted(tmp_path):
                      b"spacings: -0.5 1 2\n\n" + _ZYX.astype("<i2").tobytes())
     vol = load_volume(path)
     assert vol.spacing == (0.5, 1.0, 2.0) and "mirrored" in vol.meta["note"]
+
+
+@pytest.mark.parametrize("sizes_first, kinds", [
+    (True, ["vector", "domain", "domain", "domain"]),      # one sample a voxel, written as a vector of one
+    (False, ["domain", "domain", "domain", "time"]),       # one time step
+    (False, None),                                         # a trailing axis of one, no kinds
+])
+def test_nrrd_with_a_fourth_axis_of_one_is_a_volume(tmp_path, sizes_first, kinds):
+    data = np.arange(2 * 3 * 4, dtype=np.int16).reshape(2, 3, 4) * 7 - 50      # [z, y, x]
+    four = data[..., None] if sizes_first else data[None]                     # the axis of one fastest or slowest
+    dirs = np.diag([1.5, 2.0, 3.0])
+    dirs = np.vstack([np.full(3, np.nan), dirs] if sizes_first else [dirs, np.full(3, np.nan)])
+    header = {"space dimension": 3, "space directions": dirs, "space origin": np.array([1.0, 2.0, 3.0])}
+    if kinds:
+        header["kinds"] = kinds
+    else:
+        del header["space directions"]
+        header["spacings"] = np.array([1.5, 2.0, 3.0, np.nan])
+    nrrd.write(str(tmp_path / "four.nrrd"), four, header, index_order="C")
+    vol = load_volume(tmp_path / "four.nrrd")
+    assert np.array_equal(vol.data, data) and vol.spacing == (1.5, 2.0, 3.0)
+    assert vol.origin == (1.0, 2.0, 3.0)
+
+
+def test_nrrd_with_a_time_axis_of_two_or_a_flat_space_stays_refused(tmp_path):
+    nrrd.write(str(tmp_path / "t.nrrd"), np.zeros((2, 3, 4, 5), np.uint8), {"kinds": ["domain"] * 3 + ["time"]},
+               index_order="C")
+    with pytest.raises(InputError, match="NRRD has 4 axes"):
+        load_volume(tmp_path / "t.nrrd")
+    nrrd.write(str(tmp_path / "flat.nrrd"), np.zeros((5, 1, 3, 4), np.uint8), {"kinds": ["domain"] * 3 + ["time"]},
+               index_order="C")
+    with pytest.raises(InputError, match="NRRD has 4 axes"):
+        load_volume(tmp_path / "flat.nrrd")
