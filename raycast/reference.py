@@ -284,12 +284,28 @@ _POOL = None
 
 def _pool():
     """A process pool shared by all checks of a session (spawned: the
-    parent has Numba threads, which must not be forked)."""
+    parent has Numba threads, which must not be forked).
+
+    Its workers start with SIGINT ignored (an ignored signal stays ignored
+    through exec, and Python then installs no handler for it): a terminal's
+    Ctrl-C reaches the whole process group, and workers interrupted while
+    starting or waiting on the task queue printed tracebacks, and could die
+    holding the queue's lock, so that terminating the pool at exit waited
+    forever. The parent alone stops, and terminates them (SIGTERM)."""
     global _POOL
     if _POOL is None and _workers() > 1:
         import atexit
         import multiprocessing as mpc
-        _POOL = mpc.get_context("spawn").Pool(_workers())
+        import signal
+        try:
+            was = signal.signal(signal.SIGINT, signal.SIG_IGN)
+        except ValueError:                  # not the main thread: its workers keep Ctrl-C
+            was = None
+        try:
+            _POOL = mpc.get_context("spawn").Pool(_workers())
+        finally:
+            if was is not None:
+                signal.signal(signal.SIGINT, was)
         atexit.register(_POOL.terminate)
     return _POOL
 

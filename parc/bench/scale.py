@@ -20,6 +20,7 @@ import resource
 import statistics
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -47,15 +48,17 @@ def visible_woman(suite, progress):
         ct_phantom_to_disk(tmp, suite.vw_shape)
         tmp.replace(path)          # a crash mid-write leaves no truncated phantom behind
         generated = time.perf_counter() - t0
-    out = path.with_suffix(".json")
-    cmd = [sys.executable, "-m", "parc.bench.scale", str(path), "--size", str(suite.vw_size),
-           "--repeats", str(suite.repeats), "--json", str(out)]
-    progress(f"Visible Woman scale: rendering in a child process ({' '.join(cmd[1:4])} ...)")
-    proc = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=None, text=True)
-    if proc.returncode != 0:
-        raise RuntimeError(f"the Visible Woman child process failed (exit {proc.returncode})")
-    result = json.loads(out.read_text())
-    out.unlink()
+    with tempfile.TemporaryDirectory(prefix="parc-vw-") as folder:      # its own: two runs at once
+        out = Path(folder) / "scale.json"
+        cmd = [sys.executable, "-m", "parc.bench.scale", str(path), "--size", str(suite.vw_size),
+               "--repeats", str(suite.repeats), "--json", str(out)]
+        progress(f"Visible Woman scale: rendering in a child process ({' '.join(cmd[1:4])} ...)")
+        # A session of its own, out of the terminal's reach: a Ctrl-C stops this process, which
+        # kills the child (subprocess.run does on any exception), instead of interrupting both.
+        proc = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=None, text=True, start_new_session=True)
+        if proc.returncode != 0:
+            raise RuntimeError(f"the Visible Woman child process failed (exit {proc.returncode})")
+        result = json.loads(out.read_text())
     result.update({"path": str(path), "generate_seconds": generated})
     return result
 

@@ -88,3 +88,22 @@ def test_closed_form_is_plausible(study):
     # degenerate categories, and where it hits a root it is precise.
     assert closed["failures"] < 0.25 * closed["rays"]
     assert closed["median_err_cells"] < 1e-9
+
+
+def test_the_check_pool_workers_ignore_a_terminals_ctrl_c():
+    # A terminal's Ctrl-C reaches the whole process group: workers interrupted mid-task
+    # printed tracebacks and could leave the pool's lock held, hanging the exit.
+    import multiprocessing
+    import signal
+    from pathlib import Path
+
+    from raycast import reference
+    pool = reference._pool()
+    if pool is None or not Path("/proc/self/status").exists():
+        pytest.skip("no worker processes here, or no /proc to read their signals from")
+    pool.map(abs, range(4))                         # every worker started
+    for child in multiprocessing.active_children():
+        fields = dict(line.split(":\t") for line in Path(f"/proc/{child.pid}/status").read_text().splitlines()
+                      if ":\t" in line)
+        assert int(fields["SigIgn"], 16) >> (signal.SIGINT - 1) & 1, child
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
