@@ -23,7 +23,9 @@ from __future__ import annotations
 import contextlib
 import os
 import platform
+import shutil
 import sys
+import tempfile
 import time
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
@@ -145,7 +147,9 @@ def run_bench(out, suite=None, *, progress=None, command=None):
     Parameters
     ----------
     out : str or Path
-        Output folder (created).
+        Output folder (created). The report is written into a hidden folder
+        beside it and moved in once whole: a failed or interrupted run leaves
+        an earlier report there as it was.
     suite : Suite, optional
         Default `Suite.full`.
     progress : callable(str) or None
@@ -164,13 +168,58 @@ def run_bench(out, suite=None, *, progress=None, command=None):
     OpenGLUnavailable
         No OpenGL context: PARC cannot run, so neither can the bench.
     """
+    suite = suite or Suite.full()
+    out = Path(out)
+    _check_places(out, REPORT_FILES, ["images"])
+    stage = _stage_for(out)
+    try:
+        res = _run(stage, suite, progress or (lambda msg: None), command)
+        _publish(stage, out)
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
+    return res
+
+
+#: What every report holds, beside its charts and pictures.
+REPORT_FILES = ("report.md", "results.json")
+
+
+def _check_places(out, files, folders):
+    """Refuse, before any work, a report whose files or folders ``out`` holds the other way round."""
+    for name in files:
+        if (out / name).is_dir():
+            raise InputError(f"{out / name}: is a folder; the report writes a file there")
+    for name in folders:
+        if (out / name).exists() and not (out / name).is_dir():
+            raise InputError(f"{out / name}: is a file; the report writes a folder there")
+
+
+def _stage_for(out):
+    """A hidden folder the report is written into before it replaces the old one in ``out``:
+    beside ``out``, or beside its nearest folder that exists (so that files are moved, not copied)."""
+    base = out.parent
+    while not base.is_dir() and base != base.parent:
+        base = base.parent
+    return Path(tempfile.mkdtemp(prefix=f".{out.name}.parc-", dir=base))
+
+
+def _publish(stage, out):
+    """Move the staged report into ``out``, file by file, once each place has been checked:
+    an interrupted or failed run leaves the old report whole, and no new folder."""
+    files = sorted(p for p in stage.rglob("*") if p.is_file())
+    names = [p.relative_to(stage) for p in files]
+    _check_places(out, names, {str(n.parent) for n in names if n.parent != Path(".")})
+    for path, name in zip(files, names):
+        (out / name).parent.mkdir(parents=True, exist_ok=True)
+        os.replace(path, out / name)
+
+
+def _run(out, suite, say, command):
+    """The suite, run, its report written into ``out``: what `run_bench` returns."""
     from importlib import import_module
 
     from . import report
 
-    suite = suite or Suite.full()
-    out = Path(out)
-    say = progress or (lambda msg: None)
     images_dir = out / "images"
     images_dir.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
@@ -192,15 +241,9 @@ def run_bench(out, suite=None, *, progress=None, command=None):
     res["ideal"] = [dict(zip(("scene", "size", "unit", "method", "ideal", "touched"), r)) for r in ideal_rows]
     res["checks"] = consistency(res)
     md += _checks_md(res["checks"])
-    _write(out / "report.md", "\n".join(md) + "\n")
-    _write(out / "results.json", to_json(res))
+    (out / "report.md").write_text("\n".join(md) + "\n")
+    (out / "results.json").write_text(to_json(res))
     return res
-
-
-def _write(path, text):
-    tmp = path.with_name(path.name + ".part")
-    tmp.write_text(text)
-    tmp.replace(path)
 
 
 def _pictures(images, folder):
@@ -300,6 +343,7 @@ def main(args):
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise InputError(f"{out}: exists and is not a folder")
+    _check_places(out, REPORT_FILES, ["images"])            # before the compile notice, too
     t0 = time.perf_counter()
 
     def say(msg):

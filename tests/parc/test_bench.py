@@ -133,6 +133,24 @@ def test_the_phantom_is_reused_on_the_next_run(bench):
     assert again["path"] == res["visible_woman"]["path"]
 
 
+def test_runs_at_once_keep_their_child_results_apart_and_out_of_the_terminals_reach(bench, monkeypatch):
+    # Two runs shared one result file in the cache, and each deleted it after reading.
+    import parc.bench.scale as scale
+    _, suite, res, _ = bench
+    seen = []
+
+    def child(cmd, **kw):
+        out = Path(cmd[cmd.index("--json") + 1])
+        seen.append((out, kw.get("start_new_session")))
+        out.write_text(json.dumps({"run": len(seen)}))
+        return subprocess.CompletedProcess(cmd, 0)
+    monkeypatch.setattr(scale.subprocess, "run", child)
+    first, second = (scale.visible_woman(suite, lambda m: None) for _ in range(2))
+    assert (first["run"], second["run"]) == (1, 2)
+    assert seen[0][0] != seen[1][0] and not seen[0][0].exists() and Path(suite.cache_dir) not in seen[0][0].parents
+    assert seen[0][1] is True          # a Ctrl-C stops the bench, which stops the child
+
+
 def test_progress_names_every_section(bench):
     *_, lines = bench
     for n in range(1, 11):
@@ -147,6 +165,60 @@ def test_consistency_catches_a_broken_claim(bench):
     broken = copy.deepcopy(res)
     broken["ideal"][0]["ideal"] = broken["ideal"][0]["touched"] + 1
     assert [c for c in consistency(broken) if not c["ok"]]
+
+
+def _fake_run(fail):
+    """A stand-in for the suite: writes a report into the folder it is given, then fails if asked."""
+    def run(out, suite, say, command):
+        (out / "images").mkdir()
+        (out / "images" / "table1.png").write_text("new picture")
+        (out / "report.md").write_text("new report")
+        (out / "results.json").write_text("{}")
+        if fail:
+            raise KeyboardInterrupt
+        return {"checks": []}
+    return run
+
+
+@pytest.mark.parametrize("earlier", [False, True])
+def test_an_interrupted_bench_leaves_no_folder_or_the_earlier_report_whole(tmp_path, monkeypatch, earlier):
+    import parc.bench
+    monkeypatch.setattr(parc.bench, "_run", _fake_run(fail=True))
+    out = tmp_path / "a" / "report"
+    if earlier:
+        (out / "images").mkdir(parents=True)
+        (out / "report.md").write_text("old report")
+        (out / "images" / "table1.png").write_text("old picture")
+    before = sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*"))
+    with pytest.raises(KeyboardInterrupt):
+        run_bench(out, Suite.tiny())
+    assert sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*")) == before
+    if earlier:
+        assert (out / "report.md").read_text() == "old report"
+    monkeypatch.setattr(parc.bench, "_run", _fake_run(fail=False))
+    run_bench(out, Suite.tiny())
+    assert (out / "report.md").read_text() == "new report"
+    assert (out / "images" / "table1.png").read_text() == "new picture"
+    assert sorted(p.name for p in tmp_path.rglob(".*")) == []          # no staging folder left
+
+
+@pytest.mark.parametrize("taken, words", [("report.md/", "is a folder; the report writes a file there"),
+                                          ("results.json/", "is a folder; the report writes a file there"),
+                                          ("images", "is a file; the report writes a folder there")])
+def test_a_report_place_taken_the_other_way_is_refused_before_any_work(tmp_path, monkeypatch, capsys, taken, words):
+    import parc.bench
+    ran = []
+    monkeypatch.setattr(parc.bench, "_run", lambda *a: ran.append(a))
+    out = tmp_path / "r"
+    out.mkdir()
+    if taken.endswith("/"):
+        (out / taken).mkdir()
+    else:
+        (out / taken).write_text("x")
+    assert main(["bench", "--tiny", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"{out / taken.rstrip('/')}: {words}" in err[0] and ran == []
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["r"]
 
 
 def test_cli_refuses_an_output_that_is_a_file(tmp_path, capsys):
