@@ -327,6 +327,8 @@ def cmd_compare(args):
             raise InputError(f"--sweep-step must be comma-separated positive numbers, got {args.sweep_step!r}")
     scene, notes = scene_and_notes(args)
     common = {"buffers": _buffers(args, scene), "blocks": not args.no_blocks}
+    if steps is not None and args.supercell is not None:
+        common["supercell"] = args.supercell
     if warming is not None:
         compile_notice(say, casters_for(scene, ["brute"] + [m.split(":")[0] for m in methods], common["buffers"]))
     if steps is not None:
@@ -345,6 +347,9 @@ def cmd_compare(args):
     if args.sweep_supercell is not None:
         sizes = [_supercell_or_error(v) for v in args.sweep_supercell.split(";" if ";" in args.sweep_supercell else ",")]
         labels = [f"parc:{_size_label(s)}" for s in sizes]
+        twice = sorted({label for label in labels if labels.count(label) > 1})
+        if twice:
+            raise InputError(f"--sweep-supercell gives {twice[0][5:]} twice")
         methods = ["brute"] + labels
         options = {label: {"supercell": s, **common} for label, s in zip(labels, sizes)}
     elif args.supercell is not None:
@@ -411,8 +416,8 @@ def _check_sweep_flags(args):
         sweep = "--sweep-supercell"
     else:
         return
-    if args.supercell is not None:
-        raise InputError(f"--supercell does not combine with {sweep} (it sets parc's supercell itself)")
+    if sweep == "--sweep-supercell" and args.supercell is not None:
+        raise InputError("--supercell does not combine with --sweep-supercell (it varies the supercell)")
     if args.methods != "brute,parc":
         raise InputError(f"--methods does not combine with {sweep} (it runs brute and parc itself)")
     if sweep == "--sweep-step" and args.step is not None:
@@ -420,8 +425,12 @@ def _check_sweep_flags(args):
 
 
 def _size_label(size):
-    """A supercell size as a method label: ``4`` or ``1x2x3``."""
-    return "x".join(f"{v:g}" for v in size) if isinstance(size, tuple) else f"{size:g}"
+    """A supercell size as a method label: ``4``, ``4.0000001`` or ``1x2x3``: every digit it
+    needs, so that two sizes never share a label (and a row)."""
+    def short(v):
+        text = repr(float(v))
+        return text[:-2] if text.endswith(".0") else text
+    return "x".join(short(v) for v in size) if isinstance(size, tuple) else short(size)
 
 
 def _supercell_or_error(text):

@@ -170,10 +170,12 @@ def method_names(methods):
         names = [m.strip() for m in methods if m.strip()]
     except (TypeError, AttributeError):
         raise InputError(f"methods must be names such as ('brute', 'parc'), got {methods!r}") from None
+    if not names:
+        raise InputError(f"methods names no method, got {methods!r}; name some, such as 'brute,parc'")
     for m in names:
         if m.split(":")[0] not in METHODS:
             raise InputError(f"unknown method {m!r}; choose from {', '.join(METHODS)} "
-                             "(a label may follow a colon: 'parc:4')")
+                             "(a label may follow a colon, as in 'parc:a', to time a method twice)")
     return ["brute"] + [m for m in dict.fromkeys(names) if m != "brute"]
 
 

@@ -671,6 +671,9 @@ def test_supercell_sweep_takes_sizes_per_axis(vol_file, capsys):
     (["--sweep-supercell", "1,2", "--supercell", "3"], "--supercell does not combine"),
     (["--sweep-supercell", "1,2", "--methods", "parc"], "--methods does not combine"),
     (["--sweep-step", "1e-4"], "reference step"),
+    (["--sweep-supercell", "4,4.0"], "--sweep-supercell gives 4 twice"),
+    (["--methods", ""], "methods names no method"),
+    (["--methods", ","], "methods names no method"),
 ])
 def test_bad_sweeps_are_refused_before_any_work(extra, words, vol_file, capsys):
     rc, out, err = _run(["compare", vol_file, "--tf", "greyscale", "--size", 8, 8, "--repeats", 1] + extra, capsys)
@@ -694,6 +697,8 @@ def test_compare_json_and_step_sweep(vol_file, capsys):
 
 @pytest.mark.parametrize("extra, parc_options", [
     (["--sweep-step", "1"], {"buffers": ("depth", "bits"), "blocks": False}),
+    (["--sweep-step", "1", "--supercell", "3"],
+     {"buffers": ("depth", "bits"), "blocks": False, "supercell": (3.0, 3.0, 3.0)}),
     (["--methods", "brute,parc:a,parc:b", "--supercell", "3"],
      {"buffers": ("depth", "bits"), "blocks": False, "supercell": (3.0, 3.0, 3.0)}),
 ])
@@ -716,6 +721,13 @@ def test_compare_gives_parc_flags_to_every_parc_run(extra, parc_options, vol_fil
         if "supercell" in kw and not isinstance(kw["supercell"], tuple):
             kw["supercell"] = (float(kw["supercell"]),) * 3
         assert kw == (parc_options if method == "parc" else {}), (method, kw)
+
+
+def test_supercell_sizes_that_print_alike_keep_rows_of_their_own(vol_file, capsys, gl):
+    rc, out, err = _run(["compare", vol_file, "--iso", 4, "--size", 8, 8, "--repeats", 1,
+                         "--sweep-supercell", "4,4.0000001", "--json"], capsys)
+    assert rc == 0, err
+    assert [r["method"] for r in json.loads(out)] == ["brute", "parc:4", "parc:4.0000001"]
 
 
 @pytest.mark.parametrize("look", [["--iso", 4], ["--tf", "greyscale", "--buffers", "depth,bits"]])
