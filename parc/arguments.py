@@ -79,7 +79,7 @@ def _add_volume_options(p, scenes=True):
                              + ("; a scene file sets these per volume instead)" if scenes else ")"))
     g.add_argument("--shape", type=_ints(3, "--shape"), metavar="NX,NY,NZ", help="raw: samples along x, y, z")
     g.add_argument("--dtype", metavar="TYPE", help="raw: sample type, e.g. uint8, int16, uint16, float32")
-    g.add_argument("--byte-order", choices=("little", "big"), help="raw: byte order (default little)")
+    g.add_argument("--byte-order", choices=("little", "big"), help="raw: byte order (default little, or what the file name says: be, msb, bigendian...)")
     g.add_argument("--spacing", type=_floats(3, "--spacing"), metavar="SX,SY,SZ",
                    help="sample spacing; replaces what the file says")
     g.add_argument("--origin", type=_floats(3, "--origin"), metavar="OX,OY,OZ",

@@ -128,6 +128,8 @@ def cmd_info(args):
     from data_tools.info import format_info, volume_info
     vol = load_volume_flags(args)
     print(format_info(volume_info(vol)))
+    if "note" in vol.meta:
+        print(f"parc: {printable(vol.meta['note'])}", file=sys.stderr)
     return 0
 
 

@@ -6,6 +6,8 @@ import shutil
 import tempfile
 from pathlib import Path
 
+import numpy as np
+
 from ..errors import InputError, os_reason
 from ..volume import Volume
 from . import metaimage, nifti, npy, nrrd_format, raw, slc, tiff, vtk_legacy
@@ -66,7 +68,13 @@ def load_volume(path, **options) -> Volume:
     TypeError
         An option name that no reader takes (a programming error, not bad input).
     """
-    path = Path(path)
+    if isinstance(path, np.ndarray):
+        raise InputError("load_volume reads a file; an array in memory is a volume already: "
+                         "Volume(array, spacing=(sx, sy, sz))")
+    try:
+        path = Path(path)
+    except TypeError:
+        raise InputError(f"load_volume takes a file's path, got {type(path).__name__}") from None
     unknown = set(options) - set(RAW_ONLY_OPTIONS) - {"spacing", "origin"}
     if unknown:
         raise TypeError(f"load_volume() got unexpected options {sorted(unknown)}")

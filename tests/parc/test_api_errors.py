@@ -5,6 +5,7 @@ TypeError, ValueError, ZeroDivisionError, MemoryError or Numba typing error
 deep inside, or was silently accepted.
 """
 import dataclasses
+import re
 
 import numpy as np
 import pytest
@@ -171,3 +172,10 @@ def test_a_comparison_counts_the_images_it_keeps(monkeypatch):
     parc.render(scene)                                     # one frame fits
     with pytest.raises(InputError, match="needs about"):
         parc.compare(scene, methods=("brute", "parc"))     # a frame and two kept images do not
+
+
+@pytest.mark.parametrize("given, words", [(np.zeros((4, 5, 6), np.uint8), "Volume(array, spacing="),
+                                          (3.5, "takes a file's path, got float")])
+def test_load_volume_of_something_not_a_path_says_what_to_do(given, words):
+    with pytest.raises(InputError, match=re.escape(words)):
+        parc.load_volume(given, spacing=(1, 2, 3))

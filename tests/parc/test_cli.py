@@ -1070,3 +1070,12 @@ def test_a_file_name_with_a_newline_or_an_escape_stays_on_the_error_line(vol_fil
         rc, _, err = _run(argv + ["-o", out], capsys)
         assert rc == 2 and err.count("\n") == 1 and "\x1b" not in err and shown in err, err
         assert not out.exists()
+
+
+def test_info_says_the_note_a_volume_was_read_with(tmp_path, capsys):
+    import nrrd
+    nrrd.write(str(tmp_path / "m.nrrd"), np.zeros((3, 4, 5), np.uint8), {"spacings": np.array([-1.0, 2.0, 3.0])},
+               index_order="C")
+    rc, out, err = _run(["info", tmp_path / "m.nrrd"], capsys)
+    assert rc == 0 and "spacing" in out
+    assert err == "parc: negative spacings (mirrored axes) were reduced to positive spacings\n"
