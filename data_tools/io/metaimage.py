@@ -81,9 +81,16 @@ def _build(path, fields, data_start):
     ndims = get("NDims")
     if ndims is None or get("DimSize") is None or get("ElementType") is None:
         raise InputError(f"{path}: MetaImage header lacks NDims, DimSize or ElementType")
+    # A fourth axis of length 1 (one time step, as ITK writes a series of one) is the volume itself.
+    sizes = get("DimSize").split()
+    if ndims.strip() == "4" and len(sizes) == 4 and sizes[3] == "1":
+        ndims = "3"
+        square = 4                                      # TransformMatrix is 4x4: its top left is ours
+    else:
+        square = 3
     if ndims.strip() != "3":
         raise InputError(f"{path}: MetaImage has NDims = {ndims}, expected a 3-D volume")
-    dims = parse_dims(get("DimSize").split(), path, "DimSize")
+    dims = parse_dims(sizes, path, "DimSize")
     etype = get("ElementType").upper()
     if etype not in ELEMENT_TYPES:
         raise InputError(f"{path}: unsupported ElementType {etype} (supported: {', '.join(ELEMENT_TYPES)})")
@@ -106,8 +113,9 @@ def _build(path, fields, data_start):
     meta = {"format": "metaimage", "byte_order": "big" if big else "little"}
     matrix = get("TransformMatrix", "Rotation", "Orientation")
     if matrix:
-        m = np.asarray(parse_numbers(matrix.split(), 9, float, path, "TransformMatrix"))
-        if np.abs(m - np.eye(3).ravel()).max() > 1e-6:
+        m = np.asarray(parse_numbers(matrix.split(), square * square, float, path, "TransformMatrix"))
+        m = m.reshape(square, square)[:3, :3]
+        if np.abs(m - np.eye(3)).max() > 1e-6:
             meta["note"] = "non-identity TransformMatrix ignored: the volume is read on an axis-aligned grid"
 
     data_name = get("ElementDataFile").strip()

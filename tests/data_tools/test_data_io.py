@@ -414,3 +414,21 @@ def test_nrrd_with_a_time_axis_of_two_or_a_flat_space_stays_refused(tmp_path):
                index_order="C")
     with pytest.raises(InputError, match="NRRD has 4 axes"):
         load_volume(tmp_path / "flat.nrrd")
+
+
+@pytest.mark.parametrize("steps, ok", [(1, True), (2, False)])
+def test_metaimage_with_a_fourth_axis_of_one_is_a_volume(tmp_path, steps, ok):
+    # ITK writes a series of one volume so; its TransformMatrix is then 4x4.
+    data = np.arange(2 * 3 * 4 * steps, dtype="<i2").reshape(steps, 2, 3, 4) * 9 - 40
+    header = ["ObjectType = Image", "NDims = 4", f"DimSize = 4 3 2 {steps}", "ElementType = MET_SHORT",
+              "ElementSpacing = 1.5 2 3 1", "Offset = 1 2 3 0",
+              "TransformMatrix = 1 0 0 0 0 1 0 0 0 0 1 0 0 0 0 1", "ElementDataFile = LOCAL"]
+    p = tmp_path / "four.mha"
+    p.write_bytes(("\n".join(header) + "\n").encode() + data.tobytes())
+    if not ok:
+        with pytest.raises(InputError, match="NDims = 4, expected a 3-D volume"):
+            load_volume(p)
+        return
+    vol = load_volume(p)
+    assert np.array_equal(vol.data, data[0]) and vol.spacing == (1.5, 2.0, 3.0) and vol.origin == (1.0, 2.0, 3.0)
+    assert "note" not in vol.meta
