@@ -98,6 +98,7 @@ def test_the_check_pool_workers_ignore_a_terminals_ctrl_c():
     from pathlib import Path
 
     from raycast import reference
+    before = signal.getsignal(signal.SIGINT)            # SIG_IGN already where started in the background
     pool = reference._pool()
     if pool is None or not Path("/proc/self/status").exists():
         pytest.skip("no worker processes here, or no /proc to read their signals from")
@@ -106,4 +107,4 @@ def test_the_check_pool_workers_ignore_a_terminals_ctrl_c():
         fields = dict(line.split(":\t") for line in Path(f"/proc/{child.pid}/status").read_text().splitlines()
                       if ":\t" in line)
         assert int(fields["SigIgn"], 16) >> (signal.SIGINT - 1) & 1, child
-    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    assert signal.getsignal(signal.SIGINT) == before
