@@ -73,6 +73,47 @@ os.environ["NUMBA_CACHE_DIR"] = _FOLDER
 numba.core.config.CACHE_DIR = _FOLDER
 
 
+def _cache_is_only_a_shortcut():
+    """Make Numba's cache files treat a damaged entry as a miss and a failed write as none.
+
+    Numba raised the unpickler's error for a truncated or garbled index or
+    data file (a full disk or a killed process can leave one), on every run
+    until the folder was removed by hand, and the write's error for a full
+    disk (``No space left on device``, which named no folder): a kernel that
+    runs would not. Damaged entries are compiled again, and their next save
+    writes them over.
+    """
+    from numba.core.caching import IndexDataCacheFile
+    load_index, load_data, save = IndexDataCacheFile._load_index, IndexDataCacheFile._load_data, IndexDataCacheFile.save
+
+    def _load_index(self):
+        try:
+            return load_index(self)
+        except Exception:       # noqa: BLE001 - whatever a damaged pickle raises
+            return {}
+
+    def _load_data(self, name):
+        try:
+            return load_data(self, name)
+        except OSError:
+            raise               # `load` already takes these as a miss
+        except Exception as exc:    # noqa: BLE001
+            raise OSError(f"damaged cache entry {name}") from exc
+
+    def _save(self, key, data):
+        try:
+            save(self, key, data)
+        except OSError:
+            pass
+
+    IndexDataCacheFile._load_index = _load_index
+    IndexDataCacheFile._load_data = _load_data
+    IndexDataCacheFile.save = _save
+
+
+_cache_is_only_a_shortcut()
+
+
 def cache_folder():
     """The folder this version of the kernels is cached in."""
     return Path(numba.core.config.CACHE_DIR)

@@ -151,3 +151,51 @@ def test_a_cache_folder_that_cannot_be_written_is_not_replaced_by_the_sources_ow
     folder, said = choose_cache_folder({"PARC_CACHE_DIR": refused}, "numba-0123abcd-2t")
     assert said == str(Path(refused) / "numba-0123abcd-2t")
     assert Path(folder).is_dir() and not list(Path(folder).iterdir()) and "__pycache__" not in folder
+
+
+_ONE_KERNEL = """
+import sys
+sys.path.insert(0, {folder!r})
+from raycast.config import kernel
+from tiny_kernel import plus_one
+print(plus_one(1.0), sum(plus_one.stats.cache_hits.values()))
+"""
+
+
+def test_a_damaged_cache_entry_is_compiled_again(tmp_path):
+    # A killed process or a full disk can leave an index or data file cut short; Numba
+    # raised the unpickler's EOFError on every run until the folder was removed.
+    (tmp_path / "tiny_kernel.py").write_text("from raycast.config import kernel\n\n\n"
+                                             "@kernel\ndef plus_one(x):\n    return x + 1.0\n")
+    env = dict(os.environ, PARC_CACHE_DIR=str(tmp_path / "cache"))
+    env.pop("NUMBA_CACHE_DIR", None)
+
+    def run():
+        p = subprocess.run([sys.executable, "-c", _ONE_KERNEL.format(folder=str(tmp_path))], capture_output=True,
+                           text=True, timeout=300, env=env)
+        assert p.returncode == 0, p.stderr[-2000:]
+        return p.stdout.split()
+    assert run() == ["2.0", "0"]                           # compiled, and saved
+    assert run() == ["2.0", "1"]                           # loaded
+    entries = [f for f in (tmp_path / "cache").rglob("*") if f.suffix in (".nbi", ".nbc")]
+    assert {f.suffix for f in entries} == {".nbi", ".nbc"}
+    for cut in (0, 7):
+        for f in entries:
+            f.write_bytes(f.read_bytes()[:cut])
+        assert run() == ["2.0", "0"]                       # compiled again, and written over
+        assert run() == ["2.0", "1"]
+
+
+def test_a_cache_write_that_fails_leaves_the_kernel_uncached(tmp_path, monkeypatch):
+    # A full disk: the write's OSError ('No space left on device') ended every render.
+    import errno
+
+    import raycast.config  # noqa: F401 - makes the cache forgiving
+    from numba.core.caching import IndexDataCacheFile
+
+    def full(self, path):
+        raise OSError(errno.ENOSPC, "No space left on device", path)
+    cache = IndexDataCacheFile(str(tmp_path), "kernel", "stamp")
+    monkeypatch.setattr(IndexDataCacheFile, "_open_for_write", full)
+    cache.save(("sig",), b"compiled")
+    assert cache.load(("sig",)) is None
