@@ -24,7 +24,7 @@ from data_tools.io.npy import save_array
 from .arguments import build_parser, join_signed_values, supercell_size
 from .flagscene import load_volume_flags, scene_and_notes
 from .outputs import (Progress, atomic_write_all, check_distinct, check_output, compile_notice, end_progress_line,
-                      printable, to_json, write_png)
+                      note, printable, to_json, write_png)
 
 EXIT_USAGE = 2
 
@@ -129,7 +129,7 @@ def cmd_info(args):
     vol = load_volume_flags(args)
     print(format_info(volume_info(vol)))
     if "note" in vol.meta:
-        print(f"parc: {printable(vol.meta['note'])}", file=sys.stderr)
+        note(vol.meta["note"])
     return 0
 
 
@@ -213,7 +213,7 @@ def cmd_convert(args):
     _refuse_overwriting_input(out, [args.volume, *files])
     save_volume(vol, out)  # all-or-nothing itself, and keeps sidecar names right
     if "note" in vol.meta:
-        print(f"parc: {printable(vol.meta['note'])}", file=sys.stderr)
+        note(vol.meta["note"])
     print(f"wrote {_written(out)} ({'x'.join(map(str, vol.dims))} {vol.dtype}{_placement(vol, out)})")
     return 0
 
@@ -233,7 +233,7 @@ def cmd_render(args):
     stats_out = check_output(args.stats, (".json",)) if args.stats is not None else None
     work_out = check_output(args.work, (".png", ".npy")) if args.work is not None else None
     check_distinct(args.volume, [out, depth_out, stats_out, work_out])
-    say = (lambda *a: None) if args.quiet else (lambda msg: print(f"parc: {printable(msg)}", file=sys.stderr))
+    say = (lambda *a: None) if args.quiet else note
     scene, notes = scene_and_notes(args)
     check_distinct(args.volume, [out, depth_out, stats_out, work_out], read=_files_read(scene))
     w, h = scene.size
@@ -247,8 +247,8 @@ def cmd_render(args):
     result = parc.render(scene, method=args.method, progress=progress, work=work_out is not None, **kwargs)
     if progress is not None:
         progress.done()
-    for note in notes:
-        say(note)
+    for line in notes:
+        say(line)
 
     writes = [(out, (lambda tmp: write_png(result.image, tmp)) if out.suffix.lower() == ".png"
                else (lambda tmp: save_array(tmp, result.image)))]
@@ -313,7 +313,7 @@ def cmd_compare(args):
     from .comparison import method_names, compare, format_table
     from .renderer import casters_for
 
-    say = (lambda *a: None) if args.quiet else (lambda msg: print(f"parc: {printable(msg)}", file=sys.stderr))
+    say = (lambda *a: None) if args.quiet else note
     warming = None if args.quiet else (lambda line: say(f"{line} ..."))
     methods = method_names(args.methods)
     if args.repeats < 1:
@@ -336,8 +336,8 @@ def cmd_compare(args):
     if steps is not None:
         from .comparison import format_step_table, step_sweep
         rows = step_sweep(scene, steps, repeats=args.repeats, progress=warming, options=common)
-        for note in notes:
-            say(note)
+        for line in notes:
+            say(line)
         if args.json:
             print(to_json(rows))
         else:
@@ -359,8 +359,8 @@ def cmd_compare(args):
     if not options:
         _refuse_parc_flags(args, "applies to parc, which --methods leaves out")
     rows = compare(scene, methods=methods, repeats=args.repeats, options=options, progress=warming)
-    for note in notes:
-        say(note)
+    for line in notes:
+        say(line)
     if args.json:
         print(to_json(rows))
     else:

@@ -188,6 +188,15 @@ def printable(text):
                    for c in str(text))
 
 
+def note(text, who="parc"):
+    """``who: text``, one line on stderr. A stderr that cannot take it (a full disk, a closed
+    pipe) loses the note, not the run: a render whose files were all written ended with status 2."""
+    try:
+        print(f"{who}: {printable(text)}", file=sys.stderr, flush=True)
+    except (OSError, ValueError):
+        pass
+
+
 def end_progress_line():
     """End an unfinished progress line, so that what follows (an error) starts a line of its own."""
     if Progress.latest is not None:

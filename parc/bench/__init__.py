@@ -24,7 +24,6 @@ import contextlib
 import os
 import platform
 import shutil
-import sys
 import tempfile
 import time
 from dataclasses import asdict, dataclass, field, replace
@@ -34,7 +33,7 @@ import numpy as np
 
 from data_tools import InputError
 
-from ..outputs import compile_notice, to_json
+from ..outputs import compile_notice, note, to_json
 from .scenes import default_data_dir
 
 
@@ -347,7 +346,7 @@ def main(args):
     t0 = time.perf_counter()
 
     def say(msg):
-        print(f"parc bench: {msg}  ({time.perf_counter() - t0:.0f} s)", file=sys.stderr, flush=True)
+        note(f"{msg}  ({time.perf_counter() - t0:.0f} s)", "parc bench")
 
     compile_notice(say)
     res = run_bench(out, suite, progress=say, command="parc " + " ".join(args.argv))

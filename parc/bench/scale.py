@@ -24,6 +24,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from ..outputs import note
+
 ISOS = (("skin", 600.5), ("bone", 1500.5))
 
 
@@ -154,7 +156,7 @@ def main(argv=None):
     a = p.parse_args(argv)
 
     def say(msg):
-        print(f"parc bench:   {msg}", file=sys.stderr, flush=True)
+        note(f"  {msg}", "parc bench")
 
     out = measure(a.path, a.size, a.repeats, say)
     Path(a.json).write_text(json.dumps(out, indent=1))

@@ -1079,3 +1079,21 @@ def test_info_says_the_note_a_volume_was_read_with(tmp_path, capsys):
     rc, out, err = _run(["info", tmp_path / "m.nrrd"], capsys)
     assert rc == 0 and "spacing" in out
     assert err == "parc: negative spacings (mirrored axes) were reduced to positive spacings\n"
+
+
+def test_a_stderr_that_cannot_take_the_notes_does_not_fail_the_run(vol_file, tmp_path, monkeypatch):
+    # stderr on a full disk (2>/dev/full): every file was written, and the run ended with status 2.
+    import errno
+    import io
+
+    class Full(io.TextIOBase):
+        def write(self, text):
+            raise OSError(errno.ENOSPC, "No space left on device")
+
+        def flush(self):
+            pass
+    monkeypatch.setattr(sys, "stderr", Full())
+    out, stats = tmp_path / "o.png", tmp_path / "s.json"
+    assert main(["render", str(vol_file), "--iso", "4", "--size", "8", "8", "-o", str(out), "--stats", str(stats)]) == 0
+    assert out.is_file() and stats.is_file()
+    assert main(["info", str(vol_file)]) == 0
