@@ -3,18 +3,34 @@
 It imports the command line (`parc.cli`, and with it NumPy, Numba and
 OpenGL: about 0.3 s) inside the run, so that a Ctrl-C while they load
 ends in one line and status 130, as it does once the command runs,
-instead of a traceback from the import machinery.
+instead of a traceback from the import machinery; and it checks, before
+Numba reads it, the thread count a user may set for Numba.
 """
+import os
 import sys
+
+#: More threads than this is a mistake (libgomp fails to start 40,000, and Numba crashed at 100,000).
+MAX_THREADS = 1024
 
 
 def main():
+    threads = os.environ.get("NUMBA_NUM_THREADS")
+    if threads is not None and not threads.strip():
+        del os.environ["NUMBA_NUM_THREADS"]           # set but empty: unset, without Numba's warning
+    elif threads is not None and not (threads.strip().isdigit() and 1 <= int(threads) <= MAX_THREADS):
+        # Checked before Numba is imported: it fails on 0 with a traceback, and warns on the others.
+        _say(f"error: NUMBA_NUM_THREADS must be a whole number from 1 to {MAX_THREADS}, got {threads!r}")
+        return 2
     try:
         from .cli import main as run
     except KeyboardInterrupt:
-        try:
-            print("parc: interrupted", file=sys.stderr)
-        except (OSError, ValueError, AttributeError):     # stderr closed
-            pass
+        _say("interrupted")
         return 130
     return run()
+
+
+def _say(text):
+    try:
+        print(f"parc: {text}", file=sys.stderr)
+    except (OSError, ValueError, AttributeError):     # stderr closed or full
+        pass

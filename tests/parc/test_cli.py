@@ -1097,3 +1097,19 @@ def test_a_stderr_that_cannot_take_the_notes_does_not_fail_the_run(vol_file, tmp
     assert main(["render", str(vol_file), "--iso", "4", "--size", "8", "8", "-o", str(out), "--stats", str(stats)]) == 0
     assert out.is_file() and stats.is_file()
     assert main(["info", str(vol_file)]) == 0
+
+
+@pytest.mark.parametrize("threads, ok", [("0", False), ("-1", False), ("abc", False), ("100000", False),
+                                         ("", True), ("2", True)])
+def test_numba_thread_count_from_the_environment_is_checked_first(vol_file, threads, ok):
+    # Numba failed on 0 with a traceback, printed a traceback-like warning for "abc",
+    # and crashed at 100,000; empty is taken as unset.
+    import os
+    env = dict(os.environ, NUMBA_NUM_THREADS=threads)
+    p = subprocess.run([sys.executable, "-c", "import sys; from parc.console import main; sys.exit(main())",
+                        "info", str(vol_file)], capture_output=True, text=True, timeout=300, env=env)
+    if ok:
+        assert p.returncode == 0 and p.stderr == "" and "dimensions" in p.stdout, p.stderr
+    else:
+        assert (p.returncode, p.stderr) == (2, "parc: error: NUMBA_NUM_THREADS must be a whole number "
+                                               f"from 1 to 1024, got {threads!r}\n")
