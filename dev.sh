@@ -10,8 +10,19 @@ stamp="$venv/.installed"
 python="${PYTHON:-python3}"
 
 if [ ! -x "$venv/bin/python" ] || [ ! -f "$stamp" ] || [ "$root/pyproject.toml" -nt "$stamp" ]; then
+    if ! command -v "$python" >/dev/null 2>&1; then
+        echo "dev.sh: no Python at '$python'; set PYTHON to a Python 3.10 or newer" >&2
+        exit 2
+    fi
     echo "dev.sh: setting up $venv (first run only)" >&2
-    "$python" -m venv "$venv"
+    # A venv made by another Python (an earlier try with PYTHON too old) is made
+    # again: python -m venv keeps an existing venv's interpreter.
+    version='import sys; print(sys.version_info[:2])'
+    clear=()
+    if [ -x "$venv/bin/python" ] && [ "$("$venv/bin/python" -c "$version" 2>/dev/null)" != "$("$python" -c "$version")" ]; then
+        clear=(--clear)
+    fi
+    "$python" -m venv ${clear[@]+"${clear[@]}"} "$venv"
     "$venv/bin/python" -m pip install --quiet --upgrade pip >&2
     "$venv/bin/python" -m pip install --quiet -e "$root[test]" >&2
     touch "$stamp"
