@@ -57,6 +57,8 @@ def main(argv=None):
         # A path the system refuses (too long, not a folder, no permission)
         # found only when it is used.
         where = f"{exc.filename}: " if exc.filename else ""
+        if not where and _working_folder_gone():
+            where = "the working folder no longer exists (give absolute paths, or cd to a folder): "
         _error(f"error: {where}{os_reason(exc)}")
         return EXIT_USAGE
     except MemoryError as exc:
@@ -75,6 +77,14 @@ def main(argv=None):
         for signum, handler in stops.items():
             if handler is not None:                 # None: set outside Python, not ours to restore
                 signal.signal(signum, handler)
+
+
+def _working_folder_gone():
+    try:
+        os.getcwd()
+    except OSError:
+        return True
+    return False
 
 
 class _Stopped(BaseException):

@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from data_tools import InputError
+from data_tools.errors import os_reason
 
 from ..outputs import compile_notice, note, to_json
 from .scenes import default_data_dir
@@ -196,10 +197,15 @@ def _check_places(out, files, folders):
 def _stage_for(out):
     """A hidden folder the report is written into before it replaces the old one in ``out``:
     beside ``out``, or beside its nearest folder that exists (so that files are moved, not copied)."""
-    base = out.parent
-    while not base.is_dir() and base != base.parent:
+    base = out.parent if out.is_dir() else out
+    while not base.exists() and base != base.parent:
         base = base.parent
-    return Path(tempfile.mkdtemp(prefix=f".{out.name}.parc-", dir=base))
+    if not base.is_dir():
+        raise InputError(f"{base}: is a file, where the report's folder {out} would go")
+    try:
+        return Path(tempfile.mkdtemp(prefix=f".{out.name}.parc-", dir=base))
+    except OSError as exc:          # its name would mean nothing to the user
+        raise InputError(f"{out}: cannot write the report there: {os_reason(exc)}") from None
 
 
 def _publish(stage, out):

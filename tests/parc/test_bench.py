@@ -278,3 +278,13 @@ def test_benchmark_script_runs_on_a_tiny_volume(script, gl_context):
     assert "same as brute: False" not in run.stdout and "same as linear: False" not in run.stdout
     for text in expected:
         assert text in run.stdout, (text, run.stdout[-2000:])
+
+
+def test_a_report_folder_that_cannot_be_made_is_refused_before_any_work(tmp_path):
+    from data_tools import InputError
+    blocked = tmp_path / "file"
+    blocked.write_text("x")
+    with pytest.raises(InputError, match=r"is a file, where the report's folder .* would go") as info:
+        run_bench(blocked / "sub" / "report", Suite.tiny())
+    assert str(info.value).startswith(f"{blocked}: ") and ".parc-" not in str(info.value)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["file"]

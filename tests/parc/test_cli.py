@@ -1113,3 +1113,13 @@ def test_numba_thread_count_from_the_environment_is_checked_first(vol_file, thre
     else:
         assert (p.returncode, p.stderr) == (2, "parc: error: NUMBA_NUM_THREADS must be a whole number "
                                                f"from 1 to 1024, got {threads!r}\n")
+
+
+def test_a_working_folder_deleted_under_the_run_is_named(tmp_path):
+    gone = tmp_path / "gone"
+    gone.mkdir()
+    script = (f"cd {gone} && rmdir {gone} && exec {sys.executable} -c "
+              "'import sys; from parc.console import main; sys.exit(main())' render -o rel.png --size 8 8")
+    p = subprocess.run(["bash", "-c", script], capture_output=True, text=True, timeout=300)
+    assert p.returncode == 2 and p.stderr.count("\n") == 1, p.stderr
+    assert "the working folder no longer exists" in p.stderr
