@@ -24,6 +24,7 @@ import contextlib
 import os
 import platform
 import shutil
+import signal
 import tempfile
 import time
 from dataclasses import asdict, dataclass, field, replace
@@ -196,8 +197,11 @@ def _check_places(out, files, folders):
 
 def _stage_for(out):
     """A hidden folder the report is written into before it replaces the old one in ``out``:
-    beside ``out``, or beside its nearest folder that exists (so that files are moved, not copied)."""
-    base = out.parent if out.is_dir() else out
+    in ``out``, or in the nearest folder above it that exists, on the file system the report
+    goes to (``out`` may be a mount or a link elsewhere), so that its files are renamed in."""
+    if out.is_symlink() and not out.exists():
+        raise InputError(f"{out}: is a link to {os.readlink(out)}, which does not exist")
+    base = out
     while not base.exists() and base != base.parent:
         base = base.parent
     if not base.is_dir():
@@ -214,9 +218,29 @@ def _publish(stage, out):
     files = sorted(p for p in stage.rglob("*") if p.is_file())
     names = [p.relative_to(stage) for p in files]
     _check_places(out, names, {str(n.parent) for n in names if n.parent != Path(".")})
-    for path, name in zip(files, names):
-        (out / name).parent.mkdir(parents=True, exist_ok=True)
-        os.replace(path, out / name)
+    with _signals_held():
+        for path, name in zip(files, names):
+            (out / name).parent.mkdir(parents=True, exist_ok=True)
+            shutil.move(path, out / name)           # a rename; a copy where a folder in out is a mount
+
+
+@contextlib.contextmanager
+def _signals_held(signums=(signal.SIGINT, signal.SIGTERM, signal.SIGHUP)):
+    """Hold Ctrl-C and the stop signals until the block ends, then act on them as they would have:
+    the report's files are moved in all together or not at all."""
+    held, was = [], {}
+    try:
+        for signum in signums:
+            was[signum] = signal.signal(signum, lambda n, frame: held.append(n))
+    except ValueError:          # not the main thread: nothing to hold
+        pass
+    try:
+        yield
+    finally:
+        for signum, handler in was.items():
+            signal.signal(signum, handler)
+        for signum in dict.fromkeys(held):
+            signal.raise_signal(signum)
 
 
 def _run(out, suite, say, command):

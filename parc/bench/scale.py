@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import resource
 import statistics
 import subprocess
@@ -46,9 +47,16 @@ def visible_woman(suite, progress):
         progress(f"Visible Woman scale: writing a {nx}x{ny}x{nz} int16 phantom "
                  f"({nx * ny * nz * 2 / 1e6:.0f} MB) to {path}")
         t0 = time.perf_counter()
-        tmp = path.with_name("." + path.name)     # hidden until whole; keeps the .raw suffix the writer needs
-        ct_phantom_to_disk(tmp, suite.vw_shape)
-        tmp.replace(path)          # a crash mid-write leaves no truncated phantom behind
+        # Hidden until whole, under a name of its own (two runs may write it at once), with
+        # the .raw suffix the writer needs; an interrupted write leaves nothing behind.
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".raw", dir=path.parent)
+        os.close(fd)
+        try:
+            ct_phantom_to_disk(tmp, suite.vw_shape)
+            os.replace(tmp, path)
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
         generated = time.perf_counter() - t0
     with tempfile.TemporaryDirectory(prefix="parc-vw-") as folder:      # its own: two runs at once
         out = Path(folder) / "scale.json"
@@ -146,6 +154,21 @@ def measure(path, size, repeats, say):
     return out
 
 
+def _end_with_parent():
+    """Exit once the bench that started this process is gone, however it went: in a session
+    of its own, no terminal's Ctrl-C reaches this process, and a bench stopped between
+    starting it and waiting for it could not kill it (the full suite's renders take minutes)."""
+    import threading
+
+    parent = os.getppid()
+
+    def watch():
+        while os.getppid() == parent:
+            time.sleep(0.5)
+        os._exit(130)
+    threading.Thread(target=watch, daemon=True).start()
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(prog="python -m parc.bench.scale",
                                 description="Render a memory-mapped phantom; the Visible Woman section of parc bench.")
@@ -154,6 +177,7 @@ def main(argv=None):
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--json", required=True)
     a = p.parse_args(argv)
+    _end_with_parent()
 
     def say(msg):
         note(f"  {msg}", "parc bench")

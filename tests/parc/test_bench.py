@@ -288,3 +288,87 @@ def test_a_report_folder_that_cannot_be_made_is_refused_before_any_work(tmp_path
         run_bench(blocked / "sub" / "report", Suite.tiny())
     assert str(info.value).startswith(f"{blocked}: ") and ".parc-" not in str(info.value)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["file"]
+
+
+def test_the_report_is_staged_inside_an_existing_out_and_moved_in_whole_despite_a_ctrl_c(tmp_path, monkeypatch):
+    # Staged beside out, a report for a mount or a link to another file system failed to move
+    # in after the whole suite ("Invalid cross-device link"); a Ctrl-C while moving mixed reports.
+    import os
+    import signal
+
+    import parc.bench
+    out = tmp_path / "out"
+    (out / "images").mkdir(parents=True)
+    for name in ("report.md", "results.json", "images/table1.png"):
+        (out / name).write_text("old")
+    staged_in = []
+
+    def run(stage, suite, say, command):
+        staged_in.append(stage.parent)
+        return _fake_run(fail=False)(stage, suite, say, command)
+    monkeypatch.setattr(parc.bench, "_run", run)
+    move = parc.bench.shutil.move
+
+    def move_then_ctrl_c(src, dst):
+        move(src, dst)
+        os.kill(os.getpid(), signal.SIGINT)
+    monkeypatch.setattr(parc.bench.shutil, "move", move_then_ctrl_c)
+    with pytest.raises(KeyboardInterrupt):
+        run_bench(out, Suite.tiny())
+    assert staged_in == [out]
+    assert [(out / n).read_text() for n in ("report.md", "results.json", "images/table1.png")] == [
+        "new report", "{}", "new picture"]
+    assert sorted(p.name for p in out.iterdir()) == ["images", "report.md", "results.json"]
+
+
+def test_a_link_to_nothing_as_out_is_refused_before_any_work(tmp_path, monkeypatch):
+    import parc.bench
+    from data_tools import InputError
+    monkeypatch.setattr(parc.bench, "_run", lambda *a: pytest.fail("the suite ran"))
+    (tmp_path / "link").symlink_to(tmp_path / "nowhere" / "deep")
+    with pytest.raises(InputError, match="is a link to .*nowhere/deep, which does not exist"):
+        run_bench(tmp_path / "link", Suite.tiny())
+
+
+def test_an_interrupted_phantom_write_leaves_nothing_in_the_cache(tmp_path, monkeypatch):
+    import data_tools.synthetic
+    from parc.bench.scale import visible_woman
+
+    def half_then_ctrl_c(path, shape):
+        Path(path).write_bytes(b"half a phantom")
+        raise KeyboardInterrupt
+    monkeypatch.setattr(data_tools.synthetic, "ct_phantom_to_disk", half_then_ctrl_c)
+    with pytest.raises(KeyboardInterrupt):
+        visible_woman(Suite.tiny(cache_dir=tmp_path), lambda m: None)
+    assert [p for p in tmp_path.rglob("*") if p.is_file()] == []
+
+
+_GRANDCHILD = """
+import subprocess, sys
+child = subprocess.Popen([sys.executable, "-c",
+                          "import time; from parc.bench.scale import _end_with_parent; _end_with_parent(); time.sleep(120)"])
+print(child.pid, flush=True)
+child.wait()
+"""
+
+
+def test_the_visible_woman_child_ends_with_the_bench(tmp_path):
+    # In a session of its own no terminal's Ctrl-C reaches it: a bench stopped before it
+    # could kill the child left it rendering for minutes.
+    import os
+    import signal
+    import time
+    bench = subprocess.Popen([sys.executable, "-c", _GRANDCHILD], stdout=subprocess.PIPE, text=True)
+    child = int(bench.stdout.readline())
+    time.sleep(1.0)
+    state = Path(f"/proc/{child}/status")
+    if not Path("/proc/self/status").exists():
+        pytest.skip("no /proc to watch the child in")
+    assert state.exists() and "\tZ" not in state.read_text()        # watching, not ended on its own
+    os.kill(bench.pid, signal.SIGKILL)
+    bench.wait()
+    for _ in range(100):
+        if not state.exists() or "\tZ" in state.read_text():
+            break
+        time.sleep(0.1)
+    assert not state.exists() or "\tZ" in state.read_text()
