@@ -306,8 +306,19 @@ def _pool():
         finally:
             if was is not None:
                 signal.signal(signal.SIGINT, was)
-        atexit.register(_POOL.terminate)
+        atexit.register(_end_pool, _POOL)
     return _POOL
+
+
+def _end_pool(pool):
+    """Terminate the pool at exit with Ctrl-C ignored: the work is done, and an interrupt in
+    its 0.2 s printed the atexit machinery's traceback after a run's last line."""
+    import signal
+    try:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+    except ValueError:          # not the main thread
+        pass
+    pool.terminate()
 
 
 def judge_batches(batches, chunk=500):

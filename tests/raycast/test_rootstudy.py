@@ -108,3 +108,21 @@ def test_the_check_pool_workers_ignore_a_terminals_ctrl_c():
                       if ":\t" in line)
         assert int(fields["SigIgn"], 16) >> (signal.SIGINT - 1) & 1, child
     assert signal.getsignal(signal.SIGINT) == before
+
+
+def test_the_check_pool_ends_at_exit_without_a_ctrl_c_traceback():
+    # Its termination takes about 0.2 s after a run's last line: a Ctrl-C then printed the
+    # atexit machinery's traceback. Here the Ctrl-C comes 0.1 s into a termination made slower.
+    import os
+    import subprocess
+    import sys
+    code = ("import os, signal, threading, time; import multiprocessing.pool as mp\n"
+            "real = mp.Pool.terminate; mp.Pool.terminate = lambda self: (time.sleep(0.5), real(self))\n"
+            "from raycast import reference; p = reference._pool()\n"
+            "if p is None: os._exit(3)\n"
+            "p.map(abs, range(4))\n"
+            "ctrl_c = threading.Timer(0.1, os.kill, (os.getpid(), signal.SIGINT)); ctrl_c.daemon = True\n"
+            "ctrl_c.start(); print('done')\n")
+    env = dict(os.environ, PARC_TEST_WORKERS="2")
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, env=env)
+    assert (p.returncode, p.stdout, p.stderr) == (0, "done\n", "")
