@@ -15,9 +15,10 @@ MAX_THREADS = 1024
 
 def main():
     threads = os.environ.get("NUMBA_NUM_THREADS")
-    if threads is not None and not threads.strip():
+    count = threads.strip() if threads is not None else ""
+    if threads is not None and not count:
         del os.environ["NUMBA_NUM_THREADS"]           # set but empty: unset, without Numba's warning
-    elif threads is not None and not (threads.strip().isdigit() and 1 <= int(threads) <= MAX_THREADS):
+    elif threads is not None and not (count.isascii() and count.isdigit() and 1 <= int(count) <= MAX_THREADS):
         # Checked before Numba is imported: it fails on 0 with a traceback, and warns on the others.
         _say(f"error: NUMBA_NUM_THREADS must be a whole number from 1 to {MAX_THREADS}, got {threads!r}")
         return 2

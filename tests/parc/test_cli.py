@@ -1099,7 +1099,7 @@ def test_a_stderr_that_cannot_take_the_notes_does_not_fail_the_run(vol_file, tmp
     assert main(["info", str(vol_file)]) == 0
 
 
-@pytest.mark.parametrize("threads, ok", [("0", False), ("-1", False), ("abc", False), ("100000", False),
+@pytest.mark.parametrize("threads, ok", [("0", False), ("-1", False), ("abc", False), ("100000", False), ("²", False),
                                          ("", True), ("2", True)])
 def test_numba_thread_count_from_the_environment_is_checked_first(vol_file, threads, ok):
     # Numba failed on 0 with a traceback, printed a traceback-like warning for "abc",
