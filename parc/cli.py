@@ -24,7 +24,7 @@ from data_tools.io.npy import save_array
 from .arguments import build_parser, join_signed_values, supercell_size
 from .flagscene import load_volume_flags, scene_and_notes
 from .outputs import (Progress, atomic_write_all, check_distinct, check_output, compile_notice, end_progress_line,
-                      note, printable, to_json, write_png)
+                      note, to_json, write_png)
 
 EXIT_USAGE = 2
 
@@ -112,10 +112,7 @@ def _stop_on_signals():
 def _error(text):
     """``parc: text`` on stderr, on a line of its own after any unfinished progress."""
     end_progress_line()
-    try:
-        print(f"parc: {printable(text)}", file=sys.stderr)
-    except (OSError, ValueError):
-        pass
+    note(text)
 
 
 def _main(argv):

@@ -149,8 +149,8 @@ def run_bench(out, suite=None, *, progress=None, command=None):
     ----------
     out : str or Path
         Output folder (created). The report is written into a hidden folder
-        beside it and moved in once whole: a failed or interrupted run leaves
-        an earlier report there as it was.
+        in it (or in the nearest folder above it) and moved in once whole: a
+        failed or interrupted run leaves an earlier report there as it was.
     suite : Suite, optional
         Default `Suite.full`.
     progress : callable(str) or None
