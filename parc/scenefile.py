@@ -58,26 +58,16 @@ array are counted from 1 in file order: ``volume[1]`` is the first
 """
 from __future__ import annotations
 
-import difflib
-import json
-import math
 import os
-import re
-from contextlib import contextmanager
 from pathlib import Path
-
-try:
-    import tomllib
-except ModuleNotFoundError:          # Python 3.10: the same parser, as a package
-    import tomli as tomllib
 
 import numpy as np
 
 from data_tools import InputError, Volume
-from data_tools.errors import os_reason
 
 from .camera import Camera, unit_vector
 from .scene import MODES, DirectionalLight, Isosurface, PointLight, Scene, Translucent
+from .tomltables import Table, Where, array_tables, construct
 
 TOP_KEYS = ("size", "background", "shadows", "camera", "volume", "light")
 CAMERA_KEYS = ("eye", "look_at", "up", "fov", "parallel")
@@ -128,9 +118,9 @@ def load_scene(path, *, view=None, size=None) -> Scene:
         raise InputError(f"load_scene takes the path of a scene file, got {type(path).__name__}")
     if view is not None and (not isinstance(view, dict) or set(view) - set(CAMERA_KEYS)):
         raise InputError(f"view takes camera settings keyed {', '.join(CAMERA_KEYS)}, got {view!r}")
-    where = _Where(path)
+    where = Where(path)
     doc = where.read()
-    top = _Table(where, "", doc, TOP_KEYS)
+    top = Table(where, "", doc, TOP_KEYS)
 
     volumes = _load_volumes(where, doc.get("volume"))
     lights = _load_lights(where, doc.get("light"))
@@ -140,7 +130,7 @@ def load_scene(path, *, view=None, size=None) -> Scene:
             _check_size(image_size)
     else:
         image_size = top.integers("size", 2, default=DEFAULT_SIZE, minimum=1)
-    camera_table = _Table(where, "camera", doc.get("camera", {}), CAMERA_KEYS)
+    camera_table = Table(where, "camera", doc.get("camera", {}), CAMERA_KEYS)
     camera = _load_camera(where, camera_table, volumes, {k: v for k, v in (view or {}).items() if v is not None},
                           image_size[0] / image_size[1])
     background = top.numbers("background", (3, 4), default=None)
@@ -197,164 +187,6 @@ def resolve_view(lo, hi, *, eye=None, look_at=None, up=None, fov=None, parallel=
     return {"eye": tuple(eye), "look_at": look_at, "up": up, "fov": fov, "parallel_scale": parallel}
 
 
-# --- errors ---------------------------------------------------------------
-
-class _Where:
-    """The scene file being read: formats errors as ``FILE: KEY: message``."""
-
-    def __init__(self, path):
-        self.path = Path(path)
-        self.folder = self.path.parent
-
-    def error(self, key, message):
-        return InputError(f"{self.path}: {key}: {message}" if key else f"{self.path}: {message}")
-
-    @contextmanager
-    def key(self, key):
-        """Re-raise an InputError from a constructor or reader, or a path the system refuses
-        (a name too long), with the file and key in front."""
-        try:
-            yield
-        except InputError as exc:
-            raise self.error(key, str(exc)) from None
-        except OSError as exc:
-            where = f"{exc.filename}: " if exc.filename else ""
-            raise self.error(key, f"{where}{os_reason(exc)}") from None
-
-    def read(self):
-        if not self.path.exists():
-            raise InputError(f"{self.path}: no such scene file")
-        if self.path.is_dir():
-            raise InputError(f"{self.path}: is a folder, not a scene file")
-        if not self.path.is_file():
-            raise InputError(f"{self.path}: not a regular file")
-        try:
-            text = self.path.read_text(encoding="utf-8-sig")   # a byte-order mark is no statement
-        except UnicodeDecodeError:
-            raise InputError(f"{self.path}: not a UTF-8 text file") from None
-        except OSError as exc:
-            raise InputError(f"{self.path}: cannot read: {os_reason(exc)}") from None
-        from .transfer.files import parse_text
-        return parse_text(tomllib.loads, text, self.path, "TOML")
-
-    def resolve(self, name):
-        """A path from the file, relative to the file's folder."""
-        return self.folder / Path(name).expanduser()
-
-
-def _kind(value):
-    """What a TOML value is, in TOML's words."""
-    if isinstance(value, bool):
-        return "a boolean"
-    if isinstance(value, (int, float)):
-        return "a number"
-    if isinstance(value, str):
-        return "a string"
-    if isinstance(value, list):
-        return "an array"
-    if isinstance(value, dict):
-        return "a table"
-    return f"a {type(value).__name__}"
-
-
-def _show(value):
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    text = repr(value)
-    return text if len(text) <= 60 else text[:57] + "..."
-
-
-def _is_number(value):
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
-
-
-class _Table:
-    """One TOML table: refuses unknown keys at once, and reads typed values by key."""
-
-    def __init__(self, where, prefix, raw, known):
-        self.where = where
-        self.prefix = prefix
-        if not isinstance(raw, dict):
-            raise where.error(prefix, f"must be a table, got {_kind(raw)} {_show(raw)}")
-        self.raw = raw
-        for name in raw:
-            if name not in known:
-                close = (difflib.get_close_matches(name, known, n=1, cutoff=0.5)
-                         or [k for k in known if name and (name.startswith(k) or k.startswith(name))])
-                hint = f"; did you mean {close[0]}?" if close else ""
-                raise where.error(self.key(name), f"unknown key{hint} (known: {', '.join(known)})")
-
-    def key(self, name):
-        # As TOML would write it: a key that is not bare ("", "a b") in quotes.
-        name = name if re.fullmatch(r"[A-Za-z0-9_-]+", name) else json.dumps(name, ensure_ascii=False)
-        return f"{self.prefix}.{name}" if self.prefix else name
-
-    def __contains__(self, name):
-        return name in self.raw
-
-    def error(self, name, message):
-        return self.where.error(self.key(name), message)
-
-    def wrong(self, name, what):
-        value = self.raw[name]
-        return self.error(name, f"must be {what}, got {_kind(value)} {_show(value)}")
-
-    def number(self, name, default=None):
-        """A finite number (TOML integer or float)."""
-        if name not in self.raw:
-            return default
-        value = self.raw[name]
-        if not _is_number(value) or not math.isfinite(value):
-            raise self.wrong(name, "a finite number")
-        return float(value)
-
-    def numbers(self, name, counts, default=None):
-        """An array of finite numbers whose length is in ``counts`` (an int or a tuple)."""
-        if name not in self.raw:
-            return default
-        counts = (counts,) if isinstance(counts, int) else tuple(counts)
-        value = self.raw[name]
-        want = " or ".join(map(str, counts)) + " finite numbers"
-        if (not isinstance(value, list) or len(value) not in counts
-                or not all(_is_number(v) and math.isfinite(v) for v in value)):
-            raise self.wrong(name, f"an array of {want}")
-        return tuple(float(v) for v in value)
-
-    def integers(self, name, count, default=None, minimum=None):
-        """An array of ``count`` integers, each at least ``minimum``."""
-        if name not in self.raw:
-            return default
-        value = self.raw[name]
-        if (not isinstance(value, list) or len(value) != count
-                or not all(isinstance(v, int) and not isinstance(v, bool) for v in value)):
-            raise self.wrong(name, f"an array of {count} integers")
-        if minimum is not None and min(value) < minimum:
-            raise self.error(name, f"must be integers of at least {minimum}, got {value}")
-        return tuple(value)
-
-    def string(self, name, default=None):
-        if name not in self.raw:
-            return default
-        value = self.raw[name]
-        if not isinstance(value, str) or not value:
-            raise self.wrong(name, "a non-empty string")
-        return value
-
-    def boolean(self, name, default=None):
-        if name not in self.raw:
-            return default
-        value = self.raw[name]
-        if not isinstance(value, bool):
-            raise self.wrong(name, "true or false")
-        return value
-
-    def material(self, name):
-        m = self.numbers(name, 4)
-        if m is not None and min(m) < 0.0:
-            raise self.error(name, f"ambient, diffuse, specular and shininess must be >= 0, got {list(m)}")
-        return m
-
-
 def _check_size(size):
     try:
         ok = len(size) == 2 and all(int(v) == v and v >= 1 for v in size)
@@ -364,47 +196,14 @@ def _check_size(size):
         raise InputError(f"image size must be two positive integers, got {size!r}")
 
 
-def _tables(where, name, raw, *, required):
-    """The tables of an array of tables ``[[name]]``, each with its key prefix ``name[i]`` (from 1)."""
-    if raw is None:
-        if required:
-            raise where.error(name, f"missing: add at least one [[{name}]] table")
-        return []
-    if not isinstance(raw, list):
-        raise where.error(name, f"must be an array of tables, written [[{name}]] (not [{name}]), "
-                                f"got {_kind(raw)}")
-    if required and not raw:
-        raise where.error(name, f"empty: add at least one [[{name}]] table")
-    return [(f"{name}[{i}]", t) for i, t in enumerate(raw, start=1)]
-
-
-def _construct(where, prefix, cls, fixed, keyed):
-    """``cls(**fixed, **keyed)``, pinning a constructor's complaint on the key that caused it.
-
-    The keyword arguments of ``keyed`` (``[(key, argument, value), ...]``,
-    the required ones first) are added one at a time, so the first
-    construction that fails is the one whose newest key is to blame.
-    """
-    kwargs = dict(fixed)
-    obj = None
-    for key, arg, value in keyed:
-        kwargs[arg] = value
-        with where.key(f"{prefix}.{key}"):
-            obj = cls(**kwargs)
-    if obj is None:
-        with where.key(prefix):
-            obj = cls(**kwargs)
-    return obj
-
-
 # --- volumes --------------------------------------------------------------
 
 def _load_volumes(where, raw):
     # Tables naming the same data and placement share one Volume, so the
     # renderer computes its cell min/max once and holds the samples once.
     cache = {}
-    return [_load_volume(where, _Table(where, prefix, t, VOLUME_KEYS), cache)
-            for prefix, t in _tables(where, "volume", raw, required=True)]
+    return [_load_volume(where, Table(where, prefix, t, VOLUME_KEYS), cache)
+            for prefix, t in array_tables(where, "volume", raw, required=True)]
 
 
 def _load_volume(where, t, cache):
@@ -426,7 +225,7 @@ def _load_volume(where, t, cache):
             keyed.append(("color", "color", color))
         if material is not None:
             keyed.append(("material", "material", material))
-        return _construct(where, t.prefix, Isosurface, {"volume": vol}, keyed)
+        return construct(where, t.prefix, Isosurface, {"volume": vol}, keyed)
 
     if "color" in t:
         raise t.error("color", "applies to an isosurface (iso); a translucent volume's colours "
@@ -449,7 +248,7 @@ def _load_volume(where, t, cache):
         tf = load_transfer_function(spec, data_range=vol.value_range())
     given = {"mode": mode, "step": step, "threshold": threshold, "shade": shade, "material": material}
     keyed = [(name, name, value) for name, value in given.items() if value is not None]
-    return _construct(where, t.prefix, Translucent, {"volume": vol, "tf": tf}, keyed)
+    return construct(where, t.prefix, Translucent, {"volume": vol, "tf": tf}, keyed)
 
 
 def _volume_data(where, t, cache):
@@ -549,8 +348,8 @@ def _make_synthetic(where, t, cache):
 
 def _load_lights(where, raw):
     lights = []
-    for prefix, raw_table in _tables(where, "light", raw, required=False):
-        t = _Table(where, prefix, raw_table, LIGHT_KEYS)
+    for prefix, raw_table in array_tables(where, "light", raw, required=False):
+        t = Table(where, prefix, raw_table, LIGHT_KEYS)
         if ("position" in t) == ("direction" in t):
             raise where.error(prefix, "give position (a point light) or direction (a directional light)"
                               + (", not both" if "position" in t else ""))
@@ -560,7 +359,7 @@ def _load_lights(where, raw):
             keyed.append(("color", "color", t.numbers("color", 3)))
         if "intensity" in t:
             keyed.append(("intensity", "intensity", t.number("intensity")))
-        lights.append(_construct(where, prefix, cls, {}, keyed))
+        lights.append(construct(where, prefix, cls, {}, keyed))
     return lights
 
 
