@@ -291,7 +291,8 @@ class Segments:
         The caster walks ``[near, far]`` of each pixel's ray; ``near > far``
         (``inf``, ``-inf``) where the ray meets no PC supercell.
     polygons : int
-        Proxy faces drawn.
+        Proxy faces drawn (``info['drawn']``): the faces bordering cavities
+        are left out while no ray starts in one.
     seconds : dict
         ``upload`` (0 when cached), ``draw`` (render + ``ctx.finish()``),
         ``readback``, ``post`` (margins, inside tests).
@@ -462,7 +463,7 @@ def raster_segments(camera, width, height, proxy, *, pad_px=COVERAGE_PAD_PX, fac
     seconds["total"] = sum(seconds.values())
     info = {"eye_inside": bool(eye_inside), "d_min": d_min, "clip_near": clip_near,
             "pixels": int(pixels), "scale": scale, "drawn": drawn}
-    return Segments(near=near, far=far, polygons=proxy.n_polygons, seconds=seconds, info=info, _seg=seg)
+    return Segments(near=near, far=far, polygons=drawn, seconds=seconds, info=info, _seg=seg)
 
 
 @kernel(parallel=True)
