@@ -204,7 +204,7 @@ PHASE_NOTES = {
     "raster": "OpenGL near/far pass and read-back",
     "raster_bits": "OpenGL bit-plane pass and read-back",
     "raster_lights": "OpenGL light buffers for shadow rays",
-    "setup": "camera, work arrays",
+    "setup": "camera, work arrays, skip tables (built once, then kept with the volume)",
     "shade": "shading the hits of several surfaces",
     "shadow": "shadow rays",
     "total": "the whole frame",
@@ -325,17 +325,20 @@ def step_sweep(scene, steps, *, repeats=3, warmup=1, progress=None, options=None
         if progress:
             progress(f"step {step:g}")
         row = {"step": step}
+        kwargs = {"brute": {}, "parc": options}
+        for _ in range(warmup):
+            for method in ("brute", "parc"):
+                render(at(step), method=method, **kwargs[method])
+        # In rounds, as `compare` times: the machine's drift stays out of the ratio.
         results = {}
-        for method in ("brute", "parc"):
-            kwargs = options if method == "parc" else {}
-            for _ in range(warmup):
-                render(at(step), method=method, **kwargs)
-            times = []
-            for _ in range(repeats):
+        times = {"brute": [], "parc": []}
+        for _ in range(repeats):
+            for method in ("brute", "parc"):
                 t0 = time.perf_counter()
-                results[method] = render(at(step), method=method, **kwargs)
-                times.append(time.perf_counter() - t0)
-            row[f"{method}_seconds"] = statistics.median(times)
+                results[method] = render(at(step), method=method, **kwargs[method])
+                times[method].append(time.perf_counter() - t0)
+        for method in ("brute", "parc"):
+            row[f"{method}_seconds"] = statistics.median(times[method])
             row[f"{method}_samples"] = results[method].stats["samples"]
         err = image_error(results["brute"], reference, cell)
         row.update({k: err[k] for k in ("max_color", "rmse", "psnr")})

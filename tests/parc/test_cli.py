@@ -1,4 +1,5 @@
 """The command line: good runs write what they say; bad input gets one line, status 2, no file."""
+import importlib
 import json
 import re
 import subprocess
@@ -721,6 +722,23 @@ def test_compare_gives_parc_flags_to_every_parc_run(extra, parc_options, vol_fil
         if "supercell" in kw and not isinstance(kw["supercell"], tuple):
             kw["supercell"] = (float(kw["supercell"]),) * 3
         assert kw == (parc_options if method == "parc" else {}), (method, kw)
+
+
+def test_step_sweep_times_its_methods_in_turns(vol_file, capsys, monkeypatch, gl):
+    # As compare does: all of brute's runs before parc's would let the machine's drift into the ratio.
+    compare_module = importlib.import_module("parc.comparison")
+    render = compare_module.render
+    calls = []
+
+    def recording(scene, method="brute", **kw):
+        calls.append((scene.volumes[0].step, method))
+        return render(scene, method=method, **kw)
+    monkeypatch.setattr(compare_module, "render", recording)
+    rc, _, err = _run(["compare", vol_file, "--tf", "greyscale", "--size", 8, 8, "--repeats", 3,
+                       "--sweep-step", "1", "--json"], capsys)
+    assert rc == 0, err
+    assert calls[0] == (0.25, "brute")          # the reference, at a quarter of the finest step
+    assert [m for _, m in calls[1:]] == ["brute", "parc"] * (1 + 3) and {st for st, _ in calls[1:]} == {1.0}
 
 
 def test_supercell_sizes_that_print_alike_keep_rows_of_their_own(vol_file, capsys, gl):
