@@ -42,8 +42,12 @@ def read_npy(path) -> Volume:
                 raise InputError(f"{path}: not a NumPy .npy file (bad magic bytes)")
         try:
             data = np.load(path, allow_pickle=False)
-        except (ValueError, SyntaxError, tokenize.TokenError) as exc:
-            # NumPy parses the header as a Python literal: a broken one can fail as the parser does.
+        except (SyntaxError, tokenize.TokenError):
+            # NumPy parses the header as a Python literal: a broken one fails as the parser
+            # does, with the parser's words about a line of its own.
+            raise InputError(f"{path}: not a valid .npy array file (its header is not a Python "
+                             "dictionary literal)") from None
+        except ValueError as exc:
             if "pickle" in str(exc):
                 raise InputError(f"{path}: holds Python objects, not a numeric array") from None
             raise InputError(f"{path}: not a valid .npy array file ({one_line(exc)})") from None

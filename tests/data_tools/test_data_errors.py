@@ -133,7 +133,7 @@ def test_npy_with_a_header_python_cannot_parse(tmp_path, header):
     header = header.ljust(117) + b"\n"
     p = tmp_path / "bad.npy"
     p.write_bytes(b"\x93NUMPY\x01\x00" + len(header).to_bytes(2, "little") + header + bytes(240))
-    fails(p, "not a valid .npy array file")
+    fails(p, "not a valid .npy array file (its header is not a python dictionary literal)")
 
 
 @pytest.mark.parametrize("text, match", [("{not json", "bad sidecar"),
