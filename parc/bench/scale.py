@@ -67,7 +67,9 @@ def visible_woman(suite, progress):
         # kills the child (subprocess.run does on any exception), instead of interrupting both.
         proc = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=None, text=True, start_new_session=True)
         if proc.returncode != 0:
-            raise RuntimeError(f"the Visible Woman child process failed (exit {proc.returncode})")
+            from data_tools import InputError
+            raise InputError(f"the Visible Woman section failed in its child process (exit {proc.returncode})"
+                             + ("; its own line is above" if proc.returncode > 0 else ""))
         result = json.loads(out.read_text())
     result.update({"path": str(path), "generate_seconds": generated})
     return result
@@ -182,8 +184,17 @@ def main(argv=None):
     def say(msg):
         note(f"  {msg}", "parc bench")
 
-    out = measure(a.path, a.size, a.repeats, say)
-    Path(a.json).write_text(json.dumps(out, indent=1))
+    from data_tools import InputError
+    try:
+        out = measure(a.path, a.size, a.repeats, say)
+        Path(a.json).write_text(json.dumps(out, indent=1))
+    except (InputError, OSError) as exc:
+        # One line, as `parc` gives: the bench names the section that failed.
+        note(f"error: {exc}", "parc bench")
+        return 1
+    except MemoryError:
+        note("error: out of memory rendering the Visible Woman phantom", "parc bench")
+        return 1
     return 0
 
 

@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 from PIL import Image
 
+from data_tools import InputError
 from parc.bench import Suite, consistency, run_bench
 from parc.cli import main
 
@@ -149,6 +150,24 @@ def test_runs_at_once_keep_their_child_results_apart_and_out_of_the_terminals_re
     assert (first["run"], second["run"]) == (1, 2)
     assert seen[0][0] != seen[1][0] and not seen[0][0].exists() and Path(suite.cache_dir) not in seen[0][0].parents
     assert seen[0][1] is True          # a Ctrl-C stops the bench, which stops the child
+
+
+def test_a_failed_child_is_one_line_of_the_bench_and_of_the_child(bench, monkeypatch, tmp_path, capfd):
+    # It was a RuntimeError, a traceback under `parc bench`; the child's own failure a traceback too.
+    import parc.bench.scale as scale
+    _, suite, _, _ = bench
+    monkeypatch.setattr(scale.subprocess, "run", lambda cmd, **kw: subprocess.CompletedProcess(cmd, 1))
+    with pytest.raises(InputError, match=r"^the Visible Woman section failed in its child process \(exit 1\)"):
+        scale.visible_woman(suite, lambda m: None)
+    monkeypatch.undo()
+    from data_tools import load_volume
+    monkeypatch.setattr(scale, "_end_with_parent", lambda: None)     # this process is not a child
+    monkeypatch.setattr(scale, "measure", lambda path, *_: load_volume(path))
+    missing = tmp_path / "no_phantom.raw"
+    assert scale.main([str(missing), "--size", "8", "--repeats", "1", "--json", str(tmp_path / "out.json")]) == 1
+    err = capfd.readouterr().err.splitlines()
+    assert len(err) == 1 and err[0].startswith("parc bench: error: ") and str(missing) in err[0], err
+    assert not (tmp_path / "out.json").exists()
 
 
 def test_progress_names_every_section(bench):
