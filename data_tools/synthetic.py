@@ -222,7 +222,6 @@ def builtin_volume(size=64) -> Volume:
     return Volume(data, name=volume_label("builtin", dims), meta={"iso": 127.5, "synthetic": "builtin"})
 
 
-#: ``parc make NAME``: name → function(size=..., ...) returning a Volume.
 #: Peak memory of a generator per sample, with room (measured 13-34 bytes at
 #: 48 and 96 samples a side): float64 coordinate grids and field before conversion.
 SYNTHETIC_BYTES_PER_SAMPLE = 48
@@ -230,6 +229,7 @@ SYNTHETIC_BYTES_PER_SAMPLE = 48
 #: output (ct_phantom: about 4.4 bytes a sample at 600 and 700 a side).
 SLAB_BYTES_PER_SAMPLE = {"ct_phantom": 6}
 
+#: ``parc make NAME``: name → function(size=..., ...) returning a Volume.
 SYNTHETIC = {
     "sphere": sphere,
     "torus": torus,

@@ -1,4 +1,4 @@
-"""The camera: one object yields both the caster's rays and OpenGL's matrices.
+"""The camera: one object yields the caster's rays, the OpenGL passes' view and conventional matrices.
 
 Conventions (DESIGN.md): VTK-style ``eye``, ``look_at``, ``up``; vertical
 ``fov`` in degrees, or a parallel projection with ``parallel_scale`` (half
@@ -123,7 +123,8 @@ class Camera:
     def rays(self, width, height):
         """World rays through every pixel centre: origins, directions, each ``(H, W, 3)``.
 
-        Vectorized NumPy version of `raycast.rays.camera_ray`, for tests and tools.
+        Vectorized NumPy version of `raycast.rays.camera_ray`: the box entries of several
+        volumes (`parc.multivolume`), the Parker bench, and tests.
         """
         f, r, u = self.basis()
         x = np.arange(width) + 0.5
@@ -142,7 +143,11 @@ class Camera:
         return o, d
 
     def view_matrix(self):
-        """World -> eye 4x4 (OpenGL convention: the camera looks down -z)."""
+        """World -> eye 4x4 (OpenGL convention: the camera looks down -z).
+
+        For OpenGL code of one's own; PARC's passes place their faces with the
+        same basis through per-pixel forms (`parc.raster.set_view_uniforms`).
+        """
         f, r, u = self.basis()
         m = np.eye(4)
         m[0, :3], m[1, :3], m[2, :3] = r, u, -f

@@ -1,7 +1,7 @@
 """The `parc` console script's entry point.
 
-It imports the command line (`parc.cli`, and with it NumPy, Numba and
-OpenGL: about 0.3 s) inside the run, so that a Ctrl-C while they load
+It imports the command line (`parc.cli`, and with it NumPy and the
+volume readers; Numba and OpenGL come with the first render) inside the run, so that a Ctrl-C while they load
 ends in one line and status 130, as it does once the command runs,
 instead of a traceback from the import machinery; and it checks, before
 Numba reads it, the thread count a user may set for Numba.

@@ -13,7 +13,7 @@ took.
   composite mode), so the count is exactly a subset of ``brute``'s
   ``samples`` and PARC, at any supercell size, never takes fewer. The
   definition and the per-ray kernel are in `raycast.ideal`.
-- Isosurfaces (`ideal_iso_cells`): nothing new to count. The ideal caster
+- Isosurfaces: nothing new to count. The ideal caster
   solves the cubic in exactly the cells whose range holds the isovalue, up
   to the first hit, and that is the unaccelerated caster's own
   ``cubic_solves`` statistic (it solves only in such cells, and stops at
@@ -91,13 +91,3 @@ def ideal_samples(scene, vis: Translucent, stop=None) -> int:
         ``vis`` is not a Translucent, or ``stop`` has the wrong shape.
     """
     return int(ideal_sample_counts(scene, vis, stop).sum())
-
-
-def ideal_iso_cells(result_brute) -> int:
-    """Cells the ideal caster solves in for an isosurface: ``brute``'s ``stats["cubic_solves"]``.
-
-    The unaccelerated caster solves the cubic only in cells whose range
-    holds the isovalue, up to the first hit: exactly the ideal set, so
-    there is nothing to recount. Given for symmetry with `ideal_samples`.
-    """
-    return int(result_brute.stats["cubic_solves"])

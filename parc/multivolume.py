@@ -144,7 +144,7 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
         vis = (diffuse > 0.0).astype(np.float64)
         timings["shade"] = time.perf_counter() - t0
         if scene.shadows and scene.lights:
-            _shadows(scene, method, lights, points, groups, vis, segs, sizes, light_buffer, blocks, timings,
+            _shadows(scene, method, lights, points, groups, vis, sizes, light_buffer, blocks, timings,
                      counts)
         t0 = time.perf_counter()
         combine_lights(colors, materials, lights, diffuse, specular, vis, hit, image.reshape(npx, 4))
@@ -215,7 +215,7 @@ class _Report:
         self.part(phase, 1.0)
 
 
-def _shadows(scene, method, lights, points, groups, vis, segs, sizes, light_buffer, blocks, timings, counts):
+def _shadows(scene, method, lights, points, groups, vis, sizes, light_buffer, blocks, timings, counts):
     """Shadow rays from every hit to every light, volume by volume; ``vis`` scaled in place.
 
     ``groups``: ``(first, end, volume)``, the hits ``points[first:end]`` on each volume's

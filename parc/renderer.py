@@ -116,8 +116,8 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
         of cells that cannot contribute (all above or all below the
         isovalue, or all transparent) and steps over single such cells
         without reading their samples (a skip table with one entry per
-        cell, `parc.skip.skip_radius`), computed once per isovalue or
-        transfer function.
+        cell, `parc.skip`: by ray octant for an isosurface's camera rays),
+        computed once per isovalue or transfer function.
         The image is the same either way; False measures the OpenGL
         segments alone.
     work : bool, default False

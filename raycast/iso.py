@@ -2,7 +2,8 @@
 
 Three layers, as in every caster here: `cast_iso_ray` follows one ray over
 one segment; `cast_iso_image` (camera rays, image tiles) and
-`cast_iso_rays` (any rays, for tests and shadow work) run it in parallel.
+`cast_iso_rays` (any rays: the hard-case study) run it in parallel; shadow
+rays call `cast_iso_ray` themselves (`raycast.shadow`).
 PARC and the unaccelerated caster call the same `cast_iso_ray`; PARC only
 passes the ray segment ``[seg0, seg1]`` its OpenGL pass found, the
 unaccelerated caster ``[-inf, inf]``.

@@ -78,10 +78,6 @@ def pderiv(p, t):
     return (3 * p[3] * t + 2 * p[2]) * t + p[1]
 
 
-def pderiv2(p, t):
-    return 6 * p[3] * t + 2 * p[2]
-
-
 def box_intervals(scene, O, D, pad):
     """``([t_in, t_out] grown, [t_in, t_out] shrunk)``: the ray in the box grown /
     shrunk by ``pad[a]`` index units per side of axis ``a``, as mpf, clipped

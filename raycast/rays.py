@@ -1,8 +1,9 @@
 """Primary rays from the camera, one pixel at a time.
 
 The camera is unpacked at the boundary (`parc.camera.Camera.as_array`) into
-``cam = [eye(3), f(3), r(3), u(3), tan(fov/2), parallel_scale, parallel]``;
-this is DESIGN's ray formula, written once.
+``cam = [eye(3), f(3), r(3), u(3), tan(fov/2), parallel_scale, parallel]``
+(`CAM_SIZE` numbers); this is DESIGN's ray formula for the kernels, and
+`parc.camera.Camera.rays` its NumPy twin.
 """
 import math
 

@@ -25,8 +25,8 @@ tests; a safeguarded Newton/bisection to ~1e-32; a critical point where
 ``|P|`` is ~0 is reported as a touching (double) root), and ``P, P'`` at
 the caster's answer.
 
-Acceptance rule (`check_ray`)
------------------------------
+Acceptance rule (`judge`)
+-------------------------
 Notation: ``h = min(spacing)`` (world units, like ``t``); ``eps = 2**-52``;
 for a point on the ray, ``S`` = the largest ``|sample - iso|`` over the
 corners of the cell(s) holding the point (the numbers the caster's cubic
@@ -239,17 +239,6 @@ def _hit_kind(tr, t_m):
         return "false"
     req = tr.first_required()
     return "wrong" if req is not None and r[0] > req[0] else "inaccurate"
-
-
-def classify(scene, o, d, iso, t_m, cell=None, uvw=None):
-    """``(outcome, reason)`` of the caster's answer ``t_m`` for one ray; see `judge`."""
-    return judge(Truth(scene, o, d, iso), t_m, cell, uvw)[:2]
-
-
-def check_ray(scene, o, d, iso, t_m, cell=None, uvw=None):
-    """None if the caster's answer ``t_m`` (inf = miss) passes the rule, else the reason."""
-    outcome, reason = classify(scene, o, d, iso, t_m, cell, uvw)
-    return reason if outcome == "FAIL" else None
 
 
 # ------------------------------------------------------- batch checking

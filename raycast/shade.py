@@ -87,8 +87,9 @@ def shade_headlight(data, spc, cam, width, height, t, cell, uvw, color, material
 
     ``image`` is ``(height, width, 4)`` float32, premultiplied RGBA; misses
     stay transparent. The one-isosurface render shades each hit as it is
-    found instead (`raycast.iso.cast_iso_image`); this pass is for hits
-    cast apart (the nearest of several surfaces) and for timing shading alone.
+    found instead (`raycast.iso.cast_iso_image`); this pass shades hits
+    cast apart (the Parker bench's) and times shading alone. Scenes of
+    several surfaces shade through `surface_frames` and `light_terms`.
     """
     pixels = width * height
     runs = spread_runs(pixels)

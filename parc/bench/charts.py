@@ -405,60 +405,6 @@ def line_chart(path, series, *, title, x_label, y_label, x_log=False, y_log=Fals
                      y_label=y_label, x_log=x_log, y_log=y_log, size=size)
 
 
-def bar_chart(path, groups, *, title, y_label, y_log=False, size=(720, 480)) -> Path:
-    """Grouped bars with their values written above: e.g. median time per scene and method.
-
-    Parameters
-    ----------
-    path : str or Path
-        PNG to write.
-    groups : list of (str, dict)
-        ``(group label, {series name: value})``; a series missing from a group
-        leaves a gap, a value that cannot be shown is marked "n/a".
-    title, y_label, y_log, size
-        As for `scatter_chart`.
-
-    Returns
-    -------
-    Path
-    """
-    fonts = _fonts()
-    groups = [(str(g), {str(k): _num(v) for k, v in vals.items()}) for g, vals in groups]
-    names = list(dict.fromkeys(k for _, vals in groups for k in vals))
-    values = [v for _, vals in groups for v in vals.values() if _shown(v, y_log)]
-    # Headroom above the tallest bar (and below the lowest) for its value label.
-    extra = [max(values) * (3 if y_log else 1.15)] if values and max(values) > 0 else []
-    extra += [min(values) * 1.15] if values and min(values) < 0 else []
-    ay = _data_axis(values + extra, y_log, include_zero=not y_log)
-    legend = [(n, PALETTE[i % len(PALETTE)], None) for i, n in enumerate(names)]
-    img, d, box = _layout(size, fonts, title=title, x_label=None, y_label=y_label,
-                          y_labels=[s for _, s in ay.labels()], legend=legend)
-    l, t, r, b = box
-    ay = ay.placed(b, t)
-    _axes(d, box, None, ay, fonts[0])
-    base = b if y_log else ay(0.0)
-    slot = (r - l) / max(len(groups), 1)
-    bw = slot * 0.8 / max(len(names), 1)
-    for gi, (g, vals) in enumerate(groups):
-        _put(d, l + slot * (gi + 0.5), b + 7, g, fonts[0], va=0)
-        for si, name in enumerate(names):
-            if name not in vals:
-                continue
-            v, x0 = vals[name], l + slot * (gi + 0.1) + bw * si
-            xc = x0 + bw / 2
-            if not _shown(v, y_log):
-                _put(d, xc, base - 3, "n/a", fonts[0], va=1, fill=_MUTED)
-                continue
-            y = ay(v)
-            d.rectangle((x0, min(y, base), x0 + max(bw - 2, 1), max(y, base)),
-                        fill=PALETTE[si % len(PALETTE)])
-            if v < 0:
-                _put(d, xc, y + 3, fmt_number(v), fonts[0], va=0)
-            else:
-                _put(d, xc, min(y, base) - 3, fmt_number(v), fonts[0], va=1)
-    return _save(img, path)
-
-
 def stacked_bar_chart(path, bars, *, title, y_label="share of time (%)", size=(720, 480)) -> Path:
     """Bars stacked to 100%: e.g. where the time of each render goes (raster, cast, shading).
 

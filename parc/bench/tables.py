@@ -126,15 +126,3 @@ def table3(suite, progress, images):
             r["shadow_speedup"] = b["shadow_seconds"] / max(r["shadow_seconds"], 1e-12)
         images["table3"] = scene
     return {"source": source, "rows": out}
-
-
-def speedups(table, key="total_seconds"):
-    """``{size: brute seconds / parc seconds}`` of a table's rows, per PARC method."""
-    out = {}
-    for r in table["rows"]:
-        if r["method"] == "brute":
-            base = r[key]
-        else:
-            out[(r["size"], r["method"])] = base / max(r[key], 1e-12)
-    return out
-

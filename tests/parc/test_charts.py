@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from parc.bench.charts import (PALETTE, _data_axis, axis_mapping, bar_chart, fmt_number, line_chart, scatter_chart,
+from parc.bench.charts import (PALETTE, _data_axis, axis_mapping, fmt_number, line_chart, scatter_chart,
                                stack_segments, stacked_bar_chart)
 from parc.bench.heatmaps import _viridis_lut, heat_maps
 
@@ -183,22 +183,6 @@ def test_line_chart_legend_and_order(tmp_path):
     assert parc[1][0] - parc[0][1] > 100
 
 
-def test_bar_heights_are_proportional(tmp_path):
-    groups = [("a", {"s": 1.0}), ("b", {"s": 3.0}), ("c", {"s": math.nan})]
-    img = load(bar_chart(tmp_path / "b.png", groups, title="t", y_label="ms"))
-    bars = blobs(img, PALETTE[0])
-    assert len(bars) == 3  # two bars and the legend swatch; NaN draws no bar
-    h1, h3 = bars[0][3], bars[1][3]
-    assert h3 / h1 == pytest.approx(3.0, rel=0.05)
-
-
-def test_bar_chart_log_with_zero(tmp_path):
-    groups = [("x", {"brute": 2.3, "parc": 0.0}), ("y", {"brute": 3400.0, "parc": 0.21})]
-    img = load(bar_chart(tmp_path / "bl.png", groups, title="t", y_label="ms", y_log=True))
-    brute = blobs(img, PALETTE[0])
-    assert brute[1][3] > brute[0][3] > 0
-
-
 def test_stacked_bars_fill_the_axis_in_proportion(tmp_path):
     bars = [("one", {"raster": 1.0, "cast": 3.0}), ("two", {"raster": 1.0, "cast": 1.0}),
             ("none", {"raster": 0.0})]
@@ -213,8 +197,7 @@ def test_stacked_bars_fill_the_axis_in_proportion(tmp_path):
 def test_write_replaces_existing_file(tmp_path):
     path = tmp_path / "same.png"
     path.write_bytes(b"not a png")
-    load(bar_chart(str(path), [("g", {"s": 1})], title="t", y_label="v", size=(320, 240)),
-         size=(320, 240))
+    load(stacked_bar_chart(str(path), [("g", {"s": 1.0})], title="t", size=(320, 240)), size=(320, 240))
     assert sorted(os.listdir(tmp_path)) == ["same.png"]
 
 

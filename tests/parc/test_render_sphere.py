@@ -80,7 +80,7 @@ def test_sphere_image_is_lit_where_it_is_hit():
 @pytest.mark.parametrize("seed", range(4))
 def test_shading_in_the_cast_equals_the_shading_pass(seed):
     # The render shades each hit inside its cast; the separate pass over the
-    # hits (used for several surfaces) must give the very same colours.
+    # hits (the Parker bench's) must give the very same colours.
     from raycast.iso import NO_SHADING, NO_SKIP, cast_iso_image, empty_outputs
     from raycast.shade import shade_headlight
 

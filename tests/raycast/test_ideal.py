@@ -19,7 +19,7 @@ import pytest
 from data_tools import Volume
 from data_tools.synthetic import blobs, trilinear_field
 from parc import Camera, Scene, TransferFunction, Translucent, render
-from parc.ideal import contributing_cells, ideal_iso_cells, ideal_sample_counts, ideal_samples
+from parc.ideal import contributing_cells, ideal_sample_counts, ideal_samples
 from parc.renderer import accumulation_params
 from raycast.composite import MODE_COMPOSITE, P_MODE, P_RATIO, P_THRESHOLD, cast_accumulate_image
 from raycast.iso import NO_SKIP
@@ -321,11 +321,3 @@ def test_stop_only_removes_samples(seed):
     assert stopped.sum() < free.sum()            # the stops cut through the volume
     np.testing.assert_array_equal(ideal_sample_counts(scene, vis, np.full((h, w), np.inf)), free)
     assert ideal_sample_counts(scene, vis, np.zeros((h, w))).sum() == 0
-
-
-def test_ideal_iso_cells_is_brutes_cubic_solves():
-    # The unaccelerated caster's own count; no render here, to keep the isosurface kernels' compile out.
-    from parc import RenderResult
-    res = RenderResult(image=np.zeros((1, 1, 4), np.float32), depth=np.full((1, 1), np.inf),
-                       stats={"method": "brute", "cubic_solves": 17})
-    assert ideal_iso_cells(res) == 17
