@@ -41,6 +41,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from raycast.shadow import (KIND_DIRECTIONAL, KIND_POINT, N_VIEW, V_EYE, V_FWD, V_KIND, V_RIGHT, V_SCALE,
+                             V_UP)
+
 from .camera import Camera, unit_vector
 from .scene import DirectionalLight, PointLight
 
@@ -55,18 +58,6 @@ LIGHT_PAD_PX = 0.625
 #: A single perspective view covers the box when its half-angle stays
 #: below this (degrees); wider boxes, or a light inside, take cube views.
 MAX_HALF_ANGLE = 44.0
-
-#: Layout of a row of `LightBuffers.views` (what `raycast.shadow` reads).
-V_KIND = 0          # 0 perspective, 1 parallel
-V_EYE = 1           # 3 values
-V_FWD = 4
-V_RIGHT = 7
-V_UP = 10
-V_SCALE = 13        # tan(fov / 2), or the parallel scale
-N_VIEW = 14
-
-KIND_POINT = 0
-KIND_DIRECTIONAL = 1
 
 #: Cached buffers per volume index (light, classification, size): a few cover a scene's lights.
 CACHE_SIZE = 16

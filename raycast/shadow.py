@@ -21,7 +21,8 @@ shadow ray's crossing of each view, and the shadow ray walks only
 (directional; ``s_P`` the point's distance from the view plane).
 
 Lights are rows ``[kind, x, y, z, r, g, b]`` (`parc.lights.light_array`);
-views rows of `parc.lights.N_VIEW` values.
+views rows of `N_VIEW` values (`parc.lights.view_array`). Both layouts are
+defined here, where the kernels read them.
 """
 import math
 
@@ -35,9 +36,20 @@ from .rays import camera_ray, spread_run, spread_runs
 from .shade import blinn_phong, trilinear_gradient
 from .traverse import to_index_space
 
+#: A light row's kind (its first value).
 KIND_POINT = 0
+KIND_DIRECTIONAL = 1
 #: A light at the eye (the default with no lights): its direction is the view direction.
 KIND_HEADLIGHT = 2
+
+#: Layout of a light buffer's view row.
+V_KIND = 0          # 0 perspective, 1 parallel
+V_EYE = 1           # 3 values
+V_FWD = 4
+V_RIGHT = 7
+V_UP = 10
+V_SCALE = 13        # tan(fov / 2), or the parallel scale
+N_VIEW = 14
 #: Relative widening of the light buffers' segments: their float32 bounds
 #: are already rounded outwards; this covers the float64 ``D - s``.
 SEGMENT_SLACK = 4e-7
@@ -70,20 +82,20 @@ def light_segment(views, near, far, px, py, pz):
     hi = -math.inf
     n = near.shape[1]
     for v in range(views.shape[0]):
-        qx = px - views[v, 1]
-        qy = py - views[v, 2]
-        qz = pz - views[v, 3]
-        qf = qx * views[v, 4] + qy * views[v, 5] + qz * views[v, 6]
-        qr = qx * views[v, 7] + qy * views[v, 8] + qz * views[v, 9]
-        qu = qx * views[v, 10] + qy * views[v, 11] + qz * views[v, 12]
-        if views[v, 0] == 0.0:
+        qx = px - views[v, V_EYE]
+        qy = py - views[v, V_EYE + 1]
+        qz = pz - views[v, V_EYE + 2]
+        qf = qx * views[v, V_FWD] + qy * views[v, V_FWD + 1] + qz * views[v, V_FWD + 2]
+        qr = qx * views[v, V_RIGHT] + qy * views[v, V_RIGHT + 1] + qz * views[v, V_RIGHT + 2]
+        qu = qx * views[v, V_UP] + qy * views[v, V_UP + 1] + qz * views[v, V_UP + 2]
+        if views[v, V_KIND] == 0.0:
             if not qf > 0.0:
                 continue
-            sx = qr / (qf * views[v, 13])
-            sy = qu / (qf * views[v, 13])
+            sx = qr / (qf * views[v, V_SCALE])
+            sy = qu / (qf * views[v, V_SCALE])
         else:
-            sx = qr / views[v, 13]
-            sy = qu / views[v, 13]
+            sx = qr / views[v, V_SCALE]
+            sy = qu / views[v, V_SCALE]
         if not (abs(sx) <= 1.0 + 1e-7 and abs(sy) <= 1.0 + 1e-7):
             continue
         x = (sx + 1.0) * 0.5 * n - 0.5
@@ -113,8 +125,8 @@ def shadow_span(light, views, near, far, use_seg, px, py, pz, eps, dist):
         ref = dist
     else:
         # Distance of P from the view plane, along the light's direction.
-        ref = ((px - views[0, 1]) * views[0, 4] + (py - views[0, 2]) * views[0, 5]
-               + (pz - views[0, 3]) * views[0, 6])
+        ref = ((px - views[0, V_EYE]) * views[0, V_FWD] + (py - views[0, V_EYE + 1]) * views[0, V_FWD + 1]
+               + (pz - views[0, V_EYE + 2]) * views[0, V_FWD + 2])
     a = ref - hi - eps
     b = ref - lo - eps
     m = SEGMENT_SLACK * (abs(ref) + abs(hi) + abs(lo)) + 4.0 * eps
