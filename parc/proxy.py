@@ -162,7 +162,8 @@ def build_proxy(grid, pc, world_edges, *, merge=True):
             rows.append((np.full(len(plane), a), plane, u, v, np.full(len(plane), sign, np.int8)))
     axis, plane, u, v, sign = (np.concatenate(c) for c in zip(*rows))
     if merge and len(axis):
-        faces, outward = _merge_runs(axis, plane, u, v, sign)
+        faces, (outward,) = _merge_grouped(axis, plane, u, v, (sign + 1,))
+        outward = outward - 1
     else:
         faces = np.stack([axis, plane, u, u + 1, v, v + 1], axis=1).astype(np.int32)
         outward = sign
@@ -181,30 +182,17 @@ def outer_face_masks(pc):
     """
     padded = np.pad(np.asarray(pc, dtype=bool), 1)
     for a in range(3):
-        arr_axis = 2 - a   # array axes are [z, y, x]
-        hi = padded[tuple(slice(1, None) if d == arr_axis else slice(1, -1) for d in range(3))]
-        lo = padded[tuple(slice(None, -1) if d == arr_axis else slice(1, -1) for d in range(3))]
+        lo, hi = _sides(padded, a)
         yield a, lo & ~hi, hi & ~lo
 
 
-def _merge_runs(axis, plane, u, v, sign):
-    """Merge unit faces into rectangles: runs along u into strips, then equal strips along v."""
-    n = [int(x.max()) + 2 for x in (plane, u, v)]
-    # Strips: sort by (axis, sign, plane, v, u), merge consecutive u.
-    key = _pack((axis, sign + 1, plane, v, u), (3, 3) + (n[0], n[2], n[1]))
-    order = np.argsort(key, kind="stable")
-    axis, plane, u, v, sign = axis[order], plane[order], u[order], v[order], sign[order]
-    first, last = _runs((axis, sign, plane, v), u, u + 1)
-    axis, plane, sign, v = axis[first], plane[first], sign[first], v[first]
-    u0, u1 = u[first], u[last] + 1
-    # Rectangles: sort strips by (axis, sign, plane, u0, u1, v), merge consecutive v.
-    key = _pack((axis, sign + 1, plane, u0, u1, v), (3, 3, n[0], n[1], n[1], n[2]))
-    order = np.argsort(key, kind="stable")
-    axis, plane, sign, v, u0, u1 = (x[order] for x in (axis, plane, sign, v, u0, u1))
-    first, last = _runs((axis, sign, plane, u0, u1), v, v + 1)
-    faces = np.stack([axis[first], plane[first], u0[first], u1[first], v[first], v[last] + 1],
-                     axis=1).astype(np.int32)
-    return faces, sign[first]
+def _sides(padded, a):
+    """``(lo, hi)``: at each boundary along axis ``a`` of a mask padded by one, the mask's value
+    on its lower and its upper side ([z, y, x], one longer along ``a`` than the unpadded mask)."""
+    arr_axis = 2 - a   # array axes are [z, y, x]
+    hi = padded[tuple(slice(1, None) if d == arr_axis else slice(1, -1) for d in range(3))]
+    lo = padded[tuple(slice(None, -1) if d == arr_axis else slice(1, -1) for d in range(3))]
+    return lo, hi
 
 
 def _pack(cols, sizes):
@@ -315,9 +303,7 @@ def build_plane_proxy(grid, pc, world_edges, axis, *, merge=True):
     padded = np.pad(pc, 1)
     rows = []
     for a in range(3):
-        arr_axis = 2 - a   # array axes are [z, y, x]
-        hi = padded[tuple(slice(1, None) if d == arr_axis else slice(1, -1) for d in range(3))]
-        lo = padded[tuple(slice(None, -1) if d == arr_axis else slice(1, -1) for d in range(3))]
+        lo, hi = _sides(padded, a)
         iz, iy, ix = np.nonzero((hi | lo) if a == axis else (hi != lo))
         h = hi[iz, iy, ix]
         l = lo[iz, iy, ix]
@@ -347,8 +333,8 @@ def build_plane_proxy(grid, pc, world_edges, axis, *, merge=True):
 def _merge_grouped(axis, plane, u, v, groups):
     """Merge unit faces with equal ``groups`` columns (small non-negative ints) into rectangles.
 
-    As `_merge_runs`: runs along u into strips, then strips with the same
-    extent along v. Returns the faces (Q, 6) int32 and the group columns
+    Runs along u into strips, then strips with the same extent along v;
+    faces of different groups (orientation, planes) are never merged. Returns the faces (Q, 6) int32 and the group columns
     of each rectangle.
     """
     n = [int(x.max()) + 2 for x in (plane, u, v)]
