@@ -48,17 +48,13 @@ def open_faces(proxy):
     open_ = flood_from_corner(~padded)
     f = proxy.faces.astype(np.int64)
     q = len(f)
-    nu = f[:, 3] - f[:, 2]
-    nv = f[:, 5] - f[:, 4]
-    rep = nu * nv
-    idx = np.repeat(np.arange(q), rep)
-    k = np.arange(int(rep.sum())) - np.repeat(np.cumsum(rep) - rep, rep)
+    idx, du, dv = proxy.unit_index()
     a = f[idx, 0]
     # Padded index of the empty side of each unit face: the face at
     # boundary p lies between supercells p-1 and p, i.e. padded p and p+1.
     side = f[idx, 1] + (proxy.outward[idx] > 0)
-    uu = f[idx, 2] + k % nu[idx] + 1
-    vv = f[idx, 4] + k // nu[idx] + 1
+    uu = f[idx, 2] + du + 1
+    vv = f[idx, 4] + dv + 1
     xyz = [np.where(a == ax, side, np.where((a + 1) % 3 == ax, uu, vv)) for ax in range(3)]
     unit_open = open_[xyz[2], xyz[1], xyz[0]]
     is_open = np.zeros(q, dtype=bool)

@@ -109,17 +109,21 @@ class Proxy:
         q[flip] = q[flip][:, ::-1]
         return q
 
-    def unit_faces(self):
-        """Faces split back into single supercell faces: (axis, plane, u, v, outward), (N, 5) int64."""
+    def unit_index(self):
+        """``(face, du, dv)``, int64 (N,): every single supercell face of the rectangles, as the row
+        of `faces` it belongs to and its offsets from that face's corner along ``u`` and ``v``."""
         f = self.faces.astype(np.int64)
         nu = f[:, 3] - f[:, 2]
-        nv = f[:, 5] - f[:, 4]
-        rep = nu * nv
+        rep = nu * (f[:, 5] - f[:, 4])
         idx = np.repeat(np.arange(len(f)), rep)
-        k = np.arange(rep.sum()) - np.repeat(np.cumsum(rep) - rep, rep)
-        g = f[idx]
-        return np.stack([g[:, 0], g[:, 1], g[:, 2] + k % nu[idx], g[:, 4] + k // nu[idx],
-                         self.outward[idx].astype(np.int64)], axis=1)
+        k = np.arange(int(rep.sum())) - np.repeat(np.cumsum(rep) - rep, rep)
+        return idx, k % nu[idx], k // nu[idx]
+
+    def unit_faces(self):
+        """Faces split back into single supercell faces: (axis, plane, u, v, outward), (N, 5) int64."""
+        idx, du, dv = self.unit_index()
+        g = self.faces.astype(np.int64)[idx]
+        return np.stack([g[:, 0], g[:, 1], g[:, 2] + du, g[:, 4] + dv, self.outward[idx].astype(np.int64)], axis=1)
 
 
 def build_proxy(grid, pc, world_edges, *, merge=True):
@@ -252,9 +256,7 @@ class PlaneProxy(Proxy):
 
     def unit_planes(self):
         """``planes`` of every row of `unit_faces` (same order), (N, 2) int64."""
-        f = self.faces.astype(np.int64)
-        rep = (f[:, 3] - f[:, 2]) * (f[:, 5] - f[:, 4])
-        return np.repeat(self.planes.astype(np.int64), rep, axis=0)
+        return self.planes.astype(np.int64)[self.unit_index()[0]]
 
 
 def build_plane_proxy(grid, pc, world_edges, axis, *, merge=True):
