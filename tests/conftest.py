@@ -1,4 +1,5 @@
-"""Options shared by every test package: `--soak`, more random scenes than the suite runs.
+"""Shared by every test package: the OpenGL context (fixtures `gl_context`, `gl`; it lives here and
+nowhere else) and `--soak`, more random scenes than the suite runs.
 
 The random-scene tests (`parc` against `brute`) take their scene from a
 seed. The suite runs a fixed set of seeds, enough to cover every kind of
@@ -14,6 +15,8 @@ A failure names its seed in the test id, so that scene runs alone again with::
         --soak 1 --soak-start 1000123
 """
 import argparse
+
+import pytest
 
 #: The first seed `--soak` adds: past every seed the suite runs by itself.
 SOAK_START = 1_000_000
@@ -50,3 +53,21 @@ def pytest_generate_tests(metafunc):
     extra = metafunc.config.getoption("soak")
     start = metafunc.config.getoption("soak_start")
     metafunc.parametrize("seed", [*range(marker.args[0]), *range(start, start + extra)])
+
+
+@pytest.fixture(scope="session")
+def gl_context():
+    """The process-wide headless context, or a skip with the reason."""
+    from parc.gl import OpenGLUnavailable, get_context
+    try:
+        return get_context()
+    except OpenGLUnavailable as exc:
+        pytest.skip(f"OpenGL tests need a headless EGL context: {exc}")
+
+
+@pytest.fixture
+def gl(gl_context):
+    """The context for one test; the test must leave no GL error behind."""
+    _ = gl_context.error  # reading clears any stale error from an earlier failure
+    yield gl_context
+    assert gl_context.error == "GL_NO_ERROR"

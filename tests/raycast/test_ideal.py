@@ -287,15 +287,6 @@ def _random_scene(seed):
     return Scene(camera=cam, size=(24, 18), volumes=[vis]), vis
 
 
-@pytest.fixture(scope="module")
-def gl():
-    from parc.gl import OpenGLUnavailable, get_context
-    try:
-        return get_context()
-    except OpenGLUnavailable as exc:
-        pytest.skip(f"PARC needs a headless EGL context: {exc}")
-
-
 @pytest.mark.parametrize("seed", range(10))
 def test_ideal_at_most_parc_at_most_brute(seed, gl):
     scene, vis = _random_scene(seed)
