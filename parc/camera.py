@@ -120,15 +120,17 @@ class Camera:
                 [self.eye, f, r, u, [th, ps, 1.0 if self.parallel else 0.0]]).astype(np.float64)
         return cached.copy()
 
-    def rays(self, width, height):
+    def rays(self, width, height, rows=None):
         """World rays through every pixel centre: origins, directions, each ``(H, W, 3)``.
 
         Vectorized NumPy version of `raycast.rays.camera_ray`: the box entries of several
-        volumes (`parc.multivolume`), the Parker bench, and tests.
+        volumes (`parc.multivolume`), the parallel origins PARC tests (`parc.origins`), the
+        Parker bench, and tests. ``rows=(y0, y1)``: only those rows, ``(y1 - y0, W, 3)``.
         """
         f, r, u = self.basis()
+        y0, y1 = (0, height) if rows is None else rows
         x = np.arange(width) + 0.5
-        y = np.arange(height) + 0.5
+        y = np.arange(y0, y1) + 0.5
         sx = (2.0 * x / width - 1.0) * (width / height)
         sy = 1.0 - 2.0 * y / height
         sx, sy = np.meshgrid(sx, sy)

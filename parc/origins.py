@@ -196,8 +196,7 @@ def parallel_inside(camera, width, height, proxy):
     outside a face in world coordinates can land exactly on it and walk
     along it.
     """
-    f, r, u = camera.basis()
-    ps = camera.parallel_scale
+    f = camera.basis()[0]
     eye = np.asarray(camera.eye, dtype=np.float64)
     lo, hi = proxy.bounds
     inside = np.zeros((height, width), dtype=bool)
@@ -209,12 +208,9 @@ def parallel_inside(camera, width, height, proxy):
     slab = origin_slab(camera, width, height, eye, lo, hi)
     if (dist > slab).all() or (dist < -slab).all():
         return inside
-    sx = (2.0 * (np.arange(width) + 0.5) / width - 1.0) * (width / height)
     band = max(1, _BAND_PIXELS // width)
     for y0 in range(0, height, band):
-        sy = 1.0 - 2.0 * (np.arange(y0, min(height, y0 + band)) + 0.5) / height
-        o = eye + ps * (sx[None, :, None] * r + sy[:, None, None] * u)
-        o = o.reshape(-1, 3)
+        o = camera.rays(width, height, rows=(y0, min(height, y0 + band)))[0].reshape(-1, 3)
         cand = np.flatnonzero(np.all((o >= lo - slab) & (o <= hi + slab), axis=1))
         if not len(cand):
             continue
