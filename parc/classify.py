@@ -418,6 +418,13 @@ def classify_tf(mn, mx, tf):
     return tf.nonzero_in(mn, mx, rounding=INTERP_ROUNDING)
 
 
+def tf_key(tf):
+    """What a classification for ``tf`` depends on, as a cache key: its opacity points alone
+    (a new colour map classifies nothing again)."""
+    op_x, op_y, _, _ = tf.arrays()
+    return ("tf", op_x.tobytes(), op_y.tobytes())
+
+
 def sign_iso(mn, mx, iso):
     """Which side of an isovalue each box lies on: int8 +1 (all above), -1 (all below), 0 (neither).
 
@@ -546,8 +553,7 @@ class VolumeIndex:
             mn, mx = self.cell_minmax()
             return skip_radius((~classify_tf(mn, mx, tf)).view(np.int8), SKIP_CAP)
 
-        op_x, op_y, _, _ = tf.arrays()
-        return self._skip(("tf", op_x.tobytes(), op_y.tobytes()), table, TF_JUMP_MIN)
+        return self._skip(tf_key(tf), table, TF_JUMP_MIN)
 
     def _skip(self, key, table, jump_min):
         cache = self.__dict__.setdefault("_skip_tables", {})

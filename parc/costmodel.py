@@ -29,12 +29,12 @@ render time of each candidate size from what it costs here:
 """
 from __future__ import annotations
 
-import math
-
 import numba
 import numpy as np
 
-from .classify import MAX_SUPERCELLS, _axis_edges, _size_triple
+from data_tools import InputError
+
+from .classify import _size_triple
 from .proxy import outer_face_masks
 
 #: Cost model constants, measured on this project's development machine
@@ -202,13 +202,14 @@ def choose_supercell(index, iso=None, *, pixels=512 * 512, rays=None, cores=None
     rays = RAY_COVER * pixels if rays is None else rays
     table = []
     vol = index.volume
-    dims = vol.dims
     for m in candidates:
-        if math.prod(len(_axis_edges(n, c)) - 1 for n, c in zip(dims, _size_triple(m))) > MAX_SUPERCELLS:
+        try:
+            grid = index.grid(m)
+        except InputError:
             continue        # too fine to classify for this volume (a 1734-slice CT at 1 cell)
         pc = classify(m) if classify is not None else index.classify(iso, m)
         faces, strips = face_counts(pc)
-        share = projected_share(pc, index.grid(m).world_edges(vol))
+        share = projected_share(pc, grid.world_edges(vol))
         raster = fixed * pixels / (512 * 512) + per_strip * strips
         rays_pc = rays * share
         cells = rays_pc * WALK_CELLS * (1.0 - 2.0 ** -float(np.mean(_size_triple(m))))

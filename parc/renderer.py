@@ -489,12 +489,10 @@ def _render_translucent(scene, vis, seg, use_seg, skip_blocks, timings, progress
 
 def _classifier(index, vis):
     """``(key, classify(size) -> bool array)`` of the possibly contributing supercells."""
-    from .classify import classify_tf
+    from .classify import classify_tf, tf_key
     if isinstance(vis, Isosurface):
         return ("iso", vis.value), lambda size: index.classify(vis.value, size)
-    op_x, op_y, _, _ = vis.tf.arrays()
-    return (("tf", op_x.tobytes(), op_y.tobytes()),
-            lambda size: classify_tf(*index.ranges(size), vis.tf))
+    return tf_key(vis.tf), lambda size: classify_tf(*index.ranges(size), vis.tf)
 
 
 def _parc_segments(scene, vis, supercell, timings, slot=0):
