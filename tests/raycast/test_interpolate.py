@@ -1,4 +1,5 @@
-"""Trilinear sampling (`raycast.composite.interpolate`) against exact rational arithmetic.
+"""Trilinear sampling (`raycast.composite.interpolate`) against exact rational arithmetic, and the
+shading normals' gradient (`raycast.shade.trilinear_gradient`) against a field's own.
 
 The exact interpolant of a cell never leaves its corners' range, and the
 classification of cells for a transfer function relies on that: the
@@ -51,3 +52,20 @@ def test_float32_corners_are_read_in_float64():
     val = interpolate(big, 0.3, 1.0, 1.0, 0, 0, 0)[0]
     assert val == _exact(big, 0.3, 1.0, 1.0) or abs(val - float(_exact(big, 0.3, 1.0, 1.0))) <= 1e23
     assert np.isfinite(val)
+
+
+def test_gradient_is_the_world_gradient_of_a_trilinear_field_on_an_anisotropic_grid():
+    # F(X, Y, Z) = 0.3 X - 1.1 Y + 2 Z + 0.05 X Y Z is trilinear in world coordinates, hence in
+    # each cell's local ones: the interpolant is F itself, and its gradient F's, whatever the spacing.
+    from raycast.shade import trilinear_gradient
+    spc = np.array([1.0, 2.0, 0.5])
+    z, y, x = np.mgrid[0:4, 0:5, 0:6].astype(np.float64)
+    X, Y, Z = x * spc[0], y * spc[1], z * spc[2]
+    data = 0.3 * X - 1.1 * Y + 2.0 * Z + 0.05 * X * Y * Z
+    rng = np.random.default_rng(5)
+    for _ in range(200):
+        i, j, k = int(rng.integers(5)), int(rng.integers(4)), int(rng.integers(3))
+        u, v, w = rng.random(3)
+        X, Y, Z = (i + u) * spc[0], (j + v) * spc[1], (k + w) * spc[2]
+        want = (0.3 + 0.05 * Y * Z, -1.1 + 0.05 * X * Z, 2.0 + 0.05 * X * Y)
+        np.testing.assert_allclose(trilinear_gradient(data, i, j, k, u, v, w, spc), want, rtol=1e-12, atol=1e-12)
