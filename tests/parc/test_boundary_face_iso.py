@@ -1,7 +1,8 @@
 """An isosurface lying on the volume's own outer face (isovalue = data min or max, attained on a face).
 
-Truth: analytic. The bottom face (z index 0) holds the data minimum, the top
-face (z index nz - 1) the maximum, every other sample lies strictly between,
+Truth: analytic. The bottom face (index 0 along the axis, x, y or z) holds
+the data minimum, the top face (the last index) the maximum, every other
+sample lies strictly between,
 so the isosurface at the minimum (maximum) is exactly that face: the
 interpolant equals the isovalue all over it and nowhere else. A ray that
 crosses the face hits it first, at the plane's ``t``; a ray that does not
@@ -20,25 +21,35 @@ SIZE = (24, 20)
 EDGE = 1e-6
 
 
-def _volume(dtype):
+def _volume(dtype, axis):
     rng = np.random.default_rng(7)
     nx, ny, nz = 7, 6, 5
     data = rng.uniform(101, 899, (nz, ny, nx)).round()
-    data[0], data[-1] = 100, 900
+    first, last = [slice(None)] * 3, [slice(None)] * 3
+    first[2 - axis], last[2 - axis] = 0, -1          # array axes are [z, y, x]
+    data[tuple(first)], data[tuple(last)] = 100, 900
     return Volume(data.astype(dtype), spacing=(0.7, 1.3, 0.9), origin=(-2.0, 1.0, 5.0))
 
 
-def _camera(vol, below, view):
+def _along(axis, on_axis, u, v):
+    """A vector with ``on_axis`` along ``axis`` and ``u``, ``v`` along the next two axes (cyclically)."""
+    out = np.zeros(3)
+    out[axis], out[(axis + 1) % 3], out[(axis + 2) % 3] = on_axis, u, v
+    return out
+
+
+def _camera(vol, axis, below, view):
     c = vol.center
     # Oblique and off-centre, so no ray is aligned with the grid. "parallel_far": an eye
     # 1e5 units away, past `raycast.traverse.FAR_ORIGIN`, so the caster moves each ray's
     # origin to where it enters the volume, and only to within a rounding.
     far = 1e5 / 11.0 if view == "parallel_far" else 1.0
-    eye = c + far * np.array([1.9, -1.3, (-1 if below else 1) * 11.0])
-    look = c + np.array([0.3, 0.2, 0.0])
+    eye = c + far * _along(axis, (-1 if below else 1) * 11.0, 1.9, -1.3)
+    look = c + _along(axis, 0.0, 0.3, 0.2)
+    up = tuple(_along(axis, 0.2, 0.1, 1.0))
     if view == "perspective":
-        return Camera(eye=tuple(eye), look_at=tuple(look), up=(0.1, 1.0, 0.2), fov=45)
-    return Camera(eye=tuple(eye), look_at=tuple(look), up=(0.1, 1.0, 0.2), parallel_scale=4.0)
+        return Camera(eye=tuple(eye), look_at=tuple(look), up=up, fov=45)
+    return Camera(eye=tuple(eye), look_at=tuple(look), up=up, parallel_scale=4.0)
 
 
 @pytest.mark.parametrize("method", ["brute", "parc"])
@@ -46,23 +57,26 @@ def _camera(vol, below, view):
 @pytest.mark.parametrize("below", [True, False], ids=["eye_below", "eye_above"])
 @pytest.mark.parametrize("top", [False, True], ids=["min_bottom_face", "max_top_face"])
 @pytest.mark.parametrize("dtype", [np.float32, np.uint16])
-def test_isosurface_on_the_volume_face_is_hit_by_every_ray_through_it(dtype, top, below, view, method, request):
+@pytest.mark.parametrize("axis", [0, 1, 2], ids=["x", "y", "z"])
+def test_isosurface_on_the_volume_face_is_hit_by_every_ray_through_it(axis, dtype, top, below, view, method, request):
     if method == "parc":
         request.getfixturevalue("gl")
-    vol = _volume(dtype)
+    vol = _volume(dtype, axis)
     iso = 900.0 if top else 100.0
-    cam = _camera(vol, below, view)
+    cam = _camera(vol, axis, below, view)
     res = render(Scene(camera=cam, size=SIZE, volumes=[Isosurface(vol, iso)]), method=method)
 
-    lo, hi = vol.bounds
-    zf = hi[2] if top else lo[2]
+    lo, hi = np.array(vol.bounds[0]), np.array(vol.bounds[1])
+    face = hi[axis] if top else lo[axis]
     o, d = cam.rays(*SIZE)
-    t = (zf - o[..., 2]) / d[..., 2]
+    t = (face - o[..., axis]) / d[..., axis]
     p = o + t[..., None] * d
     sp = np.array(vol.spacing)
-    inner = ((p[..., :2] > lo[:2] + EDGE * sp[:2]) & (p[..., :2] < hi[:2] - EDGE * sp[:2])).all(-1) & (t > 0)
-    outer = ((p[..., :2] >= lo[:2] - EDGE * sp[:2]) & (p[..., :2] <= hi[:2] + EDGE * sp[:2])).all(-1) & (t > 0)
-    assert inner.sum() > 50 and (~outer).sum() > 20        # not vacuous: hits and misses both
+    across = [a for a in range(3) if a != axis]             # the face's own two axes
+    p, lo, hi, sa = p[..., across], lo[across], hi[across], sp[across]
+    inner = ((p > lo + EDGE * sa) & (p < hi - EDGE * sa)).all(-1) & (t > 0)
+    outer = ((p >= lo - EDGE * sa) & (p <= hi + EDGE * sa)).all(-1) & (t > 0)
+    assert inner.sum() > 30 and (~outer).sum() > 20        # not vacuous: hits and misses both
 
     hit = np.isfinite(res.depth)
     near = (top != below)                                   # the face is where rays enter the volume
