@@ -136,9 +136,11 @@ def test_whole_cell_ranges_exact(size, dtype):
 
 
 @pytest.mark.parametrize("size", [0.5, 1.5, 4.5, 0.3, 2.25, (2, 3, 1.5), (0.5, 1, 2.5), (1.5, 1.5, 1)])
-@pytest.mark.parametrize("dtype", ["uint8", "float64"])
+@pytest.mark.parametrize("dtype", ["uint8", "float64", "negative"])
 def test_fractional_ranges_against_exact_reference(size, dtype):
-    data = _random((6, 7, 8), dtype, seed=17)
+    data = _random((6, 7, 8), "float64" if dtype == "negative" else dtype, seed=17)
+    if dtype == "negative":
+        data -= data.max() + 1.0        # the largest magnitude is the minimum's (HU-like data)
     grid = supercell_grid((8, 7, 6), size)
     mn, mx = supercell_ranges(data, grid)
     assert mn.dtype == np.float64
@@ -149,8 +151,9 @@ def test_fractional_ranges_against_exact_reference(size, dtype):
         for b in range(grid.shape[1]):
             for a in range(grid.shape[2]):
                 rmn, rmx = box_range(data, (ex[a], ey[b], ez[c]), (ex[a + 1], ey[b + 1], ez[c + 1]))
-                assert mn[c, b, a] <= rmn <= mn[c, b, a] + 2 * slack, (size, c, b, a)
-                assert mx[c, b, a] - 2 * slack <= rmx <= mx[c, b, a], (size, c, b, a)
+                # Widened by the pad, of the data's largest magnitude, whichever sign it has.
+                assert mn[c, b, a] <= rmn - pad / 2 and rmn <= mn[c, b, a] + 2 * slack, (size, c, b, a)
+                assert mx[c, b, a] - 2 * slack <= rmx and rmx + pad / 2 <= mx[c, b, a], (size, c, b, a)
 
 
 def test_fractional_ranges_in_slabs(monkeypatch):
