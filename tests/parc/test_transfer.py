@@ -204,9 +204,13 @@ def test_constant_outside_and_nan_is_transparent_black():
 
 
 def test_kernel_equals_numpy_bit_for_bit():
+    from raycast.transfer import LINEAR_SEARCH_MAX
     rng = np.random.default_rng(3)
-    for _ in range(300):
-        tf = random_tf(rng, steps=bool(rng.random() < 0.5))
+    bisected = 0
+    for n in range(300):
+        # Every other table may be longer than the kernel scans: it bisects those.
+        tf = random_tf(rng, steps=bool(rng.random() < 0.5), n_max=8 if n % 2 else 3 * LINEAR_SEARCH_MAX)
+        bisected += len(tf.arrays()[0]) > LINEAR_SEARCH_MAX
         v = probe_values(tf, rng)
         got = kernel_lookup_all(*tf.arrays(), v)
         want = tf.lookup(v)
@@ -214,6 +218,7 @@ def test_kernel_equals_numpy_bit_for_bit():
         op_x, op_y = tf.arrays()[:2]
         np.testing.assert_array_equal(kernel_opacity_all(op_x, op_y, v).view(np.int64),
                                       want[:, 3].view(np.int64))
+    assert bisected > 50
 
 
 def test_arrays_are_float64_contiguous_and_read_only():
