@@ -128,8 +128,9 @@ def _contributing(data, tf):
     return out
 
 
-def _slow_counts(vis, cam, width, height, stop=None):
-    """Per-pixel ideal counts: brute's lattice walked in plain Python, counting contributing cells."""
+def _slow_counts(vis, cam, width, height, stop=None, every=False):
+    """Per-pixel ideal counts: brute's lattice walked in plain Python, counting contributing cells
+    (``every``: counting every sample, as the unaccelerated caster's ``samples``)."""
     vol, tf = vis.volume, vis.tf
     data = vol.data
     contrib = _contributing(data, tf)
@@ -153,7 +154,7 @@ def _slow_counts(vis, cam, width, height, stop=None):
                 if t >= t_stop:
                     break
                 v = _value(data, O, D, t, (i, j, k))
-                out[y, x] += contrib[k, j, i]
+                out[y, x] += 1 if every else contrib[k, j, i]
                 if vis.mode != "composite":
                     continue
                 a = float(tf.opacity(np.array([v]))[0])
@@ -249,6 +250,34 @@ def test_composite_with_stop_matches_slow_reference():
     w, h = SIZE
     stop = np.random.default_rng(3).uniform(0.0, 60.0, (h, w))
     np.testing.assert_array_equal(_kernel_counts(vis, cam, SIZE, stop), _slow_counts(vis, cam.as_array(), w, h, stop))
+
+
+@pytest.mark.parametrize("view", ["perspective", "parallel-z"])
+def test_a_stop_exactly_on_a_lattice_point_takes_no_sample_there(view):
+    # Samples at t >= stop are not taken: a stop on a sample's very t (an opaque surface there) ends before it.
+    vol = _tiny_volume("float32")
+    cam = _tiny_cameras(vol)[view]
+    vis = _set_threshold(Translucent(vol, TINY_TF, step=0.125), 1.01)     # no early termination
+    w, h = SIZE
+    arr = [float(c) for c in cam.as_array()]
+    rng = np.random.default_rng(9)
+    stop = np.full((h, w), np.inf)
+    for y in range(h):
+        for x in range(w):
+            o, d = _pixel_ray(arr, w, h, x, y)
+            O = [(o[a] - vol.origin[a]) / vol.spacing[a] for a in range(3)]
+            D = [d[a] / vol.spacing[a] for a in range(3)]
+            t_in, t_out = _clip(O, D, vol.dims)
+            if t_in <= t_out:
+                stop[y, x] = t_in + int(rng.integers(0, int(math.floor((t_out - t_in) / vis.step)) + 1)) * vis.step
+    assert np.isfinite(stop).sum() > 20
+    np.testing.assert_array_equal(_kernel_counts(vis, cam, SIZE, stop), _slow_counts(vis, cam.as_array(), w, h, stop))
+    image = np.empty((h, w, 4), np.float32)
+    brute = np.empty(w * h, np.int64)
+    cast_accumulate_image(vol.data, np.array(vol.origin), np.array(vol.spacing), cam.as_array(), w, h,
+                          accumulation_params(vis), *vis.tf.arrays(), np.empty((1, 1, 2)), False, stop, True,
+                          np.zeros((1, 1, 1), np.uint32), False, NO_SKIP, -1, image, brute, 0, h)
+    np.testing.assert_array_equal(brute.reshape(h, w), _slow_counts(vis, cam.as_array(), w, h, stop, every=True))
 
 
 # --------------------------------------------------------------------------
