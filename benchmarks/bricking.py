@@ -22,7 +22,7 @@ import numba
 import numpy as np
 
 from parc.camera import Camera
-from parc.renderer import _NO_STOP, _parc_segments, accumulation_params, skip_table
+from parc.renderer import _NO_STOP, accumulation_params, parc_segments, skip_table
 from parc.scene import Isosurface, Scene, Translucent
 from raycast.bricks import BRICK, MACRO, brick
 from raycast.composite import cast_accumulate_image
@@ -83,7 +83,7 @@ def main():
     else:
         vis, cast, what = Isosurface(vol, iso), cast_iso, f"iso {iso}"
     # The renderer's own classification, proxy and raster pass, for the supercell its cost model picks.
-    seg, extra, _ = _parc_segments(Scene(camera=cam, size=(w, h), volumes=[vis]), vis, None, {})
+    seg, extra, _ = parc_segments(Scene(camera=cam, size=(w, h), volumes=[vis]), vis, None, {})
     size = extra["supercell"]
     skip, jump_min = skip_table(vis, True)
     print(f"{vol.name}, {vol.dtype}, {what}, {w}x{h}, {args.threads} thread(s); "

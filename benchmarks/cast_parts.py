@@ -44,11 +44,11 @@ def frame(vis, size):
     ``(cam, org, spc, seg, skip, jump_min, extra)``, the segments PARC's OpenGL pass finds and its stats,
     and the skip tables the renderer gives these rays (by ray octant for an isosurface)."""
     from parc import Camera, Isosurface, Scene
-    from parc.renderer import _parc_segments, octant_skip_tables, skip_table
+    from parc.renderer import octant_skip_tables, parc_segments, skip_table
 
     vol = vis.volume
     scene = Scene(Camera.framing(*vol.bounds), (size, size), [vis])
-    seg, extra, _ = _parc_segments(scene, vis, None, {})
+    seg, extra, _ = parc_segments(scene, vis, None, {})
     if isinstance(vis, Isosurface):
         skip, jump_min = octant_skip_tables(vis, True, scene.camera, size, size)
     else:

@@ -459,6 +459,7 @@ class VolumeIndex:
         self._cells = None
         self._ranges = {}
         self._grids = {}
+        self._kept = {}
 
     @classmethod
     def of(cls, volume):
@@ -468,6 +469,12 @@ class VolumeIndex:
             idx = cls(volume)
             volume.meta[cls._META_KEY] = idx
         return idx
+
+    def kept(self, stage):
+        """A dict kept with the index for a later stage's results over this volume (skip tables,
+        the chosen supercell size, proxies, light buffers): they go with the volume, and a volume
+        made anew (``dataclasses.replace``) starts without them."""
+        return self._kept.setdefault(stage, {})
 
     def cell_minmax(self):
         """`cell_minmax` of the volume's data (cached)."""
@@ -556,7 +563,7 @@ class VolumeIndex:
         return self._skip(tf_key(tf), table, TF_JUMP_MIN)
 
     def _skip(self, key, table, jump_min):
-        cache = self.__dict__.setdefault("_skip_tables", {})
+        cache = self.kept("skip tables")
         if key not in cache:
             if len(cache) >= SKIP_CACHE_SIZE:
                 cache.pop(next(iter(cache)))

@@ -55,7 +55,7 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
     PARC's walks and shadow rays skip the volumes' empty cells
     (`parc.renderer.render`).
     """
-    from .renderer import _parc_segments, _row_bands, accumulation_params, iso_work, octant_skip_tables, skip_table
+    from .renderer import accumulation_params, iso_work, octant_skip_tables, parc_segments, row_bands, skip_table
 
     w, h = scene.size
     npx = w * h
@@ -65,7 +65,7 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
                             "shadow_samples", "shadow_rays"), 0)
     extra = {"volumes": []}
     parc = method == "parc"
-    bands = _row_bands(h, w, progress)
+    bands = row_bands(h, w, progress)
     isos = [(n, v) for n, v in enumerate(scene.volumes) if isinstance(v, Isosurface)]
     trans = [(n, v) for n, v in enumerate(scene.volumes) if not isinstance(v, Isosurface)]
     report = _Report(progress, len(isos), len(trans), scene.shadows and bool(scene.lights))
@@ -76,7 +76,7 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
     for n, vis in enumerate(scene.volumes):
         if parc:
             phase = {}
-            seg, info, _ = _parc_segments(scene, vis, supercell, phase, slot=n)
+            seg, info, _ = parc_segments(scene, vis, supercell, phase, slot=n)
             for key in ("raster", "classify", "proxy"):
                 timings[key] += phase.get(key, 0.0)
             segs[n] = seg
@@ -222,7 +222,7 @@ def _shadows(scene, method, lights, points, groups, vis, sizes, light_buffer, bl
     surface. A shadow ray starts and ends `SHADOW_EPS` of its own surface's smallest spacing
     off (the smallest in the scene let a tiny volume anywhere make surfaces shadow themselves).
     """
-    from .renderer import _proxy, accumulation_params, skip_table
+    from .renderer import accumulation_params, cached_proxy, skip_table
 
     nh = len(points)
     cnt = np.zeros((nh, 3), np.int64)
@@ -235,7 +235,7 @@ def _shadows(scene, method, lights, points, groups, vis, sizes, light_buffer, bl
             views, near, far = no_views()
             if method == "parc":
                 phase = {}
-                proxy, _ = _proxy(v, sizes[n], scene.size, phase, merge=False)
+                proxy, _ = cached_proxy(v, sizes[n], scene.size, phase, merge=False)
                 buf = _cached_light_buffers(light, v, proxy, sizes[n], light_buffer)
                 timings["raster_lights"] += buf.seconds
                 buf.seconds = 0.0
@@ -265,14 +265,14 @@ def _shadows(scene, method, lights, points, groups, vis, sizes, light_buffer, bl
 def _cached_light_buffers(light, vis, proxy, size, n):
     """Light buffers of one volume's proxy from one light, kept while only the camera moves."""
     from .classify import VolumeIndex
-    from .renderer import _classifier
+    from .renderer import classifier
 
     index = VolumeIndex.of(vis.volume)
-    what, _ = _classifier(index, vis)
+    what, _ = classifier(index, vis)
     kind = "sun" if isinstance(light, DirectionalLight) else "point"
     where = light.direction if isinstance(light, DirectionalLight) else light.position
     key = (kind, tuple(where), what, tuple(size), n)
-    cache = index.__dict__.setdefault("_light_buffers", {})
+    cache = index.kept("light buffers")
     buf = cache.get(key)
     if buf is None:
         buf = light_buffers(light, proxy, size=n)

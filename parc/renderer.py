@@ -2,7 +2,7 @@
 
 One driver per kind of volume: `_render_iso` (opaque isosurface: first hit,
 shaded as soon as it is found) and `_render_translucent` (accumulation). Both get their
-ray segments from `_parc_segments` when the method is ``"parc"``; the
+ray segments from `parc_segments` when the method is ``"parc"``; the
 casting kernels are the same for both methods.
 """
 from __future__ import annotations
@@ -205,10 +205,10 @@ def _render(scene, method, supercell, buffers, progress, light_buffer, blocks, w
     extra = {}
     if method == "parc":
         if isinstance(vis, Isosurface) or "depth" in buffers:
-            seg, extra, proxy = _parc_segments(scene, vis, supercell, timings)
+            seg, extra, proxy = parc_segments(scene, vis, supercell, timings)
         else:
             use_seg = False
-            proxy, extra = _proxy(vis, supercell, scene.size, timings)
+            proxy, extra = cached_proxy(vis, supercell, scene.size, timings)
         if isinstance(vis, Translucent) and "bits" in buffers:
             from .bitplanes import plane_buffers
             planes = plane_buffers(scene.camera, *scene.size, vis.volume, proxy.pc, proxy.grid)
@@ -316,7 +316,7 @@ def _render_iso(scene, iso, seg, use_seg, skip_blocks, timings, progress):
 
     # The cast shades each hit as it finds it (the phase holds both).
     t0 = time.perf_counter()
-    bands = _row_bands(h, w, progress)
+    bands = row_bands(h, w, progress)
     totals = np.zeros(3, np.int64)
     for n, (y0, y1) in enumerate(bands):
         totals += cast_iso_image(vol.data, org, spc, cam, w, h, iso.value, seg, use_seg, skip, jump_min,
@@ -475,7 +475,7 @@ def _render_translucent(scene, vis, seg, use_seg, skip_blocks, timings, progress
     timings["setup"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    bands = _row_bands(h, w, progress)
+    bands = row_bands(h, w, progress)
     samples = 0
     for n, (y0, y1) in enumerate(bands):
         samples += cast_accumulate_image(vol.data, org, spc, cam, w, h, params, op_x, op_y, col_x, col_rgb,
@@ -487,7 +487,7 @@ def _render_translucent(scene, vis, seg, use_seg, skip_blocks, timings, progress
     return image, np.full((h, w), np.inf), {"hits": 0, "samples": int(samples), "per_pixel": counts}
 
 
-def _classifier(index, vis):
+def classifier(index, vis):
     """``(key, classify(size) -> bool array)`` of the possibly contributing supercells."""
     from .classify import classify_tf, tf_key
     if isinstance(vis, Isosurface):
@@ -495,7 +495,7 @@ def _classifier(index, vis):
     return tf_key(vis.tf), lambda size: classify_tf(*index.ranges(size), vis.tf)
 
 
-def _parc_segments(scene, vis, supercell, timings, slot=0):
+def parc_segments(scene, vis, supercell, timings, slot=0):
     """The proxy (built or reused) rasterized: per-pixel segments, stats and the proxy.
 
     The segments are written into a work array (`parc.workspace`); ``slot``
@@ -504,7 +504,7 @@ def _parc_segments(scene, vis, supercell, timings, slot=0):
     from .raster import raster_segments
 
     w, h = scene.size
-    proxy, extra = _proxy(vis, supercell, scene.size, timings)
+    proxy, extra = cached_proxy(vis, supercell, scene.size, timings)
     segs = raster_segments(scene.camera, w, h, proxy, out=work_array(("seg", slot), (h, w, 2)))
     timings["raster"] = segs.seconds["total"]
     extra.update({"polygons": segs.polygons,
@@ -513,7 +513,7 @@ def _parc_segments(scene, vis, supercell, timings, slot=0):
     return segs.seg, extra, proxy
 
 
-def _proxy(vis, supercell, size_px, timings, *, merge=True):
+def cached_proxy(vis, supercell, size_px, timings, *, merge=True):
     """Classify and build (or reuse) the outer-face proxy of the possibly contributing supercells.
 
     ``merge=False`` keeps one face per supercell face (the light buffers' proxy, `parc.lights`).
@@ -526,18 +526,18 @@ def _proxy(vis, supercell, size_px, timings, *, merge=True):
     w, h = size_px
     t0 = time.perf_counter()
     index = VolumeIndex.of(vol)
-    what, classify = _classifier(index, vis)
+    what, classify = classifier(index, vis)
     extra = {}
     if supercell is None:
         # The model classifies every candidate size: do it once per classification and image size.
-        chosen = index.__dict__.setdefault("_chosen", {})
+        chosen = index.kept("supercell size")
         key = (what, w * h, numba.get_num_threads())
         if key not in chosen:
             chosen[key] = choose_supercell(index, classify=classify, pixels=w * h)
         supercell, table = chosen[key]
         extra["supercell_model"] = table
     size = _size_triple(supercell)
-    proxies = index.__dict__.setdefault("_proxies", {})
+    proxies = index.kept("proxies")
     key = (size, what, merge)
     proxy = proxies.pop(key, None)
     if proxy is not None:
@@ -573,7 +573,7 @@ def column_totals(counts):
 BAND_PIXELS = 1 << 18
 
 
-def _row_bands(h, w, progress):
+def row_bands(h, w, progress):
     """Row ranges cast one call at a time: bands of at most about `BAND_PIXELS` (one for a
     frame up to 512 x 512), and ~16 when progress is reported (`parc.outputs.Progress`
     shows it only for a render that takes a while). Whole tiles of 4 rows."""
