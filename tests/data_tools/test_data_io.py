@@ -432,3 +432,40 @@ def test_metaimage_with_a_fourth_axis_of_one_is_a_volume(tmp_path, steps, ok):
     vol = load_volume(p)
     assert np.array_equal(vol.data, data[0]) and vol.spacing == (1.5, 2.0, 3.0) and vol.origin == (1.0, 2.0, 3.0)
     assert "note" not in vol.meta
+
+
+# MetaImage header fields as other writers spell them (the MetaIO documentation), and a raw
+# name's type word: the truth is the array and placement written by hand.
+
+def _mhd(tmp_path, lines, raw_bytes, name="v"):
+    (tmp_path / f"{name}.raw").write_bytes(raw_bytes)
+    (tmp_path / f"{name}.mhd").write_text(
+        "ObjectType = Image\nNDims = 3\nDimSize = 4 3 2\n" + "".join(line + "\n" for line in lines)
+        + f"ElementDataFile = {name}.raw\n")
+    return tmp_path / f"{name}.mhd"
+
+
+#: [z, y, x]; x fastest on disk, as the files store it.
+_A16 = np.arange(24, dtype=np.int16).reshape(2, 3, 4) * 37 - 300
+
+
+def test_metaimage_header_size_minus_one_with_two_byte_samples(tmp_path):
+    # HeaderSize = -1: the samples are the file's last nx ny nz itemsize bytes.
+    p = _mhd(tmp_path, ["ElementType = MET_SHORT", "HeaderSize = -1"], b"JUNKHDR" + _A16.astype("<i2").tobytes())
+    np.testing.assert_array_equal(load_volume(p).data, _A16)
+
+
+def test_metaimage_origin_key_places_the_volume(tmp_path):
+    p = _mhd(tmp_path, ["ElementType = MET_SHORT", "Origin = 1.5 -2 3"], _A16.astype("<i2").tobytes())
+    assert load_volume(p).origin == (1.5, -2.0, 3.0)
+
+
+def test_metaimage_element_byte_order_msb_reads_big_endian(tmp_path):
+    p = _mhd(tmp_path, ["ElementType = MET_SHORT", "ElementByteOrderMSB = True"], _A16.astype(">i2").tobytes())
+    np.testing.assert_array_equal(load_volume(p).data, _A16)
+
+
+def test_raw_char_in_the_name_is_signed(tmp_path):
+    p = tmp_path / "vol_4x3x2_char.raw"
+    p.write_bytes(bytes([0xFF]) * 24)
+    assert load_volume(p).data.dtype == np.int8 and load_volume(p).data.min() == -1

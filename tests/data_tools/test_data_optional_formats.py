@@ -291,3 +291,30 @@ def test_nibabel_writes_nothing_of_its_own_on_stderr(tmp_path, caplog):
     assert load_volume(tmp_path / "neg.nii").spacing == (2.0, 3.0, 4.0)
     fails(tmp_path / "cut.nii", "cannot read NIfTI")
     assert [r.getMessage() for r in caplog.records] == []
+
+
+def test_rotated_anisotropic_nifti_spacing_is_nibabels_zooms(tmp_path):
+    # A 90-degree turn about z times diag(1, 2, 3): the spacing is the affine's column norms.
+    rot = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    aff = np.eye(4)
+    aff[:3, :3] = rot @ np.diag([1.0, 2.0, 3.0])
+    nib.save(nib.Nifti1Image(np.zeros((4, 3, 2), np.float32), aff), tmp_path / "r.nii")
+    vol = load_volume(tmp_path / "r.nii")
+    np.testing.assert_allclose(vol.spacing, nib.load(tmp_path / "r.nii").header.get_zooms()[:3])
+    np.testing.assert_allclose(vol.spacing, (1.0, 2.0, 3.0))
+
+
+def test_nifti_intercept_without_slope_is_applied(tmp_path):
+    # CT stored with scl_inter = -1024 and scl_slope = 1: nibabel's values, as float32, and the scaling noted.
+    import struct
+    stored = np.arange(24, dtype=np.int16).reshape(4, 3, 2) * 50          # nibabel's [x, y, z]
+    nib.save(nib.Nifti1Image(stored, np.eye(4)), tmp_path / "ct.nii")
+    raw = bytearray((tmp_path / "ct.nii").read_bytes())
+    raw[112:120] = struct.pack("<ff", 1.0, -1024.0)                          # scl_slope, scl_inter
+    (tmp_path / "ct.nii").write_bytes(bytes(raw))
+    truth = nib.load(tmp_path / "ct.nii").get_fdata()
+    np.testing.assert_allclose(truth, stored - 1024.0)
+    vol = load_volume(tmp_path / "ct.nii")
+    np.testing.assert_allclose(vol.data, truth.transpose(2, 1, 0))
+    assert vol.data.dtype == np.float32
+    assert vol.meta["scaling"] == {"slope": 1.0, "inter": -1024.0}

@@ -137,3 +137,13 @@ def test_the_cached_basis_and_kernel_array_cannot_be_changed_through_a_caller():
     for other in (copy.copy(cam), pickle.loads(pickle.dumps(cam))):
         assert other == cam
         np.testing.assert_array_equal(other.as_array(), cam.as_array())
+
+
+def test_framing_azimuth_zero_looks_from_minus_y_and_ninety_from_plus_x():
+    # The documented convention, worked out by hand for a cube centred at (5, 5, 5).
+    cam = Camera.framing((0, 0, 0), (10, 10, 10), azimuth=0.0, elevation=0.0)
+    assert cam.eye[1] < 5.0 and cam.eye[0] == pytest.approx(5.0, abs=1e-9) and cam.eye[2] == pytest.approx(5.0)
+    cam = Camera.framing((0, 0, 0), (10, 10, 10), azimuth=90.0, elevation=0.0)
+    assert cam.eye[0] > 5.0 and cam.eye[1] == pytest.approx(5.0, abs=1e-9)
+    cam = Camera.framing((0, 0, 0), (10, 10, 10), azimuth=0.0, elevation=60.0)
+    assert cam.eye[2] > 5.0 and cam.eye[1] < 5.0

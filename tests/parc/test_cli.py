@@ -1141,3 +1141,12 @@ def test_a_working_folder_deleted_under_the_run_is_named(tmp_path):
     p = subprocess.run(["bash", "-c", script], capture_output=True, text=True, timeout=300)
     assert p.returncode == 2 and p.stderr.count("\n") == 1, p.stderr
     assert "the working folder no longer exists" in p.stderr
+
+
+def test_no_blocks_reaches_the_render(tmp_path, capsys, gl):
+    # The image is the same either way (test_translucent), so only the stats can tell the flag was heard.
+    for flags, blocks in (([], True), (["--no-blocks"], False)):
+        rc, _, err = _run(["render", "--size", 8, 8, "--method", "parc", *flags, "--quiet",
+                           "-o", tmp_path / "a.png", "--stats", tmp_path / "s.json"], capsys)
+        assert rc == 0, err
+        assert json.loads((tmp_path / "s.json").read_text())["blocks"] is blocks

@@ -207,3 +207,15 @@ def test_no_output_is_written_over_a_file_the_render_reads(tmp_path, capsys):
         rc, _, err = _run(argv, capsys)
         _assert_refused(rc, err, tmp_path / "a.png", "is read by this run")
         assert {f.name: f.read_bytes() for f in tmp_path.iterdir()} == before
+
+
+def test_the_threshold_flag_defaults_to_the_documented_0_99():
+    scene, _ = _scene_of(["render", "--tf", "greyscale", "--size", 8, 8, "-o", "x.png"])
+    assert scene.volumes[0].threshold == 0.99
+
+
+def test_a_light_flag_keeps_the_scene_files_shadows(scene_file):
+    text = scene_file.read_text()
+    scene_file.write_text("shadows = true\n" + text)
+    scene, _ = _scene_of(["render", scene_file, "--light", "5,3,9", "-o", "x.png"])
+    assert scene.shadows and len(scene.lights) == 2

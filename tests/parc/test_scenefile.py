@@ -331,3 +331,31 @@ def test_volume_placement_keeps_native_samples(folder):
     path = write(folder, "[[volume]]\nfile = 'data/blobs.nrrd'\niso = 100\nspacing = [0.5, 0.5, 1]\n")
     vol = load_scene(path).volumes[0].volume
     assert isinstance(vol, Volume) and vol.dtype == np.uint8 and vol.spacing == (0.5, 0.5, 1.0)
+
+
+def test_one_source_placed_twice_keeps_each_placement(folder):
+    # Tables naming the same data share its samples, not their spacing and origin.
+    scene = load_scene(write(folder, """\
+        [[volume]]
+        synthetic = "sphere"
+        size = 8
+        iso = 0
+        spacing = [1, 1, 1]
+        [[volume]]
+        synthetic = "sphere"
+        size = 8
+        iso = 0
+        spacing = [2, 2, 2]
+        origin = [20, 0, 0]
+    """))
+    a, b = (v.volume for v in scene.volumes)
+    assert (a.spacing, a.origin) == ((1.0, 1.0, 1.0), (0.0, 0.0, 0.0))
+    assert (b.spacing, b.origin) == ((2.0, 2.0, 2.0), (20.0, 0.0, 0.0))
+
+
+def test_a_look_at_alone_moves_the_framing_eye_with_it():
+    # resolve_view: given look_at and no eye, the eye keeps the framing view's offset from the point looked at.
+    lo, hi = (0.0, 0.0, 0.0), (10.0, 10.0, 10.0)
+    framed = parc.Camera.framing(lo, hi)
+    view = resolve_view(lo, hi, look_at=(100.0, 0.0, 0.0))
+    np.testing.assert_allclose(np.subtract(view["eye"], view["look_at"]), np.subtract(framed.eye, framed.look_at))

@@ -376,3 +376,55 @@ def test_shadow_kernels_read_only_views_they_are_given(kernel):
         checked(*_shadow_kernel_args(kernel, *no_views(), use_seg))
     with pytest.raises((IndexError, SystemError)):     # the arrays passed before
         checked(*_shadow_kernel_args(kernel, np.zeros((0, N_VIEW)), np.zeros((0, 1, 1)), np.zeros((0, 1, 1)), False))
+
+
+# Kernels brute and parc share, against answers worked out by hand: comparing the methods
+# cannot see a mistake in them.
+
+def test_two_mip_layers_compose_near_over_far():
+    # Two maximum-intensity volumes one behind the other: the nearer's layer goes over the farther's.
+    rng = np.random.default_rng(0)
+    red = TransferFunction([[0, 0.3], [255, 0.7]], [[0, 1, 0, 0], [255, 1, 0.2, 0]])
+    blue = TransferFunction([[0, 0.3], [255, 0.7]], [[0, 0, 0, 1], [255, 0, 0.2, 1]])
+    near = Translucent(Volume(rng.integers(0, 256, (8, 8, 8)).astype(np.uint8), name="near"), red, mode="mip")
+    far = Translucent(Volume(rng.integers(0, 256, (8, 8, 8)).astype(np.uint8), origin=(0, 0, -20), name="far"),
+                      blue, mode="mip")
+    cam = Camera(eye=(3.5, 3.5, 40.0), look_at=(3.5, 3.5, 0.0), up=(0, 1, 0), parallel_scale=3.0)
+    a, b = (render(Scene(camera=cam, size=(6, 6), volumes=[v])).image.astype(np.float64) for v in (near, far))
+    both = render(Scene(camera=cam, size=(6, 6), volumes=[far, near])).image
+    assert (a[..., 3] > 0).all() and (b[..., 3] > 0).all()
+    np.testing.assert_allclose(both, a + (1.0 - a[..., 3:4]) * b, atol=1e-5, rtol=0)
+
+
+def _floor_scene(occluders, material=(0.2, 0.5, 0.5, 4.0)):
+    """A white floor (z = 5.5) seen straight down, the sun travelling along (-1, 0, -1): shadow
+    rays from the floor in view run up towards +x, through walls at x >= 24 no camera ray meets."""
+    z = np.arange(11, dtype=np.float32)[:, None, None]
+    floor = Volume(np.broadcast_to(5.5 - z, (11, 11, 21)).copy(), name="floor")
+    cam = Camera(eye=(10.0, 5.0, 100.0), look_at=(10.0, 5.0, 0.0), up=(0, 1, 0), parallel_scale=3.0)
+    return Scene(camera=cam, size=(8, 8), volumes=[Isosurface(floor, 0.0, color=(1.0, 1.0, 1.0), material=material),
+                                                   *occluders],
+                 lights=[DirectionalLight((-1.0, 0.0, -1.0))], shadows=True)
+
+
+def test_a_shadowed_surface_has_no_highlight():
+    # In full shadow only the ambient term is left: colour 1 times ambient 0.2, specular included.
+    d = np.zeros((81, 21, 5), np.float32)
+    d[:, :, 1:4] = 1.0
+    wall = Isosurface(Volume(d, origin=(24.0, -5.0, 0.0), name="opaque wall"), 0.5)
+    assert render(_floor_scene([])).image[4, 4, 0] > 0.5
+    np.testing.assert_allclose(render(_floor_scene([wall])).image[..., :3], 0.2, atol=1e-6)
+
+
+def test_translucent_occluders_multiply_their_transmittance():
+    # Without specular light a floor pixel is 0.2 + visibility x diffuse: the visibility behind two
+    # walls is the product of each one's (light passing one and then the other).
+    tf = TransferFunction([[0, 0.15], [255, 0.15]])
+    walls = [Translucent(Volume(np.full((81, 21, 3), 100, np.uint8), origin=(x0, -5.0, 0.0), name=f"wall {x0}"), tf)
+             for x0 in (25.0, 30.0)]
+    material = (0.2, 0.8, 0.0, 1.0)
+    px = {k: float(render(_floor_scene(v, material)).image[4, 4, 0])
+          for k, v in (("none", []), ("one", walls[:1]), ("two", walls[1:]), ("both", walls))}
+    vis = {k: (px[k] - 0.2) / (px["none"] - 0.2) for k in ("one", "two", "both")}
+    assert 0.05 < vis["one"] < 0.95 and 0.05 < vis["two"] < 0.95
+    assert vis["both"] == pytest.approx(vis["one"] * vis["two"], rel=1e-6)
