@@ -652,3 +652,10 @@ def test_a_span_within_rounding_of_a_set_plane_tests_it(direction):
     # Well short of it the planes are clear, and the walk may skip to (within the tolerance of) their end.
     clear, t, _, _ = clear_planes(bits, 0, 0, params, Aa, Da, 0.0, 0.0, 1.0, 3.5)
     assert clear and 4.0 - 2 * PLANE_TOL * 2.0 <= t < 4.0       # t, as the position, in cells
+
+
+def test_major_axis_from_inside_the_box_is_the_view_directions():
+    # Outside, the planes follow the direction to the box's centre; inside, the view direction.
+    box = (np.zeros(3), np.array([10.0, 10.0, 10.0]))
+    assert major_axis(Camera(eye=(5, 5, 2), look_at=(5, 40, 2), up=(0, 0, 1)), box) == 1
+    assert major_axis(Camera(eye=(5, 5, -30), look_at=(5, 40, -30), up=(0, 0, 1)), box) == 2

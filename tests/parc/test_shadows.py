@@ -428,3 +428,20 @@ def test_translucent_occluders_multiply_their_transmittance():
     vis = {k: (px[k] - 0.2) / (px["none"] - 0.2) for k in ("one", "two", "both")}
     assert 0.05 < vis["one"] < 0.95 and 0.05 < vis["two"] < 0.95
     assert vis["both"] == pytest.approx(vis["one"] * vis["two"], rel=1e-6)
+
+
+@pytest.mark.parametrize("near_first", [True, False])
+def test_disjoint_translucent_volumes_seen_from_afar_composite_near_over_far(near_first):
+    # Seen from 1e5 units, each ray is anchored at its entry into each volume, so the volumes'
+    # own times differ from the world's: the merged walk must still order them by world distance.
+    z, y, x = np.mgrid[0:9, 0:9, 0:9]
+    ball = np.where((x - 4) ** 2 + (y - 4) ** 2 + (z - 4) ** 2 <= 12, 200.0, 10.0).astype(np.float32)
+    red = TransferFunction(opacity=[[0, 0], [100, 0], [200, 0.05]], color=[[0, 1.0, 0.0, 0.0]])
+    blue = TransferFunction(opacity=[[0, 0], [100, 0], [200, 0.05]], color=[[0, 0.0, 0.0, 1.0]])
+    near = Translucent(Volume(ball, name="near"), tf=red, threshold=1.0)
+    far = Translucent(Volume(ball, origin=(0, 0, 20), name="far"), tf=blue, threshold=1.0)
+    cam = Camera(eye=(4, 4, -1.0e5), look_at=(4, 4, 4), up=(0, 1, 0), parallel_scale=5.0)
+    a, b = (render(Scene(camera=cam, size=(12, 12), volumes=[v])).image.astype(np.float64) for v in (near, far))
+    assert a[..., 3].max() > 0.05 and b[..., 3].max() > 0.05 and a[..., 3].max() < 0.99
+    both = render(Scene(camera=cam, size=(12, 12), volumes=[near, far] if near_first else [far, near])).image
+    np.testing.assert_allclose(both, a + (1.0 - a[..., 3:4]) * b, atol=1e-5, rtol=0)

@@ -674,3 +674,17 @@ def test_normalized_functions_map_onto_a_range_a_few_floats_wide(name, tmp_path)
     alphas = [float(tf.opacity(v)) for v in (lo, np.nextafter(lo, 2.0), hi)]
     assert alphas == sorted(alphas) and alphas[-1] == unit.opacity(1.0) and alphas[0] >= unit.opacity(0.0)
     assert np.array_equal(tf.color_points[-1, 1:], unit.color_points[-1, 1:])
+
+
+@pytest.mark.parametrize("lo", [0.0, 5.0, -3.0])
+def test_a_one_value_data_range_is_widened_by_one(lo):
+    from parc.transfer.presets import data_range_of
+    assert data_range_of((lo, lo), "x") == (lo, lo + 1.0)
+
+
+def test_viridis_knots_sit_at_i_over_255_of_the_range():
+    # Entry i of the 256-entry table lies at i / 255 of the data range: over (0, 255), at value i.
+    from parc.transfer.presets import VIRIDIS
+    tf = preset("viridis", (0, 255))
+    for i, r, g, b in VIRIDIS:
+        assert tuple(tf.color([float(i)])[0]) == pytest.approx((r, g, b), abs=1e-6)
