@@ -659,3 +659,19 @@ def test_major_axis_from_inside_the_box_is_the_view_directions():
     box = (np.zeros(3), np.array([10.0, 10.0, 10.0]))
     assert major_axis(Camera(eye=(5, 5, 2), look_at=(5, 40, 2), up=(0, 0, 1)), box) == 1
     assert major_axis(Camera(eye=(5, 5, -30), look_at=(5, 40, -30), up=(0, 0, 1)), box) == 2
+
+
+def test_the_eyes_own_plane_past_the_sixteenth_is_set_on_its_own_bit(gl):
+    # The eye inside a one-plane slab (plane 20 of 40): its plane's bit is set at every pixel,
+    # and planes with no PC supercell are set nowhere (bit q & 31 of word q >> 5).
+    vol = Volume(np.zeros((4, 4, 41), np.float32))         # 40 cells along x
+    grid = VolumeIndex.of(vol).grid(1)
+    pc = np.zeros(grid.shape, bool)
+    pc[:, :, 20] = True
+    proxy = build_plane_proxy(grid, pc, grid.world_edges(vol), 0)
+    cam = Camera(eye=(20.5, 1.5, 1.5), look_at=(40.0, 1.5, 1.5), up=(0, 0, 1), fov=40)
+    bits, info = raster_bits(cam, 16, 12, proxy, first=0, count=40, halo=False)
+    assert info["eye_inside"] and bits.shape == (12, 16, 2)
+    word = bits[..., 0]
+    assert ((word >> np.uint32(20)) & np.uint32(1)).all()
+    assert not ((word >> np.uint32(4)) & np.uint32(1)).any() and not bits[..., 1].any()
