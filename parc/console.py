@@ -31,6 +31,7 @@ def main():
 
 
 def _say(text):
+    # Not parc.outputs.note: importing it loads NumPy, which this module exists to put off.
     try:
         print(f"parc: {text}", file=sys.stderr)
     except (OSError, ValueError, AttributeError):     # stderr closed or full
