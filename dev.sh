@@ -36,6 +36,12 @@ export PATH="$venv/bin:$PATH"
 if [ "${1:-}" = "test" ]; then
     shift
     cd "$root"
-    exec python -m pytest "$@"
+    # The test files are shared among one worker process per CPU, up to four
+    # (pytest-xdist): most of a first run is compiling kernels, one process at
+    # a time each, and two workers halved that run on two cores. `-n 0` after
+    # `test` runs everything in this process (for `-s` or `--pdb`).
+    cpus="$(python -c 'import os; print(len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1)')"
+    workers=$(( cpus < 4 ? cpus : 4 ))
+    exec python -m pytest -n "$workers" --dist loadfile "$@"
 fi
 exec "$@"

@@ -13,6 +13,7 @@ from __future__ import annotations
 import os
 import re
 import threading
+import time
 from pathlib import Path
 
 from data_tools import InputError
@@ -73,7 +74,7 @@ def get_context():
                                 f"OpenGL 4.3 ({reason})") from None
     # Buffers uploaded for a proxy are released when the proxy goes away.
     ctx.gc_mode = "auto"
-    spread_rasterizer_threads()
+    spread_rasterizer_threads(wait=rasterizer_start_wait(ctx.info.get("GL_RENDERER", ""), os.environ))
     _CONTEXT, _OWNER = ctx, threading.current_thread()
     return ctx
 
@@ -111,7 +112,43 @@ def rasterizer_cpus(threads, cpus):
     return {tid: cpus[n % len(cpus)] for n, tid in numbered}
 
 
-def spread_rasterizer_threads():
+#: Longest a new llvmpipe context waits for its rasterizer threads to be named, seconds.
+RASTERIZER_START_WAIT = 0.25
+
+
+def rasterizer_start_wait(renderer, environ):
+    """How long `spread_rasterizer_threads` may wait for the threads of a context whose
+    ``GL_RENDERER`` is ``renderer``: `RASTERIZER_START_WAIT` for llvmpipe, 0 for another
+    driver (which starts no such threads) or where ``LP_NUM_THREADS`` asks for fewer
+    threads than there are CPUs (`rasterizer_cpus` leaves those alone)."""
+    if "llvmpipe" not in renderer:
+        return 0.0
+    asked = environ.get("LP_NUM_THREADS", "").strip()
+    if asked:
+        try:
+            if int(asked) < len(_cpus()):
+                return 0.0
+        except (ValueError, OSError):
+            return 0.0
+    return RASTERIZER_START_WAIT
+
+
+def _cpus():
+    return os.sched_getaffinity(0)
+
+
+def _threads():
+    """``(tid, name)`` of the process's threads."""
+    threads = []
+    for task in Path("/proc/self/task").iterdir():
+        try:
+            threads.append((int(task.name), (task / "comm").read_text().strip()))
+        except (OSError, ValueError):   # a thread that ended meanwhile
+            continue
+    return threads
+
+
+def spread_rasterizer_threads(wait=0.0):
     """Pin llvmpipe's rasterizer threads one to a CPU (`rasterizer_cpus`); Linux only, best effort.
 
     An OpenGL pass is a burst of a few milliseconds. The scheduler can
@@ -122,6 +159,11 @@ def spread_rasterizer_threads():
     (``benchmarks/context_settings.py``). A GPU driver has no such
     threads, and nothing changes.
 
+    Each rasterizer thread names itself once it runs, which on a busy
+    machine can be after the context is made: until then it carries its
+    creator's name and would be left unpinned. So the threads are looked
+    for again, up to ``wait`` seconds, until there are enough to pin.
+
     Returns
     -------
     dict
@@ -129,18 +171,15 @@ def spread_rasterizer_threads():
     """
     if not hasattr(os, "sched_setaffinity"):
         return {}
-    try:
-        cpus = os.sched_getaffinity(0)
-        tasks = list(Path("/proc/self/task").iterdir())
-    except OSError:
-        return {}
-    threads = []
-    for task in tasks:
+    deadline = time.monotonic() + wait
+    while True:
         try:
-            threads.append((int(task.name), (task / "comm").read_text().strip()))
-        except (OSError, ValueError):   # a thread that ended meanwhile
-            continue
-    plan = rasterizer_cpus(threads, cpus)
+            plan = rasterizer_cpus(_threads(), _cpus())
+        except OSError:
+            return {}
+        if plan or time.monotonic() >= deadline:
+            break
+        time.sleep(0.002)
     pinned = {}
     for tid, cpu in plan.items():
         try:

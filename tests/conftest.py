@@ -1,5 +1,6 @@
 """Shared by every test package: the OpenGL context (fixtures `gl_context`, `gl`; it lives here and
-nowhere else) and `--soak`, more random scenes than the suite runs.
+nowhere else), `--soak`, more random scenes than the suite runs, and the end-of-run report of how
+loose the raster's segments are (fixture `looseness`).
 
 The random-scene tests (`parc` against `brute`) take their scene from a
 seed. The suite runs a fixed set of seeds, enough to cover every kind of
@@ -71,3 +72,32 @@ def gl(gl_context):
     _ = gl_context.error  # reading clears any stale error from an earlier failure
     yield gl_context
     assert gl_context.error == "GL_NO_ERROR"
+
+
+#: Lines the raster tests add (how loose the segments are); printed at the end of the run.
+LOOSENESS = []
+
+
+@pytest.fixture
+def looseness():
+    """Append a line to the end-of-run looseness report."""
+    return LOOSENESS.append
+
+
+def pytest_sessionfinish(session):
+    # In a pytest-xdist worker: hand the lines to the controller, which prints the report.
+    output = getattr(session.config, "workeroutput", None)
+    if output is not None:
+        output["looseness"] = list(LOOSENESS)
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_testnodedown(node, error):
+    LOOSENESS.extend(getattr(node, "workeroutput", {}).get("looseness", []))
+
+
+def pytest_terminal_summary(terminalreporter):
+    if LOOSENESS:
+        terminalreporter.section("parc raster: segment looseness (reported, not asserted)")
+        for line in LOOSENESS:
+            terminalreporter.write_line(line)

@@ -3,7 +3,8 @@ import os
 
 import pytest
 
-from parc.gl import rasterizer_cpus, spread_rasterizer_threads
+import parc.gl as glmod
+from parc.gl import RASTERIZER_START_WAIT, rasterizer_cpus, rasterizer_start_wait, spread_rasterizer_threads
 
 
 def test_each_rasterizer_thread_gets_its_own_cpu():
@@ -40,3 +41,42 @@ def test_the_context_leaves_llvmpipe_threads_one_to_a_cpu(gl):
     assert set().union(*given.values()) == cpus
     # Asking again changes nothing and pins the same way.
     assert spread_rasterizer_threads() == {tid: next(iter(c)) for tid, c in given.items()}
+
+
+@pytest.mark.parametrize("renderer, environ, wait", [
+    ("llvmpipe (LLVM 15.0.6, 256 bits)", {}, RASTERIZER_START_WAIT),
+    ("llvmpipe (LLVM 15.0.6, 256 bits)", {"LP_NUM_THREADS": "2"}, RASTERIZER_START_WAIT),
+    ("llvmpipe (LLVM 15.0.6, 256 bits)", {"LP_NUM_THREADS": "1"}, 0.0),     # fewer threads than CPUs: none pinned
+    ("llvmpipe (LLVM 15.0.6, 256 bits)", {"LP_NUM_THREADS": "many"}, 0.0),
+    ("NVIDIA H100 80GB HBM3/PCIe/SSE2", {}, 0.0),                           # no rasterizer threads to wait for
+])
+def test_only_llvmpipe_waits_for_its_rasterizer_threads(monkeypatch, renderer, environ, wait):
+    monkeypatch.setattr(glmod, "_cpus", lambda: {0, 1})
+    assert rasterizer_start_wait(renderer, environ) == wait
+
+
+@pytest.mark.skipif(not hasattr(os, "sched_setaffinity"), reason="thread affinity is Linux's")
+def test_rasterizer_threads_that_name_themselves_late_are_pinned(monkeypatch):
+    # A thread carries its creator's name until it runs; on a busy machine the
+    # context can be made before then, and the pass ran unpinned in that process.
+    looks = [[(1, "python"), (2, "python"), (3, "python")],
+             [(1, "python"), (2, "llvmpipe-0"), (3, "python")],
+             [(1, "python"), (2, "llvmpipe-0"), (3, "llvmpipe-1")]]
+    seen = []
+
+    def threads():
+        seen.append(1)
+        return looks[min(len(seen), len(looks)) - 1]
+    pinned = {}
+    monkeypatch.setattr(glmod, "_threads", threads)
+    monkeypatch.setattr(glmod, "_cpus", lambda: {0, 1})
+    monkeypatch.setattr(glmod.os, "sched_setaffinity", lambda tid, cpus: pinned.update({tid: set(cpus)}))
+    assert spread_rasterizer_threads(wait=5.0) == {2: 0, 3: 1}
+    assert pinned == {2: {0}, 3: {1}} and len(seen) == 3
+    # Without waiting, the first look finds nothing to pin; one that never fills up gives up.
+    seen.clear()
+    pinned.clear()
+    assert spread_rasterizer_threads() == {} and len(seen) == 1
+    looks[:] = looks[:1]
+    seen.clear()
+    assert spread_rasterizer_threads(wait=0.05) == {} and len(seen) > 1 and pinned == {}
