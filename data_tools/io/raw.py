@@ -29,6 +29,10 @@ _ENDIAN_WORDS = {"be": "big", "bigendian": "big", "msb": "big",
 def guess_from_name(path) -> dict:
     """Shape, dtype and byte order that a file name like ``bucky_32x32x32_uint8.raw`` states.
 
+    A name can hold more than one type word (``double_helix_64x64x64_uint8``):
+    a word with its width (``uint8``) comes before a C type word
+    (``double``), and otherwise the first one named comes first.
+
     Parameters
     ----------
     path : str or Path
@@ -36,20 +40,43 @@ def guess_from_name(path) -> dict:
     Returns
     -------
     dict
-        Any of ``shape`` ``(nx, ny, nz)``, ``dtype`` (numpy name) and
-        ``byte_order`` found in the name; empty when the name says nothing.
+        Any of ``shape`` ``(nx, ny, nz)``, ``dtype`` (numpy name, the first
+        type named) and ``byte_order`` found in the name; with more than one
+        type named, ``dtypes``, all of them in that order (`read_raw` takes
+        the one the file's size fits). Empty when the name says nothing.
     """
     stem = Path(path).stem
     found = {}
     m = _SHAPE_RE.search(stem)
     if m:
         found["shape"] = tuple(int(g) for g in m.groups())
+    sized, words = [], []
     for word in re.split(r"[^A-Za-z0-9]+", stem.lower()):
-        if word in DTYPE_WORDS and "dtype" not in found:
-            found["dtype"] = DTYPE_WORDS[word]
+        if word in DTYPE_WORDS:
+            (sized if any(c.isdigit() for c in word) else words).append(DTYPE_WORDS[word])
         elif word in _ENDIAN_WORDS:
             found["byte_order"] = _ENDIAN_WORDS[word]
+    dtypes = list(dict.fromkeys(sized + words))
+    if dtypes:
+        found["dtype"] = dtypes[0]
+    if len(dtypes) > 1:
+        found["dtypes"] = dtypes
     return found
+
+
+def _fitting_type(path, guess, shape, offset):
+    """The one type among those the name gives (``guess["dtypes"]``) that the file's size
+    fits; the first when none does (the read then says why)."""
+    try:
+        count = int(np.prod(_parse_shape(shape, path), dtype=np.int64))
+        size = path.stat().st_size - int(offset)
+    except (InputError, OSError, TypeError, ValueError):
+        return guess["dtype"]       # the read reports these
+    fits = [d for d in guess["dtypes"] if count * np.dtype(d).itemsize == size]
+    if len(fits) > 1:
+        raise InputError(f"{path}: the name gives the sample types {' and '.join(fits)}, and the file's size "
+                         f"fits either; give --dtype")
+    return fits[0] if fits else guess["dtype"]
 
 
 def _parse_shape(shape, path):
@@ -108,6 +135,8 @@ def read_raw(path, *, shape=None, dtype=None, byte_order=None, offset=0,
     path = Path(path)
     guess = guess_from_name(path)
     shape = shape if shape is not None else guess.get("shape")
+    if dtype is None and "dtypes" in guess and shape is not None:
+        dtype = _fitting_type(path, guess, shape, offset)
     dtype = dtype if dtype is not None else guess.get("dtype")
     byte_order = byte_order if byte_order is not None else guess.get("byte_order", "little")
     missing = [flag for flag, v in (("--shape NX,NY,NZ", shape), ("--dtype TYPE", dtype)) if v is None]

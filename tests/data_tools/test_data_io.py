@@ -87,6 +87,31 @@ def test_raw_name_can_state_byte_order(tmp_path, writers):
     check(load_volume(writers.raw(tmp_path / "x_5x4x3_int16_be.raw", arr, big=True)), arr)
 
 
+def test_raw_name_with_a_sized_type_word_beside_a_c_word(tmp_path, writers):
+    # "double" here names the helix, not the samples: the word with a width wins.
+    assert guess_from_name("double_helix_5x4x3_uint8.raw") == {
+        "shape": (5, 4, 3), "dtype": "uint8", "dtypes": ["uint8", "float64"]}
+    arr = make_array("uint8")
+    check(load_volume(writers.raw(tmp_path / "double_helix_5x4x3_uint8.raw", arr)), arr)
+    arr = make_array("float32")
+    check(load_volume(writers.raw(tmp_path / "char_map_5x4x3_float32.raw", arr)), arr)
+
+
+@pytest.mark.parametrize("dtype", ["int16", "float32"])
+def test_raw_name_with_two_c_words_takes_the_type_the_size_fits(tmp_path, writers, dtype):
+    arr = make_array(dtype)
+    p = writers.raw(tmp_path / "float_short_5x4x3.raw", arr)
+    assert guess_from_name(p)["dtypes"] == ["float32", "int16"]
+    check(load_volume(p), arr)
+
+
+def test_raw_name_with_two_types_of_one_width_is_refused(tmp_path, writers):
+    p = writers.raw(tmp_path / "int_uint_5x4x3.raw", make_array("int32"))
+    with pytest.raises(InputError, match="int32 and uint32.*give --dtype"):
+        load_volume(p)
+    check(load_volume(p, dtype="uint32"), make_array("int32").astype(np.uint32))
+
+
 def test_raw_options_override_name_and_accept_strings(tmp_path, writers):
     arr = make_array("uint16", shape=(2, 3, 10))
     p = writers.raw(tmp_path / "wrong_5x4x3_uint8.raw", arr)
