@@ -52,11 +52,127 @@ def _skip_lookup_table(f) -> bool:
     return False
 
 
+#: Bytes a sample of each type takes in a binary section another reader skips
+#: (VTK writes ``long`` and ``vtkIdType`` as 64-bit integers).
+_SKIP_SIZES = {**{name: np.dtype(dt).itemsize for name, dt in VTK_TYPES.items()},
+               "unsigned_long": 8, "long": 8, "vtkidtype": 8, "vtktypeint64": 8, "vtktypeuint64": 8}
+
+#: Attributes a section holds besides scalars, with the values each point or cell has.
+_ATTRIBUTE_VALUES = {"VECTORS": 3, "NORMALS": 3, "TENSORS": 9, "GLOBAL_IDS": 1, "PEDIGREE_IDS": 1}
+
+
+def _skip_values(f, encoding, count, vtype, path, what):
+    """Move past ``count`` values of VTK type ``vtype``: big-endian bytes, or ASCII words."""
+    if encoding == "ASCII":
+        left = count
+        while left > 0:
+            line = f.readline()
+            if not line:
+                raise InputError(f"{path}: the file ends inside {what}")
+            left -= len(line.split())
+        if left < 0:
+            raise InputError(f"{path}: {what} holds more values than its header states")
+        return
+    vtype = vtype.lower()
+    if vtype == "bit":
+        size = (count + 7) // 8
+    elif vtype in _SKIP_SIZES:
+        size = count * _SKIP_SIZES[vtype]
+    else:
+        raise InputError(f"{path}: cannot read past {what} of VTK type {vtype}")
+    end = f.tell() + size
+    if end > Path(path).stat().st_size:
+        raise InputError(f"{path}: the file ends inside {what}")
+    f.seek(end)
+
+
+def _skip_metadata(f, path):
+    """Move past a METADATA block (VTK 8 and later), which ends at a blank line."""
+    for _ in range(_MAX_HEADER_LINES):
+        line = f.readline(4096)
+        if not line.strip():
+            return
+    raise InputError(f"{path}: a METADATA block without its closing blank line")
+
+
+def _field_arrays(f, lines, encoding, words, path, want=None):
+    """Move past a FIELD's arrays; with ``want`` (a point count), stop at the first array of one
+    component and ``want`` numeric values and return its ``(name, dtype)``, the file at its values.
+    Returns None when no array was taken."""
+    n = parse_numbers(words[2:], 1, int, path, "FIELD")[0]
+    for _ in range(n):
+        line = lines.next("a FIELD array")
+        if line.upper() == "METADATA":
+            _skip_metadata(f, path)
+            line = lines.next("a FIELD array")
+        parts = line.split()
+        if len(parts) != 4:
+            raise InputError(f"{path}: expected a FIELD array line 'name components tuples type', got {line[:60]!r}")
+        ncomp, ntuples = parse_numbers(parts[1:3], 2, int, path, f"FIELD array {parts[0]}")
+        vtype = parts[3].lower()
+        if want is not None and ncomp == 1 and ntuples == want and vtype in VTK_TYPES:
+            return parts[0], VTK_TYPES[vtype]
+        _skip_values(f, encoding, ncomp * ntuples, vtype, path, f"FIELD array {parts[0]}")
+    return None
+
+
+def _skip_attribute(f, lines, encoding, words, count, path, section):
+    """Move past one attribute of a POINT_DATA or CELL_DATA section of ``count`` points or cells."""
+    key = words[0].upper()
+    what = f"{section} {key}"
+    if key == "SCALARS":
+        if len(words) < 3:
+            raise InputError(f"{path}: expected SCALARS name type, got {' '.join(words)[:60]!r}")
+        ncomp = parse_numbers(words[3:4], 1, int, path, "SCALARS")[0] if len(words) > 3 else 1
+        pos = f.tell()
+        if not _skip_lookup_table(f):
+            f.seek(pos)
+        _skip_values(f, encoding, count * ncomp, words[2], path, what)
+    elif key == "COLOR_SCALARS":
+        ncomp = parse_numbers(words[2:3], 1, int, path, "COLOR_SCALARS")[0]
+        _skip_values(f, encoding, count * ncomp, "float" if encoding == "ASCII" else "unsigned_char", path, what)
+    elif key == "LOOKUP_TABLE":
+        size = parse_numbers(words[2:3], 1, int, path, "LOOKUP_TABLE")[0]
+        _skip_values(f, encoding, 4 * size, "float" if encoding == "ASCII" else "unsigned_char", path, what)
+    elif key == "TEXTURE_COORDINATES":
+        dim = parse_numbers(words[2:3], 1, int, path, "TEXTURE_COORDINATES")[0]
+        _skip_values(f, encoding, count * dim, words[3] if len(words) > 3 else "?", path, what)
+    elif key in _ATTRIBUTE_VALUES:
+        vtype = words[2] if len(words) > 2 else "?"
+        _skip_values(f, encoding, count * _ATTRIBUTE_VALUES[key], vtype, path, what)
+    elif key == "FIELD":
+        _field_arrays(f, lines, encoding, words, path)
+    elif key == "METADATA":
+        _skip_metadata(f, path)
+    else:
+        raise InputError(f"{path}: unexpected line in the VTK {section}: {' '.join(words)[:60]!r}")
+
+
+def _past_cell_data(f, lines, encoding, ncells, path):
+    """Move past a CELL_DATA section's attributes; the words of the POINT_DATA line after them."""
+    for _ in range(_MAX_HEADER_LINES):
+        try:
+            line = lines.next("POINT_DATA")
+        except InputError:
+            raise InputError(f"{path}: the VTK file has CELL_DATA and no POINT_DATA; a volume needs "
+                             "scalars on its points") from None
+        words = line.split()
+        if words[0].upper() == "POINT_DATA":
+            return words
+        _skip_attribute(f, lines, encoding, words, ncells, path, "CELL_DATA")
+    raise InputError(f"{path}: no POINT_DATA after the VTK CELL_DATA")
+
+
 def read_vtk(path) -> Volume:
     """Read a VTK legacy STRUCTURED_POINTS volume of point scalars.
 
     ``COLOR_SCALARS`` with one component (how VTK itself writes uint8 data)
-    are read as uint8.
+    are read as uint8. What vtkDataWriter writes beside the scalars is read
+    past: the dataset's own FIELD data (a time value), the cells' arrays
+    (CELL_DATA, which it writes first), point attributes before the scalars
+    (VECTORS, NORMALS...) and METADATA blocks. Points whose arrays were all
+    written as FIELD data (none marked as the scalars) give the first of
+    one component.
 
     Parameters
     ----------
@@ -69,8 +185,8 @@ def read_vtk(path) -> Volume:
     Raises
     ------
     InputError
-        Not a VTK legacy file, another dataset kind, vector or multi-component
-        data, an unknown type, or too few samples.
+        Not a VTK legacy file, another dataset kind, no point data, vector or
+        multi-component data, an unknown type, or too few samples.
     """
     path = Path(path)
     with reading(path, "VTK"):
@@ -102,8 +218,14 @@ def read_vtk(path) -> Volume:
                 elif key == "POINT_DATA":
                     break
                 elif key == "CELL_DATA":
-                    raise InputError(f"{path}: CELL_DATA is not supported; a volume needs POINT_DATA scalars")
-                elif key != "FIELD" and not key.startswith("#"):
+                    # vtkDataWriter writes the cells' arrays first (ParaView's vtkGhostType, say):
+                    # read past them to the points'.
+                    ncells = parse_numbers(words[1:], 1, int, path, "CELL_DATA")[0]
+                    words = _past_cell_data(f, lines, encoding, ncells, path)
+                    break
+                elif key == "FIELD":
+                    _field_arrays(f, lines, encoding, words, path)     # the dataset's own (a time value)
+                elif not key.startswith("#"):
                     raise InputError(f"{path}: unexpected VTK header line {' '.join(words)[:60]!r}")
             else:
                 raise InputError(f"{path}: no POINT_DATA in the VTK header")
@@ -112,16 +234,36 @@ def read_vtk(path) -> Volume:
             npoints = parse_numbers(words[1:], 1, int, path, "POINT_DATA")[0]
             if npoints != dims[0] * dims[1] * dims[2]:
                 raise InputError(f"{path}: POINT_DATA {npoints} does not match DIMENSIONS {dims[0]}x{dims[1]}x{dims[2]}")
-            words = lines.next("SCALARS").split()
-            color = words[0].upper() == "COLOR_SCALARS"
-            if color:
+            field = None
+            for _ in range(_MAX_HEADER_LINES):
+                words = lines.next("SCALARS").split()
+                key = words[0].upper()
+                if key in ("SCALARS", "COLOR_SCALARS"):
+                    break
+                if key == "FIELD":
+                    # Arrays written as field data (none marked as the scalars): the first of one component.
+                    field = _field_arrays(f, lines, encoding, words, path, want=npoints)
+                    if field is not None:
+                        break
+                    continue
+                if key not in _ATTRIBUTE_VALUES and key not in ("TEXTURE_COORDINATES", "LOOKUP_TABLE", "METADATA"):
+                    raise InputError(f"{path}: expected SCALARS name type after POINT_DATA, "
+                                     f"got {' '.join(words)[:60]!r}")
+                _skip_attribute(f, lines, encoding, words, npoints, path, "POINT_DATA")
+            else:
+                raise InputError(f"{path}: no scalars in the VTK POINT_DATA")
+            color = field is None and key == "COLOR_SCALARS"
+            if field is not None:
+                words = ["FIELD", field[0]]
+                dtype = field[1]
+            elif color:
                 # vtkDataWriter stores unsigned_char scalars this way, with no LOOKUP_TABLE line.
                 ncomp = parse_numbers(words[2:], 1, int, path, "COLOR_SCALARS")[0]
                 if ncomp != 1:
                     raise InputError(f"{path}: COLOR_SCALARS with {ncomp} components; only one per sample is supported")
                 dtype = "uint8"
             else:
-                if words[0].upper() != "SCALARS" or len(words) < 3:
+                if len(words) < 3:
                     raise InputError(f"{path}: expected SCALARS name type after POINT_DATA, "
                                      f"got {' '.join(words)[:60]!r}")
                 vtype = words[2].lower()
@@ -143,7 +285,7 @@ def read_vtk(path) -> Volume:
         if encoding == "BINARY":
             # Legacy binary VTK is big-endian by definition; trailing sections are ignored.
             data = read_samples(path, offset, dims, dtype, True, exact=False, kind="VTK")
-    meta = {"format": "vtk", "scalars": words[1]}
+    meta = {"format": "vtk", "scalars": words[1] if len(words) > 1 else ""}
     return Volume(data, spacing=spacing or (1.0, 1.0, 1.0), origin=origin, name=str(path), meta=meta)
 
 

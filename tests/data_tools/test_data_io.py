@@ -229,6 +229,71 @@ def test_vtk_writer_roundtrip(tmp_path, ascii):
     check(load_volume(p), arr, (1, 2, 3), (4, 5, 6))
 
 
+def _vtk_section(ascii, values, dtype):
+    """One block of a VTK legacy file's values: big-endian bytes, or text nine to a line."""
+    values = np.asarray(values, dtype=dtype).ravel()
+    if ascii:
+        rows = [" ".join(repr(v.item()) for v in values[i:i + 9]) for i in range(0, values.size, 9)]
+        return ("\n".join(rows) + "\n").encode()
+    return values.astype(np.dtype(dtype).newbyteorder(">")).tobytes() + b"\n"
+
+
+def _vtk_with_other_arrays(path, arr, ascii, *, points_as_field=False, point_data=True, cut=0):
+    """What vtkDataWriter writes for an image with more than one array: the dataset's FIELD
+    (a time value), CELL_DATA before POINT_DATA, attributes before the scalars, METADATA
+    blocks; written here by the VTK file-format spec, the skipped bytes made to look like
+    the keywords a reader scanning lines would stop at."""
+    nz, ny, nx = arr.shape
+    ncells = (nx - 1) * (ny - 1) * (nz - 1)
+    decoy = np.frombuffer((b"\nPOINT_DATA 7\nSCALARS x float\n" * ncells)[:ncells], np.uint8)
+    t = lambda text: (text + "\n").encode()   # noqa: E731
+    out = [t("# vtk DataFile Version 5.1"), t("written by hand"), t("ASCII" if ascii else "BINARY"),
+           t("DATASET STRUCTURED_POINTS"), t("FIELD FieldData 1"), t("TimeValue 1 1 double"),
+           _vtk_section(ascii, [2.5], "float64"), t(f"DIMENSIONS {nx} {ny} {nz}"), t("SPACING 1 1 1"),
+           t("ORIGIN 0 0 0"), t(f"CELL_DATA {ncells}"), t("SCALARS vtkGhostType unsigned_char 1"),
+           t("LOOKUP_TABLE default"), _vtk_section(ascii, decoy, "uint8"),
+           t("METADATA"), t("INFORMATION 0"), t(""),
+           t("VECTORS flow float"), _vtk_section(ascii, np.arange(3 * ncells), "float32"),
+           t("FIELD FieldData 2"), t(f"ids 2 {ncells} int"), _vtk_section(ascii, np.arange(2 * ncells), "int32"),
+           t(f"area 1 {ncells} double"), _vtk_section(ascii, np.linspace(0, 1, ncells), "float64")]
+    if point_data:
+        out += [t(f"POINT_DATA {arr.size}"), t("NORMALS n double"),
+                _vtk_section(ascii, np.ones(3 * arr.size), "float64")]
+        vtype = {"uint8": "unsigned_char", "int16": "short", "float32": "float"}[arr.dtype.name]
+        if points_as_field:
+            out += [t("FIELD FieldData 2"), t(f"velocity 3 {arr.size} float"),
+                    _vtk_section(ascii, np.zeros(3 * arr.size), "float32"),
+                    t(f"density 1 {arr.size} {vtype}"), _vtk_section(ascii, arr, arr.dtype)]
+        else:
+            out += [t(f"SCALARS density {vtype} 1"), t("LOOKUP_TABLE default"), _vtk_section(ascii, arr, arr.dtype)]
+    data = b"".join(out)
+    path.write_bytes(data[:len(data) - cut])
+    return path
+
+
+@pytest.mark.parametrize("dtype", ["uint8", "int16", "float32"])
+@pytest.mark.parametrize("ascii", [False, True])
+@pytest.mark.parametrize("points_as_field", [False, True])
+def test_vtk_reads_past_cell_data_and_other_arrays(tmp_path, dtype, ascii, points_as_field):
+    arr = make_array(dtype)
+    p = _vtk_with_other_arrays(tmp_path / "many.vtk", arr, ascii, points_as_field=points_as_field)
+    vol = load_volume(p)
+    check(vol, arr)
+    assert vol.meta["scalars"] == "density"
+
+
+@pytest.mark.parametrize("ascii", [False, True])
+def test_vtk_cell_data_alone_or_cut_short_is_one_line(tmp_path, ascii):
+    arr = make_array("uint8")
+    p = _vtk_with_other_arrays(tmp_path / "cells.vtk", arr, ascii, point_data=False)
+    with pytest.raises(InputError, match="CELL_DATA and no POINT_DATA"):
+        load_volume(p)
+    # Cut inside the cells' last array (binary) or before its last values (text).
+    p = _vtk_with_other_arrays(tmp_path / "cut.vtk", arr, ascii, point_data=False, cut=40)
+    with pytest.raises(InputError, match="the file ends inside (FIELD array area|CELL_DATA)"):
+        load_volume(p)
+
+
 # --- SLC -------------------------------------------------------------------
 
 def test_rle_encoder_sanity(writers):
