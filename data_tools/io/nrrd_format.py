@@ -1,7 +1,10 @@
 """NRRD volumes (attached ``.nrrd`` and detached ``.nhdr``) through pynrrd."""
 from __future__ import annotations
 
+import bz2
+import io
 import re
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -84,7 +87,11 @@ def _read(path, data_file):
                 else path.stat().st_size - start)
         if isinstance(lines, int) and lines > size:
             raise InputError(f"{path}: line skip {lines} passes the end of the data ({size} bytes)")
-        data = nrrd.read_data(header, fh, str(path), index_order="C")
+        skip = header.get("byteskip", header.get("byte skip", 0))
+        if str(header.get("encoding")).lower() in _COMPRESSED and isinstance(skip, int) and skip > 0:
+            data = _read_compressed_skipping(header, fh, path, data_file, lines, skip)
+        else:
+            data = nrrd.read_data(header, fh, str(path), index_order="C")
         if str(header.get("encoding")).lower() in _TEXT and data.dtype.kind in "iu":
             fh.seek(start)
             exact = nrrd.read_data(dict(header, type="double"), fh, str(path), index_order="C")
@@ -94,6 +101,35 @@ def _read(path, data_file):
                                  f"header's type {header.get('type')} ({np.iinfo(data.dtype).min} to "
                                  f"{np.iinfo(data.dtype).max})")
     return data, header
+
+
+#: The compressed encodings pynrrd reads.
+_COMPRESSED = ("gzip", "gz", "bzip2", "bz2")
+
+
+def _read_compressed_skipping(header, fh, path, data_file, lines, skip):
+    """`nrrd.read_data` for compressed data with a byte skip, which NRRD applies to the
+    decompressed bytes (teem's reader does) and pynrrd applied to both, failing on the
+    stream's cut start. Decompressed here, cut, and given to pynrrd as raw data."""
+    if data_file is not None:
+        with open(data_file, "rb") as df:
+            for _ in range(lines if isinstance(lines, int) else 0):
+                df.readline()
+            blob = df.read()
+    else:
+        for _ in range(lines if isinstance(lines, int) else 0):
+            fh.readline()
+        blob = fh.read()
+    if str(header["encoding"]).lower() in ("gzip", "gz"):
+        raw = zlib.decompressobj(zlib.MAX_WBITS | 32).decompress(blob)
+    else:
+        raw = bz2.decompress(blob)
+    if skip > len(raw):
+        raise InputError(f"{path}: byte skip {skip} passes the end of the {len(raw)} decompressed bytes")
+    plain = {key: value for key, value in header.items()
+             if key not in ("data file", "datafile", "byte skip", "byteskip", "line skip", "lineskip")}
+    plain["encoding"] = "raw"
+    return nrrd.read_data(plain, io.BytesIO(raw[skip:]), str(path), index_order="C")
 
 
 #: Per-axis header fields: an axis dropped takes its entry in each.

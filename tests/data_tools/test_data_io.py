@@ -1,6 +1,8 @@
 """Every reader reads back what was written: values, dtype, [z, y, x] order, spacing and origin."""
 from __future__ import annotations
 
+import bz2
+import gzip
 import json
 import zlib
 
@@ -154,6 +156,34 @@ def test_nrrd_big_endian_and_spacings_field(tmp_path, encoding):
     header = {"spacings": [0.5, 0.75, 2.0], "endian": "big", "encoding": encoding}
     nrrd.write(str(tmp_path / "b.nrrd"), arr.astype(">i2"), header, index_order="C")
     check(load_volume(tmp_path / "b.nrrd"), arr, (0.5, 0.75, 2.0))
+
+
+@pytest.mark.parametrize("encoding, pack", [("gzip", gzip.compress), ("bzip2", bz2.compress)])
+@pytest.mark.parametrize("detached", [False, True])
+def test_nrrd_byte_skip_applies_to_the_decompressed_bytes(tmp_path, encoding, pack, detached):
+    # NRRD's byte skip counts decompressed bytes (a header the compressed data carry
+    # along); the bytes skipped here are text a reader that skipped the stream's own
+    # bytes would misread, and a second skip would shift every sample.
+    arr = make_array("int16")
+    head = (f"NRRD0004\ntype: short\ndimension: 3\nsizes: 5 4 3\nendian: big\nencoding: {encoding}\n"
+            f"byte skip: 7\nspacings: 1 1 2\n")
+    payload = pack(b"HEADER\n" + arr.astype(">i2").tobytes())
+    if detached:
+        (tmp_path / "v.raw.gz").write_bytes(payload)
+        p = tmp_path / "v.nhdr"
+        p.write_bytes((head + "data file: v.raw.gz\n\n").encode())
+    else:
+        p = tmp_path / "v.nrrd"
+        p.write_bytes((head + "\n").encode() + payload)
+    check(load_volume(p), arr, (1, 1, 2))
+
+
+def test_nrrd_byte_skip_past_the_decompressed_data_is_one_line(tmp_path):
+    p = tmp_path / "v.nrrd"
+    p.write_bytes(b"NRRD0004\ntype: uint8\ndimension: 3\nsizes: 5 4 3\nencoding: gzip\nbyte skip: 100\n\n"
+                  + gzip.compress(bytes(60)))
+    with pytest.raises(InputError, match="byte skip 100 passes the end of the 60 decompressed bytes"):
+        load_volume(p)
 
 
 def test_nrrd_oblique_directions_become_norms_with_note(tmp_path):
