@@ -115,20 +115,30 @@ def rasterizer_cpus(threads, cpus):
 #: Longest a new llvmpipe context waits for its rasterizer threads to be named, seconds.
 RASTERIZER_START_WAIT = 0.25
 
+#: The most rasterizer threads llvmpipe starts (Mesa's ``LP_MAX_THREADS``): with more
+#: CPUs than that, `rasterizer_cpus` pins none, and there is nothing to wait for.
+LLVMPIPE_MAX_THREADS = 32
+
 
 def rasterizer_start_wait(renderer, environ):
     """How long `spread_rasterizer_threads` may wait for the threads of a context whose
     ``GL_RENDERER`` is ``renderer``: `RASTERIZER_START_WAIT` for llvmpipe, 0 for another
     driver (which starts no such threads) or where ``LP_NUM_THREADS`` asks for fewer
-    threads than there are CPUs (`rasterizer_cpus` leaves those alone)."""
+    threads than there are CPUs, or there are more CPUs than it starts threads
+    (`rasterizer_cpus` leaves those alone)."""
     if "llvmpipe" not in renderer:
+        return 0.0
+    try:
+        if len(_cpus()) > LLVMPIPE_MAX_THREADS:
+            return 0.0
+    except OSError:
         return 0.0
     asked = environ.get("LP_NUM_THREADS", "").strip()
     if asked:
         try:
             if int(asked) < len(_cpus()):
                 return 0.0
-        except (ValueError, OSError):
+        except ValueError:
             return 0.0
     return RASTERIZER_START_WAIT
 

@@ -53,6 +53,9 @@ def test_the_context_leaves_llvmpipe_threads_one_to_a_cpu(gl):
 def test_only_llvmpipe_waits_for_its_rasterizer_threads(monkeypatch, renderer, environ, wait):
     monkeypatch.setattr(glmod, "_cpus", lambda: {0, 1})
     assert rasterizer_start_wait(renderer, environ) == wait
+    # More CPUs than llvmpipe starts threads: none is pinned, so none is waited for.
+    monkeypatch.setattr(glmod, "_cpus", lambda: set(range(glmod.LLVMPIPE_MAX_THREADS + 1)))
+    assert rasterizer_start_wait(renderer, {}) == 0.0
 
 
 @pytest.mark.skipif(not hasattr(os, "sched_setaffinity"), reason="thread affinity is Linux's")
