@@ -126,7 +126,7 @@ def rasterizer_start_wait(renderer, environ):
     driver (which starts no such threads) or where ``LP_NUM_THREADS`` asks for fewer
     threads than there are CPUs, or there are more CPUs than it starts threads
     (`rasterizer_cpus` leaves those alone)."""
-    if "llvmpipe" not in renderer:
+    if "llvmpipe" not in renderer or not hasattr(os, "sched_getaffinity"):
         return 0.0
     try:
         if len(_cpus()) > LLVMPIPE_MAX_THREADS:

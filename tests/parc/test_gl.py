@@ -56,6 +56,9 @@ def test_only_llvmpipe_waits_for_its_rasterizer_threads(monkeypatch, renderer, e
     # More CPUs than llvmpipe starts threads: none is pinned, so none is waited for.
     monkeypatch.setattr(glmod, "_cpus", lambda: set(range(glmod.LLVMPIPE_MAX_THREADS + 1)))
     assert rasterizer_start_wait(renderer, {}) == 0.0
+    # No thread affinity (macOS): nothing is pinned, and nothing asked of the system.
+    monkeypatch.delattr(glmod.os, "sched_getaffinity", raising=False)
+    assert rasterizer_start_wait(renderer, {}) == 0.0
 
 
 @pytest.mark.skipif(not hasattr(os, "sched_setaffinity"), reason="thread affinity is Linux's")
