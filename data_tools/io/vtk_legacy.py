@@ -18,6 +18,8 @@ VTK_TYPES = {
     "vtktypeuint8": "uint8", "vtktypeint8": "int8", "vtktypeuint16": "uint16",
     "vtktypeint16": "int16", "vtktypeuint32": "uint32", "vtktypeint32": "int32",
     "vtktypefloat32": "float32", "vtktypefloat64": "float64",
+    # 64-bit integers: a Volume keeps them as 32-bit ones where every value fits.
+    "vtktypeint64": "int64", "vtktypeuint64": "uint64",
 }
 # Alternative names this module reads but does not write ("char" is the one every reader knows).
 _READ_ONLY_TYPES = ("signed_char",)
@@ -30,10 +32,14 @@ class _Lines:
     def __init__(self, f, path):
         self.f, self.path = f, path
 
-    def next(self, what):
+    def next(self, what, required=True):
+        """The next line that is not blank; at the end of the file an InputError, or None
+        when not ``required``."""
         while True:
             raw = self.f.readline(4096)
             if not raw:
+                if not required:
+                    return None
                 raise InputError(f"{self.path}: VTK header ends before {what}")
             try:
                 line = raw.decode("ascii").strip()
@@ -52,18 +58,25 @@ def _skip_lookup_table(f) -> bool:
     return False
 
 
-#: Bytes a sample of each type takes in a binary section another reader skips
-#: (VTK writes ``long`` and ``vtkIdType`` as 64-bit integers).
+#: Bytes a value of each type takes in a binary section another reader skips
+#: (vtkDataWriter writes ``vtkIdType`` as a 32-bit int, ``long`` as a 64-bit one).
 _SKIP_SIZES = {**{name: np.dtype(dt).itemsize for name, dt in VTK_TYPES.items()},
-               "unsigned_long": 8, "long": 8, "vtkidtype": 8, "vtktypeint64": 8, "vtktypeuint64": 8}
+               "unsigned_long": 8, "long": 8, "vtkidtype": 4}
+
+#: String arrays: one a line in ASCII, each behind its length in binary (`_skip_strings`).
+_STRING_TYPES = ("string", "utf8_string")
 
 #: Attributes a section holds besides scalars, with the values each point or cell has.
-_ATTRIBUTE_VALUES = {"VECTORS": 3, "NORMALS": 3, "TENSORS": 9, "GLOBAL_IDS": 1, "PEDIGREE_IDS": 1}
+_ATTRIBUTE_VALUES = {"VECTORS": 3, "NORMALS": 3, "TENSORS": 9, "TENSORS6": 6, "GLOBAL_IDS": 1,
+                     "PEDIGREE_IDS": 1, "EDGE_FLAGS": 1}
 
 
 def _skip_values(f, encoding, count, vtype, path, what):
     """Move past ``count`` values of VTK type ``vtype``: big-endian bytes, or ASCII words."""
-    if encoding == "ASCII":
+    vtype = vtype.lower()
+    if vtype in _STRING_TYPES:
+        _skip_strings(f, encoding, count, path, what)
+    elif encoding == "ASCII":
         left = count
         while left > 0:
             line = f.readline()
@@ -72,54 +85,99 @@ def _skip_values(f, encoding, count, vtype, path, what):
             left -= len(line.split())
         if left < 0:
             raise InputError(f"{path}: {what} holds more values than its header states")
-        return
-    vtype = vtype.lower()
-    if vtype == "bit":
-        size = (count + 7) // 8
-    elif vtype in _SKIP_SIZES:
-        size = count * _SKIP_SIZES[vtype]
     else:
-        raise InputError(f"{path}: cannot read past {what} of VTK type {vtype}")
-    end = f.tell() + size
-    if end > Path(path).stat().st_size:
-        raise InputError(f"{path}: the file ends inside {what}")
-    f.seek(end)
+        if vtype == "bit":
+            size = (count + 7) // 8
+        elif vtype in _SKIP_SIZES:
+            size = count * _SKIP_SIZES[vtype]
+        else:
+            raise InputError(f"{path}: cannot read past {what} of VTK type {vtype}")
+        end = f.tell() + size
+        if end > Path(path).stat().st_size:
+            raise InputError(f"{path}: the file ends inside {what}")
+        f.seek(end)
 
 
-def _skip_metadata(f, path):
-    """Move past a METADATA block (VTK 8 and later), which ends at a blank line."""
+#: A binary string's length field: its first byte's top two bits give the field's size in bytes.
+_LENGTH_BYTES = {3: 1, 2: 2, 1: 4, 0: 8}
+
+
+def _skip_strings(f, encoding, count, path, what):
+    """Move past ``count`` strings as vtkDataWriter writes them: in ASCII one a line (an empty
+    string an empty line); in binary each behind its length, a big-endian field whose first
+    byte's top bits give its size (`_LENGTH_BYTES`) and the rest the length."""
+    size = Path(path).stat().st_size
+    for _ in range(count):
+        if encoding == "ASCII":
+            if not f.readline():
+                raise InputError(f"{path}: the file ends inside {what}")
+            continue
+        head = f.read(1)
+        width = _LENGTH_BYTES[head[0] >> 6] if head else 0
+        field = head + f.read(width - 1) if head else b""
+        end = f.tell() + (int.from_bytes(field, "big") & ((1 << (8 * width - 2)) - 1) if head else 0)
+        if not head or len(field) < width or end > size:
+            raise InputError(f"{path}: the file ends inside {what}")
+        f.seek(end)
+
+
+def _skip_metadata(f, path, ncomp):
+    """Move past a METADATA block (VTK 8 and later) of an array of ``ncomp`` components: its
+    COMPONENT_NAMES (a line each, empty for one without a name) and INFORMATION entries, up
+    to the blank line that ends it."""
     for _ in range(_MAX_HEADER_LINES):
         line = f.readline(4096)
-        if not line.strip():
+        if not line:
+            raise InputError(f"{path}: the file ends inside a METADATA block")
+        word = line.strip().upper()
+        if not word:
             return
+        if word == b"COMPONENT_NAMES":
+            for _ in range(ncomp):
+                f.readline(4096)
     raise InputError(f"{path}: a METADATA block without its closing blank line")
 
 
+def _after_array(f, path, ncomp):
+    """Move past the METADATA block that may follow an array's values."""
+    pos = f.tell()
+    for _ in range(_MAX_HEADER_LINES):
+        line = f.readline(4096)
+        if not line:
+            break
+        if line.strip():
+            if line.strip().upper() == b"METADATA":
+                _skip_metadata(f, path, ncomp)
+                return
+            break
+    f.seek(pos)
+
+
 def _field_arrays(f, lines, encoding, words, path, want=None):
-    """Move past a FIELD's arrays; with ``want`` (a point count), stop at the first array of one
-    component and ``want`` numeric values and return its ``(name, dtype)``, the file at its values.
-    Returns None when no array was taken."""
+    """Move past a FIELD's arrays. With ``want`` (a point count), the first array of one
+    component and ``want`` numeric values: ``(name, dtype, offset)``, where its values start;
+    None when there is none."""
     n = parse_numbers(words[2:], 1, int, path, "FIELD")[0]
+    found = None
     for _ in range(n):
         line = lines.next("a FIELD array")
-        if line.upper() == "METADATA":
-            _skip_metadata(f, path)
-            line = lines.next("a FIELD array")
         parts = line.split()
         if len(parts) != 4:
             raise InputError(f"{path}: expected a FIELD array line 'name components tuples type', got {line[:60]!r}")
         ncomp, ntuples = parse_numbers(parts[1:3], 2, int, path, f"FIELD array {parts[0]}")
         vtype = parts[3].lower()
-        if want is not None and ncomp == 1 and ntuples == want and vtype in VTK_TYPES:
-            return parts[0], VTK_TYPES[vtype]
+        if found is None and want is not None and ncomp == 1 and ntuples == want and vtype in VTK_TYPES:
+            found = parts[0], VTK_TYPES[vtype], f.tell()
         _skip_values(f, encoding, ncomp * ntuples, vtype, path, f"FIELD array {parts[0]}")
-    return None
+        _after_array(f, path, ncomp)
+    return found
 
 
 def _skip_attribute(f, lines, encoding, words, count, path, section):
     """Move past one attribute of a POINT_DATA or CELL_DATA section of ``count`` points or cells."""
     key = words[0].upper()
     what = f"{section} {key}"
+    ncomp = 1
     if key == "SCALARS":
         if len(words) < 3:
             raise InputError(f"{path}: expected SCALARS name type, got {' '.join(words)[:60]!r}")
@@ -135,27 +193,29 @@ def _skip_attribute(f, lines, encoding, words, count, path, section):
         size = parse_numbers(words[2:3], 1, int, path, "LOOKUP_TABLE")[0]
         _skip_values(f, encoding, 4 * size, "float" if encoding == "ASCII" else "unsigned_char", path, what)
     elif key == "TEXTURE_COORDINATES":
-        dim = parse_numbers(words[2:3], 1, int, path, "TEXTURE_COORDINATES")[0]
-        _skip_values(f, encoding, count * dim, words[3] if len(words) > 3 else "?", path, what)
+        ncomp = parse_numbers(words[2:3], 1, int, path, "TEXTURE_COORDINATES")[0]
+        _skip_values(f, encoding, count * ncomp, words[3] if len(words) > 3 else "?", path, what)
     elif key in _ATTRIBUTE_VALUES:
-        vtype = words[2] if len(words) > 2 else "?"
-        _skip_values(f, encoding, count * _ATTRIBUTE_VALUES[key], vtype, path, what)
+        ncomp = _ATTRIBUTE_VALUES[key]
+        _skip_values(f, encoding, count * ncomp, words[2] if len(words) > 2 else "?", path, what)
     elif key == "FIELD":
         _field_arrays(f, lines, encoding, words, path)
+        return
     elif key == "METADATA":
-        _skip_metadata(f, path)
+        _skip_metadata(f, path, ncomp)
+        return
     else:
         raise InputError(f"{path}: unexpected line in the VTK {section}: {' '.join(words)[:60]!r}")
+    _after_array(f, path, ncomp)
 
 
 def _past_cell_data(f, lines, encoding, ncells, path):
     """Move past a CELL_DATA section's attributes; the words of the POINT_DATA line after them."""
     for _ in range(_MAX_HEADER_LINES):
-        try:
-            line = lines.next("POINT_DATA")
-        except InputError:
+        line = lines.next("POINT_DATA", required=False)
+        if line is None:
             raise InputError(f"{path}: the VTK file has CELL_DATA and no POINT_DATA; a volume needs "
-                             "scalars on its points") from None
+                             "scalars on its points")
         words = line.split()
         if words[0].upper() == "POINT_DATA":
             return words
@@ -225,6 +285,8 @@ def read_vtk(path) -> Volume:
                     break
                 elif key == "FIELD":
                     _field_arrays(f, lines, encoding, words, path)     # the dataset's own (a time value)
+                elif key == "METADATA":
+                    _skip_metadata(f, path, 1)
                 elif not key.startswith("#"):
                     raise InputError(f"{path}: unexpected VTK header line {' '.join(words)[:60]!r}")
             else:
@@ -234,17 +296,22 @@ def read_vtk(path) -> Volume:
             npoints = parse_numbers(words[1:], 1, int, path, "POINT_DATA")[0]
             if npoints != dims[0] * dims[1] * dims[2]:
                 raise InputError(f"{path}: POINT_DATA {npoints} does not match DIMENSIONS {dims[0]}x{dims[1]}x{dims[2]}")
-            field = None
+            # The scalars, past the attributes before them; else the first array of one
+            # component written as field data (none marked as the scalars).
+            field = key = None
             for _ in range(_MAX_HEADER_LINES):
-                words = lines.next("SCALARS").split()
-                key = words[0].upper()
+                line = lines.next("SCALARS", required=field is None)
+                words = line.split() if line is not None else []
+                key = words[0].upper() if words else None
                 if key in ("SCALARS", "COLOR_SCALARS"):
                     break
+                if key is None or key in ("CELL_DATA", "POINT_DATA"):
+                    if field is None:
+                        raise InputError(f"{path}: no scalars in the VTK POINT_DATA")
+                    break
                 if key == "FIELD":
-                    # Arrays written as field data (none marked as the scalars): the first of one component.
-                    field = _field_arrays(f, lines, encoding, words, path, want=npoints)
-                    if field is not None:
-                        break
+                    found = _field_arrays(f, lines, encoding, words, path, want=npoints)
+                    field = field or found
                     continue
                 if key not in _ATTRIBUTE_VALUES and key not in ("TEXTURE_COORDINATES", "LOOKUP_TABLE", "METADATA"):
                     raise InputError(f"{path}: expected SCALARS name type after POINT_DATA, "
@@ -252,6 +319,10 @@ def read_vtk(path) -> Volume:
                 _skip_attribute(f, lines, encoding, words, npoints, path, "POINT_DATA")
             else:
                 raise InputError(f"{path}: no scalars in the VTK POINT_DATA")
+            if key not in ("SCALARS", "COLOR_SCALARS"):
+                f.seek(field[2])
+            else:
+                field = None
             color = field is None and key == "COLOR_SCALARS"
             if field is not None:
                 words = ["FIELD", field[0]]
@@ -299,10 +370,9 @@ def _read_ascii(f, dims, dtype, path):
         values = np.array(tokens[:count]).astype(np.float64 if dt.kind == "f" else np.int64)
     except ValueError:
         raise InputError(f"{path}: ASCII VTK data holds a value that is not a {dt.name} number") from None
-    if dt.kind in "iu":
-        info = np.iinfo(dt)
-        if values.min() < info.min or values.max() > info.max:
-            raise InputError(f"{path}: ASCII VTK values outside the {dt.name} range")
+    info = np.iinfo(dt) if dt.kind in "iu" else np.finfo(dt)
+    if values.min() < info.min or values.max() > info.max:
+        raise InputError(f"{path}: ASCII VTK values outside the {dt.name} range")
     return values.astype(dt).reshape(dims[2], dims[1], dims[0])
 
 

@@ -268,6 +268,20 @@ def _vtk_section(ascii, values, dtype):
     return values.astype(np.dtype(dtype).newbyteorder(">")).tobytes() + b"\n"
 
 
+def _vtk_strings(ascii, strings):
+    """A string array as vtkDataWriter writes it: a line each (spaces as %20), or each behind
+    a big-endian length whose top two bits say its size (11: 1 byte, 10: 2, 01: 4)."""
+    if ascii:
+        return b"".join(x.replace(" ", "%20").encode() + b"\n" for x in strings)
+    out = b""
+    for x in strings:
+        n = len(x)
+        head = ((0b11 << 6) | n).to_bytes(1, "big") if n < 64 else (
+            ((0b10 << 14) | n).to_bytes(2, "big") if n < 1 << 14 else ((0b01 << 30) | n).to_bytes(4, "big"))
+        out += head + x.encode()
+    return out + b"\n"
+
+
 def _vtk_with_other_arrays(path, arr, ascii, *, points_as_field=False, point_data=True, cut=0):
     """What vtkDataWriter writes for an image with more than one array: the dataset's FIELD
     (a time value), CELL_DATA before POINT_DATA, attributes before the scalars, METADATA
@@ -277,39 +291,59 @@ def _vtk_with_other_arrays(path, arr, ascii, *, points_as_field=False, point_dat
     ncells = (nx - 1) * (ny - 1) * (nz - 1)
     decoy = np.frombuffer((b"\nPOINT_DATA 7\nSCALARS x float\n" * ncells)[:ncells], np.uint8)
     t = lambda text: (text + "\n").encode()   # noqa: E731
+    names = ["", "a name", "x" * 70, "y" * 20000]          # lengths behind 1-, 2- and 4-byte fields
     out = [t("# vtk DataFile Version 5.1"), t("written by hand"), t("ASCII" if ascii else "BINARY"),
-           t("DATASET STRUCTURED_POINTS"), t("FIELD FieldData 1"), t("TimeValue 1 1 double"),
-           _vtk_section(ascii, [2.5], "float64"), t(f"DIMENSIONS {nx} {ny} {nz}"), t("SPACING 1 1 1"),
+           t("DATASET STRUCTURED_POINTS"), t("FIELD FieldData 2"), t("TimeValue 1 1 double"),
+           _vtk_section(ascii, [2.5], "float64"), t("Names 1 4 string"), _vtk_strings(ascii, names),
+           # Components named in part: an empty line for the one without a name.
+           t("METADATA"), t("COMPONENT_NAMES"), t(""), t("INFORMATION 0"), t(""),
+           t(f"DIMENSIONS {nx} {ny} {nz}"), t("SPACING 1 1 1"),
            t("ORIGIN 0 0 0"), t(f"CELL_DATA {ncells}"), t("SCALARS vtkGhostType unsigned_char 1"),
            t("LOOKUP_TABLE default"), _vtk_section(ascii, decoy, "uint8"),
            t("METADATA"), t("INFORMATION 0"), t(""),
            t("VECTORS flow float"), _vtk_section(ascii, np.arange(3 * ncells), "float32"),
+           # vtkDataWriter writes vtkIdType values as 32-bit ints.
+           t("GLOBAL_IDS GlobalIds vtkIdType"), _vtk_section(ascii, np.arange(ncells), "int32"),
            t("FIELD FieldData 2"), t(f"ids 2 {ncells} int"), _vtk_section(ascii, np.arange(2 * ncells), "int32"),
            t(f"area 1 {ncells} double"), _vtk_section(ascii, np.linspace(0, 1, ncells), "float64")]
     if point_data:
         out += [t(f"POINT_DATA {arr.size}"), t("NORMALS n double"),
-                _vtk_section(ascii, np.ones(3 * arr.size), "float64")]
-        vtype = {"uint8": "unsigned_char", "int16": "short", "float32": "float"}[arr.dtype.name]
+                _vtk_section(ascii, np.ones(3 * arr.size), "float64"), t("TENSORS6 stress float"),
+                _vtk_section(ascii, np.ones(6 * arr.size), "float32"), t("EDGE_FLAGS edges unsigned_char"),
+                _vtk_section(ascii, np.ones(arr.size), "uint8")]
+        vtype = {"uint8": "unsigned_char", "int16": "short", "float32": "float", "int64": "vtktypeint64"}[arr.dtype.name]
         if points_as_field:
             out += [t("FIELD FieldData 2"), t(f"velocity 3 {arr.size} float"),
                     _vtk_section(ascii, np.zeros(3 * arr.size), "float32"),
                     t(f"density 1 {arr.size} {vtype}"), _vtk_section(ascii, arr, arr.dtype)]
         else:
-            out += [t(f"SCALARS density {vtype} 1"), t("LOOKUP_TABLE default"), _vtk_section(ascii, arr, arr.dtype)]
+            # A one-component array of field data before the scalars: the scalars win.
+            out += [t("FIELD FieldData 1"), t(f"other 1 {arr.size} float"),
+                    _vtk_section(ascii, np.zeros(arr.size), "float32"),
+                    t(f"SCALARS density {vtype} 1"), t("LOOKUP_TABLE default"), _vtk_section(ascii, arr, arr.dtype)]
     data = b"".join(out)
     path.write_bytes(data[:len(data) - cut])
     return path
 
 
-@pytest.mark.parametrize("dtype", ["uint8", "int16", "float32"])
+@pytest.mark.parametrize("dtype", ["uint8", "int16", "float32", "int64"])
 @pytest.mark.parametrize("ascii", [False, True])
 @pytest.mark.parametrize("points_as_field", [False, True])
 def test_vtk_reads_past_cell_data_and_other_arrays(tmp_path, dtype, ascii, points_as_field):
-    arr = make_array(dtype)
+    # 64-bit integers that fit in 32 bits come back as 32-bit ones, as a Volume keeps them.
+    arr = make_array("int32").astype(np.int64) if dtype == "int64" else make_array(dtype)
     p = _vtk_with_other_arrays(tmp_path / "many.vtk", arr, ascii, points_as_field=points_as_field)
     vol = load_volume(p)
-    check(vol, arr)
+    check(vol, arr.astype(np.int32) if dtype == "int64" else arr)
     assert vol.meta["scalars"] == "density"
+
+
+def test_vtk_ascii_floats_beyond_float32_are_one_line(tmp_path):
+    p = tmp_path / "big.vtk"
+    p.write_text("# vtk DataFile Version 3.0\nbig\nASCII\nDATASET STRUCTURED_POINTS\nDIMENSIONS 2 2 2\n"
+                 "POINT_DATA 8\nSCALARS s float\nLOOKUP_TABLE default\n1 2 3 4 5 6 7 1e39\n")
+    with pytest.raises(InputError, match="outside the float32 range"):
+        load_volume(p)
 
 
 @pytest.mark.parametrize("ascii", [False, True])
