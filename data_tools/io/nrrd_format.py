@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import bz2
+import contextlib
 import io
 import re
 import zlib
@@ -88,7 +89,11 @@ def _read(path, data_file):
         if isinstance(lines, int) and lines > size:
             raise InputError(f"{path}: line skip {lines} passes the end of the data ({size} bytes)")
         skip = header.get("byteskip", header.get("byte skip", 0))
-        if str(header.get("encoding")).lower() in _COMPRESSED and isinstance(skip, int) and skip > 0:
+        encoding = str(header.get("encoding")).lower()
+        if encoding in _COMPRESSED and skip == -1:
+            raise InputError(f"{path}: byte skip -1 (the data end the file) applies to raw data only, "
+                             f"not {encoding}")
+        if encoding in _COMPRESSED and isinstance(skip, int) and skip > 0:
             data = _read_compressed_skipping(header, fh, path, data_file, lines, skip)
         else:
             data = nrrd.read_data(header, fh, str(path), index_order="C")
@@ -110,18 +115,19 @@ _COMPRESSED = ("gzip", "gz", "bzip2", "bz2")
 def _read_compressed_skipping(header, fh, path, data_file, lines, skip):
     """`nrrd.read_data` for compressed data with a byte skip, which NRRD applies to the
     decompressed bytes (teem's reader does) and pynrrd applied to both, failing on the
-    stream's cut start. Decompressed here, cut, and given to pynrrd as raw data."""
-    if data_file is not None:
-        with open(data_file, "rb") as df:
-            for _ in range(lines if isinstance(lines, int) else 0):
-                df.readline()
-            blob = df.read()
-    else:
-        for _ in range(lines if isinstance(lines, int) else 0):
-            fh.readline()
-        blob = fh.read()
+    stream's cut start. Decompressed here, cut, and given to pynrrd as raw data, with
+    pynrrd's own checks: a gzip stream (not bare zlib), no negative line skip, no bytes
+    past the samples."""
+    if not isinstance(lines, int) or lines < 0:
+        raise InputError(f"{path}: line skip must be 0 or more, got {lines}")
+    with open(data_file, "rb") if data_file is not None else contextlib.nullcontext(fh) as src:
+        for _ in range(lines):
+            src.readline()
+        blob = src.read()
+    if not blob:
+        raise InputError(f"{path}: no {header['encoding']} data after the header (line skip {lines})")
     if str(header["encoding"]).lower() in ("gzip", "gz"):
-        raw = zlib.decompressobj(zlib.MAX_WBITS | 32).decompress(blob)
+        raw = zlib.decompressobj(zlib.MAX_WBITS | 16).decompress(blob)
     else:
         raw = bz2.decompress(blob)
     if skip > len(raw):
@@ -129,7 +135,11 @@ def _read_compressed_skipping(header, fh, path, data_file, lines, skip):
     plain = {key: value for key, value in header.items()
              if key not in ("data file", "datafile", "byte skip", "byteskip", "line skip", "lineskip")}
     plain["encoding"] = "raw"
-    return nrrd.read_data(plain, io.BytesIO(raw[skip:]), str(path), index_order="C")
+    data = nrrd.read_data(plain, io.BytesIO(raw[skip:]), str(path), index_order="C")
+    if len(raw) - skip > data.nbytes:
+        raise InputError(f"{path}: the compressed data hold {len(raw) - skip} bytes after the byte skip, "
+                         f"more than the {data.nbytes} the header states")
+    return data
 
 
 #: Per-axis header fields: an axis dropped takes its entry in each.

@@ -178,11 +178,25 @@ def test_nrrd_byte_skip_applies_to_the_decompressed_bytes(tmp_path, encoding, pa
     check(load_volume(p), arr, (1, 1, 2))
 
 
-def test_nrrd_byte_skip_past_the_decompressed_data_is_one_line(tmp_path):
+def test_nrrd_line_skip_then_byte_skip_of_compressed_data(tmp_path):
+    # The line skip counts lines of the file, the byte skip bytes of the decompressed data.
+    arr = make_array("uint8")
     p = tmp_path / "v.nrrd"
-    p.write_bytes(b"NRRD0004\ntype: uint8\ndimension: 3\nsizes: 5 4 3\nencoding: gzip\nbyte skip: 100\n\n"
-                  + gzip.compress(bytes(60)))
-    with pytest.raises(InputError, match="byte skip 100 passes the end of the 60 decompressed bytes"):
+    p.write_bytes(b"NRRD0004\ntype: uint8\ndimension: 3\nsizes: 5 4 3\nencoding: gzip\nline skip: 2\n"
+                  b"byte skip: 3\n\nfirst line\nsecond line\n" + gzip.compress(b"abc" + arr.tobytes()))
+    check(load_volume(p), arr)
+
+
+@pytest.mark.parametrize("skip, size, message", [
+    (100, 60, "byte skip 100 passes the end of the 60 decompressed bytes"),
+    (4, 4 + 60 + 5, "hold 65 bytes after the byte skip, more than the 60"),
+    (-1, 64, "byte skip -1 .* applies to raw data only, not gzip"),    # teem refuses it too
+])
+def test_nrrd_byte_skip_of_compressed_data_that_does_not_fit_is_one_line(tmp_path, skip, size, message):
+    p = tmp_path / "v.nrrd"
+    p.write_bytes(f"NRRD0004\ntype: uint8\ndimension: 3\nsizes: 5 4 3\nencoding: gzip\nbyte skip: {skip}\n\n"
+                  .encode() + gzip.compress(bytes(size)))
+    with pytest.raises(InputError, match=message):
         load_volume(p)
 
 
