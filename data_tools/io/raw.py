@@ -40,22 +40,21 @@ def guess_from_name(path) -> dict:
     Returns
     -------
     dict
-        Any of ``shape`` ``(nx, ny, nz)``, ``dtype`` (numpy name, the first
-        type named) and ``byte_order`` found in the name; with more than one
-        type named, ``dtypes``, all of them in that order (`read_raw` takes
-        the one the file's size fits). Empty when the name says nothing.
+        Any of ``shape`` ``(nx, ny, nz)``, ``dtype`` (numpy name: the first
+        named with its width, else the first named) and ``byte_order`` found
+        in the name; with more than one type named, ``dtypes``, all of them
+        in that order (`read_raw` takes the one the file's size fits).
+        Empty when the name says nothing.
     """
     stem = Path(path).stem
     found = {}
     m = _SHAPE_RE.search(stem)
     if m:
         found["shape"] = tuple(int(g) for g in m.groups())
-    sized, words = [], []
     for word in re.split(r"[^A-Za-z0-9]+", stem.lower()):
-        if word in DTYPE_WORDS:
-            (sized if any(c.isdigit() for c in word) else words).append(DTYPE_WORDS[word])
-        elif word in _ENDIAN_WORDS:
+        if word in _ENDIAN_WORDS:
             found["byte_order"] = _ENDIAN_WORDS[word]
+    sized, words = _type_words(stem)
     dtypes = list(dict.fromkeys(sized + words))
     if dtypes:
         found["dtype"] = dtypes[0]
@@ -64,26 +63,53 @@ def guess_from_name(path) -> dict:
     return found
 
 
+def _type_words(stem):
+    """The types a name gives: ``(sized, other)``, those named with their width (``uint8``) and
+    the C words (``double``), each in the name's order."""
+    sized, words = [], []
+    for word in re.split(r"[^A-Za-z0-9]+", stem.lower()):
+        if word in DTYPE_WORDS:
+            (sized if any(c.isdigit() for c in word) else words).append(DTYPE_WORDS[word])
+    return list(dict.fromkeys(sized)), list(dict.fromkeys(words))
+
+
 def _fitting_type(path, guess, shape, offset):
-    """The one type among those the name gives (``guess["dtypes"]``) that the file's size
-    fits; the first when none does (the read then says why)."""
+    """The type, among those the name gives, that the file's size fits: one named with its
+    width before a C word; the first named when none fits (the read then says why)."""
     try:
         count = int(np.prod(_parse_shape(shape, path), dtype=np.int64))
-        size = path.stat().st_size - int(offset)
+        size = path.stat().st_size - _whole(offset)
     except (InputError, OSError, TypeError, ValueError):
         return guess["dtype"]       # the read reports these
-    fits = [d for d in guess["dtypes"] if count * np.dtype(d).itemsize == size]
-    if len(fits) > 1:
-        raise InputError(f"{path}: the name gives the sample types {' and '.join(fits)}, and the file's size "
-                         f"fits either; give --dtype")
-    return fits[0] if fits else guess["dtype"]
+    for kind in _type_words(path.stem):
+        fits = [d for d in kind if count * np.dtype(d).itemsize == size]
+        if len(fits) > 1:
+            raise InputError(f"{path}: the name gives the sample types {' and '.join(fits)}, and the file's size "
+                             f"fits either; give --dtype")
+        if fits:
+            return fits[0]
+    return guess["dtype"]
+
+
+def _whole(value):
+    """``value`` as an int: an integer, an integral float or a string of digits; else ValueError
+    (``int()`` would make 4.5 samples 4, silently)."""
+    if isinstance(value, (bool, np.bool_)):
+        raise ValueError(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)) and float(value).is_integer():
+        return int(value)
+    if isinstance(value, str) and re.fullmatch(r"\s*[+-]?\d+\s*", value):
+        return int(value)
+    raise ValueError(value)
 
 
 def _parse_shape(shape, path):
     if isinstance(shape, str):
         shape = [s for s in re.split(r"[x,\s]+", shape.strip().lower()) if s]
     try:
-        dims = tuple(int(s) for s in shape)
+        dims = tuple(_whole(s) for s in shape)
     except (TypeError, ValueError):
         raise InputError(f"{path}: shape must be three integers nx,ny,nz, got {shape!r}") from None
     if len(dims) != 3 or min(dims) < 1:
@@ -149,7 +175,7 @@ def read_raw(path, *, shape=None, dtype=None, byte_order=None, offset=0,
     if str(byte_order).lower() not in ("little", "big"):
         raise InputError(f"{path}: byte order must be 'little' or 'big', got {byte_order!r}")
     try:
-        offset = int(offset)
+        offset = _whole(offset)
     except (TypeError, ValueError):
         raise InputError(f"{path}: offset must be a byte count, got {offset!r}") from None
     if offset < 0:

@@ -114,6 +114,26 @@ def test_raw_name_with_two_types_of_one_width_is_refused(tmp_path, writers):
     check(load_volume(p, dtype="uint32"), make_array("int32").astype(np.uint32))
 
 
+def test_raw_name_sized_word_wins_where_a_c_word_of_its_width_fits_too(tmp_path, writers):
+    # char (int8) and uint8 both fit 60 bytes: the word with its width says which.
+    arr = make_array("uint8")
+    check(load_volume(writers.raw(tmp_path / "char_5x4x3_uint8.raw", arr)), arr)
+    assert guess_from_name("char_5x4x3_uint8.raw")["dtype"] == "uint8"
+
+
+@pytest.mark.parametrize("options, message", [
+    ({"shape": (5.5, 4, 3)}, "shape must be three integers"),
+    ({"shape": "5,4,3.5"}, "shape must be three integers"),
+    ({"shape": (5, 4, 3), "offset": 1.5}, "offset must be a byte count"),
+    ({"shape": (5, 4, 3), "offset": "-2"}, "offset must not be negative"),
+])
+def test_raw_fractional_shape_or_offset_is_refused(tmp_path, writers, options, message):
+    p = writers.raw(tmp_path / "v.raw", make_array("uint8"))
+    with pytest.raises(InputError, match=message):
+        load_volume(p, dtype="uint8", **options)
+    check(load_volume(p, dtype="uint8", shape=(5.0, "4", np.int64(3)), offset=0.0), make_array("uint8"))
+
+
 def test_raw_options_override_name_and_accept_strings(tmp_path, writers):
     arr = make_array("uint16", shape=(2, 3, 10))
     p = writers.raw(tmp_path / "wrong_5x4x3_uint8.raw", arr)
