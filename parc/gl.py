@@ -129,17 +129,12 @@ def rasterizer_start_wait(renderer, environ):
     if "llvmpipe" not in renderer or not hasattr(os, "sched_getaffinity"):
         return 0.0
     try:
-        if len(_cpus()) > LLVMPIPE_MAX_THREADS:
-            return 0.0
-    except OSError:
+        cpus = len(_cpus())
+        threads = int(environ.get("LP_NUM_THREADS", "").strip() or cpus)
+    except (OSError, ValueError):
         return 0.0
-    asked = environ.get("LP_NUM_THREADS", "").strip()
-    if asked:
-        try:
-            if int(asked) < len(_cpus()):
-                return 0.0
-        except ValueError:
-            return 0.0
+    if threads < cpus or cpus > LLVMPIPE_MAX_THREADS:
+        return 0.0
     return RASTERIZER_START_WAIT
 
 

@@ -94,10 +94,10 @@ def _read(path, data_file):
             raise InputError(f"{path}: byte skip -1 (the data end the file) applies to raw data only, "
                              f"not {encoding}")
         if encoding in _COMPRESSED and isinstance(skip, int) and skip > 0:
-            data = _read_compressed_skipping(header, fh, path, data_file, lines, skip)
+            data = _read_compressed_skipping(header, encoding, fh, path, data_file, lines, skip)
         else:
             data = nrrd.read_data(header, fh, str(path), index_order="C")
-        if str(header.get("encoding")).lower() in _TEXT and data.dtype.kind in "iu":
+        if encoding in _TEXT and data.dtype.kind in "iu":
             fh.seek(start)
             exact = nrrd.read_data(dict(header, type="double"), fh, str(path), index_order="C")
             wrong = np.flatnonzero(exact.ravel() != data.ravel())
@@ -112,7 +112,7 @@ def _read(path, data_file):
 _COMPRESSED = ("gzip", "gz", "bzip2", "bz2")
 
 
-def _read_compressed_skipping(header, fh, path, data_file, lines, skip):
+def _read_compressed_skipping(header, encoding, fh, path, data_file, lines, skip):
     """`nrrd.read_data` for compressed data with a byte skip, which NRRD applies to the
     decompressed bytes (teem's reader does) and pynrrd applied to both, failing on the
     stream's cut start. Decompressed here, cut, and given to pynrrd as raw data, with
@@ -125,8 +125,8 @@ def _read_compressed_skipping(header, fh, path, data_file, lines, skip):
             src.readline()
         blob = src.read()
     if not blob:
-        raise InputError(f"{path}: no {header['encoding']} data after the header (line skip {lines})")
-    if str(header["encoding"]).lower() in ("gzip", "gz"):
+        raise InputError(f"{path}: no {encoding} data after the header (line skip {lines})")
+    if encoding in ("gzip", "gz"):
         raw = zlib.decompressobj(zlib.MAX_WBITS | 16).decompress(blob)
     else:
         raw = bz2.decompress(blob)

@@ -201,9 +201,6 @@ def _skip_attribute(f, lines, encoding, words, count, path, section):
     elif key == "FIELD":
         _field_arrays(f, lines, encoding, words, path)
         return
-    elif key == "METADATA":
-        _skip_metadata(f, path, ncomp)
-        return
     else:
         raise InputError(f"{path}: unexpected line in the VTK {section}: {' '.join(words)[:60]!r}")
     _after_array(f, path, ncomp)
@@ -285,8 +282,6 @@ def read_vtk(path) -> Volume:
                     break
                 elif key == "FIELD":
                     _field_arrays(f, lines, encoding, words, path)     # the dataset's own (a time value)
-                elif key == "METADATA":
-                    _skip_metadata(f, path, 1)
                 elif not key.startswith("#"):
                     raise InputError(f"{path}: unexpected VTK header line {' '.join(words)[:60]!r}")
             else:
@@ -313,9 +308,6 @@ def read_vtk(path) -> Volume:
                     found = _field_arrays(f, lines, encoding, words, path, want=npoints)
                     field = field or found
                     continue
-                if key not in _ATTRIBUTE_VALUES and key not in ("TEXTURE_COORDINATES", "LOOKUP_TABLE", "METADATA"):
-                    raise InputError(f"{path}: expected SCALARS name type after POINT_DATA, "
-                                     f"got {' '.join(words)[:60]!r}")
                 _skip_attribute(f, lines, encoding, words, npoints, path, "POINT_DATA")
             else:
                 raise InputError(f"{path}: no scalars in the VTK POINT_DATA")
@@ -356,7 +348,7 @@ def read_vtk(path) -> Volume:
         if encoding == "BINARY":
             # Legacy binary VTK is big-endian by definition; trailing sections are ignored.
             data = read_samples(path, offset, dims, dtype, True, exact=False, kind="VTK")
-    meta = {"format": "vtk", "scalars": words[1] if len(words) > 1 else ""}
+    meta = {"format": "vtk", "scalars": words[1]}
     return Volume(data, spacing=spacing or (1.0, 1.0, 1.0), origin=origin, name=str(path), meta=meta)
 
 
