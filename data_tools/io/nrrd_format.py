@@ -93,8 +93,8 @@ def _read(path, data_file):
         if encoding in _COMPRESSED and skip == -1:
             raise InputError(f"{path}: byte skip -1 (the data end the file) applies to raw data only, "
                              f"not {encoding}")
-        if encoding in _COMPRESSED and isinstance(skip, int) and skip > 0:
-            data = _read_compressed_skipping(header, encoding, fh, path, data_file, lines, skip)
+        if encoding in _COMPRESSED and isinstance(skip, int) and skip >= 0:
+            data = _read_compressed(header, encoding, fh, path, data_file, lines, skip)
         else:
             data = nrrd.read_data(header, fh, str(path), index_order="C")
         if encoding in _TEXT and data.dtype.kind in "iu":
@@ -112,12 +112,13 @@ def _read(path, data_file):
 _COMPRESSED = ("gzip", "gz", "bzip2", "bz2")
 
 
-def _read_compressed_skipping(header, encoding, fh, path, data_file, lines, skip):
-    """`nrrd.read_data` for compressed data with a byte skip, which NRRD applies to the
-    decompressed bytes (teem's reader does) and pynrrd applied to both, failing on the
-    stream's cut start. Decompressed here, cut, and given to pynrrd as raw data, with
-    pynrrd's own checks: a gzip stream (not bare zlib), no negative line skip, no bytes
-    past the samples."""
+def _read_compressed(header, encoding, fh, path, data_file, lines, skip):
+    """`nrrd.read_data` for compressed data, decompressed here and given to pynrrd as raw
+    data, with pynrrd's own checks (a gzip stream, not bare zlib; no negative line skip; no
+    bytes past the samples). Two things pynrrd does differently from teem's reader: it
+    applied a byte skip to both the stream and the decompressed bytes, failing on the
+    stream's cut start (NRRD applies it to the decompressed bytes), and it read only the
+    first member of a gzip file or stream of a bzip2 one (`_decompress`)."""
     if not isinstance(lines, int) or lines < 0:
         raise InputError(f"{path}: line skip must be 0 or more, got {lines}")
     with open(data_file, "rb") if data_file is not None else contextlib.nullcontext(fh) as src:
@@ -126,10 +127,7 @@ def _read_compressed_skipping(header, encoding, fh, path, data_file, lines, skip
         blob = src.read()
     if not blob:
         raise InputError(f"{path}: no {encoding} data after the header (line skip {lines})")
-    if encoding in ("gzip", "gz"):
-        raw = zlib.decompressobj(zlib.MAX_WBITS | 16).decompress(blob)
-    else:
-        raw = bz2.decompress(blob)
+    raw = _decompress(blob, encoding)
     if skip > len(raw):
         raise InputError(f"{path}: byte skip {skip} passes the end of the {len(raw)} decompressed bytes")
     plain = {key: value for key, value in header.items()
@@ -140,6 +138,25 @@ def _read_compressed_skipping(header, encoding, fh, path, data_file, lines, skip
         raise InputError(f"{path}: the compressed data hold {len(raw) - skip} bytes after the byte skip, "
                          f"more than the {data.nbytes} the header states")
     return data
+
+
+def _decompress(blob, encoding):
+    """The bytes of every member of a gzip file (as ``cat a.gz b.gz`` or a parallel
+    compressor writes them; teem's reader, through zlib's ``gzread``, reads them all) or
+    every stream of a bzip2 one (``pbzip2``). What follows the last member and is not
+    another is ignored, as both readers ignore it."""
+    if encoding not in ("gzip", "gz"):
+        return bz2.decompress(blob)
+    raw = bytearray()
+    while True:
+        member = zlib.decompressobj(zlib.MAX_WBITS | 16)
+        raw += member.decompress(blob)
+        blob = member.unused_data
+        if not (member.eof and blob.startswith(_GZIP_MAGIC)):
+            return raw
+
+
+_GZIP_MAGIC = b"\x1f\x8b"
 
 
 #: Per-axis header fields: an axis dropped takes its entry in each.

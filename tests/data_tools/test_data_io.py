@@ -207,6 +207,23 @@ def test_nrrd_line_skip_then_byte_skip_of_compressed_data(tmp_path):
     check(load_volume(p), arr)
 
 
+@pytest.mark.parametrize("encoding, pack", [("gzip", gzip.compress), ("bzip2", bz2.compress)])
+@pytest.mark.parametrize("skip", [0, 5])
+@pytest.mark.parametrize("tail", [b"", b"\0\0\0\0"], ids=["end", "padded"])
+def test_nrrd_compressed_data_in_several_members_are_read_whole(tmp_path, encoding, pack, skip, tail):
+    # A gzip file may hold several members (cat a.gz b.gz; parallel compressors write one per
+    # block) and a bzip2 file several streams (pbzip2): the samples are all of them, as teem
+    # reads them, and padding after the last is ignored. The cut falls inside a sample.
+    arr = make_array("int16")
+    body = b"ABCDE"[:skip] + arr.astype("<i2").tobytes()
+    cut = len(body) // 3 + 1
+    p = tmp_path / "m.nrrd"
+    p.write_bytes(f"NRRD0004\ntype: int16\ndimension: 3\nsizes: 5 4 3\nendian: little\nencoding: {encoding}\n"
+                  f"byte skip: {skip}\n\n".encode() + pack(body[:cut]) + pack(body[cut:2 * cut])
+                  + pack(body[2 * cut:]) + tail)
+    check(load_volume(p), arr)
+
+
 @pytest.mark.parametrize("skip, size, message", [
     (100, 60, "byte skip 100 passes the end of the 60 decompressed bytes"),
     (4, 4 + 60 + 5, "hold 65 bytes after the byte skip, more than the 60"),
