@@ -431,3 +431,55 @@ def test_the_ideal_tables_ratio_is_touched_over_ideal():
     from parc.bench.report import ideal
     md, _ = ideal(_hand_results(t1_rows=[_t1("parc", 125)]))          # ideal 50, touched 125
     assert next(line for line in md if "Table 1 CT translucent" in line).split("|")[-2].strip() == "2.5"
+
+
+def _t3_run(method, phases, seconds, cells, solves, shadow_cells, shadow_solves, speedup):
+    """A `parc.compare` row as `parc.bench.tables.table3` reads it."""
+    return {"method": method, "phases": phases, "seconds": seconds, "cells_visited": cells, "cubic_solves": solves,
+            "shadow_cells": shadow_cells, "shadow_solves": shadow_solves, "speedup": speedup,
+            "hit_mismatches": 0, "max_depth_cells": 0.0, "max_color": 0.0, "psnr": float("inf")}
+
+
+def test_table3_splits_primary_and_shadow_time_and_divides_by_brute_at_the_same_size(monkeypatch, tmp_path):
+    """Primary casting is the cast plus the proxy's rasterization, shadow time the shadow rays
+    plus the lights' rasterization, primary total the frame less the shadow time, the ideal
+    counts brute's cubics at that size (the rows' own may differ); each speedup
+    is brute's time over the method's at the same image size, and the report shows each in its
+    column (hand-made runs, sums by hand)."""
+    from types import SimpleNamespace
+
+    from parc.bench import tables
+    runs = {8: [_t3_run("brute", {"cast": 2.0, "shadow": 3.0}, 6.0, 100, 40, 50, 20, 1.0),
+                _t3_run("parc", {"cast": 0.3, "raster": 0.2, "shadow": 0.5, "raster_lights": 0.5}, 2.0,
+                        60, 39, 30, 19, 3.0)],
+            16: [_t3_run("brute", {"cast": 9.0, "shadow": 4.0}, 15.0, 400, 160, 90, 35, 1.0),
+                 _t3_run("parc", {"cast": 1.0, "raster": 0.5, "shadow": 1.5, "raster_lights": 0.5}, 5.0,
+                         200, 158, 70, 34, 3.0)]}
+    monkeypatch.setattr(tables.scenes, "neuron_floor", lambda size, *a: (SimpleNamespace(size=size), "stand-in"))
+    monkeypatch.setattr(tables, "_rows", lambda scene, *a: copy.deepcopy(runs[scene.size]))
+    suite = SimpleNamespace(sizes=(8, 16), data_dir=None, small_volumes=True, repeats=1)
+    res = tables.table3(suite, lambda m: None, {})
+    got = {(r["method"], r["size"]): r for r in res["rows"]}
+    assert list(got) == [("brute", 8), ("parc", 8), ("brute", 16), ("parc", 16)]
+    want = {  # (primary cast, primary total, shadow, primary speedup, shadow speedup)
+        ("brute", 8): (2.0, 3.0, 3.0, 1.0, 1.0), ("parc", 8): (0.5, 1.0, 1.0, 4.0, 3.0),
+        ("brute", 16): (9.0, 11.0, 4.0, 1.0, 1.0), ("parc", 16): (1.5, 3.0, 2.0, 6.0, 2.0)}
+    for key, (cast, total, shadow, primary_x, shadow_x) in want.items():
+        r = got[key]
+        assert (r["primary_cast_seconds"], r["primary_total_seconds"], r["shadow_seconds"]) == \
+            pytest.approx((cast, total, shadow)), key
+        assert (r["primary_speedup"], r["shadow_speedup"]) == pytest.approx((primary_x, shadow_x)), key
+        assert (r["ideal_primary_cells"], r["ideal_shadow_cells"]) == ((40, 20) if key[1] == 8 else (160, 35))
+    assert got[("parc", 16)]["primary_cells"] == 200 and got[("parc", 16)]["shadow_cells"] == 70
+    from parc.bench.report import paper_tables
+    md = paper_tables({"table1": {"rows": [], "source": "-", "work_size": 8}, "table2": {"rows": [], "source": "-"},
+                       "table3": res}, tmp_path)
+    after = md[md.index("### Table 3: neuron on a floor, two shadowing point lights (Fig. 13)"):]
+    lines = next(part for part in after if part.startswith("| method")).splitlines()
+    head = [c.strip() for c in lines[0].strip("|").split("|")]
+    shown = [dict(zip(head, (c.strip() for c in line.strip("|").split("|")))) for line in lines[2:]]
+    assert [(r["method"], r["primary speedup"], r["shadow speedup"], r["total speedup"]) for r in shown] == [
+        ("brute", "1.00×", "1.00×", "1.00×"), ("parc", "4.00×", "3.00×", "3.00×"),
+        ("brute", "1.00×", "1.00×", "1.00×"), ("parc", "6.00×", "2.00×", "3.00×")]
+    assert [(r["primary casting (s)"], r["primary total (s)"], r["shadow (s)"]) for r in shown[:2]] == [
+        ("2.000", "3.000", "3.000"), ("0.500", "1.000", "1.000")]

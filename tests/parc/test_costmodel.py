@@ -201,3 +201,71 @@ def test_projected_share_is_the_share_of_axis_rays_that_meet_the_pc_region(seed)
         hits += area * met.mean()
         weight += area
     assert projected_share(pc, edges) == pytest.approx(hits / weight, abs=0.01)
+
+
+def _model_expected(index, iso, m, *, pixels, rays, cores, renderer):
+    """One row of the cost model by its documented formulas, the counts by the slow loops above."""
+    pc = index.classify(iso, m)
+    share = projected_share(pc, index.grid(m).world_edges(index.volume))
+    fixed, per_strip = costmodel.raster_costs(renderer)
+    rays_pc = (costmodel.RAY_COVER * pixels if rays is None else rays) * share
+    cells = rays_pc * costmodel.WALK_CELLS * (1.0 - 2.0 ** -m)
+    return {"faces": len(_faces_loop(pc)), "strips": _strips_loop(pc), "share": share, "rays": rays_pc,
+            "raster_s": fixed * pixels / 512 ** 2 + per_strip * _strips_loop(pc), "cells": cells,
+            "cast_s": (rays_pc * costmodel.CAST_PER_RAY_S + cells * costmodel.CAST_PER_CELL_S) / cores,
+            "supercells": pc.size, "pc_supercells": int(pc.sum())}
+
+
+@pytest.mark.parametrize("renderer", ["llvmpipe", "NVIDIA H100"])
+@pytest.mark.parametrize("pixels, rays, cores", [(300 * 200, None, 3), (512 * 512, 5000, 1)])
+def test_model_rows_follow_the_documented_formulas(renderer, pixels, rays, cores):
+    """`choose_supercell`'s Notes: rasterization scales with the image and the strips,
+    casting with the rays that reach the PC region and the cells they walk, over the cores."""
+    from data_tools.synthetic import blobs
+    index = VolumeIndex.of(blobs(20, seed=2, count=3))
+    size, table = choose_supercell(index, 100.0, pixels=pixels, rays=rays, cores=cores,
+                                   candidates=(1, 2, 3, 5), renderer=renderer)
+    assert [r["size"] for r in table] == [1.0, 2.0, 3.0, 5.0]
+    for r in table:
+        want = _model_expected(index, 100.0, int(r["size"]), pixels=pixels, rays=rays, cores=cores,
+                               renderer=renderer)
+        for key, value in want.items():
+            assert r[key] == pytest.approx(value, rel=1e-12), (r["size"], key)
+        assert r["total_s"] == pytest.approx(want["raster_s"] + want["cast_s"], rel=1e-12)
+    assert size == min(table, key=lambda r: r["total_s"])["size"]
+
+
+def test_the_pick_trades_polygons_against_cells_walked(monkeypatch):
+    """Free polygons leave only casting, which the finest supercells minimise (their PC region
+    lies inside every coarser one's, and their walks are shortest); free casting leaves only
+    the strips, and the pick is the size with the fewest."""
+    from data_tools.synthetic import blobs
+    index = VolumeIndex.of(blobs(24, seed=5, count=4))
+    candidates = (1, 2, 4, 8)
+    fewest = min(candidates, key=lambda m: (_strips_loop(index.classify(90.0, m)), m))
+    assert fewest != 1
+    size, _ = choose_supercell(index, 90.0, cores=10 ** 12, candidates=candidates, renderer="llvmpipe")
+    assert size == fewest
+    monkeypatch.setattr(costmodel, "RASTER_PER_STRIP_S", 0.0)
+    size, table = choose_supercell(index, 90.0, cores=2, candidates=candidates, renderer="llvmpipe")
+    assert size == 1.0
+    casts = [r["cast_s"] for r in table]
+    assert casts == sorted(casts) and casts[0] < casts[-1]
+
+
+def test_the_renderer_models_its_own_image_size():
+    """Without a supercell size the renderer asks the model for the frame's pixels and
+    builds the proxy at the size with the least estimated time."""
+    from data_tools.synthetic import blobs
+    from parc.renderer import cached_proxy
+    from parc.scene import Isosurface
+    vol = blobs(20, seed=2, count=3)
+    fixed, per_strip = costmodel.raster_costs()
+    for w, h in ((64, 48), (800, 600)):
+        _, extra = cached_proxy(Isosurface(vol, 100.0), None, (w, h), {})
+        table = extra["supercell_model"]
+        for r in table:
+            assert r["raster_s"] == pytest.approx(fixed * w * h / 512 ** 2 + per_strip * r["strips"], rel=1e-12)
+            assert r["rays"] == pytest.approx(costmodel.RAY_COVER * w * h * r["share"], rel=1e-12)
+        best = min(table, key=lambda r: r["total_s"])["size"]
+        assert extra["supercell"] == [best] * 3

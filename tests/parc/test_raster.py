@@ -422,3 +422,56 @@ def test_parallel_inside_in_bands(gl, monkeypatch):
     monkeypatch.setattr(origins, "_BAND_PIXELS", 40)
     banded = origins.parallel_inside(cam, 37, 29, proxy)
     assert whole.any() and np.array_equal(whole, banded)
+
+
+def _one_box_proxy():
+    """A proxy of one PC supercell, the box [0, 4]^3."""
+    from parc.classify import supercell_grid
+    vol = Volume(np.zeros((5, 5, 5), np.float32))
+    grid = supercell_grid((5, 5, 5), 4)
+    return build_proxy(grid, np.ones((1, 1, 1), bool), grid.world_edges(vol))
+
+
+def test_eye_inside_a_hair_below_a_face_raises_far_past_the_clipped_sliver(gl, looseness):
+    """An eye inside the PC region clips faces at ``clip_near`` ahead of it: a wide-angle ray
+    that leaves through a face a few ``clip_near`` away, at a forward distance below it, has
+    no fragment, and its far must come from the CPU's raise to ``2 clip_near / cos_max``
+    (``cos_max`` the widest ray's cosine), not ``2 clip_near``: here such rays leave at about
+    ``3 clip_near``. Truth: the reference's exit through the face."""
+    from parc.raster import INSIDE_CLIP_REL, _scene_scale
+    proxy = _one_box_proxy()
+    eye = np.array([0.5, 2.0, 4.0])
+    width, height = 16, 40
+
+    def camera(at):
+        return Camera(eye=tuple(at), look_at=tuple(at + np.array([1.0, 0.0, 0.0])), up=(0, 0, 1), fov=160.0)
+
+    gap = 3.0 * INSIDE_CLIP_REL * _scene_scale(camera(eye), *proxy.bounds, width / height)
+    eye[2] -= gap                  # inside, the top face 3 clip_near above the eye
+    seg, near_ref, far_ref = _check(camera(eye), proxy, width, height, "eye a hair below a face", looseness)
+    clip = seg.info["clip_near"]
+    assert seg.info["eye_inside"] and 2.9 < gap / clip < 3.1
+    # Rays that leave through the top face before the clip plane, but after 2 clip_near:
+    sliver = (far_ref > 2.5 * clip) & (far_ref < 3.5 * clip)
+    assert sliver.sum() >= width
+    assert (seg.near[sliver] == 0).all() and (seg.far[sliver] >= far_ref[sliver]).all()
+    assert seg.info["pixels"] == np.count_nonzero(seg.near <= seg.far) == width * height
+
+
+def test_parallel_view_plane_a_hair_before_a_face_keeps_it(gl, looseness):
+    """A parallel view clips faces a rounding *behind* its view plane, never in front of it:
+    a face a few roundings ahead (two ``TOL_REL`` of the scene scale, far more than the
+    origins' own rounding, so no ray starts on the box) bounds near."""
+    from parc.raster import TOL_REL, _scene_scale
+    proxy = _one_box_proxy()
+    width, height = 20, 16
+
+    def camera(x):
+        return Camera(eye=(x, 2.0, 2.0), look_at=(x + 1.0, 2.0, 2.0), up=(0, 0, 1), parallel_scale=3.0)
+
+    gap = 2.0 * TOL_REL * _scene_scale(camera(0.0), *proxy.bounds, width / height)
+    seg, near_ref, _ = _check(camera(-gap), proxy, width, height, "parallel plane a hair before a face", looseness)
+    assert not seg.info["eye_inside"]
+    face = np.isfinite(near_ref)
+    assert face.sum() > width and (near_ref[face] > 0).all() and (near_ref[face] < 2 * gap).all()
+    assert seg.info["pixels"] == np.count_nonzero(seg.near <= seg.far)

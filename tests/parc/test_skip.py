@@ -362,3 +362,29 @@ def test_ray_octants_cover_every_pixel(parallel):
         arr = cam.as_array()
         seen = {octant(*camera_ray(arr, w, h, x, y)[3:]) for x in range(w) for y in range(h)}
         assert seen <= set(ray_octants(cam, w, h)), (eye, look)
+
+
+def test_a_segment_start_takes_the_sign_of_the_cell_before_from_the_table():
+    """The table's sign is the one a cell hands on, also to a walk that starts in the next cell.
+
+    Samples ``x - 2.5`` along x: a ray along +x has its root at x = 2.5, in cell 2. A table
+    calling cell 1 (all below) above the isovalue makes the walk hand cell 2 a sign it does
+    not start with, so cell 2 is hit at its entry, x = 2 (`raycast.iso.cast_iso_ray`'s
+    entry-sign rule). A walk started inside cell 2 must take that sign from the table too
+    (`raycast.iso._entry_sign`), or a segment start would change the hit.
+    """
+    x = np.arange(6, dtype=np.float64)
+    data = np.broadcast_to(x - 2.5, (3, 3, 6)).copy()
+    sc = _Grid(data, (0.0, 0.0, 0.0), (1.0, 1.0, 1.0))
+    eyes = np.array([[-3.0, 0.5, 0.5], [-3.0, 1.25, 0.75], [-3.0, 2.0, 1.0]])
+    dirs = np.tile([1.0, 0.0, 0.0], (len(eyes), 1))
+    table = sign_table(data, 0.0, cap=1)
+    assert (table[:, :, 1] == -1).all() and (table[:, :, 2] == 0).all()
+    lying = table.copy()
+    lying[:, :, 1] = 1
+    for seg in (None, np.tile([0.0, np.inf], (3, 1)), np.tile([5.2, np.inf], (3, 1)), np.tile([5.5, 7.0], (3, 1))):
+        for tab, want_x in ((table, 2.5), (lying, 2.0)):
+            for jump_min in (0, 1):
+                t, cell, uvw, _ = cast(sc, eyes, dirs, 0.0, seg, skip=(tab, jump_min))
+                assert np.array_equal(t, np.full(3, want_x + 3.0)), (seg, want_x, jump_min)
+                assert (cell[:, 0] == 2).all() and np.array_equal(uvw[:, 0], np.full(3, want_x - 2.0))

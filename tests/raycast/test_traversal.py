@@ -115,3 +115,35 @@ def test_advance_lands_where_start_index_starts(seed):
         want = start_index(O, D, t, n)
         assert got[0] == want, (O, D, t0, t, got, want)
         assert got[1:] == axis_state(O, D, want)[2:], (O, D, t0, t)
+
+
+@pytest.mark.parametrize("signs", [(1, 1, 1), (-1, 1, -1), (1, -1, 1), (-1, -1, -1)])
+def test_ties_step_x_then_y_then_z(signs):
+    """A ray through a row of vertices crosses three planes at once at each: the walk steps
+    x, then y, then z (`step_axis`), through two cells it only touches there, whatever the
+    ray's octant -- the order `raycast.iso` takes the cell before a segment's start cell by."""
+    from raycast.traverse import step_cell, walk_from
+    n = 6
+    s = np.array(signs, float)
+    a = 1.0 / np.sqrt(3.0)
+    d = a * s
+    o = np.where(s > 0, 0.0, n - 1.0) + 0.5 * s       # a cell centre, half a cell from a vertex
+    i, j, k, sx, sy, sz, ix, iy, iz, tx0, tx1, ty0, ty1, tz0, tz1 = walk_from(*o, *d, 0.0, n, n, n)
+    cells, lengths = [], []
+    inside = True
+    while inside:
+        cells.append((i, j, k))
+        lengths.append(min(tx1, ty1, tz1) - max(tx0, ty0, tz0))
+        inside, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1 = step_cell(*o, sx, sy, sz, ix, iy, iz, i, j, k,
+                                                                  tx0, tx1, ty0, ty1, tz0, tz1, n, n, n)
+    # By hand: from the start cell c, each vertex steps x, y, z in turn.
+    start = np.where(s > 0, 0, n - 2)
+    want = [tuple(start)]
+    for _ in range(n - 2):
+        for axis in range(3):
+            nxt = list(want[-1])
+            nxt[axis] += int(s[axis])
+            want.append(tuple(nxt))
+    assert cells == want
+    assert lengths[1::3] == lengths[2::3] == [0.0] * (n - 2)       # touched at the vertex only
+    assert all(length > 0.5 for length in lengths[0::3])
