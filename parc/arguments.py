@@ -198,11 +198,13 @@ def build_parser():
     c.add_argument("--methods", default="brute,parc", metavar="LIST",
                    help="comma-separated methods (default brute,parc; brute always runs as the reference)")
     c.add_argument("--sweep-supercell", metavar="LIST",
-                   help="run parc once per supercell size, e.g. 0.5,1,2,4,8: speed against error")
+                   help="run parc once per supercell size, e.g. 0.5,1,2,4,8: speed against error "
+                        "(sizes of M,N,P cells apart by ';': '2,2,4;4,4,8')")
     c.add_argument("--sweep-step", metavar="LIST",
                    help="with --tf: run brute and parc once per sample step, e.g. 1,0.5,0.25, against a "
                         "reference at the finest step / 4: speed against error")
-    c.add_argument("--repeats", type=int, default=3, help="timed renders per method; the median is reported")
+    c.add_argument("--repeats", type=int, default=3,
+                   help="timed renders per method, after one to warm up; the median is reported (default 3)")
     c.add_argument("--json", action="store_true",
                    help="print the rows as JSON instead of a table (strict JSON: psnr null means identical images)")
     _add_common_options(c)

@@ -179,7 +179,8 @@ def supercell_grid(dims, size):
     # Counted before the edges are built: a size of 1e-9 would ask for gigabytes of them.
     total = math.prod(max(1, math.ceil((n - 1 - SNAP) / m)) for n, m in zip(dims, size))
     if total > MAX_SUPERCELLS:
-        raise InputError(f"supercell size {_fmt_size(size)} gives {total} supercells "
+        count = f"{total:.3g}" if total < 1e300 else f"about 1e{len(str(total)) - 1}"   # not 300 digits
+        raise InputError(f"supercell size {_fmt_size(size)} gives {count} supercells "
                          f"(at most {MAX_SUPERCELLS}); choose a larger size")
     edges = tuple(_axis_edges(n, m) for n, m in zip(dims, size))
     return SupercellGrid(size=size, dims=tuple(int(n) for n in dims), edges=edges)

@@ -118,8 +118,7 @@ def _error(text):
 def _main(argv):
     args = build_parser().parse_args(argv)
     if args.command is None:
-        build_parser().print_help()
-        return EXIT_USAGE
+        raise InputError("give a command: render, compare, bench, info, convert or make (parc --help lists them)")
     args.argv = argv
     if sys.stdout is None and args.command in ("info", "compare"):
         # Started with stdout closed (>&-): what it prints would be lost without a word.
@@ -140,6 +139,10 @@ def cmd_info(args):
     return 0
 
 
+#: Synthetic volumes from this many samples up take seconds to make (neuron at 400: 9 s): say so.
+LARGE_MAKE_SAMPLES = 300 ** 3
+
+
 def cmd_make(args):
     from data_tools.io import save_volume
     from data_tools.synthetic import check_synthetic_size, make_synthetic
@@ -151,6 +154,9 @@ def cmd_make(args):
         raise InputError(f"--seed must be 0 or more, got {args.seed}")
     if args.size is not None:
         check_synthetic_size(args.size, f"--size {args.size}", args.name)
+    if args.size is not None and args.size ** 3 >= LARGE_MAKE_SAMPLES:
+        # neuron at 600 took 25 s, at 700 a minute: without a word it looks hung.
+        note(f"making {args.name} {args.size}x{args.size}x{args.size}: this can take a minute ...")
     try:
         vol = make_synthetic(args.name, args.size, **kwargs)
     except TypeError:
@@ -193,6 +199,12 @@ def _refuse_overwriting_input(out, inputs):
     the volume was read from (the header and its samples, or a raw file itself), or the data
     file of the other kind of header beside it (``STEM.nhdr`` for ``STEM.mhd``)."""
     from data_tools.io import data_file_written
+    if out.suffix.lower() == ".raw":
+        # A .raw output beside a header that keeps its samples there would change what that header reads.
+        for header in (out.with_suffix(".mhd"), out.with_suffix(".nhdr")):
+            if _exists(header) and _exists(out):
+                raise InputError(f"{out}: holds {header.name}'s samples, which writing it would replace; "
+                                 "write the output under another name")
     data = data_file_written(out)
     if data is None:
         return

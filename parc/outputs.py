@@ -14,6 +14,7 @@ import numpy as np
 
 from data_tools import InputError
 from data_tools.errors import os_reason
+from data_tools.signals import signals_held
 
 
 def to_json(obj):
@@ -92,8 +93,9 @@ def atomic_write_all(writes):
         os.umask(umask)
         for tmp, path in done:
             os.chmod(tmp, 0o666 & ~umask)    # mkstemp makes owner-only files; outputs are ordinary files
-        for tmp, path in done:
-            os.replace(tmp, path)
+        with signals_held():        # a Ctrl-C between two renames would leave a mixed set
+            for tmp, path in done:
+                os.replace(tmp, path)
     except OSError as exc:
         # Name the user's file: the temporary one beside it means nothing to them.
         raise InputError(f"{path}: cannot write ({os_reason(exc)})") from None

@@ -344,8 +344,23 @@ def _light_buffer_size(light_buffer):
 
 
 def casters_for(scene, methods=("brute",), buffers=DEFAULT_BUFFERS):
-    """The Numba casters rendering ``scene`` with ``methods`` runs, the kernels whose first
-    compile takes seconds (`parc.outputs.compile_notice`)."""
+    """The Numba kernels rendering ``scene`` with ``methods`` runs whose first compile takes
+    seconds (`parc.outputs.compile_notice`): the casters, and with PARC its own (the segments'
+    unpacking, the skip tables), which took 5 s behind a silent 0% once `brute`'s were cached.
+    Only kernels this scene compiles: one it never uses would announce a compile every run."""
+    kernels = _casters_for(scene, methods, buffers)
+    if "parc" in methods:
+        from . import raster, skip
+        if len(scene.volumes) > 1 or "depth" in parse_buffers(buffers):
+            kernels.append(raster.unpack_segments)
+        if any(not isinstance(v, Translucent) for v in scene.volumes):
+            kernels += skip.OCTANT_KERNELS          # the camera rays' tables
+        if any(isinstance(v, Translucent) for v in scene.volumes) or (scene.shadows and scene.lights):
+            kernels += skip.CENTRED_KERNELS         # translucent volumes', shadow rays'
+    return kernels
+
+
+def _casters_for(scene, methods, buffers):
     from raycast import composite, iso, merged, shadow
     bits = "parc" in methods and "bits" in parse_buffers(buffers)
     trans = [v for v in scene.volumes if isinstance(v, Translucent)]

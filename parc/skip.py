@@ -219,3 +219,8 @@ def _octant_grow(c, inner, axis, step, cap, out):
                 dd = np.int8(d + 1)
                 for i in range(nx):
                     out[k, j, i] += np.int8(low[i] >= dd)
+
+
+#: The kernels each kind of table compiles on its first use (`parc.renderer.casters_for`).
+CENTRED_KERNELS = (_radius_rows, _radius_columns)
+OCTANT_KERNELS = (_octant_runs, _octant_grow)

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError, os_reason
+from ..signals import signals_held
 from ..volume import Volume
 from . import metaimage, nifti, npy, nrrd_format, raw, slc, tiff, vtk_legacy
 from ._common import check_file, reading
@@ -179,10 +180,11 @@ def save_volume(volume: Volume, path, **options) -> Path:
     try:
         tmpdir = Path(tempfile.mkdtemp(prefix=".parc-", dir=path.parent))
         writers[ext](volume, tmpdir / path.name, **options)
-        for f in sorted(tmpdir.iterdir()):
-            if f.name != path.name:
-                os.replace(f, path.parent / f.name)
-        os.replace(tmpdir / path.name, path)
+        with signals_held():        # a header and its data file are replaced together
+            for f in sorted(tmpdir.iterdir()):
+                if f.name != path.name:
+                    os.replace(f, path.parent / f.name)
+            os.replace(tmpdir / path.name, path)
     except OSError as exc:
         raise InputError(f"{path}: cannot write: {os_reason(exc)}") from None
     except UnicodeEncodeError:

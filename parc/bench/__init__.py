@@ -24,7 +24,6 @@ import contextlib
 import os
 import platform
 import shutil
-import signal
 import tempfile
 import time
 from dataclasses import asdict, dataclass, field, replace
@@ -34,6 +33,7 @@ import numpy as np
 
 from data_tools import InputError
 from data_tools.errors import os_reason
+from data_tools.signals import signals_held
 
 from ..outputs import compile_notice, note, to_json
 from .scenes import default_data_dir
@@ -218,29 +218,10 @@ def _publish(stage, out):
     files = sorted(p for p in stage.rglob("*") if p.is_file())
     names = [p.relative_to(stage) for p in files]
     _check_places(out, names, {str(n.parent) for n in names if n.parent != Path(".")})
-    with _signals_held():
+    with signals_held():         # the report's files move in all together or not at all
         for path, name in zip(files, names):
             (out / name).parent.mkdir(parents=True, exist_ok=True)
             shutil.move(path, out / name)           # a rename; a copy where a folder in out is a mount
-
-
-@contextlib.contextmanager
-def _signals_held(signums=(signal.SIGINT, signal.SIGTERM, signal.SIGHUP)):
-    """Hold Ctrl-C and the stop signals until the block ends, then act on them as they would have:
-    the report's files are moved in all together or not at all."""
-    held, was = [], {}
-    try:
-        for signum in signums:
-            was[signum] = signal.signal(signum, lambda n, frame: held.append(n))
-    except ValueError:          # not the main thread: nothing to hold
-        pass
-    try:
-        yield
-    finally:
-        for signum, handler in was.items():
-            signal.signal(signum, handler)
-        for signum in dict.fromkeys(held):
-            signal.raise_signal(signum)
 
 
 def _run(out, suite, say, command):

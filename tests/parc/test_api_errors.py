@@ -58,6 +58,8 @@ CASES = {
     "work for a lit scene": (lambda: parc.render(_scene(lights=[parc.PointLight((1, 2, 3))]), work=True),
                              "one volume without lights"),
     "supercell 1e-9": (lambda: parc.render(_scene(), method="parc", supercell=1e-9), "choose a larger size"),
+    # Short, not a 300-digit count (nor a float too large for the count's format).
+    "supercell 1e-300": (lambda: parc.render(_scene(), method="parc", supercell=1e-300), "gives about 1e9"),
     "light buffer of 2.5": (lambda: parc.render(_scene(), light_buffer=2.5), "light buffers"),
     "light buffer of 1e9": (lambda: parc.render(_scene(lights=[parc.PointLight((1, 2, 3))]), light_buffer=10**9),
                             "light buffers"),

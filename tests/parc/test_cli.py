@@ -277,6 +277,18 @@ def test_headers_that_name_their_data_file(vol_file, tmp_path, capsys):
     rc, _, err = _run(["make", "sphere", "--size", 8, "-o", tmp_path / "v.nhdr"], capsys)
     assert rc == 2 and "which holds v.mhd's" in err, err
     assert (tmp_path / "v.raw").read_bytes() == before and not (tmp_path / "v.nhdr").exists()
+    # Nor may a bare .raw output replace them (v.mhd would read the new samples).
+    for argv in (["make", "torus", "--size", 8], ["convert", vol_file]):
+        rc, _, err = _run(argv + ["-o", tmp_path / "v.raw"], capsys)
+        assert rc == 2 and err.count("\n") == 1 and "v.raw: holds v.mhd's samples" in err, err
+        assert (tmp_path / "v.raw").read_bytes() == before
+    rc, _, err = _run(["make", "torus", "--size", 8, "-o", tmp_path / "w.raw"], capsys)
+    assert rc == 0 and (tmp_path / "w.raw").exists(), err
+
+
+def test_no_command_is_one_line(capsys):
+    rc, out, err = _run([], capsys)
+    assert rc == 2 and out == "" and err.count("\n") == 1 and err.startswith("parc: error: give a command"), err
 
 
 def test_a_vtk_title_is_one_ascii_line(tmp_path, capsys):
@@ -793,9 +805,12 @@ def test_a_cache_folder_that_cannot_be_written_is_named(vol_file, tmp_path, caps
 def test_a_first_run_says_the_casters_compile(vol_file, tmp_path, capsys, monkeypatch):
     """With no compiled kernel cached for these sources, render says why its progress is late; once one is, not."""
     import numba.core.config
+
+    import raycast.config       # noqa: F401 - first, or its import sets the folder patched here
     empty = tmp_path / "cache"
     (empty / "raycast_0123").mkdir(parents=True)      # Numba makes its folders before it compiles anything
     monkeypatch.setattr(numba.core.config, "CACHE_DIR", str(empty))
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(empty))  # Numba reloads its config from the environment
     render = ["render", vol_file, "--iso", 4, "--size", 8, 8, "-o"]
     rc, _, err = _run(render + [tmp_path / "a.png"], capsys)
     assert rc == 0 and "compiling the ray casters for this machine, once" in err
@@ -814,7 +829,8 @@ def test_a_first_run_says_the_casters_compile(vol_file, tmp_path, capsys, monkey
 
 def test_the_casters_a_render_is_said_to_compile_are_those_it_runs(gl):
     """`parc.renderer.casters_for` (which the first-compile notice checks) names kernels each kind of
-    render runs: after the render, each has a compiled or loaded signature."""
+    render runs: after the render, each has a compiled or loaded signature. PARC's list holds its
+    own kernels besides the casters (`brute`'s cached, its first render compiled for seconds unsaid)."""
     import parc
     from data_tools.synthetic import blobs
     from parc.renderer import casters_for
@@ -825,6 +841,9 @@ def test_the_casters_a_render_is_said_to_compile_are_those_it_runs(gl):
     far = tuple(2.0 * np.array(vol.bounds[1]))
     kinds = [
         ([iso], [], "brute", "depth"),
+        ([iso], [], "parc", "depth"),
+        ([iso], [parc.PointLight(far)], "parc", "depth"),
+        ([parc.Translucent(vol, "greyscale")], [], "parc", "bits"),
         ([parc.Translucent(vol, "greyscale", shade=True)], [], "brute", "depth"),
         ([parc.Translucent(vol, "greyscale")], [], "parc", "depth,bits"),
         ([iso, parc.Translucent(vol, "greyscale", mode="mip"), parc.Translucent(vol, "viridis", shade=True)],
@@ -835,6 +854,8 @@ def test_the_casters_a_render_is_said_to_compile_are_those_it_runs(gl):
         parc.render(scene, method, **({"buffers": buffers} if method == "parc" else {}))
         named = casters_for(scene, (method,), buffers)
         assert named and all(k.signatures for k in named), [k.py_func.__qualname__ for k in named]
+        if method == "parc":
+            assert set(named) - set(casters_for(scene, ("brute",), buffers))
 
 
 def _readme_command_lines():
@@ -1150,3 +1171,12 @@ def test_no_blocks_reaches_the_render(tmp_path, capsys, gl):
                            "-o", tmp_path / "a.png", "--stats", tmp_path / "s.json"], capsys)
         assert rc == 0, err
         assert json.loads((tmp_path / "s.json").read_text())["blocks"] is blocks
+
+
+def test_a_large_make_says_it_takes_time(tmp_path, capsys, monkeypatch):
+    import parc.cli
+    monkeypatch.setattr(parc.cli, "LARGE_MAKE_SAMPLES", 10 ** 3)
+    rc, _, err = _run(["make", "sphere", "--size", 9, "-o", tmp_path / "a.nrrd"], capsys)
+    assert rc == 0 and "making" not in err, err
+    rc, _, err = _run(["make", "sphere", "--size", 10, "-o", tmp_path / "b.nrrd"], capsys)
+    assert rc == 0 and err.startswith("parc: making sphere 10x10x10: this can take a minute"), err
