@@ -2,6 +2,8 @@
 from __future__ import annotations
 
 import json
+import math
+import os
 import tokenize
 from pathlib import Path
 
@@ -41,7 +43,10 @@ def read_npy(path) -> Volume:
             if f.read(6) != b"\x93NUMPY":
                 raise InputError(f"{path}: not a NumPy .npy file (bad magic bytes)")
         try:
+            _check_length(path)
             data = np.load(path, allow_pickle=False)
+        except InputError:
+            raise
         except (SyntaxError, tokenize.TokenError):
             # NumPy parses the header as a Python literal: a broken one fails as the parser
             # does, with the parser's words about a line of its own.
@@ -73,6 +78,25 @@ def read_npy(path) -> Volume:
                 raise InputError(f"{side}: {key} must be an array of three numbers, got {json.dumps(value)}")
         meta["sidecar"] = str(side)
     return Volume(data, spacing=spacing, origin=origin, name=str(path), meta=meta)
+
+
+def _check_length(path):
+    """Refuse a file shorter than its header's array before NumPy allocates it: a truncated file
+    whose header claims a huge array failed as out of memory, not as truncated."""
+    fmt = np.lib.format
+    with open(path, "rb") as f:
+        version = fmt.read_magic(f)
+        if version not in ((1, 0), (2, 0)):
+            return              # NumPy's own read tells
+        read = fmt.read_array_header_1_0 if version == (1, 0) else fmt.read_array_header_2_0
+        shape, _, dtype = read(f)
+        if dtype.hasobject:
+            return
+        need = f.tell() + math.prod(shape) * dtype.itemsize
+        size = os.fstat(f.fileno()).st_size
+    if size < need:
+        raise InputError(f"{path}: truncated: its header's {'x'.join(map(str, shape))} {dtype} array needs "
+                         f"{need} bytes, the file has {size}")
 
 
 def save_array(path, array):

@@ -115,6 +115,19 @@ def test_raw_only_options_rejected_for_headed_formats(tmp_path):
 
 # --- npy -------------------------------------------------------------------
 
+@pytest.mark.parametrize("shape", [(10, 10, 10), (100000, 100000, 100000)])
+@pytest.mark.parametrize("version", [(1, 0), (2, 0)])
+def test_npy_shorter_than_its_header_says_is_truncated(tmp_path, shape, version):
+    # Said before NumPy allocates the array: a huge one failed as out of memory.
+    p = tmp_path / "t.npy"
+    with open(p, "wb") as f:
+        np.lib.format.write_array_header_1_0(f, {"descr": "<f4", "fortran_order": False, "shape": shape}) \
+            if version == (1, 0) else \
+            np.lib.format.write_array_header_2_0(f, {"descr": "<f4", "fortran_order": False, "shape": shape})
+        f.write(bytes(64))
+    fails(p, f"truncated: its header's {'x'.join(map(str, shape))} float32 array needs")
+
+
 def test_npy_nan_and_wrong_rank(tmp_path):
     a = np.zeros((3, 3, 3))
     a[0, 0, 0] = np.inf
