@@ -66,12 +66,21 @@ def get_context():
         import moderngl
     except ImportError as exc:  # pragma: no cover - moderngl is a dependency
         raise OpenGLUnavailable(f"OpenGL is not available: cannot import moderngl ({exc})") from None
+    # Mesa's EGL prints its warnings ("failed to create dri2 screen", one per device tried)
+    # on stderr, ahead of the one line a failure is; a user who sets the level sees them.
+    quiet = "EGL_LOG_LEVEL" not in os.environ
+    if quiet:
+        os.environ["EGL_LOG_LEVEL"] = "fatal"
     try:
         ctx = moderngl.create_standalone_context(backend="egl", require=430)
     except Exception as exc:  # moderngl raises plain Exceptions from the driver
         reason = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+        hint = "; EGL_LOG_LEVEL=debug shows the driver's own messages" if quiet else ""
         raise OpenGLUnavailable(f"OpenGL is not available: no headless EGL context with "
-                                f"OpenGL 4.3 ({reason})") from None
+                                f"OpenGL 4.3 ({reason}){hint}") from None
+    finally:
+        if quiet:
+            del os.environ["EGL_LOG_LEVEL"]
     # Buffers uploaded for a proxy are released when the proxy goes away.
     ctx.gc_mode = "auto"
     spread_rasterizer_threads(wait=rasterizer_start_wait(ctx.info.get("GL_RENDERER", ""), os.environ))

@@ -9,6 +9,10 @@ than the reference the segments are (in cells) is reported at the end of
 the run, not asserted.
 """
 
+import os
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 
@@ -397,6 +401,45 @@ def test_opengl_unavailable_is_an_input_error(monkeypatch):
     assert issubclass(gl.OpenGLUnavailable, InputError)
     msg = str(err.value)
     assert "\n" not in msg and "OpenGL is not available" in msg and "eglGetDisplay failed" in msg
+
+
+def test_the_drivers_warnings_are_held_back_while_the_context_is_made(monkeypatch):
+    """Mesa's EGL warnings would come before the one error line: quiet unless the user set
+    EGL_LOG_LEVEL, and the environment is as it was afterwards."""
+    import moderngl
+
+    from parc import gl
+    seen = []
+
+    def fail(**kwargs):
+        seen.append(os.environ.get("EGL_LOG_LEVEL"))
+        raise Exception("eglInitialize failed (0x3001)")
+
+    monkeypatch.setattr(gl, "_CONTEXT", None)
+    monkeypatch.setattr(moderngl, "create_standalone_context", fail)
+    monkeypatch.delenv("EGL_LOG_LEVEL", raising=False)
+    with pytest.raises(gl.OpenGLUnavailable, match="EGL_LOG_LEVEL=debug shows the driver's own messages"):
+        gl.get_context()
+    assert seen == ["fatal"] and "EGL_LOG_LEVEL" not in os.environ
+    monkeypatch.setenv("EGL_LOG_LEVEL", "debug")
+    with pytest.raises(gl.OpenGLUnavailable) as err:
+        gl.get_context()
+    assert seen == ["fatal", "debug"] and os.environ["EGL_LOG_LEVEL"] == "debug"
+    assert "EGL_LOG_LEVEL" not in str(err.value)
+
+
+def test_no_opengl_is_one_line_on_stderr(tmp_path):
+    """With Mesa asked for a driver it lacks, the whole of stderr is the error line (where the
+    driver is not Mesa's, the render works, and there is nothing to see)."""
+    env = dict(os.environ, GALLIUM_DRIVER="no-such-driver", MESA_LOADER_DRIVER_OVERRIDE="no-such-driver")
+    env.pop("EGL_LOG_LEVEL", None)
+    p = subprocess.run([sys.executable, "-m", "parc.cli", "render", "--method", "parc", "--size", "8", "8",
+                        "-o", str(tmp_path / "a.png")], env=env, capture_output=True, text=True)
+    if p.returncode == 0:
+        pytest.skip("this machine's EGL does not go through Mesa's drivers")
+    assert p.returncode == 2 and p.stderr.count("\n") == 1, p.stderr
+    assert p.stderr.startswith("parc: error: OpenGL is not available"), p.stderr
+    assert not (tmp_path / "a.png").exists()
 
 
 @pytest.mark.parametrize("w, h", [(1, 1), (3, 61), (57, 2)])
