@@ -429,6 +429,7 @@ def _refuse_parc_flags(args, why):
 
 def _check_sweep_flags(args):
     """Refuse compare flags a sweep would ignore: one sweep at a time, and no fixed setting of what it varies."""
+    from .comparison import method_names
     if args.sweep_step is not None and args.sweep_supercell is not None:
         raise InputError("give --sweep-step or --sweep-supercell, not both")
     if args.sweep_step is not None:
@@ -439,7 +440,7 @@ def _check_sweep_flags(args):
         return
     if sweep == "--sweep-supercell" and args.supercell is not None:
         raise InputError("--supercell does not combine with --sweep-supercell (it varies the supercell)")
-    if args.methods != "brute,parc":
+    if set(method_names(args.methods)) != {"brute", "parc"}:
         raise InputError(f"--methods does not combine with {sweep} (it runs brute and parc itself)")
     if sweep == "--sweep-step" and args.step is not None:
         raise InputError("--step does not combine with --sweep-step (it varies the step)")

@@ -173,6 +173,8 @@ def method_names(methods):
     if not names:
         raise InputError(f"methods names no method, got {methods!r}; name some, such as 'brute,parc'")
     for m in names:
+        if m.endswith(":"):
+            raise InputError(f"method {m!r} has an empty label; write one after the colon, as in 'parc:a'")
         if m.split(":")[0] not in METHODS:
             raise InputError(f"unknown method {m!r}; choose from {', '.join(METHODS)} "
                              "(a label may follow a colon, as in 'parc:a', to time a method twice)")

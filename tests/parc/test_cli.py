@@ -682,7 +682,9 @@ def test_supercell_sweep_takes_sizes_per_axis(vol_file, capsys):
     (["--sweep-step", "nan"], "--sweep-step must be"),
     (["--sweep-step", "1", "--sweep-supercell", "2"], "not both"),
     (["--sweep-supercell", "1,2", "--supercell", "3"], "--supercell does not combine"),
-    (["--sweep-supercell", "1,2", "--methods", "parc"], "--methods does not combine"),
+    (["--sweep-supercell", "1,2", "--methods", "parc:a"], "--methods does not combine"),
+    (["--sweep-step", "1", "--methods", "brute"], "--methods does not combine"),
+    (["--methods", "brute,parc:"], "'parc:' has an empty label"),
     (["--sweep-step", "1e-4"], "reference step"),
     (["--sweep-supercell", "4,4.0"], "--sweep-supercell gives 4 twice"),
     (["--methods", ""], "methods names no method"),
@@ -691,6 +693,15 @@ def test_supercell_sweep_takes_sizes_per_axis(vol_file, capsys):
 def test_bad_sweeps_are_refused_before_any_work(extra, words, vol_file, capsys):
     rc, out, err = _run(["compare", vol_file, "--tf", "greyscale", "--size", 8, 8, "--repeats", 1] + extra, capsys)
     assert rc == 2 and err.count("\n") == 1 and words in err, err
+
+
+@pytest.mark.parametrize("methods", ["parc,brute", "brute,parc", "parc"])
+def test_a_sweep_takes_methods_that_name_what_it_runs(methods, vol_file, capsys):
+    # brute always runs, and the order is not the user's to get right.
+    rc, out, err = _run(["compare", vol_file, "--iso", 4, "--size", 8, 8, "--repeats", 1, "--json",
+                         "--methods", methods, "--sweep-supercell", "2"], capsys)
+    assert rc == 0, err
+    assert [r["method"] for r in json.loads(out)] == ["brute", "parc:2"]
 
 
 def test_compare_json_and_step_sweep(vol_file, capsys):
