@@ -174,7 +174,14 @@ def run_bench(out, suite=None, *, progress=None, command=None):
     _check_places(out, REPORT_FILES, ["images"])
     stage = _stage_for(out)
     try:
-        res = _run(stage, suite, progress or (lambda msg: None), command)
+        try:
+            res = _run(stage, suite, progress or (lambda msg: None), command)
+        except OSError as exc:
+            # A write into the hidden folder: its name, or none (a picture's save on a full
+            # disk), would mean nothing to the user; the report's would.
+            if exc.filename is not None and stage not in Path(exc.filename).parents:
+                raise
+            raise InputError(f"{out}: cannot write the report: {os_reason(exc)}") from None
         _publish(stage, out)
     finally:
         shutil.rmtree(stage, ignore_errors=True)

@@ -221,6 +221,25 @@ def test_an_interrupted_bench_leaves_no_folder_or_the_earlier_report_whole(tmp_p
     assert sorted(p.name for p in tmp_path.rglob(".*")) == []          # no staging folder left
 
 
+@pytest.mark.parametrize("where", ["no file", "staged file", "other file"])
+def test_a_full_disk_names_the_report_not_the_hidden_folder(tmp_path, monkeypatch, where):
+    import parc.bench
+
+    def run(stage, suite, say, command):
+        name = {"no file": None, "staged file": str(stage / "images" / "t.png"), "other file": "/data/x.nrrd"}[where]
+        raise OSError(28, "No space left on device", name)
+    monkeypatch.setattr(parc.bench, "_run", run)
+    out = tmp_path / "rep"
+    if where == "other file":          # a file the suite reads: its own name says it
+        with pytest.raises(OSError) as exc:
+            run_bench(out, Suite.tiny())
+        assert exc.value.filename == "/data/x.nrrd"
+    else:
+        with pytest.raises(InputError, match=r"^\S*rep: cannot write the report: No space left on device$"):
+            run_bench(out, Suite.tiny())
+    assert list(tmp_path.iterdir()) == []
+
+
 @pytest.mark.parametrize("taken, words", [("report.md/", "is a folder; the report writes a file there"),
                                           ("results.json/", "is a folder; the report writes a file there"),
                                           ("images", "is a file; the report writes a folder there")])
