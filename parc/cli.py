@@ -139,7 +139,7 @@ def cmd_info(args):
     return 0
 
 
-#: Synthetic volumes from this many samples up take seconds to make (neuron at 400: 9 s): say so.
+#: Synthetic volumes from this many samples up take seconds to make (neuron at 300: 4 s, at 600: 25 s): say so.
 LARGE_MAKE_SAMPLES = 300 ** 3
 
 
@@ -156,7 +156,7 @@ def cmd_make(args):
         check_synthetic_size(args.size, f"--size {args.size}", args.name)
     if args.size is not None and args.size ** 3 >= LARGE_MAKE_SAMPLES:
         # neuron at 600 took 25 s, at 700 a minute: without a word it looks hung.
-        note(f"making {args.name} {args.size}x{args.size}x{args.size}: this can take a minute ...")
+        note(f"making {args.name} {args.size}x{args.size}x{args.size} ({args.size ** 3:,} samples) ...")
     try:
         vol = make_synthetic(args.name, args.size, **kwargs)
     except TypeError:

@@ -1190,4 +1190,4 @@ def test_a_large_make_says_it_takes_time(tmp_path, capsys, monkeypatch):
     rc, _, err = _run(["make", "sphere", "--size", 9, "-o", tmp_path / "a.nrrd"], capsys)
     assert rc == 0 and "making" not in err, err
     rc, _, err = _run(["make", "sphere", "--size", 10, "-o", tmp_path / "b.nrrd"], capsys)
-    assert rc == 0 and err.startswith("parc: making sphere 10x10x10: this can take a minute"), err
+    assert rc == 0 and err.startswith("parc: making sphere 10x10x10 (1,000 samples) ..."), err
