@@ -3,6 +3,8 @@ noisy blobs here; a confocal neuron and a floor for shadows (`data_tools.neuron`
 phantoms (`data_tools.phantom`), all importable from here."""
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .errors import InputError
@@ -265,6 +267,25 @@ def check_synthetic_size(size, what, name=None):
         dims[2] = max(8, int(size) // 8)          # a floor is thin (`floor`)
     per_sample = SLAB_BYTES_PER_SAMPLE.get(name, SYNTHETIC_BYTES_PER_SAMPLE)
     check_memory(per_sample * float(np.prod(dims)), what)
+
+
+#: Synthetic volumes from this many samples up take seconds to make (neuron at 300: 4 s, at 600:
+#: 25 s), which a run says first (`making_note`) so that it does not look hung.
+LARGE_SYNTHETIC_SAMPLES = 300 ** 3
+
+
+def making_note(name, size):
+    """``making NAME NxNxN (S samples) ...`` for a volume of at least `LARGE_SYNTHETIC_SAMPLES`
+    samples (``size`` one number or three), else None."""
+    if size is None:
+        return None
+    dims = [int(size)] * 3 if np.ndim(size) == 0 else [int(n) for n in size]
+    if name == "floor" and np.ndim(size) == 0:
+        dims[2] = max(8, int(size) // 8)          # a floor is thin (`floor`)
+    samples = math.prod(dims)
+    if samples < LARGE_SYNTHETIC_SAMPLES:
+        return None
+    return f"making {name} {'x'.join(map(str, dims))} ({samples:,} samples) ..."
 
 
 def make_synthetic(name, size=None, **kwargs) -> Volume:

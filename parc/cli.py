@@ -139,13 +139,9 @@ def cmd_info(args):
     return 0
 
 
-#: Synthetic volumes from this many samples up take seconds to make (neuron at 300: 4 s, at 600: 25 s): say so.
-LARGE_MAKE_SAMPLES = 300 ** 3
-
-
 def cmd_make(args):
     from data_tools.io import save_volume
-    from data_tools.synthetic import check_synthetic_size, make_synthetic
+    from data_tools.synthetic import check_synthetic_size, make_synthetic, making_note
     out = check_output(args.output, (".nrrd", ".nhdr", ".npy", ".mhd", ".mha", ".vtk", ".raw"))
     kwargs = {} if args.seed is None else {"seed": args.seed}
     if args.size is not None and args.size < 2:
@@ -154,9 +150,9 @@ def cmd_make(args):
         raise InputError(f"--seed must be 0 or more, got {args.seed}")
     if args.size is not None:
         check_synthetic_size(args.size, f"--size {args.size}", args.name)
-    if args.size is not None and args.size ** 3 >= LARGE_MAKE_SAMPLES:
-        # neuron at 600 took 25 s, at 700 a minute: without a word it looks hung.
-        note(f"making {args.name} {args.size}x{args.size}x{args.size} ({args.size ** 3:,} samples) ...")
+    making = making_note(args.name, args.size)
+    if making:
+        note(making)
     try:
         vol = make_synthetic(args.name, args.size, **kwargs)
     except TypeError:

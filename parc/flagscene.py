@@ -14,6 +14,7 @@ from data_tools import InputError
 from data_tools.info import exact_text
 
 from .camera import unit_vector
+from .outputs import note
 
 
 def load_volume_flags(args):
@@ -71,7 +72,7 @@ def _file_scene(args):
             raise InputError(f"{flag} does not apply to a scene file ({args.volume}); "
                              f"set {name} in its [[volume]] tables")
     view = {"eye": args.eye, "look_at": args.look_at, "up": args.up, "fov": args.fov, "parallel": args.parallel}
-    scene = load_scene(args.volume, view=view, size=args.size)
+    scene = load_scene(args.volume, view=view, size=args.size, progress=None if args.quiet else note)
     if getattr(args, "background", None) is not None:
         scene = replace(scene, background=args.background)
     return scene

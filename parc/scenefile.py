@@ -86,7 +86,7 @@ DEFAULT_FOV = 30.0
 DEFAULT_UP = (0.0, 0.0, 1.0)
 
 
-def load_scene(path, *, view=None, size=None) -> Scene:
+def load_scene(path, *, view=None, size=None, progress=None) -> Scene:
     """Read a scene file (see the module notes for the schema).
 
     Parameters
@@ -101,6 +101,8 @@ def load_scene(path, *, view=None, size=None) -> Scene:
         ``fov`` drops its ``parallel``. For the command line's view flags.
     size : (width, height), optional
         Replaces the file's image size.
+    progress : callable(str), optional
+        Told, in a line, before a synthetic volume that takes seconds to make.
 
     Returns
     -------
@@ -118,7 +120,7 @@ def load_scene(path, *, view=None, size=None) -> Scene:
         raise InputError(f"load_scene takes the path of a scene file, got {type(path).__name__}")
     if view is not None and (not isinstance(view, dict) or set(view) - set(CAMERA_KEYS)):
         raise InputError(f"view takes camera settings keyed {', '.join(CAMERA_KEYS)}, got {view!r}")
-    where = Where(path)
+    where = Where(path, progress)
     doc = where.read()
     top = Table(where, "", doc, TOP_KEYS)
 
@@ -312,7 +314,7 @@ def _read_file(where, t, cache):
 
 
 def _make_synthetic(where, t, cache):
-    from data_tools.synthetic import SYNTHETIC, check_synthetic_size, make_synthetic
+    from data_tools.synthetic import SYNTHETIC, check_synthetic_size, make_synthetic, making_note
     name = t.string("synthetic")
     if name not in SYNTHETIC:
         raise t.error("synthetic", f"unknown synthetic volume {name!r}; choose from {', '.join(SYNTHETIC)}")
@@ -336,6 +338,9 @@ def _make_synthetic(where, t, cache):
         kwargs["seed"] = seed
     source = ("synthetic", name, size, kwargs.get("seed"))
     if source not in cache:
+        making = making_note(name, size)
+        if making:
+            where.progress(making)
         try:
             with where.key(t.key("synthetic")):
                 cache[source] = make_synthetic(name, size, **kwargs)

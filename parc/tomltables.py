@@ -26,9 +26,11 @@ from data_tools.errors import os_reason
 class Where:
     """The scene file being read: formats errors as ``FILE: KEY: message``."""
 
-    def __init__(self, path):
+    def __init__(self, path, progress=None):
         self.path = Path(path)
         self.folder = self.path.parent
+        #: Told, in a line, of work that takes seconds (a large synthetic volume made).
+        self.progress = progress or (lambda text: None)
 
     def error(self, key, message):
         return InputError(f"{self.path}: {key}: {message}" if key else f"{self.path}: {message}")

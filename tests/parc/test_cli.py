@@ -1185,9 +1185,18 @@ def test_no_blocks_reaches_the_render(tmp_path, capsys, gl):
 
 
 def test_a_large_make_says_it_takes_time(tmp_path, capsys, monkeypatch):
-    import parc.cli
-    monkeypatch.setattr(parc.cli, "LARGE_MAKE_SAMPLES", 10 ** 3)
+    import data_tools.synthetic
+    monkeypatch.setattr(data_tools.synthetic, "LARGE_SYNTHETIC_SAMPLES", 10 ** 3)
     rc, _, err = _run(["make", "sphere", "--size", 9, "-o", tmp_path / "a.nrrd"], capsys)
     assert rc == 0 and "making" not in err, err
     rc, _, err = _run(["make", "sphere", "--size", 10, "-o", tmp_path / "b.nrrd"], capsys)
     assert rc == 0 and err.startswith("parc: making sphere 10x10x10 (1,000 samples) ..."), err
+    # So does a scene file's, before the render (not with --quiet).
+    scene = tmp_path / "s.toml"
+    scene.write_text('size = [8, 8]\n[[volume]]\nsynthetic = "sphere"\nsize = 11\niso = 0.5\n'
+                     '[[volume]]\nsynthetic = "floor"\nsize = 10\niso = 127.5\n')
+    rc, _, err = _run(["render", scene, "-o", tmp_path / "s.png"], capsys)
+    assert rc == 0 and err.startswith("parc: making sphere 11x11x11 (1,331 samples) ...\n"), err
+    assert "making floor" not in err                # 10 x 10 x 8 samples: a floor is thin
+    rc, _, err = _run(["render", scene, "-o", tmp_path / "t.png", "--quiet"], capsys)
+    assert rc == 0 and err == "", err
