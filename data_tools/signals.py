@@ -14,11 +14,9 @@ STOPS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") 
 def signals_held(signums=STOPS):
     """Hold ``signums`` until the block ends, then act on them as they would have."""
     held, was = [], {}
-    try:
+    with contextlib.suppress(ValueError):           # not the main thread: nothing to hold
         for signum in signums:
             was[signum] = signal.signal(signum, lambda n, frame: held.append(n))
-    except ValueError:          # not the main thread: nothing to hold
-        pass
     try:
         yield
     finally:

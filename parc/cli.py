@@ -9,6 +9,7 @@ place only once whole.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import signal
 import sys
@@ -20,6 +21,7 @@ from data_tools import InputError
 from data_tools.errors import os_reason
 from data_tools.info import exact_text
 from data_tools.io.npy import save_array
+from data_tools.signals import STOPS
 
 from .arguments import build_parser, join_signed_values, supercell_size
 from .flagscene import load_volume_flags, scene_and_notes
@@ -101,11 +103,10 @@ def _stop_on_signals():
     def stop(signum, frame):
         raise _Stopped(signum)
     replaced = {}
-    for signum in (signal.SIGTERM, signal.SIGHUP):
-        try:
-            replaced[signum] = signal.signal(signum, stop)
-        except (ValueError, OSError):     # not the main thread, or no such signal here
-            pass
+    for signum in STOPS:
+        if signum != signal.SIGINT:     # Ctrl-C stays KeyboardInterrupt
+            with contextlib.suppress(ValueError, OSError):     # not the main thread, or no such signal here
+                replaced[signum] = signal.signal(signum, stop)
     return replaced
 
 
@@ -191,30 +192,25 @@ def _exists(path):
 
 
 def _refuse_overwriting_input(out, inputs):
-    """Refuse an output whose detached data file (``.mhd``, ``.nhdr``: ``STEM.raw``) is a file
-    the volume was read from (the header and its samples, or a raw file itself), or the data
-    file of the other kind of header beside it (``STEM.nhdr`` for ``STEM.mhd``)."""
+    """Refuse an output whose samples file (a ``.raw`` output itself; ``STEM.raw`` for a
+    ``.mhd`` or ``.nhdr``) is a file the volume was read from (the header and its samples, or a
+    raw file itself), or the data file of a header beside it (``STEM.nhdr`` for ``STEM.mhd``,
+    either for ``STEM.raw``): writing it would change what that header reads."""
     from data_tools.io import data_file_written
-    if out.suffix.lower() == ".raw":
-        # A .raw output beside a header that keeps its samples there would change what that header reads.
-        for header in (out.with_suffix(".mhd"), out.with_suffix(".nhdr")):
-            if _exists(header) and _exists(out):
-                raise InputError(f"{out}: holds {header.name}'s samples, which writing it would replace; "
-                                 "write the output under another name")
-    data = data_file_written(out)
-    if data is None:
+    samples = out if out.suffix.lower() == ".raw" else data_file_written(out)
+    if samples is None:
         return
     for source in inputs:
-        if source is not None and Path(source).resolve() == data.resolve():
-            raise InputError(f"{out}: would write its samples to {data}, which the volume is read from; "
+        if source is not None and Path(source).resolve() == samples.resolve():
+            raise InputError(f"{out}: would write its samples to {samples}, which the volume is read from; "
                              "write the output elsewhere or under another name")
     for other in (out.with_suffix(".mhd"), out.with_suffix(".nhdr")):
-        if other.suffix != out.suffix.lower() and _exists(other) and data.exists():
-            raise InputError(f"{out}: would write its samples to {data}, which holds {other.name}'s; "
-                             "write the output under another name")
-    if data.exists() and not _exists(out):
+        if other.suffix != out.suffix.lower() and _exists(other) and _exists(samples):
+            raise InputError(f"{out}: {samples.name} holds {other.name}'s samples, which writing it would "
+                             "replace; write the output under another name")
+    if samples != out and samples.exists() and not _exists(out):
         # Rewriting an earlier output replaces its data file too; any other file of that name is not ours.
-        raise InputError(f"{out}: would write its samples to {data}, which exists and is no earlier "
+        raise InputError(f"{out}: would write its samples to {samples}, which exists and is no earlier "
                          f"{out.name}'s; remove it or write the output under another name")
 
 

@@ -361,6 +361,7 @@ def casters_for(scene, methods=("brute",), buffers=DEFAULT_BUFFERS):
 
 
 def _casters_for(scene, methods, buffers):
+    """The casters alone, as `casters_for` names them."""
     from raycast import composite, iso, merged, shadow
     bits = "parc" in methods and "bits" in parse_buffers(buffers)
     trans = [v for v in scene.volumes if isinstance(v, Translucent)]

@@ -140,6 +140,9 @@ def _read_compressed(header, encoding, fh, path, data_file, lines, skip):
     return data
 
 
+_GZIP_MAGIC = b"\x1f\x8b"
+
+
 def _decompress(blob, encoding):
     """The bytes of every member of a gzip file (as ``cat a.gz b.gz`` or a parallel
     compressor writes them; teem's reader, through zlib's ``gzread``, reads them all) or
@@ -154,9 +157,6 @@ def _decompress(blob, encoding):
         blob = member.unused_data
         if not (member.eof and blob.startswith(_GZIP_MAGIC)):
             return raw
-
-
-_GZIP_MAGIC = b"\x1f\x8b"
 
 
 #: Per-axis header fields: an axis dropped takes its entry in each.

@@ -275,12 +275,12 @@ def test_headers_that_name_their_data_file(vol_file, tmp_path, capsys):
     assert rc == 0, err
     before = (tmp_path / "v.raw").read_bytes()
     rc, _, err = _run(["make", "sphere", "--size", 8, "-o", tmp_path / "v.nhdr"], capsys)
-    assert rc == 2 and "which holds v.mhd's" in err, err
+    assert rc == 2 and "v.raw holds v.mhd's samples" in err, err
     assert (tmp_path / "v.raw").read_bytes() == before and not (tmp_path / "v.nhdr").exists()
     # Nor may a bare .raw output replace them (v.mhd would read the new samples).
     for argv in (["make", "torus", "--size", 8], ["convert", vol_file]):
         rc, _, err = _run(argv + ["-o", tmp_path / "v.raw"], capsys)
-        assert rc == 2 and err.count("\n") == 1 and "v.raw: holds v.mhd's samples" in err, err
+        assert rc == 2 and err.count("\n") == 1 and "v.raw: v.raw holds v.mhd's samples" in err, err
         assert (tmp_path / "v.raw").read_bytes() == before
     rc, _, err = _run(["make", "torus", "--size", 8, "-o", tmp_path / "w.raw"], capsys)
     assert rc == 0 and (tmp_path / "w.raw").exists(), err
