@@ -105,8 +105,9 @@ def load_volume(path, **options) -> Volume:
 
 def _read_from(vol, path):
     """``vol`` with ``meta['files']``: every file it was read from (the file named, a header's
-    detached data file, a sidecar), which the command line never writes over."""
-    vol.meta["files"] = tuple(str(p) for p in (path, vol.meta.get("data_file"), vol.meta.get("sidecar")) if p)
+    detached data file or files, a sidecar), which the command line never writes over."""
+    named = (path, vol.meta.get("data_file"), *vol.meta.get("data_files", ()), vol.meta.get("sidecar"))
+    vol.meta["files"] = tuple(str(p) for p in named if p)
     return vol
 
 

@@ -60,6 +60,8 @@ def read_nrrd(path) -> Volume:
     meta = {"format": "nrrd", "encoding": header.get("encoding")}
     if data_file is not None:
         meta["data_file"] = str(data_file)
+    if "data files" in header:
+        meta["data_files"] = tuple(str(p) for p in header["data files"][0])
     spacing, note = _spacing(header, path)
     if note:
         meta["note"] = note
@@ -79,33 +81,155 @@ def _read(path, data_file):
     """``(data, header)`` as `nrrd.read` gives them, with two faults of its caught first:
     a line skip past the end of the data (it calls ``readline`` that many times: a
     header's 1e20 never returned), and text samples outside the header's integer type
-    (it parses them into that type, and -1 became 255)."""
+    (`_check_text`); and the samples of a header that names several data files, which it
+    does not read (`_joined`)."""
     with open(path, "rb") as fh:
-        header = nrrd.read_header(fh)
+        header, files = _read_header(fh, path)
         start = fh.tell()
         lines = header.get("lineskip", header.get("line skip", 0))
         size = (data_file.stat().st_size if data_file is not None and data_file.is_file()
                 else path.stat().st_size - start)
-        if isinstance(lines, int) and lines > size:
+        if files is None and isinstance(lines, int) and lines > size:
             raise InputError(f"{path}: line skip {lines} passes the end of the data ({size} bytes)")
         skip = header.get("byteskip", header.get("byte skip", 0))
         encoding = str(header.get("encoding")).lower()
         if encoding in _COMPRESSED and skip == -1:
             raise InputError(f"{path}: byte skip -1 (the data end the file) applies to raw data only, "
                              f"not {encoding}")
+        if files is not None:
+            return _joined(header, files, path, encoding, lines, skip), dict(header, **{"data files": files})
         if encoding in _COMPRESSED and isinstance(skip, int) and skip >= 0:
             data = _read_compressed(header, encoding, fh, path, data_file, lines, skip)
         else:
             data = nrrd.read_data(header, fh, str(path), index_order="C")
-        if encoding in _TEXT and data.dtype.kind in "iu":
-            fh.seek(start)
-            exact = nrrd.read_data(dict(header, type="double"), fh, str(path), index_order="C")
-            wrong = np.flatnonzero(exact.ravel() != data.ravel())
-            if wrong.size:
-                raise InputError(f"{path}: the text sample {exact.ravel()[wrong[0]]:.17g} is outside the "
-                                 f"header's type {header.get('type')} ({np.iinfo(data.dtype).min} to "
-                                 f"{np.iinfo(data.dtype).max})")
+        if encoding in _TEXT:
+            _check_text(header, fh, start, data, path)
     return data, header
+
+
+#: Lines of header read before giving up on finding its end (a binary file named .nrrd).
+_MAX_HEADER_LINES = 10_000
+
+
+def _read_header(fh, path):
+    """``(header, files)``: the header as pynrrd parses it, with ``fh`` at the data, and the
+    data files of a header that splits its samples over several, as ``(paths, subdim)``, else
+    None.
+
+    NRRD names several data files in two ways, which pynrrd does not read: ``data file:
+    LIST [subdim]`` with the names on the header's remaining lines, and ``data file: FORMAT
+    MIN MAX STEP [subdim]``, a printf-style name numbered from MIN to MAX (inclusive) by STEP.
+    Each file holds a ``subdim``-dimensional block of the fastest axes (by default every axis
+    but the slowest: a file a slice), in order; with ``subdim`` the dimension, an equal slab
+    of the slowest axis.
+    """
+    taken = []
+    for _ in range(_MAX_HEADER_LINES):
+        line = fh.readline(1 << 16)
+        taken.append(line)
+        text = line.decode("ascii", "ignore").strip()
+        if not text:
+            break
+        m = re.fullmatch(r"data ?file\s*:\s*LIST(?:\s+(\S+))?", text)
+        if m and len(taken) > 1:
+            header = nrrd.read_header(taken[:-1])
+            names = [n.decode("utf-8", "replace").strip() for n in fh.read().splitlines()]
+            names = [n for n in names if n and not n.startswith("#")]
+            return header, (_data_paths(path, names, "LIST"), _subdim(m.group(1), header, path))
+    fh.seek(0)
+    header = nrrd.read_header(fh)
+    value = header.get("data file", header.get("datafile"))
+    words = value.split() if isinstance(value, str) else []
+    if len(words) in (4, 5) and "%" in words[0] and all(re.fullmatch(r"[+-]?\d+", w) for w in words[1:4]):
+        if (Path(value) if Path(value).is_absolute() else path.parent / value).exists():
+            return header, None             # one file whose name has spaces and a %
+        first, last, step = (int(w) for w in words[1:4])
+        if step == 0 or (last - first) * step < 0:
+            raise InputError(f"{path}: data file {value!r}: numbers {first} to {last} by {step} name no file")
+        names = []
+        for n in range(first, last + (1 if step > 0 else -1), step):
+            try:
+                names.append(words[0] % n)
+            except (TypeError, ValueError, OverflowError):
+                raise InputError(f"{path}: data file {value!r}: {words[0]!r} is not a name with one "
+                                 "integer conversion (such as slice%03d.raw)") from None
+        for key in ("data file", "datafile"):
+            header.pop(key, None)
+        return header, (_data_paths(path, names, words[0]), _subdim(words[4] if len(words) == 5 else None,
+                                                                    header, path))
+    return header, None
+
+
+def _data_paths(path, names, how):
+    if not names:
+        raise InputError(f"{path}: data file {how} names no file")
+    return [Path(n) if Path(n).is_absolute() else path.parent / n for n in names]
+
+
+def _subdim(word, header, path):
+    dim = int(header.get("dimension", 0))
+    if word is None:
+        return dim - 1
+    if not re.fullmatch(r"\d+", word) or not 1 <= int(word) <= dim:
+        raise InputError(f"{path}: the data files' dimension {word!r} must be 1 to {dim}")
+    return int(word)
+
+
+def _joined(header, files, path, encoding, lines, skip):
+    """The samples of several data files (`_read_header`), read in order and joined, shaped
+    as the header's. The line and byte skips apply to each file, as in teem's reader (for
+    compressed data, to the decompressed bytes)."""
+    paths, subdim = files
+    sizes = [int(n) for n in header["sizes"]]
+    total = int(np.prod(sizes, dtype=np.int64))
+    block = int(np.prod(sizes[:subdim], dtype=np.int64))
+    if subdim == len(sizes) and sizes[-1] % len(paths) == 0:
+        block = total // len(paths)         # slabs of the slowest axis, as many slices each
+    if block * len(paths) != total:
+        raise InputError(f"{path}: {len(paths)} data files of {block} samples each (blocks of "
+                         f"{subdim} axes) do not make the header's {total} samples")
+    one = {key: header[key] for key in ("type", "endian", "encoding") if key in header}
+    one.update(dimension=1, sizes=np.array([block]))
+    parts = []
+    for number, data_path in enumerate(paths, 1):
+        what = f"data file {number} of {len(paths)} ({data_path})"
+        if not data_path.exists():
+            raise InputError(f"{path}: {what} not found")
+        if not data_path.is_file():
+            raise InputError(f"{path}: {what} is not a regular file")
+        if isinstance(lines, int) and lines > data_path.stat().st_size:
+            raise InputError(f"{path}: line skip {lines} passes the end of {what}")
+        try:
+            if encoding in _COMPRESSED:
+                parts.append(_read_compressed(one, encoding, None, path, data_path, lines, skip))
+                continue
+            skipping = dict(one, **{"line skip": lines, "byte skip": skip})
+            with open(data_path, "rb") as src:
+                part = nrrd.read_data(skipping, src, str(path), index_order="C")
+                if encoding in _TEXT:
+                    _check_text(skipping, src, 0, part, data_path)
+            parts.append(part)
+        except InputError as exc:
+            raise InputError(f"{what}: {exc}") from None
+        except MemoryError:
+            raise
+        except Exception as exc:  # noqa: BLE001 - as in read_nrrd
+            raise InputError(f"{path}: {what}: {_explain(exc)}") from None
+    return np.concatenate(parts).reshape(sizes[::-1])
+
+
+def _check_text(header, fh, start, data, path):
+    """Refuse text samples outside the header's integer type: pynrrd parses them into that
+    type, and -1 became 255. The data, ``fh`` from ``start``, are read again as doubles."""
+    if data.dtype.kind not in "iu":
+        return
+    fh.seek(start)
+    exact = nrrd.read_data(dict(header, type="double"), fh, str(path), index_order="C")
+    wrong = np.flatnonzero(exact.ravel() != data.ravel())
+    if wrong.size:
+        raise InputError(f"{path}: the text sample {exact.ravel()[wrong[0]]:.17g} is outside the "
+                         f"header's type {header.get('type')} ({np.iinfo(data.dtype).min} to "
+                         f"{np.iinfo(data.dtype).max})")
 
 
 #: The compressed encodings pynrrd reads.
@@ -192,8 +316,8 @@ def _one_volume(data, header):
 
 def _check_data_file(path):
     """The detached data file a header names, or None; refuse one that is not a regular file
-    (a pipe or a device would block the read or never end it). Other header faults are left
-    to the read."""
+    (a pipe or a device would block the read or never end it). Other header faults, and
+    headers naming several data files (`_joined` checks each), are left to the read."""
     try:
         with open(path, "rb") as fh:
             header = nrrd.read_header(fh)
@@ -204,7 +328,7 @@ def _check_data_file(path):
         return None
     data = Path(name) if Path(name).is_absolute() else path.parent / name
     if " " in name.strip() and not data.exists():
-        return None             # a list of files by a format ("slice%03d.raw 1 40 1"), which the read refuses
+        return None             # numbered files ("slice%03d.raw 1 40 1"), checked as the read takes them
     if data.exists() and not data.is_file():
         raise InputError(f"{path}: data file {data} is not a regular file")
     return data

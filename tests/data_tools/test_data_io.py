@@ -237,6 +237,89 @@ def test_nrrd_byte_skip_of_compressed_data_that_does_not_fit_is_one_line(tmp_pat
         load_volume(p)
 
 
+def _split_nrrd(tmp_path, arr, encoding, blocks, data_file, *, lines=0, skip=0, endian="big", header_lines=None):
+    """Write ``arr`` (int16, z y x) as one data file per block of its flattened samples, each
+    behind ``lines`` lines and ``skip`` bytes of junk, and a header whose ``data file`` field
+    is ``data_file`` (``LIST ...`` is followed by the names); return the header's path."""
+    order = ">i2" if endian == "big" else "<i2"
+    names = []
+    for n, part in enumerate(np.split(arr.ravel(), blocks)):
+        body = b"J" * max(skip, 0) + (" ".join(str(v) for v in part).encode() if encoding == "text"
+                                      else part.astype(order).tobytes())
+        if encoding == "gzip":
+            body = gzip.compress(body)
+        names.append(f"part{n:02d}.dat")
+        (tmp_path / names[-1]).write_bytes(b"line\n" * lines + body)
+    lines = lines if header_lines is None else header_lines
+    z, y, x = arr.shape
+    head = (f"NRRD0004\ntype: int16\ndimension: 3\nsizes: {x} {y} {z}\nendian: {endian}\n"
+            f"encoding: {encoding}\nline skip: {lines}\nbyte skip: {skip}\nspacings: 1 1 2\n"
+            f"data file: {data_file}\n")
+    if data_file.startswith("LIST"):
+        head += "".join(n + "\n" for n in names)
+    p = tmp_path / "split.nhdr"
+    p.write_text(head)
+    return p
+
+
+@pytest.mark.parametrize("encoding, lines, skip", [("raw", 0, 0), ("raw", 2, 3), ("raw", 1, -1), ("gzip", 1, 4),
+                                                  ("text", 1, 0)])
+@pytest.mark.parametrize("data_file, blocks", [
+    ("LIST", 3),                        # a file a slice (the default: every axis but the slowest)
+    ("part%02d.dat 0 2 1", 3),
+    ("part%02d.dat 0 11 1 1", 12),      # a file a row of each slice
+    ("LIST 2", 3),
+    ("part%02d.dat 0 0 1 3", 1),        # the whole volume in one numbered file
+])
+def test_nrrd_samples_in_several_data_files_are_joined_in_order(tmp_path, encoding, lines, skip, data_file,
+                                                                 blocks):
+    # NRRD's two ways of naming several data files, pynrrd reading neither: LIST with the names
+    # on the header's last lines, and a printf-style name numbered MIN to MAX by STEP; each file
+    # a block of the fastest SUBDIM axes, behind its own line and byte skips (teem's reading).
+    arr = make_array("int16")
+    p = _split_nrrd(tmp_path, arr, encoding, blocks, data_file, lines=lines, skip=skip)
+    vol = load_volume(p)
+    check(vol, arr, (1, 1, 2))
+    assert len(vol.meta["files"]) == 1 + blocks         # the command line writes over none of them
+
+
+def test_nrrd_numbered_data_files_count_down_and_in_slabs(tmp_path):
+    # A negative step names the files in falling order; a SUBDIM equal to the dimension cuts the
+    # slowest axis into equal slabs, one a file.
+    arr = make_array("int16", shape=(4, 2, 3))
+    for n, part in enumerate(np.split(arr.ravel(), 2)):
+        (tmp_path / f"s{7 - 2 * n}.raw").write_bytes(part.astype("<i2").tobytes())
+    p = tmp_path / "down.nhdr"
+    p.write_text("NRRD0004\ntype: int16\ndimension: 3\nsizes: 3 2 4\nendian: little\nencoding: raw\n"
+                 "data file: s%d.raw 7 5 -2 3\n")
+    check(load_volume(p), arr)
+
+
+@pytest.mark.parametrize("data_file, blocks, message", [
+    ("LIST", 2, "2 data files of 20 samples each .blocks of 2 axes. do not make the header's 60 samples"),
+    ("part%02d.dat 1 3 1", 3, r"data file 3 of 3 \(.*part03.dat\) not found"),
+    ("part%02d.dat 0 2 0", 3, "numbers 0 to 2 by 0 name no file"),
+    ("part%02d.dat 2 0 1", 3, "numbers 2 to 0 by 1 name no file"),
+    ("part%s%d.dat 0 2 1", 3, "is not a name with one integer conversion"),
+    ("part%02d.dat 0 2 1 4", 3, "the data files' dimension '4' must be 1 to 3"),
+    ("LIST 0", 3, "the data files' dimension '0' must be 1 to 3"),
+])
+def test_nrrd_several_data_files_that_do_not_fit_are_one_line(tmp_path, data_file, blocks, message):
+    p = _split_nrrd(tmp_path, make_array("int16"), "raw", blocks, data_file)
+    with pytest.raises(InputError, match=message):
+        load_volume(p)
+
+
+def test_nrrd_a_short_data_file_among_several_is_named(tmp_path):
+    p = _split_nrrd(tmp_path, make_array("int16"), "raw", 3, "LIST")
+    (tmp_path / "part01.dat").write_bytes(bytes(38))
+    with pytest.raises(InputError, match=r"data file 2 of 3 \(.*part01.dat\).*truncated or corrupt"):
+        load_volume(p)
+    p = _split_nrrd(tmp_path, make_array("int16"), "raw", 3, "LIST", header_lines=10 ** 20)
+    with pytest.raises(InputError, match="line skip 1000.* passes the end of data file 1 of 3"):
+        load_volume(p)
+
+
 def test_nrrd_oblique_directions_become_norms_with_note(tmp_path):
     arr = make_array("uint8")
     c, s = np.cos(0.3), np.sin(0.3)
