@@ -134,9 +134,7 @@ def _main(argv):
 def cmd_info(args):
     from data_tools.info import format_info, volume_info
     vol = load_volume_flags(args)
-    print(format_info(volume_info(vol)))
-    if "note" in vol.meta:
-        note(vol.meta["note"])
+    print(format_info(volume_info(vol)))        # the reader's note among its lines
     return 0
 
 
@@ -178,10 +176,20 @@ def _placement(vol, out):
     origin = ", ".join(f"{o:g}" for o in vol.origin)
     if out.suffix.lower() != ".raw":
         return f", spacing {spacing}, origin {origin}"
-    if vol.spacing == (1.0, 1.0, 1.0) and vol.origin == (0.0, 0.0, 0.0):
-        return ", samples only"
-    return (f", samples only: give --spacing {spacing.replace(' ', '')} --origin {origin.replace(' ', '')} "
-            "when reading it, a .raw file keeps neither")
+    from data_tools.io.raw import guess_from_name
+    named = guess_from_name(out)
+    flags = []
+    if "shape" not in named:
+        flags.append(f"--shape {','.join(map(str, vol.dims))}")
+    if "dtype" not in named or "dtypes" in named:
+        flags.append(f"--dtype {vol.dtype}")
+    if vol.spacing != (1.0, 1.0, 1.0):
+        flags.append(f"--spacing {spacing.replace(' ', '')}")
+    if vol.origin != (0.0, 0.0, 0.0):
+        flags.append(f"--origin {origin.replace(' ', '')}")
+    if not flags:
+        return ", samples only; its name gives their shape and type"
+    return f", samples only: read it back with {' '.join(flags)}; a .raw file has no header"
 
 
 def _exists(path):

@@ -175,6 +175,8 @@ def save_volume(volume: Volume, path, **options) -> Path:
         kind = f"'{path.suffix}' files" if path.suffix else "files without an extension"
         raise InputError(f"{path}: cannot write {kind}; "
                          f"supported: {', '.join(WRITE_EXTENSIONS)}")
+    if ext == ".raw":
+        raw.check_name(volume, path, options.get("byte_order"))
     if ext == ".npy" and npy.sidecar_path(path).exists():
         options.setdefault("sidecar", True)  # rewrite it, or it would go stale
     tmpdir = None

@@ -165,11 +165,14 @@ def read_raw(path, *, shape=None, dtype=None, byte_order=None, offset=0,
         dtype = _fitting_type(path, guess, shape, offset)
     dtype = dtype if dtype is not None else guess.get("dtype")
     byte_order = byte_order if byte_order is not None else guess.get("byte_order", "little")
-    missing = [flag for flag, v in (("--shape NX,NY,NZ", shape), ("--dtype TYPE", dtype)) if v is None]
+    missing = [name for name, v in (("shape", shape), ("dtype", dtype)) if v is None]
     if missing:
+        # One message for the command line, Python and scene files, which name the options alike.
+        flags = {"shape": "--shape NX,NY,NZ", "dtype": "--dtype TYPE"}
         raise InputError(
-            f"{path}: a raw file has no header; give {' and '.join(missing)} "
-            f"(and --byte-order, --spacing if needed), or name it like vol_64x64x64_uint8.raw")
+            f"{path}: a raw file has no header; give {' and '.join(flags[m] for m in missing)} "
+            f"(and --byte-order, --spacing if needed; in Python and scene files "
+            f"{', '.join(missing)}, byte_order, spacing), or name it like vol_64x64x64_uint8.raw")
     dims = _parse_shape(shape, path)
     dtype = _parse_dtype(dtype, path)
     if str(byte_order).lower() not in ("little", "big"):
@@ -187,9 +190,34 @@ def read_raw(path, *, shape=None, dtype=None, byte_order=None, offset=0,
                   name=str(path), meta={"format": "raw", "byte_order": str(byte_order).lower()})
 
 
-def write_raw(volume: Volume, path, *, byte_order: str = "little") -> Path:
-    """Write the samples alone, x fastest; shape, type and spacing are not stored."""
+def write_raw(volume: Volume, path, *, byte_order: str | None = None) -> Path:
+    """Write the samples alone, x fastest; shape, type and spacing are not stored.
+
+    The byte order is ``byte_order``, else the one the name states (``_be``), else little.
+    """
     path = Path(path)
+    if byte_order is None:
+        byte_order = guess_from_name(path).get("byte_order", "little")
     dt = volume.data.dtype.newbyteorder("<" if byte_order == "little" else ">")
     volume.data.astype(dt, copy=False).tofile(path)
     return path
+
+
+def check_name(volume: Volume, path, byte_order: str | None = None) -> None:
+    """Refuse to write ``volume`` to a raw file whose name states another shape, sample type
+    or byte order (``ct_64x64x64_uint8.raw``): read back by its name, it would be misread."""
+    path = Path(path)
+    guess = guess_from_name(path)
+    said = []
+    if "shape" in guess and tuple(guess["shape"]) != tuple(volume.dims):
+        said.append("x".join(map(str, guess["shape"])))
+    named = guess.get("dtypes") or ([guess["dtype"]] if "dtype" in guess else [])
+    if named and not any(np.dtype(d) == volume.dtype for d in named):
+        said.append(" or ".join(named))
+    if byte_order is not None and guess.get("byte_order", byte_order) != byte_order:
+        said.append(f"{guess['byte_order']}-endian")
+    if said:
+        raise InputError(f"{path}: the name says {', '.join(said)}, and the samples written would be "
+                         f"{'x'.join(map(str, volume.dims))} {volume.dtype}"
+                         f"{f', {byte_order}-endian' if byte_order is not None else ''}; "
+                         "name the file for what it holds")

@@ -504,3 +504,12 @@ def test_spacings_a_cubic_cannot_hold_are_refused(spacing, ok):
     else:
         with pytest.raises(InputError, match="spacing must lie between 1e-30 and 1e\\+30"):
             Volume(data, spacing=spacing)
+
+
+def test_a_raw_file_without_shape_or_type_names_the_options_everywhere(tmp_path):
+    # load_volume serves the command line, Python and scene files: the message names the
+    # option in each spelling, not the command line's alone.
+    p = tmp_path / "scan.raw"
+    p.write_bytes(bytes(60))
+    fails(p, "give --shape NX,NY,NZ and --dtype TYPE (and --byte-order, --spacing if needed; "
+             "in Python and scene files shape, dtype, byte_order, spacing)")
