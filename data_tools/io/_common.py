@@ -153,3 +153,37 @@ def parse_dims(words, path, what: str):
     if min(dims) < 1:
         raise InputError(f"{path}: {what} must be positive, got {dims}")
     return dims
+
+
+def several_data_files(path: Path, field: str, value: str, rest, ndims: int):
+    """``(paths, subdim)`` when a header's data-file ``field`` names several files, else None.
+
+    NRRD and MetaIO name them alike: ``LIST [subdim]``, with the names on the header's
+    remaining lines (``rest()`` returns those lines), and ``FORMAT MIN MAX STEP [subdim]``, a
+    printf-style name numbered from MIN to MAX (inclusive) by STEP. Each file holds a
+    ``subdim``-dimensional block of the fastest axes (by default every axis but the slowest:
+    a file a slice), in order. Names are relative to the header's folder.
+    """
+    words = value.split()
+    place = (lambda name: Path(name) if Path(name).is_absolute() else path.parent / name)
+    if words and words[0].upper() == "LIST" and len(words) <= 2:
+        names = [n.strip() for n in rest()]
+        names = [n for n in names if n and not n.startswith("#")]
+    elif (len(words) in (4, 5) and "%" in words[0] and all(w.lstrip("+-").isdigit() for w in words[1:4])
+          and not place(value).exists()):           # not one file whose name has spaces and a %
+        first, last, step = (int(w) for w in words[1:4])
+        if step == 0 or (last - first) * step < 0:
+            raise InputError(f"{path}: {field} {value!r}: numbers {first} to {last} by {step} name no file")
+        try:
+            names = [words[0] % n for n in range(first, last + (1 if step > 0 else -1), step)]
+        except (TypeError, ValueError, OverflowError):
+            raise InputError(f"{path}: {field} {value!r}: {words[0]!r} is not a name with one integer "
+                             "conversion (such as slice%03d.raw)") from None
+    else:
+        return None
+    if not names:
+        raise InputError(f"{path}: {field} {value!r} names no file")
+    subdim = words[-1] if len(words) in (2, 5) else str(ndims - 1)
+    if not subdim.isdigit() or not 1 <= int(subdim) <= ndims:
+        raise InputError(f"{path}: {field} {value!r}: the data files' dimension {subdim!r} must be 1 to {ndims}")
+    return [place(n) for n in names], int(subdim)

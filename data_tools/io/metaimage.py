@@ -7,7 +7,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..volume import Volume
-from ._common import decompress, parse_dims, parse_numbers, read_samples, reading, to_native
+from ._common import decompress, parse_dims, parse_numbers, read_samples, reading, several_data_files, to_native
 
 EXTENSIONS = (".mhd", ".mha")
 
@@ -55,7 +55,8 @@ def read_metaimage(path) -> Volume:
     ``ElementSpacing`` (or ``ElementSize``), ``Offset``/``Origin``/``Position``,
     ``BinaryDataByteOrderMSB``/``ElementByteOrderMSB``, ``HeaderSize``,
     zlib ``CompressedData`` and text samples (``BinaryData = False``).
-    The data file is ``LOCAL`` (attached) or a path relative to the header.
+    The data file is ``LOCAL`` (attached) or a path relative to the header,
+    or several of them (``LIST`` or a numbered name, `several_data_files`).
 
     Parameters
     ----------
@@ -121,47 +122,74 @@ def _build(path, fields, data_start):
     data_name = get("ElementDataFile").strip()
     if not data_name:
         raise InputError(f"{path}: ElementDataFile is empty; give LOCAL or a data file name")
+    text = (get("BinaryData") or "true").lower() not in _TRUE
+    if text and compressed:
+        raise InputError(f"{path}: CompressedData with text samples (BinaryData = False) is not supported")
+    nx, ny, nz = dims
+    files = several_data_files(path, "ElementDataFile", data_name, lambda: _lines_after(path, data_start), len(dims))
+    if files is not None:
+        paths, subdim = files
+        block = int(np.prod(dims[:subdim], dtype=np.int64))
+        if block * len(paths) != nx * ny * nz:
+            raise InputError(f"{path}: {len(paths)} data files of {block} samples each (blocks of {subdim} "
+                             f"axes) do not make DimSize's {nx * ny * nz} samples")
+        meta["data_files"] = tuple(str(p) for p in paths)
+        parts = []
+        for number, data_path in enumerate(paths, 1):
+            _check_data_file(path, data_path, f"data file {number} of {len(paths)}")
+            parts.append(_samples(data_path, 0, header_size, (block, 1, 1), dtype, big, text, compressed, True))
+        data = np.concatenate(parts).reshape(nz, ny, nx)
+        return Volume(data, spacing=spacing, origin=origin, name=str(path), meta=meta)
     if data_name.upper() == "LOCAL":
         data_path, offset = path, data_start
     else:
-        if data_name.split()[0].upper() == "LIST" or "%" in data_name:
-            raise InputError(f"{path}: ElementDataFile {data_name!r}: slice lists and patterns are not supported")
         data_path = Path(data_name)
         if not data_path.is_absolute():
             data_path = path.parent / data_path
-        if not data_path.exists():
-            raise InputError(f"{path}: data file {data_path} (ElementDataFile) not found")
-        if not data_path.is_file():
-            raise InputError(f"{path}: data file {data_path} (ElementDataFile) is not a regular file")
+        _check_data_file(path, data_path, "data file")
         if data_path.resolve() == path.resolve():
             raise InputError(f"{path}: ElementDataFile names this header itself; write LOCAL for attached data")
         meta["data_file"] = str(data_path)
         offset = 0
-    nx, ny, nz = dims
-    itemsize = np.dtype(dtype).itemsize
-    text = (get("BinaryData") or "true").lower() not in _TRUE
-    if text and compressed:
-        raise InputError(f"{path}: CompressedData with text samples (BinaryData = False) is not supported")
+    data = _samples(data_path, offset, header_size, dims, dtype, big, text, compressed, data_path != path)
+    return Volume(data.reshape(nz, ny, nx), spacing=spacing, origin=origin, name=str(path), meta=meta)
+
+
+def _lines_after(path, start):
+    """The lines of ``path`` from byte ``start`` on (the names of an ElementDataFile LIST)."""
+    with open(path, "rb") as f:
+        f.seek(start)
+        return [n.decode("utf-8", "replace") for n in f.read().splitlines()]
+
+
+def _check_data_file(path, data_path, what):
+    if not data_path.exists():
+        raise InputError(f"{path}: {what} {data_path} (ElementDataFile) not found")
+    if not data_path.is_file():
+        raise InputError(f"{path}: {what} {data_path} (ElementDataFile) is not a regular file")
+
+
+def _samples(data_path, offset, header_size, dims, dtype, big, text, compressed, exact):
+    """The ``nx*ny*nz`` samples of one data file, flat: text, compressed or raw, from byte
+    ``offset`` past ``header_size`` more (-1: the samples end the file)."""
+    count = int(np.prod(dims, dtype=np.int64))
     if text or compressed:
         with open(data_path, "rb") as f:
             f.seek(offset + max(header_size, 0))
             blob = f.read()
     if text:
-        data = _text_samples(blob, nx * ny * nz, dtype, data_path).reshape(nz, ny, nx)
-    elif compressed:
-        raw = decompress(blob, nx * ny * nz * itemsize, data_path, "MetaImage")
+        return _text_samples(blob, count, dtype, data_path)
+    itemsize = np.dtype(dtype).itemsize
+    if compressed:
+        raw = decompress(blob, count * itemsize, data_path, "MetaImage")
         dt = np.dtype(dtype).newbyteorder(">" if big else "<") if itemsize > 1 else np.dtype(dtype)
-        data = to_native(np.frombuffer(raw, dtype=dt).copy()).reshape(nz, ny, nx)
+        return to_native(np.frombuffer(raw, dtype=dt).copy())
+    if header_size == -1:
+        # -1: the data are the last bytes of the file, whatever precedes them.
+        offset = max(data_path.stat().st_size - count * itemsize, 0)
     else:
-        if header_size == -1:
-            # -1: the data are the last bytes of the file, whatever precedes them.
-            offset = data_path.stat().st_size - nx * ny * nz * itemsize
-            offset = max(offset, 0)
-        else:
-            offset += max(header_size, 0)
-        exact = data_path != path
-        data = read_samples(data_path, offset, dims, dtype, big, exact=exact, kind="MetaImage")
-    return Volume(data, spacing=spacing, origin=origin, name=str(path), meta=meta)
+        offset += max(header_size, 0)
+    return read_samples(data_path, offset, dims, dtype, big, exact=exact, kind="MetaImage").ravel()
 
 
 def _text_samples(blob, count, dtype, path):

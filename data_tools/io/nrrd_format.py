@@ -13,7 +13,7 @@ import nrrd
 
 from ..errors import InputError
 from ..volume import Volume
-from ._common import one_line
+from ._common import one_line, several_data_files
 
 EXTENSIONS = (".nrrd", ".nhdr")
 
@@ -113,16 +113,9 @@ _MAX_HEADER_LINES = 10_000
 
 def _read_header(fh, path):
     """``(header, files)``: the header as pynrrd parses it, with ``fh`` at the data, and the
-    data files of a header that splits its samples over several, as ``(paths, subdim)``, else
-    None.
-
-    NRRD names several data files in two ways, which pynrrd does not read: ``data file:
-    LIST [subdim]`` with the names on the header's remaining lines, and ``data file: FORMAT
-    MIN MAX STEP [subdim]``, a printf-style name numbered from MIN to MAX (inclusive) by STEP.
-    Each file holds a ``subdim``-dimensional block of the fastest axes (by default every axis
-    but the slowest: a file a slice), in order; with ``subdim`` the dimension, an equal slab
-    of the slowest axis.
-    """
+    data files of a header that splits its samples over several (`several_data_files`), as
+    ``(paths, subdim)``, else None. pynrrd reads neither way of naming them, and takes the
+    names after ``data file: LIST`` for malformed fields."""
     taken = []
     for _ in range(_MAX_HEADER_LINES):
         line = fh.readline(1 << 16)
@@ -130,49 +123,24 @@ def _read_header(fh, path):
         text = line.decode("ascii", "ignore").strip()
         if not text:
             break
-        m = re.fullmatch(r"data ?file\s*:\s*LIST(?:\s+(\S+))?", text)
+        m = re.fullmatch(r"data ?file\s*:\s*(LIST.*)", text)
         if m and len(taken) > 1:
             header = nrrd.read_header(taken[:-1])
-            names = [n.decode("utf-8", "replace").strip() for n in fh.read().splitlines()]
-            names = [n for n in names if n and not n.startswith("#")]
-            return header, (_data_paths(path, names, "LIST"), _subdim(m.group(1), header, path))
+            rest = [n.decode("utf-8", "replace") for n in fh.read().splitlines()]
+            files = several_data_files(path, "data file", m.group(1), lambda: rest, int(header.get("dimension", 0)))
+            if files is not None:
+                return header, files
+            break
     fh.seek(0)
     header = nrrd.read_header(fh)
     value = header.get("data file", header.get("datafile"))
-    words = value.split() if isinstance(value, str) else []
-    if len(words) in (4, 5) and "%" in words[0] and all(re.fullmatch(r"[+-]?\d+", w) for w in words[1:4]):
-        if (Path(value) if Path(value).is_absolute() else path.parent / value).exists():
-            return header, None             # one file whose name has spaces and a %
-        first, last, step = (int(w) for w in words[1:4])
-        if step == 0 or (last - first) * step < 0:
-            raise InputError(f"{path}: data file {value!r}: numbers {first} to {last} by {step} name no file")
-        names = []
-        for n in range(first, last + (1 if step > 0 else -1), step):
-            try:
-                names.append(words[0] % n)
-            except (TypeError, ValueError, OverflowError):
-                raise InputError(f"{path}: data file {value!r}: {words[0]!r} is not a name with one "
-                                 "integer conversion (such as slice%03d.raw)") from None
+    if not isinstance(value, str):
+        return header, None
+    files = several_data_files(path, "data file", value, list, int(header.get("dimension", 0)))
+    if files is not None:
         for key in ("data file", "datafile"):
             header.pop(key, None)
-        return header, (_data_paths(path, names, words[0]), _subdim(words[4] if len(words) == 5 else None,
-                                                                    header, path))
-    return header, None
-
-
-def _data_paths(path, names, how):
-    if not names:
-        raise InputError(f"{path}: data file {how} names no file")
-    return [Path(n) if Path(n).is_absolute() else path.parent / n for n in names]
-
-
-def _subdim(word, header, path):
-    dim = int(header.get("dimension", 0))
-    if word is None:
-        return dim - 1
-    if not re.fullmatch(r"\d+", word) or not 1 <= int(word) <= dim:
-        raise InputError(f"{path}: the data files' dimension {word!r} must be 1 to {dim}")
-    return int(word)
+    return header, files
 
 
 def _joined(header, files, path, encoding, lines, skip):

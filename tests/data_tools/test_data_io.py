@@ -753,6 +753,60 @@ def test_metaimage_element_byte_order_msb_reads_big_endian(tmp_path):
     np.testing.assert_array_equal(load_volume(p).data, _A16)
 
 
+def _split_mhd(tmp_path, data_file, blocks, *, kind="raw", header_size=0, msb=False):
+    """`_A16` as one data file per block of its flattened samples (each behind ``header_size``
+    bytes of junk; -1: 5 of them) and an .mhd naming them by ``data_file`` (``LIST ...`` is
+    followed by the names)."""
+    names = []
+    for n, part in enumerate(np.split(_A16.ravel(), blocks)):
+        body = (" ".join(map(str, part)).encode() if kind == "text"
+                else part.astype(">i2" if msb else "<i2").tobytes())
+        body = zlib.compress(body) if kind == "zlib" else body
+        names.append(f"s{n:02d}.dat")
+        (tmp_path / names[-1]).write_bytes(b"J" * (5 if header_size == -1 else header_size) + body)
+    lines = ["NDims = 3", "DimSize = 4 3 2", "ElementType = MET_SHORT", f"HeaderSize = {header_size}",
+             f"BinaryData = {kind != 'text'}", f"CompressedData = {kind == 'zlib'}", f"BinaryDataByteOrderMSB = {msb}",
+             f"ElementDataFile = {data_file}"]
+    if data_file.startswith("LIST"):
+        lines += names
+    p = tmp_path / "split.mhd"
+    p.write_text("\n".join(lines) + "\n")
+    return p
+
+
+@pytest.mark.parametrize("kind, header_size, msb", [("raw", 0, False), ("raw", 3, True), ("raw", -1, False),
+                                                    ("zlib", 0, False), ("text", 0, False)])
+@pytest.mark.parametrize("data_file, blocks", [("LIST", 2), ("s%02d.dat 0 1 1", 2), ("s%02d.dat 0 5 1 1", 6),
+                                               ("LIST 3", 1)])
+def test_metaimage_samples_in_several_data_files_are_joined_in_order(tmp_path, kind, header_size, msb, data_file,
+                                                                     blocks):
+    # MetaIO's two ways of naming several data files (as NRRD's): LIST, the names on the header's
+    # last lines, and a numbered name; each a block of the fastest SUBDIM axes behind its HeaderSize.
+    p = _split_mhd(tmp_path, data_file, blocks, kind=kind, header_size=header_size, msb=msb)
+    vol = load_volume(p)
+    np.testing.assert_array_equal(vol.data, _A16)
+    assert len(vol.meta["files"]) == 1 + blocks         # the command line writes over none of them
+
+
+@pytest.mark.parametrize("data_file, blocks, message", [
+    ("LIST", 3, "3 data files of 12 samples each .blocks of 2 axes. do not make DimSize's 24 samples"),
+    ("s%02d.dat 1 2 1", 2, r"data file 2 of 2 .*s02.dat \(ElementDataFile\) not found"),
+    ("s%02d.dat 0 1 0", 2, "numbers 0 to 1 by 0 name no file"),
+    ("s%d%s.dat 0 1 1", 2, "is not a name with one integer conversion"),
+    ("LIST 4", 2, "the data files' dimension '4' must be 1 to 3"),
+])
+def test_metaimage_several_data_files_that_do_not_fit_are_one_line(tmp_path, data_file, blocks, message):
+    with pytest.raises(InputError, match=message):
+        load_volume(_split_mhd(tmp_path, data_file, blocks))
+
+
+def test_metaimage_a_long_data_file_among_several_is_named(tmp_path):
+    p = _split_mhd(tmp_path, "LIST", 2)
+    (tmp_path / "s01.dat").write_bytes(bytes(26))
+    with pytest.raises(InputError, match=r"s01.dat: MetaImage data too long: 12x1x1 int16 needs 24 bytes"):
+        load_volume(p)
+
+
 def test_raw_char_in_the_name_is_signed(tmp_path):
     p = tmp_path / "vol_4x3x2_char.raw"
     p.write_bytes(bytes([0xFF]) * 24)
