@@ -123,10 +123,10 @@ def main():
 
 def stages(idx, vol, iso, cam, w, h, args):
     """Per-stage raster times (best and median of --repeats frames after a first one)."""
-    from parc.classify import _size_triple
+    from parc.classify import supercell_size
     from parc.costmodel import choose_supercell
     size = args.supercell if args.supercell is not None else choose_supercell(idx, iso, pixels=w * h)[0]
-    size = _size_triple(size)
+    size = supercell_size(size)
     grid = idx.grid(size)
     proxy = build_proxy(grid, idx.classify(iso, size), grid.world_edges(vol))
     # One segment array for every frame, as the renderer keeps one (`parc.workspace`): a fresh

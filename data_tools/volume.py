@@ -10,6 +10,7 @@ points; cell ``(i, j, k)`` is the box between samples ``i..i+1``,
 from __future__ import annotations
 
 import functools
+import numbers
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
@@ -226,19 +227,34 @@ def _narrowed(data, name):
     return data.astype(target)
 
 
+def is_number(value):
+    """Whether ``value`` is a real number: a Python or NumPy int or float, not a boolean."""
+    return isinstance(value, numbers.Real) and not text_or_flag(value)
+
+
 def text_or_flag(value):
     """Whether ``value`` is text or a boolean: `float` takes ``"5"`` and ``True``, and a number
     argument must not."""
     return isinstance(value, (str, bytes, bool, np.bool_))
 
 
-def _triple(value, what, name, *, positive):
+def three_numbers(value):
+    """``value`` (three numbers, or another count the caller allows) as a tuple of floats, or
+    None when it is not a sequence of numbers: text and
+    booleans are not numbers (``"123"`` would otherwise read as (1, 2, 3), ``True`` as 1).
+    The caller checks the count and the range."""
     try:
         if isinstance(value, (str, bytes)) or any(text_or_flag(v) for v in value):
-            raise TypeError   # "123" would otherwise read as (1, 2, 3), True as 1
-        t = tuple(float(v) for v in value)
+            return None
+        return tuple(float(v) for v in value)
     except (TypeError, ValueError):
-        raise InputError(f"{name}: {what} must be three numbers, got {value!r}") from None
+        return None
+
+
+def _triple(value, what, name, *, positive):
+    t = three_numbers(value)
+    if t is None:
+        raise InputError(f"{name}: {what} must be three numbers, got {value!r}")
     if len(t) != 3 or not all(np.isfinite(t)):
         raise InputError(f"{name}: {what} must be three finite numbers, got {value!r}")
     if positive and min(t) <= 0:

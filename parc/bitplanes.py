@@ -115,7 +115,9 @@ import numpy as np
 from data_tools import InputError
 
 from .gl import get_context, moderngl_module, program, set_uniform
-from .raster import ABS_TOL, COVERAGE_PAD_PX, GUARD_PX, TOL_REL, _scene_scale, perspective_clip, set_view_uniforms
+from .raster import ABS_TOL, COVERAGE_PAD_PX, GUARD_PX, TOL_REL, perspective_clip, scene_scale, set_view_uniforms
+# `plane_buffers` keeps as many proxies as the renderer, so that a supercell sweep keeps its planes' too.
+from .renderer import PROXY_CACHE_SIZE
 
 #: Width of the boundary band (halo mode), in cells along the plane axis:
 #: far above the caster's mismatch between ``floor(pos / m)`` and the
@@ -123,10 +125,6 @@ from .raster import ABS_TOL, COVERAGE_PAD_PX, GUARD_PX, TOL_REL, _scene_scale, p
 #: far below a sample step.
 BAND_CELLS = 1e-7
 
-#: Proxies kept by `plane_buffers` (grid, classification, axis), least
-#: recently used dropped first; as many as `parc.renderer.PROXY_CACHE_SIZE`,
-#: so a supercell sweep keeps its planes' proxies too.
-PROXY_CACHE_SIZE = 8
 
 _UPLOADS = weakref.WeakKeyDictionary()
 _BUFFERS = {}
@@ -280,7 +278,7 @@ def plane_buffers(camera, width, height, volume, pc, grid, *, axis=None, halo=Fa
                      polygons=info["polygons"], seconds=seconds, info={**info, "halo": bool(halo)})
 
 
-def raster_bits(camera, width, height, plane_proxy, *, first, count, halo=True, spacing=None,
+def raster_bits(camera, width, height, plane_proxy, *, first, count, halo=False, spacing=None,
                 pad_px=COVERAGE_PAD_PX):
     """OR every plane bit of every pixel in one OpenGL pass.
 
@@ -294,8 +292,9 @@ def raster_bits(camera, width, height, plane_proxy, *, first, count, halo=True, 
     first, count : int
         Bit ``q`` stands for plane ``first + q``, ``0 <= q < count``;
         planes outside are dropped.
-    halo : bool, default True
-        Also the neighbour planes of slab boundaries (module notes).
+    halo : bool, default False
+        Also the neighbour planes of slab boundaries (module notes), as
+        `plane_buffers`' ``halo``.
     spacing : (sx, sy, sz) or None
         The volume's spacing, for the boundary band's world width; default
         the supercell boundaries' own scale (the band is then wider than
@@ -341,7 +340,7 @@ def raster_bits(camera, width, height, plane_proxy, *, first, count, halo=True, 
     f, r, u = camera.basis()
     th = math.tan(math.radians(camera.fov) / 2.0)
     aspect = width / height
-    scale = _scene_scale(camera, lo, hi, aspect)
+    scale = scene_scale(camera, lo, hi, aspect)
     if spacing is None:
         e = proxy.world_edges[axis]
         spacing_a = float(np.max(np.abs(np.diff(e)))) if len(e) > 1 else 1.0

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from data_tools import InputError
-from data_tools.volume import text_or_flag
+from data_tools.volume import text_or_flag, three_numbers
 
 
 @dataclass(frozen=True)
@@ -50,13 +50,10 @@ class Camera:
 
     def __post_init__(self):
         for name in ("eye", "look_at", "up"):
-            try:
-                v = np.asarray(getattr(self, name), dtype=np.float64)
-            except (TypeError, ValueError):
-                v = np.zeros(0)
-            if v.shape != (3,) or not np.isfinite(v).all():
+            v = three_numbers(getattr(self, name))
+            if v is None or len(v) != 3 or not np.isfinite(v).all():
                 raise InputError(f"camera {name} must be three finite numbers, got {getattr(self, name)!r}")
-            object.__setattr__(self, name, tuple(float(c) for c in v))
+            object.__setattr__(self, name, v)
         with np.errstate(over="ignore"):
             view = np.subtract(self.look_at, self.eye)
         if not np.isfinite(view).all():

@@ -175,7 +175,7 @@ def supercell_grid(dims, size):
         A size that is not positive and finite, or so small that the grid
         would exceed `MAX_SUPERCELLS`.
     """
-    size = _size_triple(size)
+    size = supercell_size(size)
     # Counted before the edges are built: a size of 1e-9 would ask for gigabytes of them.
     total = math.prod(max(1, math.ceil((n - 1 - SNAP) / m)) for n, m in zip(dims, size))
     if total > MAX_SUPERCELLS:
@@ -186,7 +186,7 @@ def supercell_grid(dims, size):
     return SupercellGrid(size=size, dims=tuple(int(n) for n in dims), edges=edges)
 
 
-def _size_triple(size):
+def supercell_size(size):
     """``(m, n, p)`` floats from a number or three numbers, validated."""
     try:
         parts = [size] * 3 if np.ndim(size) == 0 else list(size)
@@ -485,14 +485,14 @@ class VolumeIndex:
 
     def grid(self, size):
         """The `SupercellGrid` for ``size`` (cached)."""
-        key = _size_triple(size)
+        key = supercell_size(size)
         if key not in self._grids:
             self._grids[key] = supercell_grid(self.volume.dims, key)
         return self._grids[key]
 
     def ranges(self, size):
         """Supercell ranges for ``size`` (cached); see `supercell_ranges`."""
-        key = _size_triple(size)
+        key = supercell_size(size)
         if key not in self._ranges:
             grid = self.grid(key)
             if key == (1.0, 1.0, 1.0):

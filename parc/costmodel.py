@@ -34,7 +34,7 @@ import numpy as np
 
 from data_tools import InputError
 
-from .classify import _size_triple
+from .classify import supercell_size
 from .proxy import outer_face_masks
 
 #: Cost model constants, measured on this project's development machine
@@ -212,7 +212,7 @@ def choose_supercell(index, iso=None, *, pixels=512 * 512, rays=None, cores=None
         share = projected_share(pc, grid.world_edges(vol))
         raster = fixed * pixels / (512 * 512) + per_strip * strips
         rays_pc = rays * share
-        cells = rays_pc * WALK_CELLS * (1.0 - 2.0 ** -float(np.mean(_size_triple(m))))
+        cells = rays_pc * WALK_CELLS * (1.0 - 2.0 ** -float(np.mean(supercell_size(m))))
         cast = (rays_pc * CAST_PER_RAY_S + cells * CAST_PER_CELL_S) / cores
         table.append({"size": float(m), "supercells": int(pc.size), "pc_supercells": int(pc.sum()),
                       "faces": faces, "strips": strips, "share": share, "rays": rays_pc, "raster_s": raster,

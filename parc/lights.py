@@ -60,7 +60,7 @@ LIGHT_PAD_PX = 0.625
 MAX_HALF_ANGLE = 44.0
 
 #: Cached buffers per volume index (light, classification, size): a few cover a scene's lights.
-CACHE_SIZE = 16
+LIGHT_BUFFER_CACHE_SIZE = 16
 
 
 @dataclass

@@ -36,11 +36,11 @@ from raycast.iso import NO_SHADING, cast_iso_image, keep_nearest
 from raycast.shadow import (KIND_HEADLIGHT, combine_lights, light_terms, shadow_accumulate, shadow_iso,
                             surface_frames)
 
-from .lights import CACHE_SIZE, LIGHT_BUFFER_SIZE, light_array, light_buffers, no_views
+from .lights import LIGHT_BUFFER_CACHE_SIZE, LIGHT_BUFFER_SIZE, light_array, light_buffers, no_views
 from .scene import DirectionalLight, Isosurface
 from .workspace import work_array
 
-#: Shadow rays start this far (times the smallest spacing in the scene) from their hit point.
+#: Shadow rays start this far (times the smallest spacing of the surface they leave) from their hit point.
 SHADOW_EPS = 1e-5
 
 
@@ -276,7 +276,7 @@ def _cached_light_buffers(light, vis, proxy, size, n):
     buf = cache.get(key)
     if buf is None:
         buf = light_buffers(light, proxy, size=n)
-        if len(cache) >= CACHE_SIZE:
+        if len(cache) >= LIGHT_BUFFER_CACHE_SIZE:
             cache.pop(next(iter(cache)))
         cache[key] = buf
     return buf

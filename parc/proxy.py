@@ -249,11 +249,6 @@ class PlaneProxy(Proxy):
     plane_axis: int = 0
     planes: np.ndarray = field(default=None, repr=False)
 
-    @property
-    def outer(self):
-        """Which faces are outer faces (PC on one side only), bool (Q,)."""
-        return self.outward != 0
-
     def unit_planes(self):
         """``planes`` of every row of `unit_faces` (same order), (N, 2) int64."""
         return self.planes.astype(np.int64)[self.unit_index()[0]]

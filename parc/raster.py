@@ -47,8 +47,7 @@ wrong for an exact ray caster:
 Error bounds
 ------------
 The fragment shader works in float32 (llvmpipe emulates float64 slowly:
-the earlier float64 shader took 30 ms of a 35 ms pass on the CT head
-skin). Over the pixel indices (x, y) the caster's ray is affine: ``sx``
+in float64 the shader took 30 ms of a 35 ms pass on the CT head skin). Over the pixel indices (x, y) the caster's ray is affine: ``sx``
 and ``sy`` are affine in x and y, so the perspective direction ``d = f +
 tan(fov/2) (sx r + sy u)`` and the parallel origin are too
 (`_pixel_affine`). Per face, the geometry shader (float64) hands the
@@ -90,32 +89,10 @@ result, never break it.
 
 Speed
 -----
-Measured on this project's development machine (2 cores, llvmpipe, 512x512,
-the default three-quarter view; best of 20 frames, old and new pass
-interleaved in one process, which matters: the machine's speed drifts by
-up to 1.5x; ``benchmarks/raster_speed.py --stages`` times the stages):
-
-==========================  ==========  ==========  ======================
-scene (faces)               before      after       of which draw / post
-==========================  ==========  ==========  ======================
-CT head skin, 600 (3751)    23-35 ms    9-11 ms     7-10 / 0.9 ms
-CT head bone, 1500 (6904)   26-34 ms    11-13 ms    9-12 / 1.0 ms
-neghip, 80 (2244)           14-16 ms    5 ms        3-4 / 0.9 ms
-==========================  ==========  ==========  ======================
-
-(before: draw 19-30, 21-30 and 10-12 ms, post 3.4 ms.) Parallel views
-also drop the CPU test of ray origins (15-19 ms) when the view plane
-clears the volume. What is left of draw: the geometry shader and triangle
-setup on the calling thread (~2 ms for 3.7k faces), then llvmpipe's
-rasterization (~2/3, measured with a constant fragment shader) and the
-fragment shader (~1/3) on its threads; clear and read-back take ~0.4 ms
-each, the unpacking into float64 segments ~0.2 ms (`unpack_segments`).
-
-That table's supercells were smaller than the renderer picks now, and its
-post included faulting in a fresh 4 MB segment array every frame, which
-the renderer never does (it writes into a kept one, `parc.workspace`).
-With today's supercells, and the benchmark writing into one array as the
-renderer does (its view, median of 30 frames, 2026-11-26):
+On the development machine (2 cores, llvmpipe, 512x512, the renderer's
+supercells and view, the segments written into a kept array as the
+renderer does, `parc.workspace`; median of 30 frames, 2026-11-26;
+``benchmarks/raster_speed.py --stages`` times the stages):
 
 ================================  ======  ========  ======
 scene (faces, of which drawn)     draw    post      total
@@ -124,6 +101,12 @@ CT head skin, 600 (1903, 1879)    4.2 ms  0.19 ms   4.5 ms
 CT head bone, 1500 (1352, 961)    2.1 ms  0.14 ms   2.5 ms
 neghip, 80 (2244, 1286)           2.4 ms  0.16 ms   2.7 ms
 ================================  ======  ========  ======
+
+Most of the draw is llvmpipe's rasterization of the faces' area, on its
+threads (about 2/3 with a constant fragment shader; a depth-only pass
+fills as slowly); the geometry shader and triangle setup run on the
+calling thread. Parallel views skip the CPU test of ray origins when the
+view plane clears the volume. `benchmarks/README.md` has the history.
 
 Faces bordering only cavities (bone: 1.1k of 6.9k, neghip: 1.0k of
 2.2k) are skipped while no ray starts in one (`parc.origins.open_faces`).
@@ -170,7 +153,7 @@ GUARD_PX = 2.0
 #: Margin of the CPU-side segment adjustments (eye inside the PC region,
 #: parallel rays starting inside): ``MARGIN_T * |t| + MARGIN_S * scale``,
 #: where ``scale`` bounds the scene's coordinates and distances
-#: (`_scene_scale`). Those t are float64 and tiny (0 or the clip distance);
+#: (`scene_scale`). Those t are float64 and tiny (0 or the clip distance);
 #: the margin covers their few roundings many times over. (The shader's
 #: own bounds need no CPU margin: see "Error bounds".)
 MARGIN_T = 2.0 ** -21
@@ -379,7 +362,7 @@ def raster_segments(camera, width, height, proxy, *, pad_px=COVERAGE_PAD_PX, fac
     f, r, u = camera.basis()
     th = math.tan(math.radians(camera.fov) / 2.0)
     aspect = width / height
-    scale = _scene_scale(camera, lo, hi, aspect)
+    scale = scene_scale(camera, lo, hi, aspect)
 
     # Where the rays start relative to the PC region.
     t0 = time.perf_counter()
@@ -531,7 +514,7 @@ def _pixel_affine(camera, f, r, u, th, width, height):
     return k0, kx, ky
 
 
-def _scene_scale(camera, lo, hi, aspect):
+def scene_scale(camera, lo, hi, aspect):
     """A bound on coordinates and distances in this view: sizes the margins."""
     eye = np.asarray(camera.eye, dtype=np.float64)
     corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])

@@ -3,7 +3,12 @@
 One driver per kind of volume: `_render_iso` (opaque isosurface: first hit,
 shaded as soon as it is found) and `_render_translucent` (accumulation). Both get their
 ray segments from `parc_segments` when the method is ``"parc"``; the
-casting kernels are the same for both methods.
+casting kernels are the same for both methods. Scenes of several volumes or
+with lights go to `_render_general` (`parc.multivolume`).
+
+Also here, shared with `parc.multivolume` and the benchmarks: what a frame
+takes from a volume's caches (`cached_proxy`, `classifier`, `skip_table`,
+`octant_skip_tables`) and the kernels' arguments (`accumulation_params`, `iso_work`).
 """
 from __future__ import annotations
 
@@ -188,8 +193,8 @@ def _render(scene, method, supercell, buffers, progress, light_buffer, blocks, w
     if progress is not None and not callable(progress):
         raise InputError(f"progress must be a function of the fraction done, got {progress!r}")
     if supercell is not None:
-        from .classify import _size_triple
-        _size_triple(supercell)
+        from .classify import supercell_size
+        supercell_size(supercell)
     skip_blocks = method == "parc" and bool(blocks)
     buffers = check_request(scene, buffers, work)
     light_buffer = _light_buffer_size(light_buffer)
@@ -231,7 +236,6 @@ def _render(scene, method, supercell, buffers, progress, light_buffer, blocks, w
         over_background(image, _premultiplied(scene.background))
     timings["total"] = time.perf_counter() - t0
     w, h = scene.size
-    vol = vis.volume
     stats = {
         "method": method,
         "seconds": timings,
@@ -242,13 +246,8 @@ def _render(scene, method, supercell, buffers, progress, light_buffer, blocks, w
         "cubic_solves": counts.get("solves", 0),
         "samples": counts.get("samples", 0),
         "polygons": 0,              # brute draws none; parc's count comes with `extra`
-        "parameters": {"size": [w, h], "volume": vol.name, "dims": list(vol.dims), "dtype": str(vol.dtype)},
+        "parameters": {"size": [w, h], **_describe(vis)},
     }
-    if isinstance(vis, Isosurface):
-        stats["parameters"]["isovalue"] = vis.value
-    else:
-        stats["parameters"].update({"mode": vis.mode, "step": vis.step, "threshold": vis.threshold,
-                                    "transfer_function": vis.tf.name or "custom"})
     stats.update(extra)
     stats["polygons"] = extra.get("polygons", 0) + extra.get("plane_polygons", 0)
     per_pixel = counts["per_pixel"].reshape(h, w).copy() if work else None
@@ -290,12 +289,14 @@ def _render_general(scene, method, supercell, progress, light_buffer, skip_block
 
 
 def _describe(vis):
+    """A volume of the scene, as the stats' parameters give it."""
     vol = vis.volume
     d = {"volume": vol.name, "dims": list(vol.dims), "dtype": str(vol.dtype)}
     if isinstance(vis, Isosurface):
         d["isovalue"] = vis.value
     else:
-        d.update({"mode": vis.mode, "step": vis.step, "transfer_function": vis.tf.name or "custom"})
+        d.update({"mode": vis.mode, "step": vis.step, "threshold": vis.threshold,
+                  "transfer_function": vis.tf.name or "custom"})
     return d
 
 
@@ -534,7 +535,7 @@ def cached_proxy(vis, supercell, size_px, timings, *, merge=True):
 
     ``merge=False`` keeps one face per supercell face (the light buffers' proxy, `parc.lights`).
     """
-    from .classify import VolumeIndex, _size_triple
+    from .classify import VolumeIndex, supercell_size
     from .costmodel import choose_supercell
     from .proxy import build_proxy
 
@@ -552,7 +553,7 @@ def cached_proxy(vis, supercell, size_px, timings, *, merge=True):
             chosen[key] = choose_supercell(index, classify=classify, pixels=w * h)
         supercell, table = chosen[key]
         extra["supercell_model"] = table
-    size = _size_triple(supercell)
+    size = supercell_size(supercell)
     proxies = index.kept("proxies")
     key = (size, what, merge)
     proxy = proxies.pop(key, None)

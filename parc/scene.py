@@ -9,7 +9,7 @@ import numpy as np
 
 from data_tools import InputError, Volume
 from data_tools.info import exact_text
-from data_tools.volume import settled, text_or_flag
+from data_tools.volume import settled, text_or_flag, three_numbers
 
 from .camera import Camera, unit_vector
 
@@ -255,15 +255,12 @@ class Scene:
         if not self.volumes:
             raise InputError("the scene shows nothing: give at least one volume")
         if self.background is not None:
-            try:
-                bg = np.asarray(self.background, dtype=np.float64)
-            except (TypeError, ValueError):
-                bg = np.zeros(0)
-            if bg.shape not in ((3,), (4,)):
+            bg = three_numbers(self.background)
+            if bg is None or len(bg) not in (3, 4):
                 raise InputError(f"background must be 3 or 4 numbers in [0, 1], got {self.background!r}")
-            if not ((bg >= 0) & (bg <= 1)).all():
+            if not all(0.0 <= c <= 1.0 for c in bg):
                 raise InputError(f"background components must be in [0, 1], got {self.background!r}")
-            self.background = tuple(bg) + ((1.0,) if bg.shape == (3,) else ())
+            self.background = bg + ((1.0,) if len(bg) == 3 else ())
         for v in self.volumes:
             if not isinstance(v, (Isosurface, Translucent)):
                 raise InputError(f"a scene shows Isosurface or Translucent volumes, got {type(v).__name__}")
@@ -292,13 +289,10 @@ class Scene:
 
 
 def _finite_triple(v, what):
-    try:
-        a = np.asarray(v, dtype=np.float64)
-    except (TypeError, ValueError):
-        a = np.zeros(0)
-    if a.shape != (3,) or not np.isfinite(a).all():
+    t = three_numbers(v)
+    if t is None or len(t) != 3 or not np.isfinite(t).all():
         raise InputError(f"{what} must be three finite numbers, got {v!r}")
-    return tuple(float(c) for c in a)
+    return t
 
 
 def _non_negative(v, what):
@@ -312,13 +306,10 @@ def _non_negative(v, what):
 
 
 def _unit_triple(v, what):
-    try:
-        a = np.asarray(v, dtype=np.float64)
-    except (TypeError, ValueError):
-        a = np.zeros(0)
-    if a.shape != (3,) or not ((a >= 0) & (a <= 1)).all():
+    t = three_numbers(v)
+    if t is None or len(t) != 3 or not all(0.0 <= c <= 1.0 for c in t):
         raise InputError(f"{what} must be three numbers in [0, 1], got {v!r}")
-    return tuple(float(c) for c in a)
+    return t
 
 
 def _flag(v, what):

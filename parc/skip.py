@@ -26,11 +26,9 @@ SKIP_CAP = 8
 #: The smallest radius worth a jump (each costs a few divisions; stepping
 #: a cell costs a table lookup). Cast only, PARC segments, fastest of 25
 #: in one process, CT head at 512x512: skin 15.1 ms with 2 against 15.7
-#: (1), 15.7 (4), 16.2 (6) and 16.8 ms with the former 8-cell aligned
-#: blocks; bone 10.7 ms with 2 against 11.5 (1), 11.0 (4) and 11.6 ms;
-#: neghip within 2% for all. Transfer functions, CT head ``ct_skin_bone``
-#: at 600x600: 134 ms with 2 against 142 ms (1), 133 ms (4) and 142 ms
-#: with 4-cell aligned blocks.
+#: (1), 15.7 (4) and 16.2 (6); bone 10.7 ms with 2 against 11.5 (1) and
+#: 11.0 (4); neghip within 2% for all. Transfer functions, CT head
+#: ``ct_skin_bone`` at 600x600: 134 ms with 2 against 142 ms (1) and 133 ms (4).
 ISO_JUMP_MIN = 2
 TF_JUMP_MIN = 2
 

@@ -21,6 +21,7 @@ except ModuleNotFoundError:          # Python 3.10: the same parser, as a packag
 
 from data_tools import InputError
 from data_tools.errors import os_reason
+from data_tools.volume import is_number
 
 
 class Where:
@@ -88,10 +89,6 @@ def show(value):
         return "true" if value else "false"
     text = repr(value)
     return text if len(text) <= 60 else text[:57] + "..."
-
-
-def is_number(value):
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
 class Table:

@@ -315,7 +315,7 @@ def _accumulator(shaded, planes):
     @kernel
     @named_for(shaded=shaded, planes=planes)
     def accumulate(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, seg0, seg1, t_stop, params,
-                   op_x, op_y, col_x, col_rgb, bits, py, px, use_bits, skip, jump_min):
+                   op_x, op_y, col_x, col_rgb, bits, py, px, skip, jump_min):
         """Accumulate one ray (index space ``O + t D``; world direction ``d``) over ``[seg0, seg1]``.
 
         Returns premultiplied ``(r, g, b, a, samples)``; ``samples`` counts the
@@ -325,8 +325,7 @@ def _accumulator(shaded, planes):
         docstring); `visit_cell` passes over the cells it can prove
         transparent: by the skip table ``skip[k, j, i]`` when ``jump_min >= 0``
         (the unaccelerated caster passes `raycast.iso.NO_SKIP` and -1), and,
-        in the kernels with the planes' test, by the bit planes ``bits[py, px]``
-        (``use_bits`` is that kernel's own, and ignored).
+        in the kernels with the planes' test, by the bit planes ``bits[py, px]``.
         """
         nz, ny, nx = grid_shape(data)
         step = params[P_STEP]
@@ -437,21 +436,20 @@ _ACCUMULATE_SHADED_PLANES = _ACCUMULATORS[True, True]
 
 @kernel(inline="always")
 def _accumulate_kind(shaded, planes, data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, seg0, seg1, t_stop, params,
-                     op_x, op_y, col_x, col_rgb, bits, py, px, use_bits, skip, jump_min):
+                     op_x, op_y, col_x, col_rgb, bits, py, px, skip, jump_min):
     """The `_accumulator` kernel for ``(shaded, planes)``, called; the drivers pass constants, and
     the three calls not taken are compiled out."""
     if shaded:
         if planes:
             return _ACCUMULATE_SHADED_PLANES(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, seg0, seg1, t_stop,
-                                             params, op_x, op_y, col_x, col_rgb, bits, py, px, use_bits, skip,
-                                             jump_min)
+                                             params, op_x, op_y, col_x, col_rgb, bits, py, px, skip, jump_min)
         return _ACCUMULATE_SHADED(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, seg0, seg1, t_stop, params,
-                                  op_x, op_y, col_x, col_rgb, bits, py, px, use_bits, skip, jump_min)
+                                  op_x, op_y, col_x, col_rgb, bits, py, px, skip, jump_min)
     if planes:
         return _ACCUMULATE_PLANES(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, seg0, seg1, t_stop, params,
-                                  op_x, op_y, col_x, col_rgb, bits, py, px, use_bits, skip, jump_min)
+                                  op_x, op_y, col_x, col_rgb, bits, py, px, skip, jump_min)
     return _ACCUMULATE_PLAIN(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy, dz, seg0, seg1, t_stop, params,
-                             op_x, op_y, col_x, col_rgb, bits, py, px, use_bits, skip, jump_min)
+                             op_x, op_y, col_x, col_rgb, bits, py, px, skip, jump_min)
 
 
 def _image_caster(shaded, planes):
@@ -466,7 +464,7 @@ def _image_caster(shaded, planes):
     @kernel(parallel=True)
     @named_for(shaded=shaded, planes=planes)
     def cast(data, org, spc, cam, width, height, params, op_x, op_y, col_x, col_rgb,
-             seg, use_seg, stop, use_stop, bits, use_bits, skip, jump_min, image, counts, row0, row1):
+             seg, use_seg, stop, use_stop, bits, skip, jump_min, image, counts, row0, row1):
         tiles = tile_count(width, row0, row1, TILE_W, TILE_H)
         samples = 0
         for it in prange(tiles):
@@ -487,8 +485,7 @@ def _image_caster(shaded, planes):
                     Ox, Oy, Oz, Dx, Dy, Dz = to_index_space(ox, oy, oz, dx, dy, dz, org, spc)
                     r, g, b, a, n = _accumulate_kind(shaded, planes, data, spc, Ox, Oy, Oz, Dx, Dy, Dz, dx, dy,
                                                      dz, s0, s1, stop[y, x] if use_stop else math.inf, params,
-                                                     op_x, op_y, col_x, col_rgb, bits, y, x, use_bits, skip,
-                                                     jump_min)
+                                                     op_x, op_y, col_x, col_rgb, bits, y, x, skip, jump_min)
                     image[y, x, 0] = r
                     image[y, x, 1] = g
                     image[y, x, 2] = b
@@ -518,7 +515,7 @@ def cast_accumulate_image(data, org, spc, cam, width, height, params, op_x, op_y
     """
     cast = _IMAGE_CASTERS[bool(params[P_SHADE] != 0.0), bool(use_bits)]
     return cast(data, org, spc, cam, width, height, params, op_x, op_y, col_x, col_rgb, seg, use_seg, stop,
-                use_stop, bits, use_bits, skip, jump_min, image, counts, row0, row1)
+                use_stop, bits, skip, jump_min, image, counts, row0, row1)
 
 
 @kernel(parallel=True)

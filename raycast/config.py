@@ -1,4 +1,6 @@
-"""Tunables and JIT flags for every kernel in `raycast`, in one place."""
+"""Tunables and JIT flags for every kernel in `raycast`, in one place, and where the compiled
+kernels are cached (a folder per version of the sources, and a cache that treats a damaged
+entry as a miss)."""
 import atexit
 import hashlib
 import os
@@ -185,7 +187,7 @@ def kernel(fn=None, **extra):
     `raycast.cubic.first_root` inlined took 4% off PARC's CT head bone
     frame (`brute`'s as fast as before) for about 10 s more compiling in a
     cold test run. Not inlined, for compile time: `raycast.iso._walk_iso`
-    into its three callers (the iso kernels' compile time tripled for
+    into the kernels that inline `cast_iso_ray` (their compile time tripled for
     another few percent) and the traversal's `start_index` and
     `entry_anchor` (with them inlined too, the iso, hard-ray, PARC-equals-
     brute and shadow tests took 200 s from a cold cache instead of 150).

@@ -202,7 +202,7 @@ def shadow_accumulate(data, org, spc, params, op_x, op_y, col_x, col_rgb, points
                 continue
             r, g, b, a, samples = accumulate_ray(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, lx, ly, lz, s0, s1,
                                                  dist - 2.0 * eps, params, op_x, op_y, col_x, col_rgb,
-                                                 nobits, 0, 0, False, skip, jump_min)
+                                                 nobits, 0, 0, skip, jump_min)
             counts[n, 2] += samples
             vis[n] *= 1.0 - a
 

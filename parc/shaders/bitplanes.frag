@@ -8,8 +8,8 @@
 // parallel p = the forms themselves. The fragment is discarded only when p
 // lies outside the face's rectangle grown by p's error bound (or is NaN)
 // and the bound is valid; otherwise the face's bits are ORed in: a
-// three-plane window starting at plane `g_base` (relative to the first
-// plane), with `g_mask` always set and, for faces parallel to the plane
+// three-plane window starting at plane `g_info.y` (relative to the first
+// plane), with the bits of `g_info.z` always set and, for faces parallel to the plane
 // axis in halo mode, the planes below / above set when p's coordinate
 // along the plane axis lies within `g_thr` of the face's slab ends.
 // Bits outside [0, count) are dropped. No colour is written: the words

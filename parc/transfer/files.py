@@ -37,8 +37,9 @@ import numpy as np
 
 from data_tools import InputError
 from data_tools.errors import os_reason
+from data_tools.volume import is_number
 
-from .function import TransferFunction, control_points, is_number, short_repr
+from .function import TransferFunction, control_points, short_repr
 from .presets import PRESETS, data_range_of, preset, ramp_opacity
 
 

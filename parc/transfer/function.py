@@ -53,11 +53,11 @@ Colours are straight (not premultiplied); the caster premultiplies.
 from __future__ import annotations
 
 import math
-import numbers
 
 import numpy as np
 
 from data_tools import InputError
+from data_tools.volume import is_number
 
 
 #: Opacities are per reference step: this fraction of the smallest spacing.
@@ -345,9 +345,6 @@ def _fmt_support(sup):
 def short_repr(x, limit=40):
     r = repr(x)
     return r if len(r) <= limit else r[:limit - 3] + "..."
-
-def is_number(x):
-    return isinstance(x, numbers.Real) and not isinstance(x, (bool, np.bool_))
 
 def control_points(raw, key, fields, where, label=None):
     """Validated ``(n, 1 + len(fields))`` float64 control points from user input.

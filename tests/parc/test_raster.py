@@ -482,7 +482,7 @@ def test_eye_inside_a_hair_below_a_face_raises_far_past_the_clipped_sliver(gl, l
     no fragment, and its far must come from the CPU's raise to ``2 clip_near / cos_max``
     (``cos_max`` the widest ray's cosine), not ``2 clip_near``: here such rays leave at about
     ``3 clip_near``. Truth: the reference's exit through the face."""
-    from parc.raster import INSIDE_CLIP_REL, _scene_scale
+    from parc.raster import INSIDE_CLIP_REL, scene_scale
     proxy = _one_box_proxy()
     eye = np.array([0.5, 2.0, 4.0])
     width, height = 16, 40
@@ -490,7 +490,7 @@ def test_eye_inside_a_hair_below_a_face_raises_far_past_the_clipped_sliver(gl, l
     def camera(at):
         return Camera(eye=tuple(at), look_at=tuple(at + np.array([1.0, 0.0, 0.0])), up=(0, 0, 1), fov=160.0)
 
-    gap = 3.0 * INSIDE_CLIP_REL * _scene_scale(camera(eye), *proxy.bounds, width / height)
+    gap = 3.0 * INSIDE_CLIP_REL * scene_scale(camera(eye), *proxy.bounds, width / height)
     eye[2] -= gap                  # inside, the top face 3 clip_near above the eye
     seg, near_ref, far_ref = _check(camera(eye), proxy, width, height, "eye a hair below a face", looseness)
     clip = seg.info["clip_near"]
@@ -506,14 +506,14 @@ def test_parallel_view_plane_a_hair_before_a_face_keeps_it(gl, looseness):
     """A parallel view clips faces a rounding *behind* its view plane, never in front of it:
     a face a few roundings ahead (two ``TOL_REL`` of the scene scale, far more than the
     origins' own rounding, so no ray starts on the box) bounds near."""
-    from parc.raster import TOL_REL, _scene_scale
+    from parc.raster import TOL_REL, scene_scale
     proxy = _one_box_proxy()
     width, height = 20, 16
 
     def camera(x):
         return Camera(eye=(x, 2.0, 2.0), look_at=(x + 1.0, 2.0, 2.0), up=(0, 0, 1), parallel_scale=3.0)
 
-    gap = 2.0 * TOL_REL * _scene_scale(camera(0.0), *proxy.bounds, width / height)
+    gap = 2.0 * TOL_REL * scene_scale(camera(0.0), *proxy.bounds, width / height)
     seg, near_ref, _ = _check(camera(-gap), proxy, width, height, "parallel plane a hair before a face", looseness)
     assert not seg.info["eye_inside"]
     face = np.isfinite(near_ref)

@@ -255,6 +255,9 @@ def test_translucent_in_front_of_surface_is_composited_over_it(gl):
     front = render(Scene(camera=cam, size=SIZE, volumes=[fog]), "brute")
     want = front.image + (1.0 - front.image[..., 3:4]) * surf.image
     assert np.abs(both.image - want).max() <= 1e-6
+    # The stats describe each volume as a scene of that volume alone does (the threshold too).
+    for one, described in zip((surf, front), both.stats["parameters"]["volumes"]):
+        assert {k: v for k, v in one.stats["parameters"].items() if k != "size"} == described
 
 
 @pytest.mark.parametrize("method", ["brute", "parc"])
