@@ -93,13 +93,13 @@ def _read(path, data_file):
             raise InputError(f"{path}: line skip {lines} passes the end of the data ({size} bytes)")
         skip = header.get("byteskip", header.get("byte skip", 0))
         encoding = str(header.get("encoding")).lower()
-        if encoding in _COMPRESSED and skip == -1:
+        if encoding in _DECODED and skip == -1:
             raise InputError(f"{path}: byte skip -1 (the data end the file) applies to raw data only, "
                              f"not {encoding}")
         if files is not None:
             return _joined(header, files, path, encoding, lines, skip), dict(header, **{"data files": files})
-        if encoding in _COMPRESSED and isinstance(skip, int) and skip >= 0:
-            data = _read_compressed(header, encoding, fh, path, data_file, lines, skip)
+        if encoding in _DECODED and isinstance(skip, int) and skip >= 0:
+            data = _read_decoded(header, encoding, fh, path, data_file, lines, skip)
         else:
             data = nrrd.read_data(header, fh, str(path), index_order="C")
         if encoding in _TEXT:
@@ -146,7 +146,7 @@ def _read_header(fh, path):
 def _joined(header, files, path, encoding, lines, skip):
     """The samples of several data files (`_read_header`), read in order and joined, shaped
     as the header's. The line and byte skips apply to each file, as in teem's reader (for
-    compressed data, to the decompressed bytes)."""
+    compressed or hex data, to the decoded bytes)."""
     paths, subdim = files
     sizes = [int(n) for n in header["sizes"]]
     total = int(np.prod(sizes, dtype=np.int64))
@@ -168,8 +168,8 @@ def _joined(header, files, path, encoding, lines, skip):
         if isinstance(lines, int) and lines > data_path.stat().st_size:
             raise InputError(f"{path}: line skip {lines} passes the end of {what}")
         try:
-            if encoding in _COMPRESSED:
-                parts.append(_read_compressed(one, encoding, None, path, data_path, lines, skip))
+            if encoding in _DECODED:
+                parts.append(_read_decoded(one, encoding, None, path, data_path, lines, skip))
                 continue
             skipping = dict(one, **{"line skip": lines, "byte skip": skip})
             with open(data_path, "rb") as src:
@@ -200,17 +200,18 @@ def _check_text(header, fh, start, data, path):
                          f"{np.iinfo(data.dtype).max})")
 
 
-#: The compressed encodings pynrrd reads.
-_COMPRESSED = ("gzip", "gz", "bzip2", "bz2")
+#: The encodings decoded here and given to pynrrd as raw data: the compressed ones, which pynrrd
+#: reads differently from teem (`_read_decoded`), and hex, which it does not read.
+_DECODED = ("gzip", "gz", "bzip2", "bz2", "hex")
 
 
-def _read_compressed(header, encoding, fh, path, data_file, lines, skip):
-    """`nrrd.read_data` for compressed data, decompressed here and given to pynrrd as raw
+def _read_decoded(header, encoding, fh, path, data_file, lines, skip):
+    """`nrrd.read_data` for compressed or hex data, decoded here and given to pynrrd as raw
     data, with pynrrd's own checks (a gzip stream, not bare zlib; no negative line skip; no
     bytes past the samples). Two things pynrrd does differently from teem's reader: it
     applied a byte skip to both the stream and the decompressed bytes, failing on the
     stream's cut start (NRRD applies it to the decompressed bytes), and it read only the
-    first member of a gzip file or stream of a bzip2 one (`_decompress`)."""
+    first member of a gzip file or stream of a bzip2 one (`_decode`)."""
     if not isinstance(lines, int) or lines < 0:
         raise InputError(f"{path}: line skip must be 0 or more, got {lines}")
     with open(data_file, "rb") if data_file is not None else contextlib.nullcontext(fh) as src:
@@ -219,15 +220,16 @@ def _read_compressed(header, encoding, fh, path, data_file, lines, skip):
         blob = src.read()
     if not blob:
         raise InputError(f"{path}: no {encoding} data after the header (line skip {lines})")
-    raw = _decompress(blob, encoding)
+    raw = _decode(blob, encoding, path)
+    done = "decoded" if encoding == "hex" else "decompressed"
     if skip > len(raw):
-        raise InputError(f"{path}: byte skip {skip} passes the end of the {len(raw)} decompressed bytes")
+        raise InputError(f"{path}: byte skip {skip} passes the end of the {len(raw)} {done} bytes")
     plain = {key: value for key, value in header.items()
              if key not in ("data file", "datafile", "byte skip", "byteskip", "line skip", "lineskip")}
     plain["encoding"] = "raw"
     data = nrrd.read_data(plain, io.BytesIO(raw[skip:]), str(path), index_order="C")
     if len(raw) - skip > data.nbytes:
-        raise InputError(f"{path}: the compressed data hold {len(raw) - skip} bytes after the byte skip, "
+        raise InputError(f"{path}: the {encoding} data hold {len(raw) - skip} bytes after the byte skip, "
                          f"more than the {data.nbytes} the header states")
     return data
 
@@ -235,11 +237,20 @@ def _read_compressed(header, encoding, fh, path, data_file, lines, skip):
 _GZIP_MAGIC = b"\x1f\x8b"
 
 
-def _decompress(blob, encoding):
+def _decode(blob, encoding, path):
     """The bytes of every member of a gzip file (as ``cat a.gz b.gz`` or a parallel
     compressor writes them; teem's reader, through zlib's ``gzread``, reads them all) or
     every stream of a bzip2 one (``pbzip2``). What follows the last member and is not
-    another is ignored, as both readers ignore it."""
+    another is ignored, as both readers ignore it. Hex data: two digits a byte, any white
+    space between them."""
+    if encoding == "hex":
+        digits = b"".join(blob.split())
+        try:
+            return bytes.fromhex(digits.decode("ascii"))
+        except (UnicodeDecodeError, ValueError):
+            bad = next((chr(c) for c in digits if chr(c) not in "0123456789abcdefABCDEF"), None)
+            why = f"{bad!r} is not a hex digit" if bad is not None else f"an odd number of digits ({len(digits)})"
+            raise InputError(f"{path}: hex data: {why}") from None
     if encoding not in ("gzip", "gz"):
         return bz2.decompress(blob)
     raw = bytearray()

@@ -237,6 +237,40 @@ def test_nrrd_byte_skip_of_compressed_data_that_does_not_fit_is_one_line(tmp_pat
         load_volume(p)
 
 
+def _hex_lines(data, width=32):
+    text = data.hex().upper()
+    return "\n".join(text[i:i + width] for i in range(0, len(text), width)).encode() + b"\n"
+
+
+@pytest.mark.parametrize("detached", [False, True])
+def test_nrrd_hex_data_are_read(tmp_path, detached):
+    # NRRD's hex encoding (two digits a byte, lines of any width), which pynrrd does not
+    # read; the line skip counts lines of the file, the byte skip decoded bytes.
+    arr = make_array("int16")
+    head = "NRRD0004\ntype: short\ndimension: 3\nsizes: 5 4 3\nendian: big\nencoding: hex\nline skip: 1\nbyte skip: 2\n"
+    payload = b"a comment line\n" + _hex_lines(b"\xab\xcd" + arr.astype(">i2").tobytes(), width=30)
+    if detached:
+        (tmp_path / "v.hex").write_bytes(payload)
+        p = tmp_path / "v.nhdr"
+        p.write_text(head + "data file: v.hex\n")
+    else:
+        p = tmp_path / "v.nrrd"
+        p.write_bytes((head + "\n").encode() + payload)
+    check(load_volume(p), arr)
+
+
+@pytest.mark.parametrize("body, message", [
+    (b"00G1" + b"00" * 58, "hex data: 'G' is not a hex digit"),
+    (b"0" * 121, "hex data: an odd number of digits .121."),
+    (b"00" * 61, "the hex data hold 61 bytes after the byte skip, more than the 60"),
+])
+def test_nrrd_hex_data_that_do_not_fit_are_one_line(tmp_path, body, message):
+    p = tmp_path / "v.nrrd"
+    p.write_bytes(b"NRRD0004\ntype: uint8\ndimension: 3\nsizes: 5 4 3\nencoding: hex\n\n" + body)
+    with pytest.raises(InputError, match=message):
+        load_volume(p)
+
+
 def _split_nrrd(tmp_path, arr, encoding, blocks, data_file, *, lines=0, skip=0, endian="big", header_lines=None):
     """Write ``arr`` (int16, z y x) as one data file per block of its flattened samples, each
     behind ``lines`` lines and ``skip`` bytes of junk, and a header whose ``data file`` field
@@ -248,6 +282,8 @@ def _split_nrrd(tmp_path, arr, encoding, blocks, data_file, *, lines=0, skip=0, 
                                       else part.astype(order).tobytes())
         if encoding == "gzip":
             body = gzip.compress(body)
+        if encoding == "hex":
+            body = _hex_lines(body)
         names.append(f"part{n:02d}.dat")
         (tmp_path / names[-1]).write_bytes(b"line\n" * lines + body)
     lines = lines if header_lines is None else header_lines
@@ -263,7 +299,7 @@ def _split_nrrd(tmp_path, arr, encoding, blocks, data_file, *, lines=0, skip=0, 
 
 
 @pytest.mark.parametrize("encoding, lines, skip", [("raw", 0, 0), ("raw", 2, 3), ("raw", 1, -1), ("gzip", 1, 4),
-                                                  ("text", 1, 0)])
+                                                  ("text", 1, 0), ("hex", 1, 2)])
 @pytest.mark.parametrize("data_file, blocks", [
     ("LIST", 3),                        # a file a slice (the default: every axis but the slowest)
     ("part%02d.dat 0 2 1", 3),
