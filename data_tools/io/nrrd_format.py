@@ -178,7 +178,8 @@ def _joined(header, files, path, encoding, lines, skip):
                     _check_text(skipping, src, 0, part, data_path)
             parts.append(part)
         except InputError as exc:
-            raise InputError(f"{what}: {exc}") from None
+            reason = str(exc).removeprefix(f"{path}: ").removeprefix(f"{data_path}: ")
+            raise InputError(f"{path}: {what}: {reason}") from None
         except MemoryError:
             raise
         except Exception as exc:  # noqa: BLE001 - as in read_nrrd
