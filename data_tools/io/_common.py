@@ -158,7 +158,7 @@ def parse_dims(words, path, what: str):
 def several_data_files(path: Path, field: str, value: str, rest, ndims: int):
     """``(paths, subdim)`` when a header's data-file ``field`` names several files, else None.
 
-    NRRD and MetaIO name them alike: ``LIST [subdim]``, with the names on the header's
+    NRRD and MetaIO name them alike: ``LIST [subdim]`` (MetaIO: ``LIST 2D``), with the names on the header's
     remaining lines (``rest()`` returns those lines), and ``FORMAT MIN MAX STEP [subdim]``, a
     printf-style name numbered from MIN to MAX (inclusive) by STEP. Each file holds a
     ``subdim``-dimensional block of the fastest axes (by default every axis but the slowest:
@@ -184,6 +184,8 @@ def several_data_files(path: Path, field: str, value: str, rest, ndims: int):
     if not names:
         raise InputError(f"{path}: {field} {value!r} names no file")
     subdim = words[-1] if len(words) in (2, 5) else str(ndims - 1)
+    if subdim[-1:] in ("D", "d"):
+        subdim = subdim[:-1]        # MetaIO's documents write LIST 2D
     if not subdim.isdigit() or not 1 <= int(subdim) <= ndims:
         raise InputError(f"{path}: {field} {value!r}: the data files' dimension {subdim!r} must be 1 to {ndims}")
     return [place(n) for n in names], int(subdim)

@@ -125,6 +125,9 @@ def _build(path, fields, data_start):
     text = (get("BinaryData") or "true").lower() not in _TRUE
     if text and compressed:
         raise InputError(f"{path}: CompressedData with text samples (BinaryData = False) is not supported")
+    if header_size == -1 and (text or compressed):
+        raise InputError(f"{path}: HeaderSize -1 (the samples end the file) applies to raw binary samples only, "
+                         f"not {'text' if text else 'compressed'} ones")
     nx, ny, nz = dims
     files = several_data_files(path, "ElementDataFile", data_name, lambda: _lines_after(path, data_start), len(dims))
     if files is not None:
@@ -142,6 +145,13 @@ def _build(path, fields, data_start):
         return Volume(data, spacing=spacing, origin=origin, name=str(path), meta=meta)
     if data_name.upper() == "LOCAL":
         data_path, offset = path, data_start
+        if header_size > 0:
+            # MetaIO skips HeaderSize bytes from the start of the data file, here this file,
+            # its header included (ITK reads such .mha files so).
+            if header_size < data_start:
+                raise InputError(f"{path}: HeaderSize {header_size} ends inside the header ({data_start} bytes); "
+                                 "with LOCAL data it counts from the file's start")
+            offset, header_size = header_size, 0
     else:
         data_path = Path(data_name)
         if not data_path.is_absolute():
@@ -171,7 +181,7 @@ def _check_data_file(path, data_path, what):
 
 def _samples(data_path, offset, header_size, dims, dtype, big, text, compressed, exact):
     """The ``nx*ny*nz`` samples of one data file, flat: text, compressed or raw, from byte
-    ``offset`` past ``header_size`` more (-1: the samples end the file)."""
+    ``offset`` past ``header_size`` more (-1: raw samples end the file)."""
     count = int(np.prod(dims, dtype=np.int64))
     if text or compressed:
         with open(data_path, "rb") as f:

@@ -78,11 +78,11 @@ _TEXT = ("ascii", "text", "txt")
 
 
 def _read(path, data_file):
-    """``(data, header)`` as `nrrd.read` gives them, with two faults of its caught first:
-    a line skip past the end of the data (it calls ``readline`` that many times: a
-    header's 1e20 never returned), and text samples outside the header's integer type
-    (`_check_text`); and the samples of a header that names several data files, which it
-    does not read (`_joined`)."""
+    """``(data, header)`` as `nrrd.read` gives them, with a line skip past the end of the
+    data refused first (it calls ``readline`` that many times: a header's 1e20 never
+    returned); text, hex and compressed data read here (`_read_text`, `_read_decoded`), and
+    the samples of a header that names several data files, which pynrrd does not read
+    (`_joined`)."""
     with open(path, "rb") as fh:
         header, files = _read_header(fh, path)
         start = fh.tell()
@@ -93,17 +93,18 @@ def _read(path, data_file):
             raise InputError(f"{path}: line skip {lines} passes the end of the data ({size} bytes)")
         skip = header.get("byteskip", header.get("byte skip", 0))
         encoding = str(header.get("encoding")).lower()
-        if encoding in _DECODED and skip == -1:
+        if (encoding in _DECODED or encoding in _TEXT) and skip == -1:
             raise InputError(f"{path}: byte skip -1 (the data end the file) applies to raw data only, "
                              f"not {encoding}")
         if files is not None:
             return _joined(header, files, path, encoding, lines, skip), dict(header, **{"data files": files})
         if encoding in _DECODED and isinstance(skip, int) and skip >= 0:
             data = _read_decoded(header, encoding, fh, path, data_file, lines, skip)
+        elif encoding in _TEXT and isinstance(skip, int) and skip >= 0 and isinstance(lines, int) and lines >= 0:
+            with open(data_file, "rb") if data_file is not None else contextlib.nullcontext(fh) as src:
+                data = _read_text(header, src, path, lines, skip)
         else:
             data = nrrd.read_data(header, fh, str(path), index_order="C")
-        if encoding in _TEXT:
-            _check_text(header, fh, start, data, path)
     return data, header
 
 
@@ -171,12 +172,12 @@ def _joined(header, files, path, encoding, lines, skip):
             if encoding in _DECODED:
                 parts.append(_read_decoded(one, encoding, None, path, data_path, lines, skip))
                 continue
-            skipping = dict(one, **{"line skip": lines, "byte skip": skip})
             with open(data_path, "rb") as src:
-                part = nrrd.read_data(skipping, src, str(path), index_order="C")
                 if encoding in _TEXT:
-                    _check_text(skipping, src, 0, part, data_path)
-            parts.append(part)
+                    parts.append(_read_text(one, src, data_path, lines, skip))
+                else:
+                    parts.append(nrrd.read_data(dict(one, **{"line skip": lines, "byte skip": skip}), src,
+                                                str(path), index_order="C"))
         except InputError as exc:
             reason = str(exc).removeprefix(f"{path}: ").removeprefix(f"{data_path}: ")
             raise InputError(f"{path}: {what}: {reason}") from None
@@ -187,18 +188,52 @@ def _joined(header, files, path, encoding, lines, skip):
     return np.concatenate(parts).reshape(sizes[::-1])
 
 
-def _check_text(header, fh, start, data, path):
-    """Refuse text samples outside the header's integer type: pynrrd parses them into that
-    type, and -1 became 255. The data, ``fh`` from ``start``, are read again as doubles."""
-    if data.dtype.kind not in "iu":
-        return
-    fh.seek(start)
-    exact = nrrd.read_data(dict(header, type="double"), fh, str(path), index_order="C")
-    wrong = np.flatnonzero(exact.ravel() != data.ravel())
-    if wrong.size:
-        raise InputError(f"{path}: the text sample {exact.ravel()[wrong[0]]:.17g} is outside the "
-                         f"header's type {header.get('type')} ({np.iinfo(data.dtype).min} to "
-                         f"{np.iinfo(data.dtype).max})")
+def _read_text(header, fh, path, lines, skip):
+    """The samples of text data in ``fh``, past ``lines`` lines and then ``skip`` bytes, shaped
+    as the header's.
+
+    Read here, not by pynrrd: NumPy's text reading, which it uses, refused numbers such as
+    ``1.e5`` (C's and teem's ``strtod`` take them), and parsed text into the header's integer
+    type directly, so that -1 became 255. Each word is read as a double, and integer types
+    take only integers in their range.
+    """
+    for _ in range(lines):
+        fh.readline()
+    fh.seek(skip, io.SEEK_CUR)
+    words = fh.read().split()
+    sizes = [int(n) for n in header["sizes"]]
+    count = int(np.prod(sizes, dtype=np.int64))
+    if len(words) != count:
+        raise InputError(f"{path}: data do not match the header (truncated or corrupt?): {count} text samples "
+                         f"expected, {len(words)} found")
+    try:
+        exact = np.array(words, dtype=np.float64)
+    except ValueError:
+        bad = next(w for w in words if not _is_float(w))
+        raise InputError(f"{path}: the text sample {bad[:40].decode('ascii', 'replace')!r} is not a number") from None
+    dtype = _sample_type(header)
+    if dtype.kind in "iu":
+        info = np.iinfo(dtype)
+        wrong = np.flatnonzero(~((exact >= info.min) & (exact <= info.max) & (exact == np.round(exact))))
+        if wrong.size:
+            raise InputError(f"{path}: the text sample {exact[wrong[0]]:.17g} is outside the header's type "
+                             f"{header.get('type')} (integers {info.min} to {info.max})")
+    return exact.astype(dtype).reshape(sizes[::-1])
+
+
+def _is_float(word):
+    try:
+        float(word)
+    except ValueError:
+        return False
+    return True
+
+
+def _sample_type(header):
+    """The native NumPy type of the header's samples, by pynrrd's own table of NRRD's type names."""
+    probe = {"type": header.get("type"), "endian": header.get("endian", "little"), "dimension": 1,
+             "sizes": np.array([0]), "encoding": "raw"}
+    return nrrd.read_data(probe, io.BytesIO(b""), index_order="C").dtype.newbyteorder("=")
 
 
 #: The encodings decoded here and given to pynrrd as raw data: the compressed ones, which pynrrd
@@ -219,12 +254,17 @@ def _read_decoded(header, encoding, fh, path, data_file, lines, skip):
         for _ in range(lines):
             src.readline()
         blob = src.read()
+    if encoding == "hex":
+        # As for text, the byte skip counts bytes of the file (teem's reader): only compressed
+        # data skip decoded bytes.
+        if skip > len(blob):
+            raise InputError(f"{path}: byte skip {skip} passes the end of the {len(blob)} bytes of hex data")
+        blob, skip = blob[skip:], 0
     if not blob:
         raise InputError(f"{path}: no {encoding} data after the header (line skip {lines})")
     raw = _decode(blob, encoding, path)
-    done = "decoded" if encoding == "hex" else "decompressed"
     if skip > len(raw):
-        raise InputError(f"{path}: byte skip {skip} passes the end of the {len(raw)} {done} bytes")
+        raise InputError(f"{path}: byte skip {skip} passes the end of the {len(raw)} decompressed bytes")
     plain = {key: value for key, value in header.items()
              if key not in ("data file", "datafile", "byte skip", "byteskip", "line skip", "lineskip")}
     plain["encoding"] = "raw"

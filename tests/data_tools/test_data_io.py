@@ -245,10 +245,11 @@ def _hex_lines(data, width=32):
 @pytest.mark.parametrize("detached", [False, True])
 def test_nrrd_hex_data_are_read(tmp_path, detached):
     # NRRD's hex encoding (two digits a byte, lines of any width), which pynrrd does not
-    # read; the line skip counts lines of the file, the byte skip decoded bytes.
+    # read; the line skip counts lines of the file and so does the byte skip its bytes, as
+    # for text (teem's reader; only compressed data skip decoded bytes).
     arr = make_array("int16")
-    head = "NRRD0004\ntype: short\ndimension: 3\nsizes: 5 4 3\nendian: big\nencoding: hex\nline skip: 1\nbyte skip: 2\n"
-    payload = b"a comment line\n" + _hex_lines(b"\xab\xcd" + arr.astype(">i2").tobytes(), width=30)
+    head = "NRRD0004\ntype: short\ndimension: 3\nsizes: 5 4 3\nendian: big\nencoding: hex\nline skip: 1\nbyte skip: 5\n"
+    payload = b"a comment line\nJUNK:" + _hex_lines(arr.astype(">i2").tobytes(), width=30)
     if detached:
         (tmp_path / "v.hex").write_bytes(payload)
         p = tmp_path / "v.nhdr"
@@ -259,31 +260,53 @@ def test_nrrd_hex_data_are_read(tmp_path, detached):
     check(load_volume(p), arr)
 
 
-@pytest.mark.parametrize("body, message", [
-    (b"00G1" + b"00" * 58, "hex data: 'G' is not a hex digit"),
-    (b"0" * 121, "hex data: an odd number of digits .121."),
-    (b"00" * 61, "the hex data hold 61 bytes after the byte skip, more than the 60"),
+@pytest.mark.parametrize("detached", [False, True])
+def test_nrrd_text_takes_every_c_number_form(tmp_path, detached):
+    # Text samples as C's strtod (teem's reader) takes them: a bare dot before the exponent,
+    # signs, no digits after the dot; NumPy's text reading refused "1.e5".
+    words = "1.e5 -1.e+3 2. .5 +3 -0 7E-1 1e0"
+    head = "NRRD0004\ntype: float\ndimension: 3\nsizes: 2 2 2\nencoding: ascii\nline skip: 1\nbyte skip: 3\n"
+    body = "# a line\nXY " + words + "\n"
+    if detached:
+        (tmp_path / "v.txt").write_text(body)
+        p = tmp_path / "v.nhdr"
+        p.write_text(head + "data file: v.txt\n")
+    else:
+        p = tmp_path / "v.nrrd"
+        p.write_text(head + "\n" + body)
+    assert load_volume(p).data.ravel().tolist() == [float(np.float32(w)) for w in words.split()]
+    data = tmp_path / "v.txt" if detached else p
+    data.write_text(data.read_text().replace(" 2. ", " two "))
+    with pytest.raises(InputError, match="the text sample 'two' is not a number"):
+        load_volume(p)
+
+
+@pytest.mark.parametrize("body, skip, message", [
+    (b"00G1" + b"00" * 58, 0, "hex data: 'G' is not a hex digit"),
+    (b"0" * 121, 0, "hex data: an odd number of digits .121."),
+    (b"00" * 61, 0, "the hex data hold 61 bytes after the byte skip, more than the 60"),
+    (b"00" * 60, 200, "byte skip 200 passes the end of the 120 bytes of hex data"),
 ])
-def test_nrrd_hex_data_that_do_not_fit_are_one_line(tmp_path, body, message):
+def test_nrrd_hex_data_that_do_not_fit_are_one_line(tmp_path, body, skip, message):
     p = tmp_path / "v.nrrd"
-    p.write_bytes(b"NRRD0004\ntype: uint8\ndimension: 3\nsizes: 5 4 3\nencoding: hex\n\n" + body)
+    p.write_bytes(f"NRRD0004\ntype: uint8\ndimension: 3\nsizes: 5 4 3\nencoding: hex\nbyte skip: {skip}\n\n".encode()
+                  + body)
     with pytest.raises(InputError, match=message):
         load_volume(p)
 
 
 def _split_nrrd(tmp_path, arr, encoding, blocks, data_file, *, lines=0, skip=0, endian="big", header_lines=None):
     """Write ``arr`` (int16, z y x) as one data file per block of its flattened samples, each
-    behind ``lines`` lines and ``skip`` bytes of junk, and a header whose ``data file`` field
-    is ``data_file`` (``LIST ...`` is followed by the names); return the header's path."""
+    behind ``lines`` lines and ``skip`` bytes of junk (of the file; for gzip, of the decompressed
+    data), and a header whose ``data file`` field is ``data_file`` (``LIST ...`` is followed by
+    the names); return the header's path."""
     order = ">i2" if endian == "big" else "<i2"
     names = []
     for n, part in enumerate(np.split(arr.ravel(), blocks)):
-        body = b"J" * max(skip, 0) + (" ".join(str(v) for v in part).encode() if encoding == "text"
-                                      else part.astype(order).tobytes())
-        if encoding == "gzip":
-            body = gzip.compress(body)
-        if encoding == "hex":
-            body = _hex_lines(body)
+        body = " ".join(str(v) for v in part).encode() if encoding == "text" else part.astype(order).tobytes()
+        body = _hex_lines(body) if encoding == "hex" else body
+        body = b"J" * max(skip, 0) + body
+        body = gzip.compress(body) if encoding == "gzip" else body
         names.append(f"part{n:02d}.dat")
         (tmp_path / names[-1]).write_bytes(b"line\n" * lines + body)
     lines = lines if header_lines is None else header_lines
@@ -771,6 +794,36 @@ def _mhd(tmp_path, lines, raw_bytes, name="v"):
 
 #: [z, y, x]; x fastest on disk, as the files store it.
 _A16 = np.arange(24, dtype=np.int16).reshape(2, 3, 4) * 37 - 300
+
+
+def test_metaimage_attached_header_size_counts_from_the_file_start(tmp_path):
+    # MetaIO skips HeaderSize bytes from the start of the data file, which for LOCAL data is
+    # the .mha itself, its text header included (ITK reads such a file so).
+    def mha(header_size, junk):
+        head = ("ObjectType = Image\nNDims = 3\nDimSize = 4 3 2\nElementType = MET_SHORT\n"
+                f"HeaderSize = {header_size:05d}\nElementDataFile = LOCAL\n").encode()
+        p = tmp_path / "v.mha"
+        p.write_bytes(head + junk + _A16.astype("<i2").tobytes())
+        return p, len(head)
+    _, size = mha(0, b"JUNK")
+    p, _ = mha(size + 4, b"JUNK")
+    np.testing.assert_array_equal(load_volume(p).data, _A16)
+    p, _ = mha(size - 1, b"")
+    with pytest.raises(InputError, match=f"HeaderSize {size - 1} ends inside the header .{size} bytes."):
+        load_volume(p)
+
+
+@pytest.mark.parametrize("kind", ["BinaryData = False", "CompressedData = True"])
+def test_metaimage_header_size_minus_one_is_for_raw_samples(tmp_path, kind):
+    # The samples' length is known only for raw binary ones: text or compressed data cannot be
+    # found by where they end.
+    p = _mhd(tmp_path, ["ElementType = MET_SHORT", "HeaderSize = -1", kind], b"JUNK 1 2 3")
+    with pytest.raises(InputError, match="HeaderSize -1 .the samples end the file. applies to raw binary"):
+        load_volume(p)
+
+
+def test_metaimage_list_may_give_its_dimension_as_metaio_writes_it(tmp_path):
+    np.testing.assert_array_equal(load_volume(_split_mhd(tmp_path, "LIST 2D", 2)).data, _A16)
 
 
 def test_metaimage_header_size_minus_one_with_two_byte_samples(tmp_path):
