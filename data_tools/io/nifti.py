@@ -53,6 +53,13 @@ def _read(nib, path):
         raise InputError(f"{path}: cannot read NIfTI file: {one_line(exc) or type(exc).__name__}") from None
     if not isinstance(img, (nib.Nifti1Image, nib.Nifti2Image)):
         raise InputError(f"{path}: not a NIfTI image ({type(img).__name__})")
+    header = img.header
+    start = getattr(img.dataobj, "offset", None)        # where the samples are read from
+    if (bytes(header["magic"]).rstrip(b"\0") in (b"n+1", b"n+2") and start is not None
+            and start < header.single_vox_offset):
+        # nibabel reads a .nii whose vox_offset is 0 from byte 0: its own header as samples.
+        raise InputError(f"{path}: vox_offset {start} lies inside the header; a .nii file's samples start at "
+                         f"byte {header.single_vox_offset} or later")
     shape = tuple(int(n) for n in img.shape)
     while len(shape) > 3 and shape[-1] == 1:
         shape = shape[:-1]

@@ -1,6 +1,7 @@
 """VTK legacy ``.vtk`` files holding STRUCTURED_POINTS scalars (binary or ASCII)."""
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -20,9 +21,11 @@ VTK_TYPES = {
     "vtktypefloat32": "float32", "vtktypefloat64": "float64",
     # 64-bit integers: a Volume keeps them as 32-bit ones where every value fits.
     "vtktypeint64": "int64", "vtktypeuint64": "uint64",
+    # As vtkDataWriter writes them: C's long of a 64-bit Linux or macOS build, vtkIdType as int.
+    "long": "int64", "unsigned_long": "uint64", "vtkidtype": "int32",
 }
 # Alternative names this module reads but does not write ("char" is the one every reader knows).
-_READ_ONLY_TYPES = ("signed_char",)
+_READ_ONLY_TYPES = ("signed_char", "long", "unsigned_long", "vtkidtype")
 _MAX_HEADER_LINES = 200
 
 
@@ -58,10 +61,8 @@ def _skip_lookup_table(f) -> bool:
     return False
 
 
-#: Bytes a value of each type takes in a binary section another reader skips
-#: (vtkDataWriter writes ``vtkIdType`` as a 32-bit int, ``long`` as a 64-bit one).
-_SKIP_SIZES = {**{name: np.dtype(dt).itemsize for name, dt in VTK_TYPES.items()},
-               "unsigned_long": 8, "long": 8, "vtkidtype": 4}
+#: Bytes a value of each type takes in a binary section another reader skips.
+_SKIP_SIZES = {name: np.dtype(dt).itemsize for name, dt in VTK_TYPES.items()}
 
 #: String arrays: one a line in ASCII, each behind its length in binary (`_skip_strings`).
 _STRING_TYPES = ("string", "utf8_string")
@@ -162,6 +163,8 @@ def _field_arrays(f, lines, encoding, words, path, want=None):
     for _ in range(n):
         line = lines.next("a FIELD array")
         parts = line.split()
+        if len(parts) == 1 and parts[0].upper() == "NULL_ARRAY":
+            continue                # how vtkDataWriter writes an array that is not there
         if len(parts) != 4:
             raise InputError(f"{path}: expected a FIELD array line 'name components tuples type', got {line[:60]!r}")
         ncomp, ntuples = parse_numbers(parts[1:3], 2, int, path, f"FIELD array {parts[0]}")
@@ -173,6 +176,21 @@ def _field_arrays(f, lines, encoding, words, path, want=None):
     return found
 
 
+def _components(words, path):
+    """``(ncomp, table_here)`` of a SCALARS or COLOR_SCALARS line, read as VTK's reader reads
+    it, word by word: the component count as C's ``atoi`` takes it (``01``, ``+1`` and ``1.0``
+    are 1; absent from SCALARS, 1), and whether the SCALARS line holds its LOOKUP_TABLE too."""
+    key = words[0].upper()
+    at = 3 if key == "SCALARS" else 2
+    if key == "SCALARS" and (len(words) <= 3 or words[3].upper() == "LOOKUP_TABLE"):
+        return 1, len(words) > 3
+    m = re.match(r"[+-]?\d+", words[at]) if len(words) > at else None
+    if m is None:
+        raise InputError(f"{path}: expected the number of components on the {key} line, "
+                         f"got {' '.join(words)[:60]!r}")
+    return int(m.group()), key == "SCALARS" and len(words) > 4 and words[4].upper() == "LOOKUP_TABLE"
+
+
 def _skip_attribute(f, lines, encoding, words, count, path, section):
     """Move past one attribute of a POINT_DATA or CELL_DATA section of ``count`` points or cells."""
     key = words[0].upper()
@@ -181,13 +199,13 @@ def _skip_attribute(f, lines, encoding, words, count, path, section):
     if key == "SCALARS":
         if len(words) < 3:
             raise InputError(f"{path}: expected SCALARS name type, got {' '.join(words)[:60]!r}")
-        ncomp = parse_numbers(words[3:4], 1, int, path, "SCALARS")[0] if len(words) > 3 else 1
+        ncomp, table_here = _components(words, path)
         pos = f.tell()
-        if not _skip_lookup_table(f):
+        if not table_here and not _skip_lookup_table(f):
             f.seek(pos)
         _skip_values(f, encoding, count * ncomp, words[2], path, what)
     elif key == "COLOR_SCALARS":
-        ncomp = parse_numbers(words[2:3], 1, int, path, "COLOR_SCALARS")[0]
+        ncomp = _components(words, path)[0]
         _skip_values(f, encoding, count * ncomp, "float" if encoding == "ASCII" else "unsigned_char", path, what)
     elif key == "LOOKUP_TABLE":
         size = parse_numbers(words[2:3], 1, int, path, "LOOKUP_TABLE")[0]
@@ -321,7 +339,7 @@ def read_vtk(path) -> Volume:
                 dtype = field[1]
             elif color:
                 # vtkDataWriter stores unsigned_char scalars this way, with no LOOKUP_TABLE line.
-                ncomp = parse_numbers(words[2:], 1, int, path, "COLOR_SCALARS")[0]
+                ncomp = _components(words, path)[0]
                 if ncomp != 1:
                     raise InputError(f"{path}: COLOR_SCALARS with {ncomp} components; only one per sample is supported")
                 dtype = "uint8"
@@ -332,11 +350,12 @@ def read_vtk(path) -> Volume:
                 vtype = words[2].lower()
                 if vtype not in VTK_TYPES:
                     raise InputError(f"{path}: unsupported VTK scalar type {words[2]}")
-                if len(words) > 3 and words[3] != "1":
-                    raise InputError(f"{path}: scalars with {words[3]} components; only one per sample is supported")
+                ncomp, table_here = _components(words, path)
+                if ncomp != 1:
+                    raise InputError(f"{path}: scalars with {ncomp} components; only one per sample is supported")
                 dtype = VTK_TYPES[vtype]
                 pos = f.tell()
-                if not _skip_lookup_table(f):
+                if not table_here and not _skip_lookup_table(f):
                     # LOOKUP_TABLE is optional; the data start right after SCALARS, even
                     # where their first bytes look like blank lines.
                     f.seek(pos)
@@ -362,6 +381,8 @@ def _read_ascii(f, dims, dtype, path):
         values = np.array(tokens[:count]).astype(np.float64 if dt.kind == "f" else np.int64)
     except ValueError:
         raise InputError(f"{path}: ASCII VTK data holds a value that is not a {dt.name} number") from None
+    except OverflowError:
+        raise InputError(f"{path}: ASCII VTK data holds integers of 2**63 or more; samples must fit in 32 bits") from None
     info = np.iinfo(dt) if dt.kind in "iu" else np.finfo(dt)
     if values.min() < info.min or values.max() > info.max:
         raise InputError(f"{path}: ASCII VTK values outside the {dt.name} range")

@@ -531,6 +531,56 @@ def test_vtk_reads_past_cell_data_and_other_arrays(tmp_path, dtype, ascii, point
     assert vol.meta["scalars"] == "density"
 
 
+@pytest.mark.parametrize("ascii", [False, True])
+@pytest.mark.parametrize("vtype, dtype, size", [("long", "int64", 8), ("unsigned_long", "uint64", 8),
+                                                ("vtkIdType", "int32", 4)])
+def test_vtk_scalars_of_every_legal_integer_type_are_read(tmp_path, ascii, vtype, dtype, size):
+    # long and unsigned_long as vtkDataWriter writes them on 64-bit Linux and macOS, vtkIdType
+    # as a 32-bit int; values that fit in 32 bits come back as 32-bit ones.
+    arr = make_array("int32" if dtype != "uint64" else "uint32").astype(dtype)
+    assert np.dtype(dtype).itemsize == size
+    nz, ny, nx = arr.shape
+    head = (f"# vtk DataFile Version 3.0\nt\n{'ASCII' if ascii else 'BINARY'}\nDATASET STRUCTURED_POINTS\n"
+            f"DIMENSIONS {nx} {ny} {nz}\nPOINT_DATA {arr.size}\nSCALARS s {vtype} 1\nLOOKUP_TABLE default\n")
+    p = tmp_path / "v.vtk"
+    p.write_bytes(head.encode() + _vtk_section(ascii, arr, dtype))
+    check(load_volume(p), arr.astype("uint32" if dtype == "uint64" else "int32"))
+
+
+@pytest.mark.parametrize("scalars", ["SCALARS s short 01", "SCALARS s short +1", "SCALARS s short 1.0",
+                                     "SCALARS s short LOOKUP_TABLE default", "SCALARS s short 1 LOOKUP_TABLE t"])
+def test_vtk_scalars_line_is_read_word_by_word_as_vtk_does(tmp_path, scalars):
+    # VTK's reader takes the component count as C's atoi does, and reads words, not lines: the
+    # LOOKUP_TABLE keyword may end the SCALARS line itself (then the values follow at once).
+    arr = make_array("int16")
+    nz, ny, nx = arr.shape
+    table = "" if "LOOKUP_TABLE" in scalars else "LOOKUP_TABLE default\n"
+    p = tmp_path / "v.vtk"
+    p.write_bytes((f"# vtk DataFile Version 3.0\nt\nASCII\nDATASET STRUCTURED_POINTS\nDIMENSIONS {nx} {ny} {nz}\n"
+                   f"POINT_DATA {arr.size}\n{scalars}\n{table}").encode() + _vtk_section(True, arr, "int16"))
+    check(load_volume(p), arr)
+
+
+def test_vtk_null_arrays_of_field_data_are_read_past(tmp_path):
+    # vtkDataWriter writes NULL_ARRAY for an array of field data that is not there.
+    arr = make_array("uint8")
+    nz, ny, nx = arr.shape
+    p = tmp_path / "v.vtk"
+    p.write_bytes((f"# vtk DataFile Version 3.0\nt\nBINARY\nDATASET STRUCTURED_POINTS\nFIELD FieldData 2\n"
+                   f"NULL_ARRAY\nTimeValue 1 1 double\n").encode() + _vtk_section(False, [1.5], "float64")
+                  + (f"DIMENSIONS {nx} {ny} {nz}\nPOINT_DATA {arr.size}\nFIELD FieldData 2\nNULL_ARRAY\n"
+                     f"density 1 {arr.size} unsigned_char\n").encode() + _vtk_section(False, arr, "uint8"))
+    check(load_volume(p), arr)
+
+
+def test_vtk_ascii_integers_past_64_bits_are_one_line(tmp_path):
+    p = tmp_path / "big.vtk"
+    p.write_text("# vtk DataFile Version 3.0\nbig\nASCII\nDATASET STRUCTURED_POINTS\nDIMENSIONS 2 2 2\n"
+                 "POINT_DATA 8\nSCALARS s vtktypeuint64\nLOOKUP_TABLE default\n1 2 3 4 5 6 7 18446744073709551615\n")
+    with pytest.raises(InputError, match=r"integers of 2\*\*63 or more; samples must fit in 32 bits"):
+        load_volume(p)
+
+
 def test_vtk_ascii_floats_beyond_float32_are_one_line(tmp_path):
     p = tmp_path / "big.vtk"
     p.write_text("# vtk DataFile Version 3.0\nbig\nASCII\nDATASET STRUCTURED_POINTS\nDIMENSIONS 2 2 2\n"

@@ -107,6 +107,19 @@ def test_nifti_bad_files(tmp_path):
     fails(tmp_path / "cut.nii.gz", "NIfTI")
 
 
+@pytest.mark.parametrize("cls, offset", [(nib.Nifti1Image, 352), (nib.Nifti2Image, 544)])
+def test_nifti_whose_samples_would_start_in_its_header_is_refused(tmp_path, cls, offset):
+    # vox_offset 0 in a .nii: nibabel read from byte 0, the header's bytes as samples.
+    import struct
+    p = _nifti(tmp_path / "v.nii", _data("int16"), np.eye(4), cls=cls)
+    raw = bytearray(p.read_bytes())
+    at, fmt = (108, "<f") if cls is nib.Nifti1Image else (168, "<q")    # vox_offset's place and type
+    assert struct.unpack_from(fmt, raw, at)[0] == offset
+    struct.pack_into(fmt, raw, at, 0)
+    p.write_bytes(bytes(raw))
+    fails(p, f"vox_offset 0 lies inside the header; a .nii file's samples start at byte {offset} or later")
+
+
 def test_tiff_imagej_stack_with_its_voxel_size(tmp_path):
     a = _data("uint16")
     p = tmp_path / "ij.tif"
