@@ -566,8 +566,8 @@ def test_vtk_null_arrays_of_field_data_are_read_past(tmp_path):
     arr = make_array("uint8")
     nz, ny, nx = arr.shape
     p = tmp_path / "v.vtk"
-    p.write_bytes((f"# vtk DataFile Version 3.0\nt\nBINARY\nDATASET STRUCTURED_POINTS\nFIELD FieldData 2\n"
-                   f"NULL_ARRAY\nTimeValue 1 1 double\n").encode() + _vtk_section(False, [1.5], "float64")
+    p.write_bytes(("# vtk DataFile Version 3.0\nt\nBINARY\nDATASET STRUCTURED_POINTS\nFIELD FieldData 2\n"
+                   "NULL_ARRAY\nTimeValue 1 1 double\n").encode() + _vtk_section(False, [1.5], "float64")
                   + (f"DIMENSIONS {nx} {ny} {nz}\nPOINT_DATA {arr.size}\nFIELD FieldData 2\nNULL_ARRAY\n"
                      f"density 1 {arr.size} unsigned_char\n").encode() + _vtk_section(False, arr, "uint8"))
     check(load_volume(p), arr)
