@@ -74,7 +74,11 @@ def _flood(cells, ny, nx, start):
     """
     # A run is cleared when popped, not when pushed, so several popped runs can push it: the
     # pending seeds can outnumber the cells (a grid one cell thick along x, all runs of
-    # one cell), and the stack grows as needed.
+    # one cell), and the stack grows as needed: before a run's neighbours are scanned, by
+    # as many seeds as they can hold (a run starts at most every other cell of a window).
+    # Grown inside the scan, the stack was an array reassigned in the inner loop, and Numba
+    # counted its references at every cell: 125 ns a cell, 7 s for the CT head's
+    # half-cell supercells, against 6-11 ns.
     stack = np.empty(max(64, cells.size // 8), dtype=np.int64)
     stack[0] = start
     top = 1
@@ -91,6 +95,11 @@ def _flood(cells, ny, nx, start):
             hi += 1
         for j in range(lo, hi + 1):
             cells[j] = False
+        need = top + 8 * ((hi - lo + 3) // 2 + 1)
+        if need > stack.size:
+            grown = np.empty(max(need, 2 * stack.size), dtype=np.int64)
+            grown[:top] = stack[:top]
+            stack = grown
         for dz in (-1, 0, 1):
             for dy in (-1, 0, 1):
                 if dz == 0 and dy == 0:
@@ -100,10 +109,6 @@ def _flood(cells, ny, nx, start):
                 for j in range(lo - 1 + off, hi + 2 + off):
                     if cells[j]:
                         if not inrun:
-                            if top == stack.size:
-                                grown = np.empty(2 * stack.size, dtype=np.int64)
-                                grown[:top] = stack
-                                stack = grown
                             stack[top] = j
                             top += 1
                             inrun = True
