@@ -7,6 +7,7 @@ import pytest
 
 from data_tools import InputError, Volume
 from data_tools.io import READ_EXTENSIONS, load_volume, save_volume
+from data_tools.volume import is_number, three_numbers
 
 SMALL = np.arange(4 * 5 * 6, dtype=np.uint8).reshape(4, 5, 6)
 
@@ -513,3 +514,18 @@ def test_a_raw_file_without_shape_or_type_names_the_options_everywhere(tmp_path)
     p.write_bytes(bytes(60))
     fails(p, "give --shape NX,NY,NZ and --dtype TYPE (and --byte-order, --spacing if needed; "
              "in Python and scene files shape, dtype, byte_order, spacing)")
+
+
+@pytest.mark.parametrize("value", [np.float32(0.5), np.int64(3), np.uint8(7), np.int32(-2)])
+def test_numpy_scalars_are_numbers(value):
+    # numbers.Real counts every NumPy integer and float; np.float32 and np.int64 subclass neither
+    # float nor int, and a transfer function taken from an array's rows holds them.
+    assert is_number(value)
+
+
+@pytest.mark.parametrize("value", [b"123", b"\x01\x02\x03"])
+def test_bytes_are_not_three_numbers(value):
+    # Iterating bytes gives ints: b"123" would read as (49, 50, 51).
+    assert three_numbers(value) is None
+    with pytest.raises(InputError, match="spacing must be three numbers"):
+        Volume(np.zeros((2, 2, 2), np.uint8), spacing=value)

@@ -950,3 +950,200 @@ def test_raw_char_in_the_name_is_signed(tmp_path):
     p = tmp_path / "vol_4x3x2_char.raw"
     p.write_bytes(bytes([0xFF]) * 24)
     assert load_volume(p).data.dtype == np.int8 and load_volume(p).data.min() == -1
+
+
+# --- Details a hand-made change of the readers and writers would break ----------
+
+def test_a_raw_name_saying_be_is_written_big_endian(tmp_path):
+    # Truth: the bytes on disk, by NumPy's '>i2' (values whose two bytes differ, so the order shows).
+    arr = np.arange(24, dtype=np.int16).reshape(2, 3, 4) + 0x0100
+    p = save_volume(Volume(arr), tmp_path / "ct_4x3x2_int16_be.raw")
+    assert p.read_bytes() == arr.astype(">i2").tobytes()
+    np.testing.assert_array_equal(load_volume(p).data, arr)
+
+
+def test_a_raw_name_with_two_type_words_takes_a_volume_of_either(tmp_path):
+    # guess_from_name gives dtypes [float32, float64] for "float_double"; a float32 volume fits one.
+    arr = np.linspace(0, 1, 24, dtype=np.float32).reshape(2, 3, 4)
+    p = save_volume(Volume(arr), tmp_path / "ct_float_double.raw")
+    assert p.read_bytes() == arr.astype("<f4").tobytes()
+
+
+def test_a_raw_name_without_byte_order_takes_any_byte_order(tmp_path):
+    arr = np.arange(24, dtype=np.int16).reshape(2, 3, 4) + 0x0100
+    p = save_volume(Volume(arr), tmp_path / "ct_4x3x2_int16.raw", byte_order="big")
+    assert p.read_bytes() == arr.astype(">i2").tobytes()
+
+
+def test_a_byte_order_the_raw_name_contradicts_is_refused(tmp_path):
+    arr = np.zeros((2, 3, 4), np.int16)
+    with pytest.raises(InputError, match="the name says big-endian.*little-endian"):
+        save_volume(Volume(arr), tmp_path / "ct_4x3x2_int16_be.raw", byte_order="little")
+    assert not (tmp_path / "ct_4x3x2_int16_be.raw").exists()
+
+
+_NRRD_2X2X2 = "NRRD0004\ntype: {type}\ndimension: 3\nsizes: 2 2 2\nencoding: {enc}\n"
+
+
+@pytest.mark.parametrize("split", [False, True])
+def test_nrrd_text_data_refuse_byte_skip_minus_one(tmp_path, split):
+    # -1 ("the data end the file") needs a known byte length: raw data only (teem: nrrdEncodingRaw only).
+    words = " ".join(map(str, range(8))) + "\n"
+    if split:
+        for n in range(2):
+            (tmp_path / f"p{n}.txt").write_text("junk\n" + " ".join(map(str, range(4 * n, 4 * n + 4))) + "\n")
+        data_file = "data file: p%d.txt 0 1 1\nline skip: 1\n"
+    else:
+        (tmp_path / "p.txt").write_text(words)
+        data_file = "data file: p.txt\n"
+    p = tmp_path / "t.nhdr"
+    p.write_text(_NRRD_2X2X2.format(type="int16", enc="ascii") + "byte skip: -1\n" + data_file)
+    with pytest.raises(InputError, match="byte skip -1 .the data end the file. applies to raw data only, not ascii"):
+        load_volume(p)
+
+
+@pytest.mark.parametrize("sample", ["1.5", "-0.25"])
+def test_nrrd_text_fractions_are_refused_for_integer_types(tmp_path, sample):
+    # An int16 sample must be an integer: 1.5 would otherwise be truncated to 1 unnoticed.
+    p = tmp_path / "t.nrrd"
+    p.write_text(_NRRD_2X2X2.format(type="int16", enc="ascii") + "\n" + f"0 1 2 3 4 5 6 {sample}\n")
+    with pytest.raises(InputError, match=f"the text sample {sample} is outside the header's type int16"):
+        load_volume(p)
+
+
+def test_nrrd_text_with_more_samples_than_the_header_is_refused(tmp_path):
+    p = tmp_path / "t.nrrd"
+    p.write_text(_NRRD_2X2X2.format(type="int16", enc="ascii") + "\n" + " ".join(map(str, range(9))) + "\n")
+    with pytest.raises(InputError, match="8 text samples expected, 9 found"):
+        load_volume(p)
+
+
+def test_nrrd_hex_digits_of_one_byte_may_be_split_by_white_space(tmp_path):
+    # teem's hex reader skips white space between any two digits. Truth: bytes.fromhex of the digits.
+    digits = "0001 0203 0405 0607 08090a0b0c0d0e0f"
+    text = "\n".join(digits[i:i + 3] for i in range(0, len(digits), 3))     # lines of 3: pairs split
+    p = tmp_path / "h.nrrd"
+    p.write_text(_NRRD_2X2X2.format(type="int16", enc="hex") + "endian: big\n\n" + text + "\n")
+    expect = np.frombuffer(bytes.fromhex(digits), ">i2").reshape(2, 2, 2)
+    np.testing.assert_array_equal(load_volume(p).data, expect)
+
+
+def test_nrrd_hex_byte_skip_one_past_the_end_is_named(tmp_path):
+    body = "00" * 16 + "\n"                           # 33 bytes of file after the header
+    p = tmp_path / "h.nrrd"
+    p.write_text(_NRRD_2X2X2.format(type="int16", enc="hex") + f"byte skip: {len(body) + 1}\n\n" + body)
+    with pytest.raises(InputError, match=f"byte skip {len(body) + 1} passes the end of the {len(body)} bytes of hex"):
+        load_volume(p)
+
+
+def test_nrrd_attached_data_that_read_as_a_data_file_list_are_samples(tmp_path):
+    # The header ends at its blank line: samples after it that happen to spell "data file: LIST"
+    # are samples. Truth: the bytes written, as uint8.
+    samples = b"data file: LIST\n"                       # 16 bytes
+    p = tmp_path / "u.nrrd"
+    p.write_bytes(b"NRRD0004\ntype: uint8\ndimension: 3\nsizes: 4 2 2\nencoding: raw\n\n" + samples)
+    np.testing.assert_array_equal(load_volume(p).data, np.frombuffer(samples, np.uint8).reshape(2, 2, 4))
+
+
+def test_nrrd_data_file_list_skips_comment_lines(tmp_path):
+    arr = np.arange(8, dtype="<i2")
+    for n in range(2):
+        (tmp_path / f"s{n}.raw").write_bytes(arr[4 * n:4 * n + 4].tobytes())
+    p = tmp_path / "l.nhdr"
+    p.write_text(_NRRD_2X2X2.format(type="int16", enc="raw") + "endian: little\ndata file: LIST\n# the slices\ns0.raw\n\ns1.raw\n")
+    np.testing.assert_array_equal(load_volume(p).data, arr.reshape(2, 2, 2))
+
+
+def test_nrrd_one_data_file_whose_name_looks_numbered_is_that_file(tmp_path):
+    # "a%d 0 1 1" is a numbered list only when no file bears that whole name.
+    arr = np.arange(8, dtype="<i2")
+    (tmp_path / "a%d 0 1 1").write_bytes(arr.tobytes())
+    p = tmp_path / "one.nhdr"
+    p.write_text(_NRRD_2X2X2.format(type="int16", enc="raw") + "endian: little\ndata file: a%d 0 1 1\n")
+    np.testing.assert_array_equal(load_volume(p).data, arr.reshape(2, 2, 2))
+
+
+def test_nrrd_an_empty_data_file_list_is_named(tmp_path):
+    p = tmp_path / "e.nhdr"
+    p.write_text(_NRRD_2X2X2.format(type="int16", enc="raw") + "data file: LIST\n")
+    with pytest.raises(InputError, match="data file 'LIST' names no file"):
+        load_volume(p)
+
+
+def test_nrrd_list_dimension_may_be_written_in_lower_case(tmp_path):
+    arr = np.arange(8, dtype="<i2")
+    for n in range(2):
+        (tmp_path / f"s{n}.raw").write_bytes(arr[4 * n:4 * n + 4].tobytes())
+    p = tmp_path / "l.nhdr"
+    p.write_text(_NRRD_2X2X2.format(type="int16", enc="raw") + "endian: little\ndata file: LIST 2d\ns0.raw\ns1.raw\n")
+    np.testing.assert_array_equal(load_volume(p).data, arr.reshape(2, 2, 2))
+
+
+_A7 = np.arange(24, dtype=np.int16).reshape(2, 3, 4) * 7 - 30
+
+
+def _mhd_of(tmp_path, lines, data_file):
+    p = tmp_path / "v.mhd"
+    p.write_text("\n".join(["NDims = 3", "DimSize = 4 3 2", "ElementType = MET_SHORT", *lines,
+                            f"ElementDataFile = {data_file}"]) + "\n")
+    return p
+
+
+@pytest.mark.parametrize("kind", ["zlib", "text"])
+def test_metaimage_header_size_skips_junk_before_compressed_or_text_data(tmp_path, kind):
+    # MetaIO skips HeaderSize bytes of the data file before any samples, compressed or text.
+    body = zlib.compress(_A7.astype("<i2").tobytes()) if kind == "zlib" else " ".join(map(str, _A7.ravel())).encode()
+    (tmp_path / "d.dat").write_bytes(b"JUNK7" + body)
+    flags = ["CompressedData = True"] if kind == "zlib" else ["BinaryData = False"]
+    p = _mhd_of(tmp_path, ["HeaderSize = 5", *flags], "d.dat")
+    np.testing.assert_array_equal(load_volume(p).data, _A7)
+
+
+def test_metaimage_too_few_data_files_are_one_line(tmp_path):
+    (tmp_path / "s0.dat").write_bytes(_A7[0].astype("<i2").tobytes())
+    p = _mhd_of(tmp_path, [], "LIST\ns0.dat")
+    with pytest.raises(InputError, match="1 data files of 12 samples each .blocks of 2 axes. do not make DimSize's 24"):
+        load_volume(p)
+
+
+def test_metaimage_header_size_minus_one_on_a_short_file_is_truncation(tmp_path):
+    (tmp_path / "d.dat").write_bytes(b"12")
+    p = _mhd_of(tmp_path, ["HeaderSize = -1"], "d.dat")
+    with pytest.raises(InputError, match="MetaImage data truncated: 4x3x2 int16 needs 48 bytes, the file has 2"):
+        load_volume(p)
+
+
+def _vtk_binary(points_line, dims, body):
+    nx, ny, nz = dims
+    return (f"# vtk DataFile Version 3.0\nt\nBINARY\nDATASET STRUCTURED_POINTS\nDIMENSIONS {nx} {ny} {nz}\n"
+            ).encode() + body
+
+
+@pytest.mark.parametrize("scalars", ["SCALARS s unsigned_char LOOKUP_TABLE default",
+                                     "SCALARS s unsigned_char 1 LOOKUP_TABLE default"])
+def test_vtk_binary_scalars_after_a_table_on_the_scalars_line_start_at_once(tmp_path, scalars):
+    # With LOOKUP_TABLE on the SCALARS line (VTK reads words), the samples follow that line at
+    # once, even where their bytes read as another LOOKUP_TABLE line. Truth: the bytes written.
+    samples = b"LOOKUP_TABLE t\n\x07"                       # 16 uint8 samples
+    p = tmp_path / "v.vtk"
+    p.write_bytes(_vtk_binary(None, (4, 2, 2), f"POINT_DATA 16\n{scalars}\n".encode() + samples + b"\n"))
+    np.testing.assert_array_equal(load_volume(p).data, np.frombuffer(samples, np.uint8).reshape(2, 2, 4))
+
+
+def test_vtk_cell_scalars_with_the_table_on_their_line_are_skipped_exactly(tmp_path):
+    # Skipping CELL_DATA scalars whose SCALARS line holds LOOKUP_TABLE: their 28 bytes start at once.
+    cells = b"LOOKUP_TABLE t\n" + bytes(range(13))            # 7*2*2 cells
+    points = np.arange(72, dtype=np.uint8)
+    p = tmp_path / "v.vtk"
+    p.write_bytes(_vtk_binary(None, (8, 3, 3), b"CELL_DATA 28\nSCALARS c unsigned_char LOOKUP_TABLE default\n" + cells
+                       + b"\nPOINT_DATA 72\nSCALARS s unsigned_char 1\nLOOKUP_TABLE default\n"
+                       + points.tobytes() + b"\n"))
+    np.testing.assert_array_equal(load_volume(p).data, points.reshape(3, 3, 8))
+
+
+def test_vtk_int32_volumes_are_written_as_int(tmp_path):
+    # vtkDataWriter's name for VTK_INT is "int"; vtkIdType is an alias this module only reads.
+    p = save_volume(Volume(np.arange(24, dtype=np.int32).reshape(2, 3, 4) - 5), tmp_path / "v.vtk")
+    assert b"\nSCALARS " in p.read_bytes()
+    line = p.read_bytes().split(b"\nSCALARS ")[1].split(b"\n")[0].split()
+    assert line[1] == b"int", line

@@ -241,7 +241,7 @@ def test_a_raw_output_names_the_flags_that_read_it_back(tmp_path, capsys, name, 
     # in the byte order the name gives (written big-endian for _be and _msb).
     from data_tools import Volume
     from data_tools.io import load_volume, save_volume
-    arr = np.arange(120, dtype=np.int16).reshape(4, 5, 6) * 257
+    arr = np.arange(120, dtype=np.int16).reshape(4, 5, 6) * 131       # two different bytes: the order shows
     save_volume(Volume(arr), tmp_path / "v.nrrd")
     rc, out, err = _run(["convert", tmp_path / "v.nrrd", "-o", tmp_path / name], capsys)
     assert rc == 0 and says in out, (out, err)
@@ -1232,3 +1232,19 @@ def test_a_large_make_says_it_takes_time(tmp_path, capsys, monkeypatch):
     assert "making floor" not in err                # 10 x 10 x 8 samples: a floor is thin
     rc, _, err = _run(["render", scene, "-o", tmp_path / "t.png", "--quiet"], capsys)
     assert rc == 0 and err == "", err
+
+
+def test_a_raw_output_whose_name_gives_two_types_names_the_one_written(tmp_path, capsys):
+    # "int16_uint16": both fit the file's size, and a reader by name takes int16 first; the message
+    # must give --dtype uint16, or values past 32767 read back negative. Truth: the array written.
+    from data_tools import Volume
+    from data_tools.io import load_volume, save_volume
+    arr = (np.arange(120, dtype=np.uint16).reshape(4, 5, 6) * 500)          # up to 59500
+    save_volume(Volume(arr), tmp_path / "v.nrrd")
+    name = "ct_6x5x4_int16_uint16.raw"
+    rc, out, err = _run(["convert", tmp_path / "v.nrrd", "-o", tmp_path / name], capsys)
+    assert rc == 0 and "read it back with --dtype uint16;" in out, (out, err)
+    flags = out.split("read it back with ")[1].split(";")[0].split()
+    rc, out, err = _run(["convert", tmp_path / name, *flags, "-o", tmp_path / "back.npy"], capsys)
+    assert rc == 0, err
+    assert np.array_equal(load_volume(tmp_path / "back.npy").data, arr)

@@ -277,6 +277,10 @@ def _thin_grids():
         grid[0, 0, 0] = True
         yield grid
     yield walls.transpose(2, 0, 1).copy()
+    # One-cell runs (found by search) where a run's 8 neighbouring rows push ceil(L/2) seeds each
+    # (L = hi - lo + 3) into a nearly full stack: reserving less than 8 * (L // 2 + 1) overruns it.
+    bits = bytes.fromhex("8aaba3a28a888a848aaa2aa8eb82da86babae22a8ba2aaee")
+    yield np.unpackbits(np.frombuffer(bits, np.uint8)).astype(bool).reshape(4, 6, 8)
 
 
 @pytest.mark.parametrize("empty", list(_thin_grids()), ids=lambda e: "x".join(map(str, e.shape)))

@@ -448,3 +448,16 @@ def test_disjoint_translucent_volumes_seen_from_afar_composite_near_over_far(nea
     assert a[..., 3].max() > 0.05 and b[..., 3].max() > 0.05 and a[..., 3].max() < 0.99
     both = render(Scene(camera=cam, size=(12, 12), volumes=[near, far] if near_first else [far, near])).image
     np.testing.assert_allclose(both, a + (1.0 - a[..., 3:4]) * b, atol=1e-5, rtol=0)
+
+
+def test_stats_parameters_describe_the_volume_as_the_scene_states_it():
+    # Truth: the values given to Isosurface/Translucent, not another render's stats.
+    vol = Volume(np.asarray(blobs((10, 10, 10)).data, np.float32), name="fog")
+    cam = Camera(eye=(5.0, 5.0, 60.0), look_at=(5.0, 5.0, 5.0), up=(0, 1, 0), fov=20)
+    tf = TransferFunction([(0.0, 0.0), (1.0, 0.5)])                        # unnamed: "custom"
+    fog = Translucent(vol, tf=tf, mode="mip", step=0.25, threshold=0.9)
+    p = render(Scene(camera=cam, size=(8, 6), volumes=[fog]), "brute").stats["parameters"]
+    assert p == {"size": [8, 6], "volume": "fog", "dims": [10, 10, 10], "dtype": "float32", "mode": "mip",
+                 "step": 0.25, "threshold": 0.9, "transfer_function": "custom"}
+    p = render(Scene(camera=cam, size=(8, 6), volumes=[Isosurface(vol, value=0.3)]), "brute").stats["parameters"]
+    assert p == {"size": [8, 6], "volume": "fog", "dims": [10, 10, 10], "dtype": "float32", "isovalue": 0.3}

@@ -688,3 +688,9 @@ def test_viridis_knots_sit_at_i_over_255_of_the_range():
     tf = preset("viridis", (0, 255))
     for i, r, g, b in VIRIDIS:
         assert tuple(tf.color([float(i)])[0]) == pytest.approx((r, g, b), abs=1e-6)
+
+
+def test_a_transfer_function_takes_points_of_numpy_scalars():
+    pts = np.array([[0, 0.0], [10, 1.0]], dtype=np.float32)
+    tf = TransferFunction([tuple(p) for p in pts])          # tuples of np.float32
+    assert len(tf.support()) == 1                           # built, not refused
