@@ -242,6 +242,19 @@ def _hex_lines(data, width=32):
     return "\n".join(text[i:i + width] for i in range(0, len(text), width)).encode() + b"\n"
 
 
+def _nrrd_with(tmp_path, head, payload, detached):
+    """An NRRD of header fields ``head`` and data ``payload``: attached (``v.nrrd``), or detached
+    (``v.nhdr`` naming ``v.dat``)."""
+    if detached:
+        (tmp_path / "v.dat").write_bytes(payload)
+        p = tmp_path / "v.nhdr"
+        p.write_text(head + "data file: v.dat\n")
+    else:
+        p = tmp_path / "v.nrrd"
+        p.write_bytes((head + "\n").encode() + payload)
+    return p
+
+
 @pytest.mark.parametrize("detached", [False, True])
 def test_nrrd_hex_data_are_read(tmp_path, detached):
     # NRRD's hex encoding (two digits a byte, lines of any width), which pynrrd does not
@@ -250,14 +263,7 @@ def test_nrrd_hex_data_are_read(tmp_path, detached):
     arr = make_array("int16")
     head = "NRRD0004\ntype: short\ndimension: 3\nsizes: 5 4 3\nendian: big\nencoding: hex\nline skip: 1\nbyte skip: 5\n"
     payload = b"a comment line\nJUNK:" + _hex_lines(arr.astype(">i2").tobytes(), width=30)
-    if detached:
-        (tmp_path / "v.hex").write_bytes(payload)
-        p = tmp_path / "v.nhdr"
-        p.write_text(head + "data file: v.hex\n")
-    else:
-        p = tmp_path / "v.nrrd"
-        p.write_bytes((head + "\n").encode() + payload)
-    check(load_volume(p), arr)
+    check(load_volume(_nrrd_with(tmp_path, head, payload, detached)), arr)
 
 
 @pytest.mark.parametrize("detached", [False, True])
@@ -266,16 +272,9 @@ def test_nrrd_text_takes_every_c_number_form(tmp_path, detached):
     # signs, no digits after the dot; NumPy's text reading refused "1.e5".
     words = "1.e5 -1.e+3 2. .5 +3 -0 7E-1 1e0"
     head = "NRRD0004\ntype: float\ndimension: 3\nsizes: 2 2 2\nencoding: ascii\nline skip: 1\nbyte skip: 3\n"
-    body = "# a line\nXY " + words + "\n"
-    if detached:
-        (tmp_path / "v.txt").write_text(body)
-        p = tmp_path / "v.nhdr"
-        p.write_text(head + "data file: v.txt\n")
-    else:
-        p = tmp_path / "v.nrrd"
-        p.write_text(head + "\n" + body)
+    p = _nrrd_with(tmp_path, head, ("# a line\nXY " + words + "\n").encode(), detached)
     assert load_volume(p).data.ravel().tolist() == [float(np.float32(w)) for w in words.split()]
-    data = tmp_path / "v.txt" if detached else p
+    data = tmp_path / "v.dat" if detached else p
     data.write_text(data.read_text().replace(" 2. ", " two "))
     with pytest.raises(InputError, match="the text sample 'two' is not a number"):
         load_volume(p)
@@ -1045,12 +1044,14 @@ def test_nrrd_attached_data_that_read_as_a_data_file_list_are_samples(tmp_path):
     np.testing.assert_array_equal(load_volume(p).data, np.frombuffer(samples, np.uint8).reshape(2, 2, 4))
 
 
-def test_nrrd_data_file_list_skips_comment_lines(tmp_path):
+@pytest.mark.parametrize("listed", ["LIST\n# the slices\ns0.raw\n\ns1.raw\n",   # comments and blank lines
+                                    "LIST 2d\ns0.raw\ns1.raw\n"])                # the dimension as MetaIO writes it
+def test_nrrd_data_file_lists_as_written(tmp_path, listed):
     arr = np.arange(8, dtype="<i2")
     for n in range(2):
         (tmp_path / f"s{n}.raw").write_bytes(arr[4 * n:4 * n + 4].tobytes())
     p = tmp_path / "l.nhdr"
-    p.write_text(_NRRD_2X2X2.format(type="int16", enc="raw") + "endian: little\ndata file: LIST\n# the slices\ns0.raw\n\ns1.raw\n")
+    p.write_text(_NRRD_2X2X2.format(type="int16", enc="raw") + "endian: little\ndata file: " + listed)
     np.testing.assert_array_equal(load_volume(p).data, arr.reshape(2, 2, 2))
 
 
@@ -1069,14 +1070,6 @@ def test_nrrd_an_empty_data_file_list_is_named(tmp_path):
     with pytest.raises(InputError, match="data file 'LIST' names no file"):
         load_volume(p)
 
-
-def test_nrrd_list_dimension_may_be_written_in_lower_case(tmp_path):
-    arr = np.arange(8, dtype="<i2")
-    for n in range(2):
-        (tmp_path / f"s{n}.raw").write_bytes(arr[4 * n:4 * n + 4].tobytes())
-    p = tmp_path / "l.nhdr"
-    p.write_text(_NRRD_2X2X2.format(type="int16", enc="raw") + "endian: little\ndata file: LIST 2d\ns0.raw\ns1.raw\n")
-    np.testing.assert_array_equal(load_volume(p).data, arr.reshape(2, 2, 2))
 
 
 _A7 = np.arange(24, dtype=np.int16).reshape(2, 3, 4) * 7 - 30
