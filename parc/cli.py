@@ -183,10 +183,12 @@ def _placement(vol, out):
         flags.append(f"--shape {','.join(map(str, vol.dims))}")
     if "dtype" not in named or "dtypes" in named:
         flags.append(f"--dtype {vol.dtype}")
+    # Shortest exact forms: ":g" rounds to 6 digits, and a spacing of 1/3 would read back changed.
+    exact = lambda values: ",".join(repr(float(v)).removesuffix(".0") for v in values)    # noqa: E731
     if vol.spacing != (1.0, 1.0, 1.0):
-        flags.append(f"--spacing {spacing.replace(' ', '')}")
+        flags.append(f"--spacing {exact(vol.spacing)}")
     if vol.origin != (0.0, 0.0, 0.0):
-        flags.append(f"--origin {origin.replace(' ', '')}")
+        flags.append(f"--origin {exact(vol.origin)}")
     if not flags:
         return ", samples only; its name gives their shape and type"
     return f", samples only: read it back with {' '.join(flags)}; a .raw file has no header"

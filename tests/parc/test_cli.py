@@ -233,22 +233,36 @@ def test_a_raw_output_says_it_keeps_no_spacing(tmp_path, capsys):
     assert np.array_equal(load_volume(tmp_path / "ml.nrrd").data, vol.data)
 
 
-@pytest.mark.parametrize("name, says", [("ct_6x5x4_int16_be.raw", "its name gives their shape and type"),
-                                         ("ct_int16_msb.raw", "read it back with --shape 6,5,4;"),
-                                         ("ct.raw", "read it back with --shape 6,5,4 --dtype int16;")])
+@pytest.mark.parametrize("name, says", [("ct_6x5x4_int16_be.raw", "read it back with --spacing 0.3333333333333333,0.1,2 "
+                                                                   "--origin -1e-07,123456.789,0;"),
+                                         ("ct_int16_msb.raw", "read it back with --shape 6,5,4 --spacing"),
+                                         ("ct.raw", "read it back with --shape 6,5,4 --dtype int16 --spacing")])
 def test_a_raw_output_names_the_flags_that_read_it_back(tmp_path, capsys, name, says):
     # The message's flags, with what the name states, read the samples back as they were,
-    # in the byte order the name gives (written big-endian for _be and _msb).
+    # in the byte order the name gives (written big-endian for _be and _msb), and spacing and
+    # origin to the last digit.
     from data_tools import Volume
     from data_tools.io import load_volume, save_volume
     arr = np.arange(120, dtype=np.int16).reshape(4, 5, 6) * 131       # two different bytes: the order shows
-    save_volume(Volume(arr), tmp_path / "v.nrrd")
+    spacing, origin = (1 / 3, 0.1, 2.0), (-1e-7, 123456.789, 0.0)
+    save_volume(Volume(arr, spacing=spacing, origin=origin), tmp_path / "v.nrrd")
     rc, out, err = _run(["convert", tmp_path / "v.nrrd", "-o", tmp_path / name], capsys)
     assert rc == 0 and says in out, (out, err)
     flags = out.split("read it back with ")[1].split(";")[0].split() if "read it back" in out else []
     rc, out, err = _run(["convert", tmp_path / name, *flags, "-o", tmp_path / "back.npy"], capsys)
     assert rc == 0, err
-    assert np.array_equal(load_volume(tmp_path / "back.npy").data, arr)
+    back = load_volume(tmp_path / "back.npy")
+    assert np.array_equal(back.data, arr) and back.spacing == spacing and back.origin == origin
+
+
+def test_a_raw_output_whose_name_says_it_all_needs_no_flags(tmp_path, capsys):
+    from data_tools import Volume
+    from data_tools.io import load_volume, save_volume
+    arr = np.arange(120, dtype=np.int16).reshape(4, 5, 6) * 131
+    save_volume(Volume(arr), tmp_path / "v.nrrd")
+    rc, out, err = _run(["convert", tmp_path / "v.nrrd", "-o", tmp_path / "ct_6x5x4_int16_be.raw"], capsys)
+    assert rc == 0 and "samples only; its name gives their shape and type" in out, (out, err)
+    assert np.array_equal(load_volume(tmp_path / "ct_6x5x4_int16_be.raw").data, arr)
 
 
 @pytest.mark.parametrize("name, says", [("ct_64x64x64_int16.raw", "the name says 64x64x64,"),
