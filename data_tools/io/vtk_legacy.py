@@ -392,11 +392,13 @@ def _read_ascii(f, dims, dtype, path):
 def _read_ascii_colors(f, dims, path):
     # VTK writes uint8 COLOR_SCALARS in ASCII as value/255 (6 digits) and its reader
     # scales them back the same way; so do we: it restores the exact bytes, and the
-    # ASCII and BINARY forms of one volume give the same uint8 data.
-    values = _read_ascii(f, dims, "float64", path)
+    # ASCII and BINARY forms of one volume give the same uint8 data. As its reader: each
+    # value read as a float, then 255 v + 0.5 in double, truncated (0.7 gives 178, where
+    # 0.7 in double would round up to 179).
+    values = _read_ascii(f, dims, "float32", path)
     if not (values.min() >= 0 and values.max() <= 1):  # NaN fails here too
         raise InputError(f"{path}: ASCII VTK COLOR_SCALARS values outside [0, 1]")
-    return np.floor(values * 255 + 0.5).astype(np.uint8)
+    return np.floor(values.astype(np.float64) * 255.0 + 0.5).astype(np.uint8)
 
 
 def write_vtk(volume: Volume, path, *, ascii: bool = False) -> Path:

@@ -572,6 +572,15 @@ def test_vtk_null_arrays_of_field_data_are_read_past(tmp_path):
     check(load_volume(p), arr)
 
 
+def test_vtk_ascii_color_scalars_scale_as_vtk_reads_them(tmp_path):
+    # Truth: what VTK 9's vtkStructuredPointsReader gives for these values (float, then
+    # 255 v + 0.5 in double, truncated); 0.7 and 0.01372549 sit at a rounding's edge.
+    p = tmp_path / "c.vtk"
+    p.write_text("# vtk DataFile Version 3.0\nt\nASCII\nDATASET STRUCTURED_POINTS\nDIMENSIONS 2 2 2\n"
+                 "POINT_DATA 8\nCOLOR_SCALARS c 1\n0.7 0.9 0.527451 0.1 0.3 0.5 0.01372549 0\n")
+    assert load_volume(p).data.ravel().tolist() == [178, 229, 134, 26, 77, 128, 4, 0]
+
+
 def test_vtk_ascii_integers_past_64_bits_are_one_line(tmp_path):
     p = tmp_path / "big.vtk"
     p.write_text("# vtk DataFile Version 3.0\nbig\nASCII\nDATASET STRUCTURED_POINTS\nDIMENSIONS 2 2 2\n"
