@@ -137,11 +137,22 @@ def decompress(blob: bytes, expected: int, path, kind: str) -> bytes:
     return out
 
 
+def no_digit_separators(words, path, what: str):
+    """Refuse numbers written with underscores (``1_000``) among ``words`` (bytes): Python and
+    NumPy read them, the formats' own readers (C's ``strtod`` and ``atoi``: teem, MetaIO,
+    VTK) do not. One search over all the words joined: text data hold millions."""
+    if b"_" in b"".join(words):
+        bad = next(w for w in words if b"_" in w)
+        raise InputError(f"{path}: {bad[:40].decode('ascii', 'replace')!r} in {what} is not a number")
+
+
 def parse_numbers(words, count: int, cast, path, what: str):
     """``count`` numbers from ``words`` (strings), or InputError naming ``what``."""
     if len(words) < count:
         raise InputError(f"{path}: {what} needs {count} numbers, got {' '.join(words)!r}")
     try:
+        if any("_" in w for w in words[:count]):
+            raise ValueError        # Python reads 1_000; the formats' readers do not (`no_digit_separators`)
         return tuple(cast(w) for w in words[:count])
     except ValueError:
         raise InputError(f"{path}: {what} is not {count} numbers: {' '.join(words)!r}") from None

@@ -7,7 +7,8 @@ import numpy as np
 
 from ..errors import InputError
 from ..volume import Volume
-from ._common import decompress, parse_dims, parse_numbers, read_samples, reading, several_data_files, to_native
+from ._common import (decompress, no_digit_separators, parse_dims, parse_numbers, read_samples, reading,
+                      several_data_files, to_native)
 
 EXTENSIONS = (".mhd", ".mha")
 
@@ -207,6 +208,7 @@ def _text_samples(blob, count, dtype, path):
     words = blob.split()
     if len(words) != count:
         raise InputError(f"{path}: {len(words)} text samples, expected {count} (DimSize)")
+    no_digit_separators(words, path, "the text samples")
     try:
         return np.array(words, dtype=dtype)
     except (ValueError, OverflowError) as exc:

@@ -13,7 +13,7 @@ import nrrd
 
 from ..errors import InputError
 from ..volume import Volume
-from ._common import one_line, several_data_files
+from ._common import no_digit_separators, one_line, several_data_files
 
 EXTENSIONS = (".nrrd", ".nhdr")
 
@@ -206,6 +206,7 @@ def _read_text(header, fh, path, lines, skip):
     if len(words) != count:
         raise InputError(f"{path}: data do not match the header (truncated or corrupt?): {count} text samples "
                          f"expected, {len(words)} found")
+    no_digit_separators(words, path, "the text data")
     try:
         exact = np.array(words, dtype=np.float64)
     except ValueError:

@@ -34,6 +34,8 @@ class _Cursor:
     def number(self, cast, what: str):
         tok = self.token(what)
         try:
+            if b"_" in tok:
+                raise ValueError    # Python reads 1_000; VolVis's and VTK's readers do not
             return cast(tok.decode("ascii"))
         except (UnicodeDecodeError, ValueError):
             raise InputError(f"{self.path}: bad SLC header: {what} should be a number, got {tok[:20]!r}") from None

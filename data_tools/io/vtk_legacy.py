@@ -8,7 +8,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..volume import Volume
-from ._common import parse_dims, parse_numbers, read_samples, reading
+from ._common import no_digit_separators, parse_dims, parse_numbers, read_samples, reading
 
 EXTENSIONS = (".vtk",)
 
@@ -376,6 +376,7 @@ def _read_ascii(f, dims, dtype, path):
     tokens = f.read().split()
     if len(tokens) < count:
         raise InputError(f"{path}: ASCII VTK data truncated: {count} samples needed, found {len(tokens)}")
+    no_digit_separators(tokens[:count], path, "the ASCII VTK data")
     dt = np.dtype(dtype)
     try:
         values = np.array(tokens[:count]).astype(np.float64 if dt.kind == "f" else np.int64)

@@ -529,3 +529,33 @@ def test_bytes_are_not_three_numbers(value):
     assert three_numbers(value) is None
     with pytest.raises(InputError, match="spacing must be three numbers"):
         Volume(np.zeros((2, 2, 2), np.uint8), spacing=value)
+
+
+@pytest.mark.parametrize("kind", ["slc header", "mhd header", "vtk header", "vtk data", "nrrd text", "mhd text"])
+def test_numbers_with_digit_separators_are_refused(tmp_path, writers, kind):
+    # Python and NumPy read "1_0" as 10; the formats' own readers (teem, MetaIO, VTK's, VolVis's)
+    # refuse it. Before, an SLC header's "1_0" made a volume 10 samples wide.
+    arr = np.arange(24, dtype=np.uint8).reshape(2, 3, 4)
+    if kind == "slc header":
+        p = writers.slc(tmp_path / "v.slc", arr, compression=0)
+        p.write_bytes(p.read_bytes().replace(b"4 3 2 8", b"4 3 2_0 8", 1))
+    elif kind.startswith("mhd"):
+        text = kind == "mhd text"
+        (tmp_path / "v.dat").write_bytes(b"0 1 2_0 3 " + b"5 " * 20 if text else arr.tobytes())
+        p = tmp_path / "v.mhd"
+        p.write_text(f"NDims = 3\nDimSize = {'4 3 2' if text else '4 3 0_2'}\nElementType = MET_UCHAR\n"
+                     f"BinaryData = {not text}\nElementDataFile = v.dat\n")
+    elif kind.startswith("vtk"):
+        values = " ".join(map(str, arr.ravel())) + "\n"
+        p = tmp_path / "v.vtk"
+        p.write_text("# vtk DataFile Version 3.0\nt\nASCII\nDATASET STRUCTURED_POINTS\n"
+                     f"DIMENSIONS {'4 3 2' if kind == 'vtk data' else '4 3 0_2'}\nPOINT_DATA 24\n"
+                     "SCALARS s unsigned_char 1\nLOOKUP_TABLE default\n"
+                     + (values.replace(" 7 ", " 7_0 ") if kind == "vtk data" else values))
+    else:
+        p = tmp_path / "v.nrrd"
+        p.write_text("NRRD0004\ntype: uchar\ndimension: 3\nsizes: 4 3 2\nencoding: ascii\n\n"
+                     + " ".join(map(str, arr.ravel())).replace(" 7 ", " 7_0 ") + "\n")
+    with pytest.raises(InputError, match="_") as exc:
+        load_volume(p)
+    assert "\n" not in str(exc.value)
