@@ -173,7 +173,7 @@ def several_data_files(path: Path, field: str, value: str, rest, ndims: int):
     remaining lines (``rest()`` returns those lines), and ``FORMAT MIN MAX STEP [subdim]``, a
     printf-style name numbered from MIN to MAX (inclusive) by STEP. Each file holds a
     ``subdim``-dimensional block of the fastest axes (by default every axis but the slowest:
-    a file a slice), in order. Names are relative to the header's folder.
+    a file a slice), in order (`data_file_block`). Names are relative to the header's folder.
     """
     words = value.split()
     place = (lambda name: Path(name) if Path(name).is_absolute() else path.parent / name)
@@ -200,3 +200,46 @@ def several_data_files(path: Path, field: str, value: str, rest, ndims: int):
     if not subdim.isdigit() or not 1 <= int(subdim) <= ndims:
         raise InputError(f"{path}: {field} {value!r}: the data files' dimension {subdim!r} must be 1 to {ndims}")
     return [place(n) for n in names], int(subdim)
+
+
+def data_file_block(path, paths, subdim, sizes, stated: str) -> int:
+    """Samples each of ``paths`` holds (`several_data_files`): a block of the fastest ``subdim``
+    of ``sizes`` (fastest first); with ``subdim`` the dimension, an equal slab of the slowest
+    axis each. ``stated`` names what states the sizes, for the message when they do not add up."""
+    total = int(np.prod(sizes, dtype=np.int64))
+    block = int(np.prod(sizes[:subdim], dtype=np.int64))
+    if subdim == len(sizes) and sizes[-1] % len(paths) == 0:
+        block = total // len(paths)
+    if block * len(paths) != total:
+        raise InputError(f"{path}: {len(paths)} data files of {block} samples each (blocks of {subdim} axes) "
+                         f"do not make {stated} {total} samples")
+    return block
+
+
+def text_values(words, dtype, path, type_name: str):
+    """Text samples ``words`` (bytes) as ``dtype``: each read as a double, as C's ``strtod``
+    reads it, and integer types taking only integers in their range (``type_name`` names the
+    type in the message). Parsing straight into the type, NumPy refused ``1.e5`` and read -1
+    as 255 in an unsigned type."""
+    no_digit_separators(words, path, "the text samples")
+    try:
+        exact = np.array(words, dtype=np.float64)
+    except ValueError:
+        bad = next(w for w in words if not _is_float(w))
+        raise InputError(f"{path}: the text sample {bad[:40].decode('ascii', 'replace')!r} is not a number") from None
+    dtype = np.dtype(dtype)
+    if dtype.kind in "iu":
+        info = np.iinfo(dtype)
+        wrong = np.flatnonzero(~((exact >= info.min) & (exact <= info.max) & (exact == np.round(exact))))
+        if wrong.size:
+            raise InputError(f"{path}: the text sample {exact[wrong[0]]:.17g} is outside {type_name} "
+                             f"(integers {info.min} to {info.max})")
+    return exact.astype(dtype)
+
+
+def _is_float(word):
+    try:
+        float(word)
+    except ValueError:
+        return False
+    return True

@@ -7,8 +7,8 @@ import numpy as np
 
 from ..errors import InputError
 from ..volume import Volume
-from ._common import (decompress, no_digit_separators, parse_dims, parse_numbers, read_samples, reading,
-                      several_data_files, to_native)
+from ._common import (data_file_block, decompress, parse_dims, parse_numbers, read_samples, reading,
+                      several_data_files, text_values, to_native)
 
 EXTENSIONS = (".mhd", ".mha")
 
@@ -133,10 +133,7 @@ def _build(path, fields, data_start):
     files = several_data_files(path, "ElementDataFile", data_name, lambda: _lines_after(path, data_start), len(dims))
     if files is not None:
         paths, subdim = files
-        block = int(np.prod(dims[:subdim], dtype=np.int64))
-        if block * len(paths) != nx * ny * nz:
-            raise InputError(f"{path}: {len(paths)} data files of {block} samples each (blocks of {subdim} "
-                             f"axes) do not make DimSize's {nx * ny * nz} samples")
+        block = data_file_block(path, paths, subdim, dims, "DimSize's")
         meta["data_files"] = tuple(str(p) for p in paths)
         parts = []
         for number, data_path in enumerate(paths, 1):
@@ -208,11 +205,7 @@ def _text_samples(blob, count, dtype, path):
     words = blob.split()
     if len(words) != count:
         raise InputError(f"{path}: {len(words)} text samples, expected {count} (DimSize)")
-    no_digit_separators(words, path, "the text samples")
-    try:
-        return np.array(words, dtype=dtype)
-    except (ValueError, OverflowError) as exc:
-        raise InputError(f"{path}: text samples are not all {np.dtype(dtype).name}: {exc}") from None
+    return text_values(words, dtype, path, f"the sample type {np.dtype(dtype).name}")
 
 
 def write_metaimage(volume: Volume, path, *, byte_order: str = "little") -> Path:

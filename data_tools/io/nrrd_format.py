@@ -13,7 +13,7 @@ import nrrd
 
 from ..errors import InputError
 from ..volume import Volume
-from ._common import no_digit_separators, one_line, several_data_files
+from ._common import data_file_block, one_line, several_data_files, text_values
 
 EXTENSIONS = (".nrrd", ".nhdr")
 
@@ -150,13 +150,7 @@ def _joined(header, files, path, encoding, lines, skip):
     compressed or hex data, to the decoded bytes)."""
     paths, subdim = files
     sizes = [int(n) for n in header["sizes"]]
-    total = int(np.prod(sizes, dtype=np.int64))
-    block = int(np.prod(sizes[:subdim], dtype=np.int64))
-    if subdim == len(sizes) and sizes[-1] % len(paths) == 0:
-        block = total // len(paths)         # slabs of the slowest axis, as many slices each
-    if block * len(paths) != total:
-        raise InputError(f"{path}: {len(paths)} data files of {block} samples each (blocks of "
-                         f"{subdim} axes) do not make the header's {total} samples")
+    block = data_file_block(path, paths, subdim, sizes, "the header's")
     one = {key: header[key] for key in ("type", "endian", "encoding") if key in header}
     one.update(dimension=1, sizes=np.array([block]))
     parts = []
@@ -194,8 +188,7 @@ def _read_text(header, fh, path, lines, skip):
 
     Read here, not by pynrrd: NumPy's text reading, which it uses, refused numbers such as
     ``1.e5`` (C's and teem's ``strtod`` take them), and parsed text into the header's integer
-    type directly, so that -1 became 255. Each word is read as a double, and integer types
-    take only integers in their range.
+    type directly, so that -1 became 255 (`text_values`).
     """
     for _ in range(lines):
         fh.readline()
@@ -206,28 +199,8 @@ def _read_text(header, fh, path, lines, skip):
     if len(words) != count:
         raise InputError(f"{path}: data do not match the header (truncated or corrupt?): {count} text samples "
                          f"expected, {len(words)} found")
-    no_digit_separators(words, path, "the text data")
-    try:
-        exact = np.array(words, dtype=np.float64)
-    except ValueError:
-        bad = next(w for w in words if not _is_float(w))
-        raise InputError(f"{path}: the text sample {bad[:40].decode('ascii', 'replace')!r} is not a number") from None
-    dtype = _sample_type(header)
-    if dtype.kind in "iu":
-        info = np.iinfo(dtype)
-        wrong = np.flatnonzero(~((exact >= info.min) & (exact <= info.max) & (exact == np.round(exact))))
-        if wrong.size:
-            raise InputError(f"{path}: the text sample {exact[wrong[0]]:.17g} is outside the header's type "
-                             f"{header.get('type')} (integers {info.min} to {info.max})")
-    return exact.astype(dtype).reshape(sizes[::-1])
-
-
-def _is_float(word):
-    try:
-        float(word)
-    except ValueError:
-        return False
-    return True
+    values = text_values(words, _sample_type(header), path, f"the header's type {header.get('type')}")
+    return values.reshape(sizes[::-1])
 
 
 def _sample_type(header):

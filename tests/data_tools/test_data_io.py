@@ -752,6 +752,18 @@ def test_metaimage_text_samples(tmp_path, local):
         load_volume(path)
 
 
+def test_metaimage_text_samples_read_as_nrrd_text_is(tmp_path):
+    # One reading of text for both formats: numbers as C's strtod takes them (1e2 is an integer),
+    # and an integer type takes integers in its range only.
+    p = tmp_path / "t.mha"
+    head = b"NDims = 3\nBinaryData = False\nDimSize = 2 2 2\nElementType = MET_UCHAR\nElementDataFile = LOCAL\n"
+    p.write_bytes(head + b"1e2 2. 3 4 5 6 7 +8\n")
+    assert load_volume(p).data.ravel().tolist() == [100, 2, 3, 4, 5, 6, 7, 8]
+    p.write_bytes(head + b"-1 2 3 4 5 6 7 8\n")
+    with pytest.raises(InputError, match="the text sample -1 is outside the sample type uint8 .integers 0 to 255."):
+        load_volume(p)
+
+
 @pytest.mark.parametrize("centers, spacing, origin", [
     ("node node node", (0.5, 1.0, 2.25), (1.0, -1.0, 0.0)),
     ("cell cell cell", (0.4, 0.75, 1.5), (1.2, -0.625, 0.75)),
