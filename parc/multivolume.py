@@ -55,7 +55,8 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
     PARC's walks and shadow rays skip the volumes' empty cells
     (`parc.renderer.render`).
     """
-    from .renderer import accumulation_params, iso_work, octant_skip_tables, parc_segments, row_bands, skip_table
+    from .renderer import accumulation_params, iso_work, parc_segments, row_bands
+    from .skip import octant_skip_tables, skip_table
 
     w, h = scene.size
     npx = w * h
@@ -222,7 +223,8 @@ def _shadows(scene, method, lights, points, groups, vis, sizes, light_buffer, bl
     surface. A shadow ray starts and ends `SHADOW_EPS` of its own surface's smallest spacing
     off (the smallest in the scene let a tiny volume anywhere make surfaces shadow themselves).
     """
-    from .renderer import accumulation_params, cached_proxy, skip_table
+    from .renderer import accumulation_params, cached_proxy
+    from .skip import skip_table
 
     nh = len(points)
     cnt = np.zeros((nh, 3), np.int64)

@@ -6,9 +6,9 @@ ray segments from `parc_segments` when the method is ``"parc"``; the
 casting kernels are the same for both methods. Scenes of several volumes or
 with lights go to `_render_general` (`parc.multivolume`).
 
-Also here, shared with `parc.multivolume` and the benchmarks: what a frame
-takes from a volume's caches (`cached_proxy`, `classifier`, `skip_table`,
-`octant_skip_tables`) and the kernels' arguments (`accumulation_params`, `iso_work`).
+Also here, shared with `parc.multivolume` and the benchmarks: the proxy a frame
+takes from a volume's caches (`cached_proxy`, `classifier`) and the kernels'
+arguments (`accumulation_params`, `iso_work`); the skip tables are `parc.skip`'s.
 """
 from __future__ import annotations
 
@@ -22,9 +22,10 @@ import numpy as np
 from data_tools import InputError
 from raycast.composite import (MODE_AVERAGE, MODE_COMPOSITE, MODE_MIP, N_PARAMS, P_AMBIENT, P_HI, P_LO, P_MODE,
                                P_RATIO, P_SHADE, P_STEP, P_THRESHOLD, cast_accumulate_image, over_background)
-from raycast.iso import NO_SKIP, NO_SKIP_OCTANTS, cast_iso_image, octant
+from raycast.iso import cast_iso_image
 
 from .scene import Isosurface, Scene, Translucent
+from .skip import octant_skip_tables, skip_table
 from .workspace import check_frame_memory, work_array
 
 METHODS = ("brute", "parc")
@@ -414,48 +415,6 @@ def iso_work(n, slot=0):
     reused from frame to frame (`parc.workspace`); ``slot`` tells apart sets alive at once."""
     return (work_array(("iso_cell", slot), (n, 3), np.int32), work_array(("iso_uvw", slot), (n, 3)),
             work_array(("iso_counts", slot), (n, 2), np.int64))
-
-
-def skip_table(vis, use):
-    """``(table, jump_min)`` for the casting kernels: the per-cell skip table of an
-    Isosurface (`raycast.iso`) or Translucent (`raycast.composite`) volume and
-    the smallest radius worth a jump when ``use``, else none (the unaccelerated caster)."""
-    if not use:
-        return NO_SKIP, -1
-    from .classify import VolumeIndex
-    index = VolumeIndex.of(vis.volume)
-    if isinstance(vis, Isosurface):
-        return index.iso_skip(vis.value)
-    return index.tf_skip(vis.tf)
-
-
-def octant_skip_tables(iso, use, camera, width, height):
-    """``(tables, jump_min)`` for an isosurface's camera rays: its skip tables by ray octant
-    (`parc.classify.VolumeIndex.iso_octant_skip`), built for the octants of the view's rays, when
-    ``use``, else none."""
-    if not use:
-        return NO_SKIP_OCTANTS, -1
-    from .classify import VolumeIndex
-    return VolumeIndex.of(iso.volume).iso_octant_skip(iso.value, ray_octants(camera, width, height))
-
-
-def ray_octants(camera, width, height):
-    """The octants (`raycast.iso.octant`) of the camera's pixel rays.
-
-    Before it is normalized, a pixel's ray direction is affine in the
-    pixel's indices (`raycast.rays.camera_ray`), so each component's sign
-    over the image is one of those at its corners; a ray that rounding puts
-    in another octant walks with no skip table there, slower but exact.
-    """
-    from raycast.rays import camera_ray
-    cam = camera.as_array()
-    signs = [set(), set(), set()]
-    for x in (0, width - 1):
-        for y in (0, height - 1):
-            o = octant(*camera_ray(cam, width, height, x, y)[3:])
-            for a in range(3):
-                signs[a].add(o & (1 << a))
-    return sorted(sx + sy + sz for sx in signs[0] for sy in signs[1] for sz in signs[2])
 
 
 def accumulation_params(vis):

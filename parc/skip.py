@@ -12,11 +12,16 @@ come from the cell ranges of `parc.classify` (`VolumeIndex.iso_skip`,
 `VolumeIndex.tf_skip`); the radii from `skip_radius`. For the camera
 rays of an isosurface, a table per ray octant holds the side of the box
 ahead of each cell instead (`octant_radius`, `VolumeIndex.iso_octant_skip`).
+A frame takes its tables through `skip_table` and `octant_skip_tables`.
 """
 import numpy as np
 from numba import prange
 
 from raycast.config import kernel
+from raycast.iso import NO_SKIP, NO_SKIP_OCTANTS, octant
+from raycast.rays import camera_ray
+
+from .scene import Isosurface
 
 #: Skip tables (`skip_radius`): ``1 + radius`` is capped at this many
 #: cells, which bounds the table's build (a pass per radius over each
@@ -217,6 +222,47 @@ def _octant_grow(c, inner, axis, step, cap, out):
                 dd = np.int8(d + 1)
                 for i in range(nx):
                     out[k, j, i] += np.int8(low[i] >= dd)
+
+
+def skip_table(vis, use):
+    """``(table, jump_min)`` for the casting kernels: the per-cell skip table of an
+    Isosurface (`raycast.iso`) or Translucent (`raycast.composite`) volume and
+    the smallest radius worth a jump when ``use``, else none (the unaccelerated caster)."""
+    from .classify import VolumeIndex      # which imports this module
+    if not use:
+        return NO_SKIP, -1
+    index = VolumeIndex.of(vis.volume)
+    if isinstance(vis, Isosurface):
+        return index.iso_skip(vis.value)
+    return index.tf_skip(vis.tf)
+
+
+def octant_skip_tables(iso, use, camera, width, height):
+    """``(tables, jump_min)`` for an isosurface's camera rays: its skip tables by ray octant
+    (`parc.classify.VolumeIndex.iso_octant_skip`), built for the octants of the view's rays, when
+    ``use``, else none."""
+    from .classify import VolumeIndex
+    if not use:
+        return NO_SKIP_OCTANTS, -1
+    return VolumeIndex.of(iso.volume).iso_octant_skip(iso.value, ray_octants(camera, width, height))
+
+
+def ray_octants(camera, width, height):
+    """The octants (`raycast.iso.octant`) of the camera's pixel rays.
+
+    Before it is normalized, a pixel's ray direction is affine in the
+    pixel's indices (`raycast.rays.camera_ray`), so each component's sign
+    over the image is one of those at its corners; a ray that rounding puts
+    in another octant walks with no skip table there, slower but exact.
+    """
+    cam = camera.as_array()
+    signs = [set(), set(), set()]
+    for x in (0, width - 1):
+        for y in (0, height - 1):
+            o = octant(*camera_ray(cam, width, height, x, y)[3:])
+            for a in range(3):
+                signs[a].add(o & (1 << a))
+    return sorted(sx + sy + sz for sx in signs[0] for sy in signs[1] for sz in signs[2])
 
 
 #: The kernels each kind of table compiles on its first use (`parc.renderer.casters_for`).

@@ -111,8 +111,9 @@ def test_shading_in_the_cast_equals_the_shading_pass(seed):
 def test_cast_totals_are_the_sums_of_the_per_pixel_outputs(seed):
     # The stats take the totals the kernels return: band by band (as with
     # progress), they must add up to what the per-pixel outputs hold.
-    from parc.renderer import accumulation_params, skip_table
+    from parc.renderer import accumulation_params
     from parc.scene import Translucent
+    from parc.skip import skip_table
     from parc.transfer import load_transfer_function
     from raycast.composite import cast_accumulate_image
     from raycast.iso import NO_SHADING, cast_iso_image, empty_outputs

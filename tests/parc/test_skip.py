@@ -342,9 +342,9 @@ def test_volume_index_octant_tables_follow_the_isovalue():
 
 @pytest.mark.parametrize("parallel", [False, True])
 def test_ray_octants_cover_every_pixel(parallel):
-    """`parc.renderer.ray_octants` names the octant of every camera ray it is asked about."""
+    """`parc.skip.ray_octants` names the octant of every camera ray it is asked about."""
     from parc.camera import Camera
-    from parc.renderer import ray_octants
+    from parc.skip import ray_octants
     from raycast.iso import octant
     from raycast.rays import camera_ray
     rng = np.random.default_rng(int(parallel))
