@@ -2,11 +2,13 @@
 from __future__ import annotations
 
 import contextlib
+import decimal
 import importlib
 import logging
 import os
 import struct
 import zlib
+from fractions import Fraction
 from pathlib import Path
 
 import numpy as np
@@ -219,8 +221,9 @@ def data_file_block(path, paths, subdim, sizes, stated: str) -> int:
 def text_values(words, dtype, path, type_name: str):
     """Text samples ``words`` (bytes) as ``dtype``: each read as a double, as C's ``strtod``
     reads it, and integer types taking only integers in their range (``type_name`` names the
-    type in the message). Parsing straight into the type, NumPy refused ``1.e5`` and read -1
-    as 255 in an unsigned type."""
+    type in the message); float32 samples rounded once from the text, as ``strtof`` rounds
+    them (`float32_from_text`). Parsing straight into the type, NumPy refused ``1.e5`` and
+    read -1 as 255 in an unsigned type."""
     no_digit_separators(words, path, "the text samples")
     try:
         exact = np.array(words, dtype=np.float64)
@@ -234,7 +237,47 @@ def text_values(words, dtype, path, type_name: str):
         if wrong.size:
             raise InputError(f"{path}: the text sample {exact[wrong[0]]:.17g} is outside {type_name} "
                              f"(integers {info.min} to {info.max})")
+    if dtype == np.float32:
+        return float32_from_text(words, exact)
     return exact.astype(dtype)
+
+
+#: The float32 overflow threshold, halfway between its largest value and 2^128:
+#: text at or above it rounds to infinity.
+_FLOAT32_TOP = float(np.finfo(np.float32).max) + 2.0 ** 103
+
+
+def float32_from_text(words, doubles):
+    """float32 samples of text ``words`` (bytes), each rounded once from its decimal value,
+    as C's ``strtof`` rounds it (NRRD's, MetaImage's and VTK's own readers read floats so).
+
+    ``doubles`` holds the same words read as float64. Rounding that double to float32 again
+    differs from rounding once only where the double lies exactly halfway between two float32
+    neighbours (a double holds every such midpoint: 25 bits) and the text does not: through
+    the double, ``1.00000005960464477539062500001`` reads as 1.0 (the halfway double, rounded
+    to even), where it lies above halfway and rounds to 1.0000001. Those few words are
+    settled by their exact decimal value.
+    """
+    doubles = np.asarray(doubles, dtype=np.float64)
+    with np.errstate(over="ignore", invalid="ignore"):
+        single = doubles.astype(np.float32)
+        below = np.nextafter(single, np.float32(-np.inf))
+        above = np.nextafter(single, np.float32(np.inf))
+        here = single.astype(np.float64)
+        halfway = ((doubles == (here + below.astype(np.float64)) * 0.5)
+                   | (doubles == (here + above.astype(np.float64)) * 0.5)
+                   | (np.abs(doubles) == _FLOAT32_TOP))
+    for n in np.flatnonzero(halfway):
+        try:
+            text = Fraction(decimal.Decimal(bytes(words[n]).decode("ascii").strip()))
+        except (ValueError, ArithmeticError, UnicodeError):
+            continue
+        middle = Fraction(float(doubles[n]))
+        if text == middle:
+            continue                        # truly halfway: the even neighbour, as rounded
+        lower, upper = (single[n], above[n]) if float(single[n]) < middle else (below[n], single[n])
+        single[n] = upper if text > middle else lower
+    return single
 
 
 def _is_float(word):

@@ -8,7 +8,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..volume import Volume
-from ._common import no_digit_separators, parse_dims, parse_numbers, read_samples, reading
+from ._common import float32_from_text, no_digit_separators, parse_dims, parse_numbers, read_samples, reading
 
 EXTENSIONS = (".vtk",)
 
@@ -387,6 +387,8 @@ def _read_ascii(f, dims, dtype, path):
     info = np.iinfo(dt) if dt.kind in "iu" else np.finfo(dt)
     if values.min() < info.min or values.max() > info.max:
         raise InputError(f"{path}: ASCII VTK values outside the {dt.name} range")
+    if dt == np.float32:
+        values = float32_from_text(tokens[:count], values)
     return values.astype(dt).reshape(dims[2], dims[1], dims[0])
 
 

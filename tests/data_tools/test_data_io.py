@@ -5,6 +5,8 @@ import bz2
 import gzip
 import json
 import zlib
+from decimal import Decimal, localcontext
+from fractions import Fraction
 
 import nrrd
 import numpy as np
@@ -278,6 +280,72 @@ def test_nrrd_text_takes_every_c_number_form(tmp_path, detached):
     data.write_text(data.read_text().replace(" 2. ", " two "))
     with pytest.raises(InputError, match="the text sample 'two' is not a number"):
         load_volume(p)
+
+
+def _nearest_float32(text):
+    """The float32 nearest the decimal ``text``, ties to even, by exact arithmetic: the truth
+    C's ``strtof`` gives (inf past the overflow threshold)."""
+    value = Fraction(Decimal(text))
+    with np.errstate(over="ignore"):
+        guess = np.float32(float(value))
+        near = {guess, np.nextafter(guess, np.float32(-np.inf)), np.nextafter(guess, np.float32(np.inf))}
+    top = Fraction(float(np.finfo(np.float32).max)) + Fraction(2) ** 103
+    def distance(c):
+        if np.isinf(c):
+            return (abs(value) < top, 0, 0)
+        return (False, abs(Fraction(float(c)) - value), int(np.array(c).view(np.uint32)) & 1)
+    return min(near, key=distance)
+
+
+def _around_float32_midpoints(with_overflow):
+    """Decimal words just below, on and just above the midpoints between float32 neighbours
+    (through a double, all three round to the same double, the midpoint), and with
+    ``with_overflow`` one just below the overflow threshold (through a double, infinity)."""
+    words = []
+    with localcontext() as ctx:
+        ctx.prec = 120
+        for a in (np.float32(1), np.float32(0.1), np.float32(-3e-41), np.float32(0), np.finfo(np.float32).max):
+            with np.errstate(over="ignore"):
+                b = np.nextafter(a, np.float32(np.inf))
+            gap = Fraction(2) ** 104 if np.isinf(b) else Fraction(float(b)) - Fraction(float(a))
+            mid = Fraction(float(a)) + gap / 2
+            exact = Decimal(mid.numerator) / Decimal(mid.denominator)
+            nudge = Decimal(gap.numerator) / Decimal(gap.denominator) * Decimal("1e-25")
+            if np.isinf(b):
+                if with_overflow:
+                    words.append(str(exact - nudge))
+                continue
+            words += [str(exact - nudge), str(exact), str(exact + nudge)]
+    assert len({float(w) for w in words}) == 4 + with_overflow       # the double cannot tell them apart
+    return words
+
+
+@pytest.mark.parametrize("fmt", ["nrrd", "mha", "vtk"])
+def test_float_text_rounds_once_to_float32(tmp_path, fmt):
+    # Each reader's own parses float text as strtof does, straight to the nearest float32.
+    # Read as a double first, a decimal a hair off a float32 midpoint became the midpoint
+    # itself and then rounded to even: 1.00000005960464477539062500001 read as 1.0.
+    words = _around_float32_midpoints(with_overflow=fmt != "vtk")
+    words += ["0.5"] * (-len(words) % 4)
+    n = len(words)
+    text = (" ".join(words) + "\n").encode()
+    p = tmp_path / f"v.{fmt}"
+    if fmt == "nrrd":
+        p.write_bytes(f"NRRD0004\ntype: float\ndimension: 3\nsizes: 2 2 {n // 4}\nencoding: ascii\n\n".encode() + text)
+    elif fmt == "mha":
+        p.write_bytes(f"NDims = 3\nBinaryData = False\nDimSize = 2 2 {n // 4}\nElementType = MET_FLOAT\n"
+                      "ElementDataFile = LOCAL\n".encode() + text)
+    else:
+        p.write_bytes(f"# vtk DataFile Version 3.0\nt\nASCII\nDATASET STRUCTURED_POINTS\nDIMENSIONS 2 2 {n // 4}\n"
+                      f"SPACING 1 1 1\nORIGIN 0 0 0\nPOINT_DATA {n}\nSCALARS v float 1\nLOOKUP_TABLE default\n"
+                      .encode() + text)
+    got = load_volume(p).data.ravel()
+    expected = np.array([_nearest_float32(w) for w in words], np.float32)
+    assert got.dtype == np.float32
+    np.testing.assert_array_equal(got, expected)
+    with np.errstate(over="ignore"):
+        through_double = np.array([np.float64(w) for w in words]).astype(np.float32)
+    assert (got != through_double).sum() >= 4          # the cases a double misreads
 
 
 @pytest.mark.parametrize("body, skip, message", [
