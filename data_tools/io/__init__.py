@@ -72,6 +72,9 @@ def load_volume(path, **options) -> Volume:
     if isinstance(path, np.ndarray):
         raise InputError("load_volume reads a file; an array in memory is a volume already: "
                          "Volume(array, spacing=(sx, sy, sz))")
+    if isinstance(path, (str, bytes)) and not path:
+        # Path("") is the current folder, read as a folder of TIFF slices.
+        raise InputError("the volume path is empty; give a volume file")
     try:
         path = Path(path)
     except TypeError:

@@ -16,7 +16,19 @@ ELEMENT_TYPES = {
     "MET_UCHAR": "uint8", "MET_CHAR": "int8", "MET_USHORT": "uint16", "MET_SHORT": "int16",
     "MET_UINT": "uint32", "MET_INT": "int32", "MET_FLOAT": "float32", "MET_DOUBLE": "float64",
 }
-_TRUE = {"true", "1", "yes"}
+def _flag(path, fields, keys, default: bool) -> bool:
+    """A True/False field (the first of ``keys`` present), read as MetaIO reads it: true when
+    its first letter is T, t or 1, false when F, f or 0. Anything else is refused: MetaIO
+    would take ``Maybe`` or ``yes`` for false, whatever the writer meant."""
+    key = next((k for k in keys if k in fields), None)
+    if key is None:
+        return default
+    value = fields[key].strip()
+    if value[:1] in ("T", "t", "1"):
+        return True
+    if value[:1] in ("F", "f", "0"):
+        return False
+    raise InputError(f"{path}: {key} must be True or False, got {value!r}")
 _MAX_HEADER = 1 << 16
 
 
@@ -104,8 +116,8 @@ def _build(path, fields, data_start):
     spacing = parse_numbers(spacing.split(), 3, float, path, "ElementSpacing") if spacing else (1.0, 1.0, 1.0)
     origin = get("Offset", "Origin", "Position")
     origin = parse_numbers(origin.split(), 3, float, path, "Offset") if origin else (0.0, 0.0, 0.0)
-    big = (get("BinaryDataByteOrderMSB", "ElementByteOrderMSB") or "false").lower() in _TRUE
-    compressed = (get("CompressedData") or "false").lower() in _TRUE
+    big = _flag(path, fields, ("BinaryDataByteOrderMSB", "ElementByteOrderMSB"), False)
+    compressed = _flag(path, fields, ("CompressedData",), False)
     try:
         header_size = int(get("HeaderSize") or 0)
     except ValueError:
@@ -123,7 +135,7 @@ def _build(path, fields, data_start):
     data_name = get("ElementDataFile").strip()
     if not data_name:
         raise InputError(f"{path}: ElementDataFile is empty; give LOCAL or a data file name")
-    text = (get("BinaryData") or "true").lower() not in _TRUE
+    text = not _flag(path, fields, ("BinaryData",), True)
     if text and compressed:
         raise InputError(f"{path}: CompressedData with text samples (BinaryData = False) is not supported")
     if header_size == -1 and (text or compressed):

@@ -6,6 +6,8 @@ of which nibabel already reads correctly.
 """
 from __future__ import annotations
 
+import math
+import os
 from pathlib import Path
 
 import numpy as np
@@ -66,12 +68,16 @@ def _read(nib, path):
     if len(shape) != 3:
         more = f"; it holds {int(np.prod(shape[3:]))} volumes, render one" if len(shape) > 3 else ""
         raise InputError(f"{path}: NIfTI image has shape {img.shape}, expected a 3-D volume{more}")
+    _check_length(img, path, start)
     try:
         proxy = img.dataobj
         scaled = _scaled(proxy)
         data = np.asarray(img.get_fdata(dtype=np.float32) if scaled else np.asanyarray(proxy))
     except MemoryError:
-        raise InputError(f"{path}: not enough memory to load this NIfTI volume") from None
+        stated = math.prod(int(n) for n in img.shape) * (4 if scaled else img.header.get_data_dtype().itemsize)
+        raise InputError(f"{path}: not enough memory to load this NIfTI volume: its header states "
+                         f"{'x'.join(str(int(n)) for n in img.shape)} samples, {stated / 1e9:.3g} GB "
+                         "(truncated or corrupt, if that is not its size)") from None
     except Exception as exc:  # noqa: BLE001 - truncated or corrupt data
         raise InputError(f"{path}: cannot read NIfTI data: {one_line(exc) or type(exc).__name__}") from None
     # The file stores x fastest, which nibabel gives as an [x, y, z] array in
@@ -89,6 +95,21 @@ def _read(nib, path):
     if note:
         meta["note"] = note
     return Volume(data, spacing=spacing, origin=origin, name=str(path), meta=meta)
+
+
+def _check_length(img, path, start):
+    """Refuse an uncompressed file shorter than its header's samples before nibabel allocates
+    them: a truncated file whose header claims a huge volume failed as out of memory."""
+    name = img.file_map["image"].filename
+    if start is None or name is None or str(name).lower().endswith(".gz"):
+        return
+    shape = tuple(int(n) for n in img.shape)
+    dtype = img.header.get_data_dtype()
+    need = int(start) + math.prod(shape) * dtype.itemsize
+    size = os.stat(name).st_size
+    if size < need:
+        raise InputError(f"{path}: truncated: its header's {'x'.join(map(str, shape))} {dtype.name} samples need "
+                         f"{need} bytes, the file has {size}")
 
 
 def _scaled(proxy):

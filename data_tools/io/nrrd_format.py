@@ -65,7 +65,7 @@ def read_nrrd(path) -> Volume:
     spacing, note = _spacing(header, path)
     if note:
         meta["note"] = note
-    origin = _origin(header, spacing)
+    origin = _origin(header, spacing, path)
     if spacing is None:
         spacing, origin = _from_extent(header, data.shape[::-1])
     if "space" in header:
@@ -85,6 +85,7 @@ def _read(path, data_file):
     (`_joined`)."""
     with open(path, "rb") as fh:
         header, files = _read_header(fh, path)
+        _check_layout(header, path)
         start = fh.tell()
         lines = header.get("lineskip", header.get("line skip", 0))
         size = (data_file.stat().st_size if data_file is not None and data_file.is_file()
@@ -98,6 +99,8 @@ def _read(path, data_file):
                              f"not {encoding}")
         if files is not None:
             return _joined(header, files, path, encoding, lines, skip), dict(header, **{"data files": files})
+        if encoding == "raw" and files is None and isinstance(skip, int) and skip > size:
+            raise InputError(f"{path}: byte skip {skip} passes the end of the data ({size} bytes)")
         if encoding in _DECODED and isinstance(skip, int) and skip >= 0:
             data = _read_decoded(header, encoding, fh, path, data_file, lines, skip)
         elif encoding in _TEXT and isinstance(skip, int) and skip >= 0 and isinstance(lines, int) and lines >= 0:
@@ -106,6 +109,18 @@ def _read(path, data_file):
         else:
             data = nrrd.read_data(header, fh, str(path), index_order="C")
     return data, header
+
+
+def _check_layout(header, path):
+    """Refuse sizes and a sample type that name no array of numbers, before pynrrd reads by
+    them (it answered ``sizes: -4 4 4`` with "product of all the dimensions: -64-64=-128"
+    and ``type: block`` with "negative dimensions are not allowed")."""
+    sizes = header.get("sizes")
+    if sizes is not None and not all(int(n) > 0 for n in np.atleast_1d(sizes)):
+        raise InputError(f"{path}: sizes must be positive, got {' '.join(str(int(n)) for n in np.atleast_1d(sizes))}")
+    if str(header.get("type", "")).lower() == "block":
+        raise InputError(f"{path}: type block (opaque blocks of bytes) holds no numbers; a volume needs a "
+                         "scalar type such as uint8, short or float")
 
 
 #: Lines of header read before giving up on finding its end (a binary file named .nrrd).
@@ -126,14 +141,14 @@ def _read_header(fh, path):
             break
         m = re.fullmatch(r"data ?file\s*:\s*(LIST.*)", text)
         if m and len(taken) > 1:
-            header = nrrd.read_header(taken[:-1])
+            header = _parsed(taken[:-1], taken, path)
             rest = [n.decode("utf-8", "replace") for n in fh.read().splitlines()]
             files = several_data_files(path, "data file", m.group(1), lambda: rest, int(header.get("dimension", 0)))
             if files is not None:
                 return header, files
             break
     fh.seek(0)
-    header = nrrd.read_header(fh)
+    header = _parsed(fh, taken, path)
     value = header.get("data file", header.get("datafile"))
     if not isinstance(value, str):
         return header, None
@@ -142,6 +157,54 @@ def _read_header(fh, path):
         for key in ("data file", "datafile"):
             header.pop(key, None)
     return header, files
+
+
+#: NRRD's fields, as pynrrd parses them (and ``centers``, ``number`` and ``block size``, which
+#: teem's reader takes and this one ignores or reads itself). A free-form key/value pair is
+#: written ``key:=value``.
+_FIELDS = frozenset((
+    "dimension", "type", "sizes", "endian", "encoding", "content", "number", "block size", "blocksize",
+    "min", "max", "old min", "oldmin", "old max", "oldmax", "data file", "datafile", "line skip", "lineskip",
+    "byte skip", "byteskip", "sample units", "space", "space dimension", "space units", "space origin",
+    "space directions", "measurement frame", "spacings", "thicknesses", "axis mins", "axismins", "axis maxs",
+    "axismaxs", "centers", "centerings", "kinds", "labels", "units"))
+
+#: teem's spellings without spaces that pynrrd does not parse: read as unknown, they would
+#: be ignored (``spacedirections``: the spacing lost).
+_SPELLED_APART = {"spacedimension": "space dimension", "spaceunits": "space units", "spaceorigin": "space origin",
+                  "spacedirections": "space directions", "measurementframe": "measurement frame",
+                  "sampleunits": "sample units"}
+
+
+def _parsed(source, lines, path):
+    """`nrrd.read_header` of ``source`` (the header's lines, or the file), with a field it cannot
+    parse named (pynrrd's message alone, "could not convert string to float: 'x'", does not
+    say where), and a field NRRD does not have refused, as teem's reader refuses it (a
+    misspelt ``spacngs`` was ignored, and the spacing with it). ``lines``: the header's lines
+    as read, the magic first."""
+    try:
+        header = nrrd.read_header(source)
+    except Exception as exc:  # noqa: BLE001 - pynrrd raises many kinds
+        for line in lines[1:]:
+            field = line.decode("ascii", "ignore").split(":", 1)[0].strip()
+            try:
+                nrrd.read_header(lines[:1] + [line])
+            except Exception as one:  # noqa: BLE001 - as above
+                raise InputError(f"{path}: field {field!r}: {_explain(one)}") from None
+        raise exc
+    for line in lines[1:]:
+        text = line.decode("ascii", "ignore").rstrip()
+        if not text:
+            break
+        field, _, value = text.partition(":")
+        field = field.strip()
+        if text.startswith("#") or value.startswith("=") or field in _FIELDS:
+            continue
+        if field in _SPELLED_APART:
+            raise InputError(f"{path}: field {field!r}: this reader takes it spelt {_SPELLED_APART[field]!r}")
+        raise InputError(f"{path}: unknown field {field!r} (NRRD has no such field; a free-form key/value "
+                         "pair is written key:=value)")
+    return header
 
 
 def _joined(header, files, path, encoding, lines, skip):
@@ -333,6 +396,8 @@ def _explain(exc) -> str:
         # pynrrd looks field values up in tables: a KeyError names the value it does not know.
         return f"unsupported value {exc.args[0]!r} in the header (e.g. an unknown type or encoding)"
     text = one_line(exc)
+    if text == "negative dimensions are not allowed":
+        return "data do not match the header (truncated or corrupt?)"
     m = re.search(r"dimensions: (\d+)-(\d+)=", text)
     if m:
         return (f"data do not match the header (truncated or corrupt?): "
@@ -418,10 +483,17 @@ def _has_extent(header):
     return lo.shape == hi.shape == (3,) and np.isfinite(lo).all() and np.isfinite(hi).all()
 
 
-def _origin(header, spacing):
+def _origin(header, spacing, path):
     """The first sample's position: ``space origin`` is it; ``axis mins`` is the lower edge of
     the first cell with cell centring (NRRD's default), the sample half a spacing inside, as in
-    `_from_extent`."""
+    `_from_extent`. A ``space origin`` other than three finite numbers is refused: taken as
+    absent, it moved the volume to (0, 0, 0) without a word."""
+    given = header.get("space origin")
+    if given is not None:
+        arr = np.asarray(given, dtype=np.float64)
+        if arr.shape != (3,) or not np.isfinite(arr).all():
+            raise InputError(f"{path}: space origin must be three finite numbers, got "
+                             f"({','.join(f'{v:g}' for v in arr.ravel())})")
     for key in ("space origin", "axis mins", "axismins"):
         val = header.get(key)
         if val is not None:

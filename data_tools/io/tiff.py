@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import re
+import struct
 from pathlib import Path
 
 import numpy as np
@@ -60,6 +61,10 @@ def read_tiff(path) -> Volume:
                   name=str(path), meta=meta)
 
 
+#: Exceptions that tifffile does not raise on purpose (it raises TiffFileError, ValueError...).
+_SLIPS = (ArithmeticError, AssertionError, IndexError, KeyError, AttributeError, TypeError, struct.error)
+
+
 @contextlib.contextmanager
 def _reading_tiff(path):
     """tifffile's failures on ``path`` as one InputError line; its own log lines silenced,
@@ -73,6 +78,11 @@ def _reading_tiff(path):
         raise InputError(f"{path}: not enough memory to load this TIFF volume") from None
     except Exception as exc:  # noqa: BLE001 - tifffile raises many kinds on bad files
         detail = one_line(exc) or type(exc).__name__
+        if isinstance(exc, _SLIPS):
+            # Not tifffile's own complaint but a slip of its code on values no TIFF holds
+            # ("integer division or modulo by zero", a bare AssertionError).
+            slip = type(exc).__name__ + (f": {one_line(exc)}" if one_line(exc) else "")
+            detail = f"corrupt file: its header or tags do not hold together ({slip})"
         if "imagecodecs" in detail:
             # LZW and most other compressions: tifffile decodes them with imagecodecs.
             detail += " (pip install imagecodecs, or the extra: pip install 'parc[tiff]')"

@@ -107,6 +107,17 @@ def test_nifti_bad_files(tmp_path):
     fails(tmp_path / "cut.nii.gz", "NIfTI")
 
 
+def test_nifti_header_claiming_more_than_the_file_holds_is_truncated_not_out_of_memory(tmp_path):
+    # dim 32767^3 in a 1 kB file: nibabel allocated first, and the message was "not enough memory".
+    import struct
+    p = _nifti(tmp_path / "v.nii", np.zeros((10, 9, 8), np.uint8), np.eye(4))
+    raw = bytearray(p.read_bytes())
+    struct.pack_into("<4h", raw, 40, 3, 32767, 32767, 32767)
+    p.write_bytes(bytes(raw))
+    fails(p, f"truncated: its header's 32767x32767x32767 uint8 samples need {352 + 32767 ** 3} bytes, "
+             f"the file has {len(raw)}")
+
+
 @pytest.mark.parametrize("cls, offset", [(nib.Nifti1Image, 352), (nib.Nifti2Image, 544)])
 def test_nifti_whose_samples_would_start_in_its_header_is_refused(tmp_path, cls, offset):
     # vox_offset 0 in a .nii: nibabel read from byte 0, the header's bytes as samples.
@@ -158,6 +169,17 @@ def test_tiff_pages_written_one_by_one_are_stacked(tmp_path):
         for page in a:
             w.write(page, contiguous=False)
     assert np.array_equal(load_volume(p).data, a)
+
+
+@pytest.mark.parametrize("byte", [28, 43])
+def test_tiff_whose_tags_do_not_hold_together_is_called_corrupt(tmp_path, byte):
+    # tifffile's own code slipped on them: "integer division or modulo by zero", a bare AssertionError.
+    p = tmp_path / "c.tif"
+    tifffile.imwrite(p, np.zeros((10, 9, 8), np.uint8))
+    raw = bytearray(p.read_bytes())
+    raw[byte] ^= 0xFF
+    p.write_bytes(bytes(raw))
+    fails(p, "cannot read TIFF file: corrupt file: its header or tags do not hold together (")
 
 
 def test_tiff_refusals(tmp_path):
@@ -302,7 +324,7 @@ def test_nibabel_writes_nothing_of_its_own_on_stderr(tmp_path, caplog):
     (tmp_path / "neg.nii").write_bytes(bytes(raw))
     (tmp_path / "cut.nii").write_bytes(bytes(raw[:-10]))
     assert load_volume(tmp_path / "neg.nii").spacing == (2.0, 3.0, 4.0)
-    fails(tmp_path / "cut.nii", "cannot read NIfTI")
+    fails(tmp_path / "cut.nii", "truncated: its header's 5x4x3 uint8 samples need 412 bytes, the file has 402")
     assert [r.getMessage() for r in caplog.records] == []
 
 
