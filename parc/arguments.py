@@ -151,9 +151,19 @@ def _add_common_options(p):
     _add_volume_options(p)
 
 
+def _version():
+    """The installed package's version (`parc --version`)."""
+    from importlib.metadata import PackageNotFoundError, version
+    try:
+        return version("parc")
+    except PackageNotFoundError:        # run from a checkout that was never installed
+        return "(not installed)"
+
+
 def build_parser():
     p = _Parser(prog="parc", description="Ray cast 3D scalar volumes, exactly, with OpenGL-assisted acceleration.",
                 epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--version", action="version", version=f"parc {_version()}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
 
     r = sub.add_parser("render", help="render a volume to an image",
@@ -196,7 +206,8 @@ def build_parser():
     c.add_argument("volume", nargs="?", metavar="VOLUME|SCENE.toml",
                    help="volume file or scene file (.toml) (default: the built-in volume)")
     c.add_argument("--methods", default="brute,parc", metavar="LIST",
-                   help="comma-separated methods (default brute,parc; brute always runs as the reference)")
+                   help="comma-separated methods (default brute,parc; brute always runs as the reference); "
+                        "a label after a colon times a method twice, as in brute,parc:a,parc:b")
     c.add_argument("--sweep-supercell", metavar="LIST",
                    help="run parc once per supercell size, e.g. 0.5,1,2,4,8: speed against error "
                         "(sizes of M,N,P cells apart by ';': '2,2,4;4,4,8')")

@@ -83,7 +83,7 @@ class Camera:
             except (TypeError, ValueError):
                 scale = math.nan
             if not (math.isfinite(scale) and scale > 0.0):
-                raise InputError(f"parallel scale must be positive, got {self.parallel_scale!r}")
+                raise InputError(f"parallel scale must be positive and finite, got {self.parallel_scale!r}")
             object.__setattr__(self, "parallel_scale", scale)
 
     @property

@@ -81,6 +81,17 @@ def main(argv=None):
                 signal.signal(signum, handler)
 
 
+def _out(text):
+    """Print ``text`` on standard output, a failure there named as such: ``> /dev/full`` ended
+    in "No space left on device" alone, after the files were written."""
+    try:
+        print(text, flush=True)
+    except BrokenPipeError:
+        raise
+    except OSError as exc:
+        raise InputError(f"cannot write to standard output: {os_reason(exc)}") from None
+
+
 def _working_folder_gone():
     try:
         os.getcwd()
@@ -134,7 +145,7 @@ def _main(argv):
 def cmd_info(args):
     from data_tools.info import format_info, volume_info
     vol = load_volume_flags(args)
-    print(format_info(volume_info(vol)))        # the reader's note among its lines
+    _out(format_info(volume_info(vol)))        # the reader's note among its lines
     return 0
 
 
@@ -158,7 +169,7 @@ def cmd_make(args):
         raise InputError(f"{args.name} takes no --seed") from None
     _refuse_overwriting_input(out, [])
     save_volume(vol, out)  # all-or-nothing itself, and keeps sidecar names right
-    print(f"wrote {_written(out)} ({'x'.join(map(str, vol.dims))} {vol.dtype}{_placement(vol, out)})")
+    _out(f"wrote {_written(out)} ({'x'.join(map(str, vol.dims))} {vol.dtype}{_placement(vol, out)})")
     return 0
 
 
@@ -235,7 +246,7 @@ def cmd_convert(args):
     save_volume(vol, out)  # all-or-nothing itself, and keeps sidecar names right
     if "note" in vol.meta:
         note(vol.meta["note"])
-    print(f"wrote {_written(out)} ({'x'.join(map(str, vol.dims))} {vol.dtype}{_placement(vol, out)})")
+    _out(f"wrote {_written(out)} ({'x'.join(map(str, vol.dims))} {vol.dtype}{_placement(vol, out)})")
     return 0
 
 
@@ -360,10 +371,10 @@ def cmd_compare(args):
         for line in notes:
             say(line)
         if args.json:
-            print(to_json(rows))
+            _out(to_json(rows))
         else:
-            print(_heading(args, scene, sweeping_step=True))
-            print(format_step_table(rows))
+            _out(_heading(args, scene, sweeping_step=True))
+            _out(format_step_table(rows))
         return 0
     # Every parc method gets the flags, labelled ones ("parc:x") too.
     options = {m: dict(common) for m in methods if m.split(":")[0] == "parc"}
@@ -383,10 +394,10 @@ def cmd_compare(args):
     for line in notes:
         say(line)
     if args.json:
-        print(to_json(rows))
+        _out(to_json(rows))
     else:
-        print(_heading(args, scene))
-        print(format_table(rows))
+        _out(_heading(args, scene))
+        _out(format_table(rows))
     return 0
 
 

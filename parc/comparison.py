@@ -112,7 +112,7 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
             t0 = time.perf_counter()
             out = render(scene, method=name.split(":")[0], **options.get(name, {}))
             out.stats["seconds"]["wall"] = time.perf_counter() - t0
-            runs[name].append(out.stats)
+            runs[name].append({"seconds": out.stats["seconds"]})     # a run's timings; its stats are the first's
             first.setdefault(name, out)
             del out
         slow = slow or time.perf_counter() - t_round > SLOW_ROUND
@@ -164,14 +164,18 @@ RENDER_OPTIONS = {"supercell", "buffers", "blocks", "light_buffer"}
 def method_names(methods):
     """``methods`` as a list without repeats, brute first; a string may name them as ``"brute,parc"``."""
     from .renderer import METHODS
+    given = methods
     if isinstance(methods, str):
+        pieces = [m.strip() for m in methods.split(",")]
+        if any(pieces) and not all(pieces):
+            raise InputError(f"methods {methods!r} has an empty name between commas")
         methods = methods.split(",")
     try:
         names = [m.strip() for m in methods if m.strip()]
     except (TypeError, AttributeError):
         raise InputError(f"methods must be names such as ('brute', 'parc'), got {methods!r}") from None
     if not names:
-        raise InputError(f"methods names no method, got {methods!r}; name some, such as 'brute,parc'")
+        raise InputError(f"methods names no method, got {given!r}; name some, such as 'brute,parc'")
     for m in names:
         if m.endswith(":"):
             raise InputError(f"method {m!r} has an empty label; write one after the colon, as in 'parc:a'")

@@ -14,6 +14,7 @@ import numpy as np
 
 from data_tools import InputError
 from data_tools.errors import os_reason
+from data_tools.io import written_path
 from data_tools.signals import signals_held
 
 
@@ -44,6 +45,8 @@ def check_output(path, allowed):
         raise InputError(f"{path}: output must end in {' or '.join(allowed)}")
     folder = path.parent if str(path.parent) else Path(".")
     if not folder.is_dir():
+        if folder.exists():
+            raise InputError(f"{path}: {folder} is a file, not a folder")
         raise InputError(f"{path}: folder {folder} does not exist")
     if path.is_dir():
         raise InputError(f"{path}: is a folder")
@@ -78,29 +81,31 @@ def atomic_write_all(writes):
 
     Renaming starts only once every file is whole, so a failure (disk full, a
     folder gone) leaves none of the outputs, never a half-written one, nor
-    an image without the depth and stats asked for with it.
+    an image without the depth and stats asked for with it. A path that is a
+    symbolic link is written where it leads (`data_tools.io.written_path`).
     """
     done = []
     path = writes[0][0]
     try:
         for path, write in writes:
+            target = written_path(path)
             # A short name: the output's own, grown by a prefix, could pass the 255-byte limit.
-            fd, tmp = tempfile.mkstemp(prefix=".parc-", suffix=path.suffix, dir=path.parent or ".")
+            fd, tmp = tempfile.mkstemp(prefix=".parc-", suffix=path.suffix, dir=target.parent or ".")
             os.close(fd)
-            done.append((Path(tmp), path))
+            done.append((Path(tmp), target, path))
             write(Path(tmp))
         umask = os.umask(0)
         os.umask(umask)
-        for tmp, path in done:
+        for tmp, _, _ in done:
             os.chmod(tmp, 0o666 & ~umask)    # mkstemp makes owner-only files; outputs are ordinary files
         with signals_held():        # a Ctrl-C between two renames would leave a mixed set
-            for tmp, path in done:
-                os.replace(tmp, path)
+            for tmp, target, path in done:
+                os.replace(tmp, target)
     except OSError as exc:
         # Name the user's file: the temporary one beside it means nothing to them.
         raise InputError(f"{path}: cannot write ({os_reason(exc)})") from None
     finally:
-        for tmp, _ in done:
+        for tmp, _, _ in done:
             if tmp.exists():
                 tmp.unlink()
 

@@ -119,7 +119,7 @@ def _file_reader(path):
     ext = volume_extension(path)
     if ext not in _READERS:
         if not path.exists():
-            raise InputError(f"{path}: no such file")
+            check_file(path)
         kind = f"type '{path.suffix}'" if path.suffix else "type (no extension)"
         raise InputError(f"{path}: unknown volume file {kind}; "
                          f"supported: {', '.join(READ_EXTENSIONS)}")
@@ -181,18 +181,27 @@ def save_volume(volume: Volume, path, **options) -> Path:
     if ext == ".raw":
         raw.check_name(volume, path, options.get("byte_order"))
     if ext == ".npy" and npy.sidecar_path(path).exists():
+        if not npy.sidecar_path(path).is_file():
+            raise InputError(f"{npy.sidecar_path(path)}: the sidecar of {path.name} (its spacing and origin) "
+                             "is not a file")
         options.setdefault("sidecar", True)  # rewrite it, or it would go stale
+    given, path = path, written_path(path)
     tmpdir = None
+    failed = given
     try:
         tmpdir = Path(tempfile.mkdtemp(prefix=".parc-", dir=path.parent))
         writers[ext](volume, tmpdir / path.name, **options)
         with signals_held():        # a header and its data file are replaced together
             for f in sorted(tmpdir.iterdir()):
                 if f.name != path.name:
-                    os.replace(f, path.parent / f.name)
+                    failed = path.parent / f.name       # a companion: name it, not the header
+                    os.replace(f, failed)
+            failed = given
             os.replace(tmpdir / path.name, path)
     except OSError as exc:
-        raise InputError(f"{path}: cannot write: {os_reason(exc)}") from None
+        if failed is given and exc.filename is not None and tmpdir is not None and Path(exc.filename).parent == tmpdir:
+            failed = path.parent / Path(exc.filename).name
+        raise InputError(f"{failed}: cannot write: {os_reason(exc)}") from None
     except UnicodeEncodeError:
         # MetaImage, NRRD and VTK headers are ASCII, and .mhd and .nhdr name their data file.
         raise InputError(f"{path}: a {ext} header names its data file in ASCII; "
@@ -200,8 +209,16 @@ def save_volume(volume: Volume, path, **options) -> Path:
     finally:
         if tmpdir is not None:
             shutil.rmtree(tmpdir, ignore_errors=True)
-    return path
+    return given
 
 
-__all__ = ["load_volume", "save_volume", "data_file_written", "volume_extension", "READ_EXTENSIONS",
+def written_path(path) -> Path:
+    """The file a write to ``path`` replaces: a symbolic link's target (made if missing), else
+    ``path``. Writes go through a temporary file renamed onto it, and renamed onto the link
+    itself they replaced the link with a file."""
+    path = Path(path)
+    return Path(os.path.realpath(path)) if path.is_symlink() else path
+
+
+__all__ = ["load_volume", "save_volume", "written_path", "data_file_written", "volume_extension", "READ_EXTENSIONS",
            "WRITE_EXTENSIONS"]

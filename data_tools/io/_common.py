@@ -29,6 +29,8 @@ def one_line(text) -> str:
 def check_file(path: Path, what: str = "file") -> Path:
     """Return ``path`` if it is a readable regular file, else raise InputError."""
     if not path.exists():
+        if path.is_symlink():
+            raise InputError(f"{path}: a link that leads nowhere (or in a loop)")
         raise InputError(f"{path}: no such {what}")
     if path.is_dir():
         raise InputError(f"{path}: is a directory, not a volume {what}")

@@ -60,6 +60,8 @@ def read_npy(path) -> Volume:
         raise InputError(f"{path}: holds several arrays (.npz?), expected one 3-D array")
     spacing, origin, meta = (1.0, 1.0, 1.0), (0.0, 0.0, 0.0), {"format": "npy"}
     side = sidecar_path(path)
+    if side.exists() and not side.is_file():
+        raise InputError(f"{side}: the sidecar of {path.name} (its spacing and origin) is not a file")
     if side.is_file():
         try:
             info = json.loads(side.read_text(encoding="utf-8-sig"))

@@ -4,6 +4,7 @@ from __future__ import annotations
 import bz2
 import contextlib
 import io
+import os
 import re
 import zlib
 from pathlib import Path
@@ -523,9 +524,16 @@ def write_nrrd(volume: Volume, path, *, compress: bool = True) -> Path:
     detached = path.suffix.lower() == ".nhdr"
     if detached:
         header["encoding"] = "raw"
+    # pynrrd detaches the header by the name's ending in lower-case ".nhdr" alone: an
+    # "m.NHDR" got the samples attached. Such a header is written under a lower-case
+    # name and moved, with the data file named beside it.
+    target = path if path.suffix == ".nhdr" or not detached else path.with_name(path.name + ".nhdr")
     # Level 1: gzip's higher levels cost several times the time for a few percent.
-    nrrd.write(str(path), np.ascontiguousarray(volume.data), header,
-               detached_header=detached, compression_level=1, index_order="C")
+    nrrd.write(str(target), np.ascontiguousarray(volume.data), header,
+               detached_header=str(path.with_suffix(".raw")) if detached else False,
+               compression_level=1, index_order="C")
+    if target != path:
+        os.replace(target, path)
     return path
 
 

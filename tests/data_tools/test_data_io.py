@@ -165,10 +165,15 @@ def test_nrrd_roundtrip(tmp_path, dtype, compress):
     check(load_volume(p), arr, vol.spacing, vol.origin)
 
 
-def test_nhdr_detached_roundtrip(tmp_path):
+@pytest.mark.parametrize("name", ["d.nhdr", "d.NHDR", "d.Nhdr"])
+def test_nhdr_detached_roundtrip(tmp_path, name):
+    # Whatever the case of its ending: pynrrd detached only a lower-case ".nhdr", and d.NHDR
+    # held the samples itself.
     arr = make_array("int16")
-    p = save_volume(Volume(arr, spacing=(1, 1, 2)), tmp_path / "d.nhdr")
-    assert any(f.name != "d.nhdr" for f in tmp_path.iterdir())  # a separate data file
+    p = save_volume(Volume(arr, spacing=(1, 1, 2)), tmp_path / name)
+    assert sorted(f.name for f in tmp_path.iterdir()) == sorted(["d.raw", name])
+    assert b"data file: d.raw\n" in p.read_bytes() and p.stat().st_size < 1000
+    assert (tmp_path / "d.raw").stat().st_size == arr.nbytes
     check(load_volume(p), arr, (1, 1, 2))
 
 

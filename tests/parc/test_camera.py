@@ -66,6 +66,7 @@ def test_projection_puts_pixel_centres_where_the_rays_go():
     (dict(eye=(0, 0, 5), look_at=(0, 0, 0), fov=0.0), "field of view"),
     (dict(eye=(0, 0, 5), look_at=(0, 0, 0), fov=180.0), "field of view"),
     (dict(eye=(0, 0, 5), look_at=(0, 0, 0), parallel_scale=-1.0), "parallel scale"),
+    (dict(eye=(0, 0, 5), look_at=(0, 0, 0), parallel_scale=math.inf), "parallel scale must be positive and finite"),
     (dict(eye=(0, 0, math.nan), look_at=(0, 0, 0)), "finite"),
     (dict(eye=(0, 0, 5), look_at=(0, 0, 0), up=(0, 0, 0)), "is zero"),
     (dict(eye=(0, 0, 5), look_at=(0, 0, 0), fov=math.nan), "field of view"),

@@ -1,6 +1,7 @@
 """The command line: good runs write what they say; bad input gets one line, status 2, no file."""
 import importlib
 import json
+import os
 import re
 import subprocess
 import sys
@@ -8,9 +9,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from PIL import Image
 
 from data_tools import Volume
-from data_tools.io import save_volume
+from data_tools.io import load_volume, save_volume
 from parc.cli import build_parser, main
 
 #: What `parc.outputs.Progress` writes for a render (a terminal gets it as one line rewritten).
@@ -361,6 +363,57 @@ def test_odd_output_streams(vol_file, tmp_path, how):
                             "--size", "8", "8", "--repeats", "1", "--sweep-step", "1", "--quiet"],
                            capture_output=True, env=env, timeout=300)
         assert p.returncode == 0 and b"\\u0394" in p.stdout and b"Traceback" not in p.stderr, p.stderr
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="needs /dev/full")
+@pytest.mark.parametrize("command", [["info"], ["convert", "-o", "{tmp}/c.nrrd"]])
+def test_a_full_standard_output_is_named(vol_file, tmp_path, command):
+    # `> /dev/full` ended in "No space left on device" alone, with convert's file written.
+    argv = [a.format(tmp=tmp_path) for a in command[:1] + [str(vol_file)] + command[1:]]
+    with open("/dev/full", "w") as full:
+        p = subprocess.run([sys.executable, "-m", "parc"] + argv, stdout=full, stderr=subprocess.PIPE, timeout=300)
+    assert p.returncode == 2
+    assert p.stderr.decode() == "parc: error: cannot write to standard output: No space left on device\n"
+
+
+def test_python_m_parc_is_the_command(vol_file):
+    p = subprocess.run([sys.executable, "-m", "parc", "--version"], capture_output=True, timeout=120)
+    assert p.returncode == 0 and p.stdout.decode().startswith("parc ") and p.stderr == b""
+
+
+def test_an_output_that_is_a_link_is_written_where_it_leads(vol_file, tmp_path, capsys):
+    # Renamed onto the link itself, the new file replaced the link.
+    (tmp_path / "out").mkdir()
+    for name, target in (("i.png", "out/real.png"), ("v.nrrd", "out/real.nrrd")):
+        (tmp_path / name).symlink_to(target)
+    rc, _, err = _run(["render", vol_file, "--iso", 4, "--size", 8, 8, "-o", tmp_path / "i.png"], capsys)
+    assert rc == 0, err
+    rc, _, err = _run(["convert", vol_file, "-o", tmp_path / "v.nrrd"], capsys)
+    assert rc == 0, err
+    assert (tmp_path / "i.png").is_symlink() and (tmp_path / "v.nrrd").is_symlink()
+    assert Image.open(tmp_path / "out" / "real.png").size == (8, 8)
+    assert np.array_equal(load_volume(tmp_path / "out" / "real.nrrd").data, load_volume(vol_file).data)
+
+
+@pytest.mark.parametrize("case, words", [
+    ("a file for a folder", "x.png/o.png: {tmp}/x.png is a file, not a folder"),
+    ("a link in a loop", "loop.nrrd: a link that leads nowhere (or in a loop)"),
+    ("a sidecar folder", "v.npy.json: the sidecar of v.npy (its spacing and origin) is not a file"),
+])
+def test_paths_that_are_not_what_they_seem_are_named(vol_file, tmp_path, capsys, case, words):
+    # Each was named wrongly: "folder x.png does not exist", "no such file", "v.npy: cannot write: Is a directory".
+    (tmp_path / "x.png").write_bytes(b"")
+    (tmp_path / "loop.nrrd").symlink_to(tmp_path / "loop2.nrrd")
+    (tmp_path / "loop2.nrrd").symlink_to(tmp_path / "loop.nrrd")
+    (tmp_path / "v.npy.json").mkdir()
+    argv = {"a file for a folder": ["render", vol_file, "-o", tmp_path / "x.png" / "o.png"],
+            "a link in a loop": ["info", tmp_path / "loop.nrrd"],
+            "a sidecar folder": ["convert", vol_file, "-o", tmp_path / "v.npy"]}[case]
+    rc, out, err = _run(argv, capsys)
+    assert rc == 2 and err.count("\n") == 1 and words.format(tmp=tmp_path) in err, err
+    np.save(tmp_path / "v.npy", np.zeros((3, 3, 3), np.float32))
+    rc, out, err = _run(["info", tmp_path / "v.npy"], capsys)
+    assert rc == 2 and "v.npy.json: the sidecar of v.npy (its spacing and origin) is not a file" in err, err
 
 
 def test_a_closed_pipe_ends_the_command_quietly(vol_file):
@@ -733,6 +786,8 @@ def test_supercell_sweep_takes_sizes_per_axis(vol_file, capsys):
     (["--sweep-supercell", "4,4.0"], "--sweep-supercell gives 4 twice"),
     (["--methods", ""], "methods names no method"),
     (["--methods", ","], "methods names no method"),
+    (["--methods", "brute,,parc"], "methods 'brute,,parc' has an empty name between commas"),
+    (["--methods", "parc,"], "methods 'parc,' has an empty name between commas"),
 ])
 def test_bad_sweeps_are_refused_before_any_work(extra, words, vol_file, capsys):
     rc, out, err = _run(["compare", vol_file, "--tf", "greyscale", "--size", 8, 8, "--repeats", 1] + extra, capsys)
