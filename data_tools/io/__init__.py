@@ -199,8 +199,9 @@ def save_volume(volume: Volume, path, **options) -> Path:
             failed = given
             os.replace(tmpdir / path.name, path)
     except OSError as exc:
-        if failed is given and exc.filename is not None and tmpdir is not None and Path(exc.filename).parent == tmpdir:
-            failed = path.parent / Path(exc.filename).name
+        written = Path(exc.filename) if exc.filename is not None else None
+        if failed is given and written is not None and tmpdir is not None and written.parent == tmpdir:
+            failed = path.parent / written.name         # the writer's own file: a header's data file, say
         raise InputError(f"{failed}: cannot write: {os_reason(exc)}") from None
     except UnicodeEncodeError:
         # MetaImage, NRRD and VTK headers are ASCII, and .mhd and .nhdr name their data file.
@@ -220,5 +221,5 @@ def written_path(path) -> Path:
     return Path(os.path.realpath(path)) if path.is_symlink() else path
 
 
-__all__ = ["load_volume", "save_volume", "written_path", "data_file_written", "volume_extension", "READ_EXTENSIONS",
-           "WRITE_EXTENSIONS"]
+__all__ = ["load_volume", "save_volume", "written_path", "data_file_written", "volume_extension",
+           "READ_EXTENSIONS", "WRITE_EXTENSIONS"]
