@@ -195,7 +195,9 @@ def supercell_size(size):
         t = tuple(float(s) for s in parts)
     except (TypeError, ValueError):
         raise InputError(f"supercell size must be a number or three numbers, got {size!r}") from None
-    if len(t) != 3 or not all(math.isfinite(s) and s > 0 for s in t):
+    if len(t) != 3:
+        raise InputError(f"supercell size must be a number or three numbers, got {len(t)}: {size!r}")
+    if not all(math.isfinite(s) and s > 0 for s in t):
         raise InputError(f"supercell size must be positive and finite, got {size!r}")
     return t
 

@@ -185,17 +185,28 @@ TOL_REL = 2.0 ** -32
 INSIDE_CLIP_REL = 2.0 ** -30
 
 
+#: An eye this close to the PC region (times the scene scale) counts as inside it: the caster
+#: moves the eye into index space, where one a rounding outside a face in world coordinates
+#: can land exactly on it and take samples or a hit at t = 0 that no face in front of the eye
+#: would give (`parc.origins.origin_slab`, the same reach for other ray origins; the scale
+#: bounds the coordinates it adds).
+EYE_ROUNDING = 2.0 ** -39
+
+
 def perspective_clip(eye, proxy, th, aspect, ndc_limit, scale):
     """Where a perspective pass clips its faces: ``(d_min, cos_max, clip_near)``.
 
-    ``d_min`` is the eye's distance to the PC region (0 inside it). Every
-    face lies at least ``d_min`` from the eye, and a point seen at that
-    distance lies at least ``d_min * cos_max`` ahead of it, ``cos_max`` the
-    cosine of the widest angle to the view direction (the guard band's
-    corner ray); half of that cuts nothing visible. An eye inside clips at
-    `INSIDE_CLIP_REL` of the scene scale, and the caller covers the sliver.
+    ``d_min`` is the eye's distance to the PC region (0 inside it, or within
+    `EYE_ROUNDING` of it). Every face lies at least ``d_min`` from the eye,
+    and a point seen at that distance lies at least ``d_min * cos_max``
+    ahead of it, ``cos_max`` the cosine of the widest angle to the view
+    direction (the guard band's corner ray); half of that cuts nothing
+    visible. An eye inside clips at `INSIDE_CLIP_REL` of the scene scale,
+    and the caller covers the sliver.
     """
     d_min = distance_to_pc(eye, proxy)
+    if d_min <= EYE_ROUNDING * scale:
+        d_min = 0.0
     cos_max = 1.0 / math.sqrt(1.0 + th * th * ((aspect * ndc_limit[0]) ** 2 + ndc_limit[1] ** 2))
     clip_near = INSIDE_CLIP_REL * scale if d_min == 0.0 else 0.5 * d_min * cos_max
     return d_min, cos_max, clip_near

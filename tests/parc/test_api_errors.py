@@ -104,6 +104,8 @@ CASES = {
     "supercell True": (lambda: parc.render(_scene(), method="parc", supercell=True), "supercell"),
     "supercell as text": (lambda: parc.render(_scene(), method="parc", supercell="4"), "supercell"),
     "supercell with a boolean": (lambda: parc.render(_scene(), method="parc", supercell=(2, True, 2)), "supercell"),
+    "supercell of two numbers": (lambda: parc.render(_scene(), method="parc", supercell=(1, 2)),
+                                 "supercell size must be a number or three numbers, got 2: (1, 2)"),
     "parallel scale True": (lambda: parc.Camera(eye=(0, 0, 5), look_at=(0, 0, 0), parallel_scale=True),
                             "parallel scale"),
     "volume meta as a list": (lambda: Volume(VOL.data, meta=[1, 2]), "meta must be a dict"),

@@ -10,7 +10,7 @@ import pytest
 
 from data_tools import Volume
 from data_tools.synthetic import blobs, ct_phantom, trilinear_field
-from parc import Camera, Isosurface, Scene, render
+from parc import Camera, Isosurface, Scene, TransferFunction, Translucent, render
 from parc.classify import VolumeIndex
 
 SUPERCELLS = (0.5, 1, 2, 3, 4.5, 8, (2, 3, 1.5))
@@ -144,6 +144,26 @@ def test_parallel_origins_a_rounding_outside_a_face(supercell, gl):
     o, _ = cam.rays(14, 44)
     assert (o[..., 1] > top).any()             # the case: origins outside by a rounding
     _same_hits(Scene(camera=cam, size=(14, 44), volumes=[Isosurface(vol, 128.0)]), supercell)
+
+
+@pytest.mark.parametrize("buffers", ["depth", "bits"])
+@pytest.mark.parametrize("supercell", [1, 2, 0.5])
+@pytest.mark.parametrize("look", [(1.45, 0.45, 0.9), (0.45, 0.45, 2.0)])
+def test_perspective_eye_a_rounding_outside_a_face(look, supercell, buffers, gl):
+    """The same for a perspective eye: 0.9 lies an ulp above the top face (3 x 0.3), and in
+    index space, 0.9 / 0.3 = 3, on it. ``brute``'s rays that leave at once take the face's
+    samples, or its level, at t = 0; PARC took the eye for outside and gave them no segment."""
+    data = np.full((4, 4, 4), 100, np.uint8)
+    data[0, 0, 0] = 0
+    vol = Volume(data, spacing=(0.3, 0.3, 0.3))
+    assert vol.bounds[1][2] < 0.9 and 0.9 / 0.3 == 3.0          # the case
+    cam = Camera(eye=(0.45, 0.45, 0.9), look_at=look, up=(0, 1, 0) if look[2] == 2.0 else (0, 0, 1), fov=90)
+    if buffers == "depth":
+        _same_hits(Scene(camera=cam, size=(16, 16), volumes=[Isosurface(vol, 100.0)]), supercell)
+    scene = Scene(camera=cam, size=(16, 16), volumes=[Translucent(vol, TransferFunction([[0, 0.5], [255, 0.5]]))])
+    ref = render(scene, method="brute")
+    assert ref.image[..., 3].max() > 0.0
+    assert np.array_equal(render(scene, method="parc", supercell=supercell, buffers=buffers).image, ref.image)
 
 
 @pytest.mark.parametrize("supercell", [0.5, 0.25, 0.125])
