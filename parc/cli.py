@@ -83,12 +83,15 @@ def main(argv=None):
 
 def _out(text):
     """Print ``text`` on standard output, a failure there named as such: ``> /dev/full`` ended
-    in "No space left on device" alone, after the files were written."""
+    in "No space left on device" alone, after the files were written. The text a failed
+    flush leaves in the buffer would fail again at exit (a second complaint, status 120), so
+    standard output is then pointed at the null device, as for a closed pipe."""
     try:
         print(text, flush=True)
     except BrokenPipeError:
         raise
     except OSError as exc:
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         raise InputError(f"cannot write to standard output: {os_reason(exc)}") from None
 
 

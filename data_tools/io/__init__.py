@@ -191,6 +191,10 @@ def save_volume(volume: Volume, path, **options) -> Path:
     try:
         tmpdir = Path(tempfile.mkdtemp(prefix=".parc-", dir=path.parent))
         writers[ext](volume, tmpdir / path.name, **options)
+        for f in tmpdir.iterdir():
+            if (path.parent / f.name).is_dir():
+                # Before any is moved: a header refused after its data file was would leave that behind.
+                raise InputError(f"{path.parent / f.name}: is a folder; {given} cannot be written")
         with signals_held():        # a header and its data file are replaced together
             for f in sorted(tmpdir.iterdir()):
                 if f.name != path.name:

@@ -286,9 +286,9 @@ def float32_from_text(words, doubles):
         below = np.nextafter(single, np.float32(-np.inf))
         above = np.nextafter(single, np.float32(np.inf))
         here = single.astype(np.float64)
-        halfway = ((doubles == (here + below.astype(np.float64)) * 0.5)
-                   | (doubles == (here + above.astype(np.float64)) * 0.5)
-                   | (np.abs(doubles) == _FLOAT32_TOP))
+        halfway = np.isfinite(doubles) & ((doubles == (here + below.astype(np.float64)) * 0.5)
+                                          | (doubles == (here + above.astype(np.float64)) * 0.5)
+                                          | (np.abs(doubles) == _FLOAT32_TOP))
     for n in np.flatnonzero(halfway):
         try:
             text = Fraction(decimal.Decimal(bytes(words[n]).decode("ascii").strip()))

@@ -4,6 +4,7 @@ from __future__ import annotations
 import bz2
 import contextlib
 import io
+import math
 import os
 import re
 import zlib
@@ -112,13 +113,23 @@ def _read(path, data_file):
     return data, header
 
 
+#: More samples than this (2^60: an exabyte of bytes) no file holds, and counting bytes in int64 overflows.
+_MOST_SAMPLES = 2 ** 60
+
+
 def _check_layout(header, path):
     """Refuse sizes and a sample type that name no array of numbers, before pynrrd reads by
     them (it answered ``sizes: -4 4 4`` with "product of all the dimensions: -64-64=-128"
     and ``type: block`` with "negative dimensions are not allowed")."""
     sizes = header.get("sizes")
-    if sizes is not None and not all(int(n) > 0 for n in np.atleast_1d(sizes)):
-        raise InputError(f"{path}: sizes must be positive, got {' '.join(str(int(n)) for n in np.atleast_1d(sizes))}")
+    if sizes is not None:
+        sizes = [int(n) for n in np.atleast_1d(sizes)]
+        if not all(n > 0 for n in sizes):
+            raise InputError(f"{path}: sizes must be positive, got {' '.join(map(str, sizes))}")
+        if math.prod(sizes) >= _MOST_SAMPLES:
+            # Their product in int64 wrapped round, and pynrrd's message with it.
+            raise InputError(f"{path}: sizes {' '.join(map(str, sizes))} make {math.prod(sizes):.3g} samples, "
+                             "more than any file holds")
     if str(header.get("type", "")).lower() == "block":
         raise InputError(f"{path}: type block (opaque blocks of bytes) holds no numbers; a volume needs a "
                          "scalar type such as uint8, short or float")
@@ -259,7 +270,7 @@ def _read_text(header, fh, path, lines, skip):
     fh.seek(skip, io.SEEK_CUR)
     words = fh.read().split()
     sizes = [int(n) for n in header["sizes"]]
-    count = int(np.prod(sizes, dtype=np.int64))
+    count = math.prod(sizes)
     if len(words) != count:
         raise InputError(f"{path}: data do not match the header (truncated or corrupt?): {count} text samples "
                          f"expected, {len(words)} found")

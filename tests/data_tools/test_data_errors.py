@@ -275,8 +275,52 @@ def test_nrrd_key_value_pairs_comments_and_known_fields_are_read(tmp_path):
     assert vol.spacing == (1.0, 2.0, 3.0) and vol.data.ravel().tolist() == list(range(8))
 
 
+@pytest.mark.parametrize("field", ["dimension: 3", "type: uchar", "sizes: 2 2 2", "endian: little", "encoding: raw",
+                                   "content: x", "number: 8", "block size: 1", "blocksize: 1", "min: 0", "max: 7",
+                                   "old min: 0", "oldmin: 0", "old max: 7", "oldmax: 7", "line skip: 0",
+                                   "lineskip: 0", "byte skip: 0", "byteskip: 0", "sample units: mm", "space: 3D-right-handed",
+                                   "space dimension: 3", "space units: \"mm\" \"mm\" \"mm\"",
+                                   "space origin: (1,2,3)", "space directions: (1,0,0) (0,2,0) (0,0,3)",
+                                   "measurement frame: (1,0,0) (0,1,0) (0,0,1)", "spacings: 1 2 3",
+                                   "thicknesses: 1 1 1", "axis mins: 0 0 0", "axismins: 0 0 0", "axis maxs: 2 4 6",
+                                   "axismaxs: 2 4 6", "centers: cell cell cell", "centerings: cell cell cell",
+                                   "kinds: domain domain domain", "labels: \"x\" \"y\" \"z\"",
+                                   "units: \"mm\" \"mm\" \"mm\"", "  spacings :  1 2 3"])
+def test_nrrd_every_field_of_the_format_is_read(tmp_path, field):
+    # Each field NRRD has is taken, whether this reader uses it or not (the unknown ones are refused).
+    p = tmp_path / "f.nrrd"
+    base = {"dimension": "3", "type": "uchar", "sizes": "2 2 2", "encoding": "raw"}
+    name = field.split(":")[0].strip()
+    lines = [f"{k}: {v}" for k, v in base.items() if k != name] + [field]
+    p.write_bytes(("NRRD0005\n" + "\n".join(lines) + "\n\n").encode() + bytes(range(8)))
+    vol = load_volume(p)
+    assert vol.data.ravel().tolist() == list(range(8))
+    if "spacings" in field:
+        assert vol.spacing == (1.0, 2.0, 3.0)
+
+
+@pytest.mark.parametrize("teem, ours", [("spacedimension", "space dimension"), ("spaceunits", "space units"),
+                                        ("spaceorigin", "space origin"), ("spacedirections", "space directions"),
+                                        ("measurementframe", "measurement frame"), ("sampleunits", "sample units")])
+def test_nrrd_spellings_pynrrd_does_not_parse_are_named(tmp_path, teem, ours):
+    p = tmp_path / "f.nrrd"
+    p.write_bytes(f"NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 2 2\n{teem}: 3\nencoding: raw\n\n".encode()
+                  + bytes(8))
+    fails(p, f"field '{teem}': this reader takes it spelt '{ours}'")
+
+
+def test_nrrd_float_text_that_is_not_finite_is_refused_as_such(tmp_path):
+    p = tmp_path / "f.nrrd"
+    p.write_bytes(b"NRRD0004\ntype: float\ndimension: 3\nsizes: 2 2 2\nencoding: ascii\n\ninf -inf 1 2 3 4 5 nan\n")
+    fails(p, "3 non-finite samples (NaN or inf)")
+
+
 @pytest.mark.parametrize("fields, match", [
     ("type: uchar\ndimension: 3\nsizes: -2 2 2", "sizes must be positive, got -2 2 2"),
+    ("type: uchar\ndimension: 3\nsizes: 0 2 2", "sizes must be positive, got 0 2 2"),
+    ("type: uchar\ndimension: 3\nsizes: 3037000500 3037000500 1",
+     "sizes 3037000500 3037000500 1 make 9.22e+18 samples, more than any file holds"),
+    ("type: BLOCK\nblock size: 1\ndimension: 3\nsizes: 2 2 2", "type block (opaque blocks of bytes) holds no numbers"),
     ("type: block\nblock size: 1\ndimension: 3\nsizes: 2 2 2", "type block (opaque blocks of bytes) holds no numbers"),
 ])
 def test_nrrd_layout_that_names_no_array_of_numbers(tmp_path, fields, match):
@@ -306,11 +350,37 @@ def test_numbered_data_files_that_cannot_match_are_refused_before_naming_them(tm
     assert peak < 20e6, peak
 
 
-def test_empty_volume_path_is_not_the_current_folder(tmp_path, monkeypatch):
+@pytest.mark.parametrize("empty", ["", b""])
+def test_empty_volume_path_is_not_the_current_folder(tmp_path, monkeypatch, empty):
     # Path("") is ".": a folder of .tif slices there was read, with no word of it.
     monkeypatch.chdir(tmp_path)
     with pytest.raises(InputError, match="^the volume path is empty; give a volume file$"):
-        load_volume("")
+        load_volume(empty)
+
+
+@pytest.mark.parametrize("name", ["loop.nrrd", "loop.xyz"])
+def test_a_link_in_a_loop_is_named(tmp_path, name):
+    (tmp_path / name).symlink_to(tmp_path / ("b" + name))
+    (tmp_path / ("b" + name)).symlink_to(tmp_path / name)
+    fails(tmp_path / name, "a link that leads nowhere (or in a loop)")
+
+
+@pytest.mark.parametrize("folder", ["h.raw", "h.mhd"])
+def test_a_folder_where_a_file_goes_is_refused_before_any_file_moves(tmp_path, folder):
+    # h.raw was moved into place, then h.mhd refused: the data file left without its header;
+    # and the message named the header for its data file's failure.
+    (tmp_path / folder).mkdir()
+    (tmp_path / folder / "x").write_bytes(b"")
+    with pytest.raises(InputError, match=f"^{tmp_path / folder}: is a folder; {tmp_path / 'h.mhd'} cannot be written$"):
+        save_volume(Volume(SMALL), tmp_path / "h.mhd")
+    assert sorted(p.name for p in tmp_path.iterdir()) == [folder]
+
+
+def test_a_volume_saved_through_a_link_lands_where_it_leads(tmp_path):
+    (tmp_path / "link.nrrd").symlink_to(tmp_path / "real.nrrd")
+    assert save_volume(Volume(SMALL), tmp_path / "link.nrrd") == tmp_path / "link.nrrd"
+    assert (tmp_path / "link.nrrd").is_symlink()
+    np.testing.assert_array_equal(load_volume(tmp_path / "real.nrrd").data, SMALL)
 
 
 # --- MetaImage -------------------------------------------------------------

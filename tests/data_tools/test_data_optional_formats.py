@@ -118,6 +118,21 @@ def test_nifti_header_claiming_more_than_the_file_holds_is_truncated_not_out_of_
              f"the file has {len(raw)}")
 
 
+@pytest.mark.parametrize("slope", [None, 2.0])
+def test_nifti_gz_header_claiming_more_than_memory_states_it(tmp_path, slope):
+    # Compressed, its length is unknown until read: the message gives what the header claims.
+    import gzip
+    import struct
+    p = _nifti(tmp_path / "v.nii", np.zeros((10, 9, 8), np.uint8), np.eye(4),
+               slope_inter=None if slope is None else (slope, 0.0))
+    raw = bytearray(p.read_bytes())
+    struct.pack_into("<4h", raw, 40, 3, 32767, 32767, 32767)
+    (tmp_path / "v.nii.gz").write_bytes(gzip.compress(bytes(raw)))
+    gb = 32767 ** 3 * (1 if slope is None else 4) / 1e9       # scaled samples are float32
+    fails(tmp_path / "v.nii.gz", f"not enough memory to load this NIfTI volume: its header states "
+                                 f"32767x32767x32767 samples, {gb:.3g} GB")
+
+
 @pytest.mark.parametrize("cls, offset", [(nib.Nifti1Image, 352), (nib.Nifti2Image, 544)])
 def test_nifti_whose_samples_would_start_in_its_header_is_refused(tmp_path, cls, offset):
     # vox_offset 0 in a .nii: nibabel read from byte 0, the header's bytes as samples.
@@ -171,13 +186,14 @@ def test_tiff_pages_written_one_by_one_are_stacked(tmp_path):
     assert np.array_equal(load_volume(p).data, a)
 
 
-@pytest.mark.parametrize("byte", [28, 43])
-def test_tiff_whose_tags_do_not_hold_together_is_called_corrupt(tmp_path, byte):
-    # tifffile's own code slipped on them: "integer division or modulo by zero", a bare AssertionError.
+@pytest.mark.parametrize("byte, flip", [(28, 0xFF), (43, 0xFF), (38, 0x01)])
+def test_tiff_whose_tags_do_not_hold_together_is_called_corrupt(tmp_path, byte, flip):
+    # tifffile's own code slipped on them: "integer division or modulo by zero", a bare
+    # AssertionError, "tuple index out of range".
     p = tmp_path / "c.tif"
     tifffile.imwrite(p, np.zeros((10, 9, 8), np.uint8))
     raw = bytearray(p.read_bytes())
-    raw[byte] ^= 0xFF
+    raw[byte] ^= flip
     p.write_bytes(bytes(raw))
     fails(p, "cannot read TIFF file: corrupt file: its header or tags do not hold together (")
 
