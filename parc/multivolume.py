@@ -319,7 +319,9 @@ def _box_entry(scene, vol):
     """Per pixel, the ray parameter where the camera ray enters the volume's sample box (inf: misses)."""
     o, d = scene.camera.rays(*scene.size)
     lo, hi = vol.bounds
-    with np.errstate(divide="ignore", invalid="ignore"):
+    # A direction component of 0 or below 1/DBL_MAX (a subnormal) gives an infinite reciprocal:
+    # that axis's slab is then all of t, or none of it.
+    with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
         inv = 1.0 / d
         a = (np.asarray(lo) - o) * inv
         b = (np.asarray(hi) - o) * inv

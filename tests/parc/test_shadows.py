@@ -10,6 +10,8 @@ below make every supercell sub-pixel).
 Truth for the shadows themselves: a sphere over a floor slab under a
 vertical sun shadows exactly the floor points below the sphere's disc.
 """
+import warnings
+
 import numpy as np
 import pytest
 
@@ -397,6 +399,22 @@ def test_two_mip_layers_compose_near_over_far():
     both = render(Scene(camera=cam, size=(6, 6), volumes=[far, near])).image
     assert (a[..., 3] > 0).all() and (b[..., 3] > 0).all()
     np.testing.assert_allclose(both, a + (1.0 - a[..., 3:4]) * b, atol=1e-5, rtol=0)
+
+
+@pytest.mark.parametrize("method", ["brute", "parc"])
+def test_a_subnormal_ray_direction_orders_layers_without_a_warning(gl, method):
+    # The layers' order came from 1 / d, and a direction component of 1e-309 overflowed:
+    # "RuntimeWarning: overflow encountered in divide" reached the user.
+    rng = np.random.default_rng(0)
+    mip = Translucent(Volume(rng.random((6, 6, 6)).astype(np.float32), origin=(1.0, 0.0, 0.0)), "greyscale",
+                      mode="mip")
+    surface = Isosurface(Volume(rng.random((6, 6, 6)).astype(np.float32)), 0.5)
+    cam = Camera(eye=(0.0, 2.5, -20.0), look_at=(2e-308, 2.5, 0.0), up=(0, 1, 0), fov=30.0)
+    assert 0.0 < cam.basis()[0][0] < 1e-300                       # the case
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        image = render(Scene(camera=cam, size=(9, 9), volumes=[surface, mip]), method=method).image
+    assert image[..., 3].max() > 0.0
 
 
 def _floor_scene(occluders, material=(0.2, 0.5, 0.5, 4.0)):
