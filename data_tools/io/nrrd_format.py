@@ -197,6 +197,10 @@ def _parsed(source, lines, path):
     try:
         header = nrrd.read_header(source)
     except Exception as exc:  # noqa: BLE001 - pynrrd raises many kinds
+        try:
+            nrrd.read_header(lines[:1])
+        except Exception:  # noqa: BLE001 - the magic line itself: no field is at fault
+            raise exc from None
         for line in lines[1:]:
             field = line.decode("ascii", "ignore").split(":", 1)[0].strip()
             try:
@@ -208,9 +212,9 @@ def _parsed(source, lines, path):
         text = line.decode("ascii", "ignore").rstrip()
         if not text:
             break
-        field, _, value = text.partition(":")
-        field = field.strip()
-        if text.startswith("#") or value.startswith("=") or field in _FIELDS:
+        field = text.partition(":")[0].strip()
+        # A key/value pair's key may hold colons (ITK writes "ITK_like:colon:=x"), not ":=".
+        if text.startswith("#") or ":=" in text or field in _FIELDS:
             continue
         if field in _SPELLED_APART:
             raise InputError(f"{path}: field {field!r}: this reader takes it spelt {_SPELLED_APART[field]!r}")

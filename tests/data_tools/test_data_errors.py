@@ -299,6 +299,23 @@ def test_nrrd_every_field_of_the_format_is_read(tmp_path, field):
         assert vol.spacing == (1.0, 2.0, 3.0)
 
 
+@pytest.mark.parametrize("pair", ["ITK_like:colon:=x", "DICOM:0008,0060:=CT", "a b:= c: d"])
+def test_nrrd_key_value_pairs_whose_key_holds_a_colon_are_read(tmp_path, pair):
+    # NRRD forbids ":=" in a key, not ":"; ITK writes such keys (SetMetaData("ITK_like:colon", ...)),
+    # and they were refused as the unknown field before the first colon.
+    p = tmp_path / "f.nrrd"
+    p.write_bytes(f"NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 2 2\n{pair}\nencoding: raw\n\n".encode()
+                  + bytes(range(8)))
+    assert load_volume(p).data.ravel().tolist() == list(range(8))
+
+
+def test_nrrd_magic_line_pynrrd_refuses_is_not_blamed_on_a_field(tmp_path):
+    p = tmp_path / "f.nrrd"
+    p.write_bytes(b"NRRD00.01\ntype: uchar\ndimension: 3\nsizes: 2 2 2\nencoding: raw\n\n" + bytes(8))
+    msg = fails(p, "cannot read NRRD file: Invalid NRRD magic line: NRRD00.01")
+    assert "field" not in msg
+
+
 @pytest.mark.parametrize("teem, ours", [("spacedimension", "space dimension"), ("spaceunits", "space units"),
                                         ("spaceorigin", "space origin"), ("spacedirections", "space directions"),
                                         ("measurementframe", "measurement frame"), ("sampleunits", "sample units")])
