@@ -47,8 +47,9 @@ wrong for an exact ray caster:
 Error bounds
 ------------
 The fragment shader works in float32 (llvmpipe emulates float64 slowly:
-in float64 the shader took 30 ms of a 35 ms pass on the CT head skin). Over the pixel indices (x, y) the caster's ray is affine: ``sx``
-and ``sy`` are affine in x and y, so the perspective direction ``d = f +
+in float64 the shader took 30 ms of a 35 ms pass on the CT head skin).
+Over the pixel indices (x, y) the caster's ray is affine: ``sx`` and
+``sy`` are affine in x and y, so the perspective direction ``d = f +
 tan(fov/2) (sx r + sy u)`` and the parallel origin are too
 (`_pixel_affine`). Per face, the geometry shader (float64) hands the
 fragment shader three affine forms ``k0 + kx x + ky y`` and bounds that

@@ -5,6 +5,7 @@ import contextlib
 import decimal
 import importlib
 import logging
+import math
 import os
 import struct
 import zlib
@@ -230,8 +231,8 @@ def data_file_block(path, paths, subdim, sizes, stated: str) -> int:
     """Samples each of ``paths`` holds (`several_data_files`): a block of the fastest ``subdim``
     of ``sizes`` (fastest first); with ``subdim`` the dimension, an equal slab of the slowest
     axis each. ``stated`` names what states the sizes, for the message when they do not add up."""
-    total = int(np.prod(sizes, dtype=np.int64))
-    block = int(np.prod(sizes[:subdim], dtype=np.int64))
+    total = math.prod(sizes)
+    block = math.prod(sizes[:subdim])
     if subdim == len(sizes) and sizes[-1] % len(paths) == 0:
         block = total // len(paths)
     if block * len(paths) != total:

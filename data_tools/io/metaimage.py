@@ -16,6 +16,9 @@ ELEMENT_TYPES = {
     "MET_UCHAR": "uint8", "MET_CHAR": "int8", "MET_USHORT": "uint16", "MET_SHORT": "int16",
     "MET_UINT": "uint32", "MET_INT": "int32", "MET_FLOAT": "float32", "MET_DOUBLE": "float64",
 }
+_MAX_HEADER = 1 << 16
+
+
 def _flag(path, fields, keys, default: bool) -> bool:
     """A True/False field (the first of ``keys`` present), read as MetaIO reads it: true when
     its first letter is T, t or 1, false when F, f or 0. Anything else is refused: MetaIO
@@ -29,7 +32,6 @@ def _flag(path, fields, keys, default: bool) -> bool:
     if value[:1] in ("F", "f", "0"):
         return False
     raise InputError(f"{path}: {key} must be True or False, got {value!r}")
-_MAX_HEADER = 1 << 16
 
 
 def _parse_header(path: Path):

@@ -101,7 +101,7 @@ def _read(path, data_file):
                              f"not {encoding}")
         if files is not None:
             return _joined(header, files, path, encoding, lines, skip), dict(header, **{"data files": files})
-        if encoding == "raw" and files is None and isinstance(skip, int) and skip > size:
+        if encoding == "raw" and isinstance(skip, int) and skip > size:
             raise InputError(f"{path}: byte skip {skip} passes the end of the data ({size} bytes)")
         if encoding in _DECODED and isinstance(skip, int) and skip >= 0:
             data = _read_decoded(header, encoding, fh, path, data_file, lines, skip)
