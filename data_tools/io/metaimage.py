@@ -34,6 +34,14 @@ def _flag(path, fields, keys, default: bool) -> bool:
     raise InputError(f"{path}: {key} must be True or False, got {value!r}")
 
 
+def _numbers(path, fields, keys, default):
+    """Three numbers from the first of ``keys`` present (an error names that one), else ``default``."""
+    key = next((k for k in keys if k in fields), None)
+    if key is None:
+        return default
+    return parse_numbers(fields[key].split(), 3, float, path, key)
+
+
 def _parse_header(path: Path):
     """Key/value pairs up to ElementDataFile, and the byte offset just after that line."""
     with open(path, "rb") as f:
@@ -114,10 +122,10 @@ def _build(path, fields, data_start):
     channels = get("ElementNumberOfChannels")
     if channels is not None and channels.strip() != "1":
         raise InputError(f"{path}: {channels} channels per sample; only scalar volumes are supported")
-    spacing = get("ElementSpacing", "ElementSize")
-    spacing = parse_numbers(spacing.split(), 3, float, path, "ElementSpacing") if spacing else (1.0, 1.0, 1.0)
-    origin = get("Offset", "Origin", "Position")
-    origin = parse_numbers(origin.split(), 3, float, path, "Offset") if origin else (0.0, 0.0, 0.0)
+    spacing = _numbers(path, fields, ("ElementSpacing", "ElementSize"), (1.0, 1.0, 1.0))
+    # MetaIO sets the origin from Position, then Offset, then Origin, each overwriting the one
+    # before, wherever they stand in the header.
+    origin = _numbers(path, fields, ("Origin", "Offset", "Position"), (0.0, 0.0, 0.0))
     big = _flag(path, fields, ("BinaryDataByteOrderMSB", "ElementByteOrderMSB"), False)
     compressed = _flag(path, fields, ("CompressedData",), False)
     try:

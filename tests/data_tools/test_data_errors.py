@@ -450,6 +450,13 @@ def test_mhd_bad_fields(tmp_path, writers, line, match):
     fails(p, match)
 
 
+@pytest.mark.parametrize("line", ["ElementSize = 1 x 1", "Position = 1 2", "Origin = 1 2 z", "Offset = "])
+def test_mhd_bad_numbers_are_named_by_their_own_field(tmp_path, line):
+    p = tmp_path / "n.mhd"
+    p.write_text(f"NDims = 3\nDimSize = 2 2 2\nElementType = MET_UCHAR\n{line}\nElementDataFile = LOCAL\n" + "x" * 8)
+    assert "3 numbers" in fails(p, f": {line.split(' =')[0]} ")
+
+
 @pytest.mark.parametrize("data_line, extra, match", [
     ("ElementDataFile = ", "", "ElementDataFile is empty"),
     ("ElementDataFile = n.mhd", "", "names this header itself"),

@@ -980,6 +980,26 @@ def test_metaimage_origin_key_places_the_volume(tmp_path):
     assert load_volume(p).origin == (1.5, -2.0, 3.0)
 
 
+@pytest.mark.parametrize("lines, origin", [
+    (["Position = 1 1 1", "Offset = 2 2 2", "Origin = 3 3 3"], (3.0, 3.0, 3.0)),
+    (["Origin = 3 3 3", "Offset = 2 2 2", "Position = 1 1 1"], (3.0, 3.0, 3.0)),
+    (["Offset = 2 2 2", "Position = 1 1 1"], (2.0, 2.0, 2.0)),
+])
+def test_metaimage_origin_fields_rank_as_metaio_ranks_them(tmp_path, lines, origin):
+    # MetaIO's MetaObject::M_Read sets the origin from Position, then Offset, then Origin,
+    # each overwriting the last, wherever they stand in the header: ITK reads such a file so.
+    p = _mhd(tmp_path, ["ElementType = MET_SHORT", *lines], _A16.astype("<i2").tobytes())
+    assert load_volume(p).origin == origin
+
+
+@pytest.mark.parametrize("lines", [["ElementByteOrderMSB = False", "BinaryDataByteOrderMSB = True"],
+                                   ["BinaryDataByteOrderMSB = True", "ElementByteOrderMSB = False"]])
+def test_metaimage_binary_data_byte_order_wins_over_element_byte_order(tmp_path, lines):
+    # M_Read reads ElementByteOrderMSB, then BinaryDataByteOrderMSB into the same flag.
+    p = _mhd(tmp_path, ["ElementType = MET_SHORT", *lines], _A16.astype(">i2").tobytes())
+    np.testing.assert_array_equal(load_volume(p).data, _A16)
+
+
 def test_metaimage_element_byte_order_msb_reads_big_endian(tmp_path):
     p = _mhd(tmp_path, ["ElementType = MET_SHORT", "ElementByteOrderMSB = True"], _A16.astype(">i2").tobytes())
     np.testing.assert_array_equal(load_volume(p).data, _A16)
