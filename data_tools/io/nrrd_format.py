@@ -151,16 +151,15 @@ def _read_header(fh, path):
         text = line.decode("ascii", "ignore").strip()
         if not text:
             break
-        m = re.fullmatch(r"data ?file\s*:\s*(LIST.*)", text)
+        m = re.fullmatch(r"(?i:data ?file)\s*:\s*(LIST.*)", text)
         if m and len(taken) > 1:
-            header = _parsed(taken[:-1], taken, path)
+            header = _parsed(taken[:-1], path)
             rest = [n.decode("utf-8", "replace") for n in fh.read().splitlines()]
             files = several_data_files(path, "data file", m.group(1), lambda: rest, int(header.get("dimension", 0)))
             if files is not None:
                 return header, files
-            break
-    fh.seek(0)
-    header = _parsed(fh, taken, path)
+            fh.seek(sum(map(len, taken)))
+    header = _parsed(taken, path)
     value = header.get("data file", header.get("datafile"))
     if not isinstance(value, str):
         return header, None
@@ -181,21 +180,21 @@ _FIELDS = frozenset((
     "space directions", "measurement frame", "spacings", "thicknesses", "axis mins", "axismins", "axis maxs",
     "axismaxs", "centers", "centerings", "kinds", "labels", "units"))
 
-#: teem's spellings without spaces that pynrrd does not parse: read as unknown, they would
-#: be ignored (``spacedirections``: the spacing lost).
+#: teem's spellings without spaces that pynrrd does not parse (`_as_pynrrd`).
 _SPELLED_APART = {"spacedimension": "space dimension", "spaceunits": "space units", "spaceorigin": "space origin",
                   "spacedirections": "space directions", "measurementframe": "measurement frame",
                   "sampleunits": "sample units"}
 
 
-def _parsed(source, lines, path):
-    """`nrrd.read_header` of ``source`` (the header's lines, or the file), with a field it cannot
-    parse named (pynrrd's message alone, "could not convert string to float: 'x'", does not
-    say where), and a field NRRD does not have refused, as teem's reader refuses it (a
-    misspelt ``spacngs`` was ignored, and the spacing with it). ``lines``: the header's lines
-    as read, the magic first."""
+def _parsed(lines, path):
+    """`nrrd.read_header` of the header's ``lines`` (the magic first), read as teem reads them
+    (`_as_pynrrd`), with a field it cannot parse named (pynrrd's message alone, "could not
+    convert string to float: 'x'", does not say where), and a field NRRD does not have
+    refused, as teem's reader refuses it (a misspelt ``spacngs`` was ignored, and the
+    spacing with it)."""
+    lines = lines[:1] + [_as_pynrrd(line) for line in lines[1:]]
     try:
-        header = nrrd.read_header(source)
+        header = nrrd.read_header(lines)
     except Exception as exc:  # noqa: BLE001 - pynrrd raises many kinds
         try:
             nrrd.read_header(lines[:1])
@@ -216,11 +215,28 @@ def _parsed(source, lines, path):
         # A key/value pair's key may hold colons (ITK writes "ITK_like:colon:=x"), not ":=".
         if text.startswith("#") or ":=" in text or field in _FIELDS:
             continue
-        if field in _SPELLED_APART:
-            raise InputError(f"{path}: field {field!r}: this reader takes it spelt {_SPELLED_APART[field]!r}")
         raise InputError(f"{path}: unknown field {field!r} (NRRD has no such field; a free-form key/value "
                          "pair is written key:=value)")
     return header
+
+
+def _as_pynrrd(line):
+    """A header line as pynrrd parses it, meaning what it means to teem's reader: field names
+    and the values of ``type``, ``endian`` and ``encoding`` in any case (teem's enums ignore
+    it; pynrrd took ``Sizes`` for an unknown field and ``type: Short`` for no type), and
+    teem's spellings without spaces (``spacedirections``, which pynrrd ignored, and the
+    spacing with it) spelt as pynrrd spells them. Comments, key/value pairs and lines
+    naming no field of NRRD's pass as they are."""
+    head, colon, value = line.partition(b":")
+    if not colon or line.startswith(b"#") or b":=" in line:
+        return line
+    field = head.decode("ascii", "ignore").strip().lower()
+    field = _SPELLED_APART.get(field, field)
+    if field not in _FIELDS:
+        return line
+    if field in ("type", "endian", "encoding"):
+        value = value.lower()
+    return field.encode() + colon + value
 
 
 def _joined(header, files, path, encoding, lines, skip):
@@ -393,7 +409,10 @@ def _check_data_file(path):
     headers naming several data files (`_joined` checks each), are left to the read."""
     try:
         with open(path, "rb") as fh:
-            header = nrrd.read_header(fh)
+            lines = [fh.readline(1 << 16)]
+            while lines[-1].strip() and len(lines) < _MAX_HEADER_LINES:
+                lines.append(fh.readline(1 << 16))
+        header = _parsed(lines, path)
     except Exception:  # noqa: BLE001 - reported by the read itself
         return None
     name = header.get("data file") or header.get("datafile")

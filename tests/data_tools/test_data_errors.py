@@ -250,8 +250,6 @@ def test_nrrd_spacings_for_another_number_of_axes_are_refused(tmp_path, spacings
     ("space origin: (1,2)", "space origin must be three finite numbers, got (1,2)"),
     ("space origin: (inf,2,3)", "space origin must be three finite numbers, got (inf,2,3)"),
     ("spacngs: 1 1 5", "unknown field 'spacngs' (NRRD has no such field; a free-form key/value pair is written"),
-    ("spacedirections: (1,0,0) (0,1,0) (0,0,5)",
-     "field 'spacedirections': this reader takes it spelt 'space directions'"),
     ("spacings: 1 x 5", "field 'spacings': could not convert string to float: 'x'"),
     ("space origin: 1 2 3", "field 'space origin': Vector should be enclosed by parentheses"),
     ("byte skip: 1000", "byte skip 1000 passes the end of the data (8 bytes)"),
@@ -316,14 +314,40 @@ def test_nrrd_magic_line_pynrrd_refuses_is_not_blamed_on_a_field(tmp_path):
     assert "field" not in msg
 
 
-@pytest.mark.parametrize("teem, ours", [("spacedimension", "space dimension"), ("spaceunits", "space units"),
-                                        ("spaceorigin", "space origin"), ("spacedirections", "space directions"),
-                                        ("measurementframe", "measurement frame"), ("sampleunits", "sample units")])
-def test_nrrd_spellings_pynrrd_does_not_parse_are_named(tmp_path, teem, ours):
+@pytest.mark.parametrize("fields", [
+    ["spacedimension: 3", "spacedirections: (1,0,0) (0,2,0) (0,0,5)", "spaceorigin: (1,2,3)",
+     "spaceunits: \"mm\" \"mm\" \"mm\"", "measurementframe: (1,0,0) (0,1,0) (0,0,1)", "sampleunits: HU"],
+    ["SPACE DIMENSION: 3", "Space Directions: (1,0,0) (0,2,0) (0,0,5)", "Space Origin: (1,2,3)"],
+    ["space dimension: 3", "SpaceDirections: (1,0,0) (0,2,0) (0,0,5)", "SPACEORIGIN: (1,2,3)"],
+])
+def test_nrrd_fields_are_read_as_teem_reads_them(tmp_path, fields):
+    # teem's field names ignore case and take spellings without spaces; pynrrd parses
+    # neither, and "spacedirections" or "Space Origin" left the volume unspaced at 0.
     p = tmp_path / "f.nrrd"
-    p.write_bytes(f"NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 2 2\n{teem}: 3\nencoding: raw\n\n".encode()
-                  + bytes(8))
-    fails(p, f"field '{teem}': this reader takes it spelt '{ours}'")
+    p.write_bytes(("NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 2 2\n" + "\n".join(fields)
+                   + "\nencoding: raw\n\n").encode() + bytes(range(8)))
+    vol = load_volume(p)
+    assert vol.spacing == (1.0, 2.0, 5.0) and vol.origin == (1.0, 2.0, 3.0)
+    assert vol.data.ravel().tolist() == list(range(8))
+
+
+def test_nrrd_field_names_and_enumerated_values_are_read_in_any_case(tmp_path):
+    # teem reads "Type: Short", "ENDIAN: BIG" and "Encoding: RAW" as their lower-case spellings.
+    p = tmp_path / "f.nrrd"
+    samples = (np.arange(8) - 3).astype(">i2")
+    p.write_bytes(b"NRRD0004\nType: Short\nDIMENSION: 3\nSizes: 2 2 2\nSpacings: 1 2 3\nENDIAN: BIG\n"
+                  b"Encoding: RAW\n\n" + samples.tobytes())
+    vol = load_volume(p)
+    assert vol.dtype == np.int16 and vol.spacing == (1.0, 2.0, 3.0)
+    assert vol.data.ravel().tolist() == samples.tolist()
+
+
+def test_nrrd_data_file_list_is_found_in_any_case(tmp_path):
+    for n in range(2):
+        (tmp_path / f"s{n}.raw").write_bytes(bytes(range(4 * n, 4 * n + 4)))
+    p = tmp_path / "f.nhdr"
+    p.write_text("NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 2 2\nencoding: raw\nData File: LIST\ns0.raw\ns1.raw\n")
+    assert load_volume(p).data.ravel().tolist() == list(range(8))
 
 
 def test_nrrd_float_text_that_is_not_finite_is_refused_as_such(tmp_path):
@@ -737,3 +761,11 @@ def test_numbers_with_digit_separators_are_refused(tmp_path, writers, kind):
     with pytest.raises(InputError, match="_") as exc:
         load_volume(p)
     assert "\n" not in str(exc.value)
+
+
+@pytest.mark.parametrize("encoding, body", [("ascii", b"0 1 2 3 4 5 6 7\n"), ("raw", bytes(range(8)))])
+def test_nrrd_detached_data_file_is_found_in_any_case(tmp_path, encoding, body):
+    (tmp_path / "d.dat").write_bytes(body)
+    p = tmp_path / "h.nhdr"
+    p.write_text(f"NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 2 2\nencoding: {encoding}\nDATA FILE: d.dat\n")
+    assert load_volume(p).data.ravel().tolist() == list(range(8))
