@@ -192,7 +192,9 @@ def _parsed(lines, path):
     convert string to float: 'x'", does not say where), and a field NRRD does not have
     refused, as teem's reader refuses it (a misspelt ``spacngs`` was ignored, and the
     spacing with it)."""
-    lines = lines[:1] + [_as_pynrrd(line) for line in lines[1:]]
+    # NRRD00.01, the format's first magic, which teem still reads, is version 1 to pynrrd.
+    magic = b"NRRD0001\n" if lines[0].rstrip() == b"NRRD00.01" else lines[0]
+    lines = [magic] + [_as_pynrrd(line) for line in lines[1:]]
     try:
         header = nrrd.read_header(lines)
     except Exception as exc:  # noqa: BLE001 - pynrrd raises many kinds

@@ -309,9 +309,16 @@ def test_nrrd_key_value_pairs_whose_key_holds_a_colon_are_read(tmp_path, pair):
 
 def test_nrrd_magic_line_pynrrd_refuses_is_not_blamed_on_a_field(tmp_path):
     p = tmp_path / "f.nrrd"
-    p.write_bytes(b"NRRD00.01\ntype: uchar\ndimension: 3\nsizes: 2 2 2\nencoding: raw\n\n" + bytes(8))
-    msg = fails(p, "cannot read NRRD file: Invalid NRRD magic line: NRRD00.01")
+    p.write_bytes(b"NRRD00.02\ntype: uchar\ndimension: 3\nsizes: 2 2 2\nencoding: raw\n\n" + bytes(8))
+    msg = fails(p, "cannot read NRRD file: Invalid NRRD magic line: NRRD00.02")
     assert "field" not in msg
+
+
+def test_nrrd_first_magic_line_is_read(tmp_path):
+    # "NRRD00.01", the magic of the format's first version, which teem's reader still takes.
+    p = tmp_path / "f.nrrd"
+    p.write_bytes(b"NRRD00.01\ntype: uchar\ndimension: 3\nsizes: 2 2 2\nencoding: raw\n\n" + bytes(range(8)))
+    assert load_volume(p).data.ravel().tolist() == list(range(8))
 
 
 @pytest.mark.parametrize("fields", [
