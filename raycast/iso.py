@@ -47,8 +47,8 @@ from .config import OVERLOAD_JIT, TILE_H, TILE_W, kernel
 from .cubic import cubic_along_ray, eval_cubic, first_root, trilinear_coefficients
 from .rays import camera_ray, dealt_tile, spread_run, spread_runs, tile_count
 from .shade import headlight_pixel
-from .traverse import (advance, axis_state, cell_corners, clip_box, cube_exit, entry_anchor, grid_shape, step_cell,
-                       to_index_space, walk_from)
+from .traverse import (TINY_DIRECTION, advance, axis_state, cell_corners, clip_box, cube_exit, entry_anchor,
+                       grid_shape, step_cell, to_index_space, walk_from)
 
 #: Octants of ray directions, numbered by `octant`.
 OCTANTS = 8
@@ -101,13 +101,33 @@ def corners(data, iso, i, j, k):
 def cell_cubic(v000, v100, v010, v110, v001, v101, v011, v111,
                Ox, Oy, Oz, Dx, Dy, Dz, i, j, k, c0):
     """The cubic ``(A, B, C, D)`` of cell ``(i, j, k)`` along the ray, ``s``
-    measured from ``t = c0``, and the local coordinates ``(u0, v0, w0)`` there."""
-    a0, ax, ay, az, axy, ayz, azx, axyz = trilinear_coefficients(
-        v000, v100, v010, v110, v001, v101, v011, v111)
+    measured from ``t = c0``, and the local coordinates ``(u0, v0, w0)`` there.
+
+    A ray in the plane of the cell's far face along an axis (local coordinate
+    1 all along: only the last cell of an axis, where the walk's index is
+    clamped, has such rays) reached the face's values through cancellation
+    in the monomial form, a rounding off them: a face at the isovalue had no
+    exact zero, and was hit late or missed, where in a near face (coordinate
+    0) every term holding it vanishes and the zero is exact. So such a cell
+    is read mirrored along that axis: the same interpolant, at ``1 - 1 = 0``.
+    """
     u0 = (Ox - i) + c0 * Dx
     v0 = (Oy - j) + c0 * Dy
     w0 = (Oz - k) + c0 * Dz
-    A, B, C, D = cubic_along_ray(a0, ax, ay, az, axy, ayz, azx, axyz, u0, v0, w0, Dx, Dy, Dz)
+    mu, mv, mw = u0, v0, w0
+    du, dv, dw = Dx, Dy, Dz
+    if u0 == 1.0 and abs(Dx) < TINY_DIRECTION:
+        v000, v100, v010, v110, v001, v101, v011, v111 = v100, v000, v110, v010, v101, v001, v111, v011
+        mu, du = 0.0, -Dx
+    if v0 == 1.0 and abs(Dy) < TINY_DIRECTION:
+        v000, v100, v010, v110, v001, v101, v011, v111 = v010, v110, v000, v100, v011, v111, v001, v101
+        mv, dv = 0.0, -Dy
+    if w0 == 1.0 and abs(Dz) < TINY_DIRECTION:
+        v000, v100, v010, v110, v001, v101, v011, v111 = v001, v101, v011, v111, v000, v100, v010, v110
+        mw, dw = 0.0, -Dz
+    a0, ax, ay, az, axy, ayz, azx, axyz = trilinear_coefficients(
+        v000, v100, v010, v110, v001, v101, v011, v111)
+    A, B, C, D = cubic_along_ray(a0, ax, ay, az, axy, ayz, azx, axyz, mu, mv, mw, du, dv, dw)
     return A, B, C, D, u0, v0, w0
 
 
