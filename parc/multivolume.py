@@ -17,8 +17,9 @@ How a pixel is made
    opaque surface shows): composite volumes together, their samples merged
    in order of ``t`` so that overlapping volumes interleave
    (`raycast.merged.cast_merged_image`); a maximum- or average-intensity
-   volume is a finished layer placed where the ray enters its box. The
-   result goes over the lit surface.
+   volume is a finished layer placed where the ray enters its box (before
+   samples there of volumes listed after it, behind those of volumes
+   listed before). The result goes over the lit surface.
 
 Both methods run exactly this code; ``"parc"`` only narrows the segments
 (primary rays from the camera's buffers, shadow rays from the lights'),
@@ -30,7 +31,7 @@ import time
 
 import numpy as np
 
-from raycast.composite import N_PARAMS, cast_accumulate_image
+from raycast.composite import N_PARAMS, box_entry_image, cast_accumulate_image
 from raycast.merged import cast_merged_image
 from raycast.iso import NO_SHADING, cast_iso_image, keep_nearest
 from raycast.shadow import (KIND_HEADLIGHT, combine_lights, light_terms, shadow_accumulate, shadow_iso,
@@ -172,7 +173,7 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
                                       *skip_table(v, parc and blocks), layer_rgba[j], cnt, y0, y1)
                 report.part("translucent", (j + (b + 1) / len(bands)) / len(trans))
             counts["samples"] += int(cnt.sum())
-            layer_t[j] = _box_entry(scene, vol)
+            box_entry_image(vol.data, np.array(vol.origin), np.array(vol.spacing), cam, w, h, layer_t[j])
         front = np.zeros((h, w, 4), np.float32)
         if comp:
             datas, orgs, spcs, params, tables, tf_len = _packed(comp, accumulation_params)
@@ -182,7 +183,8 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
             for b, (y0, y1) in enumerate(bands):
                 cast_merged_image(datas, orgs, spcs, cam, w, h, params, *tables, tf_len, seg, parc,
                                   tuple(c for c, _ in skips), np.array([m for _, m in skips], np.int64), stop,
-                                  layer_t, layer_rgba, front, cnt, y0, y1)
+                                  np.array([n for n, _ in comp], np.int64), layer_t,
+                                  np.array([n for n, _ in layers], np.int64), layer_rgba, front, cnt, y0, y1)
                 report.part("translucent", (len(layers) + len(comp) * (b + 1) / len(bands)) / len(trans))
             counts["samples"] += int(cnt.sum())
         else:
@@ -313,22 +315,6 @@ def _packed(comp, accumulation_params):
         col_x[k, :len(cx)], col_rgb[k, :len(cx)] = cx, crgb
         tf_len[k] = len(ox), len(cx)
     return datas, orgs, spcs, params, (op_x, op_y, col_x, col_rgb), tf_len
-
-
-def _box_entry(scene, vol):
-    """Per pixel, the ray parameter where the camera ray enters the volume's sample box (inf: misses)."""
-    o, d = scene.camera.rays(*scene.size)
-    lo, hi = vol.bounds
-    # A direction component of 0 or below 1/DBL_MAX (a subnormal) gives an infinite reciprocal:
-    # that axis's slab is then all of t, or none of it.
-    with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
-        inv = 1.0 / d
-        a = (np.asarray(lo) - o) * inv
-        b = (np.asarray(hi) - o) * inv
-    t_in = np.nan_to_num(np.minimum(a, b), nan=-np.inf).max(axis=-1)
-    t_out = np.nan_to_num(np.maximum(a, b), nan=np.inf).min(axis=-1)
-    t_in = np.maximum(t_in, 0.0)
-    return np.where(t_in <= t_out, t_in, np.inf)
 
 
 def _composite_layers(layer_t, layer_rgba, out):

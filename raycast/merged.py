@@ -19,14 +19,19 @@ from .traverse import cell_corners, grid_shape, step_cell, to_index_space, walk_
 
 
 @kernel(inline="always")
-def _next_layer(layer_t, used, y, x, before):
-    """The unused layer with the smallest ``t < before`` at pixel (y, x), or -1."""
+def _next_layer(layer_t, layer_ranks, used, y, x, before, before_rank):
+    """The unused layer at pixel (y, x) to composite before a sample at ``t = before`` of the
+    volume ranked ``before_rank`` (its place in the scene), or -1: the smallest ``t``, ties
+    going to the volume listed first, as between samples."""
     best = -1
     bt = before
+    br = before_rank
     for j in range(layer_t.shape[0]):
-        if not used[j] and layer_t[j, y, x] < bt:
+        t = layer_t[j, y, x]
+        if not used[j] and (t < bt or (t == bt and layer_ranks[j] < br)):
             best = j
-            bt = layer_t[j, y, x]
+            bt = t
+            br = layer_ranks[j]
     return best
 
 
@@ -136,7 +141,7 @@ def _merged_caster(shaded):
     @kernel(parallel=True)
     @named_for(shaded=shaded)
     def cast(datas, orgs, spcs, cam, width, height, params, op_x, op_y, col_x, col_rgb, tf_len,
-             seg, use_seg, skip, jump_mins, stop, layer_t, layer_rgba, image, counts, row0, row1):
+             seg, use_seg, skip, jump_mins, stop, ranks, layer_t, layer_ranks, layer_rgba, image, counts, row0, row1):
         nvol = len(datas)
         thr = 0.0
         for q in range(nvol):
@@ -179,7 +184,8 @@ def _merged_caster(shaded):
                         # ray is opaque enough (they are finished, and a surface behind shows too).
                         while True:
                             last = best < 0 or acc >= thr
-                            j = _next_layer(layer_t, used, y, x, math.inf if last else bt)
+                            j = _next_layer(layer_t, layer_ranks, used, y, x, math.inf if last else bt,
+                                            -1 if last else ranks[best])
                             if j < 0:
                                 break
                             used[j] = True
@@ -231,7 +237,8 @@ _MERGED_CASTERS = {shaded: _merged_caster(shaded) for shaded in (False, True)}
 
 
 def cast_merged_image(datas, orgs, spcs, cam, width, height, params, op_x, op_y, col_x, col_rgb, tf_len,
-                      seg, use_seg, skip, jump_mins, stop, layer_t, layer_rgba, image, counts, row0=0, row1=None):
+                      seg, use_seg, skip, jump_mins, stop, ranks, layer_t, layer_ranks, layer_rgba, image, counts,
+                      row0=0, row1=None):
     """Composite several overlapping volumes along each pixel's ray, samples merged in depth order.
 
     ``datas`` is a tuple of K volumes of one dtype, each with its own
@@ -241,12 +248,14 @@ def cast_merged_image(datas, orgs, spcs, cam, width, height, params, op_x, op_y,
     ``seg[k]``. Each volume keeps its own walk and sample lattice (as for
     one volume: `accumulate_ray`), so every sample is the one a
     single-volume cast would take; the samples of all volumes are taken in
-    order of ``t`` (ties: the first volume first), composited front to
+    order of ``t`` (ties: the volume listed first, by ``ranks[k]``, its place in the scene), composited front to
     back, and stop at ``stop[y, x]`` (an opaque surface) or once the
     opacity reaches the largest threshold; a volume's samples stop
     counting once the opacity reaches its own. ``layer_t[j]``, ``layer_rgba[j]``
     are finished per-pixel layers (maximum or average intensity of another
-    volume) composited where the ray reaches ``t = layer_t``. ``skip[k]``
+    volume, ranked ``layer_ranks[j]``) composited where the ray reaches
+    ``t = layer_t``, before a sample there of a volume listed later (`box_entry_image`
+    gives the ``t`` of the lattice's first point, so that such ties are exact). ``skip[k]``
     and ``jump_mins[k]``: volume k's skip table, as `accumulate_ray`
     takes it (`raycast.iso.NO_SKIP` and -1 for none); a skipped sample
     adds nothing, so the layers and the other volumes' samples keep their
@@ -254,4 +263,5 @@ def cast_merged_image(datas, orgs, spcs, cam, width, height, params, op_x, op_y,
     """
     cast = _MERGED_CASTERS[bool((params[:, P_SHADE] != 0.0).any())]
     cast(datas, orgs, spcs, cam, width, height, params, op_x, op_y, col_x, col_rgb, tf_len, seg, use_seg, skip,
-         jump_mins, stop, layer_t, layer_rgba, image, counts, row0, height if row1 is None else row1)
+         jump_mins, stop, ranks, layer_t, layer_ranks, layer_rgba, image, counts, row0,
+         height if row1 is None else row1)
