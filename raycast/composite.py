@@ -251,12 +251,14 @@ def shade_color(data, spc, i, j, k, u, vv, w, dx, dy, dz, params, cr, cg, cb):
     gx, gy, gz = trilinear_gradient(data, i, j, k, u, vv, w, spc)
     gl = math.sqrt(gx * gx + gy * gy + gz * gz)
     if gl > 0.0:
-        diff, spec = blinn_phong(gx / gl, gy / gl, gz / gl, -dx, -dy, -dz,
-                                 -dx, -dy, -dz, params[P_AMBIENT:P_AMBIENT + 4])
-        f = params[P_AMBIENT] + diff
-        return cr * f + spec, cg * f + spec, cb * f + spec
-    f = params[P_AMBIENT] + params[P_AMBIENT + 1]
-    return cr * f, cg * f, cb * f
+        gx, gy, gz = gx / gl, gy / gl, gz / gl
+    else:
+        # A flat region has no gradient: it faces the viewer, as a flat isosurface cell
+        # does (`raycast.shade.headlight_pixel`), highlight included.
+        gx, gy, gz = -dx, -dy, -dz
+    diff, spec = blinn_phong(gx, gy, gz, -dx, -dy, -dz, -dx, -dy, -dz, params[P_AMBIENT:P_AMBIENT + 4])
+    f = params[P_AMBIENT] + diff
+    return cr * f + spec, cg * f + spec, cb * f + spec
 
 
 @kernel(inline="always")

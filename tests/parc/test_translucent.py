@@ -372,3 +372,22 @@ def test_shaded_samples_keep_colour_within_opacity():
         img = render(Scene(camera=cam, size=(9, 9), volumes=[Translucent(Volume(data), tf, shade=True)],
                            background=background)).image
         assert img[4, 4, 3] > 0.5 and (img[..., :3] <= img[..., 3:] + 1e-6).all() and img.max() <= 1.0
+
+
+@pytest.mark.parametrize("ramp", [0.0, 1e-9])
+def test_a_flat_region_is_shaded_as_facing_the_viewer(ramp):
+    # No gradient, no normal: the sample faces the viewer, as a flat isosurface cell does, so a
+    # constant volume and one rising a hair towards the eye look the same (they were 0.35 and 0.54
+    # apart: the flat one lost its highlight). Headlight on a facing normal: ambient + diffuse
+    # times the colour, plus the specular, per sample, clamped to 1.
+    z = np.arange(6, dtype=np.float64)[:, None, None]
+    data = np.broadcast_to(0.5 - ramp * z, (6, 6, 6)).astype(np.float64)
+    tf = TransferFunction(opacity=[[0, 0.4], [1, 0.4]], color=[[0, 0.3, 0.2, 0.1], [1, 0.3, 0.2, 0.1]])
+    material = (0.2, 0.5, 0.25, 8.0)
+    cam = Camera(eye=(2.5, 2.5, -30), look_at=(2.5, 2.5, 2.5), up=(0, 1, 0), parallel_scale=2.0)
+    img = render(Scene(camera=cam, size=(4, 4), volumes=[Translucent(Volume(data), tf, shade=True,
+                                                                       material=material)])).image
+    alpha = img[1, 1, 3]
+    colour = np.minimum(np.array([0.3, 0.2, 0.1]) * (0.2 + 0.5) + 0.25, 1.0)
+    assert alpha > 0.9
+    np.testing.assert_allclose(img[1, 1, :3], colour * alpha, atol=1e-6)
