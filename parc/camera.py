@@ -178,8 +178,9 @@ class Camera:
                 parallel=False, zoom=1.0, aspect=1.0):
         """A three-quarter view that frames the box ``[lo, hi]`` whole.
 
-        The eye looks at the box centre from ``azimuth`` degrees around +z
-        (0 = from -y) and ``elevation`` degrees above the xy-plane, far
+        The eye looks at the box centre from ``azimuth`` degrees around ``up``
+        (0 = from the front: -y with +z up) and ``elevation`` degrees above the
+        plane across ``up`` (`_view_from`), far
         enough that the bounding sphere fits the field of view ``fov``
         (vertical) across an image ``aspect`` = width / height wide: a
         tall image fits it across. ``parallel=True`` gives a parallel
@@ -204,12 +205,11 @@ class Camera:
         c = 0.5 * (lo + hi)
         whole = 0.5 * float(np.linalg.norm(hi - lo))
         radius = whole / zoom
-        az, el = math.radians(azimuth), math.radians(elevation)
-        back = np.array([math.cos(el) * math.sin(az), -math.cos(el) * math.cos(az), math.sin(el)])
         try:
             u = unit_vector(up) if np.shape(up) == (3,) else None
         except (TypeError, ValueError):
             u = None      # Camera itself refuses it below
+        back = _view_from(azimuth, elevation, np.array([0.0, 0.0, 1.0]) if u is None else u)
         if u is not None and np.linalg.norm(np.cross(back, u)) < 1e-9:
             raise InputError(f"an elevation of {elevation:g} degrees looks along up {tuple(up)}: "
                              f"give another elevation or up")
@@ -230,6 +230,25 @@ class Camera:
             raise InputError(f"cannot frame the volume with a {fov:g}-degree field of view: "
                              "the eye would lie beyond float64's range")
         return cls(eye=tuple(c + back * dist), look_at=tuple(c), up=up, fov=fov)
+
+
+def _view_from(azimuth, elevation, up):
+    """Unit vector from the look-at point towards the eye: ``elevation`` degrees above the plane
+    across ``up`` (towards it), ``azimuth`` degrees round ``up`` from the front.
+
+    The front is -y, as seen with +z up (x to the right), or with another up the
+    nearest direction to -y across it (+z where up lies along y): with up
+    (0, 0, 1) the eye stands at ``(cos el sin az, -cos el cos az, sin el)``,
+    and with up (0, 0, -1) the same view of a volume stored upside down,
+    from above its top, not below it.
+    """
+    az, el = math.radians(azimuth), math.radians(elevation)
+    front = np.array([0.0, -1.0, 0.0]) - (-up[1]) * up
+    if np.linalg.norm(front) < 1e-6:
+        front = np.array([0.0, 0.0, 1.0]) - up[2] * up
+    front /= np.linalg.norm(front)
+    side = np.cross(up, front)
+    return math.cos(el) * (math.cos(az) * front + math.sin(az) * side) + math.sin(el) * up
 
 
 def check_fov(fov):

@@ -148,3 +148,17 @@ def test_framing_azimuth_zero_looks_from_minus_y_and_ninety_from_plus_x():
     assert cam.eye[0] > 5.0 and cam.eye[1] == pytest.approx(5.0, abs=1e-9)
     cam = Camera.framing((0, 0, 0), (10, 10, 10), azimuth=0.0, elevation=60.0)
     assert cam.eye[2] > 5.0 and cam.eye[1] < 5.0
+
+
+@pytest.mark.parametrize("up, above, front", [((0, 0, 1), (2, 1), (1, -1)), ((0, 0, -1), (2, -1), (1, -1)),
+                                              ((0, 1, 0), (1, 1), (2, 1)), ((0, -1, 0), (1, -1), (2, 1)),
+                                              ((1, 0, 0), (0, 1), (1, -1))])
+def test_framing_raises_the_eye_towards_up(up, above, front):
+    # Elevation is towards the up given: with up (0, 0, -1), for a volume stored upside down,
+    # the eye stood below it and saw it from underneath. The front is -y, or +z with up along y.
+    cam = Camera.framing((0, 0, 0), (10, 10, 10), azimuth=0.0, elevation=30.0, up=up)
+    back = (np.array(cam.eye) - 5.0) / np.linalg.norm(np.array(cam.eye) - 5.0)
+    assert back[above[0]] * above[1] == pytest.approx(0.5)              # sin 30 degrees towards up
+    assert back[front[0]] * front[1] == pytest.approx(math.sqrt(0.75))  # the rest towards the front
+    f, r, u = cam.basis()
+    assert np.dot(u, up) > 0.8                                           # and up stays up in the image
