@@ -107,9 +107,10 @@ class Translucent:
             if not isinstance(self.tf, (str, os.PathLike)):
                 raise InputError(f"a transfer function must be a TransferFunction, a preset name or a file, "
                                  f"got {type(self.tf).__name__}")
-            self.tf = load_transfer_function(self.tf, data_range=self.volume.value_range())
         if self.mode not in MODES:
             raise InputError(f"unknown mode {self.mode!r}; choose one of {', '.join(MODES)}")
+        if not isinstance(self.tf, TransferFunction):
+            self.tf = load_transfer_function(self.tf, data_range=self.volume.value_range(), mode=self.mode)
         if self.step is None:
             self.step = reference_step(self.volume.spacing)
         try:

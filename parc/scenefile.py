@@ -247,7 +247,7 @@ def _load_volume(where, t, cache):
         if path.exists() or Path(spec).suffix or os.sep in spec or "/" in spec:
             spec = os.fspath(path)
     with where.key(t.key("tf")):
-        tf = load_transfer_function(spec, data_range=vol.value_range())
+        tf = load_transfer_function(spec, data_range=vol.value_range(), mode=mode or "composite")
     given = {"mode": mode, "step": step, "threshold": threshold, "shade": shade, "material": material}
     keyed = [(name, name, value) for name, value in given.items() if value is not None]
     return construct(where, t.prefix, Translucent, {"volume": vol, "tf": tf}, keyed)

@@ -78,7 +78,7 @@ def _strict_json(text):
     return json.loads(text, object_pairs_hook=unique)
 
 
-def load_transfer_function(spec, data_range=None):
+def load_transfer_function(spec, data_range=None, mode="composite"):
     """A transfer function from a preset name or a file.
 
     Parameters
@@ -90,6 +90,10 @@ def load_transfer_function(spec, data_range=None):
         The volume's value range: needed by the ramp presets and
         ``space = "normalized"`` files, and used to stretch normalized
         ParaView maps.
+    mode : {"composite", "mip", "average"}
+        The mode it renders in: the ramp presets and ParaView maps without
+        opacity points end opaque for maximum and average intensity
+        (`parc.transfer.presets.ramp_opacity`).
 
     Returns
     -------
@@ -104,7 +108,7 @@ def load_transfer_function(spec, data_range=None):
         return spec
     text = os.fspath(spec)
     if text in PRESETS:
-        return preset(text, data_range)
+        return preset(text, data_range, mode)
     if not text.strip():
         raise InputError(f"a transfer function is a preset ({', '.join(PRESETS)}) or a .toml or .json file; "
                          "got an empty name")
@@ -142,7 +146,7 @@ def load_transfer_function(spec, data_range=None):
             raise InputError(f"{where}: holds ParaView's RGBPoints and our opacity/color keys; "
                              "keep one kind (a file is read as one or the other)")
         if isinstance(doc, list) or (isinstance(doc, dict) and "RGBPoints" in doc):
-            return _from_paraview(doc, where, text, data_range)
+            return _from_paraview(doc, where, text, data_range, mode)
         paraview_keys = {"ColorSpace", "Name", "Points"}
         if isinstance(doc, dict) and not {"opacity", "color"} & set(doc) and paraview_keys & set(doc):
             raise InputError(f"{where}: a ParaView colour map needs RGBPoints (value, r, g, b, ...); none given")
@@ -178,7 +182,7 @@ def _from_ours(doc, where, source, data_range):
         tf = tf.mapped(lo, hi)
     return tf
 
-def _from_paraview(doc, where, source, data_range):
+def _from_paraview(doc, where, source, data_range, mode):
     if isinstance(doc, list):
         if not doc:
             raise InputError(f"{where}: the ParaView colour-map list is empty")
@@ -199,7 +203,7 @@ def _from_paraview(doc, where, source, data_range):
     else:
         x0, x1 = col[0, 0], col[-1, 0]
         span = x1 - x0 if x1 > x0 else 1.0
-        op = np.array(ramp_opacity())
+        op = np.array(ramp_opacity(mode))
         op[:, 0] = x0 + op[:, 0] * span
         op[-1, 0] = x0 + span
     tf = TransferFunction(op, col, name=name, source=source)

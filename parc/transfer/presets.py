@@ -52,35 +52,42 @@ _BONE_OPACITY = ((1200.0, 0.0), (1500.0, 0.4), (2000.0, 0.7))
 
 _BONE_COLOR = ((1200.0, 0.90, 0.80, 0.65), (1600.0, 1.0, 0.96, 0.88), (2500.0, 1.0, 1.0, 1.0))
 
-def _ct_skin(data_range=None):
+def _ct_skin(data_range=None, mode="composite"):
     return TransferFunction(_SKIN_OPACITY, _SKIN_COLOR, name="ct_skin",
                             description=PRESET_DESCRIPTIONS["ct_skin"], source="preset ct_skin")
 
-def _ct_bone(data_range=None):
+def _ct_bone(data_range=None, mode="composite"):
     return TransferFunction(_BONE_OPACITY, _BONE_COLOR, name="ct_bone",
                             description=PRESET_DESCRIPTIONS["ct_bone"], source="preset ct_bone")
 
-def _ct_skin_bone(data_range=None):
+def _ct_skin_bone(data_range=None, mode="composite"):
     skin = tuple((v, 0.3 * a) for v, a in _SKIN_OPACITY)   # a veil: bone shows through
     return TransferFunction(skin + _BONE_OPACITY, _SKIN_COLOR + _BONE_COLOR, name="ct_skin_bone",
                             description=PRESET_DESCRIPTIONS["ct_skin_bone"],
                             source="preset ct_skin_bone")
 
-def ramp_opacity():
-    """The ramp presets' opacity over a normalized [0, 1] range."""
-    return ((0.0, 0.0), (RAMP_START, 0.0), (1.0, RAMP_OPACITY))
+def ramp_opacity(mode="composite"):
+    """The ramp presets' opacity over a normalized [0, 1] range, for rendering ``mode``.
 
-def _greyscale(data_range=None):
+    Composite opacities are per reference step, and `RAMP_OPACITY` at the top
+    lets a ray see into the volume. A maximum-intensity pixel shows one value
+    at that value's opacity: there the ramp ends opaque, else its brightest
+    pixel was 10% grey on black. (The average mode asks only where the
+    opacity is non-zero, which is the same in either ramp.)
+    """
+    return ((0.0, 0.0), (RAMP_START, 0.0), (1.0, RAMP_OPACITY if mode == "composite" else 1.0))
+
+def _greyscale(data_range=None, mode="composite"):
     lo, hi = data_range_of(data_range, "greyscale")
-    tf = TransferFunction(ramp_opacity(), ((0.0, 0.0, 0.0, 0.0), (1.0, 1.0, 1.0, 1.0)),
+    tf = TransferFunction(ramp_opacity(mode), ((0.0, 0.0, 0.0, 0.0), (1.0, 1.0, 1.0, 1.0)),
                           name="greyscale", description=PRESET_DESCRIPTIONS["greyscale"],
                           source="preset greyscale")
     return tf.mapped(lo, hi)
 
-def _viridis(data_range=None):
+def _viridis(data_range=None, mode="composite"):
     lo, hi = data_range_of(data_range, "viridis")
     col = [(i / 255.0, r, g, b) for i, r, g, b in VIRIDIS]
-    tf = TransferFunction(ramp_opacity(), col, name="viridis",
+    tf = TransferFunction(ramp_opacity(mode), col, name="viridis",
                           description=PRESET_DESCRIPTIONS["viridis"], source="preset viridis")
     return tf.mapped(lo, hi)
 
@@ -105,8 +112,8 @@ PRESET_DESCRIPTIONS = {
     "ct_skin": "CThead-like CT: translucent skin-toned shell at the air/skin boundary (500-900)",
     "ct_bone": "CThead-like CT: whitish, nearly opaque bone (1200 and up)",
     "ct_skin_bone": "CThead-like CT: faint skin over opaque bone, the classic CT look",
-    "greyscale": "black to white over the data range, opacity ramping up from 10% of it",
-    "viridis": "viridis colours over the data range, opacity ramping up from 10% of it",
+    "greyscale": "black to white over the data range, opacity ramping up from 10% of it (to 1 for mip, average)",
+    "viridis": "viridis colours over the data range, opacity ramping up from 10% of it (to 1 for mip, average)",
 }
 
 #: Preset name -> factory ``f(data_range=None) -> TransferFunction``. The
@@ -119,8 +126,9 @@ PRESETS = {
     "viridis": _viridis,
 }
 
-def preset(name, data_range=None):
-    """The preset ``name`` for data in ``data_range = (lo, hi)``; see `PRESETS`."""
+def preset(name, data_range=None, mode="composite"):
+    """The preset ``name`` for data in ``data_range = (lo, hi)`` rendered in ``mode`` (the ramps
+    end opaque for maximum and average intensity, `ramp_opacity`); see `PRESETS`."""
     if name not in PRESETS:
         raise InputError(f"unknown transfer function preset {name!r}; known: {', '.join(PRESETS)}")
-    return PRESETS[name](data_range)
+    return PRESETS[name](data_range, mode)

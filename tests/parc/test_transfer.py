@@ -400,6 +400,29 @@ def test_ramp_presets_follow_the_data_range():
     assert preset("viridis", (7, 7)).opacity(7) == 0.0
 
 
+@pytest.mark.parametrize("mode", ["mip", "average"])
+def test_ramps_end_opaque_for_maximum_and_average_intensity(tmp_path, mode):
+    # One value a ray, shown at its opacity: at the compositing ramp's 0.1 the brightest pixel
+    # of a maximum-intensity image was 10% grey on black.
+    from data_tools import Volume
+    from parc import Translucent, load_scene
+    for name in ("greyscale", "viridis"):
+        tf = preset(name, (-50.0, 150.0), mode)
+        assert tf.opacity(150.0) == 1.0 and tf.opacity(-30.0) == 0.0
+        assert tf.opacity(50.0) == pytest.approx(preset(name, (-50.0, 150.0)).opacity(50.0) / T.RAMP_OPACITY)
+        np.testing.assert_array_equal(tf.color([0, 100]), preset(name, (-50.0, 150.0)).color([0, 100]))
+    vol = Volume(np.arange(27, dtype=np.float32).reshape(3, 3, 3))
+    assert Translucent(vol, "greyscale", mode=mode).tf.opacity(26.0) == 1.0
+    assert Translucent(vol, "greyscale").tf.opacity(26.0) == T.RAMP_OPACITY
+    paraview = tmp_path / "map.json"
+    paraview.write_text(json.dumps([{"Name": "m", "RGBPoints": [0, 0, 0, 0, 1, 1, 1, 1]}]))
+    assert T.load_transfer_function(paraview, (0.0, 26.0), mode).opacity(26.0) == 1.0
+    assert T.load_transfer_function(paraview, (0.0, 26.0)).opacity(26.0) == T.RAMP_OPACITY
+    np.save(tmp_path / "v.npy", vol.data)
+    (tmp_path / "s.toml").write_text(f'[[volume]]\nfile = "v.npy"\ntf = "viridis"\nmode = "{mode}"\n')
+    assert load_scene(tmp_path / "s.toml").volumes[0].tf.opacity(26.0) == 1.0
+
+
 # --------------------------------------------------------------------------
 # Files
 # --------------------------------------------------------------------------
