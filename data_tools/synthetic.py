@@ -14,7 +14,7 @@ from .neuron import floor, neuron
 from .phantom import ct_phantom, ct_phantom_to_disk
 from .volume import Volume
 
-__all__ = ["DESCRIPTIONS", "SYNTHETIC", "blobs", "builtin_volume", "ct_phantom", "ct_phantom_to_disk", "floor",
+__all__ = ["DESCRIPTIONS", "ISOVALUES", "SYNTHETIC", "blobs", "builtin_volume", "ct_phantom", "ct_phantom_to_disk", "floor",
            "make_synthetic", "marschner_lobb", "neuron", "sphere", "torus", "trilinear_field"]
 def sphere(size=64, *, radius_fraction=0.35) -> Volume:
     """Signed distance to a sphere centred in the box (float32, negative inside).
@@ -257,6 +257,12 @@ DESCRIPTIONS = {
     "trilinear_field": "float64 exact trilinear function of the indices (random small integer coefficients)",
     "builtin": "uint8 torus with blobs: the default volume of parc render (iso 127.5)",
 }
+
+
+#: The isovalues each registry entry is made for (`DESCRIPTIONS` names them): ``parc make``
+#: says how to render what it wrote.
+ISOVALUES = {"sphere": (0.0,), "torus": (0.0,), "marschner_lobb": (0.5,), "blobs": (100.5,), "neuron": (80.5,),
+             "floor": (127.5,), "ct_phantom": (600.0, 1500.0), "trilinear_field": (), "builtin": (127.5,)}
 
 
 def check_synthetic_size(size, what, name=None):

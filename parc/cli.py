@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import os
+import shlex
 import signal
 import sys
 from pathlib import Path
@@ -154,7 +155,7 @@ def cmd_info(args):
 
 def cmd_make(args):
     from data_tools.io import save_volume
-    from data_tools.synthetic import check_synthetic_size, make_synthetic, making_note
+    from data_tools.synthetic import ISOVALUES, check_synthetic_size, make_synthetic, making_note
     out = check_output(args.output, (".nrrd", ".nhdr", ".npy", ".mhd", ".mha", ".vtk", ".raw"))
     kwargs = {} if args.seed is None else {"seed": args.seed}
     if args.size is not None and args.size < 2:
@@ -173,6 +174,11 @@ def cmd_make(args):
     _refuse_overwriting_input(out, [])
     save_volume(vol, out)  # all-or-nothing itself, and keeps sidecar names right
     _out(f"wrote {_written(out)} ({'x'.join(map(str, vol.dims))} {vol.dtype}{_placement(vol, out)})")
+    levels = ISOVALUES[args.name]
+    if levels:
+        _out(f"isovalue{'s' if len(levels) > 1 else ''} {' and '.join(f'{v:g}' for v in levels)}: "
+             + " ".join(["parc render", shlex.quote(str(out)), *_raw_flags(vol, out), f"--iso {levels[0]:g}",
+                         "-o", shlex.quote(out.stem + ".png")]))
     return 0
 
 
@@ -190,6 +196,17 @@ def _placement(vol, out):
     origin = ", ".join(f"{o:g}" for o in vol.origin)
     if out.suffix.lower() != ".raw":
         return f", spacing {spacing}, origin {origin}"
+    flags = _raw_flags(vol, out)
+    if not flags:
+        return ", samples only; its name gives their shape and type"
+    return f", samples only: read it back with {' '.join(flags)}; a .raw file has no header"
+
+
+def _raw_flags(vol, out):
+    """The flags that read ``vol`` back from ``out``: none but for a ``.raw`` file, which holds
+    the samples alone (its name may give their shape and type)."""
+    if out.suffix.lower() != ".raw":
+        return []
     from data_tools.io.raw import guess_from_name
     named = guess_from_name(out)
     flags = []
@@ -203,9 +220,7 @@ def _placement(vol, out):
         flags.append(f"--spacing {exact(vol.spacing)}")
     if vol.origin != (0.0, 0.0, 0.0):
         flags.append(f"--origin {exact(vol.origin)}")
-    if not flags:
-        return ", samples only; its name gives their shape and type"
-    return f", samples only: read it back with {' '.join(flags)}; a .raw file has no header"
+    return flags
 
 
 def _exists(path):

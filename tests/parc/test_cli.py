@@ -224,6 +224,30 @@ def test_a_header_never_writes_over_a_data_file_not_its_own(vol_file, tmp_path, 
         assert rc == 0 and f"wrote {tmp_path / 'scan.mhd'} and {tmp_path / 'scan.raw'} (" in out, err
 
 
+@pytest.mark.parametrize("name, out", [("sphere", "s.nrrd"), ("ct_phantom", "my ct.mha"), ("marschner_lobb", "ml.raw"),
+                                       ("trilinear_field", "t.npy")])
+def test_make_says_how_to_render_what_it_wrote(tmp_path, capsys, monkeypatch, name, out):
+    # The histogram's suggestion need not be the level a synthetic volume is made for (sphere:
+    # 7.34 where its surface is at 0), so make gives the command with that level.
+    import shlex
+    from data_tools.synthetic import ISOVALUES
+    from data_tools.synthetic import DESCRIPTIONS
+    assert all(f"iso {v:g}" in DESCRIPTIONS[name] for v in ISOVALUES[name])      # as make --help says
+    monkeypatch.chdir(tmp_path)
+    rc, said, err = _run(["make", name, "--size", 12, "-o", tmp_path / out], capsys)
+    assert rc == 0, err
+    lines = said.splitlines()
+    if not ISOVALUES[name]:
+        assert len(lines) == 1
+        return
+    assert lines[1].startswith(f"isovalue{'s' if len(ISOVALUES[name]) > 1 else ''} {ISOVALUES[name][0]:g}")
+    argv = shlex.split(lines[1].partition(": ")[2])
+    assert argv[:2] == ["parc", "render"] and f"--iso {ISOVALUES[name][0]:g}" in lines[1]
+    rc, _, err = _run(argv[1:] + ["--size", 16, 16], capsys)
+    assert rc == 0, err
+    assert (tmp_path / argv[-1]).stat().st_size > 0
+
+
 def test_a_raw_output_says_it_keeps_no_spacing(tmp_path, capsys):
     from data_tools.io import load_volume
     rc, out, err = _run(["make", "marschner_lobb", "--size", 5, "-o", tmp_path / "ml.raw"], capsys)
