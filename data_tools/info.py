@@ -239,6 +239,25 @@ def suggest_isovalues(vol: Volume, k: int = 3, *, bins: int = 256) -> list:
         v = float(edges[j_mid])
         if integer:
             v = math.floor(v) + 0.5
+        else:
+            # Any value near the cut splits the histogram alike: take the shortest, within half a
+            # bin of it or inside the gap it lies in (a sphere's distance field: 7.3, not 7.340737462043762).
+            if left < right:            # empty bins left .. right - 1
+                a, b = float(edges[left]), float(edges[right])
+            else:
+                half = 0.5 * float(edges[1] - edges[0])
+                a, b = v - half, v + half
+            v = _shortest(v, a, b, lo, hi)
         if lo < v < hi:
             result.append(v)
     return sorted(set(result))
+
+
+def _shortest(v, a, b, lo, hi):
+    """The number of fewest significant digits in ``[a, b]`` and strictly inside ``(lo, hi)``,
+    rounded from ``v``; ``v`` itself when none is shorter."""
+    for digits in range(1, 17):
+        r = float(f"{v:.{digits}g}")
+        if a <= r <= b and lo < r < hi:
+            return r
+    return v

@@ -144,3 +144,15 @@ def test_isovalue_refusal_shows_the_range_exactly():
     with pytest.raises(InputError) as exc:
         Isosurface(vol, 0.7)                      # above float32(0.7), which :g wrote as 0.7
     assert "isovalue 0.7 is outside the data range [0, 0.699999988079071]" in str(exc.value)
+
+
+def test_float_suggestions_are_short_and_within_half_a_bin_of_the_cut():
+    # 7.3 splits a sphere's distance field as 7.340737462043762 does, and reads and pastes better.
+    from data_tools.info import _shortest
+    assert _shortest(7.340737462043762, 7.24, 7.44, -21.0, 32.0) == 7.3
+    assert _shortest(1000.1234, 1000.1230, 1000.1238, 999.0, 1001.0) == 1000.123
+    assert _shortest(0.5, 0.0, 1.0, 0.0, 1.0) == 0.5
+    assert _shortest(2.0, 1.0, 3.0, 1.5, 2.5) == 2.0          # "2" is shortest, and inside
+    assert _shortest(1.25, 1.2, 1.3, 1.24, 1.26) == 1.25       # 1 and 1.2 lie outside the data range
+    iso = suggest_isovalues(sphere(30))
+    assert iso and all(len(f"{v:.15g}") <= 5 for v in iso), iso
