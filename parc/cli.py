@@ -292,7 +292,8 @@ def cmd_render(args):
     if args.method != "parc":
         _refuse_parc_flags(args, "applies to --method parc")
     check_request(scene, kwargs.get("buffers", DEFAULT_BUFFERS), work_out is not None)
-    compile_notice(say, casters_for(scene, (args.method,), kwargs.get("buffers", DEFAULT_BUFFERS)))
+    compile_notice(say, casters_for(scene, (args.method,), kwargs.get("buffers", DEFAULT_BUFFERS)),
+                   {v.volume.dtype for v in scene.volumes})
     progress = None if args.quiet else Progress(f"rendering {w}x{h}")
     result = parc.render(scene, method=args.method, progress=progress, work=work_out is not None, **kwargs)
     if progress is not None:
@@ -382,7 +383,8 @@ def cmd_compare(args):
     if steps is not None and args.supercell is not None:
         common["supercell"] = args.supercell
     if warming is not None:
-        compile_notice(say, casters_for(scene, ["brute"] + [m.split(":")[0] for m in methods], common["buffers"]))
+        compile_notice(say, casters_for(scene, ["brute"] + [m.split(":")[0] for m in methods], common["buffers"]),
+                       {v.volume.dtype for v in scene.volumes})
     if steps is not None:
         from .comparison import format_step_table, step_sweep
         rows = step_sweep(scene, steps, repeats=args.repeats, progress=warming, options=common)
