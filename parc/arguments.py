@@ -40,14 +40,15 @@ class _Parser(argparse.ArgumentParser):
         raise InputError(message)
 
 
-def _floats(n, what):
+def _floats(n):
+    # argparse names the flag: "argument --eye: must be ..."
     def parse(text):
         try:
             vals = tuple(float(v) for v in text.replace(" ", "").split(","))
         except ValueError:
-            raise argparse.ArgumentTypeError(f"{what} must be {n} comma-separated numbers, got {text!r}")
+            raise argparse.ArgumentTypeError(f"must be {n} comma-separated numbers, got {text!r}")
         if len(vals) != n or not all(np.isfinite(vals)):
-            raise argparse.ArgumentTypeError(f"{what} must be {n} comma-separated finite numbers, got {text!r}")
+            raise argparse.ArgumentTypeError(f"must be {n} comma-separated finite numbers, got {text!r}")
         return vals
     return parse
 
@@ -62,14 +63,14 @@ def supercell_size(text):
     return vals[0] if len(vals) == 1 else vals
 
 
-def _ints(n, what):
+def _ints(n):
     def parse(text):
         try:
             vals = tuple(int(v) for v in text.replace("x", ",").split(","))
         except ValueError:
-            raise argparse.ArgumentTypeError(f"{what} must be {n} integers like 64,64,32, got {text!r}")
+            raise argparse.ArgumentTypeError(f"must be {n} integers like 64,64,32, got {text!r}")
         if len(vals) != n:
-            raise argparse.ArgumentTypeError(f"{what} must be {n} integers, got {text!r}")
+            raise argparse.ArgumentTypeError(f"must be {n} integers, got {text!r}")
         return vals
     return parse
 
@@ -78,12 +79,12 @@ def _add_volume_options(p, scenes=True):
     g = p.add_argument_group("reading the volume (headerless raw files need shape and dtype "
                              "unless the name says, e.g. bucky_32x32x32_uint8.raw"
                              + ("; a scene file sets these per volume instead)" if scenes else ")"))
-    g.add_argument("--shape", type=_ints(3, "--shape"), metavar="NX,NY,NZ", help="raw: samples along x, y, z")
+    g.add_argument("--shape", type=_ints(3), metavar="NX,NY,NZ", help="raw: samples along x, y, z")
     g.add_argument("--dtype", metavar="TYPE", help="raw: sample type, e.g. uint8, int16, uint16, float32")
     g.add_argument("--byte-order", choices=("little", "big"), help="raw: byte order (default little, or what the file name says: be, msb, bigendian...)")
-    g.add_argument("--spacing", type=_floats(3, "--spacing"), metavar="SX,SY,SZ",
+    g.add_argument("--spacing", type=_floats(3), metavar="SX,SY,SZ",
                    help="sample spacing; replaces what the file says")
-    g.add_argument("--origin", type=_floats(3, "--origin"), metavar="OX,OY,OZ",
+    g.add_argument("--origin", type=_floats(3), metavar="OX,OY,OZ",
                    help="world position of the first sample; replaces what the file says")
 
 
@@ -109,17 +110,20 @@ def _add_look_options(p):
 def _add_view_options(p):
     g = p.add_argument_group("view (default: a three-quarter view framing the whole volume; with a scene "
                              "file, these replace the file's camera settings and size)")
-    g.add_argument("--eye", type=_floats(3, "--eye"), metavar="X,Y,Z", help="camera position")
-    g.add_argument("--look-at", type=_floats(3, "--look-at"), metavar="X,Y,Z",
+    g.add_argument("--eye", type=_floats(3), metavar="X,Y,Z", help="camera position")
+    g.add_argument("--look-at", type=_floats(3), metavar="X,Y,Z",
                    help="point looked at (default: the centre of the volume, or of all a scene file's)")
-    g.add_argument("--up", type=_floats(3, "--up"), metavar="X,Y,Z", help="up direction (default 0,0,1, or 0,1,0 when the view is along z)")
+    g.add_argument("--up", type=_floats(3), metavar="X,Y,Z", help="up direction (default 0,0,1, or 0,1,0 when the view is along z)")
     g.add_argument("--fov", type=float, metavar="DEG",
                    help="vertical field of view in degrees (default 30)")
     g.add_argument("--parallel", type=float, metavar="SCALE",
                    help="parallel projection, instead of --fov; SCALE is half the view height in world units")
+    g.add_argument("--zoom", type=float, metavar="Z",
+                   help="without --eye: the default eye Z times closer (default 1; the view stays framed "
+                        "on the whole volume at 1)")
     g.add_argument("--size", type=int, nargs=2, metavar=("W", "H"),
                    help="image size in pixels (default 512 512)")
-    g.add_argument("--background", type=_floats(3, "--background"), metavar="R,G,B",
+    g.add_argument("--background", type=_floats(3), metavar="R,G,B",
                    help="opaque background colour in [0,1] (default transparent)")
 
 
@@ -127,10 +131,10 @@ def _add_light_options(p):
     g = p.add_argument_group(
         "lights and shadows (default: one white headlight at the eye; lights given here are added "
         "to a scene file's [[light]] tables; colours and intensities: use a scene file)")
-    g.add_argument("--light", type=_floats(3, "--light"), action="append", metavar="X,Y,Z",
+    g.add_argument("--light", type=_floats(3), action="append", metavar="X,Y,Z",
                    help="a white point light at X,Y,Z (world coordinates, may be inside the volume); "
                         "repeat for several lights")
-    g.add_argument("--sun", type=_floats(3, "--sun"), action="append", metavar="DX,DY,DZ",
+    g.add_argument("--sun", type=_floats(3), action="append", metavar="DX,DY,DZ",
                    help="a white directional light, infinitely far away, whose rays travel along "
                         "DX,DY,DZ (0,0,-1: straight down); repeat for several")
     g.add_argument("--shadows", action="store_true",

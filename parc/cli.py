@@ -314,6 +314,7 @@ def cmd_render(args):
     atomic_write_all(writes)
     s = result.stats
     vis = scene.volumes[0]
+    out = ", ".join(str(path) for path, _ in writes)        # every file written, the image first
     if len(scene.volumes) > 1:
         say(f"wrote {out}: {len(scene.volumes)} volumes ({'; '.join(_describe(v) for v in scene.volumes)}); "
             f"{s['seconds']['total']:.3f} s")
@@ -321,7 +322,7 @@ def cmd_render(args):
         say(f"wrote {out}: {s['hits']} of {s['pixels']} pixels hit the isosurface {exact_text(vis.value)}; "
             f"{s['seconds']['total']:.3f} s, {s['cells_visited']:,} cells visited, {s['cubic_solves']:,} cubics")
     else:
-        say(f"wrote {out}: {vis.mode} of {vis.tf.name or 'the transfer function'}, step {vis.step:g}; "
+        say(f"wrote {out}: {vis.mode} of {_tf_name(vis.tf)}, step {vis.step:g}; "
             f"{s['seconds']['total']:.3f} s, {s['samples']:,} samples")
     return 0
 
@@ -352,7 +353,12 @@ def _write_work(result, scene, method, path):
 def _shown(vis):
     """What a volume shows, in a few words: its isovalue, or its transfer function's mode and step."""
     return (f"isovalue {exact_text(vis.value)}" if hasattr(vis, "value")
-            else f"{vis.mode} of {vis.tf.name or 'transfer function'}, step {vis.step:g}")
+            else f"{vis.mode} of {_tf_name(vis.tf)}, step {vis.step:g}")
+
+
+def _tf_name(tf):
+    """A transfer function as notes name it: its name, else the file it came from."""
+    return tf.name or tf.source.removeprefix("preset ") or "the transfer function"
 
 
 def _describe(vis):

@@ -71,7 +71,8 @@ def _file_scene(args):
             flag = "--" + name.replace("_", "-")
             raise InputError(f"{flag} does not apply to a scene file ({args.volume}); "
                              f"set {name} in its [[volume]] tables")
-    view = {"eye": args.eye, "look_at": args.look_at, "up": args.up, "fov": args.fov, "parallel": args.parallel}
+    view = {"eye": args.eye, "look_at": args.look_at, "up": args.up, "fov": args.fov, "parallel": args.parallel,
+            "zoom": args.zoom}
     scene = load_scene(args.volume, view=view, size=args.size, progress=None if args.quiet else note)
     if getattr(args, "background", None) is not None:
         scene = replace(scene, background=args.background)
@@ -152,8 +153,10 @@ def _camera(args, vol, size):
 
     from .scenefile import resolve_view
     lo, hi = vol.bounds
+    if args.zoom is not None and not (np.isfinite(args.zoom) and args.zoom > 0.0):
+        raise InputError(f"--zoom must be positive and finite, got {args.zoom:g}")
     view = resolve_view(lo, hi, eye=args.eye, look_at=args.look_at, up=args.up, fov=args.fov,
-                        parallel=args.parallel, aspect=size[0] / size[1])
+                        parallel=args.parallel, aspect=size[0] / size[1], zoom=args.zoom)
     if args.look_at is None and unit_vector(np.subtract(view["look_at"], view["eye"])) is None:
         raise InputError(f"--eye {','.join(f'{c:g}' for c in view['eye'])} is the centre of the volume, "
                          "where the camera looks by default: move it or give --look-at")

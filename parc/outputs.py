@@ -175,8 +175,9 @@ class Progress:
 
     def done(self):
         self.pending.cancel()
-        if self.tty and self.last >= 0:
-            self._say(f"\rparc: {self.what}: done in {time.perf_counter() - self.start:.1f} s")
+        if self.last >= 0:
+            # Off a terminal too: the lines stopped at 75%, and the work looked cut short.
+            self._say(f"{chr(13) if self.tty else ''}parc: {self.what}: done in {time.perf_counter() - self.start:.1f} s")
             Progress.open_line = None
 
     def _say(self, text, end="\n"):

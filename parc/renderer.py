@@ -247,7 +247,7 @@ def _render(scene, method, supercell, buffers, progress, light_buffer, blocks, w
         "cubic_solves": counts.get("solves", 0),
         "samples": counts.get("samples", 0),
         "polygons": 0,              # brute draws none; parc's count comes with `extra`
-        "parameters": {"size": [w, h], **_describe(vis)},
+        "parameters": {"size": [w, h], "camera": _camera_settings(scene.camera), **_describe(vis)},
     }
     stats.update(extra)
     stats["polygons"] = extra.get("polygons", 0) + extra.get("plane_polygons", 0)
@@ -281,12 +281,24 @@ def _render_general(scene, method, supercell, progress, light_buffer, skip_block
         "shadow_cells": counts["shadow_cells"],
         "shadow_solves": counts["shadow_solves"],
         "shadow_samples": counts["shadow_samples"],
-        "parameters": {"size": [w, h], "shadows": scene.shadows, "lights": len(scene.lights),
+        "parameters": {"size": [w, h], "camera": _camera_settings(scene.camera), "shadows": scene.shadows,
+                       "lights": len(scene.lights),
                        "volumes": [_describe(v) for v in scene.volumes]},
     }
     stats["polygons"] = sum(v.get("polygons", 0) for v in extra["volumes"]) if method == "parc" else 0
     stats.update(extra)
     return RenderResult(image=image, depth=depth, stats=stats)
+
+
+def _camera_settings(camera):
+    """The camera as `Camera` takes it (and as the command line's view flags give it): a view
+    chosen by default can be given again, or moved from."""
+    view = {"eye": list(camera.eye), "look_at": list(camera.look_at), "up": list(camera.up)}
+    if camera.parallel:
+        view["parallel_scale"] = camera.parallel_scale
+    else:
+        view["fov"] = camera.fov
+    return view
 
 
 def _describe(vis):

@@ -18,6 +18,7 @@ one of ``file`` and ``synthetic``, and one of ``iso`` and ``tf``::
     up = [0, 0, 1]                  # default +z (+y when +z is along the view)
     fov = 30                        # vertical field of view, degrees (default 30)
     # parallel = 40                 # instead of fov: parallel projection, half the view height
+    # zoom = 1.5                    # without eye: the default eye that much closer (default 1)
 
     [[volume]]                      # required, one table per volume, drawn together
     file = "neuron.nrrd"            # relative to this file's folder; or
@@ -70,7 +71,7 @@ from .scene import MODES, DirectionalLight, Isosurface, PointLight, Scene, Trans
 from .tomltables import Table, Where, array_tables, construct
 
 TOP_KEYS = ("size", "background", "shadows", "camera", "volume", "light")
-CAMERA_KEYS = ("eye", "look_at", "up", "fov", "parallel")
+CAMERA_KEYS = ("eye", "look_at", "up", "fov", "parallel", "zoom")
 SOURCE_KEYS = ("file", "synthetic")
 SYNTHETIC_KEYS = ("size", "seed")
 RAW_KEYS = ("shape", "dtype", "byte_order", "offset")
@@ -144,7 +145,7 @@ def load_scene(path, *, view=None, size=None, progress=None) -> Scene:
                      background=background, shadows=shadows)
 
 
-def resolve_view(lo, hi, *, eye=None, look_at=None, up=None, fov=None, parallel=None, aspect=1.0):
+def resolve_view(lo, hi, *, eye=None, look_at=None, up=None, fov=None, parallel=None, aspect=1.0, zoom=None):
     """The camera settings for a view of the box ``[lo, hi]``, with defaults filled in.
 
     The command line and scene files frame volumes the same way: with
@@ -163,6 +164,9 @@ def resolve_view(lo, hi, *, eye=None, look_at=None, up=None, fov=None, parallel=
         Parallel scale: a parallel projection when given.
     aspect : float
         The image's width / height: a tall image is framed across.
+    zoom : float or None
+        Without ``eye``: the framing eye that many times closer (`Camera.framing`);
+        refused with ``eye`` and with ``parallel``, whose scale sets the view.
 
     Returns
     -------
@@ -173,13 +177,19 @@ def resolve_view(lo, hi, *, eye=None, look_at=None, up=None, fov=None, parallel=
     fov = DEFAULT_FOV if fov is None else fov
     explicit_up = up is not None
     up = tuple(up) if explicit_up else DEFAULT_UP
+    if zoom is not None:
+        if eye is not None:
+            raise InputError("zoom moves the default eye closer; with an eye given, move the eye")
+        if parallel is not None:
+            raise InputError("zoom applies to a perspective view; a parallel view's scale sets its size")
+    zoom = 1.0 if zoom is None else zoom
     if eye is None and look_at is None:
-        framed = Camera.framing(lo, hi, fov=fov, up=up, parallel=parallel is not None, aspect=aspect)
+        framed = Camera.framing(lo, hi, fov=fov, up=up, parallel=parallel is not None, aspect=aspect, zoom=zoom)
         return {"eye": framed.eye, "look_at": framed.look_at, "up": up, "fov": fov,
                 "parallel_scale": parallel}
     look_at = tuple(look_at) if look_at is not None else tuple(0.5 * (np.asarray(lo) + np.asarray(hi)))
     if eye is None:
-        framed = Camera.framing(lo, hi, fov=fov, up=up, aspect=aspect)
+        framed = Camera.framing(lo, hi, fov=fov, up=up, aspect=aspect, zoom=zoom)
         eye = tuple(np.asarray(look_at) + np.subtract(framed.eye, framed.look_at))
     if not explicit_up:
         # The default up must not be parallel to the view: fall back to +y.
@@ -370,7 +380,7 @@ def _load_lights(where, raw):
 
 def _load_camera(where, t, volumes, view, aspect):
     settings = {"eye": t.numbers("eye", 3), "look_at": t.numbers("look_at", 3), "up": t.numbers("up", 3),
-                "fov": t.number("fov"), "parallel": t.number("parallel")}
+                "fov": t.number("fov"), "parallel": t.number("parallel"), "zoom": t.number("zoom")}
     if settings["fov"] is not None and settings["parallel"] is not None:
         raise t.error("parallel", "give fov (perspective) or parallel (a parallel projection), not both")
     # A view given on the command line wins; its projection replaces the file's.
@@ -388,12 +398,14 @@ def _load_camera(where, t, volumes, view, aspect):
         raise where.error(label("fov"), f"field of view must be between 0 and 180 degrees, got {fov:g}")
     if parallel is not None and not parallel > 0.0:
         raise where.error(label("parallel"), f"parallel scale must be positive, got {parallel:g}")
+    if settings["zoom"] is not None and not settings["zoom"] > 0.0:
+        raise where.error(label("zoom"), f"zoom must be positive, got {settings['zoom']:g}")
 
     lo = np.min([v.volume.bounds[0] for v in volumes], axis=0)
     hi = np.max([v.volume.bounds[1] for v in volumes], axis=0)
     if settings["up"] is not None and unit_vector(settings["up"]) is None:
         raise where.error(label("up"), f"up {list(settings['up'])} is zero: give a direction")
-    with where.key("camera"):
+    with where.key(label("zoom") if settings["zoom"] is not None else "camera"):
         cam = resolve_view(lo, hi, **settings, aspect=aspect)
     f = unit_vector(np.subtract(cam["look_at"], cam["eye"]))
     if f is None:

@@ -16,7 +16,7 @@ from data_tools.io import load_volume, save_volume
 from parc.cli import build_parser, main
 
 #: What `parc.outputs.Progress` writes for a render (a terminal gets it as one line rewritten).
-PROGRESS_LINE = re.compile(r"\r?parc: rendering \d+x\d+: +\d+%\r?\n?$")
+PROGRESS_LINE = re.compile(r"\r?parc: rendering \d+x\d+: +(\d+%|done in [\d.]+ s)\r?\n?$")
 
 
 @pytest.fixture
@@ -64,7 +64,8 @@ def test_progress_shows_only_for_work_that_takes_a_while(monkeypatch, capsys):
         now[0] += 1.0
         slow(n / 16)
     slow.done()
-    assert capsys.readouterr().err.splitlines() == [f"parc: slow: {p}%" for p in (6, 25, 50, 75)]
+    assert capsys.readouterr().err.splitlines() == [f"parc: slow: {p}%" for p in (6, 25, 50, 75)] + [
+        "parc: slow: done in 16.0 s"]         # not left at 75%
 
 
 def test_a_png_keeps_the_colour_of_faint_pixels(tmp_path):
@@ -1185,7 +1186,9 @@ def test_progress_says_the_work_has_begun_before_its_first_report(capsys):
         time.sleep(0.01)
     slow(0.5)
     slow.done()
-    assert capsys.readouterr().err.splitlines() == ["parc: rendering 8x8: 0%", "parc: rendering 8x8: 50%"]
+    lines = capsys.readouterr().err.splitlines()
+    assert lines[:2] == ["parc: rendering 8x8: 0%", "parc: rendering 8x8: 50%"]
+    assert len(lines) == 3 and lines[2].startswith("parc: rendering 8x8: done in ")
 
 
 def test_progress_that_cannot_be_written_leaves_the_work_alone(monkeypatch):

@@ -121,7 +121,7 @@ def test_multi_volume_scene_file_loads(tmp_path):
     (["--spacing", "1,1,2"], ["--spacing does not apply"]),
     (["--byte-order", "big"], ["--byte-order does not apply"]),
     (["--sun", "0,0,0"], ["--sun: light direction must not be zero"]),
-    (["--light", "1,2"], ["--light must be 3 comma-separated finite numbers"]),
+    (["--light", "1,2"], ["argument --light: must be 3 comma-separated finite numbers"]),
     (["--fov", "200"], ["camera.fov (given on the command line)", "180"]),
     (["--size", "0", "10"], ["size (given on the command line)"]),
 ])
@@ -219,3 +219,45 @@ def test_a_light_flag_keeps_the_scene_files_shadows(scene_file):
     scene_file.write_text("shadows = true\n" + text)
     scene, _ = _scene_of(["render", scene_file, "--light", "5,3,9", "-o", "x.png"])
     assert scene.shadows and len(scene.lights) == 2
+
+
+@pytest.mark.parametrize("zoom", [0.5, 2.0])
+def test_zoom_brings_the_default_eye_closer(tmp_path, zoom):
+    # The default framing fits the volume's bounding sphere, loosely: --zoom (and a scene file's
+    # zoom) moves the eye that many times closer along the same line, looking at the same point.
+    vol = tmp_path / "ball.nrrd"
+    save_volume(make_synthetic("sphere", 16), vol)
+    base, _ = _scene_of(["render", vol, "--iso", 0.5, "-o", tmp_path / "a.png"])
+    near, _ = _scene_of(["render", vol, "--iso", 0.5, "-o", tmp_path / "a.png", "--zoom", zoom])
+    c = np.array(base.camera.look_at)
+    assert near.camera.look_at == base.camera.look_at
+    np.testing.assert_allclose(np.subtract(near.camera.eye, c), np.subtract(base.camera.eye, c) / zoom, rtol=1e-12)
+    scene = tmp_path / "s.toml"
+    scene.write_text(f'[camera]\nzoom = {zoom}\n[[volume]]\nfile = "ball.nrrd"\niso = 0.5\n')
+    np.testing.assert_allclose(parc.load_scene(scene, size=(512, 512)).camera.eye, near.camera.eye, rtol=1e-12)
+
+
+@pytest.mark.parametrize("extra, words", [
+    (["--zoom", 2, "--eye", "1,2,3"], ["zoom moves the default eye closer; with an eye given, move the eye"]),
+    (["--zoom", 2, "--parallel", 10], ["zoom applies to a perspective view"]),
+    (["--zoom", 0], ["--zoom must be positive and finite, got 0"]),
+    (["--zoom", "inf"], ["--zoom must be positive and finite"]),
+])
+def test_bad_zoom_is_one_line(tmp_path, capsys, extra, words):
+    vol = tmp_path / "ball.nrrd"
+    save_volume(make_synthetic("sphere", 8), vol)
+    rc, _, err = _run(["render", vol, "--iso", 0.5, "-o", tmp_path / "a.png", *extra], capsys)
+    _assert_refused(rc, err, tmp_path / "a.png", *words)
+
+
+def test_stats_give_the_camera_a_default_view_was_made_with(tmp_path, capsys):
+    # The default eye was never said: now the stats hold the view, to give again or move from.
+    vol = tmp_path / "ball.nrrd"
+    save_volume(make_synthetic("sphere", 8), vol)
+    rc, _, err = _run(["render", vol, "--iso", 0.5, "--size", 12, 10, "-o", tmp_path / "a.npy",
+                       "--stats", tmp_path / "s.json", "--quiet"], capsys)
+    assert rc == 0, err
+    camera = json.loads((tmp_path / "s.json").read_text())["parameters"]["camera"]
+    again = parc.Scene(camera=parc.Camera(**camera), size=(12, 10),
+                       volumes=[parc.Isosurface(parc.load_volume(vol), 0.5)])
+    np.testing.assert_array_equal(parc.render(again).image, np.load(tmp_path / "a.npy"))
