@@ -502,4 +502,5 @@ def test_stats_parameters_describe_the_volume_as_the_scene_states_it():
                  "step": 0.25, "threshold": 0.9, "transfer_function": "custom",
                  "camera": {"eye": [5.0, 5.0, 60.0], "look_at": [5.0, 5.0, 5.0], "up": [0.0, 1.0, 0.0], "fov": 20.0}}
     p = render(Scene(camera=cam, size=(8, 6), volumes=[Isosurface(vol, value=0.3)]), "brute").stats["parameters"]
-    assert p == {"size": [8, 6], "volume": "fog", "dims": [10, 10, 10], "dtype": "float32", "isovalue": 0.3}
+    assert p == {"size": [8, 6], "volume": "fog", "dims": [10, 10, 10], "dtype": "float32", "isovalue": 0.3,
+                 "camera": {"eye": [5.0, 5.0, 60.0], "look_at": [5.0, 5.0, 5.0], "up": [0.0, 1.0, 0.0], "fov": 20.0}}
