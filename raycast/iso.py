@@ -109,26 +109,38 @@ def cell_cubic(v000, v100, v010, v110, v001, v101, v011, v111,
     in the monomial form, a rounding off them: a face at the isovalue had no
     exact zero, and was hit late or missed, where in a near face (coordinate
     0) every term holding it vanishes and the zero is exact. So such a cell
-    is read mirrored along that axis: the same interpolant, at ``1 - 1 = 0``.
+    is read mirrored along that axis (`_far_face_cubic`): the same interpolant, at ``1 - 1 = 0``.
     """
     u0 = (Ox - i) + c0 * Dx
     v0 = (Oy - j) + c0 * Dy
     w0 = (Oz - k) + c0 * Dz
-    mu, mv, mw = u0, v0, w0
-    du, dv, dw = Dx, Dy, Dz
-    if u0 == 1.0 and abs(Dx) < TINY_DIRECTION:
-        v000, v100, v010, v110, v001, v101, v011, v111 = v100, v000, v110, v010, v101, v001, v111, v011
-        mu, du = 0.0, -Dx
-    if v0 == 1.0 and abs(Dy) < TINY_DIRECTION:
-        v000, v100, v010, v110, v001, v101, v011, v111 = v010, v110, v000, v100, v011, v111, v001, v101
-        mv, dv = 0.0, -Dy
-    if w0 == 1.0 and abs(Dz) < TINY_DIRECTION:
-        v000, v100, v010, v110, v001, v101, v011, v111 = v001, v101, v011, v111, v000, v100, v010, v110
-        mw, dw = 0.0, -Dz
+    if ((u0 == 1.0 and abs(Dx) < TINY_DIRECTION) or (v0 == 1.0 and abs(Dy) < TINY_DIRECTION)
+            or (w0 == 1.0 and abs(Dz) < TINY_DIRECTION)):
+        A, B, C, D = _far_face_cubic(v000, v100, v010, v110, v001, v101, v011, v111, u0, v0, w0, Dx, Dy, Dz)
+        return A, B, C, D, u0, v0, w0
     a0, ax, ay, az, axy, ayz, azx, axyz = trilinear_coefficients(
         v000, v100, v010, v110, v001, v101, v011, v111)
-    A, B, C, D = cubic_along_ray(a0, ax, ay, az, axy, ayz, azx, axyz, mu, mv, mw, du, dv, dw)
+    A, B, C, D = cubic_along_ray(a0, ax, ay, az, axy, ayz, azx, axyz, u0, v0, w0, Dx, Dy, Dz)
     return A, B, C, D, u0, v0, w0
+
+
+@kernel
+def _far_face_cubic(v000, v100, v010, v110, v001, v101, v011, v111, u0, v0, w0, Dx, Dy, Dz):
+    """`cell_cubic`'s cubic for a ray in the plane of the cell's far face along an axis: the cell
+    mirrored along each such axis, where the ray's coordinate is 0. Apart, so that the walk's
+    loop, which meets it in the volume's last cells alone, carries none of its values."""
+    if u0 == 1.0 and abs(Dx) < TINY_DIRECTION:
+        v000, v100, v010, v110, v001, v101, v011, v111 = v100, v000, v110, v010, v101, v001, v111, v011
+        u0, Dx = 0.0, -Dx
+    if v0 == 1.0 and abs(Dy) < TINY_DIRECTION:
+        v000, v100, v010, v110, v001, v101, v011, v111 = v010, v110, v000, v100, v011, v111, v001, v101
+        v0, Dy = 0.0, -Dy
+    if w0 == 1.0 and abs(Dz) < TINY_DIRECTION:
+        v000, v100, v010, v110, v001, v101, v011, v111 = v001, v101, v011, v111, v000, v100, v010, v110
+        w0, Dz = 0.0, -Dz
+    a0, ax, ay, az, axy, ayz, azx, axyz = trilinear_coefficients(
+        v000, v100, v010, v110, v001, v101, v011, v111)
+    return cubic_along_ray(a0, ax, ay, az, axy, ayz, azx, axyz, u0, v0, w0, Dx, Dy, Dz)
 
 
 @kernel
