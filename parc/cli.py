@@ -275,7 +275,7 @@ LARGE_WRITE_PIXELS = 1 << 22
 def cmd_render(args):
     import parc
 
-    from .renderer import DEFAULT_BUFFERS, casters_for, check_request
+    from .renderer import DEFAULT_BUFFERS, check_request, kernel_samples
 
     out = check_output(args.output, (".png", ".npy"))
     # An empty path is a mistake to name, not a flag to ignore.
@@ -292,8 +292,7 @@ def cmd_render(args):
     if args.method != "parc":
         _refuse_parc_flags(args, "applies to --method parc")
     check_request(scene, kwargs.get("buffers", DEFAULT_BUFFERS), work_out is not None)
-    compile_notice(say, casters_for(scene, (args.method,), kwargs.get("buffers", DEFAULT_BUFFERS)),
-                   {v.volume.dtype for v in scene.volumes})
+    compile_notice(say, kernel_samples(scene, (args.method,), kwargs.get("buffers", DEFAULT_BUFFERS)))
     progress = None if args.quiet else Progress(f"rendering {w}x{h}")
     result = parc.render(scene, method=args.method, progress=progress, work=work_out is not None, **kwargs)
     if progress is not None:
@@ -368,7 +367,7 @@ def _describe(vis):
 
 def cmd_compare(args):
     from .comparison import method_names, compare, format_table
-    from .renderer import casters_for
+    from .renderer import kernel_samples
 
     say = (lambda *a: None) if args.quiet else note
     warming = None if args.quiet else (lambda line: say(f"{line} ..."))
@@ -389,8 +388,7 @@ def cmd_compare(args):
     if steps is not None and args.supercell is not None:
         common["supercell"] = args.supercell
     if warming is not None:
-        compile_notice(say, casters_for(scene, ["brute"] + [m.split(":")[0] for m in methods], common["buffers"]),
-                       {v.volume.dtype for v in scene.volumes})
+        compile_notice(say, kernel_samples(scene, ["brute"] + [m.split(":")[0] for m in methods], common["buffers"]))
     if steps is not None:
         from .comparison import format_step_table, step_sweep
         rows = step_sweep(scene, steps, repeats=args.repeats, progress=warming, options=common)

@@ -5,7 +5,6 @@ from __future__ import annotations
 import json
 import os
 import pickle
-import re
 import sys
 import tempfile
 import threading
@@ -216,19 +215,19 @@ def end_progress_line():
         line._say("")
 
 
-def compile_notice(say, kernels=(), dtypes=()):
+def compile_notice(say, kernels=()):
     """Say that the casters compile now, when this machine has not every one of ``kernels``
-    (Numba dispatchers: the casters a run needs, `parc.renderer.casters_for`) compiled for
-    these sources and for samples of each of ``dtypes`` (the scene's volumes'), or, without
-    any kernel named, no kernel at all.
+    compiled for these sources, or, with none named, no kernel at all. ``kernels``: Numba
+    dispatchers (the casters a run needs), or ``(dispatcher, sample types)`` pairs as
+    `parc.renderer.kernel_samples` gives them, each kernel then needed for every type.
 
     Numba compiles every kernel on its first use, for each type of samples it
     is given, and caches it (`raycast.config` names the folder after the kernel
     sources), so the first render after a clone or an update spends several
     seconds, up to a minute for `parc bench`, before its progress starts, and
     so does the first render of another kind (translucent after isosurfaces,
-    shadows...) or of another sample type (the CT head's int16 after uint8:
-    5 s); without a word it looks hung.
+    shadows...) or of other samples (the CT head's int16 after uint8: 5 s);
+    without a word it looks hung.
     """
     from raycast.config import cache_folder, cache_refused
 
@@ -239,31 +238,31 @@ def compile_notice(say, kernels=(), dtypes=()):
         return
     folder = cache_folder()
     if kernels:
-        missing = not all(_cached(k, folder, dtypes) for k in kernels)
+        pairs = [k if isinstance(k, tuple) else (k, ()) for k in kernels]
+        missing = not all(_cached(kernel, folder, samples) for kernel, samples in pairs)
     else:
         missing = next(folder.rglob("*.nbi"), None) is None
     if missing:
         say(f"compiling the ray casters for this machine, once (kept in {folder})")
 
 
-#: A volume's samples in a kernel's cached signature: a read-only 3-D array, and its type.
-_SAMPLES = re.compile(r"Array\((\w+), 3, 'C', True")
-
-
-def _cached(kernel, folder, dtypes):
-    """Whether Numba's cache in ``folder`` holds ``kernel``, and, if it takes samples, for each of ``dtypes``."""
+def _cached(kernel, folder, samples):
+    """Whether Numba's cache in ``folder`` holds ``kernel``, compiled for a first argument of
+    each of the Numba types ``samples``."""
     path = next(folder.rglob(_index_name(kernel)), None)
     if path is None:
         return False
+    if not samples:
+        return True
     try:
         # Numba's index: its version, then (source stamp, {(signature, target): data file}).
         with open(path, "rb") as f:
             pickle.load(f)
             _, overloads = pickle.loads(f.read())
-        taken = {m for key in overloads for m in _SAMPLES.findall(str(key[0]))}
+        taken = {str(key[0][0]) for key in overloads}
     except Exception:  # noqa: BLE001 - an index of another Numba: there is one, and Numba will judge it
         return True
-    return not taken or set(map(str, dtypes)) <= taken
+    return all(str(t) in taken for t in samples)
 
 
 def _index_name(kernel):

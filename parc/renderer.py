@@ -362,34 +362,57 @@ def casters_for(scene, methods=("brute",), buffers=DEFAULT_BUFFERS):
     seconds (`parc.outputs.compile_notice`): the casters, and with PARC its own (the segments'
     unpacking, the skip tables), which took 5 s behind a silent 0% once `brute`'s were cached.
     Only kernels this scene compiles: one it never uses would announce a compile every run."""
-    kernels = _casters_for(scene, methods, buffers)
+    return [kernel for kernel, _ in kernel_samples(scene, methods, buffers)]
+
+
+def kernel_samples(scene, methods=("brute",), buffers=DEFAULT_BUFFERS):
+    """`casters_for`'s kernels, each with the Numba types of the samples it is called with
+    (its first argument), one per call it compiles for; none for a kernel that takes no
+    samples. Numba compiles a kernel for each: the CT head's int16 after uint8, or four
+    volumes merged after three, compiled for seconds unsaid."""
+    pairs = _casters_for(scene, methods, buffers)
     if "parc" in methods:
         from . import raster, skip
+        kernels = []
         if len(scene.volumes) > 1 or "depth" in parse_buffers(buffers):
             kernels.append(raster.unpack_segments)
         if any(not isinstance(v, Translucent) for v in scene.volumes):
             kernels += skip.OCTANT_KERNELS          # the camera rays' tables
         if any(isinstance(v, Translucent) for v in scene.volumes) or (scene.shadows and scene.lights):
             kernels += skip.CENTRED_KERNELS         # translucent volumes', shadow rays'
-    return kernels
+        pairs += [(k, ()) for k in kernels]
+    return pairs
 
 
 def _casters_for(scene, methods, buffers):
-    """The casters alone, as `casters_for` names them."""
+    """The casters alone, with their samples' types, as `kernel_samples` gives them."""
+    import numba
+    from numba.core import types
     from raycast import composite, iso, merged, shadow
+
+    def of(volumes):
+        return tuple({numba.typeof(v.volume.data) for v in volumes})
+
     bits = "parc" in methods and "bits" in parse_buffers(buffers)
     trans = [v for v in scene.volumes if isinstance(v, Translucent)]
+    isos = [v for v in scene.volumes if not isinstance(v, Translucent)]
     if len(scene.volumes) == 1 and not scene.lights:
         if not trans:
-            return [iso.cast_iso_image]
-        return [composite._IMAGE_CASTERS[bool(trans[0].shade), bits]]
-    kernels = [iso.cast_iso_image, shadow.surface_frames] if len(trans) < len(scene.volumes) else []
+            return [(iso.cast_iso_image, of(isos))]
+        return [(composite._IMAGE_CASTERS[bool(trans[0].shade), bits], of(trans))]
+    kernels = [(iso.cast_iso_image, of(isos)), (shadow.surface_frames, of(isos))] if isos else []
     if scene.shadows and scene.lights:
-        kernels += [shadow.shadow_iso] + ([shadow.shadow_accumulate] if trans else [])
-    if any(v.mode != "composite" for v in trans):
-        kernels.append(composite._IMAGE_CASTERS[False, False])
-    if any(v.mode == "composite" for v in trans):
-        kernels.append(merged._MERGED_CASTERS[any(v.shade for v in trans)])
+        kernels += [(shadow.shadow_iso, of(isos))] + ([(shadow.shadow_accumulate, of(trans))] if trans else [])
+    layers = [v for v in trans if v.mode != "composite"]
+    if layers:
+        kernels.append((composite._IMAGE_CASTERS[False, False], of(layers)))
+    comp = [v for v in trans if v.mode == "composite"]
+    if comp:
+        # One tuple of the volumes' samples, converted to one type (`parc.multivolume`).
+        one = np.empty((1, 1, 1), np.result_type(*(v.volume.data.dtype for v in comp)))
+        one.flags.writeable = False
+        kernels.append((merged._MERGED_CASTERS[any(v.shade for v in trans)],
+                        (types.UniTuple(numba.typeof(one), len(comp)),)))
     return kernels
 
 

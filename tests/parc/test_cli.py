@@ -973,9 +973,11 @@ def test_a_first_run_says_the_casters_compile(vol_file, tmp_path, capsys, monkey
 
 
 def test_samples_of_a_type_not_yet_compiled_are_said_to_compile(tmp_path, monkeypatch):
-    """Numba compiles a kernel for each type of samples: the CT head's int16 after uint8 took 5 s unsaid."""
+    """Numba compiles a kernel for each type of samples it is given: the CT head's int16 after
+    uint8 took 5 s unsaid, and so did four volumes merged after three."""
     import pickle
 
+    import numba
     import raycast.config
     from numba.core import types
     from parc.outputs import compile_notice
@@ -984,21 +986,45 @@ def test_samples_of_a_type_not_yet_compiled_are_said_to_compile(tmp_path, monkey
     index = tmp_path / "raycast_0123" / Path(cast_iso_image._cache._cache_file._index_path).name
     index.parent.mkdir()
 
-    def says(dtypes, *signature):
-        index.write_bytes(pickle.dumps("0.68") + pickle.dumps((0.0, {(signature, "cpu"): "x.nbc"})))
+    def samples(dtype, n=None):
+        one = np.empty((2, 2, 2), dtype)
+        one.flags.writeable = False
+        return numba.typeof(one) if n is None else types.UniTuple(numba.typeof(one), n)
+
+    def says(wanted, *cached):
+        index.write_bytes(pickle.dumps("0.68") + pickle.dumps(
+            (0.0, {((first, types.float64), "cpu"): "x.nbc" for first in cached})))
         said = []
-        compile_notice(said.append, [cast_iso_image], {np.dtype(d) for d in dtypes})
+        compile_notice(said.append, [(cast_iso_image, wanted)])
         return bool(said) and "compiling the ray casters" in said[0]
 
-    uint8 = types.Array(types.uint8, 3, "C", readonly=True)
-    assert not says(["uint8"], uint8, types.float64)
-    assert says(["int16"], uint8, types.float64)
-    assert says(["uint8", "int16"], uint8, types.float64)
-    assert not says(["int16"], types.Array(types.float64, 3, "C"))       # a kernel that takes no samples
+    u8, i16 = samples("uint8"), samples("int16")
+    assert not says((u8,), u8)
+    assert says((i16,), u8)
+    assert says((u8, i16), u8) and not says((u8, i16), i16, u8)
+    assert not says((), u8)                                          # a kernel that takes no samples
+    assert says((samples("uint8", 4),), samples("uint8", 3)) and not says((samples("uint8", 3),), samples("uint8", 3))
     index.unlink()
     said = []
-    compile_notice(said.append, [cast_iso_image], {np.dtype("uint8")})
+    compile_notice(said.append, [(cast_iso_image, (u8,))])
     assert said
+
+
+def test_each_kernel_is_checked_for_the_samples_it_is_given(gl):
+    """A scene of an int16 isosurface and a uint8 translucent volume compiled nothing new on its
+    second run, yet said it compiled: every kernel was asked for both types."""
+    import parc
+    from parc.renderer import kernel_samples
+    rng = np.random.default_rng(0)
+    a = Volume(rng.integers(0, 1000, (6, 6, 6)).astype(np.int16))
+    b = Volume(rng.integers(0, 200, (6, 6, 6)).astype(np.uint8))
+    c = Volume(rng.integers(0, 200, (6, 6, 6)).astype(np.float32))
+    cam = parc.Camera.framing(*a.bounds)
+    scene = parc.Scene(camera=cam, size=(8, 8), volumes=[parc.Isosurface(a, 500.5), parc.Translucent(b, "greyscale"),
+                                                          parc.Translucent(c, "greyscale")])
+    parc.render(scene)
+    for kernel, samples in kernel_samples(scene):
+        assert samples and set(map(str, samples)) <= {str(s[0]) for s in kernel.signatures}, kernel
 
 
 def test_the_casters_a_render_is_said_to_compile_are_those_it_runs(gl):
