@@ -135,8 +135,26 @@ def _check_layout(header, path):
                          "scalar type such as uint8, short or float")
 
 
-#: Lines of header read before giving up on finding its end (a binary file named .nrrd).
-_MAX_HEADER_LINES = 10_000
+#: Bytes of header read before giving up on finding its end: lines of any length and number
+#: up to it (pynrrd reads them all), and a file of another kind named .nrrd is refused at its
+#: first line.
+_MAX_HEADER_BYTES = 1 << 26
+
+
+def _header_lines(fh, path):
+    """The header's lines as read, whole, the magic first, up to and with the blank line that
+    ends it (or the end of the file); ``fh`` is then at the data."""
+    used = 0
+    while True:
+        line = fh.readline(_MAX_HEADER_BYTES - used + 1)
+        used += len(line)
+        if used > _MAX_HEADER_BYTES:
+            raise InputError(f"{path}: no end to the NRRD header in its first {_MAX_HEADER_BYTES >> 20} MiB")
+        if used == len(line) and not line.startswith(b"NRRD"):
+            _parsed([line], path)       # pynrrd's own word on the magic line
+        yield line
+        if not line.decode("ascii", "ignore").strip():
+            return
 
 
 def _read_header(fh, path):
@@ -145,12 +163,9 @@ def _read_header(fh, path):
     ``(paths, subdim)``, else None. pynrrd reads neither way of naming them, and takes the
     names after ``data file: LIST`` for malformed fields."""
     taken = []
-    for _ in range(_MAX_HEADER_LINES):
-        line = fh.readline(1 << 16)
+    for line in _header_lines(fh, path):
         taken.append(line)
         text = line.decode("ascii", "ignore").strip()
-        if not text:
-            break
         m = re.fullmatch(r"(?i:data ?file)\s*:\s*(LIST.*)", text)
         if m and len(taken) > 1:
             header = _parsed(taken[:-1], path)
@@ -411,10 +426,7 @@ def _check_data_file(path):
     headers naming several data files (`_joined` checks each), are left to the read."""
     try:
         with open(path, "rb") as fh:
-            lines = [fh.readline(1 << 16)]
-            while lines[-1].strip() and len(lines) < _MAX_HEADER_LINES:
-                lines.append(fh.readline(1 << 16))
-        header = _parsed(lines, path)
+            header = _parsed(list(_header_lines(fh, path)), path)
     except Exception:  # noqa: BLE001 - reported by the read itself
         return None
     name = header.get("data file") or header.get("datafile")

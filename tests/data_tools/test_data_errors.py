@@ -776,3 +776,26 @@ def test_nrrd_detached_data_file_is_found_in_any_case(tmp_path, encoding, body):
     p = tmp_path / "h.nhdr"
     p.write_text(f"NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 2 2\nencoding: {encoding}\nDATA FILE: d.dat\n")
     assert load_volume(p).data.ravel().tolist() == list(range(8))
+
+
+@pytest.mark.parametrize("filler", [b"note:=" + b"v" * 65530 + b"\n",            # a line of 65,536 bytes
+                                    b"#" + b"c" * 65535 + b"\n",                 # the same, a comment
+                                    b"# c\n" * 10_001])                           # more lines than 10,000
+def test_nrrd_headers_of_long_lines_or_many_lines_are_read_whole(tmp_path, filler):
+    # Read 64 KiB and 10,000 lines at most, such headers ended early: the rest of the header was
+    # read as data, or (with byte skip -1) its spacing and origin were lost without a word.
+    a = np.arange(24, dtype=np.int16).reshape(2, 3, 4)
+    for skip in (b"", b"byte skip: -1\n"):
+        head = b"NRRD0004\ntype: short\ndimension: 3\nsizes: 4 3 2\nencoding: raw\nendian: little\n" + skip
+        tail = b"spacings: 2 3 4\naxis mins: 5 6 7\n\n" + a.tobytes()
+        (tmp_path / "f.nrrd").write_bytes(head + filler + tail)
+        (tmp_path / "plain.nrrd").write_bytes(head + tail)
+        vol, plain = load_volume(tmp_path / "f.nrrd"), load_volume(tmp_path / "plain.nrrd")
+        np.testing.assert_array_equal(vol.data, a)
+        assert vol.spacing == (2.0, 3.0, 4.0) and vol.origin == plain.origin != (0.0, 0.0, 0.0)
+
+
+def test_a_file_that_is_not_nrrd_is_refused_at_its_first_line(tmp_path):
+    p = tmp_path / "f.nrrd"
+    p.write_bytes(b"\x00" * (1 << 20))
+    fails(p, "magic")
