@@ -210,6 +210,10 @@ def suggest_isovalues(vol: Volume, k: int = 3, *, bins: int = 256) -> list:
     if fg.size == 0 or fg.min() == fg.max():
         fg = values  # background removal left one level: split the full data instead
     integer = vol.dtype.kind in "iu"
+    # Float samples that are all whole numbers (a CT stored as float32) are cut at x.5 too: the
+    # shortest number near a cut would often be a sample value.
+    whole = integer or bool(np.all(np.mod(values, 1.0) == 0.0))
+    seen = np.unique(values)
     counts, edges = _histogram(fg, lo, hi, integer, bins)
     if counts is None:
         # A float range too narrow (or too wide) to split into bins: offer its middle.
@@ -237,7 +241,7 @@ def suggest_isovalues(vol: Volume, k: int = 3, *, bins: int = 256) -> list:
         j_mid = (left + right) // 2
         j_mid = min(max(j_mid, 1), counts.size - 1)
         v = float(edges[j_mid])
-        if integer:
+        if whole:
             v = math.floor(v) + 0.5
         else:
             # Any value near the cut splits the histogram alike: take the shortest, within half a
@@ -247,17 +251,20 @@ def suggest_isovalues(vol: Volume, k: int = 3, *, bins: int = 256) -> list:
             else:
                 half = 0.5 * float(edges[1] - edges[0])
                 a, b = v - half, v + half
-            v = _shortest(v, a, b, lo, hi)
+            v = _shortest(v, a, b, lo, hi, seen)
         if lo < v < hi:
             result.append(v)
     return sorted(set(result))
 
 
-def _shortest(v, a, b, lo, hi):
-    """The number of fewest significant digits in ``[a, b]`` and strictly inside ``(lo, hi)``,
-    rounded from ``v``; ``v`` itself when none is shorter."""
+def _shortest(v, a, b, lo, hi, seen=()):
+    """The number of fewest significant digits in ``[a, b]``, strictly inside ``(lo, hi)`` and
+    not among the sorted sample values ``seen``, rounded from ``v``; ``v`` itself when none is
+    shorter."""
+    seen = np.asarray(seen, dtype=np.float64)
     for digits in range(1, 17):
         r = float(f"{v:.{digits}g}")
-        if a <= r <= b and lo < r < hi:
+        k = np.searchsorted(seen, r)
+        if a <= r <= b and lo < r < hi and not (k < seen.size and seen[k] == r):
             return r
     return v

@@ -156,3 +156,14 @@ def test_float_suggestions_are_short_and_within_half_a_bin_of_the_cut():
     assert _shortest(1.25, 1.2, 1.3, 1.24, 1.26) == 1.25       # 1 and 1.2 lie outside the data range
     iso = suggest_isovalues(sphere(30))
     assert iso and all(len(f"{v:.15g}") <= 5 for v in iso), iso
+
+
+def test_float_suggestions_avoid_the_sample_values():
+    # Whole-number float samples (a CT stored as float32) are cut at x.5, as integer ones are;
+    # other float data keep their shortest numbers off the samples themselves.
+    from data_tools.info import _shortest
+    ct = ct_phantom(40)
+    as_float = suggest_isovalues(Volume(ct.data.astype(np.float32)))
+    assert len(as_float) == 3 and all(v % 1 == 0.5 for v in as_float)      # were 190, 720, 1600 on the CT head
+    assert _shortest(7.34, 7.2, 7.4, 0.0, 10.0, np.array([7.0, 7.3])) == 7.34
+    assert _shortest(7.34, 7.2, 7.4, 0.0, 10.0, np.array([7.0, 7.25])) == 7.3
