@@ -244,7 +244,9 @@ def _view_from(azimuth, elevation, up):
     """
     az, el = math.radians(azimuth), math.radians(elevation)
     front = np.array([0.0, -1.0, 0.0]) - (-up[1]) * up
-    if np.linalg.norm(front) < 1e-6:
+    # Near up along y the front turns with up's tilt, as it must (no choice of front is
+    # continuous over every up); only where -y and up are one line to rounding is +z taken.
+    if np.linalg.norm(front) < 1e-12:
         front = np.array([0.0, 0.0, 1.0]) - up[2] * up
     front /= np.linalg.norm(front)
     side = np.cross(up, front)
