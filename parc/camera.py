@@ -229,6 +229,8 @@ class Camera:
         if not math.isfinite(float(np.max(np.abs(c + back * dist)))):
             raise InputError(f"cannot frame the volume with a {fov:g}-degree field of view: "
                              "the eye would lie beyond float64's range")
+        if np.array_equal(c + back * dist, c):
+            raise InputError(f"a zoom of {zoom:g} brings the eye onto the point it looks at; give a smaller zoom")
         return cls(eye=tuple(c + back * dist), look_at=tuple(c), up=up, fov=fov)
 
 

@@ -383,11 +383,14 @@ def _load_camera(where, t, volumes, view, aspect):
                 "fov": t.number("fov"), "parallel": t.number("parallel"), "zoom": t.number("zoom")}
     if settings["fov"] is not None and settings["parallel"] is not None:
         raise t.error("parallel", "give fov (perspective) or parallel (a parallel projection), not both")
-    # A view given on the command line wins; its projection replaces the file's.
+    # A view given on the command line wins; its projection replaces the file's, and an eye or
+    # a parallel view the file's zoom, which applies to neither.
     if "parallel" in view:
         settings["fov"] = None
     if "fov" in view:
         settings["parallel"] = None
+    if ("eye" in view or "parallel" in view) and "zoom" not in view:
+        settings["zoom"] = None
     settings.update(view)
 
     def label(name):

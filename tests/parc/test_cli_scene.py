@@ -261,3 +261,15 @@ def test_stats_give_the_camera_a_default_view_was_made_with(tmp_path, capsys):
     again = parc.Scene(camera=parc.Camera(**camera), size=(12, 10),
                        volumes=[parc.Isosurface(parc.load_volume(vol), 0.5)])
     np.testing.assert_array_equal(parc.render(again).image, np.load(tmp_path / "a.npy"))
+
+
+def test_an_eye_or_a_parallel_view_on_the_command_line_drops_the_file_s_zoom(tmp_path, capsys):
+    # As --parallel drops the file's fov: the file's zoom, which applies to neither, was refused.
+    save_volume(make_synthetic("sphere", 8), tmp_path / "ball.nrrd")
+    scene = tmp_path / "s.toml"
+    scene.write_text('[camera]\nzoom = 2\n[[volume]]\nfile = "ball.nrrd"\niso = 0.5\n')
+    for extra in (["--eye", "40,-30,20"], ["--parallel", 5]):
+        rc, _, err = _run(["render", scene, "--size", 8, 8, "-o", tmp_path / "a.png", "--quiet", *extra], capsys)
+        assert rc == 0, err
+    rc, _, err = _run(["render", scene, "--zoom", "1e300", "-o", tmp_path / "b.png"], capsys)
+    _assert_refused(rc, err, tmp_path / "b.png", "a zoom of 1e+300 brings the eye onto the point it looks at")
