@@ -210,9 +210,10 @@ def suggest_isovalues(vol: Volume, k: int = 3, *, bins: int = 256) -> list:
     if fg.size == 0 or fg.min() == fg.max():
         fg = values  # background removal left one level: split the full data instead
     integer = vol.dtype.kind in "iu"
-    # Float samples that are all whole numbers (a CT stored as float32) are cut at x.5 too: the
-    # shortest number near a cut would often be a sample value.
-    whole = integer or bool(np.all(np.mod(values, 1.0) == 0.0))
+    # Float samples that are all whole numbers (a CT stored as float32) are cut at x.5 too, the
+    # shortest number near a cut being often a sample value; from 2^24 on, x.5 is long to read
+    # and no float32 sample, and the shortest number off the samples is taken.
+    whole = integer or (bool(np.all(np.mod(values, 1.0) == 0.0)) and float(np.abs(values).max()) < 2.0 ** 24)
     seen = np.unique(values)
     counts, edges = _histogram(fg, lo, hi, integer, bins)
     if counts is None:
@@ -259,12 +260,26 @@ def suggest_isovalues(vol: Volume, k: int = 3, *, bins: int = 256) -> list:
 
 def _shortest(v, a, b, lo, hi, seen=()):
     """The number of fewest significant digits in ``[a, b]``, strictly inside ``(lo, hi)`` and
-    not among the sorted sample values ``seen``, rounded from ``v``; ``v`` itself when none is
-    shorter."""
+    not among the sorted sample values ``seen``, rounded from ``v``; when ``v`` itself is one
+    of them, and none shorter will do, the middle between it and the next sample value."""
     seen = np.asarray(seen, dtype=np.float64)
-    for digits in range(1, 17):
-        r = float(f"{v:.{digits}g}")
+
+    def fits(r):
         k = np.searchsorted(seen, r)
-        if a <= r <= b and lo < r < hi and not (k < seen.size and seen[k] == r):
-            return r
+        return a <= r <= b and lo < r < hi and not (k < seen.size and seen[k] == r)
+
+    for digits in range(1, 18):
+        # v rounded to so many digits, and its neighbours at that precision, nearest first.
+        r = float(f"{v:.{digits}g}")
+        step = 10.0 ** (math.floor(math.log10(abs(r))) - digits + 1) if r != 0.0 else 0.0
+        near = {r, float(f"{r - step:.{digits}g}"), float(f"{r + step:.{digits}g}")}
+        for c in sorted(near, key=lambda c: abs(c - v)):
+            if fits(c):
+                return c
+    k = np.searchsorted(seen, v)
+    if k < seen.size and seen[k] == v:
+        for other in ((seen[k + 1],) if k + 1 < seen.size else ()) + ((seen[k - 1],) if k > 0 else ()):
+            mid = float(v + (other - v) / 2.0)
+            if lo < mid < hi and mid != v and mid != other:
+                return mid
     return v

@@ -245,12 +245,12 @@ def _view_from(azimuth, elevation, up):
     from above its top, not below it.
     """
     az, el = math.radians(azimuth), math.radians(elevation)
-    front = np.array([0.0, -1.0, 0.0]) - (-up[1]) * up
-    # Near up along y the front turns with up's tilt, as it must (no choice of front is
-    # continuous over every up); only where -y and up are one line to rounding is +z taken.
-    if np.linalg.norm(front) < 1e-12:
-        front = np.array([0.0, 0.0, 1.0]) - up[2] * up
-    front /= np.linalg.norm(front)
+    # -y less its part along up, -y + up_y up, written without the cancellation in its y
+    # (1 - up_y^2 = up_x^2 + up_z^2): near up along y the front turns with up's tilt however
+    # small it is. Only with up exactly along y is there none, and +z is taken.
+    front = unit_vector([up[1] * up[0], -(up[0] * up[0] + up[2] * up[2]), up[1] * up[2]])
+    if front is None:
+        front = np.array([0.0, 0.0, 1.0])
     side = np.cross(up, front)
     return math.cos(el) * (math.cos(az) * front + math.sin(az) * side) + math.sin(el) * up
 

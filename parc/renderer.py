@@ -400,9 +400,12 @@ def _casters_for(scene, methods, buffers):
         if not trans:
             return [(iso.cast_iso_image, of(isos))]
         return [(composite._IMAGE_CASTERS[bool(trans[0].shade), bits], of(trans))]
-    kernels = [(iso.cast_iso_image, of(isos)), (shadow.surface_frames, of(isos))] if isos else []
+    # The frames and shadow rays run only for surfaces that some pixel sees: asked for every
+    # volume's samples, a surface out of sight said it compiled on every run. The casters,
+    # which run for every volume, are asked for its samples.
+    kernels = [(iso.cast_iso_image, of(isos)), (shadow.surface_frames, ())] if isos else []
     if scene.shadows and scene.lights:
-        kernels += [(shadow.shadow_iso, of(isos))] + ([(shadow.shadow_accumulate, of(trans))] if trans else [])
+        kernels += [(shadow.shadow_iso, ())] + ([(shadow.shadow_accumulate, ())] if trans else [])
     layers = [v for v in trans if v.mode != "composite"]
     if layers:
         kernels.append((composite._IMAGE_CASTERS[False, False], of(layers)))

@@ -144,14 +144,16 @@ _MAX_HEADER_BYTES = 1 << 26
 def _header_lines(fh, path):
     """The header's lines as read, whole, the magic first, up to and with the blank line that
     ends it (or the end of the file); ``fh`` is then at the data."""
+    if fh.read(4) != b"NRRD":
+        fh.seek(0)
+        _parsed([fh.readline(256)], path)       # pynrrd's own word on the magic line
+    fh.seek(0)
     used = 0
     while True:
         line = fh.readline(_MAX_HEADER_BYTES - used + 1)
         used += len(line)
         if used > _MAX_HEADER_BYTES:
             raise InputError(f"{path}: no end to the NRRD header in its first {_MAX_HEADER_BYTES >> 20} MiB")
-        if used == len(line) and not line.startswith(b"NRRD"):
-            _parsed([line], path)       # pynrrd's own word on the magic line
         yield line
         if not line.decode("ascii", "ignore").strip():
             return

@@ -795,7 +795,12 @@ def test_nrrd_headers_of_long_lines_or_many_lines_are_read_whole(tmp_path, fille
         assert vol.spacing == (2.0, 3.0, 4.0) and vol.origin == plain.origin != (0.0, 0.0, 0.0)
 
 
-def test_a_file_that_is_not_nrrd_is_refused_at_its_first_line(tmp_path):
+def test_a_file_that_is_not_nrrd_is_refused_at_its_first_line(tmp_path, monkeypatch):
+    # Not after reading as much header as a header may hold (64 MiB of a raw file renamed).
+    from data_tools.io import nrrd_format
+    monkeypatch.setattr(nrrd_format, "_MAX_HEADER_BYTES", 1024)
     p = tmp_path / "f.nrrd"
-    p.write_bytes(b"\x00" * (1 << 20))
+    p.write_bytes(b"\x00" * 4096)
     fails(p, "magic")
+    p.write_bytes(b"NRRD0004\n" + b"#" * 4096)
+    fails(p, "no end to the NRRD header in its first")

@@ -165,5 +165,14 @@ def test_float_suggestions_avoid_the_sample_values():
     ct = ct_phantom(40)
     as_float = suggest_isovalues(Volume(ct.data.astype(np.float32)))
     assert len(as_float) == 3 and all(v % 1 == 0.5 for v in as_float)      # were 190, 720, 1600 on the CT head
-    assert _shortest(7.34, 7.2, 7.4, 0.0, 10.0, np.array([7.0, 7.3])) == 7.34
+    assert _shortest(7.34, 7.2, 7.4, 0.0, 10.0, np.array([7.0, 7.3])) == 7.4      # the next at that precision
     assert _shortest(7.34, 7.2, 7.4, 0.0, 10.0, np.array([7.0, 7.25])) == 7.3
+    assert _shortest(25.0, 24.9, 25.1, 0.0, 100.0, np.array([24.9, 25.0, 25.1])) in (24.99, 25.01)
+    assert _shortest(25.0, 25.0, 25.0, 0.0, 100.0, np.array([24.0, 25.0, 26.0])) == 25.5  # the middle to the next
+    for data in (np.resize(np.arange(0, 100.1, 0.1), (20, 20, 20)),                    # cuts on sample values
+                 np.resize(2.0 ** 60 + 2.0 ** 20 * np.arange(257), (8, 8, 8)),         # whole, past 2^53
+                 1.0 + np.linspace(-1e-12, 1e-12, 512).reshape(8, 8, 8)):
+        iso = suggest_isovalues(Volume(data))
+        assert iso and not np.isin(iso, data).any(), iso
+    big = suggest_isovalues(Volume(np.linspace(1e8, 1e9, 8000).astype(np.float32).reshape(20, 20, 20)))
+    assert all(float(f"{v:.3g}") == v for v in big), big                               # not 325138488.5

@@ -168,6 +168,7 @@ def test_framing_raises_the_eye_towards_up(up, above, front):
 def test_framing_turns_smoothly_as_up_nears_y(up_y):
     # Up (0, -1, 1e-5) and (0, -1, 1e-7) framed the box from opposite sides: the front jumped to +z
     # within 1e-6 of y. It now follows up's tilt down to rounding.
-    eyes = [np.array(Camera.framing((0, 0, 0), (10, 20, 5), up=(0.0, up_y, tilt), azimuth=30, elevation=20).eye)
-            for tilt in (1e-3, 1e-5, 1e-7, 1e-9)]
-    assert max(np.linalg.norm(e - eyes[0]) for e in eyes) < 0.1
+    for sign in (1.0, -1.0):
+        eyes = [np.array(Camera.framing((0, 0, 0), (10, 20, 5), up=(0.0, up_y, sign * tilt), azimuth=30,
+                                        elevation=20).eye) for tilt in (1e-3, 1e-5, 1e-7, 1e-9, 1e-12, 9e-13, 1e-200)]
+        assert max(np.linalg.norm(e - eyes[0]) for e in eyes) < 0.1

@@ -1027,6 +1027,24 @@ def test_each_kernel_is_checked_for_the_samples_it_is_given(gl):
         assert samples and set(map(str, samples)) <= {str(s[0]) for s in kernel.signatures}, kernel
 
 
+def test_a_surface_out_of_sight_is_not_said_to_compile_on_every_run(gl):
+    """A float64 surface inside a uint16 one wins no pixel: its frames are never made, so never
+    compiled for float64, and the notice, asking for them, came on every run."""
+    import parc
+    from parc.outputs import compile_notice
+    from parc.renderer import kernel_samples
+    k, j, i = np.mgrid[:12, :12, :12] - 5.5
+    r = np.sqrt(i * i + j * j + k * k)
+    outer = parc.Isosurface(Volume((2000.0 - 100.0 * r).astype(np.uint16)), 1000.5)      # radius 10
+    inner = parc.Isosurface(Volume(r.astype(np.float64)), 2.5)                         # radius 2.5, inside
+    scene = parc.Scene(camera=parc.Camera.framing(*outer.volume.bounds), size=(8, 8), volumes=[outer, inner],
+                       lights=[parc.PointLight((30.0, -30.0, 30.0))], shadows=True)
+    parc.render(scene)
+    said = []
+    compile_notice(said.append, kernel_samples(scene))
+    assert said == []
+
+
 def test_the_casters_a_render_is_said_to_compile_are_those_it_runs(gl):
     """`parc.renderer.casters_for` (which the first-compile notice checks) names kernels each kind of
     render runs: after the render, each has a compiled or loaded signature. PARC's list holds its
