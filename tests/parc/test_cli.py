@@ -1035,7 +1035,7 @@ def test_a_surface_out_of_sight_is_not_said_to_compile_on_every_run(gl):
     from parc.renderer import kernel_samples
     k, j, i = np.mgrid[:12, :12, :12] - 5.5
     r = np.sqrt(i * i + j * j + k * k)
-    outer = parc.Isosurface(Volume((2000.0 - 100.0 * r).astype(np.uint16)), 1000.5)      # radius 10
+    outer = parc.Isosurface(Volume((2000.0 - 150.0 * r).astype(np.uint16)), 1000.5)      # radius 6.7
     inner = parc.Isosurface(Volume(r.astype(np.float64)), 2.5)                         # radius 2.5, inside
     scene = parc.Scene(camera=parc.Camera.framing(*outer.volume.bounds), size=(8, 8), volumes=[outer, inner],
                        lights=[parc.PointLight((30.0, -30.0, 30.0))], shadows=True)
