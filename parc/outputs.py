@@ -176,7 +176,8 @@ class Progress:
         self.pending.cancel()
         if self.last >= 0:
             # Off a terminal too: the lines stopped at 75%, and the work looked cut short.
-            self._say(f"{chr(13) if self.tty else ''}parc: {self.what}: done in {time.perf_counter() - self.start:.1f} s")
+            over = "\r" if self.tty else ""       # a terminal's live line is written over
+            self._say(f"{over}parc: {self.what}: done in {time.perf_counter() - self.start:.1f} s")
             Progress.open_line = None
 
     def _say(self, text, end="\n"):
