@@ -214,7 +214,7 @@ def suggest_isovalues(vol: Volume, k: int = 3, *, bins: int = 256) -> list:
     # shortest number near a cut being often a sample value; from 2^24 on, x.5 is long to read
     # and no float32 sample, and the shortest number off the samples is taken.
     whole = integer or (bool(np.all(np.mod(values, 1.0) == 0.0)) and float(np.abs(values).max()) < 2.0 ** 24)
-    seen = np.unique(values)
+    seen = None if whole else np.unique(values)         # sorted, for `_shortest`
     counts, edges = _histogram(fg, lo, hi, integer, bins)
     if counts is None:
         # A float range too narrow (or too wide) to split into bins: offer its middle.

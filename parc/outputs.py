@@ -218,9 +218,9 @@ def end_progress_line():
 
 def compile_notice(say, kernels=()):
     """Say that the casters compile now, when this machine has not every one of ``kernels``
-    compiled for these sources, or, with none named, no kernel at all. ``kernels``: Numba
-    dispatchers (the casters a run needs), or ``(dispatcher, sample types)`` pairs as
-    `parc.renderer.kernel_samples` gives them, each kernel then needed for every type.
+    compiled for these sources, or, with none named, no kernel at all. ``kernels``:
+    ``(dispatcher, sample types)`` pairs, as `parc.renderer.kernel_samples` gives those a
+    run needs, each kernel needed for every type.
 
     Numba compiles every kernel on its first use, for each type of samples it
     is given, and caches it (`raycast.config` names the folder after the kernel
@@ -239,8 +239,7 @@ def compile_notice(say, kernels=()):
         return
     folder = cache_folder()
     if kernels:
-        pairs = [k if isinstance(k, tuple) else (k, ()) for k in kernels]
-        missing = not all(_cached(kernel, folder, samples) for kernel, samples in pairs)
+        missing = not all(_cached(kernel, folder, samples) for kernel, samples in kernels)
     else:
         missing = next(folder.rglob("*.nbi"), None) is None
     if missing:

@@ -299,14 +299,13 @@ def ray_span(data, Ox, Oy, Oz, Dx, Dy, Dz, seg0, seg1, t_stop, step):
 def box_entry_image(data, org, spc, cam, width, height, out):
     """Per pixel, where the camera ray enters the volume's sample box, inf where it misses:
     the ``t`` of the first point of its sample lattice, the very number a sample there carries
-    (`ray_span`), so that what is placed at the entry orders exactly against such samples."""
-    nz, ny, nx = grid_shape(data)
+    (`ray_span`'s), so that what is placed at the entry orders exactly against such samples."""
     for y in prange(height):
         for x in range(width):
             ox, oy, oz, dx, dy, dz = camera_ray(cam, width, height, x, y)
             Ox, Oy, Oz, Dx, Dy, Dz = to_index_space(ox, oy, oz, dx, dy, dz, org, spc)
-            ta, Ax, Ay, Az = entry_anchor(Ox, Oy, Oz, Dx, Dy, Dz, nx, ny, nz)
-            t_in, t_out = clip_box(Ax, Ay, Az, Dx, Dy, Dz, nx, ny, nz)
+            ta, _, _, _, t_in, t_out, _, _, _ = ray_span(data, Ox, Oy, Oz, Dx, Dy, Dz, -math.inf, math.inf,
+                                                         math.inf, 1.0)
             out[y, x] = ta + t_in if t_in <= t_out else math.inf
 
 

@@ -19,11 +19,17 @@ ELEMENT_TYPES = {
 _MAX_HEADER = 1 << 16
 
 
+def _first(fields, keys):
+    """The first of ``keys`` the header gives, or None: MetaIO reads some fields under several
+    names, one winning over the others."""
+    return next((k for k in keys if k in fields), None)
+
+
 def _flag(path, fields, keys, default: bool) -> bool:
     """A True/False field (the first of ``keys`` present), read as MetaIO reads it: true when
     its first letter is T, t or 1, false when F, f or 0. Anything else is refused: MetaIO
     would take ``Maybe`` or ``yes`` for false, whatever the writer meant."""
-    key = next((k for k in keys if k in fields), None)
+    key = _first(fields, keys)
     if key is None:
         return default
     value = fields[key].strip()
@@ -36,7 +42,7 @@ def _flag(path, fields, keys, default: bool) -> bool:
 
 def _numbers(path, fields, keys, default):
     """Three numbers from the first of ``keys`` present (an error names that one), else ``default``."""
-    key = next((k for k in keys if k in fields), None)
+    key = _first(fields, keys)
     if key is None:
         return default
     return parse_numbers(fields[key].split(), 3, float, path, key)
@@ -97,10 +103,8 @@ def read_metaimage(path) -> Volume:
 
 def _build(path, fields, data_start):
     def get(*keys):
-        for k in keys:
-            if k in fields:
-                return fields[k]
-        return None
+        key = _first(fields, keys)
+        return None if key is None else fields[key]
 
     ndims = get("NDims")
     if ndims is None or get("DimSize") is None or get("ElementType") is None:
