@@ -44,11 +44,13 @@ def load_volume(path, **options) -> Volume:
 
     Parameters
     ----------
-    path : str or Path
+    path : str, Path or ndarray
         ``.nrrd``/``.nhdr``, ``.mhd``/``.mha``, ``.vtk``, ``.slc``, ``.npy``,
         ``.nii``/``.nii.gz`` (needs nibabel), ``.tif``/``.tiff`` stacks (needs
         tifffile), a folder of single-slice ``.tif`` files (an image
         sequence, in natural order), or headerless ``.raw``/``.bin``/``.dat``.
+        Or samples already in memory, an array ``(nz, ny, nx)``: a `Volume` of
+        it with the ``spacing`` and ``origin`` given (else 1 and 0).
     **options
         For raw files: ``shape=(nx, ny, nz)``, ``dtype``, ``byte_order``,
         ``offset``, ``mmap`` (see :func:`data_tools.io.raw.read_raw`). ``spacing`` and
@@ -69,9 +71,11 @@ def load_volume(path, **options) -> Volume:
     TypeError
         An option name that no reader takes (a programming error, not bad input).
     """
+    unknown = set(options) - set(RAW_ONLY_OPTIONS) - {"spacing", "origin"}
+    if unknown:
+        raise TypeError(f"load_volume() got unexpected options {sorted(unknown)}")
     if isinstance(path, np.ndarray):
-        raise InputError("load_volume reads a file; an array in memory is a volume already: "
-                         "Volume(array, spacing=(sx, sy, sz))")
+        return _from_array(path, options)
     if isinstance(path, (str, bytes)) and not path:
         # Path("") is the current folder, read as a folder of TIFF slices.
         raise InputError("the volume path is empty; give a volume file")
@@ -79,9 +83,6 @@ def load_volume(path, **options) -> Volume:
         path = Path(path)
     except TypeError:
         raise InputError(f"load_volume takes a file's path, got {type(path).__name__}") from None
-    unknown = set(options) - set(RAW_ONLY_OPTIONS) - {"spacing", "origin"}
-    if unknown:
-        raise TypeError(f"load_volume() got unexpected options {sorted(unknown)}")
     options = {k: v for k, v in options.items() if v is not None and not (k == "mmap" and not v)}
     if path.is_dir():
         reader, kind = tiff.read_tiff_folder, "TIFF"
@@ -104,6 +105,17 @@ def load_volume(path, **options) -> Volume:
         vol = Volume(vol.data, spacing=options.get("spacing", vol.spacing),
                      origin=options.get("origin", vol.origin), name=vol.name, meta=meta)
     return _read_from(vol, path)
+
+
+def _from_array(data, options):
+    """A volume of samples already in memory, ``(nz, ny, nx)``: the file reader's way in for
+    code that holds an array, with the same ``spacing`` and ``origin`` options."""
+    given = {k: v for k, v in options.items() if v is not None and not (k == "mmap" and not v)}
+    extra = sorted(set(given) - {"spacing", "origin"})
+    if extra:
+        raise InputError(f"load_volume: {', '.join(extra)} describe a raw file's bytes; "
+                         "an array in memory takes only spacing and origin")
+    return Volume(data, name="array", **given)
 
 
 def _read_from(vol, path):
@@ -147,8 +159,9 @@ def save_volume(volume: Volume, path, **options) -> Path:
     Parameters
     ----------
     volume : Volume
-    path : str or Path
-        ``.nrrd`` (gzip; ``compress=False`` for raw encoding), ``.nhdr``
+    path : str, Path or ndarray
+        An array ``(nz, ny, nx)`` of samples already in memory becomes a `Volume` of its
+        own (``spacing`` and ``origin`` as given, else 1 and 0). Files: ``.nrrd`` (gzip; ``compress=False`` for raw encoding), ``.nhdr``
         (+ ``.raw``), ``.npy`` (+ ``.npy.json`` sidecar for spacing and
         origin when they are not the defaults or a sidecar exists), ``.mhd``
         (+ ``.raw``), ``.mha``, ``.vtk``, ``.raw`` (samples only).

@@ -187,8 +187,19 @@ def test_a_comparison_counts_the_images_it_keeps(monkeypatch):
         parc.compare(scene, methods=("brute", "parc"))     # a frame and two kept images do not
 
 
-@pytest.mark.parametrize("given, words", [(np.zeros((4, 5, 6), np.uint8), "Volume(array, spacing="),
-                                          (3.5, "takes a file's path, got float")])
-def test_load_volume_of_something_not_a_path_says_what_to_do(given, words):
-    with pytest.raises(InputError, match=re.escape(words)):
-        parc.load_volume(given, spacing=(1, 2, 3))
+def test_load_volume_of_something_not_a_path_says_what_to_do():
+    with pytest.raises(InputError, match=re.escape("takes a file's path, got float")):
+        parc.load_volume(3.5, spacing=(1, 2, 3))
+
+
+def test_load_volume_of_an_array_keeps_its_samples_spacing_and_origin():
+    data = np.arange(4 * 5 * 6, dtype=np.int16).reshape(4, 5, 6)
+    vol = parc.load_volume(data, spacing=(1, 2, 3), origin=(-1, 0, 5))
+    assert vol.data.dtype == np.int16 and np.array_equal(vol.data, data)
+    assert vol.spacing == (1.0, 2.0, 3.0) and vol.origin == (-1.0, 0.0, 5.0)
+    plain = parc.load_volume(data, shape=None, mmap=False)       # options left unset are ignored
+    assert plain.spacing == (1.0, 1.0, 1.0) and plain.origin == (0.0, 0.0, 0.0)
+    with pytest.raises(InputError, match="an array in memory takes only spacing and origin"):
+        parc.load_volume(data, dtype="uint8")
+    with pytest.raises(InputError, match="3 dimensions"):
+        parc.load_volume(data[0])
