@@ -275,7 +275,9 @@ LARGE_WRITE_PIXELS = 1 << 22
 def cmd_render(args):
     import parc
 
+    from .comparison import check_supercells
     from .renderer import DEFAULT_BUFFERS, check_request, kernel_samples
+    from .workspace import check_frame_memory
 
     out = check_output(args.output, (".png", ".npy"))
     # An empty path is a mistake to name, not a flag to ignore.
@@ -292,13 +294,18 @@ def cmd_render(args):
     if args.method != "parc":
         _refuse_parc_flags(args, "applies to --method parc")
     check_request(scene, kwargs.get("buffers", DEFAULT_BUFFERS), work_out is not None)
+    check_frame_memory(*scene.size, layers=len(scene.volumes))
+    if kwargs.get("supercell") is not None:
+        check_supercells(scene, {args.method: kwargs})
+    # What the render will refuse is refused by now, so a note (the level chosen, a transfer
+    # function that shows nothing) is said before the wait, not after it.
+    for line in notes:
+        say(line)
     compile_notice(say, kernel_samples(scene, (args.method,), kwargs.get("buffers", DEFAULT_BUFFERS)))
     progress = None if args.quiet else Progress(f"rendering {w}x{h}")
     result = parc.render(scene, method=args.method, progress=progress, work=work_out is not None, **kwargs)
     if progress is not None:
         progress.done()
-    for line in notes:
-        say(line)
 
     writes = [(out, (lambda tmp: write_png(result.image, tmp)) if out.suffix.lower() == ".png"
                else (lambda tmp: save_array(tmp, result.image)))]
@@ -370,7 +377,16 @@ def cmd_compare(args):
     from .renderer import kernel_samples
 
     say = (lambda *a: None) if args.quiet else note
-    warming = None if args.quiet else (lambda line: say(f"{line} ..."))
+    notes = []
+
+    def warming(line):
+        # Called first once compare's checks have passed: the notes come before the wait.
+        while notes:
+            say(notes.pop(0))
+        say(f"{line} ...")
+
+    if args.quiet:
+        warming = None
     methods = method_names(args.methods)
     if args.repeats < 1:
         raise InputError(f"--repeats must be at least 1, got {args.repeats}")
@@ -383,7 +399,8 @@ def cmd_compare(args):
             steps = []
         if not steps or not all(np.isfinite(steps)) or min(steps) <= 0:
             raise InputError(f"--sweep-step must be comma-separated positive numbers, got {args.sweep_step!r}")
-    scene, notes = scene_and_notes(args)
+    scene, said = scene_and_notes(args)
+    notes.extend(said)
     common = {"buffers": _buffers(args, scene), "blocks": not args.no_blocks}
     if steps is not None and args.supercell is not None:
         common["supercell"] = args.supercell
@@ -392,8 +409,6 @@ def cmd_compare(args):
     if steps is not None:
         from .comparison import format_step_table, step_sweep
         rows = step_sweep(scene, steps, repeats=args.repeats, progress=warming, options=common)
-        for line in notes:
-            say(line)
         if args.json:
             _out(to_json(rows))
         else:
@@ -415,8 +430,6 @@ def cmd_compare(args):
     if not options:
         _refuse_parc_flags(args, "applies to parc, which --methods leaves out")
     rows = compare(scene, methods=methods, repeats=args.repeats, options=options, progress=warming)
-    for line in notes:
-        say(line)
     if args.json:
         _out(to_json(rows))
     else:

@@ -83,7 +83,7 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
         _check_render_options(name, opts)
     _check_progress(progress, "a line of text")
     check_frame_memory(*scene.size, layers=len(scene.volumes), kept_images=len(names))
-    _check_supercells(scene, options)
+    check_supercells(scene, options)
     vol = scene.volumes[0].volume
     cell = float(min(vol.spacing))
     runs = {name: [] for name in names}
@@ -193,7 +193,7 @@ def _check_render_options(name, opts):
                          f"known: {', '.join(sorted(RENDER_OPTIONS))}")
 
 
-def _check_supercells(scene, options):
+def check_supercells(scene, options):
     """Refuse a supercell size no volume of the scene can take, before any render is timed."""
     from .classify import VolumeIndex
     for opts in options.values():

@@ -784,6 +784,26 @@ def test_notes_are_held_back_when_the_scene_is_refused(vol_file, tmp_path, capsy
     assert rc == 0 and "no --iso given" in err
 
 
+@pytest.mark.parametrize("cmd", ["render", "compare"])
+def test_notes_come_before_the_rendering_starts(cmd, vol_file, tmp_path, monkeypatch, capsys):
+    # A note can tell the user the render is not the one wanted; it is no use after the wait.
+    import parc
+    import parc.comparison
+    said = []
+    module = parc if cmd == "render" else parc.comparison
+    real = module.render
+
+    def render(*args, **kwargs):
+        said.append(capsys.readouterr().err)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(module, "render", render)
+    out = ["-o", tmp_path / "o.png"] if cmd == "render" else ["--repeats", 1]
+    rc, _, err = _run([cmd, vol_file, "--size", 8, 8] + out, capsys)
+    assert rc == 0 and said and "no --iso given" in said[0], (said, err)
+    assert "no --iso given" not in err
+
+
 def test_the_level_chosen_pasted_back_gives_the_same_image(tmp_path, capsys):
     # Levels near 1e9 (int32 samples), where six digits are not the level.
     k, j, i = np.mgrid[0:10, 0:10, 0:10]
