@@ -15,7 +15,7 @@ examples:
   parc render head.nrrd --iso 600 -o skin.png --size 800 600
   parc render bucky_32x32x32_uint8.raw --iso 128 --eye 60,-40,50 -o bucky.png
   parc render CThead.nrrd --iso 1500 --up 0,0,-1 -o bone.png   this head's top is at -z
-  parc render CThead.nrrd --iso 1500 --up 0,0,-1 --method parc -o bone.png   same image, faster
+  parc render CThead.nrrd --iso 1500 --up 0,0,-1 --method parc -o bone.png   same image by PARC
   parc render CThead.nrrd --tf ct_skin_bone --up 0,0,-1 -o ct.png   translucent
   parc compare neghip.slc --iso 80 --sweep-supercell 1,2,4,8      speed against error
   parc render head.nrrd --iso 600 --sun -1,1,-1 --shadows -o lit.png   sunlight and shadows
