@@ -60,8 +60,8 @@ def load_volume(path, **options) -> Volume:
     Returns
     -------
     Volume
-        ``data`` indexed ``[z, y, x]`` in the file's sample type; ``meta['files']`` the
-        files read (with a header's data file and a ``.npy``'s sidecar).
+        ``data`` indexed ``[z, y, x]`` in the file's sample type; read from a file,
+        ``meta['files']`` the files read (with a header's data file and a ``.npy``'s sidecar).
 
     Raises
     ------
@@ -159,9 +159,8 @@ def save_volume(volume: Volume, path, **options) -> Path:
     Parameters
     ----------
     volume : Volume
-    path : str, Path or ndarray
-        An array ``(nz, ny, nx)`` of samples already in memory becomes a `Volume` of its
-        own (``spacing`` and ``origin`` as given, else 1 and 0). Files: ``.nrrd`` (gzip; ``compress=False`` for raw encoding), ``.nhdr``
+    path : str or Path
+        ``.nrrd`` (gzip; ``compress=False`` for raw encoding), ``.nhdr``
         (+ ``.raw``), ``.npy`` (+ ``.npy.json`` sidecar for spacing and
         origin when they are not the defaults or a sidecar exists), ``.mhd``
         (+ ``.raw``), ``.mha``, ``.vtk``, ``.raw`` (samples only).

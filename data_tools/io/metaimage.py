@@ -16,7 +16,8 @@ ELEMENT_TYPES = {
     "MET_UCHAR": "uint8", "MET_CHAR": "int8", "MET_USHORT": "uint16", "MET_SHORT": "int16",
     "MET_UINT": "uint32", "MET_INT": "int32", "MET_FLOAT": "float32", "MET_DOUBLE": "float64",
 }
-_MAX_HEADER = 1 << 16
+#: Headers are read up to this many bytes (as NRRD's), comments and all.
+_MAX_HEADER = 1 << 26
 
 
 def _first(fields, keys):
@@ -50,31 +51,32 @@ def _numbers(path, fields, keys, default):
 
 def _parse_header(path: Path):
     """Key/value pairs up to ElementDataFile, and the byte offset just after that line."""
-    with open(path, "rb") as f:
-        head = f.read(_MAX_HEADER)
     fields, pos = {}, 0
-    if head.startswith(b"\xef\xbb\xbf"):
-        pos = 3     # a UTF-8 byte-order mark, as some editors write: not part of the first key
-    while True:
-        end = head.find(b"\n", pos)
-        if end < 0:
-            end = len(head)
-        raw = head[pos:end]
-        try:
-            line = raw.decode("ascii").strip()
-        except UnicodeDecodeError:
-            raise InputError(f"{path}: not a MetaImage header (binary bytes before ElementDataFile)") from None
-        pos = end + 1
-        if line and not line.startswith("#"):
-            key, eq, value = line.partition("=")
-            if not eq:
-                raise InputError(f"{path}: not a MetaImage header: expected 'Key = Value', got {line[:60]!r}")
-            fields[key.strip()] = value.strip()
-            # The data file entry ends the header; binary data may follow (LOCAL).
-            if key.strip() == "ElementDataFile":
-                return fields, pos
-        if end >= len(head):
-            raise InputError(f"{path}: MetaImage header has no ElementDataFile line")
+    with open(path, "rb") as f:
+        while True:
+            # Read line by line: a comment may run long, and the header's end is not known before.
+            raw = f.readline(_MAX_HEADER - pos + 1)
+            first = pos == 0
+            pos += len(raw)
+            if pos > _MAX_HEADER:
+                raise InputError(f"{path}: no ElementDataFile line in the MetaImage header's first "
+                                 f"{_MAX_HEADER >> 20} MiB")
+            if not raw:
+                raise InputError(f"{path}: MetaImage header has no ElementDataFile line")
+            if first and raw.startswith(b"\xef\xbb\xbf"):
+                raw = raw[3:]   # a UTF-8 byte-order mark, as some editors write: not part of the first key
+            try:
+                line = raw.decode("ascii").strip()
+            except UnicodeDecodeError:
+                raise InputError(f"{path}: not a MetaImage header (binary bytes before ElementDataFile)") from None
+            if line and not line.startswith("#"):
+                key, eq, value = line.partition("=")
+                if not eq:
+                    raise InputError(f"{path}: not a MetaImage header: expected 'Key = Value', got {line[:60]!r}")
+                fields[key.strip()] = value.strip()
+                # The data file entry ends the header; binary data may follow (LOCAL).
+                if key.strip() == "ElementDataFile":
+                    return fields, pos
 
 
 def read_metaimage(path) -> Volume:

@@ -522,6 +522,17 @@ def test_mhd_with_a_byte_order_mark_reads(tmp_path):
     np.testing.assert_array_equal(load_volume(p).data.ravel(), np.arange(8))
 
 
+def test_mha_with_a_long_comment_reads(tmp_path, monkeypatch):
+    # A header is read to its ElementDataFile line however long (up to NRRD's limit), not 64 KiB.
+    p = tmp_path / "c.mha"
+    head = b"Comment = " + b"x" * 70000 + b"\nNDims = 3\nDimSize = 2 2 2\nElementType = MET_UCHAR\n"
+    p.write_bytes(head + b"ElementDataFile = LOCAL\n" + bytes(range(8)))
+    np.testing.assert_array_equal(load_volume(p).data.ravel(), np.arange(8))
+    from data_tools.io import metaimage
+    monkeypatch.setattr(metaimage, "_MAX_HEADER", 4096)
+    fails(p, "no ElementDataFile line in the MetaImage header's first")
+
+
 def test_mhd_without_data_file_line(tmp_path):
     p = tmp_path / "n.mhd"
     p.write_text("NDims = 3\nDimSize = 2 2 2\nElementType = MET_UCHAR\n")
