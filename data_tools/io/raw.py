@@ -126,6 +126,25 @@ def _parse_dtype(dtype, path):
     return name
 
 
+def _header_beside(path):
+    """A MetaImage or detached NRRD header beside ``path`` naming it as its data file, or None:
+    the samples of such a pair are often opened instead of its header."""
+    try:
+        siblings = [p for p in path.parent.iterdir()
+                    if p.stem == path.stem and p.suffix.lower() in (".mhd", ".nhdr") and p.is_file()]
+    except OSError:
+        return None
+    for header in sorted(siblings):
+        try:
+            with open(header, "rb") as f:
+                head = f.read(1 << 16)
+        except OSError:
+            continue
+        if path.name.encode() in head:
+            return header
+    return None
+
+
 def read_raw(path, *, shape=None, dtype=None, byte_order=None, offset=0,
              spacing=None, origin=None, mmap=False) -> Volume:
     """Read a headerless raw volume, x varying fastest.
@@ -169,6 +188,10 @@ def read_raw(path, *, shape=None, dtype=None, byte_order=None, offset=0,
     if missing:
         # One message for the command line, Python and scene files, which name the options alike.
         flags = {"shape": "--shape NX,NY,NZ", "dtype": "--dtype TYPE"}
+        header = _header_beside(path)
+        if header is not None:
+            raise InputError(f"{path}: a raw file has no header; {header.name} beside it names this file "
+                             f"as its data: open {header.name} instead")
         raise InputError(
             f"{path}: a raw file has no header; give {' and '.join(flags[m] for m in missing)} "
             f"(and --byte-order, --spacing if needed; in Python and scene files "

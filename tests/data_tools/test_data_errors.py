@@ -77,6 +77,16 @@ def test_raw_without_shape_or_type_names_the_flags(tmp_path):
     assert "--dtype" in msg and "--shape NX" not in msg
 
 
+@pytest.mark.parametrize("ext", [".mhd", ".nhdr"])
+def test_raw_samples_of_a_header_pair_point_at_the_header(tmp_path, ext):
+    header = save_volume(Volume(np.zeros((2, 3, 4), np.uint8)), tmp_path / f"pair{ext}")
+    msg = fails(tmp_path / "pair.raw")
+    assert f"open {header.name} instead" in msg and "--shape" not in msg
+    (tmp_path / "lone.raw").write_bytes(bytes(24))          # a header beside names other samples
+    (tmp_path / "lone.mhd").write_text("NDims = 3\nElementDataFile = other.raw\n")
+    assert "--shape" in fails(tmp_path / "lone.raw")
+
+
 def test_raw_size_mismatch_states_both_sizes(tmp_path):
     p = tmp_path / "v_4x4x4_uint16.raw"
     p.write_bytes(bytes(100))
