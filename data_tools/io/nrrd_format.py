@@ -516,10 +516,19 @@ def _spacing(header, path):
         sp = np.asarray(spacings, dtype=np.float64)
         if sp.shape != (3,):
             raise InputError(f"{path}: spacings gives {sp.size} values for 3 axes")
-        note = ("negative spacings (mirrored axes) were reduced to positive spacings"
-                if (sp < 0).any() else None)
-        sp = np.where(np.isfinite(sp), np.abs(sp), 1.0)
-        return tuple(float(s) for s in sp), note
+        if np.isinf(sp).any():
+            raise InputError(f"{path}: spacings must be finite (NaN for an unknown one), got "
+                             f"{' '.join(f'{v:g}' for v in sp)}")
+        notes = []
+        if (sp < 0).any():
+            notes.append("negative spacings (mirrored axes) were reduced to positive spacings")
+        unknown = np.isnan(sp)
+        if unknown.any():
+            # NaN is NRRD's word for a spacing the writer did not know.
+            axes = ", ".join("xyz"[i] for i in np.flatnonzero(unknown))
+            notes.append(f"spacings gives NaN (unknown) for {axes}: taken as 1 (give --spacing SX,SY,SZ)")
+        sp = np.where(unknown, 1.0, np.abs(sp))
+        return tuple(float(s) for s in sp), "; ".join(notes) or None
     if _has_extent(header):
         return None, None           # from axis mins and maxs (`_from_extent`), with the origin
     return (1.0, 1.0, 1.0), None

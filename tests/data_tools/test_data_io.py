@@ -4,6 +4,7 @@ from __future__ import annotations
 import bz2
 import gzip
 import json
+import re
 import zlib
 from decimal import Decimal, localcontext
 from fractions import Fraction
@@ -871,6 +872,26 @@ def test_nrrd_negative_spacings_are_noted(tmp_path):
                      b"spacings: -0.5 1 2\n\n" + _ZYX.astype("<i2").tobytes())
     vol = load_volume(path)
     assert vol.spacing == (0.5, 1.0, 2.0) and "mirrored" in vol.meta["note"]
+
+
+@pytest.mark.parametrize("spacings, spacing, words", [
+    ("nan 1 2", (1.0, 1.0, 2.0), "NaN (unknown) for x: taken as 1"),
+    ("-0.5 NaN nan", (0.5, 1.0, 1.0), "mirrored axes) were reduced to positive spacings; spacings gives NaN (unknown) for y, z"),
+    ("1e400 1 2", None, "spacings must be finite (NaN for an unknown one), got inf 1 2"),
+    ("0.5 -inf 2", None, "spacings must be finite"),
+])
+def test_nrrd_unknown_spacings_are_1_with_a_note_and_infinite_ones_refused(tmp_path, spacings, spacing, words):
+    # NaN is NRRD's unknown spacing, read as 1 with a word; an infinite one is not a spacing
+    # (both were read as 1 without one, -inf as a mirrored axis).
+    path = tmp_path / "s.nrrd"
+    path.write_bytes(b"NRRD0004\ntype: short\ndimension: 3\nsizes: 5 4 3\nendian: little\nencoding: raw\n"
+                     + f"spacings: {spacings}\n\n".encode() + _ZYX.astype("<i2").tobytes())
+    if spacing is None:
+        with pytest.raises(InputError, match=re.escape(words)):
+            load_volume(path)
+    else:
+        vol = load_volume(path)
+        assert vol.spacing == spacing and words in vol.meta["note"]
 
 
 @pytest.mark.parametrize("sizes_first, kinds", [
