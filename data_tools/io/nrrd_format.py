@@ -212,6 +212,8 @@ def _parsed(lines, path):
     # NRRD00.01, the format's first magic, which teem still reads, is version 1 to pynrrd.
     magic = b"NRRD0001\n" if lines[0].rstrip() == b"NRRD00.01" else lines[0]
     lines = [magic] + [_as_pynrrd(line) for line in lines[1:]]
+    for line in lines[1:]:
+        _check_line(line, path)
     try:
         header = nrrd.read_header(lines)
     except Exception as exc:  # noqa: BLE001 - pynrrd raises many kinds
@@ -440,6 +442,32 @@ def _check_data_file(path):
     if data.exists() and not data.is_file():
         raise InputError(f"{path}: data file {data} is not a regular file")
     return data
+
+
+#: Fields of whole numbers, which pynrrd reads through float ("1e3" was 1000, "1e400" a
+#: negative size) or reports in Python's words ("invalid literal for int() with base 10").
+_WHOLE_FIELDS = frozenset(("dimension", "sizes", "byte skip", "byteskip", "line skip", "lineskip",
+                           "space dimension"))
+
+
+def _check_line(line, path):
+    """Refuse a header line that is no field, and a whole-number field holding anything else,
+    in words that name them."""
+    text = line.decode("ascii", "replace").strip()
+    if not text or text.startswith("#"):
+        return
+    field, colon, value = text.partition(":")
+    if not colon:
+        raise InputError(f"{path}: header line {text[:60]!r} is not 'field: value' (an attached "
+                         "header ends at a blank line before the data)")
+    field = field.strip()
+    if field in _WHOLE_FIELDS and not value.startswith("="):
+        for word in value.split():
+            if not re.fullmatch(r"[-+]?\d+", word):
+                raise InputError(f"{path}: field {field!r}: expected whole numbers, got {word[:30]!r}")
+            if field == "sizes" and abs(int(word)) >= 1 << 62:       # pynrrd keeps sizes in int64
+                raise InputError(f"{path}: field 'sizes': {word[:30]} samples along an axis is more than "
+                                 "any file holds")
 
 
 def _explain(exc) -> str:

@@ -263,6 +263,12 @@ def test_nrrd_spacings_for_another_number_of_axes_are_refused(tmp_path, spacings
     ("spacings: 1 x 5", "field 'spacings': could not convert string to float: 'x'"),
     ("space origin: 1 2 3", "field 'space origin': Vector should be enclosed by parentheses"),
     ("byte skip: 1000", "byte skip 1000 passes the end of the data (8 bytes)"),
+    ("byte skip: 1e3", "field 'byte skip': expected whole numbers, got '1e3'"),
+    ("sizes: 2 1e3 2", "field 'sizes': expected whole numbers, got '1e3'"),       # was 1000 samples
+    ("sizes: 2 0x4 2", "field 'sizes': expected whole numbers, got '0x4'"),
+    ("sizes: 2 2 1e400", "field 'sizes': expected whole numbers, got '1e400'"),   # was -2^63
+    ("sizes: 2 2 " + "9" * 30, "samples along an axis is more than any file holds"),
+    ("ABCDEFGH", "header line 'ABCDEFGH' is not 'field: value' (an attached header ends at a blank line"),
 ])
 def test_nrrd_header_faults_are_named(tmp_path, field, match):
     # Each was read without a word (the origin moved to 0, the spacing lost) or with a
