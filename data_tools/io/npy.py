@@ -53,6 +53,9 @@ def read_npy(path) -> Volume:
             raise InputError(f"{path}: not a valid .npy array file (its header is not a Python "
                              "dictionary literal)") from None
         except ValueError as exc:
+            if "malformed node" in str(exc):      # a literal holding a call or a name: the same
+                raise InputError(f"{path}: not a valid .npy array file (its header is not a Python "
+                                 "dictionary literal)") from None
             if "pickle" in str(exc):
                 raise InputError(f"{path}: holds Python objects, not a numeric array") from None
             raise InputError(f"{path}: not a valid .npy array file ({one_line(exc)})") from None
@@ -65,10 +68,13 @@ def read_npy(path) -> Volume:
     if side.is_file():
         try:
             info = json.loads(side.read_text(encoding="utf-8-sig"))
-            spacing = info.get("spacing", spacing)
-            origin = info.get("origin", origin)
-        except (OSError, ValueError, AttributeError) as exc:
+        except (OSError, ValueError) as exc:
             raise InputError(f"{side}: bad sidecar ({one_line(exc)}); expected JSON with spacing and origin") from None
+        if not isinstance(info, dict):
+            raise InputError(f"{side}: the sidecar holds {json.dumps(info)[:40]}; expected a JSON object "
+                             '{"spacing": [x, y, z], "origin": [x, y, z]}')
+        spacing = info.get("spacing", spacing)
+        origin = info.get("origin", origin)
         unknown = sorted(set(info) - {"spacing", "origin"})
         if unknown:
             raise InputError(f"{side}: unknown keys {', '.join(map(repr, unknown))} in the sidecar; "
@@ -92,6 +98,8 @@ def _check_length(path):
             return              # NumPy's own read tells
         read = fmt.read_array_header_1_0 if version == (1, 0) else fmt.read_array_header_2_0
         shape, _, dtype = read(f)
+        if any(n < 0 for n in shape):
+            raise InputError(f"{path}: its header gives the shape {shape}, with a negative size")
         if dtype.hasobject:
             return
         need = f.tell() + math.prod(shape) * dtype.itemsize

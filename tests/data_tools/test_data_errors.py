@@ -152,21 +152,27 @@ def test_npy_nan_and_wrong_rank(tmp_path):
     fails(tmp_path / "obj.npy")
 
 
-@pytest.mark.parametrize("header", [b"{'descr': '<f4', 'fortran_order': False, 'shape': (3, 4, 5, }",
-                                    b"{'descr': '<02', 'fortran_order': False, 'shape': (3, 4, 5), }"])
-def test_npy_with_a_header_python_cannot_parse(tmp_path, header):
-    # NumPy reads the header as a Python literal: these failed as the tokenizer and parser do.
+@pytest.mark.parametrize("header, words", [
+    (b"{'descr': '<f4', 'fortran_order': False, 'shape': (3, 4, 5, }", "its header is not a python dictionary literal"),
+    (b"{'descr': '<02', 'fortran_order': False, 'shape': (3, 4, 5), }", "its header is not a python dictionary literal"),
+    (b"{'descr': '<f4', 'fortran_order': False, 'shape': range(3), }", "its header is not a python dictionary literal"),
+    (b"{'descr': '<f4', 'fortran_order': False, 'shape': (-4, 4, 4), }", "the shape (-4, 4, 4), with a negative size"),
+])
+def test_npy_with_a_header_python_cannot_parse(tmp_path, header, words):
+    # NumPy reads the header as a Python literal: these failed in the tokenizer's, the parser's
+    # ("malformed node or string ... <ast.Call object at 0x...>") or NumPy's words.
     header = header.ljust(117) + b"\n"
     p = tmp_path / "bad.npy"
     p.write_bytes(b"\x93NUMPY\x01\x00" + len(header).to_bytes(2, "little") + header + bytes(240))
-    fails(p, "not a valid .npy array file (its header is not a python dictionary literal)")
+    fails(p, words)
 
 
 @pytest.mark.parametrize("text, match", [("{not json", "bad sidecar"),
                                          ('{"spacing": "123"}', "spacing must be an array of three numbers"),
                                          ('{"spacing": [true, true, true]}', "spacing must be"),
                                          ('{"origin": [1, 2]}', "origin must be"),
-                                         ('{"spacng": [1, 2, 3]}', "unknown keys 'spacng'")])
+                                         ('{"spacng": [1, 2, 3]}', "unknown keys 'spacng'"),
+                                         ("[1, 2]", "the sidecar holds [1, 2]; expected a JSON object")])
 def test_npy_bad_sidecar(tmp_path, text, match):
     np.save(tmp_path / "s.npy", SMALL)
     (tmp_path / "s.npy.json").write_text(text)
