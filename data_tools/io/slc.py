@@ -6,6 +6,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from ..memory import check_memory
 from ..volume import Volume
 from ._common import reading
 
@@ -95,6 +96,8 @@ def read_slc(path) -> Volume:
     cur.marker("the icon")
     cur.take(3 * icon_w * icon_h, "the icon")
     plane = nx * ny
+    # Run-length data can claim more samples than its file holds bytes: ask before allocating.
+    check_memory(plane * nz, f"{path}: its {nx}x{ny}x{nz} samples")
     data = np.empty((nz, ny, nx), dtype=np.uint8)
     flat = data.reshape(nz, plane)
     for k in range(nz):

@@ -638,6 +638,15 @@ def test_slc_bad_magic_and_bits(tmp_path, writers):
     fails(p, "16-bit")
 
 
+def test_slc_claiming_more_samples_than_memory_holds(tmp_path, writers):
+    # Run-length samples need not be in the file: numpy's "array is too big" was the message.
+    p = writers.slc(tmp_path / "h.slc", SMALL)
+    head = b" ".join(str(n).encode() for n in SMALL.shape[::-1]) + b" 8\n"
+    assert p.read_bytes().count(head) == 1
+    p.write_bytes(p.read_bytes().replace(head, b"99999999 99999999 99999999 8\n", 1))
+    fails(p, "99999999x99999999x99999999 samples needs about")
+
+
 def test_slc_corrupt_runs(tmp_path, writers):
     p = writers.slc(tmp_path / "c.slc", np.zeros((4, 5, 6), np.uint8))
     # Every slice is "3 X" + (30 zeros as one run) + end; claim 31 repeats instead.
