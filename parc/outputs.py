@@ -51,6 +51,12 @@ def check_output(path, allowed):
         raise InputError(f"{path}: folder {folder} does not exist")
     if path.is_dir():
         raise InputError(f"{path}: is a folder")
+    if path.is_symlink():
+        # The file is written where the link leads (`atomic_write_all`): that folder must take it.
+        target = Path(os.path.realpath(path))
+        if not target.parent.is_dir():
+            raise InputError(f"{path}: a link to {target}, whose folder does not exist")
+        folder = target.parent
     if not os.access(folder, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
         raise InputError(f"{path}: not writable")
     return path

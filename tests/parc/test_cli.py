@@ -432,6 +432,7 @@ def test_an_output_that_is_a_link_is_written_where_it_leads(vol_file, tmp_path, 
     ("a file for a folder", "x.png/o.png: {tmp}/x.png is a file, not a folder"),
     ("a link in a loop", "loop.nrrd: a link that leads nowhere (or in a loop)"),
     ("a sidecar folder", "v.npy.json: the sidecar of v.npy (its spacing and origin) is not a file"),
+    ("a link into a missing folder", "dangling.png: a link to {tmp}/gone/o.png, whose folder does not exist"),
 ])
 def test_paths_that_are_not_what_they_seem_are_named(vol_file, tmp_path, capsys, case, words):
     # Each was named wrongly: "folder x.png does not exist", "no such file", "v.npy: cannot write: Is a directory".
@@ -439,7 +440,9 @@ def test_paths_that_are_not_what_they_seem_are_named(vol_file, tmp_path, capsys,
     (tmp_path / "loop.nrrd").symlink_to(tmp_path / "loop2.nrrd")
     (tmp_path / "loop2.nrrd").symlink_to(tmp_path / "loop.nrrd")
     (tmp_path / "v.npy.json").mkdir()
+    (tmp_path / "dangling.png").symlink_to(tmp_path / "gone" / "o.png")    # refused before the render
     argv = {"a file for a folder": ["render", vol_file, "-o", tmp_path / "x.png" / "o.png"],
+            "a link into a missing folder": ["render", vol_file, "--iso", 4, "-o", tmp_path / "dangling.png"],
             "a link in a loop": ["info", tmp_path / "loop.nrrd"],
             "a sidecar folder": ["convert", vol_file, "-o", tmp_path / "v.npy"]}[case]
     rc, out, err = _run(argv, capsys)
