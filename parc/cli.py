@@ -27,7 +27,7 @@ from data_tools.signals import STOPS
 from .arguments import build_parser, join_signed_values, supercell_size
 from .flagscene import load_volume_flags, scene_and_notes
 from .outputs import (Progress, atomic_write_all, check_distinct, check_output, compile_notice, end_progress_line,
-                      note, to_json, write_png)
+                      note, slow_note, to_json, write_png)
 
 EXIT_USAGE = 2
 
@@ -146,10 +146,19 @@ def _main(argv):
 
 # --- commands -----------------------------------------------------------
 
+def _reading(args, say=note):
+    """`slow_note` for reading the volume or scene file the arguments name (and what is
+    computed from it before any progress can show)."""
+    if args.volume is None:
+        return slow_note("making the built-in volume", say)
+    return slow_note(f"reading {args.volume}", say)
+
+
 def cmd_info(args):
     from data_tools.info import format_info, volume_info
-    vol = load_volume_flags(args)
-    _out(format_info(volume_info(vol)))        # the reader's note among its lines
+    with _reading(args):
+        info = volume_info(load_volume_flags(args))
+    _out(format_info(info))        # the reader's note among its lines
     return 0
 
 
@@ -257,7 +266,8 @@ def cmd_convert(args):
     from data_tools.io import WRITE_EXTENSIONS, save_volume
     out = check_output(args.output, WRITE_EXTENSIONS)
     check_distinct(args.volume, [out])
-    vol = load_volume_flags(args)
+    with _reading(args):
+        vol = load_volume_flags(args)
     files = vol.meta.get("files", ())
     check_distinct(args.volume, [out], read=files)     # a header's own data file, say
     _refuse_overwriting_input(out, [args.volume, *files])
@@ -286,7 +296,8 @@ def cmd_render(args):
     work_out = check_output(args.work, (".png", ".npy")) if args.work is not None else None
     check_distinct(args.volume, [out, depth_out, stats_out, work_out])
     say = (lambda *a: None) if args.quiet else note
-    scene, notes = scene_and_notes(args)
+    with _reading(args, say):
+        scene, notes = scene_and_notes(args)
     check_distinct(args.volume, [out, depth_out, stats_out, work_out], read=_files_read(scene))
     w, h = scene.size
     kwargs = ({"supercell": args.supercell, "buffers": _buffers(args, scene), "blocks": not args.no_blocks}
@@ -399,7 +410,8 @@ def cmd_compare(args):
             steps = []
         if not steps or not all(np.isfinite(steps)) or min(steps) <= 0:
             raise InputError(f"--sweep-step must be comma-separated positive numbers, got {args.sweep_step!r}")
-    scene, said = scene_and_notes(args)
+    with _reading(args, say):
+        scene, said = scene_and_notes(args)
     notes.extend(said)
     common = {"buffers": _buffers(args, scene), "blocks": not args.no_blocks}
     if steps is not None and args.supercell is not None:

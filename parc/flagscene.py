@@ -48,8 +48,8 @@ def scene_from_flags(args, say):
 
 
 def scene_and_notes(args):
-    """`scene_from_flags` and its notes, for the caller to say once the work has succeeded: a run
-    refused anywhere, up to the last check inside the render, gets its error line alone."""
+    """`scene_from_flags` and its notes, for the caller to say once the run's checks have passed
+    and before its work: a refused run gets its error line alone."""
     notes = []
     scene = scene_from_flags(args, notes.append)
     return scene, notes

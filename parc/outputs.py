@@ -2,6 +2,7 @@
 all or nothing, strict JSON, and progress on stderr."""
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import pickle
@@ -194,6 +195,43 @@ class Progress:
         except (OSError, ValueError):
             self.mute = True
             Progress.open_line = None
+
+
+#: Seconds of work after which `slow_note` speaks.
+SLOW_NOTE_DELAY = 1.0
+
+
+@contextlib.contextmanager
+def slow_note(what, say, delay=None):
+    """Say ``what ...`` once the work inside has taken ``delay`` seconds, and its time when it
+    ends: reading a large volume (or its histogram) takes seconds before a render can report
+    any progress, and a silent wait looks like a hang. Quick work says nothing; failed work
+    leaves its error line to say the rest."""
+    start = time.perf_counter()
+    lock = threading.Lock()
+    said = []
+
+    def begun():
+        with lock:
+            if said is not None:
+                said.append(True)
+                say(f"{what} ...")
+
+    delay = SLOW_NOTE_DELAY if delay is None else delay
+    timer = threading.Timer(delay, begun)
+    timer.daemon = True
+    if delay > 0:
+        timer.start()
+    else:
+        begun()
+    try:
+        yield
+    finally:
+        timer.cancel()
+        with lock:
+            spoke, said = bool(said), None
+    if spoke:
+        say(f"{what}: done in {time.perf_counter() - start:.1f} s")
 
 
 def printable(text):

@@ -16,7 +16,8 @@ from data_tools.io import load_volume, save_volume
 from parc.cli import build_parser, main
 
 #: What `parc.outputs.Progress` writes for a render (a terminal gets it as one line rewritten).
-PROGRESS_LINE = re.compile(r"\r?parc: rendering \d+x\d+: +(\d+%|done in [\d.]+ s)\r?\n?$")
+PROGRESS_LINE = re.compile(r"\r?parc: (rendering \d+x\d+: +(\d+%|done in [\d.]+ s)"
+                           r"|(reading .*|making the built-in volume)( \.\.\.|: done in [\d.]+ s))\r?\n?$")
 
 
 @pytest.fixture
@@ -805,6 +806,30 @@ def test_notes_come_before_the_rendering_starts(cmd, vol_file, tmp_path, monkeyp
     rc, _, err = _run([cmd, vol_file, "--size", 8, 8] + out, capsys)
     assert rc == 0 and said and "no --iso given" in said[0], (said, err)
     assert "no --iso given" not in err
+
+
+@pytest.mark.parametrize("cmd", ["info", "convert", "render", "compare"])
+def test_reading_a_slow_volume_is_said_before_and_after(cmd, vol_file, tmp_path, monkeypatch, capsys):
+    # A large file read in silence for half a minute looked like a hang.
+    import parc.outputs
+    monkeypatch.setattr(parc.outputs, "SLOW_NOTE_DELAY", 0.0)
+    extra = {"info": [], "convert": ["-o", tmp_path / "c.nrrd"], "render": ["--iso", 4, "-o", tmp_path / "r.png"],
+             "compare": ["--iso", 4, "--repeats", 1]}[cmd]
+    rc = main([cmd, str(vol_file)] + [str(a) for a in extra] + (["--size", "8", "8"] if cmd in ("render", "compare") else []))
+    err = capsys.readouterr().err
+    lines = err.splitlines()
+    assert rc == 0 and f"parc: reading {vol_file} ..." in lines, err
+    done = [line for line in lines if re.fullmatch(rf"parc: reading {re.escape(str(vol_file))}: done in [\d.]+ s", line)]
+    assert len(done) == 1 and lines.index(done[0]) > lines.index(f"parc: reading {vol_file} ..."), err
+
+
+def test_slow_work_that_fails_leaves_its_error_line_to_say_the_rest(tmp_path, monkeypatch, capsys):
+    import parc.outputs
+    monkeypatch.setattr(parc.outputs, "SLOW_NOTE_DELAY", 0.0)
+    (tmp_path / "bad.nrrd").write_bytes(b"NRRD0004\nsizes: 2 2\n\n")
+    rc = main(["info", str(tmp_path / "bad.nrrd")])
+    err = capsys.readouterr().err
+    assert rc == 2 and "done in" not in err and err.splitlines()[-1].startswith("parc: error:"), err
 
 
 def test_the_level_chosen_pasted_back_gives_the_same_image(tmp_path, capsys):
