@@ -253,7 +253,7 @@ DESCRIPTIONS = {
     "blobs": "uint8 noisy Gaussian blobs, like confocal microscopy (iso 100.5)",
     "neuron": "uint8 confocal-like pyramidal neuron: soma, branching dendrites, blur, photon noise (iso 80.5)",
     "floor": "uint8 volumetric floor: a closed slab with a checker relief, n x n x max(8, n/8) (iso 127.5)",
-    "ct_phantom": "int16 CT-like head phantom: skin iso 600, bone iso 1500",
+    "ct_phantom": "int16 CT-like head phantom: skin iso 600.5, bone iso 1500.5",
     "trilinear_field": "float64 exact trilinear function of the indices (random small integer coefficients)",
     "builtin": "uint8 torus with blobs: the default volume of parc render (iso 127.5)",
 }
@@ -262,7 +262,7 @@ DESCRIPTIONS = {
 #: The isovalues each registry entry is made for (`DESCRIPTIONS` names them): ``parc make``
 #: says how to render what it wrote.
 ISOVALUES = {"sphere": (0.0,), "torus": (0.0,), "marschner_lobb": (0.5,), "blobs": (100.5,), "neuron": (80.5,),
-             "floor": (127.5,), "ct_phantom": (600.0, 1500.0), "trilinear_field": (), "builtin": (127.5,)}
+             "floor": (127.5,), "ct_phantom": (600.5, 1500.5), "trilinear_field": (), "builtin": (127.5,)}
 
 
 def check_synthetic_size(size, what, name=None):

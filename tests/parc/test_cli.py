@@ -232,9 +232,10 @@ def test_make_says_how_to_render_what_it_wrote(tmp_path, capsys, monkeypatch, na
     # The histogram's suggestion need not be the level a synthetic volume is made for (sphere:
     # 7.34 where its surface is at 0), so make gives the command with that level.
     import shlex
-    from data_tools.synthetic import ISOVALUES
-    from data_tools.synthetic import DESCRIPTIONS
+    from data_tools.synthetic import DESCRIPTIONS, ISOVALUES, make_synthetic
     assert all(f"iso {v:g}" in DESCRIPTIONS[name] for v in ISOVALUES[name])      # as make --help says
+    if ISOVALUES[name]:                                                          # and as the volume says
+        assert make_synthetic(name, 12).meta["iso"] == ISOVALUES[name][0]
     monkeypatch.chdir(tmp_path)
     rc, said, err = _run(["make", name, "--size", 12, "-o", tmp_path / out], capsys)
     assert rc == 0, err
