@@ -174,7 +174,8 @@ def build_parser():
     r = sub.add_parser("render", help="render a volume to an image",
                        description="Render the isosurface of a volume (--iso), or the volume translucent "
                                    "through a transfer function (--tf). Without a volume, renders a built-in "
-                                   "synthetic one. Without --iso or --tf, uses a level suggested from the histogram. "
+                                   "synthetic one. Without --iso or --tf, uses a level suggested from the histogram (the built-in "
+                                   "volume: the level it is made for, 127.5). "
                                    "Given a scene file (SCENE.toml), renders the volumes, camera, lights and image "
                                    "size it describes.",
                        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)

@@ -1,4 +1,4 @@
-"""The `parc` command line: render, compare, bench, info, make (its flags and help: `parc.arguments`;
+"""The `parc` command line: render, compare, bench, info, make, convert (its flags and help: `parc.arguments`;
 the scene its flags describe: `parc.flagscene`).
 
 Every user mistake ends in one line on stderr (``parc: error: ...``) and

@@ -76,7 +76,7 @@ class LightBuffers:
         light's direction (directional) over which each pixel's rays may
         meet a possibly contributing supercell; ``near > far`` where none.
     polygons : int
-        Proxy faces drawn per view.
+        Faces of the proxy the views were drawn from.
     seconds : float
         Raster time when built (0 when reused).
     """

@@ -289,8 +289,9 @@ class Segments:
         Proxy faces drawn (``info['drawn']``): the faces bordering cavities
         are left out while no ray starts in one.
     seconds : dict
-        ``upload`` (0 when cached), ``draw`` (render + ``ctx.finish()``),
-        ``readback``, ``post`` (margins, inside tests).
+        ``prepare`` (clipping, which rays start inside), ``upload`` (0 when
+        cached), ``draw`` (render + ``ctx.finish()``), ``readback``, ``post``
+        (margins, inside tests), and their ``total``.
     info : dict
         ``eye_inside``, ``d_min``, ``clip_near``, ``pixels`` (with a segment),
         ``scale``, ``drawn`` (faces drawn: those bordering cavities are

@@ -2,7 +2,8 @@
 
 One driver per kind of volume: `_render_iso` (opaque isosurface: first hit,
 shaded as soon as it is found) and `_render_translucent` (accumulation). Both get their
-ray segments from `parc_segments` when the method is ``"parc"``; the
+ray segments from `parc_segments` when the method is ``"parc"`` (a translucent
+volume drawn with bit planes alone takes only the proxy, `cached_proxy`); the
 casting kernels are the same for both methods. Scenes of several volumes or
 with lights go to `_render_general` (`parc.multivolume`).
 

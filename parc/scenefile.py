@@ -53,7 +53,7 @@ Errors
 Every mistake raises `InputError` with one line naming the file and the
 key, e.g. ``scene.toml: volume[2].iso: isovalue 5000 is outside the data
 range [0, 255] of foo.nrrd`` or ``scene.toml: camera.fvo: unknown key; did
-you mean fov? (known: eye, look_at, up, fov, parallel)``. Tables of an
+you mean fov? (known: eye, look_at, up, fov, parallel, zoom)``. Tables of an
 array are counted from 1 in file order: ``volume[1]`` is the first
 ``[[volume]]``.
 """
@@ -97,7 +97,7 @@ def load_scene(path, *, view=None, size=None, progress=None) -> Scene:
         found relative to its folder.
     view : dict, optional
         Camera settings that replace the file's, keyed as in ``[camera]``
-        (``eye``, ``look_at``, ``up``, ``fov``, ``parallel``); None values
+        (``eye``, ``look_at``, ``up``, ``fov``, ``parallel``, ``zoom``); None values
         are ignored. Giving ``parallel`` drops the file's ``fov`` and giving
         ``fov`` drops its ``parallel``. For the command line's view flags.
     size : (width, height), optional

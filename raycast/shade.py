@@ -28,7 +28,7 @@ def trilinear_gradient(data, i, j, k, u, v, w, spc):
 @kernel
 def power(x, e):
     """``x ** e``; by repeated squaring for whole exponents up to 1024 (shininess
-    is nearly always one), where ``pow`` was half the shading time."""
+    is nearly always a whole number), where ``pow`` was half the shading time."""
     if 0.0 <= e <= 1024.0 and e == math.floor(e):
         n = int(e)
         r = 1.0

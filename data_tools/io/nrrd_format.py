@@ -1,4 +1,5 @@
-"""NRRD volumes (attached ``.nrrd`` and detached ``.nhdr``) through pynrrd."""
+"""NRRD volumes (attached ``.nrrd`` and detached ``.nhdr``): headers and raw or gzip data through
+pynrrd; text data, concatenated compressed streams and data split over several files here."""
 from __future__ import annotations
 
 import bz2

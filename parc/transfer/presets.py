@@ -107,7 +107,7 @@ def data_range_of(data_range, who):
         hi = lo + max(1.0, abs(lo) * 1e-9)
     return lo, hi
 
-#: One line per preset, for ``--help`` and listings.
+#: One line per preset: each preset's ``description``.
 PRESET_DESCRIPTIONS = {
     "ct_skin": "CThead-like CT: translucent skin-toned shell at the air/skin boundary (500-900)",
     "ct_bone": "CThead-like CT: whitish, nearly opaque bone (1200 and up)",
@@ -116,8 +116,9 @@ PRESET_DESCRIPTIONS = {
     "viridis": "viridis colours over the data range, opacity ramping up from 10% of it (to 1 for mip, average)",
 }
 
-#: Preset name -> factory ``f(data_range=None) -> TransferFunction``. The
-#: CT presets use absolute values and ignore the range; the others need it.
+#: Preset name -> factory ``f(data_range=None, mode="composite") -> TransferFunction``. The
+#: CT presets use absolute values and ignore the range; the others need it, and ramp
+#: their opacity by the mode (`ramp_opacity`).
 PRESETS = {
     "ct_skin": _ct_skin,
     "ct_bone": _ct_bone,
