@@ -180,7 +180,7 @@ def build_parser():
                                    "size it describes.",
                        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     r.add_argument("volume", nargs="?", metavar="VOLUME|SCENE.toml",
-                   help="volume file (.nrrd .nhdr .mhd .mha .vtk .slc .npy .raw; .nii .nii.gz with nibabel, "
+                   help="volume file (.nrrd .nhdr .mhd .mha .vtk .slc .npy, raw .raw .bin .dat; .nii .nii.gz with nibabel, "
                         ".tif .tiff stacks with tifffile) or a folder of .tif slices, or a scene file (.toml) "
                         "with several volumes, camera and lights")
     r.add_argument("-o", "--output", required=True, metavar="OUT",

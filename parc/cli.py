@@ -163,9 +163,9 @@ def cmd_info(args):
 
 
 def cmd_make(args):
-    from data_tools.io import save_volume
+    from data_tools.io import WRITE_EXTENSIONS, save_volume
     from data_tools.synthetic import ISOVALUES, check_synthetic_size, make_synthetic, making_note
-    out = check_output(args.output, (".nrrd", ".nhdr", ".npy", ".mhd", ".mha", ".vtk", ".raw"))
+    out = check_output(args.output, WRITE_EXTENSIONS)
     kwargs = {} if args.seed is None else {"seed": args.seed}
     if args.size is not None and args.size < 2:
         raise InputError(f"--size must be at least 2, got {args.size}")

@@ -279,7 +279,7 @@ def compile_notice(say, kernels=()):
     refused = cache_refused()
     if refused is not None:
         say(f"compiling the ray casters; {refused} cannot be written, so every run compiles them again "
-            "(set PARC_CACHE_DIR to a writable folder)")
+            "(set PARC_CACHE_DIR to a writable folder, or NUMBA_CACHE_DIR, which wins over it when set)")
         return
     folder = cache_folder()
     if kernels:
