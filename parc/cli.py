@@ -466,16 +466,16 @@ def cmd_bench(args):
     return main(args)
 
 
-def _buffers(args, scene=None):
+def _buffers(args, scene):
     """PARC's buffers from --buffers (parsed, refused where no volume of ``scene`` is translucent)."""
     from .renderer import DEFAULT_BUFFERS, bits_refused, parse_buffers
     from .scene import Translucent
     if args.buffers is None:
         return DEFAULT_BUFFERS
     buffers = parse_buffers(args.buffers)
-    if scene is not None and not any(isinstance(v, Translucent) for v in scene.volumes):
+    if not any(isinstance(v, Translucent) for v in scene.volumes):
         raise InputError("--buffers applies to translucent volumes (--tf); isosurfaces use the depth buffers")
-    refused = bits_refused(scene) if scene is not None and "bits" in buffers else None
+    refused = bits_refused(scene) if "bits" in buffers else None
     if refused:
         raise InputError(f"--buffers {args.buffers}: {refused}")
     return buffers

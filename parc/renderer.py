@@ -360,7 +360,7 @@ def _light_buffer_size(light_buffer):
 
 def casters_for(scene, methods=("brute",), buffers=DEFAULT_BUFFERS):
     """The Numba kernels rendering ``scene`` with ``methods`` runs whose first compile takes
-    seconds (`parc.outputs.compile_notice`): the casters, and with PARC its own (the segments'
+    seconds (those of `kernel_samples`, which `parc.outputs.compile_notice` is given): the casters, and with PARC its own (the segments'
     unpacking, the skip tables), which took 5 s behind a silent 0% once `brute`'s were cached.
     Only kernels this scene compiles: one it never uses would announce a compile every run."""
     return [kernel for kernel, _ in kernel_samples(scene, methods, buffers)]

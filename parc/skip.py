@@ -265,6 +265,6 @@ def ray_octants(camera, width, height):
     return sorted(sx + sy + sz for sx in signs[0] for sy in signs[1] for sz in signs[2])
 
 
-#: The kernels each kind of table compiles on its first use (`parc.renderer.casters_for`).
+#: The kernels each kind of table compiles on its first use (`parc.renderer.kernel_samples`).
 CENTRED_KERNELS = (_radius_rows, _radius_columns)
 OCTANT_KERNELS = (_octant_runs, _octant_grow)
