@@ -390,14 +390,13 @@ def cmd_compare(args):
     say = (lambda *a: None) if args.quiet else note
     notes = []
 
-    def warming(line):
+    def announce(line):
         # Called first once compare's checks have passed: the notes come before the wait.
         while notes:
             say(notes.pop(0))
         say(f"{line} ...")
 
-    if args.quiet:
-        warming = None
+    warming = None if args.quiet else announce
     methods = method_names(args.methods)
     if args.repeats < 1:
         raise InputError(f"--repeats must be at least 1, got {args.repeats}")
