@@ -339,7 +339,7 @@ def cmd_render(args):
         say(f"wrote {out}: {s['hits']} of {s['pixels']} pixels hit the isosurface {exact_text(vis.value)}; "
             f"{s['seconds']['total']:.3f} s, {s['cells_visited']:,} cells visited, {s['cubic_solves']:,} cubics")
     else:
-        say(f"wrote {out}: {vis.mode} of {_tf_name(vis.tf)}, step {vis.step:g}; "
+        say(f"wrote {out}: {vis.mode} of {vis.tf.title}, step {vis.step:g}; "
             f"{s['seconds']['total']:.3f} s, {s['samples']:,} samples")
     return 0
 
@@ -370,12 +370,7 @@ def _write_work(result, scene, method, path):
 def _shown(vis):
     """What a volume shows, in a few words: its isovalue, or its transfer function's mode and step."""
     return (f"isovalue {exact_text(vis.value)}" if hasattr(vis, "value")
-            else f"{vis.mode} of {_tf_name(vis.tf)}, step {vis.step:g}")
-
-
-def _tf_name(tf):
-    """A transfer function as notes name it: its name, else the file it came from."""
-    return tf.name or tf.source.removeprefix("preset ") or "the transfer function"
+            else f"{vis.mode} of {vis.tf.title}, step {vis.step:g}")
 
 
 def _describe(vis):
@@ -456,7 +451,7 @@ def _heading(args, scene, sweeping_step=False):
     runs = f"{w}x{h} pixels, median of {args.repeats} after a warm-up"
     if len(scene.volumes) > 1:
         return f"{args.volume}: {len(scene.volumes)} volumes ({'; '.join(_describe(v) for v in scene.volumes)}), {runs}"
-    shown = f"{vis.mode} of {vis.tf.name or 'the transfer function'}" if sweeping_step else _shown(vis)
+    shown = f"{vis.mode} of {vis.tf.title}" if sweeping_step else _shown(vis)
     return f"{vis.volume.name}: {'x'.join(map(str, vis.volume.dims))} {vis.volume.dtype}, {shown}, {runs}"
 
 

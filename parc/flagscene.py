@@ -42,7 +42,7 @@ def scene_from_flags(args, say):
     for vis in scene.volumes:
         if hasattr(vis, "tf") and not vis.tf.nonzero_in(*vis.volume.value_range()):
             lo, hi = vis.volume.value_range()
-            say(f"{vis.tf.name or 'the transfer function'} is transparent over the data range "
+            say(f"{vis.tf.title} is transparent over the data range "
                 f"[{exact_text(lo)}, {exact_text(hi)}] of {vis.volume.name}: that volume shows nothing")
     return _add_flag_lights(scene, args, say)
 

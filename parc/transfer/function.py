@@ -142,6 +142,11 @@ class TransferFunction:
         self._sup_lo = _frozen(sup[:, 0])
         self._sup_hi = _frozen(sup[:, 1])
 
+    @property
+    def title(self):
+        """How notes and table headings name it: its name, else where it came from."""
+        return self.name or self.source.removeprefix("preset ") or "the transfer function"
+
     # -- the kernels' view -------------------------------------------------
 
     def arrays(self):

@@ -1339,7 +1339,10 @@ def test_a_transfer_function_transparent_over_the_data_gets_a_note(vol_file, tmp
     tf = tmp_path / "far.toml"
     tf.write_text("opacity = [[1000, 0], [2000, 1]]\n")
     rc, _, err = _run(["render", vol_file, "--tf", tf, "--size", 8, 8, "-o", tmp_path / "o.png"], capsys)
-    assert rc == 0 and "is transparent over the data range [0.8660253882408142, 9.52627944946289]" in err
+    assert rc == 0 and f"{tf} is transparent over the data range [0.8660253882408142, 9.52627944946289]" in err
+    # Named by its file in every line, the step sweep's heading too (not "the transfer function").
+    rc, out, err = _run(["compare", vol_file, "--tf", tf, "--size", 8, 8, "--repeats", 1, "--sweep-step", 1], capsys)
+    assert rc == 0 and f"composite of {tf}" in out, out
     rc, _, err = _run(["render", vol_file, "--tf", "greyscale", "--size", 8, 8, "-o", tmp_path / "g.png"], capsys)
     assert rc == 0 and "transparent" not in err
 
