@@ -195,6 +195,11 @@ def neuron(size=128, *, seed=0, noise=True) -> Volume:
                         "synthetic": "neuron"})
 
 
+def floor_height(n):
+    """Samples along z of an ``n`` x ``n`` floor: a slab is thin, but has room for its relief."""
+    return max(8, n // 8)
+
+
 def floor(size=128, *, height=None, thickness=None, tile=None, relief=None) -> Volume:
     """A volumetric floor: a closed slab with a gentle checkerboard relief on top (uint8).
 
@@ -233,7 +238,7 @@ def floor(size=128, *, height=None, thickness=None, tile=None, relief=None) -> V
             n = int(size)
         except (TypeError, ValueError):
             raise InputError(f"size must be an integer or three integers, got {size!r}") from None
-        dims = grid_dims((n, n, height if height is not None else max(8, n // 8)))
+        dims = grid_dims((n, n, height if height is not None else floor_height(n)))
     else:
         dims = grid_dims(size)
     ext = np.array(dims, dtype=np.float64) - 1

@@ -10,7 +10,7 @@ import numpy as np
 from .errors import InputError
 from .memory import check_memory
 from .grids import grid_axes, grid_dims, soft_inside, volume_label
-from .neuron import floor, neuron
+from .neuron import floor, floor_height, neuron
 from .phantom import ct_phantom, ct_phantom_to_disk
 from .volume import Volume
 
@@ -270,7 +270,7 @@ def check_synthetic_size(size, what, name=None):
     fit in memory while it is made."""
     dims = np.broadcast_to(np.asarray(size, dtype=float), 3).copy()
     if name == "floor" and np.ndim(size) == 0:
-        dims[2] = max(8, int(size) // 8)          # a floor is thin (`floor`)
+        dims[2] = floor_height(int(size))
     per_sample = SLAB_BYTES_PER_SAMPLE.get(name, SYNTHETIC_BYTES_PER_SAMPLE)
     check_memory(per_sample * float(np.prod(dims)), what)
 
@@ -287,7 +287,7 @@ def making_note(name, size):
         return None
     dims = [int(size)] * 3 if np.ndim(size) == 0 else [int(n) for n in size]
     if name == "floor" and np.ndim(size) == 0:
-        dims[2] = max(8, int(size) // 8)          # a floor is thin (`floor`)
+        dims[2] = floor_height(int(size))
     samples = math.prod(dims)
     if samples < LARGE_SYNTHETIC_SAMPLES:
         return None
