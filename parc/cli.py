@@ -224,11 +224,10 @@ def _raw_flags(vol, out):
     if "dtype" not in named or "dtypes" in named:
         flags.append(f"--dtype {vol.dtype}")
     # Shortest exact forms: ":g" rounds to 6 digits, and a spacing of 1/3 would read back changed.
-    exact = lambda values: ",".join(repr(float(v)).removesuffix(".0") for v in values)    # noqa: E731
     if vol.spacing != (1.0, 1.0, 1.0):
-        flags.append(f"--spacing {exact(vol.spacing)}")
+        flags.append(f"--spacing {','.join(map(exact_text, vol.spacing))}")
     if vol.origin != (0.0, 0.0, 0.0):
-        flags.append(f"--origin {exact(vol.origin)}")
+        flags.append(f"--origin {','.join(map(exact_text, vol.origin))}")
     return flags
 
 
@@ -505,10 +504,7 @@ def _check_sweep_flags(args):
 def _size_label(size):
     """A supercell size as a method label: ``4``, ``4.0000001`` or ``1x2x3``: every digit it
     needs, so that two sizes never share a label (and a row)."""
-    def short(v):
-        text = repr(float(v))
-        return text[:-2] if text.endswith(".0") else text
-    return "x".join(short(v) for v in size) if isinstance(size, tuple) else short(size)
+    return "x".join(map(exact_text, size)) if isinstance(size, tuple) else exact_text(size)
 
 
 def _supercell_or_error(text):
