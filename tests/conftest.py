@@ -98,6 +98,6 @@ def pytest_testnodedown(node, error):
 
 def pytest_terminal_summary(terminalreporter):
     if LOOSENESS:
-        terminalreporter.section("parc raster: segment looseness (reported, not asserted)")
+        terminalreporter.section("parc raster: segment looseness (bounded in test_raster.py)")
         for line in LOOSENESS:
             terminalreporter.write_line(line)
