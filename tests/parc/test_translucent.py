@@ -19,6 +19,11 @@ MODES = ("composite", "mip", "average")
 SUPERCELLS = (0.5, 1, 2, 3, 4.5, 8, (2, 3, 1.5))
 SIZE = (36, 28)
 BUFFERS = (("depth",), ("bits",), ("depth", "bits"))
+#: Each random scene shows at least MIN_VISIBLE pixels of alpha above VISIBLE_ALPHA (drawn
+#: up to MAX_DRAWS times).
+MIN_VISIBLE = 5
+VISIBLE_ALPHA = 0.01
+MAX_DRAWS = 20
 
 
 def _random_tf(rng, lo, hi):
@@ -44,7 +49,7 @@ def _volume(rng, seed):
     if kind == 0:
         data = blobs(dims, seed=seed).data
     elif kind == 1:
-        data = ct_phantom(dims, seed=seed, dtype="uint16" if seed % 2 else "int16").data
+        data = ct_phantom(dims, seed=seed, dtype=str(rng.choice(["uint16", "int16"]))).data
     elif kind == 2:
         data = rng.normal(size=dims[::-1]).astype(np.float32)
     else:
@@ -80,13 +85,20 @@ def test_parc_equals_brute_translucent(seed, gl):
     rng = np.random.default_rng(1000 + seed)
     vol = _volume(rng, seed)
     lo, hi = vol.value_range()
-    tf = _random_tf(rng, lo, hi)
     mode = MODES[seed % 3]
-    vis = Translucent(vol, tf, mode=mode, shade=mode == "composite" and bool(seed % 2),
-                      step=None if seed % 4 else 0.37)
-    scene = Scene(camera=_camera(rng, vol, seed), size=SIZE, volumes=[vis])
+    # Drawn from the generator, not the seed, which already chose the volume and the view.
+    shade = mode == "composite" and bool(rng.random() < 0.5)
+    step = 0.37 if rng.random() < 0.25 else None
+    # A scene that shows nothing cannot show a skipped sample: another transfer function and
+    # view are drawn until brute's image is visible in a few pixels.
+    for _ in range(MAX_DRAWS):
+        vis = Translucent(vol, _random_tf(rng, lo, hi), mode=mode, shade=shade, step=step)
+        scene = Scene(camera=_camera(rng, vol, seed), size=SIZE, volumes=[vis])
+        ref = render(scene, method="brute", work=True)
+        if (ref.image[..., 3] > VISIBLE_ALPHA).sum() >= MIN_VISIBLE:
+            break
+    assert (ref.image[..., 3] > VISIBLE_ALPHA).sum() >= MIN_VISIBLE, f"no scene of {MAX_DRAWS} shows anything"
     supercell = SUPERCELLS[seed % len(SUPERCELLS)]
-    ref = render(scene, method="brute", work=True)
     buffers = BUFFERS[(seed // 3) % len(BUFFERS)]
     res = render(scene, method="parc", supercell=supercell, buffers=buffers, work=True)
     where = f"{mode} supercell={supercell} buffers={buffers} seed={seed}"
