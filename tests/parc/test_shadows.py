@@ -513,3 +513,29 @@ def test_stats_parameters_describe_the_volume_as_the_scene_states_it():
     p = render(Scene(camera=cam, size=(8, 6), volumes=[Isosurface(vol, value=0.3)]), "brute").stats["parameters"]
     assert p == {"size": [8, 6], "volume": "fog", "dims": [10, 10, 10], "dtype": "float32", "isovalue": 0.3,
                  "camera": {"eye": [5.0, 5.0, 60.0], "look_at": [5.0, 5.0, 5.0], "up": [0.0, 1.0, 0.0], "fov": 20.0}}
+
+
+@pytest.mark.parametrize("method", ["brute", "parc"])
+@pytest.mark.parametrize("light", ["sun", "point"])
+def test_a_lit_floor_has_the_shading_the_readme_gives(gl, method, light):
+    # c * ambient + colour * intensity * (c * diffuse * n.l + specular * (n.h)^shininess), the
+    # README's formula, worked by hand for a flat floor: light intensity and colour scale each
+    # channel, the surface's colour only the ambient and diffuse terms.
+    c, (ambient, diffuse, specular, shininess) = np.array([1.0, 0.8, 0.6]), (0.2, 0.5, 0.5, 4.0)
+    lc, intensity = np.array([1.0, 0.5, 0.25]), 0.8
+    z = np.arange(11, dtype=np.float32)[:, None, None]
+    floor = Volume(np.broadcast_to(5.5 - z, (11, 11, 21)).copy(), name="floor")
+    cam = Camera(eye=(10.0, 5.0, 100.0), look_at=(10.0, 5.0, 0.0), up=(0, 1, 0), parallel_scale=3.0)
+    if light == "sun":
+        lamp = DirectionalLight((-1.0, 0.0, -1.0), color=tuple(lc), intensity=intensity)
+    else:
+        lamp = PointLight((1e7, 5.0, 1e7 + 5.5), color=tuple(lc), intensity=intensity)   # far: nearly the sun
+    scene = Scene(camera=cam, size=(8, 8), volumes=[Isosurface(floor, 0.0, color=tuple(c),
+                                                               material=(ambient, diffuse, specular, shininess))],
+                  lights=[lamp])
+    n, l, v = np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 1.0]) / np.sqrt(2.0), np.array([0.0, 0.0, 1.0])
+    h = (l + v) / np.linalg.norm(l + v)
+    expected = np.minimum(c * ambient + lc * intensity * (c * diffuse * (n @ l) + specular * (n @ h) ** shininess), 1.0)
+    image = render(scene, method).image
+    assert (image[..., 3] == 1.0).all()
+    np.testing.assert_allclose(image[..., :3], np.broadcast_to(expected, (8, 8, 3)), atol=1e-5, rtol=0)
