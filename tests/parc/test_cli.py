@@ -131,7 +131,9 @@ def test_render_without_iso_suggests_one(vol_file, tmp_path, capsys):
 def test_render_builtin_volume(tmp_path, capsys):
     rc, _, err = _run(["render", "--size", 24, 24, "-o", tmp_path / "b.png"], capsys)
     assert rc == 0, err
-    assert (tmp_path / "b.png").stat().st_size > 0
+    # The built-in view frames the torus: a good part of the picture is surface, its edges are not.
+    alpha = np.asarray(Image.open(tmp_path / "b.png"))[..., 3]
+    assert 0.05 < (alpha == 255).mean() < 0.9 and (alpha[[0, -1]] == 0).all() and (alpha[:, [0, -1]] == 0).all()
 
 
 def test_info_and_make(tmp_path, capsys):
@@ -693,7 +695,27 @@ def test_render_translucent(vol_file, tmp_path, capsys):
     rc, _, err = _run(["render", vol_file, "--tf", "viridis", "--mode", "mip", "--size", 20, 16, "-o", out,
                        "--method", "parc"], capsys)
     assert rc == 0, err
-    assert "samples" in err and out.exists()
+    assert "samples" in err and np.asarray(Image.open(out))[..., 3].max() > 0
+
+
+def test_render_translucent_depth_is_inf_and_background_fills_the_rest(vol_file, tmp_path, capsys):
+    # A translucent volume has no opaque hit (the README's --depth); the background shows
+    # where the volume is transparent, composited under it.
+    out, depth = tmp_path / "t.npy", tmp_path / "d.npy"
+    rc, _, err = _run(["render", vol_file, "--tf", "greyscale", "--size", 20, 16, "-o", out, "--depth", depth,
+                       "--background", "0.2,0.4,0.6"], capsys)
+    assert rc == 0, err
+    assert np.isposinf(np.load(depth)).all()
+    image = np.load(out)
+    assert np.allclose(image[..., 3], 1.0)                 # an opaque background behind every pixel
+    corner = image[0, 0]
+    np.testing.assert_allclose(corner, [0.2, 0.4, 0.6, 1.0], atol=1e-6)     # no volume there
+    rc, _, err = _run(["render", vol_file, "--iso", 4.0, "--size", 20, 16, "-o", out, "--background", "0.2,0.4,0.6"],
+                      capsys)
+    image = np.load(out)
+    assert rc == 0 and (image[..., 3] == 1.0).all()
+    missed = np.all(np.abs(image - [0.2, 0.4, 0.6, 1.0]) <= 1e-6, axis=-1)
+    assert 0 < missed.sum() < missed.size, "the background shows around the surface, not over it"
 
 
 @pytest.mark.parametrize("content, words", [
