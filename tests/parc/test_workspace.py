@@ -4,6 +4,8 @@ Truth: object identity for the reuse itself, and for renders a fresh
 render of the same scene after others have run in between (a work array
 leaking into a result would be overwritten by them).
 """
+import os
+
 import numpy as np
 import pytest
 
@@ -79,8 +81,25 @@ def test_a_frame_larger_than_memory_is_refused_before_casting(monkeypatch):
 
 def test_available_memory_reads_the_system():
     have = memory.available_memory()
-    # Linux reports it; elsewhere the check is skipped rather than guessed.
-    assert have is None or have > 0
+    # Linux reports it (and a reader returning None there would switch the checks off without
+    # a word); elsewhere the check is skipped rather than guessed.
+    if not os.path.exists("/proc/meminfo"):
+        assert have is None
+        return
+    total = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    assert have is not None and 0 < have <= total
+
+
+def test_available_memory_is_none_where_the_system_does_not_say(monkeypatch, tmp_path):
+    import builtins
+    real_open = builtins.open
+    fake = tmp_path / "meminfo"
+    fake.write_text("MemTotal:       1000 kB\nMemFree:        500 kB\n")     # a kernel before 3.14
+    monkeypatch.setattr(builtins, "open", lambda path, *a, **k: real_open(fake if path == "/proc/meminfo" else path,
+                                                                          *a, **k))
+    assert memory.available_memory() is None
+    fake.write_text("MemAvailable:   2048 kB\n")
+    assert memory.available_memory() == 2048 * 1024
 
 
 def test_a_built_volume_and_scene_cannot_change_under_their_caches():
