@@ -61,7 +61,7 @@ def visible_woman(suite, progress):
     with tempfile.TemporaryDirectory(prefix="parc-vw-") as folder:      # its own: two runs at once
         out = Path(folder) / "scale.json"
         cmd = [sys.executable, "-m", "parc.bench.scale", str(path), "--size", str(suite.vw_size),
-               "--repeats", str(suite.repeats), "--json", str(out)]
+               "--repeats", str(suite.repeats), "--json", str(out), "--parent", str(os.getpid())]
         progress(f"Visible Woman scale: rendering in a child process ({' '.join(cmd[1:4])} ...)")
         # A session of its own, out of the terminal's reach: a Ctrl-C stops this process, which
         # kills the child (subprocess.run does on any exception), instead of interrupting both.
@@ -156,13 +156,15 @@ def measure(path, size, repeats, say):
     return out
 
 
-def _end_with_parent():
-    """Exit once the bench that started this process is gone, however it went: in a session
-    of its own, no terminal's Ctrl-C reaches this process, and a bench stopped between
-    starting it and waiting for it could not kill it (the full suite's renders take minutes)."""
+def _end_with_parent(parent=None):
+    """Exit once the bench that started this process (``parent``, its process id) is gone,
+    however it went: in a session of its own, no terminal's Ctrl-C reaches this process, and
+    a bench stopped between starting it and waiting for it could not kill it (the full
+    suite's renders take minutes). The bench names itself: a parent read here could already
+    be the process that adopted this one."""
     import threading
 
-    parent = os.getppid()
+    parent = os.getppid() if parent is None else parent
 
     def watch():
         while os.getppid() == parent:
@@ -178,8 +180,9 @@ def main(argv=None):
     p.add_argument("--size", type=int, default=512)
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--json", required=True)
+    p.add_argument("--parent", type=int, help="the bench's process id: this one ends when it does")
     a = p.parse_args(argv)
-    _end_with_parent()
+    _end_with_parent(a.parent)
 
     def say(msg):
         note(f"  {msg}", "parc bench")

@@ -386,9 +386,9 @@ def test_an_interrupted_phantom_write_leaves_nothing_in_the_cache(tmp_path, monk
 
 
 _GRANDCHILD = """
-import subprocess, sys
-child = subprocess.Popen([sys.executable, "-c",
-                          "import time; from parc.bench.scale import _end_with_parent; _end_with_parent(); time.sleep(120)"])
+import os, subprocess, sys
+child = subprocess.Popen([sys.executable, "-c", "import time; from parc.bench.scale import _end_with_parent; "
+                          f"_end_with_parent({os.getpid()}); time.sleep(120)"])
 print(child.pid, flush=True)
 child.wait()
 """
@@ -402,11 +402,12 @@ def test_the_visible_woman_child_ends_with_the_bench(tmp_path):
     import time
     bench = subprocess.Popen([sys.executable, "-c", _GRANDCHILD], stdout=subprocess.PIPE, text=True)
     child = int(bench.stdout.readline())
-    time.sleep(1.0)
     state = Path(f"/proc/{child}/status")
     if not Path("/proc/self/status").exists():
         pytest.skip("no /proc to watch the child in")
-    assert state.exists() and "\tZ" not in state.read_text()        # watching, not ended on its own
+    assert state.exists() and "\tZ" not in state.read_text()        # not ended on its own
+    # Killed at once, while the child may still be starting: the parent it watches is the one
+    # that named itself, so an adoption before the watch begins ends the child too.
     os.kill(bench.pid, signal.SIGKILL)
     bench.wait()
     for _ in range(100):
@@ -502,3 +503,12 @@ def test_table3_splits_primary_and_shadow_time_and_divides_by_brute_at_the_same_
         ("brute", "1.00×", "1.00×", "1.00×"), ("parc", "6.00×", "2.00×", "3.00×")]
     assert [(r["primary casting (s)"], r["primary total (s)"], r["shadow (s)"]) for r in shown[:2]] == [
         ("2.000", "3.000", "3.000"), ("0.500", "1.000", "1.000")]
+
+
+def test_the_visible_woman_child_already_adopted_ends_at_once():
+    # The bench names itself: read in the child, the parent could be the process that had
+    # already adopted it (a bench killed while the child started), which never ends.
+    gone = 2 ** 22 + 12345                                    # no such process: the bench has ended
+    child = subprocess.run([sys.executable, "-c", "import time; from parc.bench.scale import _end_with_parent; "
+                            f"_end_with_parent({gone}); time.sleep(60)"], timeout=50)
+    assert child.returncode == 130
