@@ -113,8 +113,8 @@ def _from_array(data, options):
     given = {k: v for k, v in options.items() if v is not None and not (k == "mmap" and not v)}
     extra = sorted(set(given) - {"spacing", "origin"})
     if extra:
-        raise InputError(f"load_volume: {', '.join(extra)} describe a raw file's bytes; "
-                         "an array in memory takes only spacing and origin")
+        raise InputError(f"load_volume: {', '.join(extra)} {'describes' if len(extra) == 1 else 'describe'} "
+                         "a raw file's bytes; an array in memory takes only spacing and origin")
     return Volume(data, name="array", **given)
 
 

@@ -65,9 +65,11 @@ def read_nrrd(path) -> Volume:
         meta["data_file"] = str(data_file)
     if "data files" in header:
         meta["data_files"] = tuple(str(p) for p in header["data files"][0])
-    spacing, note = _spacing(header, path)
+    spacing, note, unknown = _spacing(header, path)
     if note:
         meta["note"] = note
+    if unknown:
+        meta["spacing_unknown"] = True      # a --spacing given replaces it, and its note
     origin = _origin(header, spacing, path)
     if spacing is None:
         spacing, origin = _from_extent(header, data.shape[::-1])
@@ -518,6 +520,9 @@ def _from_extent(header, sizes):
 
 
 def _spacing(header, path):
+    """``(spacing, note, unknown)``: the spacing the header gives (None where ``axis mins`` and
+    ``axis maxs`` give it with the origin), a note on what was made of it, and whether a
+    spacing was not given at all (NaN or infinite, taken as 1)."""
     dirs = header.get("space directions")
     if dirs is not None:
         try:
@@ -539,28 +544,27 @@ def _spacing(header, path):
                     f"(their lengths {tuple(round(float(n), 6) for n in norms)}); orientation is ignored")
         elif mirrored:
             note = "negative space directions (mirrored axes) were reduced to positive spacings"
-        return tuple(float(n) for n in norms), note
+        return tuple(float(n) for n in norms), note, False
     spacings = header.get("spacings")
     if spacings is not None:
         sp = np.asarray(spacings, dtype=np.float64)
         if sp.shape != (3,):
             raise InputError(f"{path}: spacings gives {sp.size} values for 3 axes")
-        if np.isinf(sp).any():
-            raise InputError(f"{path}: spacings must be finite (NaN for an unknown one), got "
-                             f"{' '.join(f'{v:g}' for v in sp)}")
         notes = []
-        if (sp < 0).any():
+        if (np.isfinite(sp) & (sp < 0)).any():
             notes.append("negative spacings (mirrored axes) were reduced to positive spacings")
-        unknown = np.isnan(sp)
+        unknown = ~np.isfinite(sp)
         if unknown.any():
-            # NaN is NRRD's word for a spacing the writer did not know.
+            # NaN is NRRD's word for a spacing the writer did not know; an infinite one is no
+            # spacing either. Either is 1, said (and the note dropped when --spacing is given).
             axes = ", ".join("xyz"[i] for i in np.flatnonzero(unknown))
-            notes.append(f"spacings gives NaN (unknown) for {axes}: taken as 1 (give --spacing SX,SY,SZ)")
+            words = " and ".join(sorted({"NaN (unknown)" if np.isnan(v) else f"{v:g}" for v in sp[unknown]}))
+            notes.append(f"spacings gives {words} for {axes}: taken as 1 (give --spacing SX,SY,SZ)")
         sp = np.where(unknown, 1.0, np.abs(sp))
-        return tuple(float(s) for s in sp), "; ".join(notes) or None
+        return tuple(float(s) for s in sp), "; ".join(notes) or None, bool(unknown.any())
     if _has_extent(header):
-        return None, None           # from axis mins and maxs (`_from_extent`), with the origin
-    return (1.0, 1.0, 1.0), None
+        return None, None, False    # from axis mins and maxs (`_from_extent`), with the origin
+    return (1.0, 1.0, 1.0), None, False
 
 
 def _has_extent(header):

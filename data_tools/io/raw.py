@@ -127,7 +127,7 @@ def _parse_dtype(dtype, path):
 
 
 def _header_beside(path):
-    """A MetaImage or detached NRRD header beside ``path`` naming it as its data file, or None:
+    """A MetaImage or detached NRRD header beside ``path`` whose data file is ``path``, or None:
     the samples of such a pair are often opened instead of its header."""
     try:
         siblings = [p for p in path.parent.iterdir()
@@ -135,13 +135,29 @@ def _header_beside(path):
     except OSError:
         return None
     for header in sorted(siblings):
-        try:
-            with open(header, "rb") as f:
-                head = f.read(1 << 16)
-        except OSError:
-            continue
-        if path.name.encode() in head:
+        named = _data_file_named(header)
+        if named and (header.parent / named).resolve() == path.resolve():
             return header
+    return None
+
+
+#: The line of a MetaImage or NRRD header that names its data file, and the name.
+_DATA_FILE_LINE = re.compile(r"\s*(?:ElementDataFile\s*=|data ?file\s*:)\s*(.*?)\s*", re.IGNORECASE)
+
+
+def _data_file_named(header):
+    """The data file a header's own line names (as written), or None."""
+    try:
+        with open(header, "rb") as f:
+            while f.tell() < 1 << 20:                       # a header's lines, not samples after them
+                line = f.readline(1 << 16)
+                if not line:
+                    return None
+                m = _DATA_FILE_LINE.fullmatch(line.decode("utf-8", "replace").rstrip("\r\n"))
+                if m:
+                    return m.group(1)
+    except OSError:
+        return None
     return None
 
 

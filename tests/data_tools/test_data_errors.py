@@ -82,9 +82,13 @@ def test_raw_samples_of_a_header_pair_point_at_the_header(tmp_path, ext):
     header = save_volume(Volume(np.zeros((2, 3, 4), np.uint8)), tmp_path / f"pair{ext}")
     msg = fails(tmp_path / "pair.raw")
     assert f"open {header.name} instead" in msg and "--shape" not in msg
-    (tmp_path / "lone.raw").write_bytes(bytes(24))          # a header beside names other samples
-    (tmp_path / "lone.mhd").write_text("NDims = 3\nElementDataFile = other.raw\n")
+    (tmp_path / "lone.raw").write_bytes(bytes(24))          # headers beside naming other samples
+    (tmp_path / "lone.mhd").write_text("NDims = 3\n# from lone.raw\nElementDataFile = lone.raw.gz\n")
+    (tmp_path / "lone.nhdr").write_text("NRRD0004\n# converted from lone.raw\ndata file: other.raw\n")
     assert "--shape" in fails(tmp_path / "lone.raw")
+    (tmp_path / "long.raw").write_bytes(bytes(24))          # a long comment before the line
+    (tmp_path / "long.mhd").write_text("Comment = " + "x" * 100000 + "\nElementDataFile = long.raw\n")
+    assert "open long.mhd instead" in fails(tmp_path / "long.raw")
 
 
 def test_raw_size_mismatch_states_both_sizes(tmp_path):

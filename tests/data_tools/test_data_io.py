@@ -4,7 +4,6 @@ from __future__ import annotations
 import bz2
 import gzip
 import json
-import re
 import zlib
 from decimal import Decimal, localcontext
 from fractions import Fraction
@@ -875,23 +874,21 @@ def test_nrrd_negative_spacings_are_noted(tmp_path):
 
 
 @pytest.mark.parametrize("spacings, spacing, words", [
-    ("nan 1 2", (1.0, 1.0, 2.0), "NaN (unknown) for x: taken as 1"),
+    ("nan 1 2", (1.0, 1.0, 2.0), "spacings gives NaN (unknown) for x: taken as 1"),
     ("-0.5 NaN nan", (0.5, 1.0, 1.0), "mirrored axes) were reduced to positive spacings; spacings gives NaN (unknown) for y, z"),
-    ("1e400 1 2", None, "spacings must be finite (NaN for an unknown one), got inf 1 2"),
-    ("0.5 -inf 2", None, "spacings must be finite"),
+    ("1e400 1 2", (1.0, 1.0, 2.0), "spacings gives inf for x: taken as 1"),
+    ("0.5 -inf nan", (0.5, 1.0, 1.0), "spacings gives -inf and NaN (unknown) for y, z: taken as 1"),
 ])
-def test_nrrd_unknown_spacings_are_1_with_a_note_and_infinite_ones_refused(tmp_path, spacings, spacing, words):
-    # NaN is NRRD's unknown spacing, read as 1 with a word; an infinite one is not a spacing
-    # (both were read as 1 without one, -inf as a mirrored axis).
+def test_nrrd_unknown_spacings_are_1_with_a_note_that_a_given_spacing_drops(tmp_path, spacings, spacing, words):
+    # NaN is NRRD's unknown spacing, and an infinite one is none: both were read as 1 without
+    # a word (-inf as a mirrored axis). The spacing given replaces them, and the note with them.
     path = tmp_path / "s.nrrd"
     path.write_bytes(b"NRRD0004\ntype: short\ndimension: 3\nsizes: 5 4 3\nendian: little\nencoding: raw\n"
                      + f"spacings: {spacings}\n\n".encode() + _ZYX.astype("<i2").tobytes())
-    if spacing is None:
-        with pytest.raises(InputError, match=re.escape(words)):
-            load_volume(path)
-    else:
-        vol = load_volume(path)
-        assert vol.spacing == spacing and words in vol.meta["note"]
+    vol = load_volume(path)
+    assert vol.spacing == spacing and words in vol.meta["note"], vol.meta.get("note")
+    given = load_volume(path, spacing=(1, 2, 3))
+    assert given.spacing == (1.0, 2.0, 3.0) and "note" not in given.meta
 
 
 @pytest.mark.parametrize("sizes_first, kinds", [

@@ -402,12 +402,11 @@ def test_the_visible_woman_child_ends_with_the_bench(tmp_path):
     import time
     bench = subprocess.Popen([sys.executable, "-c", _GRANDCHILD], stdout=subprocess.PIPE, text=True)
     child = int(bench.stdout.readline())
+    time.sleep(1.0)
     state = Path(f"/proc/{child}/status")
     if not Path("/proc/self/status").exists():
         pytest.skip("no /proc to watch the child in")
-    assert state.exists() and "\tZ" not in state.read_text()        # not ended on its own
-    # Killed at once, while the child may still be starting: the parent it watches is the one
-    # that named itself, so an adoption before the watch begins ends the child too.
+    assert state.exists() and "\tZ" not in state.read_text()        # watching, not ended on its own
     os.kill(bench.pid, signal.SIGKILL)
     bench.wait()
     for _ in range(100):
@@ -508,7 +507,19 @@ def test_table3_splits_primary_and_shadow_time_and_divides_by_brute_at_the_same_
 def test_the_visible_woman_child_already_adopted_ends_at_once():
     # The bench names itself: read in the child, the parent could be the process that had
     # already adopted it (a bench killed while the child started), which never ends.
+    import os
+    import time
+    code = ("import sys, time; from parc.bench.scale import _end_with_parent; "
+            "_end_with_parent(int(sys.argv[1])); print('watching', flush=True); time.sleep(60)")
     gone = 2 ** 22 + 12345                                    # no such process: the bench has ended
-    child = subprocess.run([sys.executable, "-c", "import time; from parc.bench.scale import _end_with_parent; "
-                            f"_end_with_parent({gone}); time.sleep(60)"], timeout=50)
+    child = subprocess.run([sys.executable, "-c", code, str(gone)], capture_output=True, text=True, timeout=50)
     assert child.returncode == 130
+    # Named by a parent that is there, it watches (and does not end on its own).
+    child = subprocess.Popen([sys.executable, "-c", code, str(os.getpid())], stdout=subprocess.PIPE, text=True)
+    try:
+        assert child.stdout.readline() == "watching\n"
+        time.sleep(1.0)
+        assert child.poll() is None
+    finally:
+        child.kill()
+        child.wait()

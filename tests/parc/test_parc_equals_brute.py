@@ -88,8 +88,9 @@ def _camera(rng, vol, view, iso, supercell):
 
 
 KINDS = ("noise_uint8", "noise_float32", "blobs", "ct_int16", "ct_uint16", "trilinear")
-#: Each test scene shows the surface in at least this many pixels (drawn up to MAX_DRAWS times).
-MIN_HITS = 5
+#: Each test scene shows the surface in at least this many pixels (drawn up to MAX_DRAWS times):
+#: a scene of a pixel or two, where a missed hit would show as well as anywhere, is kept.
+MIN_HITS = 1
 MAX_DRAWS = 20
 
 
@@ -101,7 +102,7 @@ def test_parc_equals_brute(seed, gl):
     supercell = SUPERCELLS[seed % len(SUPERCELLS)]
     vol = _volume(rng, kind)
     # A scene that shows nothing cannot show a missed hit, PARC's likeliest fault: another
-    # level and view are drawn until brute hits a few pixels.
+    # level and view are drawn until brute hits something.
     for _ in range(MAX_DRAWS):
         iso = _isovalue(rng, vol)
         cam = _camera(rng, vol, view, iso, supercell)

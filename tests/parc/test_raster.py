@@ -57,8 +57,9 @@ def _check(camera, proxy, width, height, label, report, *, cell=1.0):
     slack = np.concatenate([near_ref[meet] - seg.near[meet], seg.far[meet] - far_ref[meet]]) / cell
     # Conservative is not enough: segments as long as the whole ray would pass the checks
     # above and accelerate nothing. The margins cost a few cells at most (grazing faces,
-    # the dilation's neighbours), a hundredth of one on average, and a segment reaches no
-    # pixel beyond the dilation's two.
+    # the dilation's neighbours; 6 here), well under one on average (a hundredth, but half
+    # a cell with the eye a hair below a face), and a segment reaches no pixel beyond the
+    # dilation's two.
     assert slack.max() <= LOOSE_MAX_CELLS and slack.mean() <= LOOSE_MEAN_CELLS, (
         f"{label}: segments loose by up to {slack.max():.3g} cells, {slack.mean():.3g} on average")
     near_px = meet.copy()

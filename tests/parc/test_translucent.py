@@ -21,7 +21,7 @@ SIZE = (36, 28)
 BUFFERS = (("depth",), ("bits",), ("depth", "bits"))
 #: Each random scene shows at least MIN_VISIBLE pixels of alpha above VISIBLE_ALPHA (drawn
 #: up to MAX_DRAWS times).
-MIN_VISIBLE = 5
+MIN_VISIBLE = 1
 VISIBLE_ALPHA = 0.01
 MAX_DRAWS = 20
 
@@ -90,7 +90,7 @@ def test_parc_equals_brute_translucent(seed, gl):
     shade = mode == "composite" and bool(rng.random() < 0.5)
     step = 0.37 if rng.random() < 0.25 else None
     # A scene that shows nothing cannot show a skipped sample: another transfer function and
-    # view are drawn until brute's image is visible in a few pixels.
+    # view are drawn until brute's image shows something.
     for _ in range(MAX_DRAWS):
         vis = Translucent(vol, _random_tf(rng, lo, hi), mode=mode, shade=shade, step=step)
         scene = Scene(camera=_camera(rng, vol, seed), size=SIZE, volumes=[vis])
