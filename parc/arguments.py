@@ -233,12 +233,13 @@ def build_parser():
                                    "against error (supercell, sample step, root finder, storage precision), a "
                                    "512x512x1734 int16 memory-mapped phantom, and the ideal bound. Real volumes "
                                    "from ../shared/data are used when present, synthetic ones otherwise. The "
-                                   "full suite takes several minutes on 2 cores (the phantom, 910 MB, is written "
-                                   "to the cache folder on the first run); exits 1 if a consistency check fails.")
+                                   "full suite takes about 2 minutes on 2 cores (the phantom, 910 MB, is written "
+                                   "to the cache folder on the first run, a minute more); exits 1 if a consistency "
+                                   "check fails.")
     b.add_argument("--out", default="bench-report", metavar="DIR", help="output folder (default bench-report)")
     size = b.add_mutually_exclusive_group()
     size.add_argument("--quick", action="store_true",
-                      help="a reduced suite in a few minutes: half-size images, a 256x256x867 phantom")
+                      help="a reduced suite, under a minute on 2 cores: half-size images, 2 repeats, a 256x256x867 phantom")
     size.add_argument("--tiny", action="store_true",
                       help="tiny synthetic volumes and images, seconds: checks the report, not the speed")
     b.add_argument("--data", metavar="DIR", help="folder of real volumes (default ../shared/data beside the checkout)")

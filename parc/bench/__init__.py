@@ -15,8 +15,9 @@ charts and the scenes' pictures into one folder:
 
 Real volumes from ``../shared/data`` are used when present, synthetic
 analogues otherwise; the report says which. Three suites: `Suite.full`
-(the default), `Suite.quick` (a few minutes) and `Suite.tiny` (seconds; for
-the tests: its numbers check the report's consistency, not speed).
+(the default, about 2 minutes on 2 cores), `Suite.quick` (under a minute)
+and `Suite.tiny` (seconds; for the tests: its numbers check the report's
+consistency, not speed).
 """
 from __future__ import annotations
 
@@ -92,12 +93,12 @@ class Suite:
 
     @classmethod
     def full(cls, **kw):
-        """The whole suite at the papers' sizes (several minutes on 2 cores; the phantom's first build adds one)."""
+        """The whole suite at the papers' sizes (about 2 minutes on 2 cores; the phantom's first build adds one)."""
         return cls(**kw)
 
     @classmethod
     def quick(cls, **kw):
-        """A reduced suite, a few minutes: half-size images, one repeat fewer, a 256x256x867 phantom."""
+        """A reduced suite, under a minute: half-size images, 2 repeats, a 256x256x867 phantom."""
         return replace(cls(name="quick", sizes=(150, 300), parker_size=256, repeats=2, supercells=(1.0, 2.0, 4.0, 8.0),
                            steps=(1.0, 0.5, 0.25), roots_quick=True, vw_shape=(256, 256, 867), vw_size=256), **kw)
 
