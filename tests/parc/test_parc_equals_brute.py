@@ -188,3 +188,27 @@ def test_distant_parallel_eye_and_a_steep_field(seed, supercell, gl):
     cam = Camera(eye=(11.5, 311449835.4970588, 10.5), look_at=(11.5, 0.05, 10.5), up=(0.3, 0.2, 1.0),
                  parallel_scale=23.8464957086173)
     _same_hits(Scene(camera=cam, size=(50, 53), volumes=[Isosurface(vol, float(np.float32(1e-40)))]), supercell)
+
+
+@pytest.mark.parametrize("origin_y, scale", [(1.0, 1e-15), (1e6, 1e-10)])
+@pytest.mark.parametrize("what", ["iso", "depth", "bits", "depth,bits"])
+def test_parallel_pixels_smaller_than_the_origins_rounding(gl, origin_y, scale, what):
+    # The view plane straddles the face y = origin_y with pixels below an ulp of it: the caster's
+    # ray origins round onto the face, where the exact pixel centres lie outside it. The OpenGL
+    # coverage pad of an eighth of a pixel missed them (brute hit, parc did not).
+    data = np.zeros((2, 2, 3), np.uint8)
+    data[:, :, 0] = 100
+    vol = Volume(data, origin=(0.0, origin_y, 0.0))
+    cam = Camera(eye=(1.5, origin_y, 0.5), look_at=(0.5, origin_y, 0.5), up=(0.0, 1.0, 0.0), parallel_scale=scale)
+    if what == "iso":
+        vis, kwargs = Isosurface(vol, 50.0), {}
+    else:
+        tf = TransferFunction(opacity=[[40.0, 0.0], [60.0, 0.8]])
+        vis, kwargs = Translucent(vol, tf), {"buffers": what}
+    scene = Scene(camera=cam, size=(1, 30), volumes=[vis])
+    ref = render(scene, method="brute")
+    assert ref.image[..., 3].any()
+    for supercell in (1, 0.5):
+        res = render(scene, method="parc", supercell=supercell, **kwargs)
+        assert np.array_equal(np.isfinite(res.depth), np.isfinite(ref.depth))
+        assert np.abs(res.image - ref.image).max() <= 1e-6
