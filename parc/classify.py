@@ -58,8 +58,8 @@ CHUNK_VALUES = 1 << 22
 #: magnitude, so a supercell whose exact range only touches the isovalue
 #: stays PC. The three nested lerps round to a few ulps (~1e-15 relative);
 #: the caster's own positions round by a few 2^-53 of the ray origin's
-#: distance in cells (up to `raycast.traverse.FAR_ORIGIN` grid extents,
-#: beyond which it walks from the volume's entry), and a field can change
+#: distance in cells (up to `raycast.traverse.FAR_ORIGIN` grid extents and
+#: `FAR_ORIGIN_CELLS`, beyond which it walks from the volume's entry), and a field can change
 #: by up to ~6 times its largest magnitude per cell: 2^-32 (~2e-10) covers
 #: origins some 40,000 cells away.
 RANGE_PAD = 2.0 ** -32

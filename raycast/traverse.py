@@ -84,17 +84,21 @@ def anchor(Ox, Oy, Oz, Dx, Dy, Dz, t):
 #: traversal tests build such rays) through other cells; farther, the
 #: rounding of positions measured from the eye is the larger error.
 FAR_ORIGIN = 16.0
+#: ... and any origin farther than this many cells: the sub-cell ranges PARC classifies by are
+#: padded for positions rounded at most this far out (`parc.classify.RANGE_PAD`), and a grid
+#: of 200,000 samples kept origins 3 million cells away unanchored.
+FAR_ORIGIN_CELLS = 32768.0
 
 
 @kernel
 def entry_anchor(Ox, Oy, Oz, Dx, Dy, Dz, nx, ny, nz):
     """``(ta, Ax, Ay, Az)``: where to walk a ray from, and its point there.
 
-    For an origin farther than `FAR_ORIGIN` grid extents, the ray's entry
+    For an origin farther than `FAR_ORIGIN` grid extents (or `FAR_ORIGIN_CELLS`), the ray's entry
     into the sample box (`clip_box`) and its point there (`anchor`);
     otherwise, or for a miss, ``(0, O)``.
     """
-    far = FAR_ORIGIN * max(nx, max(ny, nz))
+    far = min(FAR_ORIGIN * max(nx, max(ny, nz)), FAR_ORIGIN_CELLS)
     if max(abs(Ox), max(abs(Oy), abs(Oz))) > far:
         t_in, t_out = clip_box(Ox, Oy, Oz, Dx, Dy, Dz, nx, ny, nz)
         if 0.0 < t_in <= t_out:

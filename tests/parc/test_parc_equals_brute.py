@@ -212,3 +212,22 @@ def test_parallel_pixels_smaller_than_the_origins_rounding(gl, origin_y, scale, 
         res = render(scene, method="parc", supercell=supercell, **kwargs)
         assert np.array_equal(np.isfinite(res.depth), np.isfinite(ref.depth))
         assert np.abs(res.image - ref.image).max() <= 1e-6
+
+
+@pytest.mark.parametrize("supercell", [(0.25, 0.25, 1000), 0.3])
+def test_an_origin_millions_of_cells_away_is_walked_from_the_entry(gl, supercell):
+    # 16 grid extents of a 200,000-sample grid kept origins 3 million cells away unanchored: the
+    # entry cell's cubic was then evaluated a rounding outside it, where this steep field dips
+    # below the level, and brute hit a surface that is not there (for y < 0.5 the field is above
+    # the level everywhere) while parc's sub-cell ranges excluded it.
+    d = 6e-10
+    data = np.zeros((200000, 2, 2), np.float32)
+    data[:, 0, 0] = np.float32(2 * d)
+    data[:, :, 1] = 1.0
+    vol = Volume(data)
+    cam = Camera(eye=(-3182625.1254714862, 0.20082638177642648, -829725.918505424),
+                 look_at=(0.0, 0.20082638177642648, 125061.61913602178), up=(0.0, 1.0, 0.0), parallel_scale=1.0)
+    scene = Scene(camera=cam, size=(1, 1), volumes=[Isosurface(vol, float(data[0, 0, 0]) / 2.0)])
+    ref = render(scene, method="brute")
+    res = render(scene, method="parc", supercell=supercell)
+    assert np.isinf(ref.depth).all() and np.isinf(res.depth).all()
