@@ -169,8 +169,18 @@ void main() {
             hi = max(hi, sm);
         }
     }
-    if (lo.x - ndc_pad.x > ndc_limit.x || hi.x + ndc_pad.x < -ndc_limit.x ||
-        lo.y - ndc_pad.y > ndc_limit.y || hi.y + ndc_pad.y < -ndc_limit.y) return;   // also: all clipped
+    // The fragment test takes crossings up to abs_tol outside the rectangle (the caster's
+    // positions round by up to that in world units): coverage reaches as far, seen from the
+    // face's nearest corner. Negligible in an ordinary view; with a field of view a few
+    // roundings wide (1e-8 degrees at 1e7 from 0), a whole image of rays the caster walks
+    // along the face.
+    dvec2 pad = ndc_pad;
+    if (parallel == 0 && !clipped) {
+        double zmin = min(min(cam[0].z, cam[1].z), min(cam[2].z, cam[3].z));
+        pad += dvec2(abs_tol / (zmin * tan_half * aspect), abs_tol / (zmin * tan_half));
+    }
+    if (lo.x - pad.x > ndc_limit.x || hi.x + pad.x < -ndc_limit.x ||
+        lo.y - pad.y > ndc_limit.y || hi.y + pad.y < -ndc_limit.y) return;   // also: all clipped
 
     double thi = 0.0;
     if (parallel == 0) {
@@ -220,7 +230,7 @@ void main() {
         dvec2 e = s[(k + 1) % 4] - s[k];
         ok = ok && (e.x != 0.0 || e.y != 0.0);
         en[k] = dvec2(e.y, -e.x);
-        eh[k] = dot(en[k], s[k]) + ndc_pad.x * abs(en[k].x) + ndc_pad.y * abs(en[k].y);
+        eh[k] = dot(en[k], s[k]) + pad.x * abs(en[k].x) + pad.y * abs(en[k].y);
     }
     dvec2 outp[4];
     for (int k = 0; k < 4; k++) {
@@ -241,8 +251,8 @@ void main() {
         }
     }
     if (!ok) {
-        lo = max(lo - ndc_pad, -ndc_limit);
-        hi = min(hi + ndc_pad, ndc_limit);
+        lo = max(lo - pad, -ndc_limit);
+        hi = min(hi + pad, ndc_limit);
         emit(dvec2(lo.x, lo.y));
         emit(dvec2(hi.x, lo.y));
         emit(dvec2(lo.x, hi.y));

@@ -231,3 +231,28 @@ def test_an_origin_millions_of_cells_away_is_walked_from_the_entry(gl, supercell
     ref = render(scene, method="brute")
     res = render(scene, method="parc", supercell=supercell)
     assert np.isinf(ref.depth).all() and np.isinf(res.depth).all()
+
+
+@pytest.mark.parametrize("step", [-1, 0, 1])
+@pytest.mark.parametrize("what", ["iso", "depth", "bits"])
+def test_an_eye_on_a_face_far_from_0_with_a_field_of_view_a_few_roundings_wide(gl, step, what):
+    # At 1e7 from 0 world and index space disagree about the eye by an ulp (6e-7 cells here), and
+    # with a 1e-8 degree field of view every ray runs within 1e-13 of the face the eye is on: in
+    # index space they all stay inside and hit. OpenGL covered half the image from world space.
+    data = np.zeros((3, 3, 3), np.uint8)
+    data[:, :, 1] = 100
+    data[:, :, 2] = 200
+    vol = Volume(data, spacing=(0.003, 0.003, 0.003), origin=(1e7, 0.0, 1e7))
+    ez = 1e7 + 0.006 + step * 2.0 ** -29          # the face and an ulp either side
+    cam = Camera(eye=(1e7 - 0.1, 0.003, ez), look_at=(1e7 + 1.0, 0.003, ez), up=(0.0, 1.0, 0.0), fov=1e-8)
+    if what == "iso":
+        vis, kwargs = Isosurface(vol, 150.0), {}
+    else:
+        vis, kwargs = Translucent(vol, TransferFunction(opacity=[[120.0, 0.0], [200.0, 0.9]])), {"buffers": what}
+    scene = Scene(camera=cam, size=(33, 33), volumes=[vis])
+    ref = render(scene, method="brute")
+    res = render(scene, method="parc", supercell=1, **kwargs)
+    assert np.array_equal(np.isfinite(res.depth), np.isfinite(ref.depth))
+    assert np.abs(res.image - ref.image).max() <= 1e-6
+    if step == 0:
+        assert ref.image[..., 3].all()                # every ray stays inside in index space
