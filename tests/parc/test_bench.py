@@ -161,7 +161,7 @@ def test_a_failed_child_is_one_line_of_the_bench_and_of_the_child(bench, monkeyp
         scale.visible_woman(suite, lambda m: None)
     monkeypatch.undo()
     from data_tools import load_volume
-    monkeypatch.setattr(scale, "_end_with_parent", lambda: None)     # this process is not a child
+    monkeypatch.setattr(scale, "_end_with_parent", lambda parent=None: None)     # this process is not a child
     monkeypatch.setattr(scale, "measure", lambda path, *_: load_volume(path))
     missing = tmp_path / "no_phantom.raw"
     assert scale.main([str(missing), "--size", "8", "--repeats", "1", "--json", str(tmp_path / "out.json")]) == 1
