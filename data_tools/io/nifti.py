@@ -52,6 +52,9 @@ def _read(nib, path):
     except MemoryError:
         raise InputError(f"{path}: not enough memory to load this NIfTI volume") from None
     except Exception as exc:  # noqa: BLE001 - nibabel raises many kinds on bad files
+        if str(exc).startswith("Cannot work out file type"):
+            # nibabel's words for a header it cannot read as any of its formats.
+            raise InputError(f"{path}: not a NIfTI file, or its header is cut short") from None
         raise InputError(f"{path}: cannot read NIfTI file: {one_line(exc) or type(exc).__name__}") from None
     if not isinstance(img, (nib.Nifti1Image, nib.Nifti2Image)):
         raise InputError(f"{path}: not a NIfTI image ({type(img).__name__})")
@@ -78,6 +81,9 @@ def _read(nib, path):
         raise InputError(f"{path}: not enough memory to load this NIfTI volume: its header states "
                          f"{'x'.join(str(int(n)) for n in img.shape)} samples, {stated / 1e9:.3g} GB "
                          "(truncated or corrupt, if that is not its size)") from None
+    except EOFError:
+        # gzip's "Compressed file ended before the end-of-stream marker was reached".
+        raise InputError(f"{path}: truncated: the compressed samples end early") from None
     except Exception as exc:  # noqa: BLE001 - truncated or corrupt data
         raise InputError(f"{path}: cannot read NIfTI data: {one_line(exc) or type(exc).__name__}") from None
     # The file stores x fastest, which nibabel gives as an [x, y, z] array in

@@ -104,7 +104,10 @@ def test_nifti_bad_files(tmp_path):
     fails(tmp_path / "junk.nii", "cannot read NIfTI")
     good = _nifti(tmp_path / "good.nii.gz", _data("float32"), np.eye(4)).read_bytes()
     (tmp_path / "cut.nii.gz").write_bytes(good[: len(good) // 2])
-    fails(tmp_path / "cut.nii.gz", "NIfTI")
+    fails(tmp_path / "cut.nii.gz", "truncated: the compressed samples end early")
+    # Cut inside the header: nibabel said it "cannot work out file type".
+    (tmp_path / "head.nii.gz").write_bytes(good[:100])
+    fails(tmp_path / "head.nii.gz", "not a NIfTI file, or its header is cut short")
 
 
 def test_nifti_header_claiming_more_than_the_file_holds_is_truncated_not_out_of_memory(tmp_path):
