@@ -101,7 +101,7 @@ def test_nifti_time_series_is_refused(tmp_path):
 
 def test_nifti_bad_files(tmp_path):
     (tmp_path / "junk.nii").write_bytes(b"not a nifti header" * 30)
-    fails(tmp_path / "junk.nii", "cannot read NIfTI")
+    fails(tmp_path / "junk.nii", "not a NIfTI file")
     good = _nifti(tmp_path / "good.nii.gz", _data("float32"), np.eye(4)).read_bytes()
     (tmp_path / "cut.nii.gz").write_bytes(good[: len(good) // 2])
     fails(tmp_path / "cut.nii.gz", "truncated: the compressed samples end early")
