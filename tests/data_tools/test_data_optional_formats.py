@@ -103,11 +103,13 @@ def test_nifti_bad_files(tmp_path):
     (tmp_path / "junk.nii").write_bytes(b"not a nifti header" * 30)
     fails(tmp_path / "junk.nii", "not a NIfTI file")
     good = _nifti(tmp_path / "good.nii.gz", _data("float32"), np.eye(4)).read_bytes()
-    (tmp_path / "cut.nii.gz").write_bytes(good[: len(good) // 2])
-    fails(tmp_path / "cut.nii.gz", "truncated: the compressed samples end early")
     # Cut inside the header: nibabel said it "cannot work out file type".
-    (tmp_path / "head.nii.gz").write_bytes(good[:100])
-    fails(tmp_path / "head.nii.gz", "not a NIfTI file, or its header is cut short")
+    (tmp_path / "cut.nii.gz").write_bytes(good[: len(good) // 2])
+    fails(tmp_path / "cut.nii.gz", "not a NIfTI file, or its header is cut short")
+    ramp = np.arange(8000, dtype=np.int16).reshape(20, 20, 20)          # compresses past its header
+    whole = _nifti(tmp_path / "ramp.nii.gz", ramp, np.eye(4)).read_bytes()
+    (tmp_path / "short.nii.gz").write_bytes(whole[: 3 * len(whole) // 4])
+    fails(tmp_path / "short.nii.gz", "truncated: the compressed samples end early")
 
 
 def test_nifti_header_claiming_more_than_the_file_holds_is_truncated_not_out_of_memory(tmp_path):
