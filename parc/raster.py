@@ -145,8 +145,9 @@ from .workspace import work_array
 #: implementation with at least 4 subpixel bits. (With 0 the axis-aligned
 #: tests lose pixels whose rays run along cell edges.)
 COVERAGE_PAD_PX = 0.125
-#: A parallel view's ray origins round by up to this much of the scene scale (a few ulps):
-#: the coverage pad is never below it, in pixels (`set_view_uniforms`).
+#: The caster's positions (its ray origins, the eye in index space) differ from the world
+#: coordinates the passes draw from by up to this much of the scene scale (a few ulps): the
+#: coverage pad reaches that far (`set_view_uniforms`; in perspective, the geometry shaders).
 ORIGIN_ROUNDING = 16 * 2.0 ** -52
 
 #: Guard band (pixels) around the viewport: a face reaching past it is
@@ -514,6 +515,7 @@ def set_view_uniforms(prog, camera, width, height, edge_offset, *, clip_near, nd
     set_uniform(prog, "err_d", tuple(err_d))
     set_uniform(prog, "pix_max", (width - 1.0, height - 1.0))
     set_uniform(prog, "abs_tol", ABS_TOL * scale + flush)
+    set_uniform(prog, "pos_tol", ORIGIN_ROUNDING * scale)
 
 
 def _pixel_affine(camera, f, r, u, th, width, height):

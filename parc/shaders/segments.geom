@@ -59,6 +59,7 @@ uniform dvec3 affy;
 uniform dvec3 err_d;         // perspective: |d32_k - d_k| over all pixels
 uniform dvec2 pix_max;       // (width - 1, height - 1)
 uniform double abs_tol;      // absolute slack, a tiny fraction of the scene scale
+uniform double pos_tol;      // how far the caster's positions may be from these (world units)
 uniform int face_range;      // 1: every face writes its own range of t (light buffers)
 
 flat out vec3 g_a;           // perspective: d_a, d_u, d_v; parallel: t, p_u, p_v
@@ -223,15 +224,16 @@ void main() {
             hi = max(hi, sm);
         }
     }
-    // The fragment test takes crossings up to abs_tol outside the rectangle (the caster's
-    // positions round by up to that in world units): coverage reaches as far, seen from the
-    // face's nearest corner. Negligible in an ordinary view; with a field of view a few
-    // roundings wide (1e-8 degrees at 1e7 from 0), a whole image of rays the caster walks
-    // along the face.
+    // The caster's positions (index space) differ from these by up to pos_tol in world
+    // units: coverage reaches that far outside the face, seen from its nearest point (the
+    // clip plane for a clipped face), an offset across the view and along it. Negligible
+    // in an ordinary view; with a field of view a few roundings wide (1e-8 degrees at 1e7
+    // from 0), a whole image of rays the caster walks along the face.
     dvec2 pad = ndc_pad;
-    if (parallel == 0 && !clipped) {
-        double zmin = min(min(cam[0].z, cam[1].z), min(cam[2].z, cam[3].z));
-        pad += dvec2(abs_tol / (zmin * tan_half * aspect), abs_tol / (zmin * tan_half));
+    if (parallel == 0) {
+        double zmin = clipped ? clip_near : min(min(cam[0].z, cam[1].z), min(cam[2].z, cam[3].z));
+        pad += dvec2(pos_tol * (1.0 + ndc_limit.x * tan_half * aspect) / (zmin * tan_half * aspect),
+                     pos_tol * (1.0 + ndc_limit.y * tan_half) / (zmin * tan_half));
     }
     if (lo.x - pad.x > ndc_limit.x || hi.x + pad.x < -ndc_limit.x ||
         lo.y - pad.y > ndc_limit.y || hi.y + pad.y < -ndc_limit.y) return;   // also: all clipped

@@ -256,3 +256,25 @@ def test_an_eye_on_a_face_far_from_0_with_a_field_of_view_a_few_roundings_wide(g
     assert np.abs(res.image - ref.image).max() <= 1e-6
     if step == 0:
         assert ref.image[..., 3].all()                # every ray stays inside in index space
+
+
+@pytest.mark.parametrize("what, supercell", [("iso", 16), ("iso", 1), ("bits", 1), ("depth", 16)])
+def test_an_eye_on_a_faces_plane_far_from_0_whose_entry_face_reaches_behind_it(gl, what, supercell):
+    # The case above seen obliquely: the face the rays enter by has a corner behind the eye, so
+    # it is clipped, and its coverage must reach as far from the clip plane.
+    nx = 10
+    data = np.zeros((3, 3, nx), np.uint8)
+    data[:] = np.minimum(100 * np.arange(nx), 250).astype(np.uint8)
+    vol = Volume(data, spacing=(0.003, 0.003, 0.003), origin=(1e7, 0.0, 1e7))
+    ex, ey, ez = 1e7 + 0.0035, -0.0001, 1e7 + 0.006
+    cam = Camera(eye=(ex, ey, ez), look_at=(ex + 3.0, ey + 1.0, ez), up=(0.0, 0.0, 1.0), fov=1e-8)
+    if what == "iso":
+        vis, kwargs = Isosurface(vol, 150.0), {}
+    else:
+        vis, kwargs = Translucent(vol, TransferFunction(opacity=[[0.0, 0.3], [255.0, 0.3]])), {"buffers": what}
+    scene = Scene(camera=cam, size=(33, 33), volumes=[vis])
+    ref = render(scene, method="brute")
+    res = render(scene, method="parc", supercell=supercell, **kwargs)
+    assert ref.image[..., 3].all()
+    assert np.array_equal(np.isfinite(res.depth), np.isfinite(ref.depth))
+    assert np.abs(res.image - ref.image).max() <= 1e-6
