@@ -61,8 +61,11 @@ CHUNK_VALUES = 1 << 22
 #: distance in cells (up to `raycast.traverse.FAR_ORIGIN` grid extents and
 #: `FAR_ORIGIN_CELLS`, beyond which it walks from the volume's entry), and a field can change
 #: by up to ~6 times its largest magnitude per cell: 2^-32 (~2e-10) covers
-#: origins some 40,000 cells away.
+#: origins some 40,000 cells away. Positions inside a grid round by as much
+#: of its length: a grid longer than `RANGE_PAD_CELLS` has its pad grown in
+#: proportion (a steep field along 2.2 million samples told the methods apart).
 RANGE_PAD = 2.0 ** -32
+RANGE_PAD_CELLS = 32768
 
 #: Skip tables (isovalues, transfer functions) kept per volume.
 SKIP_CACHE_SIZE = 4
@@ -281,7 +284,8 @@ def supercell_ranges(data, grid, *, cell_ranges=None):
         c0 = c1
     if fractional:
         lo, hi = float(data.min()), float(data.max())
-        pad = RANGE_PAD * max(abs(lo), abs(hi), np.finfo(np.float64).tiny)
+        pad = (RANGE_PAD * max(1.0, max(nx, ny, nz) / RANGE_PAD_CELLS)
+               * max(abs(lo), abs(hi), np.finfo(np.float64).tiny))
         mn -= pad
         mx += pad
     return mn, mx

@@ -278,3 +278,21 @@ def test_an_eye_on_a_faces_plane_far_from_0_whose_entry_face_reaches_behind_it(g
     assert ref.image[..., 3].all()
     assert np.array_equal(np.isfinite(res.depth), np.isfinite(ref.depth))
     assert np.abs(res.image - ref.image).max() <= 1e-6
+
+
+def test_a_grid_millions_of_samples_long_pads_its_sub_cell_ranges_for_its_length(gl):
+    # Positions 2 million cells into a grid round by ~1e-10 of a cell, and this field changes by
+    # its whole magnitude per cell: brute (rightly or not) hits where the sub-cell ranges, padded
+    # for 40,000 cells, said no supercell could.
+    n, d = 2_200_000, 4.8e-10
+    data = np.empty((n, 2, 2), np.float32)
+    data[0::2, 0, :] = np.float32(2 * d)
+    data[0::2, 1, :] = 0.0
+    data[1::2] = 1.0
+    vol = Volume(data, spacing=(1.0, 1.0, 0.7))
+    cam = Camera(eye=(0.5, 0.245, -0.3137), look_at=(0.5, 0.245, 0.7 * n), up=(0.0, 1.0, 0.0), fov=10.0)
+    scene = Scene(camera=cam, size=(1, 1), volumes=[Isosurface(vol, float(np.float32(2 * d)) / 2)])
+    ref = render(scene, method="brute")
+    res = render(scene, method="parc", supercell=(1, 0.25, 64))
+    assert np.isfinite(ref.depth).all()                  # the case: brute hits deep in the grid
+    assert np.array_equal(res.depth, ref.depth)
