@@ -190,6 +190,14 @@ def test_distant_parallel_eye_and_a_steep_field(seed, supercell, gl):
     _same_hits(Scene(camera=cam, size=(50, 53), volumes=[Isosurface(vol, float(np.float32(1e-40)))]), supercell)
 
 
+def _shown(vol, what, iso, opacity):
+    """The volume as an isosurface (``what`` "iso") or translucent through ``opacity`` with the
+    buffers ``what`` names, and the render arguments that go with it."""
+    if what == "iso":
+        return Isosurface(vol, iso), {}
+    return Translucent(vol, TransferFunction(opacity=opacity)), {"buffers": what}
+
+
 @pytest.mark.parametrize("origin_y, scale", [(1.0, 1e-15), (1e6, 1e-10)])
 @pytest.mark.parametrize("what", ["iso", "depth", "bits", "depth,bits"])
 def test_parallel_pixels_smaller_than_the_origins_rounding(gl, origin_y, scale, what):
@@ -200,11 +208,7 @@ def test_parallel_pixels_smaller_than_the_origins_rounding(gl, origin_y, scale, 
     data[:, :, 0] = 100
     vol = Volume(data, origin=(0.0, origin_y, 0.0))
     cam = Camera(eye=(1.5, origin_y, 0.5), look_at=(0.5, origin_y, 0.5), up=(0.0, 1.0, 0.0), parallel_scale=scale)
-    if what == "iso":
-        vis, kwargs = Isosurface(vol, 50.0), {}
-    else:
-        tf = TransferFunction(opacity=[[40.0, 0.0], [60.0, 0.8]])
-        vis, kwargs = Translucent(vol, tf), {"buffers": what}
+    vis, kwargs = _shown(vol, what, 50.0, [[40.0, 0.0], [60.0, 0.8]])
     scene = Scene(camera=cam, size=(1, 30), volumes=[vis])
     ref = render(scene, method="brute")
     assert ref.image[..., 3].any()
@@ -245,10 +249,7 @@ def test_an_eye_on_a_face_far_from_0_with_a_field_of_view_a_few_roundings_wide(g
     vol = Volume(data, spacing=(0.003, 0.003, 0.003), origin=(1e7, 0.0, 1e7))
     ez = 1e7 + 0.006 + step * 2.0 ** -29          # the face and an ulp either side
     cam = Camera(eye=(1e7 - 0.1, 0.003, ez), look_at=(1e7 + 1.0, 0.003, ez), up=(0.0, 1.0, 0.0), fov=1e-8)
-    if what == "iso":
-        vis, kwargs = Isosurface(vol, 150.0), {}
-    else:
-        vis, kwargs = Translucent(vol, TransferFunction(opacity=[[120.0, 0.0], [200.0, 0.9]])), {"buffers": what}
+    vis, kwargs = _shown(vol, what, 150.0, [[120.0, 0.0], [200.0, 0.9]])
     scene = Scene(camera=cam, size=(33, 33), volumes=[vis])
     ref = render(scene, method="brute")
     res = render(scene, method="parc", supercell=1, **kwargs)
@@ -268,10 +269,7 @@ def test_an_eye_on_a_faces_plane_far_from_0_whose_entry_face_reaches_behind_it(g
     vol = Volume(data, spacing=(0.003, 0.003, 0.003), origin=(1e7, 0.0, 1e7))
     ex, ey, ez = 1e7 + 0.0035, -0.0001, 1e7 + 0.006
     cam = Camera(eye=(ex, ey, ez), look_at=(ex + 3.0, ey + 1.0, ez), up=(0.0, 0.0, 1.0), fov=1e-8)
-    if what == "iso":
-        vis, kwargs = Isosurface(vol, 150.0), {}
-    else:
-        vis, kwargs = Translucent(vol, TransferFunction(opacity=[[0.0, 0.3], [255.0, 0.3]])), {"buffers": what}
+    vis, kwargs = _shown(vol, what, 150.0, [[0.0, 0.3], [255.0, 0.3]])
     scene = Scene(camera=cam, size=(33, 33), volumes=[vis])
     ref = render(scene, method="brute")
     res = render(scene, method="parc", supercell=supercell, **kwargs)
