@@ -209,9 +209,8 @@ _SPELLED_APART = {"spacedimension": "space dimension", "spaceunits": "space unit
 def _parsed(lines, path):
     """`nrrd.read_header` of the header's ``lines`` (the magic first), read as teem reads them
     (`_as_pynrrd`), with a field it cannot parse named (pynrrd's message alone, "could not
-    convert string to float: 'x'", does not say where), and a field NRRD does not have
-    refused, as teem's reader refuses it (a misspelt ``spacngs`` was ignored, and the
-    spacing with it)."""
+    convert string to float: 'x'", does not say where), each line checked first
+    (`_check_line`)."""
     # NRRD00.01, the format's first magic, which teem still reads, is version 1 to pynrrd.
     magic = b"NRRD0001\n" if lines[0].rstrip() == b"NRRD00.01" else lines[0]
     lines = [magic] + [_as_pynrrd(line) for line in lines[1:]]
@@ -231,16 +230,6 @@ def _parsed(lines, path):
             except Exception as one:  # noqa: BLE001 - as above
                 raise InputError(f"{path}: field {field!r}: {_explain(one)}") from None
         raise exc
-    for line in lines[1:]:
-        text = line.decode("ascii", "ignore").rstrip()
-        if not text:
-            break
-        field = text.partition(":")[0].strip()
-        # A key/value pair's key may hold colons (ITK writes "ITK_like:colon:=x"), not ":=".
-        if text.startswith("#") or ":=" in text or field in _FIELDS:
-            continue
-        raise InputError(f"{path}: unknown field {field!r} (NRRD has no such field; a free-form key/value "
-                         "pair is written key:=value)")
     return header
 
 
@@ -454,17 +443,22 @@ _WHOLE_FIELDS = frozenset(("dimension", "sizes", "byte skip", "byteskip", "line 
 
 
 def _check_line(line, path):
-    """Refuse a header line that is no field, and a whole-number field holding anything else,
-    in words that name them."""
+    """Refuse, in words that name them, a header line that is no field, a field NRRD does not
+    have (as teem's reader refuses it: a misspelt ``spacngs`` was ignored, and the spacing
+    with it), and a whole-number field holding anything else."""
     text = line.decode("ascii", "replace").strip()
-    if not text or text.startswith("#"):
+    # A key/value pair's key may hold colons (ITK writes "ITK_like:colon:=x"), not ":=".
+    if not text or text.startswith("#") or ":=" in text:
         return
     field, colon, value = text.partition(":")
     if not colon:
         raise InputError(f"{path}: header line {text[:60]!r} is not 'field: value' (an attached "
                          "header ends at a blank line before the data)")
     field = field.strip()
-    if field in _WHOLE_FIELDS and not value.startswith("="):
+    if field not in _FIELDS:
+        raise InputError(f"{path}: unknown field {field!r} (NRRD has no such field; a free-form key/value "
+                         "pair is written key:=value)")
+    if field in _WHOLE_FIELDS:
         for word in value.split():
             if not re.fullmatch(r"[-+]?\d+", word):
                 raise InputError(f"{path}: field {field!r}: expected whole numbers, got {word[:30]!r}")
