@@ -127,37 +127,26 @@ def _parse_dtype(dtype, path):
 
 
 def _header_beside(path):
-    """A MetaImage or detached NRRD header beside ``path`` whose data file is ``path``, or None:
-    the samples of such a pair are often opened instead of its header."""
+    """A MetaImage or detached NRRD header beside ``path`` whose data file is ``path``, as its
+    own reader reads it, or None: the samples of such a pair are often opened instead of
+    its header."""
+    from . import metaimage, nrrd_format
     try:
         siblings = [p for p in path.parent.iterdir()
                     if p.stem == path.stem and p.suffix.lower() in (".mhd", ".nhdr") and p.is_file()]
     except OSError:
         return None
     for header in sorted(siblings):
-        named = _data_file_named(header)
-        if named and (header.parent / named).resolve() == path.resolve():
+        try:
+            if header.suffix.lower() == ".mhd":
+                named = metaimage._parse_header(header)[0].get("ElementDataFile")
+                data = header.parent / named if named else None
+            else:
+                data = nrrd_format._check_data_file(header)
+        except (InputError, OSError):
+            continue
+        if data is not None and data.resolve() == path.resolve():
             return header
-    return None
-
-
-#: The line of a MetaImage or NRRD header that names its data file, and the name.
-_DATA_FILE_LINE = re.compile(r"\s*(?:ElementDataFile\s*=|data ?file\s*:)\s*(.*?)\s*", re.IGNORECASE)
-
-
-def _data_file_named(header):
-    """The data file a header's own line names (as written), or None."""
-    try:
-        with open(header, "rb") as f:
-            while f.tell() < 1 << 20:                       # a header's lines, not samples after them
-                line = f.readline(1 << 16)
-                if not line:
-                    return None
-                m = _DATA_FILE_LINE.fullmatch(line.decode("utf-8", "replace").rstrip("\r\n"))
-                if m:
-                    return m.group(1)
-    except OSError:
-        return None
     return None
 
 
