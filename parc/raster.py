@@ -147,7 +147,7 @@ from .workspace import work_array
 COVERAGE_PAD_PX = 0.125
 #: The caster's positions (its ray origins, the eye in index space) differ from the world
 #: coordinates the passes draw from by up to this much of the scene scale (a few ulps): the
-#: coverage pad reaches that far (`set_view_uniforms`; in perspective, the geometry shaders).
+#: coverage pad reaches that far (the geometry shaders' ``pos_tol``).
 ORIGIN_ROUNDING = 16 * 2.0 ** -52
 
 #: Guard band (pixels) around the viewport: a face reaching past it is
@@ -502,12 +502,6 @@ def set_view_uniforms(prog, camera, width, height, edge_offset, *, clip_near, nd
     set_uniform(prog, "aspect", width / height)
     set_uniform(prog, "clip_near", clip_near)
     set_uniform(prog, "ndc_limit", ndc_limit)
-    if camera.parallel:
-        # The caster's ray origins, eye + s (sx r + sy u), round by a few ulps of the scene's
-        # coordinates: where a pixel is no larger (a tiny parallel scale far from 0), a ray
-        # can start on a face whose exact pixel centre lies outside it. The pad covers that.
-        pitch = 2.0 * float(camera.parallel_scale) / height
-        pad_px = max(pad_px, ORIGIN_ROUNDING * scale / pitch)
     set_uniform(prog, "ndc_pad", (2.0 * pad_px / width, 2.0 * pad_px / height))
     set_uniform(prog, "aff0", tuple(aff0))
     set_uniform(prog, "affx", tuple(affx))

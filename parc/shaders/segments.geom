@@ -224,13 +224,16 @@ void main() {
             hi = max(hi, sm);
         }
     }
-    // The caster's positions (index space) differ from these by up to pos_tol in world
-    // units: coverage reaches that far outside the face, seen from its nearest point (the
-    // clip plane for a clipped face), an offset across the view and along it. Negligible
-    // in an ordinary view; with a field of view a few roundings wide (1e-8 degrees at 1e7
-    // from 0), a whole image of rays the caster walks along the face.
+    // The caster's positions (index space, its ray origins) differ from these by up to
+    // pos_tol in world units: coverage reaches that far outside the face; in perspective
+    // seen from its nearest point (the clip plane for a clipped face), an offset across
+    // the view and along it. Negligible in an ordinary view; with pixels or a field of
+    // view a few roundings wide (a parallel scale of 1e-10, 1e-8 degrees, at 1e7 from 0),
+    // many pixels of rays the caster starts on or walks along the face.
     dvec2 pad = ndc_pad;
-    if (parallel == 0) {
+    if (parallel != 0) {
+        pad += dvec2(pos_tol / (pscale * aspect), pos_tol / pscale);
+    } else {
         double zmin = clipped ? clip_near : min(min(cam[0].z, cam[1].z), min(cam[2].z, cam[3].z));
         pad += dvec2(pos_tol * (1.0 + ndc_limit.x * tan_half * aspect) / (zmin * tan_half * aspect),
                      pos_tol * (1.0 + ndc_limit.y * tan_half) / (zmin * tan_half));
