@@ -843,8 +843,8 @@ def test_nrrd_headers_of_long_lines_or_many_lines_are_read_whole(tmp_path, fille
 
 def test_a_file_that_is_not_nrrd_is_refused_at_its_first_line(tmp_path, monkeypatch):
     # Not after reading as much header as a header may hold (64 MiB of a raw file renamed).
-    from data_tools.io import nrrd_format
-    monkeypatch.setattr(nrrd_format, "_MAX_HEADER_BYTES", 1024)
+    from data_tools.io import nrrd_header
+    monkeypatch.setattr(nrrd_header, "_MAX_HEADER_BYTES", 1024)
     p = tmp_path / "f.nrrd"
     p.write_bytes(b"\x00" * 4096)
     fails(p, "magic")
