@@ -4,7 +4,10 @@ For each supercell size: proxy build time, polygons, rasterization time
 (best of several; upload, draw + ctx.finish(), read-back, post-processing),
 then the Numba caster over the segments: cells walked and time, against
 the unaccelerated caster, whose hits and depths the segments must not
-change. The last lines fit the constants of `parc.classify`'s cost model.
+change. The last lines fit a per-polygon raster cost and a per-ray, per-cell
+cast cost to the sizes measured: a first look at where the costs lie. The
+renderer's own model (`parc.costmodel`) counts face strips and was fitted to
+`parc compare` frames, as its constants' comment says.
 
 With --stages: only the raster pass, for the supercell size the renderer
 would choose (or --supercell), every stage's best and median over

@@ -206,8 +206,8 @@ def build_parser():
                        description="Render one scene with each method (after a warm-up), report the median "
                                    "time, speedup against brute, and the image error against brute's image: "
                                    "hit-mask mismatches, max |depth difference| in cells, max |colour "
-                                   "difference|, RMSE, PSNR; with cells visited, cubic solves, polygons and "
-                                   "seconds per phase.",
+                                   "difference|, PSNR (and RMSE with --json); with cells visited, cubic solves, "
+                                   "polygons and seconds per phase.",
                        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     c.add_argument("volume", nargs="?", metavar="VOLUME|SCENE.toml",
                    help="volume file or scene file (.toml) (default: the built-in volume)")
@@ -241,7 +241,8 @@ def build_parser():
     size.add_argument("--quick", action="store_true",
                       help="a reduced suite, under a minute on 2 cores: half-size images, 2 repeats, a 256x256x867 phantom")
     size.add_argument("--tiny", action="store_true",
-                      help="tiny synthetic volumes and images, seconds: checks the report, not the speed")
+                      help="tiny synthetic volumes and images, seconds once the casters are compiled: checks "
+                           "the report, not the speed")
     b.add_argument("--data", metavar="DIR", help="folder of real volumes (default ../shared/data beside the checkout)")
 
     i = sub.add_parser("info", help="describe a volume and suggest isovalues",

@@ -85,14 +85,14 @@ sampled one plane further at each end.
 
 Cost
 ----
-Measured on this project's development machine (2 cores, llvmpipe,
-512x512, shared with other work, so +-30%): CT head (256x256x113),
-``ct_skin_bone``, 4-cell supercells, three-quarter view: plane axis y, 65
-planes (3 words), 11.3k faces drawn (14.9k in the plane proxy, 9.7k outer
-faces), 33-49 ms (draw ~all of it; read-back 0.6 ms; proxy build 11-15 ms
-once) against 13-17 ms for the depth pass. 2-cell: 56k faces, 127 planes,
-106-136 ms; 6-cell: 4.5k, 23-25 ms; 8-cell: 2.3k, 18-20 ms. Fragments are
-about one per PC plane a pixel's ray crosses (1.4M at 4 cells), and
+Measured on this project's development machine (2 cores, llvmpipe;
+`parc compare` on the CT head, ``ct_skin_bone``, 300x300, the renderer's
+supercells, 2026-11-28): 2,022 faces drawn for both passes against 725
+for the depth pass alone, and the OpenGL passes 13% of a 0.031 s frame
+against 5% of 0.025 s: the bit planes cost more than the samples they
+save beyond the skip table's (`parc.renderer.DEFAULT_BUFFERS`). Fragments are
+about one per PC plane a pixel's ray crosses (1.4M at 512x512 with 4-cell
+supercells), and
 llvmpipe runs fragment shaders with storage-buffer side effects on a slow
 path: the same shader writing a colour instead takes ~40% less, and
 OR-ing ``uvec4`` colours into an RGBA32UI target with ``glLogicOp(GL_OR)``

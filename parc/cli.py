@@ -83,8 +83,8 @@ def main(argv=None):
 
 
 def _out(text):
-    """Print ``text`` on standard output, a failure there named as such: ``> /dev/full`` ended
-    in "No space left on device" alone, after the files were written. The text a failed
+    """Print ``text`` on standard output, a failure there named as such (``> /dev/full``
+    would otherwise end in "No space left on device" alone, after the files were written). The text a failed
     flush leaves in the buffer would fail again at exit (a second complaint, status 120), so
     standard output is then pointed at the null device, as for a closed pipe."""
     try:

@@ -56,8 +56,8 @@ def scene_and_notes(args):
 
 
 def _given(value):
-    """Whether a flag was given: not its default None, nor a switch left off. (``0.0 in (None,
-    False)`` is true, so a test by membership took ``--iso 0`` for no flag at all.)"""
+    """Whether a flag was given: not its default None, nor a switch left off. (Not a test by
+    membership: ``0.0 in (None, False)`` is true, which would take ``--iso 0`` for no flag.)"""
     return value is not None and value is not False
 
 

@@ -107,10 +107,10 @@ Most of the draw is llvmpipe's rasterization of the faces' area, on its
 threads (about 2/3 with a constant fragment shader; a depth-only pass
 fills as slowly); the geometry shader and triangle setup run on the
 calling thread. Parallel views skip the CPU test of ray origins when the
-view plane clears the volume. `benchmarks/README.md` has the history.
+view plane clears the volume. `benchmarks/README.md` has the measurements.
 
-Faces bordering only cavities (bone: 1.1k of 6.9k, neghip: 1.0k of
-2.2k) are skipped while no ray starts in one (`parc.origins.open_faces`).
+Faces bordering only cavities (the table's faces less those drawn: bone
+391 of 1,352, neghip 958 of 2,244) are skipped while no ray starts in one (`parc.origins.open_faces`).
 Looseness against the exact segments
 (tests/parc/test_raster.py reports it): ~1e-4 cells mean, ~2e-3 max,
 except a few pixels next to faces whose plane passes through or next to

@@ -82,8 +82,8 @@ PARC_BUFFERS = ("depth", "bits")
 
 #: Buffers used unless asked: the bit planes are exact, but the per-cell
 #: skip table already skips every sample they would, and they cost
-#: a raster pass and a test per sample (CT head, ct_skin_bone, 512x512:
-#: depth 0.24 s, depth+bits 0.31 s, of which 0.035 s the bit-plane pass).
+#: a raster pass and a test per sample (CT head, ct_skin_bone, 300x300,
+#: `parc compare`, 2026-11-28: depth 0.025 s a frame, depth+bits 0.031 s).
 DEFAULT_BUFFERS = ("depth",)
 
 
@@ -154,7 +154,7 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
     References
     ----------
     Parker et al. 1998, §2 and Appendix A (traversal, intersection, normals);
-    Sobierajski & Avila 1995, §3 (depth-buffer PARC) and §4 (accumulation).
+    Sobierajski & Avila 1995, §3 (depth-buffer PARC), §4 (color-buffer PARC) and §5 (shadow rays).
     """
     # Renders share work arrays, Numba's thread pool and one OpenGL context: one at a time.
     with _ONE_AT_A_TIME:
@@ -358,19 +358,15 @@ def _light_buffer_size(light_buffer):
     return int(light_buffer)
 
 
-def casters_for(scene, methods=("brute",), buffers=DEFAULT_BUFFERS):
-    """The Numba kernels rendering ``scene`` with ``methods`` runs whose first compile takes
-    seconds (those of `kernel_samples`, which `parc.outputs.compile_notice` is given): the casters, and with PARC its own (the segments'
-    unpacking, the skip tables), which took 5 s behind a silent 0% once `brute`'s were cached.
-    Only kernels this scene compiles: one it never uses would announce a compile every run."""
-    return [kernel for kernel, _ in kernel_samples(scene, methods, buffers)]
-
-
 def kernel_samples(scene, methods=("brute",), buffers=DEFAULT_BUFFERS):
-    """`casters_for`'s kernels, each with the Numba types of the samples it is called with
-    (its first argument), one per call it compiles for; none for a kernel that takes no
-    samples. Numba compiles a kernel for each: the CT head's int16 after uint8, or four
-    volumes merged after three, compiled for seconds unsaid."""
+    """The Numba kernels rendering ``scene`` with ``methods`` runs whose first compile takes
+    seconds, for `parc.outputs.compile_notice`: the casters, and with PARC its own (the
+    segments' unpacking, the skip tables), which compile for seconds even once `brute`'s are
+    cached. Only kernels this scene compiles: one it never uses would announce a compile every run.
+
+    Each comes with the Numba types of the samples it is called with (its first argument),
+    one per call it compiles for (none for a kernel that takes no samples): Numba compiles a
+    kernel for each, the CT head's int16 after uint8, or four volumes merged after three."""
     pairs = _casters_for(scene, methods, buffers)
     if "parc" in methods:
         from . import raster, skip

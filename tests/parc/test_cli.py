@@ -1118,12 +1118,13 @@ def test_a_surface_out_of_sight_is_not_said_to_compile_on_every_run(gl):
 
 
 def test_the_casters_a_render_is_said_to_compile_are_those_it_runs(gl):
-    """`parc.renderer.casters_for` (which the first-compile notice checks) names kernels each kind of
-    render runs: after the render, each has a compiled or loaded signature. PARC's list holds its
-    own kernels besides the casters (`brute`'s cached, its first render compiled for seconds unsaid)."""
+    """`parc.renderer.kernel_samples` (which the first-compile notice checks) names kernels each kind
+    of render runs, with the sample types it runs them on: after the render, each has a compiled or
+    loaded signature for each of those types. PARC's list holds its own kernels besides the casters
+    (`brute`'s cached, its first render compiled for seconds unsaid)."""
     import parc
     from data_tools.synthetic import blobs
-    from parc.renderer import casters_for
+    from parc.renderer import kernel_samples
     vol = blobs(10, seed=1)
     lo, hi = vol.value_range()
     cam = parc.Camera.framing(*vol.bounds)
@@ -1142,10 +1143,14 @@ def test_the_casters_a_render_is_said_to_compile_are_those_it_runs(gl):
     for volumes, lights, method, buffers in kinds:
         scene = parc.Scene(camera=cam, size=(8, 8), volumes=volumes, lights=lights, shadows=bool(lights))
         parc.render(scene, method, **({"buffers": buffers} if method == "parc" else {}))
-        named = casters_for(scene, (method,), buffers)
+        pairs = kernel_samples(scene, (method,), buffers)
+        named = [k for k, _ in pairs]
         assert named and all(k.signatures for k in named), [k.py_func.__qualname__ for k in named]
+        for k, samples in pairs:
+            compiled = {sig[0] for sig in k.signatures}
+            assert set(samples) <= compiled, (k.py_func.__qualname__, samples, compiled)
         if method == "parc":
-            assert set(named) - set(casters_for(scene, ("brute",), buffers))
+            assert set(named) - {k for k, _ in kernel_samples(scene, ("brute",), buffers)}
 
 
 def _readme_command_lines():
