@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import re
+import textwrap
 
 import numpy as np
 
@@ -31,6 +32,17 @@ Axis order: positions, spacing and origin are x,y,z; arrays are [z,y,x].
 Scene files (.toml) are described in the README ("Scene files") and in
 `python -m pydoc parc.scenefile`.
 """
+
+
+class _Formatter(argparse.RawDescriptionHelpFormatter):
+    """Help text as written (the examples' columns), but a paragraph written as one line is
+    filled to the terminal's width, as argparse's default formatter would."""
+
+    def _fill_text(self, text, width, indent):
+        paragraphs = text.split("\n\n")
+        return "\n\n".join(p if "\n" in p.strip("\n") else textwrap.fill(p, width, initial_indent=indent,
+                                                                          subsequent_indent=indent)
+                           for p in paragraphs)
 
 
 class _Parser(argparse.ArgumentParser):
@@ -76,9 +88,10 @@ def _ints(n):
 
 
 def _add_volume_options(p, scenes=True):
-    g = p.add_argument_group("reading the volume (headerless raw files need shape and dtype "
-                             "unless the name says, e.g. bucky_32x32x32_uint8.raw"
-                             + ("; a scene file sets these per volume instead)" if scenes else ")"))
+    g = p.add_argument_group("reading the volume",
+                             "Headerless raw files need shape and dtype unless the name says, e.g. "
+                             "bucky_32x32x32_uint8.raw" + ("; a scene file sets these per volume instead." if scenes
+                                                           else "."))
     g.add_argument("--shape", type=_ints(3), metavar="NX,NY,NZ", help="raw: samples along x, y, z")
     g.add_argument("--dtype", metavar="TYPE", help="raw: sample type, e.g. uint8, int16, uint16, float32")
     g.add_argument("--byte-order", choices=("little", "big"), help="raw: byte order (default little, or what the file name says: be, msb, bigendian...)")
@@ -89,8 +102,8 @@ def _add_volume_options(p, scenes=True):
 
 
 def _add_look_options(p):
-    g = p.add_argument_group("what to show (an isosurface, or with --tf a translucent volume; "
-                             "a scene file sets these per volume instead)")
+    g = p.add_argument_group("what to show", "An isosurface, or with --tf a translucent volume; "
+                             "a scene file sets these per volume instead.")
     g.add_argument("--iso", type=float, metavar="V", help="isovalue (default: suggested from the histogram)")
     g.add_argument("--tf", metavar="FILE|PRESET",
                    help="transfer function: a .toml/.json file, a ParaView colour-map .json, or a preset "
@@ -108,8 +121,8 @@ def _add_look_options(p):
 
 
 def _add_view_options(p):
-    g = p.add_argument_group("view (default: a three-quarter view framing the whole volume; with a scene "
-                             "file, these replace the file's camera settings and size)")
+    g = p.add_argument_group("view", "Default: a three-quarter view framing the whole volume; with a scene "
+                             "file, these replace the file's camera settings and size.")
     g.add_argument("--eye", type=_floats(3), metavar="X,Y,Z", help="camera position")
     g.add_argument("--look-at", type=_floats(3), metavar="X,Y,Z",
                    help="point looked at (default: the centre of the volume, or of all a scene file's)")
@@ -129,8 +142,8 @@ def _add_view_options(p):
 
 def _add_light_options(p):
     g = p.add_argument_group(
-        "lights and shadows (default: one white headlight at the eye; lights given here are added "
-        "to a scene file's [[light]] tables; colours and intensities: use a scene file)")
+        "lights and shadows", "Default: one white headlight at the eye; lights given here are added "
+        "to a scene file's [[light]] tables; colours and intensities: use a scene file.")
     g.add_argument("--light", type=_floats(3), action="append", metavar="X,Y,Z",
                    help="a white point light at X,Y,Z (world coordinates, may be inside the volume); "
                         "repeat for several lights")
@@ -167,7 +180,7 @@ def _version():
 
 def build_parser():
     p = _Parser(prog="parc", description="Ray cast 3D scalar volumes, exactly, with OpenGL-assisted acceleration.",
-                epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+                epilog=EPILOG, formatter_class=_Formatter)
     p.add_argument("--version", action="version", version=f"parc {_version()}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
 
@@ -178,7 +191,7 @@ def build_parser():
                                    "volume: the level it is made for, 127.5). "
                                    "Given a scene file (SCENE.toml), renders the volumes, camera, lights and image "
                                    "size it describes.",
-                       epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+                       epilog=EPILOG, formatter_class=_Formatter)
     r.add_argument("volume", nargs="?", metavar="VOLUME|SCENE.toml",
                    help="volume file (.nrrd .nhdr .mhd .mha .vtk .slc .npy, raw .raw .bin .dat; .nii .nii.gz with nibabel, "
                         ".tif .tiff stacks with tifffile) or a folder of .tif slices, or a scene file (.toml) "
@@ -208,7 +221,7 @@ def build_parser():
                                    "hit-mask mismatches, max |depth difference| in cells, max |colour "
                                    "difference|, PSNR (and RMSE with --json); with cells visited, cubic solves, "
                                    "polygons and seconds per phase.",
-                       epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+                       epilog=EPILOG, formatter_class=_Formatter)
     c.add_argument("volume", nargs="?", metavar="VOLUME|SCENE.toml",
                    help="volume file or scene file (.toml) (default: the built-in volume)")
     c.add_argument("--methods", default="brute,parc", metavar="LIST",
@@ -269,7 +282,7 @@ def build_parser():
     m = sub.add_parser("make", help="write a synthetic volume",
                        description="Write a synthetic volume.\n\n" + "\n".join(
                            f"  {k:16s} {v}" for k, v in DESCRIPTIONS.items()),
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+                       formatter_class=_Formatter)
     m.add_argument("name", choices=sorted(DESCRIPTIONS), metavar="NAME", help="which volume (see above)")
     m.add_argument("-o", "--output", required=True, metavar="OUT",
                    help="output file: .nrrd (gzip) .nhdr .npy .mhd .mha .vtk .raw")
