@@ -1401,6 +1401,17 @@ def test_every_command_and_argument_is_explained_in_its_help():
                 assert action.help, (name, action.dest)
 
 
+def test_help_text_is_filled_to_the_terminal_width(monkeypatch):
+    # Prose fits 80 columns; only the indented examples and lists keep lines of their own length.
+    monkeypatch.setenv("COLUMNS", "80")
+    parsers = {"parc": build_parser(), **_subparsers()}
+    for name, parser in parsers.items():
+        text = parser.format_help()
+        long = [line for line in text.splitlines() if len(line) > 80 and not line.startswith("  ")]
+        assert not long, (name, long)
+        assert parser.description.split(".")[0] in " ".join(text.split()), name
+
+
 def test_a_file_name_with_a_newline_or_an_escape_stays_on_the_error_line(vol_file, tmp_path, capsys):
     out = tmp_path / "o.png"
     for name, shown in [("no\nsuch.nrrd", r"no\nsuch.nrrd"), ("x\x1b[31m.toml", r"x\x1b[31m.toml")]:
