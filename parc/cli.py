@@ -27,7 +27,7 @@ from data_tools.signals import STOPS
 from .arguments import build_parser, join_signed_values, supercell_size
 from .flagscene import load_volume_flags, scene_and_notes
 from .outputs import (Progress, atomic_write_all, check_distinct, check_output, compile_notice, end_progress_line,
-                      note, slow_note, to_json, write_png)
+                      note, slow_note, stale_sidecars, to_json, write_png)
 
 EXIT_USAGE = 2
 
@@ -294,10 +294,12 @@ def cmd_render(args):
     stats_out = check_output(args.stats, (".json",)) if args.stats is not None else None
     work_out = check_output(args.work, (".png", ".npy")) if args.work is not None else None
     check_distinct(args.volume, [out, depth_out, stats_out, work_out])
+    written = {p.resolve() for p in (out, depth_out, stats_out, work_out) if p is not None}
+    stale = [side for side in stale_sidecars([out, depth_out, work_out]) if side.resolve() not in written]
     say = (lambda *a: None) if args.quiet else note
     with _reading(args, say):
         scene, notes = scene_and_notes(args)
-    check_distinct(args.volume, [out, depth_out, stats_out, work_out], read=_files_read(scene))
+    check_distinct(args.volume, [out, depth_out, stats_out, work_out] + stale, read=_files_read(scene))
     w, h = scene.size
     kwargs = ({"supercell": args.supercell, "buffers": _buffers(args, scene), "blocks": not args.no_blocks}
               if args.method == "parc" else {})
@@ -327,7 +329,7 @@ def cmd_render(args):
         writes.append((work_out, lambda tmp: _write_work(result, scene, args.method, tmp)))
     if w * h >= LARGE_WRITE_PIXELS:
         say(f"writing {', '.join(str(path) for path, _ in writes)} ...")   # seconds, after the progress ends
-    atomic_write_all(writes)
+    atomic_write_all(writes, remove=stale)
     s = result.stats
     vis = scene.volumes[0]
     out = ", ".join(str(path) for path, _ in writes)        # every file written, the image first
@@ -340,6 +342,8 @@ def cmd_render(args):
     else:
         say(f"wrote {out}: {vis.mode} of {vis.tf.title}, step {vis.step:g}; "
             f"{s['seconds']['total']:.3f} s, {s['samples']:,} samples")
+    for side in stale:
+        say(f"removed {side}: the spacing and origin of the .npy volume written over")
     return 0
 
 

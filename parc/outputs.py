@@ -84,13 +84,33 @@ def check_distinct(source, outputs, read=()):
         seen[key] = path
 
 
-def atomic_write_all(writes):
+def stale_sidecars(paths):
+    """The spacing-and-origin sidecars (``X.npy.json``, `data_tools.io.npy`) beside the ``.npy``
+    files among ``paths``: an array written over ``X.npy`` is not the volume they describe, and
+    read back as a volume it would take their spacing and origin. `atomic_write_all` removes
+    them with the write; one that is not a file is refused before any work."""
+    from data_tools.io.npy import sidecar_path
+    stale = []
+    for path in paths:
+        if path is None or Path(path).suffix.lower() != ".npy":
+            continue
+        side = sidecar_path(path)
+        if side.is_symlink() or side.is_file():
+            stale.append(side)
+        elif side.exists():
+            raise InputError(f"{side}: the sidecar of {Path(path).name} (its spacing and origin) is not a "
+                             "file; move it or write elsewhere")
+    return stale
+
+
+def atomic_write_all(writes, remove=()):
     """Write each ``(path, write)`` through a temporary file beside it, then rename them all.
 
     Renaming starts only once every file is whole, so a failure (disk full, a
     folder gone) leaves none of the outputs, never a half-written one, nor
     an image without the depth and stats asked for with it. A path that is a
     symbolic link is written where it leads (`data_tools.io.written_path`).
+    The files in ``remove`` (`stale_sidecars`) are removed just before the renames.
     """
     done = []
     path = writes[0][0]
@@ -107,6 +127,8 @@ def atomic_write_all(writes):
         for tmp, _, _ in done:
             os.chmod(tmp, 0o666 & ~umask)    # mkstemp makes owner-only files; outputs are ordinary files
         with signals_held():        # a Ctrl-C between two renames would leave a mixed set
+            for path in remove:
+                path.unlink(missing_ok=True)
             for tmp, target, path in done:
                 os.replace(tmp, target)
     except OSError as exc:

@@ -123,6 +123,25 @@ def test_render_npy_matches_the_library(vol_file, tmp_path, capsys):
     np.testing.assert_array_equal(np.load(out), ref.image)
 
 
+def test_an_array_written_over_a_npy_volume_takes_its_sidecar_away(vol_file, tmp_path, capsys):
+    # Left behind, the sidecar gave the image, read back as a volume, the old volume's spacing and origin.
+    vol = tmp_path / "v.npy"
+    rc, _, err = _run(["convert", vol_file, "-o", vol, "--spacing", "2,2,2", "--origin", "5,5,5"], capsys)
+    assert rc == 0 and (tmp_path / "v.npy.json").is_file(), err
+    for flag in ("-o", "--depth"):
+        other = ["-o", tmp_path / "a.png"] if flag == "--depth" else []
+        rc, _, err = _run(["render", vol_file, "--iso", 3.5, "--size", 16, 12, flag, vol] + other, capsys)
+        assert rc == 0 and "removed " in err and not (tmp_path / "v.npy.json").exists(), err
+        if flag == "-o":
+            back = load_volume(vol)             # the RGBA image, as a 4 x 16 x 12 volume
+            assert back.spacing == (1.0, 1.0, 1.0) and back.origin == (0.0, 0.0, 0.0)
+            assert back.data.shape == (12, 16, 4)
+        else:
+            assert np.load(vol).shape == (12, 16)
+        rc, _, err = _run(["convert", vol_file, "-o", vol, "--spacing", "2,2,2"], capsys)
+        assert rc == 0 and load_volume(vol).spacing == (2.0, 2.0, 2.0), err
+
+
 def test_render_without_iso_suggests_one(vol_file, tmp_path, capsys):
     rc, _, err = _run(["render", vol_file, "--size", 8, 8, "-o", tmp_path / "a.png"], capsys)
     assert rc == 0 and "suggested from the histogram" in err
@@ -451,6 +470,9 @@ def test_paths_that_are_not_what_they_seem_are_named(vol_file, tmp_path, capsys,
             "a sidecar folder": ["convert", vol_file, "-o", tmp_path / "v.npy"]}[case]
     rc, out, err = _run(argv, capsys)
     assert rc == 2 and err.count("\n") == 1 and words.format(tmp=tmp_path) in err, err
+    if case == "a sidecar folder":
+        rc, out, err = _run(["render", vol_file, "--iso", 4, "--size", 8, 8, "-o", tmp_path / "v.npy"], capsys)
+        assert rc == 2 and err.count("\n") == 1 and words in err and not (tmp_path / "v.npy").exists(), err
     np.save(tmp_path / "v.npy", np.zeros((3, 3, 3), np.float32))
     rc, out, err = _run(["info", tmp_path / "v.npy"], capsys)
     assert rc == 2 and "v.npy.json: the sidecar of v.npy (its spacing and origin) is not a file" in err, err
