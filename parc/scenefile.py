@@ -127,12 +127,13 @@ def load_scene(path, *, view=None, size=None, progress=None) -> Scene:
 
     volumes = _load_volumes(where, doc.get("volume"))
     lights = _load_lights(where, doc.get("light"))
+    # The file's own values are checked even where the command line replaces them: a
+    # mistake in the file should not wait for a run without the flag to show.
+    image_size = top.integers("size", 2, default=DEFAULT_SIZE, minimum=1)
     if size is not None:
         image_size = tuple(size)
         with where.key("size (given on the command line)"):
             _check_size(image_size)
-    else:
-        image_size = top.integers("size", 2, default=DEFAULT_SIZE, minimum=1)
     camera_table = Table(where, "camera", doc.get("camera", {}), CAMERA_KEYS)
     camera = _load_camera(where, camera_table, volumes, {k: v for k, v in (view or {}).items() if v is not None},
                           image_size[0] / image_size[1])
@@ -304,6 +305,9 @@ def _read_file(where, t, cache):
         options["offset"] = offset
     if options["byte_order"] not in (None, "little", "big"):
         raise t.error("byte_order", f"must be \"little\" or \"big\", got {options['byte_order']!r}")
+    if options["dtype"] is not None:
+        with where.key(t.key("dtype")):
+            raw.parse_dtype(options["dtype"], path)
     given = [name for name in RAW_KEYS if options[name] is not None]
     if given and path.suffix.lower() not in raw.EXTENSIONS:
         raise t.error(given[0], f"applies only to headerless raw files ({', '.join(raw.EXTENSIONS)}); "
@@ -378,11 +382,25 @@ def _load_lights(where, raw):
     return lights
 
 
+def _check_view(where, settings, label):
+    """Refuse a field of view, parallel scale or zoom out of range, or a zero up vector."""
+    fov, parallel = settings["fov"], settings["parallel"]
+    if fov is not None and not 0.0 < fov < 180.0:
+        raise where.error(label("fov"), f"field of view must be between 0 and 180 degrees, got {fov:g}")
+    if parallel is not None and not parallel > 0.0:
+        raise where.error(label("parallel"), f"parallel scale must be positive, got {parallel:g}")
+    if settings["zoom"] is not None and not settings["zoom"] > 0.0:
+        raise where.error(label("zoom"), f"zoom must be positive, got {settings['zoom']:g}")
+    if settings["up"] is not None and unit_vector(settings["up"]) is None:
+        raise where.error(label("up"), f"up {list(settings['up'])} is zero: give a direction")
+
+
 def _load_camera(where, t, volumes, view, aspect):
     settings = {"eye": t.numbers("eye", 3), "look_at": t.numbers("look_at", 3), "up": t.numbers("up", 3),
                 "fov": t.number("fov"), "parallel": t.number("parallel"), "zoom": t.number("zoom")}
     if settings["fov"] is not None and settings["parallel"] is not None:
         raise t.error("parallel", "give fov (perspective) or parallel (a parallel projection), not both")
+    _check_view(where, settings, t.key)
     # A view given on the command line wins; its projection replaces the file's, and an eye or
     # a parallel view the file's zoom, which applies to neither.
     if "parallel" in view:
@@ -396,19 +414,13 @@ def _load_camera(where, t, volumes, view, aspect):
     def label(name):
         return t.key(name) + (" (given on the command line)" if name in view else "")
 
-    fov, parallel = settings["fov"], settings["parallel"]
-    if fov is not None and not 0.0 < fov < 180.0:
-        raise where.error(label("fov"), f"field of view must be between 0 and 180 degrees, got {fov:g}")
-    if parallel is not None and not parallel > 0.0:
-        raise where.error(label("parallel"), f"parallel scale must be positive, got {parallel:g}")
-    if settings["zoom"] is not None and not settings["zoom"] > 0.0:
-        raise where.error(label("zoom"), f"zoom must be positive, got {settings['zoom']:g}")
+    _check_view(where, settings, label)
 
     lo = np.min([v.volume.bounds[0] for v in volumes], axis=0)
     hi = np.max([v.volume.bounds[1] for v in volumes], axis=0)
-    if settings["up"] is not None and unit_vector(settings["up"]) is None:
-        raise where.error(label("up"), f"up {list(settings['up'])} is zero: give a direction")
-    with where.key(label("zoom") if settings["zoom"] is not None else "camera"):
+    # Framing fails on the zoom (with an eye or a parallel view), or on a field of view too narrow.
+    given = next((name for name in ("zoom", "fov") if settings[name] is not None), None)
+    with where.key(label(given) if given else "camera"):
         cam = resolve_view(lo, hi, **settings, aspect=aspect)
     f = unit_vector(np.subtract(cam["look_at"], cam["eye"]))
     if f is None:

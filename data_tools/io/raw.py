@@ -117,7 +117,8 @@ def _parse_shape(shape, path):
     return dims
 
 
-def _parse_dtype(dtype, path):
+def parse_dtype(dtype, path):
+    """The sample type word ``dtype`` names (``uint8`` ...), or an error naming ``path``."""
     key = str(np.dtype(dtype).name if isinstance(dtype, (type, np.dtype)) else dtype).lower()
     name = DTYPE_WORDS.get(key)
     if name is None:
@@ -202,7 +203,7 @@ def read_raw(path, *, shape=None, dtype=None, byte_order=None, offset=0,
             f"(and --byte-order, --spacing if needed; in Python and scene files "
             f"{', '.join(missing)}, byte_order, spacing), or name it like vol_64x64x64_uint8.raw")
     dims = _parse_shape(shape, path)
-    dtype = _parse_dtype(dtype, path)
+    dtype = parse_dtype(dtype, path)
     if str(byte_order).lower() not in ("little", "big"):
         raise InputError(f"{path}: byte order must be 'little' or 'big', got {byte_order!r}")
     try:

@@ -18,6 +18,7 @@ def folder(tmp_path):
     (tmp_path / "data").mkdir()
     save_volume(make_synthetic("sphere", 16), tmp_path / "data" / "ball.nrrd")     # float32, about [-5.3, 7.7]
     save_volume(make_synthetic("blobs", 16), tmp_path / "data" / "blobs.nrrd")     # uint8
+    (tmp_path / "data" / "v_2x2x2.raw").write_bytes(bytes(8))                      # a raw file of any type
     (tmp_path / "data" / "warm.toml").write_text('opacity = [[0, 0.0], [255, 0.5]]\n'
                                                  'color = [[0, 1, 0.5, 0], [255, 1, 1, 1]]\n')
     return tmp_path
@@ -273,6 +274,9 @@ BAD = [
     ("[camera]\neye = [0, 0, 50]\nlook_at = [0, 0, 0]\nup = [0, 0, 2]\n{V}", "camera.up", "parallel to the view"),
     ("[camera]\neye = [inf, 0, 0]\n{V}", "camera.eye", "finite"),
     ("[camera]\nup = [0, 0, 0]\n{V}", "camera.up", "is zero"),                  # with the default framing
+    ("[camera]\nfov = 1e-300\n{V}", "camera.fov", "too narrow to frame"),
+    ("[[volume]]\nfile = 'data/v_2x2x2.raw'\ndtype = 'float128'\niso = 0", "volume[1].dtype",
+     "unsupported sample type 'float128'"),
     ("[camera]\neye = [0, 0, 50]\nlook_at = [0, 0, 0]\nup = [0, 0, 0]\n{V}", "camera.up", "is zero"),
 ]
 
@@ -306,6 +310,19 @@ def test_unreadable_scene_files(tmp_path):
     (tmp_path / "latin1.toml").write_bytes(b"# caf\xe9\n")
     with pytest.raises(InputError, match="not a UTF-8"):
         load_scene(tmp_path / "latin1.toml")
+
+
+def test_the_files_values_are_checked_where_the_command_line_replaces_them(folder):
+    vol = textwrap.dedent(VOLUME)
+    for text, key, view, size in [(f"size = 'big'\n{vol}", "size", None, (16, 16)),
+                                  (f"[camera]\nfov = 0\n{vol}", "camera.fov", {"fov": 30.0}, None),
+                                  (f"[camera]\nfov = 0\n{vol}", "camera.fov", {"parallel": 3.0}, None),
+                                  (f"[camera]\nzoom = -1\n{vol}", "camera.zoom", {"eye": (40.0, 0, 0)}, None),
+                                  (f"[camera]\nup = [0, 0, 0]\n{vol}", "camera.up", {"up": (0, 1.0, 0)}, None)]:
+        path = write(folder, text)
+        with pytest.raises(InputError) as info:
+            load_scene(path, view=view, size=size)
+        assert str(info.value).startswith(f"{path}: {key}: "), str(info.value)
 
 
 def test_errors_from_the_command_line_view_say_so(folder):
