@@ -183,11 +183,22 @@ def cmd_make(args):
     _refuse_overwriting_input(out, [])
     save_volume(vol, out)  # all-or-nothing itself, and keeps sidecar names right
     _out(f"wrote {_written(out)} ({'x'.join(map(str, vol.dims))} {vol.dtype}{_placement(vol, out)})")
-    levels = ISOVALUES[args.name]
-    if levels:
-        _out(f"isovalue{'s' if len(levels) > 1 else ''} {' and '.join(f'{v:g}' for v in levels)}: "
-             + " ".join(["parc render", shlex.quote(str(out)), *_raw_flags(vol, out), f"--iso {levels[0]:g}",
-                         "-o", shlex.quote(out.stem + ".png")]))
+    made_for = ISOVALUES[args.name]
+    if made_for:
+        # A small volume can miss the levels it is made for (a neuron of 3 samples a side):
+        # the command suggested must run.
+        lo, hi = vol.value_range()
+        levels = [v for v in made_for if lo <= v <= hi]
+        what = f"isovalue{'s' if len(levels) > 1 else ''} {' and '.join(exact_text(v) for v in levels)}"
+        if not levels:
+            from data_tools.info import suggest_isovalues
+            levels = suggest_isovalues(vol)[:1]
+            missed = f"level{'s' if len(made_for) > 1 else ''} {' and '.join(exact_text(v) for v in made_for)}"
+            what = (f"isovalue {exact_text(levels[0])}, from the histogram (at this size the samples, "
+                    f"{lo:.6g} to {hi:.6g}, miss the {missed} {args.name} is made for)" if levels else None)
+        if what is not None:
+            _out(f"{what}: " + " ".join(["parc render", shlex.quote(str(out)), *_raw_flags(vol, out),
+                                         f"--iso {exact_text(levels[0])}", "-o", shlex.quote(out.stem + ".png")]))
     return 0
 
 
