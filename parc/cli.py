@@ -181,7 +181,8 @@ def cmd_make(args):
     except TypeError:
         raise InputError(f"{args.name} takes no --seed") from None
     _refuse_overwriting_input(out, [])
-    save_volume(vol, out)  # all-or-nothing itself, and keeps sidecar names right
+    with slow_note(f"writing {out}", note):    # a compressed 640^3 volume takes seconds
+        save_volume(vol, out)  # all-or-nothing itself, and keeps sidecar names right
     _out(f"wrote {_written(out)} ({'x'.join(map(str, vol.dims))} {vol.dtype}{_placement(vol, out)})")
     made_for = ISOVALUES[args.name]
     if made_for:
@@ -281,7 +282,8 @@ def cmd_convert(args):
     files = vol.meta.get("files", ())
     check_distinct(args.volume, [out], read=files)     # a header's own data file, say
     _refuse_overwriting_input(out, [args.volume, *files])
-    save_volume(vol, out)  # all-or-nothing itself, and keeps sidecar names right
+    with slow_note(f"writing {out}", note):    # a compressed 640^3 volume takes seconds
+        save_volume(vol, out)  # all-or-nothing itself, and keeps sidecar names right
     if "note" in vol.meta:
         note(vol.meta["note"])
     _out(f"wrote {_written(out)} ({'x'.join(map(str, vol.dims))} {vol.dtype}{_placement(vol, out)})")

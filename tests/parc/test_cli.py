@@ -890,6 +890,20 @@ def test_reading_a_slow_volume_is_said_before_and_after(cmd, vol_file, tmp_path,
     assert len(done) == 1 and lines.index(done[0]) > lines.index(f"parc: reading {vol_file} ..."), err
 
 
+@pytest.mark.parametrize("cmd", ["convert", "make"])
+def test_writing_a_slow_volume_is_said_before_and_after(cmd, vol_file, tmp_path, monkeypatch, capsys):
+    # Compressing a 640^3 volume took 13 s after the last word.
+    import parc.outputs
+    monkeypatch.setattr(parc.outputs, "SLOW_NOTE_DELAY", 0.0)
+    out = tmp_path / "w.nrrd"
+    argv = ["convert", str(vol_file), "-o", str(out)] if cmd == "convert" else ["make", "sphere", "--size", "6",
+                                                                                 "-o", str(out)]
+    rc = main(argv)
+    lines = capsys.readouterr().err.splitlines()
+    assert rc == 0 and f"parc: writing {out} ..." in lines, lines
+    assert any(re.fullmatch(rf"parc: writing {re.escape(str(out))}: done in [\d.]+ s", line) for line in lines), lines
+
+
 def test_slow_work_that_fails_leaves_its_error_line_to_say_the_rest(tmp_path, monkeypatch, capsys):
     import parc.outputs
     monkeypatch.setattr(parc.outputs, "SLOW_NOTE_DELAY", 0.0)
