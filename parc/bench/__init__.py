@@ -348,6 +348,30 @@ def _checks_md(checks):
     return md + [""]
 
 
+def _kernels_used():
+    """The kernels of every kind of render the suite makes (isosurfaces, each translucent mode,
+    shaded, bit planes, several volumes, shadows), each asked for any sample type: a render's
+    run leaves some compiled and others not, and the suite's first scene of another kind
+    compiled for half a minute in silence. Other sample types compile in seconds, unsaid."""
+    import parc
+    from data_tools.synthetic import blobs
+
+    from ..renderer import kernel_samples
+    vol = blobs(4, seed=0)
+    cam = parc.Camera.framing(*vol.bounds)
+    iso = parc.Isosurface(vol, 100.5)
+    looks = [[iso], [iso, parc.Translucent(vol, "greyscale")]] + [
+        [parc.Translucent(vol, "greyscale", mode=mode)] for mode in ("composite", "mip", "average")]
+    looks.append([parc.Translucent(vol, "greyscale", shade=True)])
+    kernels = set()
+    for volumes in looks:
+        for lights in ([], [parc.PointLight((9.0, 9.0, 9.0))]) if volumes[0] is iso else ([],):
+            scene = parc.Scene(camera=cam, size=(4, 4), volumes=volumes, lights=lights, shadows=bool(lights))
+            for buffers in ("depth", "bits", "depth,bits"):
+                kernels |= {k for k, _ in kernel_samples(scene, ("brute", "parc"), buffers)}
+    return [(k, ()) for k in kernels]
+
+
 def main(args):
     """`parc bench` (see `parc.cli`): run a suite, print progress on stderr, say where the report is."""
     suite = Suite.tiny() if args.tiny else Suite.quick() if args.quick else Suite.full()
@@ -367,7 +391,7 @@ def main(args):
     def say(msg):
         note(f"{msg}  ({time.perf_counter() - t0:.0f} s)", "parc bench")
 
-    compile_notice(say)
+    compile_notice(say, _kernels_used())
     res = run_bench(out, suite, progress=say, command="parc " + " ".join(args.argv))
     failed = [c for c in res["checks"] if not c["ok"]]
     print(f"{out / 'report.md'}: {len(res['checks']) - len(failed)} of {len(res['checks'])} checks pass "

@@ -523,3 +523,31 @@ def test_the_visible_woman_child_already_adopted_ends_at_once():
     finally:
         child.kill()
         child.wait()
+
+
+def test_the_bench_says_it_compiles_while_any_kind_of_render_is_uncompiled(tmp_path, monkeypatch):
+    # After a render had cached the isosurface casters, the suite's first translucent scene
+    # compiled for half a minute unsaid: the notice looked for any kernel cached at all.
+    import raycast.config
+    from parc.bench import _kernels_used
+    from parc.outputs import compile_notice
+    from raycast.iso import cast_iso_image
+    monkeypatch.setattr(raycast.config, "cache_folder", lambda: tmp_path)
+    (tmp_path / "raycast_0123").mkdir()
+    kernels = [k for k, _ in _kernels_used()]
+    modules = {k.py_func.__module__ for k in kernels}
+    assert cast_iso_image in kernels and {"raycast.composite", "raycast.merged", "raycast.shadow"} <= modules
+
+    def says():
+        said = []
+        compile_notice(said.append, _kernels_used())
+        return bool(said) and "compiling the ray casters" in said[0]
+
+    def cache(kernel):
+        (tmp_path / "raycast_0123" / Path(kernel._cache._cache_file._index_path).name).write_bytes(b"")
+
+    cache(cast_iso_image)
+    assert says()
+    for kernel in kernels:
+        cache(kernel)
+    assert not says()
