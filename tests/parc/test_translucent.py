@@ -421,3 +421,22 @@ def test_the_lattice_takes_the_sample_on_the_exit_face(method, request):
     np.testing.assert_allclose(res.image[..., :3], np.broadcast_to(tf.color(np.array([40.0]))[0], (4, 4, 3)))
     if method == "brute":
         assert (res.work == 5).all(), res.work
+
+
+@pytest.mark.parametrize("buffers, supercell", [("depth", None), ("bits", 2), ("depth,bits", 2)])
+def test_a_new_transfer_function_on_the_same_volume_is_classified_anew(buffers, supercell, gl):
+    """Transfer functions in turn on one Volume, with the same opacity control values and other
+    opacities: the skip tables and the bit planes' proxy cached for the first must not serve
+    the second (each key must hold the opacities, not only where they change)."""
+    vol = blobs(12, seed=5)
+    lo, hi = vol.value_range()
+    mid = 0.5 * (lo + hi)
+    cam = Camera.framing(*vol.bounds, azimuth=30, elevation=25)
+    shows_high = TransferFunction(opacity=[[lo, 0.0], [mid, 0.0], [hi, 0.8]])
+    shows_low = TransferFunction(opacity=[[lo, 0.8], [mid, 0.0], [hi, 0.0]])
+    for tf in (shows_high, shows_low, shows_high):
+        scene = Scene(camera=cam, size=(24, 24), volumes=[Translucent(vol, tf, mode="mip")])
+        ref = render(scene)
+        assert (ref.image[..., 3] > 0).sum() >= 20
+        res = render(scene, method="parc", buffers=buffers, supercell=supercell)
+        assert np.abs(res.image - ref.image).max() <= 1e-6, (buffers, tf.opacity_points)
