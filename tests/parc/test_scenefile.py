@@ -138,6 +138,41 @@ def test_same_data_and_placement_share_one_volume(folder):
     assert a.volume is b.volume
 
 
+def test_tables_of_one_source_read_differently_get_volumes_of_their_own(folder):
+    # Two seeds of one synthetic volume, and one raw file read as two types and shapes: a
+    # cache keyed on the source alone gave the second table the first's samples.
+    (folder / "data" / "pair.raw").write_bytes(np.arange(48, dtype=np.uint8).tobytes())
+    path = write(folder, """\
+        [[volume]]
+        synthetic = "blobs"
+        size = 8
+        seed = 1
+        iso = 100.5
+        [[volume]]
+        synthetic = "blobs"
+        size = 8
+        seed = 2
+        iso = 100.5
+        [[volume]]
+        file = "data/pair.raw"
+        shape = [4, 3, 4]
+        dtype = "uint8"
+        iso = 20
+        [[volume]]
+        file = "data/pair.raw"
+        shape = [3, 2, 4]
+        dtype = "uint16"
+        iso = 3000
+    """)
+    one, two, u8, u16 = (v.volume for v in load_scene(path).volumes)
+    assert np.array_equal(one.data, make_synthetic("blobs", 8, seed=1).data)
+    assert np.array_equal(two.data, make_synthetic("blobs", 8, seed=2).data)
+    assert not np.array_equal(one.data, two.data)
+    raw = (folder / "data" / "pair.raw").read_bytes()
+    assert np.array_equal(u8.data, np.frombuffer(raw, np.uint8).reshape(4, 3, 4))
+    assert np.array_equal(u16.data, np.frombuffer(raw, "<u2").reshape(4, 2, 3))
+
+
 def test_synthetic_parallel_and_look_at_only(folder):
     path = write(folder, """\
         [camera]
