@@ -640,6 +640,8 @@ def test_slc_bad_magic_and_bits(tmp_path, writers):
     fails(p, "magic")
     p.write_bytes(good.replace(b" 4 8\n", b" 4 16\n", 1))
     fails(p, "16-bit")
+    p.write_bytes(good.replace(b"1 6 0 1\n", b"1 6 0 2\n", 1))
+    fails(p, "unknown SLC compression 2 (0 raw, 1 run-length)")
 
 
 def test_slc_claiming_more_samples_than_memory_holds(tmp_path, writers):

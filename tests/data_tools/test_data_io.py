@@ -462,6 +462,17 @@ def test_nrrd_oblique_directions_become_norms_with_note(tmp_path):
     assert "oblique" in vol.meta["note"]
 
 
+def test_nrrd_mirrored_directions_become_spacings_with_note(tmp_path):
+    # The note is the user's only word that the volume is read unmirrored.
+    arr = make_array("uint8")
+    nrrd.write(str(tmp_path / "m.nrrd"), arr, {"space": "left-posterior-superior",
+                                               "space directions": np.diag([-2.0, 1.0, 3.0]),
+                                               "space origin": [1, 2, 3]}, index_order="C")
+    vol = load_volume(tmp_path / "m.nrrd")
+    check(vol, arr, (2, 1, 3), (1, 2, 3))
+    assert vol.meta["note"] == "negative space directions (mirrored axes) were reduced to positive spacings"
+
+
 def test_nrrd_axis_aligned_has_no_note(tmp_path):
     p = save_volume(Volume(make_array("uint8"), spacing=(1, 2, 3)), tmp_path / "a.nrrd")
     assert "note" not in load_volume(p).meta
@@ -940,6 +951,17 @@ def test_metaimage_with_a_fourth_axis_of_one_is_a_volume(tmp_path, steps, ok):
     vol = load_volume(p)
     assert np.array_equal(vol.data, data[0]) and vol.spacing == (1.5, 2.0, 3.0) and vol.origin == (1.0, 2.0, 3.0)
     assert "note" not in vol.meta
+
+
+def test_metaimage_with_a_rotation_says_it_is_read_on_an_axis_aligned_grid(tmp_path):
+    data = np.arange(2 * 3 * 4, dtype="<i2").reshape(2, 3, 4)
+    header = ["ObjectType = Image", "NDims = 3", "DimSize = 4 3 2", "ElementType = MET_SHORT",
+              "TransformMatrix = 0 1 0 -1 0 0 0 0 1", "ElementDataFile = LOCAL"]
+    p = tmp_path / "turned.mha"
+    p.write_bytes(("\n".join(header) + "\n").encode() + data.tobytes())
+    vol = load_volume(p)
+    assert np.array_equal(vol.data, data)
+    assert vol.meta["note"] == "non-identity TransformMatrix ignored: the volume is read on an axis-aligned grid"
 
 
 # MetaImage header fields as other writers spell them (the MetaIO documentation), and a raw

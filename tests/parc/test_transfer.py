@@ -8,6 +8,7 @@ outside each end), which no interval table is involved in.
 import bisect
 import json
 import math
+import re
 from fractions import Fraction
 
 import numba
@@ -703,6 +704,13 @@ def test_normalized_functions_map_onto_a_range_a_few_floats_wide(name, tmp_path)
 def test_a_one_value_data_range_is_widened_by_one(lo):
     from parc.transfer.presets import data_range_of
     assert data_range_of((lo, lo), "x") == (lo, lo + 1.0)
+
+
+@pytest.mark.parametrize("name", ["greyscale", "viridis"])
+def test_a_reversed_data_range_is_named_as_such(name):
+    # Not left to the control points it would make, which "must ascend".
+    with pytest.raises(InputError, match=re.escape(f"{name}: data range (10, 0) is reversed")):
+        preset(name, (10, 0))
 
 
 def test_viridis_knots_sit_at_i_over_255_of_the_range():
