@@ -31,4 +31,8 @@ def check_memory(need, what, hint=""):
 
 
 def _amount(n):
+    """Bytes in MB or GB, and a need past a thousand TB as a power of ten (a header's
+    99999999^3 samples needed a 32-digit number of GB)."""
+    if n >= 2**50:
+        return f"{n / 2**30:.1e} GB"
     return f"{n / 2**30:.1f} GB" if n >= 2**30 else f"{n / 2**20:.0f} MB"

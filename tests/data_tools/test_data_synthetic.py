@@ -229,3 +229,11 @@ def test_make_refuses_by_what_the_volume_needs_while_made(name, fits, monkeypatc
     else:
         with pytest.raises(InputError, match="--size 800 needs about 22.9 GB of memory; 4.0 GB is available"):
             check_synthetic_size(800, "--size 800", name)
+
+
+def test_a_need_past_all_memory_reads_as_a_power_of_ten(monkeypatch):
+    # 99999999^3 samples (a header's claim) needed a 32-digit number of GB.
+    from data_tools import memory
+    monkeypatch.setattr(memory, "available_memory", lambda: 4 * 2**30)
+    with pytest.raises(InputError, match=r"x needs about 9\.3e\+14 GB of memory; 4\.0 GB is available$"):
+        memory.check_memory(10**24, "x")
