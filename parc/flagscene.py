@@ -8,6 +8,8 @@ are refused in one line, not ignored.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from data_tools import InputError
@@ -107,7 +109,7 @@ def _volume_scene(args, say):
 
     w, h = args.size or (512, 512)
     if w < 1 or h < 1:
-        raise InputError(f"image size must be positive, got {w} {h}")
+        raise InputError(f"--size must be two positive integers, got {w} {h}")
     if args.volume is None:
         for name in ("shape", "dtype", "byte_order", "spacing", "origin"):
             if getattr(args, name, None) is not None:
@@ -128,6 +130,10 @@ def _volume_scene(args, say):
                 if _given(getattr(args, flag)):
                     raise InputError(f"--{flag} applies to --mode composite; {args.mode} neither shades samples "
                                      "nor stops rays early")
+        if args.step is not None and not (math.isfinite(args.step) and args.step > 0.0):
+            raise InputError(f"--step must be a positive, finite distance, got {args.step:g}")
+        if args.threshold is not None and not 0.0 < args.threshold <= 1.0:
+            raise InputError(f"--threshold must be an opacity in (0, 1], got {args.threshold:g}")
         vis = parc.Translucent(vol, args.tf, mode=args.mode or "composite", step=args.step,
                                threshold=0.99 if args.threshold is None else args.threshold, shade=args.shade)
         return parc.Scene(camera=_camera(args, vol, (w, h)), size=(w, h), volumes=[vis],
@@ -155,6 +161,10 @@ def _camera(args, vol, size):
     lo, hi = vol.bounds
     if args.zoom is not None and not (np.isfinite(args.zoom) and args.zoom > 0.0):
         raise InputError(f"--zoom must be positive and finite, got {args.zoom:g}")
+    if args.fov is not None and not 0.0 < args.fov < 180.0:
+        raise InputError(f"--fov must be a number of degrees between 0 and 180, got {args.fov:g}")
+    if args.parallel is not None and not (np.isfinite(args.parallel) and args.parallel > 0.0):
+        raise InputError(f"--parallel must be a positive, finite half height, got {args.parallel:g}")
     view = resolve_view(lo, hi, eye=args.eye, look_at=args.look_at, up=args.up, fov=args.fov,
                         parallel=args.parallel, aspect=size[0] / size[1], zoom=args.zoom)
     if args.look_at is None and unit_vector(np.subtract(view["look_at"], view["eye"])) is None:

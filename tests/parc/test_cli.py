@@ -635,7 +635,12 @@ def test_more_bad_arguments(extra, words, vol_file, tmp_path, capsys):
     (["--mode", "mip", "--shade"], "--shade applies to --mode composite"),
     (["--mode", "average", "--threshold", "0.5"], "--threshold applies to --mode composite"),
     (["--mode", "mip", "--threshold", "0"], "--threshold applies to --mode composite"),
-    (["--step", "inf"], "step must be a positive, finite distance"),
+    (["--step", "inf"], "--step must be a positive, finite distance, got inf"),
+    (["--step", "0"], "--step must be a positive, finite distance, got 0"),
+    (["--threshold", "1.5"], "--threshold must be an opacity in (0, 1], got 1.5"),
+    (["--fov", "0"], "--fov must be a number of degrees between 0 and 180, got 0"),
+    (["--parallel", "-2"], "--parallel must be a positive, finite half height, got -2"),
+    (["--size", "0", "8"], "--size must be two positive integers, got 0 8"),
     (["--background", "2,0,0"], "background components must be in [0, 1]"),
 ])
 def test_translucent_flags_that_cannot_apply_are_refused(extra, words, vol_file, tmp_path, capsys):
