@@ -408,7 +408,7 @@ def cmd_compare(args):
         say(f"{line} ...")
 
     warming = None if args.quiet else announce
-    methods = method_names(args.methods)
+    methods = method_names(args.methods, "--methods")
     if args.repeats < 1:
         raise InputError(f"--repeats must be at least 1, got {args.repeats}")
     _check_sweep_flags(args)
@@ -420,6 +420,9 @@ def cmd_compare(args):
             steps = []
         if not steps or not all(np.isfinite(steps)) or min(steps) <= 0:
             raise InputError(f"--sweep-step must be comma-separated positive numbers, got {args.sweep_step!r}")
+        twice = sorted({v for v in steps if steps.count(v) > 1})
+        if twice:
+            raise InputError(f"--sweep-step gives {twice[0]:g} twice")
     with _reading(args, say):
         scene, said = scene_and_notes(args)
     notes.extend(said)

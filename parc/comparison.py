@@ -161,21 +161,27 @@ OPENGL_PHASES = ("raster", "raster_bits", "raster_lights")
 RENDER_OPTIONS = {"supercell", "buffers", "blocks", "light_buffer"}
 
 
-def method_names(methods):
-    """``methods`` as a list without repeats, brute first; a string may name them as ``"brute,parc"``."""
+def method_names(methods, what="methods"):
+    """``methods`` as a list, brute first (named or not); a string may name them as ``"brute,parc"``.
+    A name given twice is refused: it would be timed once. ``what`` names the argument in
+    messages (``--methods`` on the command line)."""
     from .renderer import METHODS
     given = methods
     if isinstance(methods, str):
         pieces = [m.strip() for m in methods.split(",")]
         if any(pieces) and not all(pieces):
-            raise InputError(f"methods {methods!r} has an empty name between commas")
+            raise InputError(f"{what} {methods!r} has an empty name between commas")
         methods = methods.split(",")
     try:
         names = [m.strip() for m in methods if m.strip()]
     except (TypeError, AttributeError):
-        raise InputError(f"methods must be names such as ('brute', 'parc'), got {methods!r}") from None
+        raise InputError(f"{what} must be names such as ('brute', 'parc'), got {methods!r}") from None
     if not names:
-        raise InputError(f"methods names no method, got {given!r}; name some, such as 'brute,parc'")
+        raise InputError(f"{what} names no method, got {given!r}; name some, such as 'brute,parc'")
+    twice = sorted({m for m in names if names.count(m) > 1})
+    if twice:
+        raise InputError(f"{what} names {twice[0]!r} twice; to time a method twice, label each run "
+                         "after a colon, as in 'parc:a,parc:b'")
     for m in names:
         if m.endswith(":"):
             raise InputError(f"method {m!r} has an empty label; write one after the colon, as in 'parc:a'")

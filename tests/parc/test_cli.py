@@ -951,12 +951,15 @@ def test_supercell_sweep_takes_sizes_per_axis(vol_file, capsys):
     (["--methods", "brute,parc:"], "'parc:' has an empty label"),
     (["--sweep-step", "1e-4"], "reference step"),
     (["--sweep-supercell", "4,4.0"], "--sweep-supercell gives 4 twice"),
-    (["--methods", ""], "methods names no method"),
-    (["--methods", ","], "methods names no method"),
-    (["--methods", "brute,,parc"], "methods 'brute,,parc' has an empty name between commas"),
-    (["--methods", "parc,"], "methods 'parc,' has an empty name between commas"),
-    (["--methods", "brute, ,parc"], "methods 'brute, ,parc' has an empty name between commas"),
-    (["--methods", " "], "methods names no method, got ' '; name some"),
+    (["--sweep-step", "1,0.5,0.50"], "--sweep-step gives 0.5 twice"),
+    (["--methods", "brute,brute"], "--methods names 'brute' twice"),
+    (["--methods", "parc:a,parc:a"], "--methods names 'parc:a' twice"),
+    (["--methods", ""], "--methods names no method"),
+    (["--methods", ","], "--methods names no method"),
+    (["--methods", "brute,,parc"], "--methods 'brute,,parc' has an empty name between commas"),
+    (["--methods", "parc,"], "--methods 'parc,' has an empty name between commas"),
+    (["--methods", "brute, ,parc"], "--methods 'brute, ,parc' has an empty name between commas"),
+    (["--methods", " "], "--methods names no method, got ' '; name some"),
 ])
 def test_bad_sweeps_are_refused_before_any_work(extra, words, vol_file, capsys):
     rc, out, err = _run(["compare", vol_file, "--tf", "greyscale", "--size", 8, 8, "--repeats", 1] + extra, capsys)
