@@ -34,7 +34,7 @@ def check_file(path: Path, what: str = "file") -> Path:
             raise InputError(f"{path}: a link that leads nowhere (or in a loop)")
         raise InputError(f"{path}: no such {what}")
     if path.is_dir():
-        raise InputError(f"{path}: is a directory, not a volume {what}")
+        raise InputError(f"{path}: is a folder, not a volume {what}")
     if not path.is_file():
         # A pipe or a device would block the read or never end it.
         raise InputError(f"{path}: not a regular file")

@@ -223,7 +223,7 @@ def read_tiff_folder(path) -> Volume:
         if any(f.suffix.lower() in _DICOM for f in path.iterdir()):
             raise InputError(f"{path}: a DICOM series is not read here; convert it to NRRD or NIfTI first "
                              "(e.g. with dcm2niix)")
-        raise InputError(f"{path}: is a directory with no .tif slices, not a volume file")
+        raise InputError(f"{path}: is a folder with no .tif slices, not a volume file")
     if len(files) < 2:
         raise InputError(f"{path}: holds one .tif slice ({files[0].name}); a volume needs at least 2")
     tifffile = optional_library("tifffile", path, "TIFF", "tiff")

@@ -380,7 +380,7 @@ def main(args):
             raise InputError(f"{flag}: the folder is empty; give a folder's path")
     if args.data is not None:
         if not Path(args.data).is_dir():
-            raise InputError(f"--data {args.data}: no such folder")
+            raise InputError(f"--data {args.data}: " + ("not a folder" if Path(args.data).exists() else "no such folder"))
         suite = replace(suite, data_dir=Path(args.data))
     out = Path(args.out)
     if out.exists() and not out.is_dir():

@@ -126,10 +126,10 @@ def load_transfer_function(spec, data_range=None, mode="composite"):
         raise InputError(f"unknown transfer function preset {text!r}; known: {', '.join(PRESETS)}; "
                          "or give a .toml or .json file")
     where = f"transfer function {text}"
+    if path.is_dir():
+        raise InputError(f"{where}: is a folder, not a file")
     if ext not in (".toml", ".json"):
         raise InputError(f"{where}: unknown file type {ext or '(none)'!r}; use .toml or .json")
-    if path.is_dir():
-        raise InputError(f"{where}: is a directory, not a file")
     if not path.is_file():
         raise InputError(f"{where}: not a regular file")
     try:

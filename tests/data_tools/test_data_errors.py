@@ -41,7 +41,7 @@ def test_unknown_extension_lists_supported(tmp_path):
 def test_directory(tmp_path):
     d = tmp_path / "dir.nrrd"
     d.mkdir()
-    fails(d, "directory")
+    fails(d, "is a folder")         # "folder", as every message says
 
 
 @pytest.mark.parametrize("ext", [".nrrd", ".nhdr", ".mhd", ".mha", ".vtk", ".slc", ".npy"])

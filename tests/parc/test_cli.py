@@ -500,6 +500,20 @@ def test_paths_that_are_not_what_they_seem_are_named(vol_file, tmp_path, capsys,
     assert rc == 2 and "v.npy.json: the sidecar of v.npy (its spacing and origin) is not a file" in err, err
 
 
+def test_a_folder_given_for_a_file_is_called_a_folder(vol_file, tmp_path, capsys):
+    # Three messages said "directory", and a transfer function's folder "unknown file type '(none)'".
+    for name in ("v.nrrd", "tf", "tf.toml"):
+        (tmp_path / name).mkdir()
+    cases = [(["info", tmp_path / "v.nrrd"], "v.nrrd: is a folder"),
+             (["render", vol_file, "--tf", tmp_path / "tf", "-o", tmp_path / "o.png"], "tf: is a folder, not a file"),
+             (["render", vol_file, "--tf", tmp_path / "tf.toml", "-o", tmp_path / "o.png"],
+              "tf.toml: is a folder, not a file"),
+             (["bench", "--tiny", "--data", vol_file, "--out", tmp_path / "b"], f"--data {vol_file}: not a folder")]
+    for argv, words in cases:
+        rc, _, err = _run(argv, capsys)
+        assert rc == 2 and err.count("\n") == 1 and words in err and "directory" not in err, err
+
+
 def test_a_closed_pipe_ends_the_command_quietly(vol_file):
     # As `parc info VOLUME | head -0`: the reader is gone before the first line.
     p = subprocess.Popen([sys.executable, "-m", "parc.cli", "info", str(vol_file)],
