@@ -84,6 +84,9 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
     _check_progress(progress, "a line of text")
     check_frame_memory(*scene.size, layers=len(scene.volumes), kept_images=len(names))
     check_supercells(scene, options)
+    if any(name.split(":")[0] == "parc" for name in names):
+        from .gl import get_context
+        get_context()           # no OpenGL: said before brute's warm-up, not after it
     vol = scene.volumes[0].volume
     cell = float(min(vol.spacing))
     runs = {name: [] for name in names}

@@ -427,6 +427,28 @@ def test_opengl_unavailable_is_an_input_error(monkeypatch):
     assert "\n" not in msg and "OpenGL is not available" in msg and "eglGetDisplay failed" in msg
 
 
+def test_compare_says_there_is_no_opengl_before_any_render(monkeypatch):
+    """Not after brute's warm-up, which on a large scene takes a while."""
+    import moderngl
+
+    import parc.comparison as comparison
+    from data_tools.synthetic import blobs
+    from parc import Isosurface, Scene, gl
+    rendered = []
+
+    def fail(**kwargs):
+        raise Exception("eglGetDisplay failed")
+
+    monkeypatch.setattr(gl, "_CONTEXT", None)
+    monkeypatch.setattr(moderngl, "create_standalone_context", fail)
+    monkeypatch.setattr(comparison, "render", lambda *args, **kwargs: rendered.append(kwargs))
+    vol = blobs(6, seed=1)
+    scene = Scene(camera=Camera.framing(*vol.bounds), size=(8, 8), volumes=[Isosurface(vol, 100.5)])
+    with pytest.raises(gl.OpenGLUnavailable):
+        comparison.compare(scene, methods=("brute", "parc"), repeats=1)
+    assert rendered == []
+
+
 def test_the_drivers_warnings_are_held_back_while_the_context_is_made(monkeypatch):
     """Mesa's EGL warnings would come before the one error line: quiet unless the user set
     EGL_LOG_LEVEL, and the environment is as it was afterwards."""
