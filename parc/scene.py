@@ -265,6 +265,7 @@ class Scene:
         for v in self.volumes:
             if not isinstance(v, (Isosurface, Translucent)):
                 raise InputError(f"a scene shows Isosurface or Translucent volumes, got {type(v).__name__}")
+        _check_eye_resolves(self.camera, self.volumes)
         self.lights = _sequence(self.lights, "lights")
         for light in self.lights:
             if not isinstance(light, LIGHTS):
@@ -287,6 +288,26 @@ class Scene:
     @property
     def height(self):
         return self.size[1]
+
+
+#: How many times the volumes' size the eye's coordinates may reach: as `Camera.framing`'s
+#: narrowest field of view, the volumes stay above 2^-20 of float64's resolution at the eye.
+EYE_RANGE = 2.0 ** 32
+
+
+def _check_eye_resolves(camera, volumes):
+    """Refuse an eye so far out that float64 cannot place rays across the volumes: a parallel
+    view's ray origins, rounded to the eye's resolution (16384 units at 1e20), all missed, and
+    the picture came out empty without a word."""
+    lo = np.min([v.volume.bounds[0] for v in volumes], axis=0)
+    hi = np.max([v.volume.bounds[1] for v in volumes], axis=0)
+    size = float(np.linalg.norm(np.subtract(hi, lo)))
+    far = float(np.max(np.abs(camera.eye)))
+    if not far <= EYE_RANGE * size:
+        raise InputError(f"the eye {tuple(float(c) for c in camera.eye)} is over 2^32 times the volumes' size "
+                         f"({size:.6g}) from the origin, where float64 cannot place rays across them; move the "
+                         "eye closer" + (" (a parallel view's picture does not change with the eye's distance)"
+                                         if camera.parallel else ""))
 
 
 def _finite_triple(v, what):
