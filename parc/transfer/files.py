@@ -174,7 +174,7 @@ def _from_ours(doc, where, source, data_range):
         for key, xs in (("opacity", tf.arrays()[0]), ("color", tf.arrays()[2])):
             bad = np.flatnonzero((xs < 0.0) | (xs > 1.0))
             if len(bad):
-                raise InputError(f"{where}: {key}[{bad[0]}]: value {xs[bad[0]]:g} is outside [0, 1] "
+                raise InputError(f"{where}: {key} point {bad[0] + 1}: value {xs[bad[0]]:g} is outside [0, 1] "
                                  "(space = \"normalized\")")
         if data_range is None:
             raise InputError(f"{where}: space: \"normalized\" needs the data range (lo, hi)")
@@ -188,7 +188,8 @@ def _from_paraview(doc, where, source, data_range, mode):
             raise InputError(f"{where}: the ParaView colour-map list is empty")
         doc = doc[0]
         if not isinstance(doc, dict):
-            raise InputError(f"{where}: [0]: expected a ParaView colour-map object, got {short_repr(doc)}")
+            raise InputError(f"{where}: the list's first entry: expected a ParaView colour-map object, got "
+                             f"{short_repr(doc)}")
     name = doc.get("Name", "")
     if not isinstance(name, str):
         raise InputError(f"{where}: Name: must be a string, got {short_repr(name)}")
@@ -196,10 +197,10 @@ def _from_paraview(doc, where, source, data_range, mode):
         extra = " (indexed/categorical maps are not supported)" if "IndexedColors" in doc else ""
         raise InputError(f"{where}: RGBPoints: missing{extra}")
     col = control_points(_flat_groups(doc["RGBPoints"], "RGBPoints", 4, 4, where), "RGBPoints",
-                  ("r", "g", "b"), where, label=lambda i, j: f"RGBPoints[{4 * i + j}]")
+                  ("r", "g", "b"), where, label=lambda i, j: f"RGBPoints number {4 * i + j + 1} (point {i + 1})")
     if "Points" in doc:
         op = control_points(_flat_groups(doc["Points"], "Points", 4, 2, where), "Points", ("alpha",),
-                     where, label=lambda i, j: f"Points[{4 * i + j}]")
+                     where, label=lambda i, j: f"Points number {4 * i + j + 1} (point {i + 1})")
     else:
         x0, x1 = col[0, 0], col[-1, 0]
         span = x1 - x0 if x1 > x0 else 1.0
@@ -225,7 +226,7 @@ def _flat_groups(raw, key, group, keep, where):
         raise InputError(f"{where}: {key}: {len(raw)} numbers is not a multiple of {group} {shape}")
     for i, x in enumerate(raw):
         if not is_number(x):
-            raise InputError(f"{where}: {key}[{i}]: must be a number, got {short_repr(x)}")
+            raise InputError(f"{where}: {key} number {i + 1}: must be a number, got {short_repr(x)}")
     return [raw[i:i + keep] for i in range(0, len(raw), group)]
 
 def save_transfer_function(tf, path):

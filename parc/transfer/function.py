@@ -354,12 +354,13 @@ def short_repr(x, limit=40):
 def control_points(raw, key, fields, where, label=None):
     """Validated ``(n, 1 + len(fields))`` float64 control points from user input.
 
-    ``label(i, j)`` names field ``j`` of point ``i`` in messages; default
-    ``key[i]`` (ParaView's flat lists pass ``key[4 i + j]``).
+    ``label(i, j)`` names field ``j`` of point ``i`` (from 0) in messages; default
+    ``key point i + 1``, counted from 1 as a scene file's tables are (ParaView's flat
+    lists pass ``key number 4 i + j + 1 (point i + 1)``).
     """
     if label is None:
         def label(i, j):
-            return f"{key}[{i}]"
+            return f"{key} point {i + 1}"
     width = 1 + len(fields)
     shape = "[value, " + ", ".join(fields) + "]"
     if isinstance(raw, (str, bytes, dict)) or not hasattr(raw, "__len__"):
