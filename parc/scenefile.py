@@ -427,7 +427,8 @@ def _load_camera(where, t, volumes, view, aspect):
         if settings["look_at"] is None:
             raise where.error(label("eye"), f"eye {list(cam['eye'])} is the centre of the volumes, where the "
                                             "camera looks by default: move it or give look_at")
-        name = "eye" if settings["eye"] is not None else "look_at"
+        # The one the command line gave, if either: the file's was fine without it.
+        name = next((k for k in ("look_at", "eye") if k in view), "eye" if settings["eye"] is not None else "look_at")
         raise where.error(label(name), f"eye and look_at are the same point {list(cam['eye'])}: no view direction")
     up = unit_vector(cam["up"])
     if up is None:

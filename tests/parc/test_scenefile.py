@@ -366,6 +366,9 @@ def test_errors_from_the_command_line_view_say_so(folder):
         load_scene(path, view={"fov": 190.0})
     with pytest.raises(InputError, match=r"size \(given on the command line\)"):
         load_scene(path, size=(0, 10))
+    eyed = write(folder, "[camera]\neye = [40, 1, 2]\n" + textwrap.dedent(VOLUME), name="eyed.toml")
+    with pytest.raises(InputError, match=r"camera.look_at \(given on the command line\): eye and look_at are the same"):
+        load_scene(eyed, view={"look_at": (40.0, 1.0, 2.0)})
 
 
 def test_resolve_view_matches_framing():
