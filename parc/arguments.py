@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import re
+import sys
 import textwrap
 
 import numpy as np
@@ -48,7 +49,19 @@ class _Formatter(argparse.RawDescriptionHelpFormatter):
 class _Parser(argparse.ArgumentParser):
     """argparse that reports errors as one line with status 2, like the rest of parc."""
 
+    def parse_known_args(self, args=None, namespace=None):
+        self._given = list(sys.argv[1:] if args is None else args)
+        return super().parse_known_args(args, namespace)
+
     def error(self, message):
+        # argparse checks required arguments before it looks for unknown ones: a misspelt
+        # flag, the likelier mistake, was reported as a missing -o.
+        if message.startswith("the following arguments are required"):
+            flags = self._option_string_actions
+            unknown = [a for a in getattr(self, "_given", ()) if a.startswith("--") and a != "--"
+                       and not any(f.startswith(a.split("=")[0]) for f in flags)]     # argparse takes a prefix
+            if unknown:
+                message = f"unrecognized arguments: {' '.join(unknown)}"
         raise InputError(message)
 
 

@@ -500,6 +500,16 @@ def test_paths_that_are_not_what_they_seem_are_named(vol_file, tmp_path, capsys,
     assert rc == 2 and "v.npy.json: the sidecar of v.npy (its spacing and origin) is not a file" in err, err
 
 
+def test_a_misspelt_flag_is_named_before_a_missing_output(vol_file, capsys):
+    # argparse checks required arguments first: "--isovalue 3" without -o was "-o is required".
+    rc, _, err = _run(["render", vol_file, "--isovalue", "3"], capsys)
+    assert rc == 2 and err.strip() == "parc: error: unrecognized arguments: --isovalue", err
+    rc, _, err = _run(["render", vol_file, "--sup", "4"], capsys)                  # a prefix argparse takes
+    assert rc == 2 and "required: -o/--output" in err, err
+    rc, _, err = _run(["make", "sphere", "--colour=red"], capsys)
+    assert rc == 2 and "unrecognized arguments: --colour=red" in err, err
+
+
 def test_a_folder_given_for_a_file_is_called_a_folder(vol_file, tmp_path, capsys):
     # Three messages said "directory", and a transfer function's folder "unknown file type '(none)'".
     for name in ("v.nrrd", "tf", "tf.toml"):
