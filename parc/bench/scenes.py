@@ -89,7 +89,7 @@ def iron_protein(size, data_dir=None, tiny=False):
         vp = _to_uint8(vp)
         vn = _to_uint8(vn)
         source = (f"synthetic blobs {n}³ uint8: an isosurface 80 inside a translucent field "
-                  f"({_missing(data_dir, '`poship.slc`/`neghip.slc`')})")
+                  f"({_missing(data_dir, ' and '.join(f'`{name}`' for name, path in (('poship.slc', pos), ('neghip.slc', neg)) if path is None))})")
     cam = Camera.framing(*vp.bounds, azimuth=30.0, elevation=20.0, zoom=1.1)
     scene = Scene(camera=cam, size=(size, size), background=(0.0, 0.0, 0.0),
                   volumes=[Isosurface(vp, 80.0, color=(1.0, 0.6, 0.3)), Translucent(vn, PROTEIN_TF)])

@@ -551,3 +551,12 @@ def test_the_bench_says_it_compiles_while_any_kind_of_render_is_uncompiled(tmp_p
     for kernel in kernels:
         cache(kernel)
     assert not says()
+
+
+def test_a_stand_in_names_the_files_it_stands_in_for(tmp_path):
+    # With neghip.slc present, the report said "`poship.slc`/`neghip.slc` not found".
+    from parc.bench.scenes import iron_protein
+    (tmp_path / "neghip.slc").write_bytes(b"")
+    assert iron_protein(8, tmp_path)[1].endswith("(`poship.slc` not found)")
+    (tmp_path / "neghip.slc").unlink()
+    assert iron_protein(8, tmp_path)[1].endswith("(`poship.slc` and `neghip.slc` not found)")
