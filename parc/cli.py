@@ -426,6 +426,12 @@ def cmd_compare(args):
     with _reading(args, say):
         scene, said = scene_and_notes(args)
     notes.extend(said)
+    if steps is not None:
+        from .transfer import reference_step
+        # --step with the sweep is refused; a scene file's own step is replaced, and said so.
+        for n, vis in enumerate(scene.volumes, 1):
+            if hasattr(vis, "tf") and vis.step != reference_step(vis.volume.spacing):
+                notes.append(f"the step sweep replaces volume[{n}]'s step {vis.step:g} from {args.volume}")
     common = {"buffers": _buffers(args, scene), "blocks": not args.no_blocks}
     if steps is not None and args.supercell is not None:
         common["supercell"] = args.supercell
