@@ -133,7 +133,7 @@ def atomic_write_all(writes, remove=()):
                 os.replace(tmp, target)
     except OSError as exc:
         # Name the user's file: the temporary one beside it means nothing to them.
-        raise InputError(f"{path}: cannot write ({os_reason(exc)})") from None
+        raise InputError(f"{path}: cannot write: {os_reason(exc)}") from None
     finally:
         for tmp, _, _ in done:
             if tmp.exists():

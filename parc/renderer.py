@@ -115,8 +115,8 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
     progress : callable(done_fraction) or None
         Called as bands of image rows finish, for long renders.
     light_buffer : int, optional
-        Side in pixels of PARC's light buffers for shadow rays (default
-        `parc.lights.LIGHT_BUFFER_SIZE`). Any size gives the same image;
+        Side in pixels of PARC's light buffers for shadow rays, a whole number from 2 to
+        `MAX_LIGHT_BUFFER` (default `parc.lights.LIGHT_BUFFER_SIZE`). Any size gives the same image;
         finer buffers give shorter shadow-ray segments for more raster time.
     blocks : bool, default True
         PARC only: inside its segments the caster also jumps across cubes
