@@ -48,7 +48,7 @@ from numba import prange
 
 from .config import TILE_H, TILE_W, kernel, named_for
 from .rays import camera_ray, dealt_tile, tile_count
-from .shade import blinn_phong, trilinear_gradient
+from .shade import blinn_phong, trilinear_gradient, unit_normal
 from .transfer import correct_opacity, tf_color, tf_lookup, tf_opacity
 from .traverse import (advance, cell_corners, clip_box, cube_exit, entry_anchor, grid_shape, step_cell, to_index_space,
                        walk_from)
@@ -248,14 +248,10 @@ def shade_color(data, spc, i, j, k, u, vv, w, dx, dy, dz, params, cr, cg, cb):
     on: inlined, it made every contributing sample of an unshaded ray cost
     about twice as much (the loop's registers spilled around code it never ran).
     """
+    # A flat region has no gradient: it faces the viewer, as a flat isosurface cell
+    # does (`raycast.shade.headlight_pixel`), highlight included.
     gx, gy, gz = trilinear_gradient(data, i, j, k, u, vv, w, spc)
-    gl = math.sqrt(gx * gx + gy * gy + gz * gz)
-    if gl > 0.0:
-        gx, gy, gz = gx / gl, gy / gl, gz / gl
-    else:
-        # A flat region has no gradient: it faces the viewer, as a flat isosurface cell
-        # does (`raycast.shade.headlight_pixel`), highlight included.
-        gx, gy, gz = -dx, -dy, -dz
+    gx, gy, gz = unit_normal(gx, gy, gz, dx, dy, dz)
     diff, spec = blinn_phong(gx, gy, gz, -dx, -dy, -dz, -dx, -dy, -dz, params[P_AMBIENT:P_AMBIENT + 4])
     f = params[P_AMBIENT] + diff
     return cr * f + spec, cg * f + spec, cb * f + spec

@@ -26,6 +26,27 @@ def trilinear_gradient(data, i, j, k, u, v, w, spc):
 
 
 @kernel
+def unit_normal(gx, gy, gz, dx, dy, dz):
+    """The gradient ``g`` made a unit vector; where it is zero (a flat cell, all corners at
+    one value), ``-d``: facing the viewer along ``d``.
+
+    Its squared length leaves float64 for gradients past 1e154 or below 1e-154 (float64
+    samples of 1e160, or of 1e-200, both accepted): ``inf`` gave a zero normal, lit by
+    the ambient term alone, and 0 a flat cell's. Those are scaled by their largest
+    component first; others are computed as they always were.
+    """
+    g2 = gx * gx + gy * gy + gz * gz
+    if not 1e-300 < g2 < 1e300:
+        m = max(abs(gx), max(abs(gy), abs(gz)))
+        if m == 0.0:
+            return -dx, -dy, -dz
+        gx, gy, gz = gx / m, gy / m, gz / m
+        g2 = gx * gx + gy * gy + gz * gz
+    gl = math.sqrt(g2)
+    return gx / gl, gy / gl, gz / gl
+
+
+@kernel
 def power(x, e):
     """``x ** e``; by repeated squaring for whole exponents up to 1024 (shininess
     is nearly always a whole number), where ``pow`` was half the shading time."""
@@ -69,12 +90,7 @@ def headlight_pixel(data, spc, i, j, k, u, v, w, dx, dy, dz, color, material, im
     """Write the colour of a hit in cell ``(i, j, k)`` at local ``(u, v, w)``, seen along the
     world direction ``d`` and lit from the eye, into pixel ``(y, x)`` of ``image``."""
     gx, gy, gz = trilinear_gradient(data, i, j, k, u, v, w, spc)
-    gl = math.sqrt(gx * gx + gy * gy + gz * gz)
-    if gl > 0.0:
-        gx, gy, gz = gx / gl, gy / gl, gz / gl
-    else:
-        # A flat cell (all corners at the isovalue) has no gradient: face the viewer.
-        gx, gy, gz = -dx, -dy, -dz
+    gx, gy, gz = unit_normal(gx, gy, gz, dx, dy, dz)
     diff, spec = blinn_phong(gx, gy, gz, -dx, -dy, -dz, -dx, -dy, -dz, material)
     for c in range(3):
         image[y, x, c] = min(1.0, color[c] * (material[0] + diff) + spec)

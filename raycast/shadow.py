@@ -33,7 +33,7 @@ from .composite import accumulate_ray
 from .config import kernel
 from .iso import cast_iso_ray
 from .rays import camera_ray, spread_run, spread_runs
-from .shade import blinn_phong, trilinear_gradient
+from .shade import blinn_phong, trilinear_gradient, unit_normal
 from .traverse import to_index_space
 
 #: A light row's kind (its first value).
@@ -224,11 +224,7 @@ def surface_frames(data, spc, cam, width, height, pix, t, cell, uvw, points, nor
         points[m, 2] = oz + t[n] * dz
         gx, gy, gz = trilinear_gradient(data, cell[n, 0], cell[n, 1], cell[n, 2],
                                         uvw[n, 0], uvw[n, 1], uvw[n, 2], spc)
-        gl = math.sqrt(gx * gx + gy * gy + gz * gz)
-        if gl > 0.0:
-            gx, gy, gz = gx / gl, gy / gl, gz / gl
-        else:
-            gx, gy, gz = -dx, -dy, -dz
+        gx, gy, gz = unit_normal(gx, gy, gz, dx, dy, dz)
         normals[m, 0] = gx
         normals[m, 1] = gy
         normals[m, 2] = gz

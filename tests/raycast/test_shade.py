@@ -60,3 +60,31 @@ def test_power_is_pow():
     for e in (0.0, 1.0, 2.0, 7.0, 40.0, 1024.0, 2.5, 1025.0):
         for x in (0.0, 0.3, 0.999, 1.0):
             assert power(x, e) == pytest.approx(x ** e, rel=1e-13, abs=1e-300)
+
+
+@pytest.mark.parametrize("scale", [1e-200, 1e-160, 1e150, 1e160, 1e199])
+def test_a_volume_scaled_by_a_power_of_ten_is_shaded_alike(scale):
+    """Normals are directions: float64 samples scaled by 1e160 (their gradient squared past
+    float64's range, the normal zero: ambient light alone) or by 1e-200 (squared to 0: a flat
+    cell's normal) must light the surface as at scale 1, headlight, lights and shadows, and
+    a shaded translucent volume too. (Scaling by a power of ten rounds the samples, so the
+    colours agree to a rounding, not bit for bit.)"""
+    from data_tools import Volume
+    from data_tools.synthetic import make_synthetic
+    from parc import Camera, Isosurface, PointLight, Scene, Translucent, TransferFunction, render
+    d = make_synthetic("sphere", 12).data.astype(np.float64)
+    cam = Camera.framing((0, 0, 0), (11, 11, 11), azimuth=30, elevation=20)
+    light = PointLight((30.0, -20.0, 25.0))
+    tf = TransferFunction(opacity=[[-3.0, 0.0], [0.0, 0.6], [3.0, 0.0]])
+    images = {}
+    for s in (1.0, scale):
+        vol = Volume(d * s)
+        iso = render(Scene(camera=cam, size=(24, 24), volumes=[Isosurface(vol, 0.0)]))
+        lit = render(Scene(camera=cam, size=(24, 24), volumes=[Isosurface(vol, 0.0)], lights=[light], shadows=True))
+        fog = render(Scene(camera=cam, size=(24, 24),
+                           volumes=[Translucent(vol, tf.mapped(-3.0 * s, 3.0 * s, src=(-3.0, 3.0)), shade=True)]))
+        images[s] = (iso, lit, fog)
+    for ref, got in zip(images[1.0], images[scale]):
+        assert np.array_equal(np.isfinite(ref.depth), np.isfinite(got.depth))
+        assert np.abs(ref.image - got.image).max() <= 1e-6
+    assert np.isfinite(images[1.0][0].depth).sum() > 50
