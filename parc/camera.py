@@ -191,6 +191,8 @@ class Camera:
         try:
             lo = np.asarray(lo, dtype=np.float64)
             hi = np.asarray(hi, dtype=np.float64)
+            if any(isinstance(x, (str, bytes, bool, np.bool_)) for x in (zoom, azimuth, elevation, aspect)):
+                raise TypeError
             zoom, azimuth, elevation = float(zoom), float(azimuth), float(elevation)
             aspect = float(aspect)
         except (TypeError, ValueError):
@@ -202,6 +204,10 @@ class Camera:
             raise InputError(f"framing needs two corners of three finite numbers, got {lo} and {hi}")
         if not (math.isfinite(zoom) and zoom > 0.0):
             raise InputError(f"zoom must be positive, got {zoom}")
+        if not (math.isfinite(azimuth) and math.isfinite(elevation)):
+            raise InputError(f"azimuth and elevation must be finite angles in degrees, got {azimuth} and {elevation}")
+        if not isinstance(parallel, (bool, np.bool_)):
+            raise InputError(f"parallel must be True or False, got {parallel!r}")
         c = 0.5 * (lo + hi)
         whole = 0.5 * float(np.linalg.norm(hi - lo))
         radius = whole / zoom

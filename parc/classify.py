@@ -180,9 +180,13 @@ def supercell_grid(dims, size):
     """
     size = supercell_size(size)
     # Counted before the edges are built: a size of 1e-9 would ask for gigabytes of them.
-    total = math.prod(max(1, math.ceil((n - 1 - SNAP) / m)) for n, m in zip(dims, size))
+    # In floats: a size of 5e-324 gives an infinite count, which no integer holds.
+    quotients = [(n - 1 - SNAP) / m for n, m in zip(dims, size)]
+    total = (math.prod(max(1, math.ceil(q)) for q in quotients) if all(math.isfinite(q) for q in quotients)
+             else math.inf)
     if total > MAX_SUPERCELLS:
-        count = f"{total:.3g}" if total < 1e300 else f"about 1e{len(str(total)) - 1}"   # not 300 digits
+        count = (f"{total:.3g}" if total < 1e300 else "over 1e300" if total == math.inf
+                 else f"about 1e{len(str(total)) - 1}")   # not 300 digits
         raise InputError(f"supercell size {_fmt_size(size)} gives {count} supercells "
                          f"(at most {MAX_SUPERCELLS}); choose a larger size")
     edges = tuple(_axis_edges(n, m) for n, m in zip(dims, size))

@@ -121,6 +121,16 @@ def load_scene(path, *, view=None, size=None, progress=None) -> Scene:
         raise InputError(f"load_scene takes the path of a scene file, got {type(path).__name__}")
     if view is not None and (not isinstance(view, dict) or set(view) - set(CAMERA_KEYS)):
         raise InputError(f"view takes camera settings keyed {', '.join(CAMERA_KEYS)}, got {view!r}")
+    for key, value in (view or {}).items():
+        if value is None:
+            continue
+        if key in ("fov", "parallel", "zoom"):
+            if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+                raise InputError(f"view: {key} must be a number, got {value!r}")
+        elif not (np.ndim(value) == 1 and len(value) == 3
+                  and all(isinstance(c, (int, float, np.integer, np.floating))
+                          and not isinstance(c, (bool, np.bool_)) and np.isfinite(c) for c in value)):
+            raise InputError(f"view: {key} must be three finite numbers, got {value!r}")
     where = Where(path, progress)
     doc = where.read()
     top = Table(where, "", doc, TOP_KEYS)

@@ -181,6 +181,8 @@ def save_volume(volume: Volume, path, **options) -> Path:
     if not isinstance(volume, Volume):
         raise InputError(f"save_volume takes a Volume, got {type(volume).__name__}; "
                          "wrap samples as Volume(array, spacing=..., origin=...)")
+    if not isinstance(path, (str, os.PathLike)) or isinstance(os.fspath(path), bytes):
+        raise InputError(f"save_volume takes a file's path, got {type(path).__name__}")
     path = Path(path)
     ext = path.suffix.lower()
     writers = {".nrrd": nrrd_format.write_nrrd, ".nhdr": nrrd_format.write_nrrd, ".npy": npy.write_npy,

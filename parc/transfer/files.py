@@ -106,7 +106,12 @@ def load_transfer_function(spec, data_range=None, mode="composite"):
     """
     if isinstance(spec, TransferFunction):
         return spec
+    if not isinstance(spec, (str, os.PathLike)):
+        raise InputError(f"a transfer function is a TransferFunction, a preset name or a file's path, "
+                         f"got {type(spec).__name__}")
     text = os.fspath(spec)
+    if not isinstance(text, str):
+        raise InputError(f"a transfer function's path must be text, got {type(text).__name__}")
     if text in PRESETS:
         return preset(text, data_range, mode)
     if not text.strip():

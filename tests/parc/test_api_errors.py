@@ -5,6 +5,7 @@ TypeError, ValueError, ZeroDivisionError, MemoryError or Numba typing error
 deep inside, or was silently accepted.
 """
 import dataclasses
+import math
 import re
 
 import numpy as np
@@ -12,6 +13,7 @@ import pytest
 
 import parc
 from data_tools import InputError, Volume
+from data_tools.io import save_volume
 from data_tools.synthetic import blobs
 from parc.comparison import step_sweep
 
@@ -53,6 +55,14 @@ CASES = {
     "parallel scale as a list": (lambda: parc.Camera(eye=(0, 0, 5), look_at=(0, 0, 0), parallel_scale=[5]),
                                  "parallel scale"),
     "framing zoom 0": (lambda: parc.Camera.framing(*VOL.bounds, zoom=0), "zoom"),
+    "framing azimuth inf": (lambda: parc.Camera.framing(*VOL.bounds, azimuth=math.inf), "finite angles"),
+    "framing parallel as text": (lambda: parc.Camera.framing(*VOL.bounds, parallel="False"), "True or False"),
+    "framing zoom as text": (lambda: parc.Camera.framing(*VOL.bounds, zoom="3"), "numeric zoom"),
+    "supercell of the smallest float": (lambda: parc.render(_scene(), "parc", supercell=5e-324),
+                                        "gives over 1e300 supercells"),  # no integer holds the count
+    "transfer function None": (lambda: parc.load_transfer_function(None), "got NoneType"),
+    "transfer function path as bytes": (lambda: parc.load_transfer_function(b"x.toml"), "got bytes"),
+    "save_volume to None": (lambda: save_volume(VOL, None), "takes a file's path, got NoneType"),
     "parallel eye past float64's resolution of the volume": (
         lambda: _scene(camera=parc.Camera(eye=(1e20, 0, 0), look_at=(0, 0, 0), parallel_scale=5)),
         "is over 2^32 times the volumes' size"),

@@ -1,5 +1,6 @@
 """Scene files: a valid file gives the Scene it describes; every mistake names the file and the key."""
 import math
+import re
 import textwrap
 
 import numpy as np
@@ -358,6 +359,14 @@ def test_the_files_values_are_checked_where_the_command_line_replaces_them(folde
         with pytest.raises(InputError) as info:
             load_scene(path, view=view, size=size)
         assert str(info.value).startswith(f"{path}: {key}: "), str(info.value)
+
+
+@pytest.mark.parametrize("view, words", [({"fov": "x"}, "view: fov must be a number, got 'x'"),
+                                         ({"zoom": True}, "view: zoom must be a number"),
+                                         ({"eye": (1, 2)}, "view: eye must be three finite numbers")])
+def test_a_view_of_the_wrong_type_is_named(folder, view, words):
+    with pytest.raises(InputError, match=re.escape(words)):
+        load_scene(write(folder, TWO_VOLUMES), view=view)
 
 
 def test_errors_from_the_command_line_view_say_so(folder):
