@@ -94,6 +94,14 @@ class Volume:
     meta: dict = field(default_factory=dict)
 
     def __post_init__(self):
+        if self.data is None:
+            raise InputError(f"{self.name}: no samples given (None); give a 3-D array")
+        if isinstance(self.data, np.ma.MaskedArray):
+            # Its masked entries hold fill values, which would be drawn as data.
+            if np.ma.getmaskarray(self.data).any():
+                raise InputError(f"{self.name}: a masked array with {int(np.ma.getmaskarray(self.data).sum())} "
+                                 "masked samples; fill them with values to draw (np.ma.filled) first")
+            self.data = np.ma.getdata(self.data)
         try:
             data = np.asarray(self.data) if not isinstance(self.data, np.memmap) else self.data
         except ValueError:
@@ -143,6 +151,12 @@ class Volume:
         # samples, and none of the caches (they would outlive a change to the copy).
         meta = {k: v for k, v in self.meta.items() if not str(k).startswith("_")}
         return (type(self), (self.data, self.spacing, self.origin, self.name, meta))
+
+    def __repr__(self):
+        # Short whatever the size: the default printed the samples, and the caches kept in meta.
+        nx, ny, nz = self.dims
+        return (f"Volume({self.name!r}, {nx}x{ny}x{nz} {self.dtype}, {self.data.nbytes / 2**20:.1f} MiB, "
+                f"spacing={self.spacing}, origin={self.origin})")
 
     @property
     def shape(self):

@@ -32,6 +32,10 @@ __all__ = sorted(_WHERE, key=str.lower)
 
 
 def __getattr__(name):
+    if name == "__version__":
+        # The installed distribution's, as `parc --version` says.
+        from .arguments import _version
+        return _version()
     where = _WHERE.get(name)
     if where is None:
         raise AttributeError(f"module 'parc' has no attribute {name!r}")

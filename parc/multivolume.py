@@ -204,15 +204,17 @@ class _Report:
         weights = {"buffers": 0.3 * (n_iso + n_trans), "surfaces": n_iso,
                    "lighting": (0.2 + (n_iso if shadows else 0.0)) if n_iso else 0.0, "translucent": 3.0 * n_trans}
         total = sum(weights.values())
-        self.spans, start = {}, 0.0
+        # Spans from running sums over the total: the last ends at exactly 1 (summed
+        # shares ended a render at 0.9999999999999999).
+        self.spans, before = {}, 0.0
         for phase, weight in weights.items():
-            self.spans[phase] = (start, start + weight / total)
-            start += weight / total
+            self.spans[phase] = (before / total, (before + weight) / total)
+            before += weight
 
     def part(self, phase, fraction):
         if self.progress is not None:
             a, b = self.spans[phase]
-            self.progress(min(1.0, a + (b - a) * fraction))
+            self.progress(b if fraction >= 1.0 else min(1.0, a + (b - a) * fraction))
 
     def done(self, phase):
         self.part(phase, 1.0)

@@ -77,6 +77,14 @@ class RenderResult:
     stats: dict
     work: np.ndarray | None = None
 
+    def __repr__(self):
+        # The arrays and the stats' nested parameters made the default several kilobytes.
+        h, w = self.depth.shape
+        s = self.stats
+        return (f"RenderResult({w}x{h}, method={s.get('method')!r}, hits={s.get('hits')}, "
+                f"seconds={s.get('seconds', {}).get('total', float('nan')):.3g}"
+                + (", work" if self.work is not None else "") + ")")
+
 
 PARC_BUFFERS = ("depth", "bits")
 

@@ -218,3 +218,30 @@ def test_load_volume_of_an_array_keeps_its_samples_spacing_and_origin():
         parc.load_volume(data, dtype="uint8")
     with pytest.raises(InputError, match="3 dimensions"):
         parc.load_volume(data[0])
+
+
+def test_reprs_are_short_whatever_the_volume():
+    # The defaults printed the samples and the caches kept with a volume: 1.4 KB for a volume,
+    # 5.5 KB for a render's result.
+    big = Volume(np.zeros((64, 64, 64), np.int16), spacing=(0.5, 0.5, 1.0), name="ct")
+    big.value_range()
+    assert repr(big) == "Volume('ct', 64x64x64 int16, 0.5 MiB, spacing=(0.5, 0.5, 1.0), origin=(0.0, 0.0, 0.0))"
+    res = parc.render(_scene())
+    assert re.fullmatch(r"RenderResult\(8x8, method='brute', hits=\d+, seconds=[\d.e-]+\)", repr(res)), repr(res)
+    assert len(repr(_scene())) < 600
+
+
+def test_a_masked_array_is_refused_where_masked_and_none_is_no_volume():
+    # The masked entries' fill values were drawn as data.
+    data = np.ma.array(np.ones((3, 3, 3)), mask=np.zeros((3, 3, 3), bool))
+    assert np.array_equal(Volume(data).data, np.ones((3, 3, 3)))
+    data.mask[1, 1, 1] = True
+    with pytest.raises(InputError, match="a masked array with 1 masked samples; fill them"):
+        Volume(data)
+    with pytest.raises(InputError, match=re.escape("no samples given (None)")):
+        Volume(None)
+
+
+def test_the_package_has_its_version():
+    from importlib.metadata import version
+    assert parc.__version__ == version("parc")

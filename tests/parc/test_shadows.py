@@ -539,3 +539,19 @@ def test_a_lit_floor_has_the_shading_the_readme_gives(gl, method, light):
     image = render(scene, method).image
     assert (image[..., 3] == 1.0).all()
     np.testing.assert_allclose(image[..., :3], np.broadcast_to(expected, (8, 8, 3)), atol=1e-5, rtol=0)
+
+
+def test_a_scenes_progress_ends_at_exactly_one():
+    # Shares summed one by one ended a lit scene of two surfaces at 0.9999999999999999.
+    from parc.multivolume import _Report
+    for n_iso in range(4):
+        for n_trans in range(4):
+            for shadows in (False, True):
+                if n_iso + n_trans == 0:
+                    continue
+                seen = []
+                report = _Report(seen.append, n_iso, n_trans, shadows)
+                for phase in ("buffers", "surfaces", "lighting", "translucent"):
+                    report.part(phase, 0.5)
+                    report.done(phase)
+                assert seen == sorted(seen) and seen[-1] == 1.0, (n_iso, n_trans, shadows, seen[-1])
