@@ -149,6 +149,31 @@ def data_file_written(path):
     return path.with_suffix(".raw") if path.suffix.lower() in (".mhd", ".nhdr") else None
 
 
+#: The options each writer takes, and what each may be: a request it cannot honour is refused,
+#: not dropped (``compress="no"`` wrote gzip, ``byte_order="BIG"`` little-endian).
+_WRITE_OPTIONS = {".nrrd": {"compress": bool}, ".nhdr": {"compress": bool}, ".npy": {"sidecar": (bool, None)},
+                  ".mhd": {"byte_order": ("little", "big")}, ".mha": {"byte_order": ("little", "big")},
+                  ".vtk": {"ascii": bool}, ".raw": {"byte_order": ("little", "big", None)}}
+
+
+def _check_write_options(ext, options):
+    allowed = _WRITE_OPTIONS[ext]
+    for name, value in options.items():
+        spec = allowed.get(name)
+        if spec is None:
+            raise InputError(f"{ext} files take the option{'s' if len(allowed) > 1 else ''} "
+                             f"{', '.join(allowed)}; got {name}")
+        if spec is bool:
+            ok, want = isinstance(value, (bool, np.bool_)), "True or False"
+        elif spec == (bool, None):
+            ok, want = value is None or isinstance(value, (bool, np.bool_)), "True, False or None"
+        else:
+            ok = (value is None and None in spec) or (isinstance(value, str) and value in spec)
+            want = " or ".join(repr(v) for v in spec)
+        if not ok:
+            raise InputError(f"{name} must be {want}, got {value!r}")
+
+
 def save_volume(volume: Volume, path, **options) -> Path:
     """Write ``volume`` to ``path`` in the format its extension names, all or nothing.
 
@@ -192,6 +217,7 @@ def save_volume(volume: Volume, path, **options) -> Path:
         kind = f"'{path.suffix}' files" if path.suffix else "files without an extension"
         raise InputError(f"{path}: cannot write {kind}; "
                          f"supported: {', '.join(WRITE_EXTENSIONS)}")
+    _check_write_options(ext, options)
     if ext == ".raw":
         raw.check_name(volume, path, options.get("byte_order"))
     if ext == ".npy" and npy.sidecar_path(path).exists():

@@ -4,6 +4,7 @@ from __future__ import annotations
 import bz2
 import gzip
 import json
+import re
 import zlib
 from decimal import Decimal, localcontext
 from fractions import Fraction
@@ -1294,3 +1295,15 @@ def test_vtk_int32_volumes_are_written_as_int(tmp_path):
     assert b"\nSCALARS " in p.read_bytes()
     line = p.read_bytes().split(b"\nSCALARS ")[1].split(b"\n")[0].split()
     assert line[1] == b"int", line
+
+
+@pytest.mark.parametrize("name, options, words", [
+    ("v.nrrd", {"compress": "no"}, "compress must be True or False, got 'no'"),     # wrote gzip
+    ("v.mhd", {"byte_order": "BIG"}, "byte_order must be 'little' or 'big', got 'BIG'"),   # wrote little-endian
+    ("v.raw", {"byte_order": "middle"}, "byte_order must be 'little' or 'big' or None"),
+    ("v.vtk", {"compress": True}, ".vtk files take the option ascii; got compress"),
+])
+def test_a_writer_option_it_cannot_honour_is_refused(tmp_path, name, options, words):
+    with pytest.raises(InputError, match=re.escape(words)):
+        save_volume(Volume(make_array("uint8")), tmp_path / name, **options)
+    assert not list(tmp_path.iterdir())
