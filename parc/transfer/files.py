@@ -104,6 +104,8 @@ def load_transfer_function(spec, data_range=None, mode="composite"):
     InputError
         One line naming the file (or preset) and the offending key.
     """
+    if mode not in ("composite", "mip", "average"):      # the ramp presets end by the mode
+        raise InputError(f"unknown mode {mode!r}; choose one of composite, mip, average")
     if isinstance(spec, TransferFunction):
         return spec
     if not isinstance(spec, (str, os.PathLike)):
@@ -236,6 +238,10 @@ def _flat_groups(raw, key, group, keep, where):
 
 def save_transfer_function(tf, path):
     """Write ``tf`` to ``path`` (``.toml`` or ``.json``) in our format; `load_transfer_function` reads it back equal."""
+    if not isinstance(tf, TransferFunction):
+        raise InputError(f"save_transfer_function takes a TransferFunction, got {type(tf).__name__}")
+    if not isinstance(path, (str, os.PathLike)) or isinstance(os.fspath(path), bytes):
+        raise InputError(f"save_transfer_function takes a file's path, got {type(path).__name__}")
     path = Path(path)
     ext = path.suffix.lower()
     d = tf.to_dict()

@@ -16,6 +16,7 @@ from data_tools import InputError, Volume
 from data_tools.io import save_volume
 from data_tools.synthetic import blobs
 from parc.comparison import step_sweep
+from parc.transfer import save_transfer_function
 
 VOL = blobs(12, seed=3)
 ISO = float(VOL.data.mean())
@@ -63,6 +64,10 @@ CASES = {
     "transfer function None": (lambda: parc.load_transfer_function(None), "got NoneType"),
     "transfer function path as bytes": (lambda: parc.load_transfer_function(b"x.toml"), "got bytes"),
     "save_volume to None": (lambda: save_volume(VOL, None), "takes a file's path, got NoneType"),
+    "transfer function of an unknown mode": (lambda: parc.load_transfer_function("greyscale", (0, 1), mode="bogus"),
+                                             "unknown mode 'bogus'"),
+    "save_transfer_function of None": (lambda: save_transfer_function(None, "x.toml"),
+                                       "takes a TransferFunction, got NoneType"),
     "parallel eye past float64's resolution of the volume": (
         lambda: _scene(camera=parc.Camera(eye=(1e20, 0, 0), look_at=(0, 0, 0), parallel_scale=5)),
         "is over 2^32 times the volumes' size"),
