@@ -85,21 +85,24 @@ def check_distinct(source, outputs, read=()):
 
 
 def stale_sidecars(paths):
-    """The spacing-and-origin sidecars (``X.npy.json``, `data_tools.io.npy`) beside the ``.npy``
+    """The spacing-and-origin sidecars (``X.npy.json``, `data_tools.io.npy`) of the ``.npy``
     files among ``paths``: an array written over ``X.npy`` is not the volume they describe, and
     read back as a volume it would take their spacing and origin. `atomic_write_all` removes
-    them with the write; one that is not a file is refused before any work."""
-    from data_tools.io.npy import sidecar_path
+    them with the write. Both names count for a link: the sidecar beside the name given, which
+    a reader of that name finds, and the one beside the file it leads to. A file of that name
+    that is no sidecar (a run's stats) is left alone; a folder is refused before any work."""
+    from data_tools.io import written_path
+    from data_tools.io.npy import is_sidecar, sidecar_path
     stale = []
     for path in paths:
         if path is None or Path(path).suffix.lower() != ".npy":
             continue
-        side = sidecar_path(path)
-        if side.is_symlink() or side.is_file():
-            stale.append(side)
-        elif side.exists():
-            raise InputError(f"{side}: the sidecar of {Path(path).name} (its spacing and origin) is not a "
-                             "file; move it or write elsewhere")
+        for side in dict.fromkeys([sidecar_path(path), sidecar_path(written_path(Path(path)))]):
+            if side.is_dir():
+                raise InputError(f"{side}: the sidecar of {Path(path).name} (its spacing and origin) is not a "
+                                 "file; move it or write elsewhere")
+            if is_sidecar(side) and side not in stale:
+                stale.append(side)
     return stale
 
 

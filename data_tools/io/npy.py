@@ -88,6 +88,18 @@ def read_npy(path) -> Volume:
     return Volume(data, spacing=spacing, origin=origin, name=str(path), meta=meta)
 
 
+def is_sidecar(path) -> bool:
+    """Whether ``path`` is a file holding a sidecar's JSON object: keys among spacing and origin
+    (a file of another kind by that name, a run's stats say, is not one)."""
+    try:
+        if not Path(path).is_file() or Path(path).stat().st_size > 1 << 16:
+            return False
+        info = json.loads(Path(path).read_text(encoding="utf-8-sig"))
+    except (OSError, ValueError):
+        return False
+    return isinstance(info, dict) and set(info) <= {"spacing", "origin"}
+
+
 def _check_length(path):
     """Refuse a file shorter than its header's array before NumPy allocates it: a truncated file
     whose header claims a huge array failed as out of memory, not as truncated."""

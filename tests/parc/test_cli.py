@@ -142,6 +142,23 @@ def test_an_array_written_over_a_npy_volume_takes_its_sidecar_away(vol_file, tmp
         assert rc == 0 and load_volume(vol).spacing == (2.0, 2.0, 2.0), err
 
 
+def test_only_a_real_sidecar_is_taken_away_and_through_a_link_both(vol_file, tmp_path, capsys):
+    # A run's stats named img.npy.json are no sidecar: kept. Through a link, the sidecar beside
+    # the file it leads to went stale too.
+    img, stats = tmp_path / "img.npy", tmp_path / "img.npy.json"
+    rc, _, err = _run(["render", vol_file, "--iso", 3.5, "--size", 8, 8, "-o", img, "--stats", stats], capsys)
+    assert rc == 0 and stats.is_file(), err
+    rc, _, err = _run(["render", vol_file, "--iso", 3.5, "--size", 8, 8, "-o", img], capsys)
+    assert rc == 0 and stats.is_file() and "removed" not in err, err
+    real = tmp_path / "real.npy"
+    rc, _, err = _run(["convert", vol_file, "-o", real, "--spacing", "2,2,2"], capsys)
+    assert rc == 0 and (tmp_path / "real.npy.json").is_file(), err
+    (tmp_path / "link.npy").symlink_to(real)
+    rc, _, err = _run(["render", vol_file, "--iso", 3.5, "--size", 8, 8, "-o", tmp_path / "link.npy"], capsys)
+    assert rc == 0 and not (tmp_path / "real.npy.json").exists(), err
+    assert load_volume(real).spacing == (1.0, 1.0, 1.0)
+
+
 def test_render_without_iso_suggests_one(vol_file, tmp_path, capsys):
     rc, _, err = _run(["render", vol_file, "--size", 8, 8, "-o", tmp_path / "a.png"], capsys)
     assert rc == 0 and "suggested from the histogram" in err
