@@ -86,7 +86,9 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
     check_supercells(scene, options)
     if any(name.split(":")[0] == "parc" for name in names):
         from .gl import get_context
-        get_context()           # no OpenGL: said before brute's warm-up, not after it
+        from .renderer import _ONE_AT_A_TIME
+        with _ONE_AT_A_TIME:    # as a render takes it: the context is made by one thread at a time
+            get_context()       # no OpenGL: said before brute's warm-up, not after it
     vol = scene.volumes[0].volume
     cell = float(min(vol.spacing))
     runs = {name: [] for name in names}

@@ -305,9 +305,10 @@ def _check_eye_resolves(camera, volumes):
     far = float(np.max(np.abs(camera.eye)))
     if not far <= EYE_RANGE * size:
         raise InputError(f"the eye {tuple(float(c) for c in camera.eye)} is over 2^32 times the volumes' size "
-                         f"({size:.6g}) from the origin, where float64 cannot place rays across them; move the "
+                         f"({size:.6g}) from the origin, where float64 cannot place rays across them; bring the "
                          "eye closer" + (" (a parallel view's picture does not change with the eye's distance)"
-                                         if camera.parallel else ""))
+                                         if camera.parallel else ": give it nearer, or frame with a wider field of "
+                                                                 "view or a larger zoom"))
 
 
 def _finite_triple(v, what):

@@ -428,10 +428,13 @@ def _load_camera(where, t, volumes, view, aspect):
 
     lo = np.min([v.volume.bounds[0] for v in volumes], axis=0)
     hi = np.max([v.volume.bounds[1] for v in volumes], axis=0)
-    # Framing fails on the zoom (with an eye or a parallel view), or on a field of view too narrow.
-    given = next((name for name in ("zoom", "fov") if settings[name] is not None), None)
-    with where.key(label(given) if given else "camera"):
+    # Framing fails on the zoom (with an eye or a parallel view), or on a field of view too
+    # narrow: the message says which, and the key follows it.
+    try:
         cam = resolve_view(lo, hi, **settings, aspect=aspect)
+    except InputError as exc:
+        name = "fov" if "field of view" in str(exc) and settings["fov"] is not None else "zoom"
+        raise where.error(label(name) if settings[name] is not None else "camera", str(exc)) from None
     f = unit_vector(np.subtract(cam["look_at"], cam["eye"]))
     if f is None:
         if settings["look_at"] is None:

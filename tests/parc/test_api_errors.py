@@ -72,7 +72,7 @@ CASES = {
         lambda: _scene(camera=parc.Camera(eye=(1e20, 0, 0), look_at=(0, 0, 0), parallel_scale=5)),
         "is over 2^32 times the volumes' size"),
     "perspective eye past it": (lambda: _scene(camera=parc.Camera(eye=(-1e16, 0, 0), look_at=(0, 0, 0))),
-                                "move the eye closer"),
+                                "bring the eye closer"),
     "framing corner of two": (lambda: parc.Camera.framing((0, 0, 0), (1, 1)), "corners"),
     "size infinite": (lambda: _scene(size=(float("inf"), 16)), "image size"),
     "volumes not a list": (lambda: _scene(volumes=parc.Isosurface(VOL, ISO)), "volumes must be a list"),
