@@ -56,10 +56,20 @@ class _Parser(argparse.ArgumentParser):
     def error(self, message):
         # argparse checks required arguments before it looks for unknown ones: a misspelt
         # flag, the likelier mistake, was reported as a missing -o.
-        if message.startswith("the following arguments are required"):
-            flags = self._option_string_actions
-            unknown = [a for a in getattr(self, "_given", ()) if a.startswith("--") and a != "--"
-                       and not any(f.startswith(a.split("=")[0]) for f in flags)]     # argparse takes a prefix
+        if message.startswith("the following arguments are required") and hasattr(self, "_given"):
+            # So the arguments are parsed again with none required, and argparse names what
+            # it does not know, as it would have (prefixes, "--" and values its own way).
+            required = [action for action in self._actions if action.required]
+            given = self.__dict__.pop("_given")
+            try:
+                for action in required:
+                    action.required = False
+                _, unknown = super().parse_known_args(given)
+            except InputError:
+                unknown = []
+            finally:
+                for action in required:
+                    action.required = True
             if unknown:
                 message = f"unrecognized arguments: {' '.join(unknown)}"
         raise InputError(message)

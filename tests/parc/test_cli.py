@@ -520,11 +520,13 @@ def test_paths_that_are_not_what_they_seem_are_named(vol_file, tmp_path, capsys,
 def test_a_misspelt_flag_is_named_before_a_missing_output(vol_file, capsys):
     # argparse checks required arguments first: "--isovalue 3" without -o was "-o is required".
     rc, _, err = _run(["render", vol_file, "--isovalue", "3"], capsys)
-    assert rc == 2 and err.strip() == "parc: error: unrecognized arguments: --isovalue", err
+    assert rc == 2 and err.strip() == "parc: error: unrecognized arguments: --isovalue 3", err
     rc, _, err = _run(["render", vol_file, "--sup", "4"], capsys)                  # a prefix argparse takes
     assert rc == 2 and "required: -o/--output" in err, err
     rc, _, err = _run(["make", "sphere", "--colour=red"], capsys)
     assert rc == 2 and "unrecognized arguments: --colour=red" in err, err
+    rc, _, err = _run(["render", vol_file, "-O", "x.png"], capsys)                # a short flag too
+    assert rc == 2 and "unrecognized arguments: -O x.png" in err, err
 
 
 def test_a_folder_given_for_a_file_is_called_a_folder(vol_file, tmp_path, capsys):
