@@ -178,21 +178,23 @@ def method_names(methods, what="methods"):
             raise InputError(f"{what} {methods!r} has an empty name between commas")
         methods = methods.split(",")
     try:
+        if not all(isinstance(m, str) for m in methods):
+            raise TypeError
         names = [m.strip() for m in methods if m.strip()]
     except (TypeError, AttributeError):
         raise InputError(f"{what} must be names such as ('brute', 'parc'), got {methods!r}") from None
     if not names:
         raise InputError(f"{what} names no method, got {given!r}; name some, such as 'brute,parc'")
+    for m in names:
+        if m.endswith(":"):
+            raise InputError(f"{what}: {m!r} has an empty label; write one after the colon, as in 'parc:a'")
+        if m.split(":")[0] not in METHODS:
+            raise InputError(f"{what}: unknown method {m!r}; choose from {', '.join(METHODS)} "
+                             "(a label may follow a colon, as in 'parc:a', to time a method twice)")
     twice = sorted({m for m in names if names.count(m) > 1})
     if twice:
         raise InputError(f"{what} names {twice[0]!r} twice; to time a method twice, label each run "
                          "after a colon, as in 'parc:a,parc:b'")
-    for m in names:
-        if m.endswith(":"):
-            raise InputError(f"method {m!r} has an empty label; write one after the colon, as in 'parc:a'")
-        if m.split(":")[0] not in METHODS:
-            raise InputError(f"unknown method {m!r}; choose from {', '.join(METHODS)} "
-                             "(a label may follow a colon, as in 'parc:a', to time a method twice)")
     return ["brute"] + [m for m in dict.fromkeys(names) if m != "brute"]
 
 

@@ -315,13 +315,13 @@ def _read_file(where, t, cache):
         options["offset"] = offset
     if options["byte_order"] not in (None, "little", "big"):
         raise t.error("byte_order", f"must be \"little\" or \"big\", got {options['byte_order']!r}")
-    if options["dtype"] is not None:
-        with where.key(t.key("dtype")):
-            raw.parse_dtype(options["dtype"], path)
     given = [name for name in RAW_KEYS if options[name] is not None]
     if given and path.suffix.lower() not in raw.EXTENSIONS:
         raise t.error(given[0], f"applies only to headerless raw files ({', '.join(raw.EXTENSIONS)}); "
                                 f"{path.name} has a header")
+    if options["dtype"] is not None:
+        with where.key(t.key("dtype")):
+            raw.parse_dtype(options["dtype"], path)
     if path.suffix.lower() in raw.EXTENSIONS:
         # Said in this table's keys: the reader's own message names the command line's flags.
         guess = raw.guess_from_name(path)

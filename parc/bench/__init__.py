@@ -369,6 +369,11 @@ def _kernels_used():
             scene = parc.Scene(camera=cam, size=(4, 4), volumes=volumes, lights=lights, shadows=bool(lights))
             for buffers in ("depth", "bits", "depth,bits"):
                 kernels |= {k for k, _ in kernel_samples(scene, ("brute", "parc"), buffers)}
+    # Parker et al.'s section times the walk, the root finders and the shading apart.
+    from raycast.shade import shade_headlight
+
+    from ..rootstudy import solve_all, walk_rays
+    kernels |= {walk_rays, solve_all, shade_headlight}
     return [(k, ()) for k in kernels]
 
 

@@ -233,7 +233,8 @@ def _flat_groups(raw, key, group, keep, where):
         raise InputError(f"{where}: {key}: {len(raw)} numbers is not a multiple of {group} {shape}")
     for i, x in enumerate(raw):
         if not is_number(x):
-            raise InputError(f"{where}: {key} number {i + 1}: must be a number, got {short_repr(x)}")
+            raise InputError(f"{where}: {key} number {i + 1} (point {i // group + 1}): must be a number, "
+                             f"got {short_repr(x)}")
     return [raw[i:i + keep] for i in range(0, len(raw), group)]
 
 def save_transfer_function(tf, path):

@@ -64,6 +64,7 @@ CASES = {
     "transfer function None": (lambda: parc.load_transfer_function(None), "got NoneType"),
     "transfer function path as bytes": (lambda: parc.load_transfer_function(b"x.toml"), "got bytes"),
     "save_volume to None": (lambda: save_volume(VOL, None), "takes a file's path, got NoneType"),
+    "methods as bytes": (lambda: parc.compare(_scene(), methods=[b"brute"]), "methods must be names"),
     "transfer function of an unknown mode": (lambda: parc.load_transfer_function("greyscale", (0, 1), mode="bogus"),
                                              "unknown mode 'bogus'"),
     "save_transfer_function of None": (lambda: save_transfer_function(None, "x.toml"),

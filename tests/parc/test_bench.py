@@ -536,7 +536,8 @@ def test_the_bench_says_it_compiles_while_any_kind_of_render_is_uncompiled(tmp_p
     (tmp_path / "raycast_0123").mkdir()
     kernels = [k for k, _ in _kernels_used()]
     modules = {k.py_func.__module__ for k in kernels}
-    assert cast_iso_image in kernels and {"raycast.composite", "raycast.merged", "raycast.shadow"} <= modules
+    assert cast_iso_image in kernels and {"raycast.composite", "raycast.merged", "raycast.shadow",
+                                          "parc.rootstudy", "raycast.shade"} <= modules
 
     def says():
         said = []

@@ -991,7 +991,9 @@ def test_supercell_sweep_takes_sizes_per_axis(vol_file, capsys):
     (["--sweep-supercell", "1,2", "--supercell", "3"], "--supercell does not combine"),
     (["--sweep-supercell", "1,2", "--methods", "parc:a"], "--methods does not combine"),
     (["--sweep-step", "1", "--methods", "brute"], "--methods does not combine"),
-    (["--methods", "brute,parc:"], "'parc:' has an empty label"),
+    (["--methods", "brute,parc:"], "--methods: 'parc:' has an empty label"),
+    (["--methods", "parc:,parc:"], "--methods: 'parc:' has an empty label"),      # not "named twice"
+    (["--methods", "brute,magic"], "--methods: unknown method 'magic'"),
     (["--sweep-step", "1e-4"], "reference step"),
     (["--sweep-supercell", "4,4.0"], "--sweep-supercell gives 4 twice"),
     (["--sweep-step", "1,0.5,0.50"], "--sweep-step gives 0.5 twice"),

@@ -315,6 +315,8 @@ BAD = [
     ("[camera]\neye = [40, 0, 0]\nzoom = 2\n{V}", "camera.zoom", "with an eye given, move the eye"),
     ("[[volume]]\nfile = 'data/v_2x2x2.raw'\ndtype = 'float128'\niso = 0", "volume[1].dtype",
      "unsupported sample type 'float128'"),
+    ("[[volume]]\nfile = 'data/ball.nrrd'\ndtype = 'float128'\niso = 0", "volume[1].dtype",
+     "only to headerless raw files"),
     ("[camera]\neye = [0, 0, 50]\nlook_at = [0, 0, 0]\nup = [0, 0, 0]\n{V}", "camera.up", "is zero"),
 ]
 

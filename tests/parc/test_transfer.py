@@ -559,7 +559,7 @@ BAD_FILES = [
      ["pv_order.json", "Points number 5 (point 2)", "ascend"]),
     ("pv_alpha.json", '[{"RGBPoints": [0, 0, 0, 0], "Points": [0, 2, 0.5, 0]}]',
      ["pv_alpha.json", "Points number 2 (point 1)", "alpha"]),
-    ("pv_type.json", '[{"RGBPoints": [0, 0, "x", 0]}]', ["pv_type.json", "RGBPoints number 3", "number"]),
+    ("pv_type.json", '[{"RGBPoints": [0, 0, "x", 0]}]', ["pv_type.json", "RGBPoints number 3 (point 1)", "number"]),
     ("pv_none.json", '[{"Name": "x", "IndexedColors": [1, 0, 0]}]', ["pv_none.json", "RGBPoints", "missing"]),
     ("pv_empty.json", '[]', ["pv_empty.json", "empty"]),
     ("pv_object.json", '{"Name": "x", "ColorSpace": "RGB"}', ["pv_object.json", "RGBPoints"]),
