@@ -214,7 +214,7 @@ class _Report:
     def part(self, phase, fraction):
         if self.progress is not None:
             a, b = self.spans[phase]
-            self.progress(b if fraction >= 1.0 else min(1.0, a + (b - a) * fraction))
+            self.progress(b if fraction >= 1.0 else min(b, a + (b - a) * fraction))
 
     def done(self, phase):
         self.part(phase, 1.0)
