@@ -17,6 +17,7 @@ from data_tools.info import exact_text
 
 from .camera import unit_vector
 from .outputs import note
+from .scene import check_eye_resolves
 
 
 def load_volume_flags(args):
@@ -132,6 +133,9 @@ def _volume_scene(args, say):
                                      "nor stops rays early")
         if args.step is not None and not (math.isfinite(args.step) and args.step > 0.0):
             raise InputError(f"--step must be a positive, finite distance, got {args.step:g}")
+        if args.step is not None and args.step < 1e-4 * min(vol.spacing):
+            raise InputError(f"--step {args.step:g} is below 1e-4 of the smallest spacing "
+                             f"({min(vol.spacing):g}): too many samples per ray")
         if args.threshold is not None and not 0.0 < args.threshold <= 1.0:
             raise InputError(f"--threshold must be an opacity in (0, 1], got {args.threshold:g}")
         vis = parc.Translucent(vol, args.tf, mode=args.mode or "composite", step=args.step,
@@ -170,4 +174,9 @@ def _camera(args, vol, size):
     if args.look_at is None and unit_vector(np.subtract(view["look_at"], view["eye"])) is None:
         raise InputError(f"--eye {','.join(f'{c:g}' for c in view['eye'])} is the centre of the volume, "
                          "where the camera looks by default: move it or give --look-at")
-    return parc.Camera(**view)
+    camera = parc.Camera(**view)
+    try:
+        check_eye_resolves(camera, [vol])
+    except InputError as exc:
+        raise InputError(f"--eye: {exc}" if args.eye is not None else str(exc)) from None
+    return camera

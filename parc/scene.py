@@ -265,7 +265,7 @@ class Scene:
         for v in self.volumes:
             if not isinstance(v, (Isosurface, Translucent)):
                 raise InputError(f"a scene shows Isosurface or Translucent volumes, got {type(v).__name__}")
-        _check_eye_resolves(self.camera, self.volumes)
+        check_eye_resolves(self.camera, [v.volume for v in self.volumes])
         self.lights = _sequence(self.lights, "lights")
         for light in self.lights:
             if not isinstance(light, LIGHTS):
@@ -295,12 +295,12 @@ class Scene:
 EYE_RANGE = 2.0 ** 32
 
 
-def _check_eye_resolves(camera, volumes):
-    """Refuse an eye so far out that float64 cannot place rays across the volumes: a parallel
-    view's ray origins, rounded to the eye's resolution (16384 units at 1e20), all missed, and
-    the picture came out empty without a word."""
-    lo = np.min([v.volume.bounds[0] for v in volumes], axis=0)
-    hi = np.max([v.volume.bounds[1] for v in volumes], axis=0)
+def check_eye_resolves(camera, volumes):
+    """Refuse an eye so far out that float64 cannot place rays across ``volumes`` (the scene's
+    `Volume`s): a parallel view's ray origins, rounded to the eye's resolution (16384 units
+    at 1e20), all missed, and the picture came out empty without a word."""
+    lo = np.min([v.bounds[0] for v in volumes], axis=0)
+    hi = np.max([v.bounds[1] for v in volumes], axis=0)
     size = float(np.linalg.norm(np.subtract(hi, lo)))
     far = float(np.max(np.abs(camera.eye)))
     if not far <= EYE_RANGE * size:

@@ -67,7 +67,7 @@ import numpy as np
 from data_tools import InputError, Volume
 
 from .camera import Camera, unit_vector
-from .scene import MODES, DirectionalLight, Isosurface, PointLight, Scene, Translucent
+from .scene import MODES, DirectionalLight, Isosurface, PointLight, Scene, Translucent, check_eye_resolves
 from .tomltables import Table, Where, array_tables, construct
 
 TOP_KEYS = ("size", "background", "shadows", "camera", "volume", "light")
@@ -449,4 +449,8 @@ def _load_camera(where, t, volumes, view, aspect):
     if np.linalg.norm(np.cross(f, up)) < 1e-9:
         raise where.error(label("up"), f"up {list(cam['up'])} is parallel to the view direction")
     with where.key("camera"):
-        return Camera(**cam)
+        camera = Camera(**cam)
+    # Checked by the scene too, here with the key that placed the eye.
+    with where.key(label("eye") if settings["eye"] is not None else "camera"):
+        check_eye_resolves(camera, [v.volume for v in volumes])
+    return camera

@@ -684,6 +684,8 @@ def test_more_bad_arguments(extra, words, vol_file, tmp_path, capsys):
     (["--fov", "0"], "--fov must be a number of degrees between 0 and 180, got 0"),
     (["--parallel", "-2"], "--parallel must be a positive, finite half height, got -2"),
     (["--size", "0", "8"], "--size must be two positive integers, got 0 8"),
+    (["--step", "1e-300"], "--step 1e-300 is below 1e-4 of the smallest spacing"),
+    (["--eye", "1e20,0,0", "--parallel", "5"], "--eye: the eye (1e+20, 0.0, 0.0) is over 2^32 times"),
     (["--background", "2,0,0"], "background components must be in [0, 1]"),
 ])
 def test_translucent_flags_that_cannot_apply_are_refused(extra, words, vol_file, tmp_path, capsys):

@@ -311,6 +311,7 @@ BAD = [
     ("[camera]\neye = [inf, 0, 0]\n{V}", "camera.eye", "finite"),
     ("[camera]\nup = [0, 0, 0]\n{V}", "camera.up", "is zero"),                  # with the default framing
     ("[camera]\nfov = 1e-300\n{V}", "camera.fov", "too narrow to frame"),
+    ("[camera]\neye = [1e20, 0, 0]\nparallel = 5\n{V}", "camera.eye", "is over 2^32 times the volumes' size"),
     ("[camera]\nfov = 1e-300\nzoom = 2\n{V}", "camera.fov", "too narrow to frame"),     # not the zoom
     ("[camera]\neye = [40, 0, 0]\nzoom = 2\n{V}", "camera.zoom", "with an eye given, move the eye"),
     ("[[volume]]\nfile = 'data/v_2x2x2.raw'\ndtype = 'float128'\niso = 0", "volume[1].dtype",
