@@ -78,13 +78,7 @@ class Camera:
                 # Ignored by a parallel projection, whatever was given: a number it can hold.
                 object.__setattr__(self, "fov", 30.0)
             object.__setattr__(self, "fov", float(self.fov))
-            try:
-                scale = math.nan if text_or_flag(self.parallel_scale) else float(self.parallel_scale)
-            except (TypeError, ValueError):
-                scale = math.nan
-            if not (math.isfinite(scale) and scale > 0.0):
-                raise InputError(f"parallel scale must be positive and finite, got {self.parallel_scale!r}")
-            object.__setattr__(self, "parallel_scale", scale)
+            object.__setattr__(self, "parallel_scale", check_parallel_scale(self.parallel_scale))
 
     @property
     def parallel(self) -> bool:
@@ -261,14 +255,26 @@ def _view_from(azimuth, elevation, up):
     return math.cos(el) * (math.cos(az) * front + math.sin(az) * side) + math.sin(el) * up
 
 
-def check_fov(fov):
-    """Refuse a field of view (degrees) that is not a number strictly between 0 and 180."""
+def check_fov(fov, what="field of view"):
+    """Refuse a field of view (degrees) that is not a number strictly between 0 and 180;
+    ``what`` names it in the message (``--fov`` on the command line)."""
     try:
         ok = not text_or_flag(fov) and 0.0 < float(fov) < 180.0
     except (TypeError, ValueError):
         ok = False
     if not ok:
-        raise InputError(f"field of view must be a number of degrees between 0 and 180, got {fov!r}")
+        raise InputError(f"{what} must be a number of degrees between 0 and 180, got {fov!r}")
+
+
+def check_parallel_scale(scale, what="parallel scale"):
+    """``scale`` as a float, refused unless a positive, finite number; ``what`` as for `check_fov`."""
+    try:
+        value = math.nan if text_or_flag(scale) else float(scale)
+    except (TypeError, ValueError):
+        value = math.nan
+    if not (math.isfinite(value) and value > 0.0):
+        raise InputError(f"{what} must be positive and finite, got {scale!r}")
+    return value
 
 
 def unit_vector(v):

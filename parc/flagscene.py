@@ -8,16 +8,14 @@ are refused in one line, not ignored.
 """
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from data_tools import InputError
 from data_tools.info import exact_text
 
-from .camera import unit_vector
+from .camera import check_fov, check_parallel_scale, unit_vector
 from .outputs import note
-from .scene import check_eye_resolves
+from .scene import check_eye_resolves, check_step, check_threshold
 
 
 def load_volume_flags(args):
@@ -131,13 +129,11 @@ def _volume_scene(args, say):
                 if _given(getattr(args, flag)):
                     raise InputError(f"--{flag} applies to --mode composite; {args.mode} neither shades samples "
                                      "nor stops rays early")
-        if args.step is not None and not (math.isfinite(args.step) and args.step > 0.0):
-            raise InputError(f"--step must be a positive, finite distance, got {args.step:g}")
-        if args.step is not None and args.step < 1e-4 * min(vol.spacing):
-            raise InputError(f"--step {args.step:g} is below 1e-4 of the smallest spacing "
-                             f"({min(vol.spacing):g}): too many samples per ray")
-        if args.threshold is not None and not 0.0 < args.threshold <= 1.0:
-            raise InputError(f"--threshold must be an opacity in (0, 1], got {args.threshold:g}")
+        # The scene's own checks, named by the flag.
+        if args.step is not None:
+            check_step(args.step, vol.spacing, "--step")
+        if args.threshold is not None:
+            check_threshold(args.threshold, "--threshold")
         vis = parc.Translucent(vol, args.tf, mode=args.mode or "composite", step=args.step,
                                threshold=0.99 if args.threshold is None else args.threshold, shade=args.shade)
         return parc.Scene(camera=_camera(args, vol, (w, h)), size=(w, h), volumes=[vis],
@@ -165,10 +161,10 @@ def _camera(args, vol, size):
     lo, hi = vol.bounds
     if args.zoom is not None and not (np.isfinite(args.zoom) and args.zoom > 0.0):
         raise InputError(f"--zoom must be positive and finite, got {args.zoom:g}")
-    if args.fov is not None and not 0.0 < args.fov < 180.0:
-        raise InputError(f"--fov must be a number of degrees between 0 and 180, got {args.fov:g}")
-    if args.parallel is not None and not (np.isfinite(args.parallel) and args.parallel > 0.0):
-        raise InputError(f"--parallel must be a positive, finite half height, got {args.parallel:g}")
+    if args.fov is not None:
+        check_fov(args.fov, "--fov")
+    if args.parallel is not None:
+        check_parallel_scale(args.parallel, "--parallel")
     view = resolve_view(lo, hi, eye=args.eye, look_at=args.look_at, up=args.up, fov=args.fov,
                         parallel=args.parallel, aspect=size[0] / size[1], zoom=args.zoom)
     if args.look_at is None and unit_vector(np.subtract(view["look_at"], view["eye"])) is None:

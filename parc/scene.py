@@ -113,24 +113,8 @@ class Translucent:
             self.tf = load_transfer_function(self.tf, data_range=self.volume.value_range(), mode=self.mode)
         if self.step is None:
             self.step = reference_step(self.volume.spacing)
-        try:
-            if text_or_flag(self.step):
-                raise TypeError
-            self.step = float(self.step)
-        except (TypeError, ValueError):
-            raise InputError(f"step must be a number, got {self.step!r}") from None
-        if not (math.isfinite(self.step) and self.step > 0.0):
-            raise InputError(f"step must be a positive, finite distance, got {self.step}")
-        if self.step < 1e-4 * min(self.volume.spacing):
-            raise InputError(f"step {self.step:g} is below 1e-4 of the smallest spacing; "
-                             f"that is too many samples per ray")
-        try:
-            threshold = math.nan if text_or_flag(self.threshold) else float(self.threshold)
-        except (TypeError, ValueError):
-            threshold = math.nan
-        if not 0.0 < threshold <= 1.0:
-            raise InputError(f"opacity threshold must be in (0, 1], got {self.threshold!r}")
-        self.threshold = threshold
+        self.step = check_step(self.step, self.volume.spacing)
+        self.threshold = check_threshold(self.threshold)
         self.shade = _flag(self.shade, "shade")
         if self.shade and self.mode != "composite":
             raise InputError(f"shade applies to mode composite; {self.mode} does not shade samples")
@@ -288,6 +272,34 @@ class Scene:
     @property
     def height(self):
         return self.size[1]
+
+
+def check_step(step, spacing, what="step"):
+    """``step`` as a float, refused unless a positive, finite distance of at least 1e-4 of the
+    smallest ``spacing``; ``what`` names it in messages (``--step`` on the command line)."""
+    try:
+        if text_or_flag(step):
+            raise TypeError
+        value = float(step)
+    except (TypeError, ValueError):
+        raise InputError(f"{what} must be a number, got {step!r}") from None
+    if not (math.isfinite(value) and value > 0.0):
+        raise InputError(f"{what} must be a positive, finite distance, got {value}")
+    if value < 1e-4 * min(spacing):
+        raise InputError(f"{what} {value:g} is below 1e-4 of the smallest spacing ({min(spacing):g}); "
+                         "that is too many samples per ray")
+    return value
+
+
+def check_threshold(threshold, what="opacity threshold"):
+    """``threshold`` as a float, refused unless an opacity in (0, 1]; ``what`` as for `check_step`."""
+    try:
+        value = math.nan if text_or_flag(threshold) else float(threshold)
+    except (TypeError, ValueError):
+        value = math.nan
+    if not 0.0 < value <= 1.0:
+        raise InputError(f"{what} must be an opacity in (0, 1], got {threshold!r}")
+    return value
 
 
 #: How many times the volumes' size the eye's coordinates may reach: as `Camera.framing`'s

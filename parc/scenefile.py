@@ -66,7 +66,7 @@ import numpy as np
 
 from data_tools import InputError, Volume
 
-from .camera import Camera, unit_vector
+from .camera import Camera, check_fov, check_parallel_scale, unit_vector
 from .scene import MODES, DirectionalLight, Isosurface, PointLight, Scene, Translucent, check_eye_resolves
 from .tomltables import Table, Where, array_tables, construct
 
@@ -394,11 +394,10 @@ def _load_lights(where, raw):
 
 def _check_view(where, settings, label):
     """Refuse a field of view, parallel scale or zoom out of range, or a zero up vector."""
-    fov, parallel = settings["fov"], settings["parallel"]
-    if fov is not None and not 0.0 < fov < 180.0:
-        raise where.error(label("fov"), f"field of view must be between 0 and 180 degrees, got {fov:g}")
-    if parallel is not None and not parallel > 0.0:
-        raise where.error(label("parallel"), f"parallel scale must be positive, got {parallel:g}")
+    for name, check in (("fov", check_fov), ("parallel", check_parallel_scale)):
+        if settings[name] is not None:
+            with where.key(label(name)):
+                check(settings[name])
     if settings["zoom"] is not None and not settings["zoom"] > 0.0:
         raise where.error(label("zoom"), f"zoom must be positive, got {settings['zoom']:g}")
     if settings["up"] is not None and unit_vector(settings["up"]) is None:

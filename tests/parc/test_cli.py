@@ -682,7 +682,7 @@ def test_more_bad_arguments(extra, words, vol_file, tmp_path, capsys):
     (["--step", "0"], "--step must be a positive, finite distance, got 0"),
     (["--threshold", "1.5"], "--threshold must be an opacity in (0, 1], got 1.5"),
     (["--fov", "0"], "--fov must be a number of degrees between 0 and 180, got 0"),
-    (["--parallel", "-2"], "--parallel must be a positive, finite half height, got -2"),
+    (["--parallel", "-2"], "--parallel must be positive and finite, got -2"),
     (["--size", "0", "8"], "--size must be two positive integers, got 0 8"),
     (["--step", "1e-300"], "--step 1e-300 is below 1e-4 of the smallest spacing"),
     (["--eye", "1e20,0,0", "--parallel", "5"], "--eye: the eye (1e+20, 0.0, 0.0) is over 2^32 times"),
