@@ -286,15 +286,15 @@ def _volume_data(where, t, cache):
         for name in SYNTHETIC_KEYS:
             if name in t:
                 raise t.error(name, "applies to synthetic volumes, not to a volume file")
-        vol, source = _read_file(where, t, cache)
+        vol, source = _read_file(where, t, cache, spacing, origin)
     else:
         for name in RAW_KEYS:
             if name in t:
                 raise t.error(name, "applies to headerless raw volume files, not to synthetic volumes")
         vol, source = _make_synthetic(where, t, cache)
-    if spacing is None and origin is None:
-        return vol
     key = (source, spacing, origin)
+    if spacing is None and origin is None or vol is cache.get(key):
+        return vol
     if key not in cache:
         with where.key(t.key("spacing" if spacing is not None else "origin")):
             # Same samples, new placement: the array is shared, not copied.
@@ -303,7 +303,9 @@ def _volume_data(where, t, cache):
     return cache[key]
 
 
-def _read_file(where, t, cache):
+def _read_file(where, t, cache, spacing, origin):
+    """The volume a file holds, placed as the file says; or, where the file's own spacing or
+    origin is refused and the table replaces it, as the table says."""
     from data_tools.io import load_volume, raw
     path = where.resolve(t.string("file"))
     options = {"shape": t.integers("shape", 3, minimum=2), "dtype": t.string("dtype"),
@@ -333,7 +335,16 @@ def _read_file(where, t, cache):
     source = ("file", os.fspath(path)) + tuple(options[name] for name in RAW_KEYS)
     if source not in cache:
         with where.key(t.key("file")):
-            cache[source] = load_volume(path, **options)
+            try:
+                cache[source] = load_volume(path, **options)
+            except InputError:
+                if spacing is None and origin is None:
+                    raise
+                # A header value the table replaces (spacing 0, an origin far from a fine
+                # grid) must not stop the read: placed by the table, or the same error again.
+                placed = load_volume(path, **options, spacing=spacing, origin=origin)
+                cache[(source, spacing, origin)] = placed
+                return placed, source
     return cache[source], source
 
 

@@ -97,14 +97,9 @@ def load_volume(path, **options) -> Volume:
         verb = "applies" if len(extra) == 1 else "apply"
         raise InputError(f"{path}: {flags} {verb} only to headerless raw files; this file has a header")
     with reading(path, kind):
-        vol = reader(path)
-    if "spacing" in options or "origin" in options:
-        meta = vol.meta
-        if "spacing" in options and meta.get("spacing_unknown"):
-            meta = {k: v for k, v in meta.items() if k not in ("note", "spacing_unknown")}
-        vol = Volume(vol.data, spacing=options.get("spacing", vol.spacing),
-                     origin=options.get("origin", vol.origin), name=vol.name, meta=meta)
-    return _read_from(vol, path)
+        # The readers place the samples by the spacing and origin given, before the Volume's
+        # checks: a header value those would refuse is what a user overrides.
+        return _read_from(reader(path, **options), path)
 
 
 def _from_array(data, options):

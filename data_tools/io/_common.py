@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from ..volume import Volume
 
 #: Exceptions a reader may meet on bad input; all become one-line InputErrors.
 READ_ERRORS = (OSError, ValueError, TypeError, KeyError, IndexError, EOFError,
@@ -63,6 +64,24 @@ def optional_library(name, path, kind, extra):
     except ImportError:
         raise InputError(f"{path}: reading {kind} files needs the {name} package: "
                          f"pip install {name} (or the extra: pip install 'parc[{extra}]')") from None
+
+
+def file_volume(data, spacing, origin, path, meta, place):
+    """The Volume a reader returns: the file's ``spacing`` and ``origin``, or those of ``place``
+    (`load_volume`'s ``spacing`` and ``origin`` options) in their stead.
+
+    They replace the file's before the Volume checks them, so a header whose
+    own values it refuses (spacing 0 from an exporter that means "unknown",
+    an origin in map coordinates far from its fine grid) opens with the
+    caller's. A note that the file gave no spacing goes with a spacing given.
+    """
+    if place.get("spacing") is not None:
+        spacing = place["spacing"]
+        if meta.get("spacing_unknown"):
+            meta = {k: v for k, v in meta.items() if k not in ("note", "spacing_unknown")}
+    if place.get("origin") is not None:
+        origin = place["origin"]
+    return Volume(data, spacing=spacing, origin=origin, name=str(path), meta=meta)
 
 
 @contextlib.contextmanager

@@ -7,7 +7,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..volume import Volume
-from ._common import (data_file_block, decompress, parse_dims, parse_numbers, read_samples, reading,
+from ._common import (file_volume, data_file_block, decompress, parse_dims, parse_numbers, read_samples, reading,
                       several_data_files, text_values, to_native)
 
 EXTENSIONS = (".mhd", ".mha")
@@ -79,7 +79,7 @@ def _parse_header(path: Path):
                     return fields, pos
 
 
-def read_metaimage(path) -> Volume:
+def read_metaimage(path, *, spacing=None, origin=None) -> Volume:
     """Read a 3-D scalar MetaImage volume.
 
     Handles ``DimSize``, ``ElementType`` (MET_UCHAR ... MET_DOUBLE),
@@ -97,13 +97,14 @@ def read_metaimage(path) -> Volume:
     -------
     Volume
     """
+    given = {"spacing": spacing, "origin": origin}     # the names are the file's own below
     path = Path(path)
     with reading(path, "MetaImage"):
         fields, data_start = _parse_header(path)
-        return _build(path, fields, data_start)
+        return _build(path, fields, data_start, given)
 
 
-def _build(path, fields, data_start):
+def _build(path, fields, data_start, given):
     def get(*keys):
         key = _first(fields, keys)
         return None if key is None else fields[key]
@@ -168,7 +169,7 @@ def _build(path, fields, data_start):
             _check_data_file(path, data_path, f"data file {number} of {len(paths)}")
             parts.append(_samples(data_path, 0, header_size, (block, 1, 1), dtype, big, text, compressed, True))
         data = np.concatenate(parts).reshape(nz, ny, nx)
-        return Volume(data, spacing=spacing, origin=origin, name=str(path), meta=meta)
+        return file_volume(data, spacing, origin, path, meta, given)
     if data_name.upper() == "LOCAL":
         data_path, offset = path, data_start
         if header_size > 0:
@@ -188,7 +189,7 @@ def _build(path, fields, data_start):
         meta["data_file"] = str(data_path)
         offset = 0
     data = _samples(data_path, offset, header_size, dims, dtype, big, text, compressed, data_path != path)
-    return Volume(data.reshape(nz, ny, nx), spacing=spacing, origin=origin, name=str(path), meta=meta)
+    return file_volume(data.reshape(nz, ny, nx), spacing, origin, path, meta, given)
 
 
 def _lines_after(path, start):

@@ -14,12 +14,12 @@ import numpy as np
 
 from ..errors import InputError
 from ..volume import Volume
-from ._common import one_line, optional_library, silenced, to_native
+from ._common import file_volume, one_line, optional_library, silenced, to_native
 
 EXTENSIONS = (".nii", ".nii.gz")
 
 
-def read_nifti(path) -> Volume:
+def read_nifti(path, *, spacing=None, origin=None) -> Volume:
     """Read a 3-D NIfTI volume (NIfTI-1 or -2, gzipped or not).
 
     Samples keep their stored type unless the header scales them
@@ -43,10 +43,10 @@ def read_nifti(path) -> Volume:
     path = Path(path)
     nib = optional_library("nibabel", path, "NIfTI", "nifti")
     with silenced("nibabel.global"):        # its header checks ("pixdim[1,2,3] should be positive")
-        return _read(nib, path)
+        return _read(nib, path, {"spacing": spacing, "origin": origin})
 
 
-def _read(nib, path):
+def _read(nib, path, given):
     try:
         img = nib.load(str(path), mmap=False)
     except MemoryError:
@@ -100,7 +100,7 @@ def _read(nib, path):
         meta["scaling"] = {"slope": float(proxy.slope), "inter": float(proxy.inter)}
     if note:
         meta["note"] = note
-    return Volume(data, spacing=spacing, origin=origin, name=str(path), meta=meta)
+    return file_volume(data, spacing, origin, path, meta, given)
 
 
 def _check_length(img, path, start):

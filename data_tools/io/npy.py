@@ -11,7 +11,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..volume import Volume
-from ._common import one_line, reading
+from ._common import file_volume, one_line, reading
 
 EXTENSIONS = (".npy",)
 
@@ -22,7 +22,7 @@ def sidecar_path(path) -> Path:
     return path.with_name(path.name + ".json")
 
 
-def read_npy(path) -> Volume:
+def read_npy(path, *, spacing=None, origin=None) -> Volume:
     """Read a 3-D ``.npy`` array indexed ``[z, y, x]``.
 
     Spacing and origin come from ``<path>.json`` (keys ``spacing``,
@@ -37,6 +37,7 @@ def read_npy(path) -> Volume:
     -------
     Volume
     """
+    given = {"spacing": spacing, "origin": origin}     # the names are the file's own below
     path = Path(path)
     with reading(path, "NumPy"):
         with open(path, "rb") as f:
@@ -85,7 +86,7 @@ def read_npy(path) -> Volume:
                     and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)):
                 raise InputError(f"{side}: {key} must be an array of three numbers, got {json.dumps(value)}")
         meta["sidecar"] = str(side)
-    return Volume(data, spacing=spacing, origin=origin, name=str(path), meta=meta)
+    return file_volume(data, spacing, origin, path, meta, given)
 
 
 def is_sidecar(path) -> bool:

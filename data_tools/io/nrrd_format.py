@@ -16,13 +16,13 @@ import nrrd
 
 from ..errors import InputError
 from ..volume import Volume
-from ._common import data_file_block, text_values
+from ._common import file_volume, data_file_block, text_values
 from .nrrd_header import explain, header_lines, parse_header, read_header
 
 EXTENSIONS = (".nrrd", ".nhdr")
 
 
-def read_nrrd(path) -> Volume:
+def read_nrrd(path, *, spacing=None, origin=None) -> Volume:
     """Read a 3-D NRRD volume.
 
     Spacing comes from ``space directions`` (the length of each axis
@@ -43,6 +43,7 @@ def read_nrrd(path) -> Volume:
     -------
     Volume
     """
+    given = {"spacing": spacing, "origin": origin}     # the names are the file's own below
     path = Path(path)
     data_file = _check_data_file(path)
     try:
@@ -76,7 +77,7 @@ def read_nrrd(path) -> Volume:
         spacing, origin = _from_extent(header, data.shape[::-1])
     if "space" in header:
         meta["space"] = header["space"]
-    return Volume(data, spacing=spacing, origin=origin, name=str(path), meta=meta)
+    return file_volume(data, spacing, origin, path, meta, given)
 
 
 #: The encodings pynrrd reads as text.

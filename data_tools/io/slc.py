@@ -8,7 +8,7 @@ import numpy as np
 from ..errors import InputError
 from ..memory import check_memory
 from ..volume import Volume
-from ._common import reading
+from ._common import file_volume, reading
 
 EXTENSIONS = (".slc",)
 MAGIC = b"11111"
@@ -59,7 +59,7 @@ class _Cursor:
         return out
 
 
-def read_slc(path) -> Volume:
+def read_slc(path, *, spacing=None, origin=None) -> Volume:
     """Read a VolVis SLC volume (8-bit samples, raw or run-length slices).
 
     Layout: ``11111``; ``nx ny nz bits``; ``sx sy sz``; ``unit_type
@@ -76,6 +76,7 @@ def read_slc(path) -> Volume:
     -------
     Volume
     """
+    given = {"spacing": spacing, "origin": origin}     # the names are the file's own below
     path = Path(path)
     with reading(path, "SLC"):
         buf = path.read_bytes()
@@ -110,7 +111,7 @@ def read_slc(path) -> Volume:
             flat[k] = np.frombuffer(cur.take(plane, what), dtype=np.uint8)
     meta = {"format": "slc", "compression": "rle" if compression else "raw",
             "unit_type": unit, "data_origin": data_origin, "data_modification": modification}
-    return Volume(data, spacing=spacing, origin=(0.0, 0.0, 0.0), name=str(path), meta=meta)
+    return file_volume(data, spacing, (0.0, 0.0, 0.0), path, meta, given)
 
 
 def _rle_decode(src: bytes, size: int, path, k: int) -> bytes:

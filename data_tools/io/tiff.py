@@ -16,7 +16,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..volume import Volume
-from ._common import one_line, optional_library, silenced, to_native
+from ._common import file_volume, one_line, optional_library, silenced, to_native
 
 EXTENSIONS = (".tif", ".tiff")
 
@@ -27,7 +27,7 @@ _DICOM = (".dcm", ".dicom", ".ima")
 _RESUNIT_NONE = 1
 
 
-def read_tiff(path) -> Volume:
+def read_tiff(path, *, spacing=None, origin=None) -> Volume:
     """Read a stack of grey-level TIFF pages as a volume, one page per z slice.
 
     The stack is the file's first series (ImageJ hyperstacks and OME-TIFF
@@ -49,6 +49,7 @@ def read_tiff(path) -> Volume:
     -------
     Volume
     """
+    given = {"spacing": spacing, "origin": origin}     # the names are the file's own below
     path = Path(path)
     tifffile = optional_library("tifffile", path, "TIFF", "tiff")
     with _reading_tiff(path), tifffile.TiffFile(str(path)) as tif:
@@ -57,8 +58,7 @@ def read_tiff(path) -> Volume:
     if note:
         # `load_volume` drops it when the caller gives the spacing.
         meta.update(note=note, spacing_unknown=True)
-    return Volume(np.ascontiguousarray(to_native(data)), spacing=spacing, origin=(0.0, 0.0, 0.0),
-                  name=str(path), meta=meta)
+    return file_volume(np.ascontiguousarray(to_native(data)), spacing, (0.0, 0.0, 0.0), path, meta, given)
 
 
 #: Exceptions that tifffile does not raise on purpose (it raises TiffFileError, ValueError...).
@@ -198,7 +198,7 @@ def _positive(value):
     return v if np.isfinite(v) and v > 0 else None
 
 
-def read_tiff_folder(path) -> Volume:
+def read_tiff_folder(path, *, spacing=None, origin=None) -> Volume:
     """Read a folder of single-slice TIFF files (an image sequence) as a volume.
 
     The slices are the folder's ``.tif``/``.tiff`` files in natural order
@@ -216,6 +216,7 @@ def read_tiff_folder(path) -> Volume:
     -------
     Volume
     """
+    given = {"spacing": spacing, "origin": origin}     # the names are the file's own below
     path = Path(path)
     files = sorted((f for f in path.iterdir() if f.suffix.lower() in EXTENSIONS and f.is_file()),
                    key=lambda f: _natural_key(f.name))
@@ -245,8 +246,7 @@ def read_tiff_folder(path) -> Volume:
     note = (f"{len(files)} slices; the files give no spacing between them: 1 was used along z "
             "(give --spacing SX,SY,SZ)")
     meta = {"format": "tiff slices", "files": len(files), "note": note, "spacing_unknown": True}
-    return Volume(np.stack(slices), spacing=(spacing[0], spacing[1], 1.0), origin=(0.0, 0.0, 0.0),
-                  name=str(path), meta=meta)
+    return file_volume(np.stack(slices), (spacing[0], spacing[1], 1.0), (0.0, 0.0, 0.0), path, meta, given)
 
 
 def _natural_key(name):

@@ -8,7 +8,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..volume import Volume
-from ._common import float32_from_text, no_digit_separators, parse_dims, parse_numbers, read_samples, reading
+from ._common import file_volume, float32_from_text, no_digit_separators, parse_dims, parse_numbers, read_samples, reading
 
 EXTENSIONS = (".vtk",)
 
@@ -238,7 +238,7 @@ def _past_cell_data(f, lines, encoding, ncells, path):
     raise InputError(f"{path}: no POINT_DATA after the VTK CELL_DATA")
 
 
-def read_vtk(path) -> Volume:
+def read_vtk(path, *, spacing=None, origin=None) -> Volume:
     """Read a VTK legacy STRUCTURED_POINTS volume of point scalars.
 
     ``COLOR_SCALARS`` with one component (how VTK itself writes uint8 data)
@@ -263,6 +263,7 @@ def read_vtk(path) -> Volume:
         Not a VTK legacy file, another dataset kind, no point data, vector or
         multi-component data, an unknown type, or too few samples.
     """
+    given = {"spacing": spacing, "origin": origin}     # the names are the file's own below
     path = Path(path)
     with reading(path, "VTK"):
         with open(path, "rb") as f:
@@ -368,7 +369,7 @@ def read_vtk(path) -> Volume:
             # Legacy binary VTK is big-endian by definition; trailing sections are ignored.
             data = read_samples(path, offset, dims, dtype, True, exact=False, kind="VTK")
     meta = {"format": "vtk", "scalars": words[1]}
-    return Volume(data, spacing=spacing or (1.0, 1.0, 1.0), origin=origin, name=str(path), meta=meta)
+    return file_volume(data, spacing or (1.0, 1.0, 1.0), origin, path, meta, given)
 
 
 def _read_ascii(f, dims, dtype, path):

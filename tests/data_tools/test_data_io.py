@@ -729,6 +729,39 @@ def test_spacing_and_origin_options_override_any_format(tmp_path):
     assert vol.spacing == (2, 3, 4) and vol.origin == (1, 1, 1)
 
 
+#: How each header format writes a spacing of 3 and an origin of 7 (`save_volume`), and the same
+#: with a value the Volume refuses: a zero spacing ("unknown" to some exporters), or an origin in map
+#: coordinates more than 2^32 cells from 0.
+_PLACEMENT_TEXT = {
+    ".nhdr": ("space directions: (3,0,0)", "space directions: (1e-40,0,0)",
+              "space origin: (7,7,7)", "space origin: (1e12,7,7)"),
+    ".mhd": ("ElementSpacing = 3.0 3.0 3.0", "ElementSpacing = 0 3.0 3.0",
+             "Offset = 7.0 7.0 7.0", "Offset = 1e12 7.0 7.0"),
+    ".vtk": ("SPACING 3.0 3.0 3.0", "SPACING 0 3.0 3.0", "ORIGIN 7.0 7.0 7.0", "ORIGIN 1e12 7.0 7.0"),
+    ".npy.json": ('"spacing": [3.0, 3.0, 3.0]', '"spacing": [0, 3.0, 3.0]',
+                  '"origin": [7.0, 7.0, 7.0]', '"origin": [1e12, 7.0, 7.0]'),
+}
+
+
+@pytest.mark.parametrize("ext", list(_PLACEMENT_TEXT))
+@pytest.mark.parametrize("field", ["spacing", "origin"])
+def test_given_spacing_and_origin_replace_a_header_value_the_volume_refuses(tmp_path, ext, field):
+    arr = make_array("uint8")
+    name = tmp_path / ("v" + ext.removesuffix(".json"))
+    save_volume(Volume(arr, spacing=(3, 3, 3), origin=(7, 7, 7)), name)
+    header = tmp_path / ("v" + ext)
+    good_s, bad_s, good_o, bad_o = _PLACEMENT_TEXT[ext]
+    old, bad = (good_s, bad_s) if field == "spacing" else (good_o, bad_o)
+    text = header.read_bytes()
+    assert old.encode() in text
+    header.write_bytes(text.replace(old.encode(), bad.encode()))
+    with pytest.raises(InputError, match=field):
+        load_volume(name)
+    vol = load_volume(name, **{field: (1, 2, 3)})
+    check(vol, arr, (1, 2, 3) if field == "spacing" else (3, 3, 3),
+          (1, 2, 3) if field == "origin" else (7, 7, 7))
+
+
 def test_save_unknown_extension(tmp_path):
     with pytest.raises(InputError, match="supported"):
         save_volume(Volume(make_array("uint8")), tmp_path / "v.tiff")

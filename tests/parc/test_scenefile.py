@@ -422,6 +422,20 @@ def test_one_source_placed_twice_keeps_each_placement(folder):
     assert (b.spacing, b.origin) == ((2.0, 2.0, 2.0), (20.0, 0.0, 0.0))
 
 
+def test_a_tables_placement_replaces_a_file_placement_the_volume_refuses(folder):
+    # A header whose origin lies 1e12 units out on a unit grid cannot be drawn as it says; the
+    # table that moves it opens it, and a table that keeps the file's placement is still refused.
+    save_volume(Volume(np.arange(27, dtype=np.uint8).reshape(3, 3, 3)), folder / "far.nhdr")
+    header = folder / "far.nhdr"
+    header.write_text(header.read_text().replace("space origin: (0,0,0)", "space origin: (1e12,0,0)"))
+    table = "[[volume]]\nfile = 'far.nhdr'\niso = 10\n"
+    vols = load_scene(write(folder, table + "origin = [0, 0, 5]\n" + table + "origin = [0, 9, 0]\n")).volumes
+    assert [v.volume.origin for v in vols] == [(0.0, 0.0, 5.0), (0.0, 9.0, 0.0)]
+    assert np.array_equal(vols[1].volume.data, np.arange(27).reshape(3, 3, 3))
+    with pytest.raises(InputError, match=r"volume\[2\]\.file: .*far\.nhdr: origin"):
+        load_scene(write(folder, table + "origin = [0, 0, 5]\n" + table))
+
+
 def test_a_look_at_alone_moves_the_framing_eye_with_it():
     # resolve_view: given look_at and no eye, the eye keeps the framing view's offset from the point looked at.
     lo, hi = (0.0, 0.0, 0.0), (10.0, 10.0, 10.0)
