@@ -26,8 +26,8 @@ from data_tools.signals import STOPS
 
 from .arguments import build_parser, join_signed_values, supercell_size
 from .flagscene import load_volume_flags, scene_and_notes
-from .outputs import (Progress, atomic_write_all, check_distinct, check_output, compile_notice, end_progress_line,
-                      note, slow_note, stale_sidecars, to_json, write_png)
+from .outputs import (Progress, atomic_write_all, check_distinct, check_not_sidecar, check_output, compile_notice,
+                      end_progress_line, note, slow_note, stale_sidecars, to_json, write_png)
 
 EXIT_USAGE = 2
 
@@ -305,6 +305,8 @@ def cmd_render(args):
     # An empty path is a mistake to name, not a flag to ignore.
     depth_out = check_output(args.depth, (".npy",)) if args.depth is not None else None
     stats_out = check_output(args.stats, (".json",)) if args.stats is not None else None
+    if stats_out is not None:
+        check_not_sidecar(stats_out)
     work_out = check_output(args.work, (".png", ".npy")) if args.work is not None else None
     check_distinct(args.volume, [out, depth_out, stats_out, work_out])
     written = {p.resolve() for p in (out, depth_out, stats_out, work_out) if p is not None}

@@ -106,6 +106,17 @@ def stale_sidecars(paths):
     return stale
 
 
+def check_not_sidecar(path):
+    """Refuse to write ``path`` (a JSON output) over the spacing-and-origin sidecar of a ``.npy``
+    volume beside it: the volume would keep its samples and lose its placement, and fail to load."""
+    from data_tools.io.npy import is_sidecar
+    for side in dict.fromkeys([Path(path), written_path(Path(path))]):
+        volume = side.with_name(side.name[:-len(".json")])
+        if side.name.lower().endswith(".npy.json") and volume.is_file() and is_sidecar(side):
+            raise InputError(f"{path}: holds the spacing and origin of the volume {volume.name}; "
+                             "write elsewhere")
+
+
 def atomic_write_all(writes, remove=()):
     """Write each ``(path, write)`` through a temporary file beside it, then rename them all.
 

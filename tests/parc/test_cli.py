@@ -159,6 +159,21 @@ def test_only_a_real_sidecar_is_taken_away_and_through_a_link_both(vol_file, tmp
     assert load_volume(real).spacing == (1.0, 1.0, 1.0)
 
 
+def test_stats_are_not_written_over_a_npy_volumes_sidecar(vol_file, tmp_path, capsys):
+    # Written over, the volume lost its placement and could no longer be read (unknown keys).
+    vol, side = tmp_path / "v.npy", tmp_path / "v.npy.json"
+    rc, _, err = _run(["convert", vol_file, "-o", vol, "--spacing", "2,2,2"], capsys)
+    assert rc == 0 and side.is_file(), err
+    (tmp_path / "link.npy.json").symlink_to(side)
+    before = side.read_bytes()
+    for stats in (side, tmp_path / "link.npy.json"):
+        rc, _, err = _run(["render", vol_file, "--iso", 3.5, "--size", 8, 8, "-o", tmp_path / "a.png",
+                           "--stats", stats], capsys)
+        assert rc == 2 and err.count("\n") == 1 and "spacing and origin of the volume v.npy" in err, err
+        assert side.read_bytes() == before and not (tmp_path / "a.png").exists()
+    assert load_volume(vol).spacing == (2.0, 2.0, 2.0)
+
+
 def test_render_without_iso_suggests_one(vol_file, tmp_path, capsys):
     rc, _, err = _run(["render", vol_file, "--size", 8, 8, "-o", tmp_path / "a.png"], capsys)
     assert rc == 0 and "suggested from the histogram" in err
