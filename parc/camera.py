@@ -202,8 +202,11 @@ class Camera:
             raise InputError(f"azimuth and elevation must be finite angles in degrees, got {azimuth} and {elevation}")
         if not isinstance(parallel, (bool, np.bool_)):
             raise InputError(f"parallel must be True or False, got {parallel!r}")
-        c = 0.5 * (lo + hi)
-        whole = 0.5 * float(np.linalg.norm(hi - lo))
+        c = 0.5 * lo + 0.5 * hi
+        # hypot, not the norm's dot product: corners near float64's range overflowed it.
+        whole = 0.5 * math.hypot(*(float(h) - float(l) for l, h in zip(lo, hi)))
+        if whole == 0.0:
+            raise InputError(f"framing needs a box with some size; its corners are one point {tuple(lo.tolist())}")
         radius = whole / zoom
         try:
             u = unit_vector(up) if np.shape(up) == (3,) else None

@@ -85,6 +85,19 @@ def test_framing_refuses_a_field_of_view_it_cannot_frame_with(fov):
         Camera.framing((0, 0, 0), (10, 10, 10), fov=fov)
 
 
+def test_framing_a_point_names_the_box_not_the_zoom():
+    with pytest.raises(InputError, match="box with some size; its corners are one point"):
+        Camera.framing((2, 2, 2), (2, 2, 2))
+
+
+def test_framing_a_box_near_float64s_range_warns_of_nothing():
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        cam = Camera.framing((0, 0, 0), (1e300, 1e300, 1e300))
+    np.testing.assert_allclose(cam.look_at, (5e299, 5e299, 5e299), rtol=1e-15)
+    assert np.linalg.norm(np.subtract(cam.eye, cam.look_at) / 1e300) > 0.866 / math.sin(math.radians(15))
+
+
 @pytest.mark.parametrize("scale", [1e-300, 1e300])
 def test_huge_and_tiny_vectors_give_the_basis_of_their_direction(scale):
     # Their lengths under- or overflow; their directions are ordinary.
