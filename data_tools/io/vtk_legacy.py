@@ -361,6 +361,9 @@ def read_vtk(path, *, spacing=None, origin=None) -> Volume:
                     # where their first bytes look like blank lines.
                     f.seek(pos)
             offset = f.tell()
+            others = [] if field is not None else _later_scalars(f, lines, encoding, npoints,
+                                                                "unsigned_char" if color else words[2], path)
+            f.seek(offset)
             if encoding == "ASCII" and color:
                 data = _read_ascii_colors(f, dims, path)
             elif encoding == "ASCII":
@@ -369,7 +372,34 @@ def read_vtk(path, *, spacing=None, origin=None) -> Volume:
             # Legacy binary VTK is big-endian by definition; trailing sections are ignored.
             data = read_samples(path, offset, dims, dtype, True, exact=False, kind="VTK")
     meta = {"format": "vtk", "scalars": words[1]}
+    if others:
+        meta["note"] = (f"the points carry {len(others) + 1} scalar arrays ({', '.join([words[1]] + others)}); "
+                        f"the first was read ({words[1]})")
     return file_volume(data, spacing or (1.0, 1.0, 1.0), origin, path, meta, given)
+
+
+def _later_scalars(f, lines, encoding, npoints, vtype, path):
+    """The names of the point scalars after the ones read, which start at ``f``'s position.
+
+    Only a note depends on them: a file whose rest cannot be read past gives none.
+    """
+    names = []
+    try:
+        if encoding == "ASCII" and vtype == "unsigned_char":
+            vtype = "float"             # COLOR_SCALARS in ASCII are written as value / 255
+        _skip_values(f, encoding, npoints, vtype, path, "the scalars")
+        _after_array(f, path, 1)
+        for _ in range(_MAX_HEADER_LINES):
+            line = lines.next("", required=False)
+            words = line.split() if line is not None else []
+            if not words or words[0].upper() in ("CELL_DATA", "POINT_DATA"):
+                break
+            if words[0].upper() in ("SCALARS", "COLOR_SCALARS") and len(words) > 1:
+                names.append(words[1])
+            _skip_attribute(f, lines, encoding, words, npoints, path, "POINT_DATA")
+    except InputError:
+        pass
+    return names
 
 
 def _read_ascii(f, dims, dtype, path):

@@ -90,3 +90,24 @@ def test_vtk_ascii_color_scalars_out_of_range_refused(tmp_path):
     p.write_bytes(header(arr, "ASCII", "COLOR_SCALARS c 1\n") + b"1.5 " + b"0 " * (arr.size - 1))
     with pytest.raises(InputError, match=r"outside \[0, 1\]"):
         load_volume(p)
+
+
+@pytest.mark.parametrize("ascii", [False, True])
+@pytest.mark.parametrize("color", [False, True])
+def test_vtk_several_scalar_arrays_read_the_first_and_say_so(tmp_path, ascii, color):
+    # No way to choose one yet: which was drawn must at least be said.
+    arr = (np.arange(60) * 4).astype(np.uint8).reshape(3, 4, 5)
+    other = (np.arange(60) * 0.5 - 3).astype(np.float32).reshape(3, 4, 5)
+    first = (body(arr / 255.0, True, "%g") if ascii else arr.tobytes() + b"\n") if color else body(arr, ascii)
+    text = (header(arr, "ASCII" if ascii else "BINARY",
+                   "COLOR_SCALARS density 1\n" if color else "SCALARS density unsigned_char\nLOOKUP_TABLE default\n")
+            + first + b"VECTORS flow float\n" + body(np.zeros(180, np.float32), ascii, "%g")
+            + b"SCALARS temperature float 1\nLOOKUP_TABLE default\n" + body(other, ascii, "%g"))
+    p = tmp_path / "two.vtk"
+    p.write_bytes(text)
+    check(p, arr)
+    assert load_volume(p).meta["note"] == ("the points carry 2 scalar arrays (density, temperature); "
+                                           "the first was read (density)")
+    one = tmp_path / "one.vtk"
+    one.write_bytes(text[:text.index(b"VECTORS")])
+    assert "note" not in load_volume(one).meta
