@@ -19,8 +19,11 @@ from .scene import check_eye_resolves, check_step, check_threshold
 
 
 def load_volume_flags(args):
-    """The volume file the flags name, read with the raw-format flags."""
+    """The volume file the flags name, read with the raw-format flags (`parc info`, `parc convert`)."""
     from data_tools.io import load_volume
+    if _is_scene_file(args):
+        raise InputError(f"{args.volume}: a scene file; parc {args.command} reads one volume file "
+                         "(parc render and parc compare read scenes)")
     return load_volume(args.volume, shape=args.shape, dtype=args.dtype, byte_order=args.byte_order,
                        spacing=args.spacing, origin=args.origin)
 

@@ -77,6 +77,10 @@ def _parse_header(path: Path):
                 # The data file entry ends the header; binary data may follow (LOCAL).
                 if key.strip() == "ElementDataFile":
                     return fields, pos
+                if key.strip().lower() == "elementdatafile":
+                    # Read on, the data that follows it was taken for header lines.
+                    raise InputError(f"{path}: MetaImage keys are case-sensitive: write {key.strip()!r} "
+                                     "as 'ElementDataFile'")
 
 
 def read_metaimage(path, *, spacing=None, origin=None) -> Volume:

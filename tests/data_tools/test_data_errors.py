@@ -565,6 +565,14 @@ def test_mhd_without_data_file_line(tmp_path):
     fails(p, "ElementDataFile")
 
 
+def test_mhd_data_file_key_in_another_case_is_named(tmp_path):
+    # Read past, it let the samples after it be parsed as header lines: the error quoted their bytes.
+    p = tmp_path / "l.mha"
+    p.write_bytes(b"NDims = 3\nDimSize = 2 2 2\nElementType = MET_UCHAR\nelementdatafile = LOCAL\n"
+                  + bytes([0, 0, 1, 0, 200, 3, 7, 9]))
+    fails(p, "MetaImage keys are case-sensitive: write 'elementdatafile' as 'ElementDataFile'")
+
+
 def test_mhd_missing_required(tmp_path):
     p = tmp_path / "n.mhd"
     p.write_text("NDims = 3\nElementDataFile = x.raw\n")

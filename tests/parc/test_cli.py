@@ -1572,6 +1572,16 @@ def test_info_says_the_note_a_volume_was_read_with(tmp_path, capsys):
     assert "note:        negative spacings" in out and err == ""
 
 
+@pytest.mark.parametrize("command", [["info"], ["convert", "-o", "out.nrrd"]])
+def test_info_and_convert_of_a_scene_file_say_it_is_one(vol_file, tmp_path, capsys, command):
+    scene = tmp_path / "s.toml"
+    scene.write_text(f"[[volume]]\nfile = '{vol_file}'\niso = 3.5\n")
+    rc, _, err = _run([command[0], scene] + [tmp_path / a if a.endswith(".nrrd") else a for a in command[1:]], capsys)
+    assert rc == 2 and err.count("\n") == 1, err
+    assert f"s.toml: a scene file; parc {command[0]} reads one volume file" in err
+    assert not (tmp_path / "out.nrrd").exists()
+
+
 def test_a_stderr_that_cannot_take_the_notes_does_not_fail_the_run(vol_file, tmp_path, monkeypatch):
     # stderr on a full disk (2>/dev/full): every file was written, and the run ended with status 2.
     import errno
