@@ -320,7 +320,7 @@ def cmd_render(args):
               if args.method == "parc" else {})
     if args.method != "parc":
         _refuse_parc_flags(args, "applies to --method parc")
-    check_request(scene, kwargs.get("buffers", DEFAULT_BUFFERS), work_out is not None)
+    check_request(scene, kwargs.get("buffers", DEFAULT_BUFFERS), work_out is not None, ("--buffers", "--work"))
     check_frame_memory(*scene.size, layers=len(scene.volumes))
     if kwargs.get("supercell") is not None:
         check_supercells(scene, {args.method: kwargs})

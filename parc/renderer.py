@@ -176,18 +176,19 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
             _RENDERING[0] = False
 
 
-def check_request(scene, buffers, work):
+def check_request(scene, buffers, work, names=("buffers", "work")):
     """The buffers parsed, or what a render of ``scene`` refuses about them and the work map:
-    the command line asks before its compile notice, so that a refusal is its only line."""
+    the command line asks before its compile notice, so that a refusal is its only line, and
+    names them by its flags (``names``)."""
     buffers = parse_buffers(buffers)
     if "depth" not in buffers and not any(isinstance(v, Translucent) for v in scene.volumes):
-        raise InputError(f"buffers {buffers!r} leave out the depth buffers isosurfaces use; "
+        raise InputError(f"{names[0]} {','.join(buffers)} leave out the depth buffers isosurfaces use; "
                          "bit planes apply to translucent volumes")
     if len(scene.volumes) != 1 or scene.lights:
         if "bits" in buffers:
-            raise InputError(f"buffers {','.join(buffers)}: {bits_refused(scene)}")
+            raise InputError(f"{names[0]} {','.join(buffers)}: {bits_refused(scene)}")
         if work:
-            raise InputError("per-pixel work is counted for scenes of one volume without lights")
+            raise InputError(f"{names[1]}: per-pixel work is counted for scenes of one volume without lights")
     return buffers
 
 

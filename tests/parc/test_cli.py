@@ -107,7 +107,8 @@ def test_work_of_a_lit_scene_is_refused_and_nothing_written(vol_file, tmp_path, 
     out, work = tmp_path / "a.png", tmp_path / "w.npy"
     rc, _, err = _run(["render", vol_file, "--iso", 4.0, "--size", 8, 8, "--light", "30,30,30",
                        "-o", out, "--work", work], capsys)
-    assert rc == 2 and err.count("\n") == 1 and "one volume without lights" in err
+    assert rc == 2 and err.count("\n") == 1, err
+    assert "--work: per-pixel work is counted for scenes of one volume without lights" in err
     assert not out.exists() and not work.exists()
 
 
