@@ -314,12 +314,14 @@ def _camera_settings(camera):
 def _describe(vis):
     """A volume of the scene, as the stats' parameters give it."""
     vol = vis.volume
-    d = {"volume": vol.name, "dims": list(vol.dims), "dtype": str(vol.dtype)}
+    d = {"volume": vol.name, "dims": list(vol.dims), "dtype": str(vol.dtype),
+         "spacing": list(vol.spacing), "origin": list(vol.origin)}
     if isinstance(vis, Isosurface):
         d["isovalue"] = vis.value
     else:
-        d.update({"mode": vis.mode, "step": vis.step, "threshold": vis.threshold,
-                  "transfer_function": vis.tf.name or "custom"})
+        d.update({"mode": vis.mode, "step": vis.step, "transfer_function": vis.tf.name or "custom"})
+        if vis.mode == "composite":         # the others take every sample: no threshold applies
+            d["threshold"] = vis.threshold
     return d
 
 

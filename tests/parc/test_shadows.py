@@ -502,17 +502,21 @@ def test_disjoint_translucent_volumes_seen_from_afar_composite_near_over_far(nea
 
 def test_stats_parameters_describe_the_volume_as_the_scene_states_it():
     # Truth: the values given to Isosurface/Translucent, not another render's stats.
-    vol = Volume(np.asarray(blobs((10, 10, 10)).data, np.float32), name="fog")
+    vol = Volume(np.asarray(blobs((10, 10, 10)).data, np.float32), spacing=(1, 1, 0.5), origin=(0, -2, 1), name="fog")
     cam = Camera(eye=(5.0, 5.0, 60.0), look_at=(5.0, 5.0, 5.0), up=(0, 1, 0), fov=20)
+    camera = {"eye": [5.0, 5.0, 60.0], "look_at": [5.0, 5.0, 5.0], "up": [0.0, 1.0, 0.0], "fov": 20.0}
+    placed = {"volume": "fog", "dims": [10, 10, 10], "dtype": "float32", "spacing": [1.0, 1.0, 0.5],
+              "origin": [0.0, -2.0, 1.0]}
     tf = TransferFunction([(0.0, 0.0), (1.0, 0.5)])                        # unnamed: "custom"
-    fog = Translucent(vol, tf=tf, mode="mip", step=0.25, threshold=0.9)
-    p = render(Scene(camera=cam, size=(8, 6), volumes=[fog]), "brute").stats["parameters"]
-    assert p == {"size": [8, 6], "volume": "fog", "dims": [10, 10, 10], "dtype": "float32", "mode": "mip",
-                 "step": 0.25, "threshold": 0.9, "transfer_function": "custom",
-                 "camera": {"eye": [5.0, 5.0, 60.0], "look_at": [5.0, 5.0, 5.0], "up": [0.0, 1.0, 0.0], "fov": 20.0}}
+    for mode in ("mip", "average", "composite"):
+        fog = Translucent(vol, tf=tf, mode=mode, step=0.25, threshold=0.9)
+        p = render(Scene(camera=cam, size=(8, 6), volumes=[fog]), "brute").stats["parameters"]
+        # Only compositing stops at the threshold: the others take every sample.
+        stops = {"threshold": 0.9} if mode == "composite" else {}
+        assert p == {"size": [8, 6], **placed, "mode": mode, "step": 0.25, **stops, "transfer_function": "custom",
+                     "camera": camera}
     p = render(Scene(camera=cam, size=(8, 6), volumes=[Isosurface(vol, value=0.3)]), "brute").stats["parameters"]
-    assert p == {"size": [8, 6], "volume": "fog", "dims": [10, 10, 10], "dtype": "float32", "isovalue": 0.3,
-                 "camera": {"eye": [5.0, 5.0, 60.0], "look_at": [5.0, 5.0, 5.0], "up": [0.0, 1.0, 0.0], "fov": 20.0}}
+    assert p == {"size": [8, 6], **placed, "isovalue": 0.3, "camera": camera}
 
 
 @pytest.mark.parametrize("method", ["brute", "parc"])
