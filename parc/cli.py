@@ -305,8 +305,6 @@ def cmd_render(args):
     # An empty path is a mistake to name, not a flag to ignore.
     depth_out = check_output(args.depth, (".npy",)) if args.depth is not None else None
     stats_out = check_output(args.stats, (".json",)) if args.stats is not None else None
-    if stats_out is not None:
-        check_not_sidecar(stats_out)
     work_out = check_output(args.work, (".png", ".npy")) if args.work is not None else None
     check_distinct(args.volume, [out, depth_out, stats_out, work_out])
     written = {p.resolve() for p in (out, depth_out, stats_out, work_out) if p is not None}
@@ -315,6 +313,8 @@ def cmd_render(args):
     with _reading(args, say):
         scene, notes = scene_and_notes(args)
     check_distinct(args.volume, [out, depth_out, stats_out, work_out] + stale, read=_files_read(scene))
+    if stats_out is not None:
+        check_not_sidecar(stats_out)        # of a volume this run does not read (those are named above)
     w, h = scene.size
     kwargs = ({"supercell": args.supercell, "buffers": _buffers(args, scene), "blocks": not args.no_blocks}
               if args.method == "parc" else {})
