@@ -286,6 +286,9 @@ def cmd_convert(args):
         save_volume(vol, out)  # all-or-nothing itself, and keeps sidecar names right
     if "note" in vol.meta:
         note(vol.meta["note"])
+    if vol.meta.get("reoriented"):
+        note(f"{out} is written on an axis-aligned grid, without the orientation of {args.volume}: "
+             "it does not overlay the input in world space")
     _out(f"wrote {_written(out)} ({'x'.join(map(str, vol.dims))} {vol.dtype}{_placement(vol, out)})")
     return 0
 

@@ -152,6 +152,7 @@ def _build(path, fields, data_start, given):
         m = m.reshape(square, square)[:3, :3]
         if np.abs(m - np.eye(3)).max() > 1e-6:
             meta["note"] = "non-identity TransformMatrix ignored: the volume is read on an axis-aligned grid"
+            meta["reoriented"] = True
 
     data_name = get("ElementDataFile").strip()
     if not data_name:

@@ -94,12 +94,14 @@ def _read(nib, path, given):
     # flipped and the origin at the centre. The standard's is the pixel
     # dimensions alone, from (0, 0, 0).
     has_form = int(img.header["qform_code"]) > 0 or int(img.header["sform_code"]) > 0
-    spacing, origin, note = _geometry(img.affine if has_form else None, zooms)
+    spacing, origin, note, reoriented = _geometry(img.affine if has_form else None, zooms)
     meta = {"format": "nifti", "version": 2 if isinstance(img, nib.Nifti2Image) else 1}
     if scaled:
         meta["scaling"] = {"slope": float(proxy.slope), "inter": float(proxy.inter)}
     if note:
         meta["note"] = note
+    if reoriented:
+        meta["reoriented"] = True           # a file written from it is no longer in the same place
     return file_volume(data, spacing, origin, path, meta, given)
 
 
@@ -126,7 +128,8 @@ def _scaled(proxy):
 
 
 def _geometry(affine, zooms):
-    """``(spacing, origin, note)`` from the voxel-to-world affine (4x4)."""
+    """``(spacing, origin, note, reoriented)`` from the voxel-to-world affine (4x4); ``reoriented``:
+    rotated or flipped axes were laid on the axis-aligned grid."""
     a = np.asarray(affine if affine is not None else np.full((4, 4), np.nan), dtype=np.float64)
     if a.shape != (4, 4) or not np.isfinite(a).all():
         a = np.diag([*(float(z) for z in zooms), 1.0])
@@ -137,9 +140,10 @@ def _geometry(affine, zooms):
         lengths = np.where(lengths > 0, lengths, 1.0)
         note = "the header gives a voxel axis no length; spacing 1 was used for it"
     off = m - np.diag(np.diag(m))
-    if np.abs(off).max() > 1e-6 * lengths.max():
+    rotated, flipped = np.abs(off).max() > 1e-6 * lengths.max(), (np.diag(m) < 0).any()
+    if rotated:
         note = ("rotated voxel axes were reduced to axis-aligned spacings "
                 f"(their lengths {tuple(round(float(n), 6) for n in lengths)}); orientation is ignored")
-    elif (np.diag(m) < 0).any():
+    elif flipped:
         note = "flipped voxel axes (negative affine diagonal) were reduced to positive spacings"
-    return tuple(float(n) for n in lengths), tuple(float(v) for v in a[:3, 3]), note
+    return tuple(float(n) for n in lengths), tuple(float(v) for v in a[:3, 3]), note, bool(rotated or flipped)

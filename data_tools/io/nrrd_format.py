@@ -67,9 +67,11 @@ def read_nrrd(path, *, spacing=None, origin=None) -> Volume:
         meta["data_file"] = str(data_file)
     if "data files" in header:
         meta["data_files"] = tuple(str(p) for p in header["data files"][0])
-    spacing, note, unknown = _spacing(header, path)
+    spacing, note, unknown, reoriented = _spacing(header, path)
     if note:
         meta["note"] = note
+    if reoriented:
+        meta["reoriented"] = True           # a file written from it is no longer in the same place
     if unknown:
         meta["spacing_unknown"] = True      # a --spacing given replaces it, and its note
     origin = _origin(header, spacing, path)
@@ -357,9 +359,10 @@ def _from_extent(header, sizes):
 
 
 def _spacing(header, path):
-    """``(spacing, note, unknown)``: the spacing the header gives (None where ``axis mins`` and
-    ``axis maxs`` give it with the origin), a note on what was made of it, and whether a
-    spacing was not given at all (NaN or infinite, taken as 1)."""
+    """``(spacing, note, unknown, reoriented)``: the spacing the header gives (None where ``axis
+    mins`` and ``axis maxs`` give it with the origin), a note on what was made of it, whether a
+    spacing was not given at all (NaN or infinite, taken as 1), and whether oblique or mirrored
+    axes were laid on the axis-aligned grid."""
     dirs = header.get("space directions")
     if dirs is not None:
         try:
@@ -381,14 +384,15 @@ def _spacing(header, path):
                     f"(their lengths {tuple(round(float(n), 6) for n in norms)}); orientation is ignored")
         elif mirrored:
             note = "negative space directions (mirrored axes) were reduced to positive spacings"
-        return tuple(float(n) for n in norms), note, False
+        return tuple(float(n) for n in norms), note, False, oblique or mirrored
     spacings = header.get("spacings")
     if spacings is not None:
         sp = np.asarray(spacings, dtype=np.float64)
         if sp.shape != (3,):
             raise InputError(f"{path}: spacings gives {sp.size} values for 3 axes")
         notes = []
-        if (np.isfinite(sp) & (sp < 0)).any():
+        mirrored = bool((np.isfinite(sp) & (sp < 0)).any())
+        if mirrored:
             notes.append("negative spacings (mirrored axes) were reduced to positive spacings")
         unknown = ~np.isfinite(sp)
         if unknown.any():
@@ -398,10 +402,10 @@ def _spacing(header, path):
             words = " and ".join(sorted({"NaN (unknown)" if np.isnan(v) else f"{v:g}" for v in sp[unknown]}))
             notes.append(f"spacings gives {words} for {axes}: taken as 1 (give --spacing SX,SY,SZ)")
         sp = np.where(unknown, 1.0, np.abs(sp))
-        return tuple(float(s) for s in sp), "; ".join(notes) or None, bool(unknown.any())
+        return tuple(float(s) for s in sp), "; ".join(notes) or None, bool(unknown.any()), mirrored
     if _has_extent(header):
-        return None, None, False    # from axis mins and maxs (`_from_extent`), with the origin
-    return (1.0, 1.0, 1.0), None, False
+        return None, None, False, False     # from axis mins and maxs (`_from_extent`), with the origin
+    return (1.0, 1.0, 1.0), None, False, False
 
 
 def _has_extent(header):

@@ -984,7 +984,7 @@ def test_metaimage_with_a_fourth_axis_of_one_is_a_volume(tmp_path, steps, ok):
         return
     vol = load_volume(p)
     assert np.array_equal(vol.data, data[0]) and vol.spacing == (1.5, 2.0, 3.0) and vol.origin == (1.0, 2.0, 3.0)
-    assert "note" not in vol.meta
+    assert "note" not in vol.meta and "reoriented" not in vol.meta
 
 
 def test_metaimage_with_a_rotation_says_it_is_read_on_an_axis_aligned_grid(tmp_path):
@@ -996,6 +996,7 @@ def test_metaimage_with_a_rotation_says_it_is_read_on_an_axis_aligned_grid(tmp_p
     vol = load_volume(p)
     assert np.array_equal(vol.data, data)
     assert vol.meta["note"] == "non-identity TransformMatrix ignored: the volume is read on an axis-aligned grid"
+    assert vol.meta["reoriented"]
 
 
 # MetaImage header fields as other writers spell them (the MetaIO documentation), and a raw

@@ -85,7 +85,7 @@ def test_nifti_orientation_reduced_to_spacings_with_a_note(tmp_path, kind):
     vol = load_volume(_nifti(tmp_path / "o.nii", a, affine))
     assert np.array_equal(vol.data, a)
     assert np.allclose(vol.spacing, (0.8, 0.8, 1.6)) and vol.origin == (4.0, 5.0, 6.0)
-    assert words in vol.meta["note"]
+    assert words in vol.meta["note"] and vol.meta["reoriented"]
 
 
 def test_nifti_trailing_axis_of_one_is_a_volume(tmp_path):

@@ -1583,6 +1583,21 @@ def test_info_and_convert_of_a_scene_file_say_it_is_one(vol_file, tmp_path, caps
     assert not (tmp_path / "out.nrrd").exists()
 
 
+@pytest.mark.parametrize("header, lost", [
+    ({"space": "left-posterior-superior", "space directions": np.diag([-1.0, 2.0, 3.0])}, True),
+    ({"space": "left-posterior-superior", "space directions": np.array([[0.0, 1, 0], [1, 0, 0], [0, 0, 1]])}, True),
+    ({"spacings": np.array([1.0, -2.0, 3.0])}, True),
+    ({"space": "left-posterior-superior", "space directions": np.diag([1.0, 2.0, 3.0])}, False),
+    ({"spacings": np.array([1.0, np.nan, 3.0])}, False),
+])
+def test_convert_says_when_the_written_file_loses_the_inputs_orientation(tmp_path, capsys, header, lost):
+    import nrrd
+    src = tmp_path / "m.nrrd"
+    nrrd.write(str(src), np.zeros((3, 4, 5), np.uint8), header, index_order="C")
+    rc, _, err = _run(["convert", src, "-o", tmp_path / "out.mha"], capsys)
+    assert rc == 0 and lost == ("out.mha is written on an axis-aligned grid, without the orientation of" in err), err
+
+
 def test_a_stderr_that_cannot_take_the_notes_does_not_fail_the_run(vol_file, tmp_path, monkeypatch):
     # stderr on a full disk (2>/dev/full): every file was written, and the run ended with status 2.
     import errno
