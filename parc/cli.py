@@ -200,6 +200,9 @@ def cmd_make(args):
         if what is not None:
             _out(f"{what}: " + " ".join(["parc render", shlex.quote(str(out)), *_raw_flags(vol, out),
                                          f"--iso {exact_text(levels[0])}", "-o", shlex.quote(out.stem + ".png")]))
+        else:
+            _out(f"at this size every sample of the {args.name} is {exact_text(lo)}: it has no isosurface "
+                 "to render; give a larger --size")
     return 0
 
 

@@ -319,8 +319,9 @@ def test_the_command_make_suggests_runs_at_any_size(tmp_path, capsys, monkeypatc
         assert rc == 0, err
         lines = said.splitlines()
         lo, hi = load_volume(tmp_path / "v.nrrd").value_range()
-        if lo == hi:                                      # no surface to suggest
-            assert len(lines) == 1, (name, said)
+        if lo == hi:                                      # no surface to suggest, and the reason
+            assert len(lines) == 2 and lines[1].startswith(f"at this size every sample of the {name} is ")
+            assert lines[1].endswith(": it has no isosurface to render; give a larger --size"), (name, said)
             continue
         argv = shlex.split(lines[1].partition(": ")[2])
         rc, _, err = _run(argv[1:] + ["--size", 8, 8], capsys)
