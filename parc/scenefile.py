@@ -333,19 +333,21 @@ def _read_file(where, t, cache, spacing, origin):
             raise t.error(missing[0], f"{path.name} is a raw file, which has no header; give "
                           f"{' and '.join(hints[key] for key in missing)}, or name it like vol_64x64x64_uint8.raw")
     source = ("file", os.fspath(path)) + tuple(options[name] for name in RAW_KEYS)
-    if source not in cache:
-        with where.key(t.key("file")):
+    placed = (source, spacing, origin)
+    with where.key(t.key("file")):
+        if source not in cache and placed not in cache:
             try:
-                cache[source] = load_volume(path, **options)
+                if ("refused",) + source not in cache:
+                    cache[source] = load_volume(path, **options)
             except InputError:
                 if spacing is None and origin is None:
                     raise
+                cache[("refused",) + source] = True       # read placed by each table from now on
+            if source not in cache:
                 # A header value the table replaces (spacing 0, an origin far from a fine
                 # grid) must not stop the read: placed by the table, or the same error again.
-                placed = load_volume(path, **options, spacing=spacing, origin=origin)
-                cache[(source, spacing, origin)] = placed
-                return placed, source
-    return cache[source], source
+                cache[placed] = load_volume(path, **options, spacing=spacing, origin=origin)
+    return cache.get(source, cache.get(placed)), source
 
 
 def _make_synthetic(where, t, cache):

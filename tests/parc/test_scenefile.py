@@ -429,9 +429,11 @@ def test_a_tables_placement_replaces_a_file_placement_the_volume_refuses(folder)
     header = folder / "far.nhdr"
     header.write_text(header.read_text().replace("space origin: (0,0,0)", "space origin: (1e12,0,0)"))
     table = "[[volume]]\nfile = 'far.nhdr'\niso = 10\n"
-    vols = load_scene(write(folder, table + "origin = [0, 0, 5]\n" + table + "origin = [0, 9, 0]\n")).volumes
-    assert [v.volume.origin for v in vols] == [(0.0, 0.0, 5.0), (0.0, 9.0, 0.0)]
+    vols = load_scene(write(folder, table + "origin = [0, 0, 5]\n" + table + "origin = [0, 9, 0]\n"
+                            + table + "origin = [0, 0, 5]\n")).volumes
+    assert [v.volume.origin for v in vols] == [(0.0, 0.0, 5.0), (0.0, 9.0, 0.0), (0.0, 0.0, 5.0)]
     assert np.array_equal(vols[1].volume.data, np.arange(27).reshape(3, 3, 3))
+    assert vols[2].volume is vols[0].volume             # the same data and placement: one Volume
     with pytest.raises(InputError, match=r"volume\[2\]\.file: .*far\.nhdr: origin"):
         load_scene(write(folder, table + "origin = [0, 0, 5]\n" + table))
 
