@@ -8,7 +8,8 @@ import numpy as np
 
 from ..errors import InputError
 from ..volume import Volume
-from ._common import file_volume, float32_from_text, no_digit_separators, parse_dims, parse_numbers, read_samples, reading
+from ._common import (file_volume, float32_from_text, no_digit_separators, parse_dims, parse_numbers, read_samples,
+                      reading)
 
 EXTENSIONS = (".vtk",)
 
