@@ -126,6 +126,10 @@ def _bracketed_root(a, b, c, d, lo, hi, flo, fhi):
 #: coefficients and of `eval_cubic` (a few units in 2**-53 of that scale).
 HULL_MARGIN = 1e-13
 _THIRD = 1.0 / 3.0
+#: The largest coefficient's bounds beyond which `first_root` rescales the cubic: their
+#: squares, and a square times the 1e90 that separates a tiny cell's coefficients, stay normal.
+_LARGE = 2.0 ** 128
+_SMALL = 2.0 ** -128
 
 
 @kernel
@@ -170,6 +174,15 @@ def first_root(a, b, c, d, length):
         # ray misses end here (135,261 of the 135,309 such solves of a CT head frame), at a
         # third of the cost of the search.
         return -1.0
+    top = max(max(abs(a), abs(b)), max(abs(c), abs(d)))
+    if (top > _LARGE or top < _SMALL) and top < math.inf:
+        # The search squares and multiplies coefficients (the derivative's discriminant,
+        # Newton's bracket test), which over- or underflow where samples are extreme (past
+        # 1e153 or below 1e-157 in unit cells) or cells tiny (index-space directions near
+        # 1e30). Scaled by a power of two the cubic is exactly the same search.
+        k = -math.frexp(top)[1]
+        a, b, c, d = math.ldexp(a, k), math.ldexp(b, k), math.ldexp(c, k), math.ldexp(d, k)
+        b0, b3 = math.ldexp(b0, k), math.ldexp(b3, k)
     if changes == 1:
         # Exactly one root in the interval (Descartes' rule for the
         # Bernstein basis), bracketed by the ends: no critical points needed.

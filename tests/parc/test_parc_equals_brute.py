@@ -312,3 +312,27 @@ def test_a_parallel_eye_as_far_as_a_scene_takes_still_sees_the_volume(gl):
         assert np.array_equal(np.isfinite(ref.depth), np.isfinite(res.depth))
         images.append(np.isfinite(ref.depth))
     assert images[0].sum() > 50 and np.array_equal(images[0], images[1])
+
+
+@pytest.mark.parametrize("k, j", [(515, 0), (-540, 0), (0, -99), (320, -99), (-320, 97)])
+def test_samples_and_cells_scaled_by_powers_of_two_give_the_same_hits(gl, k, j):
+    # Truth: scale invariance. Samples and isovalue times 2^k, and the grid and camera times 2^j,
+    # exactly, move no surface: the depths are 2^j times those at scale 1, bit for bit. Float64
+    # samples past 1e153 or below 1e-157, or cells near 1e-30 long, lost hits to the cubic's
+    # squares over- or underflowing.
+    rng = np.random.default_rng(5)
+    base = np.round(rng.normal(size=(10, 10, 10)) * 256) / 256
+    cam = Camera(eye=(-8.0, -6.0, 20.0), look_at=(4.5, 4.5, 4.5), up=(0.0, 0.0, 1.0), fov=40.0)
+
+    def scene(k, j):
+        two = 2.0 ** j
+        vol = Volume(np.ldexp(base, k), spacing=(two, two, two), origin=(two, -two, 0.0))
+        view = Camera(eye=tuple(np.ldexp(cam.eye, j) + (two, -two, 0.0)),
+                      look_at=tuple(np.ldexp(cam.look_at, j) + (two, -two, 0.0)), up=cam.up, fov=cam.fov)
+        return Scene(camera=view, size=(32, 32), volumes=[Isosurface(vol, value=0.0)])
+
+    ref = render(scene(0, 0), method="brute").depth
+    assert 200 < np.isfinite(ref).sum() < 32 * 32 - 100
+    for method in ("brute", "parc"):
+        got = render(scene(k, j), method=method).depth
+        assert np.array_equal(got, np.ldexp(ref, j)), (method, np.isfinite(got).sum(), np.isfinite(ref).sum())

@@ -197,6 +197,52 @@ def test_huge_and_tiny_magnitudes(scale):
     assert_ok(-1e10, 3e10, -2e10, 1e5, 1.0)
 
 
+def _random_cubic(rng, n):
+    """A cubic of `test_random_cubics_against_mpmath`'s kinds, but for the tiny leading ones."""
+    kind = n % 4
+    if kind == 0:
+        return poly_from_roots(rng.choice([-1, 1]) * 10 ** rng.uniform(-3, 6), *rng.uniform(-0.5, 1.5, 3))
+    if kind == 1:
+        r = rng.uniform(0, 1)
+        return poly_from_roots(rng.choice([-1, 1]), r, r + 10 ** rng.uniform(-14, -2), rng.uniform(-1, 2))
+    if kind == 2:
+        return tuple(rng.normal(size=4) * 10.0 ** rng.uniform(-6, 6, 4))
+    r = rng.uniform(0, 1)
+    a, b, c, d = poly_from_roots(1.0, r, r, rng.uniform(1, 3))
+    return a, b, c, d + rng.choice([-1, 1]) * 10 ** rng.uniform(-17, -6)
+
+
+@pytest.mark.parametrize("k", [-560, -530, -300, 300, 515, 530])
+def test_a_cubic_scaled_by_a_power_of_two_has_the_same_first_root(k):
+    # Scaled by 2^k, exactly, a cubic keeps its roots. Its squares over- or underflowed past
+    # 2^±510: the derivative's roots came out infinite or zero and Newton left its bracket, so
+    # cells of float64 samples past 1e153 or below 1e-157 lost their first hits.
+    rng = np.random.default_rng(abs(k))
+    for n in range(2000):
+        a, b, c, d = (float(x) for x in _random_cubic(rng, n))
+        L = float(rng.choice([1.0, rng.uniform(0.01, 2.0)]))
+        scaled = [math.ldexp(x, k) for x in (a, b, c, d)]
+        if any(x != 0.0 and not 2.0 ** -1000 < abs(x) < 2.0 ** 1000 for x in scaled):
+            continue                    # not exactly representable scaled
+        assert call(*scaled, L) == call(a, b, c, d, L), (a, b, c, d, L, k)
+
+
+@pytest.mark.parametrize("j", [-99, -60, 60, 99])
+def test_a_cubic_in_a_cell_2_to_the_j_as_large_has_its_first_root_2_to_the_j_as_far(j):
+    # Spacing times 2^j: the index-space direction is 2^-j times as long, so the cubic in the
+    # ray's distance is a s^3 2^-3j + b s^2 2^-2j + c s 2^-j + d on an interval 2^j long. At
+    # spacings near 1e-30 its leading coefficients reach 1e90 times the samples'.
+    rng = np.random.default_rng(abs(j) + 7)
+    for n in range(2000):
+        a, b, c, d = (float(x) for x in _random_cubic(rng, n))
+        L = float(rng.choice([1.0, rng.uniform(0.01, 2.0)]))
+        for v in (1.0, 2.0 ** 300, 2.0 ** -300):
+            want = call(a * v, b * v, c * v, d * v, L)
+            got = call(math.ldexp(a * v, -3 * j), math.ldexp(b * v, -2 * j), math.ldexp(c * v, -j), d * v,
+                       math.ldexp(L, j))
+            assert got == (want if want < 0 else math.ldexp(want, j)), (a, b, c, d, L, v, j)
+
+
 def test_no_root():
     assert call(1.0, 0.0, 1.0, 1.0, 1.0) == -1.0           # positive on [0, 1]
     a, b, c, d = poly_from_roots(1.0, 2.0, 3.0, -1.0)
