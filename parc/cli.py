@@ -320,7 +320,7 @@ def cmd_render(args):
         scene, notes = scene_and_notes(args)
     check_distinct(args.volume, [out, depth_out, stats_out, work_out] + stale, read=_files_read(scene))
     if stats_out is not None:
-        check_not_sidecar(stats_out)        # of a volume this run does not read (those are named above)
+        check_not_sidecar(stats_out, [out, depth_out, work_out])   # a volume read is named above
     w, h = scene.size
     kwargs = ({"supercell": args.supercell, "buffers": _buffers(args, scene), "blocks": not args.no_blocks}
               if args.method == "parc" else {})
