@@ -314,12 +314,13 @@ def test_a_parallel_eye_as_far_as_a_scene_takes_still_sees_the_volume(gl):
     assert images[0].sum() > 50 and np.array_equal(images[0], images[1])
 
 
-@pytest.mark.parametrize("k, j", [(515, 0), (-540, 0), (0, -99), (320, -99), (-320, 97)])
+@pytest.mark.parametrize("k, j", [(515, 0), (-540, 0), (0, -99), (320, -99), (-320, 97), (-800, 99), (660, -99)])
 def test_samples_and_cells_scaled_by_powers_of_two_give_the_same_hits(gl, k, j):
     # Truth: scale invariance. Samples and isovalue times 2^k, and the grid and camera times 2^j,
     # exactly, move no surface: the depths are 2^j times those at scale 1, bit for bit. Float64
     # samples past 1e153 or below 1e-157, or cells near 1e-30 long, lost hits to the cubic's
-    # squares over- or underflowing.
+    # squares over- or underflowing; samples of 1e-241 in cells of 6e29, to its coefficients
+    # (a sample times the cube of a 1e-30 direction) falling below float64's normal range.
     rng = np.random.default_rng(5)
     base = np.round(rng.normal(size=(10, 10, 10)) * 256) / 256
     cam = Camera(eye=(-8.0, -6.0, 20.0), look_at=(4.5, 4.5, 4.5), up=(0.0, 0.0, 1.0), fov=40.0)
