@@ -190,6 +190,11 @@ TOL_REL = 2.0 ** -32
 INSIDE_CLIP_REL = 2.0 ** -30
 
 
+#: The passes hold ray distances in float32: a view reaching further than this (times the
+#: scene's spacing-free scale, `scene_scale`) from the eye, 2^8 short of float32's largest,
+#: gets no pass: every ray's segment is whole, and the caster walks it as `brute` does.
+FLOAT32_REACH = 2.0 ** 120
+
 #: An eye this close to the PC region (times the scene scale) counts as inside it: the caster
 #: moves the eye into index space, where one a rounding outside a face in world coordinates
 #: can land exactly on it and take samples or a hit at t = 0 that no face in front of the eye
@@ -381,6 +386,17 @@ def raster_segments(camera, width, height, proxy, *, pad_px=COVERAGE_PAD_PX, fac
     aspect = width / height
     scale = scene_scale(camera, lo, hi, aspect)
 
+    if view_reach(camera, lo, hi, aspect) > FLOAT32_REACH:
+        # Distances past float32's range (an eye 2^32 volume sizes from a volume 1e29 wide)
+        # would come back infinite: no segment, and an empty picture where brute draws one.
+        seg = np.empty((height, width, 2)) if out is None else out
+        seg[..., 0] = 0.0
+        seg[..., 1] = np.inf
+        seconds = dict.fromkeys(("prepare", "upload", "draw", "readback", "post", "total"), 0.0)
+        info = {"eye_inside": False, "d_min": None, "clip_near": 0.0, "pixels": width * height,
+                "scale": scale, "drawn": 0, "whole_rays": True}
+        return Segments(near=seg[..., 0], far=seg[..., 1], polygons=0, seconds=seconds, info=info, _seg=seg)
+
     # Where the rays start relative to the PC region.
     t0 = time.perf_counter()
     ndc_limit = (1.0 + 2.0 * GUARD_PX / width, 1.0 + 2.0 * GUARD_PX / height)
@@ -530,6 +546,18 @@ def _pixel_affine(camera, f, r, u, th, width, height):
     kx = scale * r * (2.0 * aspect / width)
     ky = scale * u * (-2.0 / height)
     return k0, kx, ky
+
+
+def view_reach(camera, lo, hi, aspect):
+    """How far from the eye the view of the box ``[lo, hi]`` reaches: its farthest corner, and
+    in a parallel view the view plane's half diagonal."""
+    eye = np.asarray(camera.eye, dtype=np.float64)
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    with np.errstate(over="ignore"):
+        reach = float(np.linalg.norm((corners - eye) / 2.0 ** 512, axis=1).max()) * 2.0 ** 512
+    if camera.parallel:
+        reach += camera.parallel_scale * math.hypot(aspect, 1.0)
+    return reach
 
 
 def scene_scale(camera, lo, hi, aspect):

@@ -363,3 +363,22 @@ def test_a_ray_on_grid_planes_with_a_tiny_slant_is_walked_alike_at_any_spacing(g
             got = render(scene(j, what), method=method)
             assert np.array_equal(got.depth, np.ldexp(ref.depth, j)), (what, method)
             assert np.abs(got.image - ref.image).max() <= 1e-6, (what, method)
+
+
+@pytest.mark.parametrize("parallel", [True, False])
+@pytest.mark.parametrize("what", ["iso", "depth,bits", "bits"])
+def test_a_view_reaching_past_float32s_range_is_drawn_by_parc_too(gl, parallel, what):
+    # An eye 0.9 * 2^32 volume sizes from a volume 2^93 cells wide (both accepted): ray distances
+    # past 3.4e38 came back from the float32 pass infinite, and parc drew nothing.
+    rng = np.random.default_rng(5)
+    t = 2.0 ** 93
+    vol = Volume(np.round(rng.normal(size=(10, 10, 10)) * 256) / 256, spacing=(t, t, t))
+    far = 0.9 * 2.0 ** 32 * float(np.linalg.norm(np.subtract(*vol.bounds)))
+    view = {"parallel_scale": 6.0 * t} if parallel else {"fov": float(np.degrees(2 * np.arctan(6.0 * t / far)))}
+    cam = Camera(eye=(far, 4.5 * t, 4.5 * t), look_at=(4.5 * t, 4.5 * t, 4.5 * t), up=(0, 0, 1), **view)
+    shown = Isosurface(vol, 0.0) if what == "iso" else Translucent(vol, "greyscale")
+    scene = Scene(camera=cam, size=(16, 16), volumes=[shown])
+    ref = render(scene, method="brute")
+    got = render(scene, method="parc", **({} if what == "iso" else {"buffers": what}))
+    assert (ref.image[..., 3] > 0).sum() > 50
+    assert np.array_equal(got.depth, ref.depth) and np.abs(got.image - ref.image).max() <= 1e-6
