@@ -281,12 +281,13 @@ def check_parallel_scale(scale, what="parallel scale"):
 
 
 def unit_vector(v):
-    """``v`` scaled to length 1, or None if it is zero; scaled by its largest component first,
-    so that huge and tiny vectors (1e300, 1e-300) neither overflow nor vanish."""
+    """``v`` scaled to length 1, or None if it is zero; huge and tiny vectors (1e300, 1e-300)
+    are scaled towards 1 first, so that they neither overflow nor vanish, by a power of two,
+    so that the direction is that of ``v`` times any power of two, to the last bit."""
     v = np.asarray(v, dtype=np.float64)
     m = float(np.max(np.abs(v)))
     if m == 0.0 or not math.isfinite(m):
         return None
     if not 1e-150 < m < 1e150:
-        v = v / m
+        v = np.ldexp(v, -math.frexp(m)[1])
     return v / np.linalg.norm(v)

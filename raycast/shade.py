@@ -10,10 +10,13 @@ from .traverse import cell_corners
 
 @kernel
 def trilinear_gradient(data, i, j, k, u, v, w, spc):
-    """World-space gradient of the trilinear interpolant of cell (i, j, k) at local (u, v, w).
+    """World-space gradient of the trilinear interpolant of cell (i, j, k) at local (u, v, w),
+    times a power of two where the spacing lies beyond 2^±64: every use is a direction.
 
     Parker et al. Appendix A: the derivative of each corner weight, divided
-    by the cell's size along that axis.
+    by the cell's size along that axis. Divided by cells of 4e28, differences of float64
+    samples of 1e-301 fell below float64's range and the normal was lost; cells scaled
+    towards 1 by a power of two give the same direction.
     """
     v000, v100, v010, v110, v001, v101, v011, v111 = cell_corners(data, i, j, k)
     gu = ((1 - v) * (1 - w) * (v100 - v000) + v * (1 - w) * (v110 - v010)
@@ -22,7 +25,12 @@ def trilinear_gradient(data, i, j, k, u, v, w, spc):
           + (1 - u) * w * (v011 - v001) + u * w * (v111 - v101))
     gw = ((1 - u) * (1 - v) * (v001 - v000) + u * (1 - v) * (v101 - v100)
           + (1 - u) * v * (v011 - v010) + u * v * (v111 - v110))
-    return gu / spc[0], gv / spc[1], gw / spc[2]
+    sx, sy, sz = spc[0], spc[1], spc[2]
+    top = max(sx, max(sy, sz))
+    if top > 2.0 ** 64 or top < 2.0 ** -64:
+        e = -math.frexp(top)[1]
+        sx, sy, sz = math.ldexp(sx, e), math.ldexp(sy, e), math.ldexp(sz, e)
+    return gu / sx, gv / sy, gw / sz
 
 
 @kernel
@@ -32,15 +40,17 @@ def unit_normal(gx, gy, gz, dx, dy, dz):
 
     Its squared length leaves float64 for gradients past 1e154 or below 1e-154 (float64
     samples of 1e160, or of 1e-200, both accepted): ``inf`` gave a zero normal, lit by
-    the ambient term alone, and 0 a flat cell's. Those are scaled by their largest
-    component first; others are computed as they always were.
+    the ambient term alone, and 0 a flat cell's. Those are scaled towards 1 by a power of
+    two first (exactly: the normal of ``g`` times 2^k is ``g``'s, to the last bit, wherever
+    both are scaled); others are computed as they always were.
     """
     g2 = gx * gx + gy * gy + gz * gz
     if not 1e-300 < g2 < 1e300:
         m = max(abs(gx), max(abs(gy), abs(gz)))
         if m == 0.0:
             return -dx, -dy, -dz
-        gx, gy, gz = gx / m, gy / m, gz / m
+        e = -math.frexp(m)[1]
+        gx, gy, gz = math.ldexp(gx, e), math.ldexp(gy, e), math.ldexp(gz, e)
         g2 = gx * gx + gy * gy + gz * gz
     gl = math.sqrt(g2)
     return gx / gl, gy / gl, gz / gl

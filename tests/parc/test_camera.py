@@ -98,6 +98,19 @@ def test_framing_a_box_near_float64s_range_warns_of_nothing():
     assert np.linalg.norm(np.subtract(cam.eye, cam.look_at) / 1e300) > 0.866 / math.sin(math.radians(15))
 
 
+@pytest.mark.parametrize("k", [-95, -40, 40, 95])
+def test_a_view_scaled_by_a_power_of_two_has_the_same_basis_to_the_last_bit(k):
+    # An eye 1e-125 from the point it looks at is scaled past 1e-150 at 2^-95: divided by its
+    # largest component (not a power of two) its direction moved by an ulp, and 379 of 696
+    # depths of a scene scaled so were no longer 2^k times the unscaled ones.
+    eye, look = np.array([3.0, -4.0, 2.0]) * 1e-125, np.array([0.7, 0.2, -0.1]) * 1e-125
+    up = (0.3, 0.1, 1.0)
+    ref = Camera(eye=tuple(eye), look_at=tuple(look), up=up).basis()
+    got = Camera(eye=tuple(np.ldexp(eye, k)), look_at=tuple(np.ldexp(look, k)), up=tuple(np.ldexp(up, k))).basis()
+    for a, b in zip(ref, got):
+        assert np.array_equal(a, b)
+
+
 @pytest.mark.parametrize("scale", [1e-300, 1e300])
 def test_huge_and_tiny_vectors_give_the_basis_of_their_direction(scale):
     # Their lengths under- or overflow; their directions are ordinary.
