@@ -107,17 +107,22 @@ def stale_sidecars(paths):
 
 
 def check_not_sidecar(path, outputs=()):
-    """Refuse to write ``path`` (a JSON output) over the spacing-and-origin sidecar of a ``.npy``
-    volume beside it: the volume would keep its samples and lose its placement, and fail to load.
-    A volume among this run's ``outputs`` is written over, its sidecar stale anyway."""
+    """Refuse to write ``path`` (a JSON output) where a ``.npy`` volume beside it reads its
+    spacing and origin: over its sidecar it would lose its placement, and in either case fail
+    to load (a sidecar of other keys). A volume among this run's ``outputs`` is written over,
+    its sidecar stale anyway; a JSON file of other keys is no sidecar, written over freely."""
     from data_tools.io.npy import is_sidecar
     written = {Path(os.path.realpath(o)) for o in outputs if o is not None}
     for side in dict.fromkeys([Path(path), written_path(Path(path))]):
         volume = side.with_name(side.name[:-len(".json")])
-        if (side.name.lower().endswith(".npy.json") and volume.is_file() and is_sidecar(side)
+        if (side.name.lower().endswith(".npy.json") and volume.is_file()
                 and Path(os.path.realpath(volume)) not in written):
-            raise InputError(f"{path}: holds the spacing and origin of the volume {volume.name}; "
-                             "write elsewhere")
+            if is_sidecar(side):
+                raise InputError(f"{path}: holds the spacing and origin of the volume {volume.name}; "
+                                 "write elsewhere")
+            if not side.exists():
+                raise InputError(f"{path}: would be read as the spacing and origin of the volume {volume.name} "
+                                 "beside it; write elsewhere")
 
 
 def atomic_write_all(writes, remove=()):

@@ -173,6 +173,13 @@ def test_stats_are_not_written_over_a_npy_volumes_sidecar(vol_file, tmp_path, ca
         assert rc == 2 and err.count("\n") == 1 and "spacing and origin of the volume v.npy" in err, err
         assert side.read_bytes() == before and not (tmp_path / "a.png").exists()
     assert load_volume(vol).spacing == (2.0, 2.0, 2.0)
+    # Nor beside a volume without one: read back as its sidecar, the stats stopped it loading.
+    bare = tmp_path / "bare.npy"
+    np.save(bare, np.zeros((2, 2, 2), np.uint8))
+    rc, _, err = _run(["render", vol_file, "--iso", 3.5, "--size", 8, 8, "-o", tmp_path / "a.png",
+                       "--stats", tmp_path / "bare.npy.json"], capsys)
+    assert rc == 2 and "would be read as the spacing and origin of the volume bare.npy" in err, err
+    assert not (tmp_path / "bare.npy.json").exists() and load_volume(bare).spacing == (1.0, 1.0, 1.0)
     # Unless the run writes over the volume itself: its sidecar is stale then, the stats welcome.
     rc, _, err = _run(["render", vol_file, "--iso", 3.5, "--size", 8, 8, "-o", vol, "--stats", side], capsys)
     assert rc == 0 and '"method"' in side.read_text() and np.load(vol).shape == (8, 8, 4), err
