@@ -333,20 +333,29 @@ def _read_file(where, t, cache, spacing, origin):
             raise t.error(missing[0], f"{path.name} is a raw file, which has no header; give "
                           f"{' and '.join(hints[key] for key in missing)}, or name it like vol_64x64x64_uint8.raw")
     source = ("file", os.fspath(path)) + tuple(options[name] for name in RAW_KEYS)
-    placed = (source, spacing, origin)
-    with where.key(t.key("file")):
-        if source not in cache and placed not in cache:
-            try:
-                if ("refused",) + source not in cache:
+    placed, refused = (source, spacing, origin), ("refused",) + source
+    if source not in cache and placed not in cache:
+        if refused not in cache:
+            with where.key(t.key("file")):
+                try:
                     cache[source] = load_volume(path, **options)
-            except InputError:
-                if spacing is None and origin is None:
-                    raise
-                cache[("refused",) + source] = True       # read placed by each table from now on
-            if source not in cache:
-                # A header value the table replaces (spacing 0, an origin far from a fine
-                # grid) must not stop the read: placed by the table, or the same error again.
+                except InputError as exc:
+                    if spacing is None and origin is None:
+                        raise
+                    cache[refused] = str(exc)       # read placed by each table from now on
+        if source not in cache:
+            # A header value the table replaces (spacing 0, an origin far from a fine grid)
+            # must not stop the read: placed by the table; refused again, the same error is
+            # the file's, another the table's values'.
+            try:
                 cache[placed] = load_volume(path, **options, spacing=spacing, origin=origin)
+            except InputError as exc:
+                given = [k for k, v in (("spacing", spacing), ("origin", origin)) if v is not None]
+                said = str(exc).partition(": ")[2]
+                blame = "file" if str(exc) == cache[refused] else min(
+                    given, key=lambda k: said.find(k) if k in said else len(said))
+                with where.key(t.key(blame)):
+                    raise
     return cache.get(source, cache.get(placed)), source
 
 

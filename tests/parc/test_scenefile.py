@@ -436,6 +436,12 @@ def test_a_tables_placement_replaces_a_file_placement_the_volume_refuses(folder)
     assert vols[2].volume is vols[0].volume             # the same data and placement: one Volume
     with pytest.raises(InputError, match=r"volume\[2\]\.file: .*far\.nhdr: origin"):
         load_scene(write(folder, table + "origin = [0, 0, 5]\n" + table))
+    # A value the table gives that is refused too is the table's, named by its key.
+    for placement, key in (("spacing = [0, 1, 1]", "spacing"), ("origin = [1e13, 0, 0]", "origin"),
+                           ("spacing = [1, 1, 1]\norigin = [1e13, 0, 0]", "origin"),
+                           ("spacing = [0, 1, 1]\norigin = [0, 0, 0]", "spacing")):
+        with pytest.raises(InputError, match=rf"volume\[1\]\.{key}: .*far\.nhdr: {key}"):
+            load_scene(write(folder, table + placement + "\n"))
 
 
 def test_a_look_at_alone_moves_the_framing_eye_with_it():
