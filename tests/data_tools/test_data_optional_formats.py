@@ -374,3 +374,44 @@ def test_nifti_intercept_without_slope_is_applied(tmp_path):
     np.testing.assert_allclose(vol.data, truth.transpose(2, 1, 0))
     assert vol.data.dtype == np.float32
     assert vol.meta["scaling"] == {"slope": 1.0, "inter": -1024.0}
+
+
+def _placed_files(tmp_path, arr, write_slc):
+    """``arr`` (uint8, z, y, x) in every format a reader takes, each placed at spacing 3 and
+    origin 7 where the format holds a placement: ``{name: (path, load options)}``."""
+    vol = Volume(arr, spacing=(3, 3, 3), origin=(7, 7, 7))
+    files = {ext: (save_volume(vol, tmp_path / f"v{ext}"), {}) for ext in (".nrrd", ".nhdr", ".npy", ".mhd",
+                                                                           ".mha", ".vtk")}
+    nz, ny, nx = arr.shape
+    files[".raw"] = (save_volume(vol, tmp_path / f"r_{nx}x{ny}x{nz}_uint8.raw"), {})
+    files[".slc"] = (write_slc(tmp_path / "v.slc", arr, spacing=(3.0, 3.0, 3.0)), {})
+    files[".nii"] = (_nifti(tmp_path / "v.nii", arr, np.diag([3.0, 3.0, 3.0, 1.0])), {})
+    tifffile.imwrite(tmp_path / "v.tif", arr, imagej=True, resolution=(1 / 3, 1 / 3),
+                     metadata={"spacing": 3.0, "axes": "ZYX"})
+    files[".tif"] = (tmp_path / "v.tif", {})
+    (tmp_path / "slices").mkdir()
+    for k in range(nz):
+        tifffile.imwrite(tmp_path / "slices" / f"z{k}.tif", arr[k])
+    files["tif folder"] = (tmp_path / "slices", {})
+    for k in range(nz):
+        (tmp_path / f"s{k}.raw").write_bytes(arr[k].tobytes())
+    (tmp_path / "list.mhd").write_text(f"NDims = 3\nDimSize = {nx} {ny} {nz}\nElementType = MET_UCHAR\n"
+                                       "ElementSpacing = 3 3 3\nOffset = 7 7 7\nElementDataFile = LIST 2D\n"
+                                       + "".join(f"s{k}.raw\n" for k in range(nz)))
+    files[".mhd LIST"] = (tmp_path / "list.mhd", {})
+    return files
+
+
+def test_every_reader_places_the_samples_by_the_spacing_and_origin_given(tmp_path, writers):
+    # Each reader builds its Volume with the spacing and origin given, in place of its file's
+    # (load_volume no longer replaces them afterwards): one that dropped them went unseen.
+    arr = (np.arange(60) * 4).astype(np.uint8).reshape(3, 4, 5)
+    files = _placed_files(tmp_path, arr, writers.slc)
+    assert len(files) == 12
+    for name, (path, _) in files.items():
+        vol = load_volume(path, spacing=(0.5, 2.0, 1.25), origin=(-1.0, 4.0, 9.0))
+        assert np.array_equal(vol.data, arr) and vol.spacing == (0.5, 2.0, 1.25), name
+        assert vol.origin == (-1.0, 4.0, 9.0), name
+        assert load_volume(path, origin=(-1.0, 4.0, 9.0)).origin == (-1.0, 4.0, 9.0), name
+        given = load_volume(path, spacing=(0.5, 2.0, 1.25))
+        assert given.spacing == (0.5, 2.0, 1.25) and given.origin == load_volume(path).origin, name
