@@ -56,7 +56,7 @@ def read_tiff(path, *, spacing=None, origin=None) -> Volume:
         data, axes, spacing, note, meta = _stack(tif, path)
     meta.update(format="tiff", axes=axes)
     if note:
-        # `load_volume` drops it when the caller gives the spacing.
+        # `file_volume` drops it when the caller gives the spacing.
         meta.update(note=note, spacing_unknown=True)
     return file_volume(np.ascontiguousarray(to_native(data)), spacing, (0.0, 0.0, 0.0), path, meta, given)
 
@@ -150,8 +150,9 @@ def _spacing(tif, path):
             # Each axis may have its own unit (nm across, µm between slices): all go to x's.
             if u != unit and found[a]:
                 if u not in _OME_POWERS or unit not in _OME_POWERS:
-                    raise InputError(f"{path}: voxel sizes in {unit} and {u}, which cannot be converted; "
-                                     "give --spacing SX,SY,SZ")
+                    # Said, not refused: a spacing given replaces it, and its note.
+                    return (1.0, 1.0, 1.0), (f"the TIFF gives voxel sizes in {unit} and {u}, which cannot be "
+                                             "converted: spacing 1, 1, 1 (give --spacing SX,SY,SZ)"), meta
                 k = _OME_POWERS[u] - _OME_POWERS[unit]
                 found[a] = found[a] * 10 ** k if k >= 0 else found[a] / 10 ** -k
         if all(found.get(a) for a in "XYZ"):

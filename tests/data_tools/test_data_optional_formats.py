@@ -415,3 +415,16 @@ def test_every_reader_places_the_samples_by_the_spacing_and_origin_given(tmp_pat
         assert load_volume(path, origin=(-1.0, 4.0, 9.0)).origin == (-1.0, 4.0, 9.0), name
         given = load_volume(path, spacing=(0.5, 2.0, 1.25))
         assert given.spacing == (0.5, 2.0, 1.25) and given.origin == load_volume(path).origin, name
+
+
+def test_ome_tiff_sizes_in_units_that_do_not_convert_take_the_spacing_given(tmp_path):
+    # Refused, the file could not be opened even with the --spacing its message asked for.
+    a = _data("uint8")
+    p = tmp_path / "mixed.ome.tif"
+    tifffile.imwrite(p, a, ome=True, metadata={"axes": "ZYX", "PhysicalSizeX": 0.3, "PhysicalSizeXUnit": "µm",
+                                               "PhysicalSizeY": 0.3, "PhysicalSizeYUnit": "µm",
+                                               "PhysicalSizeZ": 2.0, "PhysicalSizeZUnit": "pixel"})
+    vol = load_volume(p)
+    assert vol.spacing == (1.0, 1.0, 1.0) and "cannot be converted" in vol.meta["note"]
+    given = load_volume(p, spacing=(0.3, 0.3, 1.2))
+    assert given.spacing == (0.3, 0.3, 1.2) and "note" not in given.meta and np.array_equal(given.data, a)
