@@ -362,13 +362,19 @@ def read_vtk(path, *, spacing=None, origin=None) -> Volume:
                     # where their first bytes look like blank lines.
                     f.seek(pos)
             offset = f.tell()
-            others = [] if field is not None else _later_scalars(f, lines, encoding, npoints,
-                                                                "unsigned_char" if color else words[2], path)
-            f.seek(offset)
+            others = []
+            if field is None and encoding == "BINARY":
+                others = _later_scalars(f, lines, npoints, "unsigned_char" if color else words[2], path)
+                f.seek(offset)
+            rest = []
             if encoding == "ASCII" and color:
-                data = _read_ascii_colors(f, dims, path)
+                data = _read_ascii_colors(f, dims, path, rest)
             elif encoding == "ASCII":
-                data = _read_ascii(f, dims, dtype, path)
+                data = _read_ascii(f, dims, dtype, path, rest)
+            if field is None and rest:
+                # The words after the samples, read with them: a SCALARS word is no number.
+                others = [rest[n + 1].decode("ascii", "replace") for n in range(len(rest) - 1)
+                          if rest[n].upper() in (b"SCALARS", b"COLOR_SCALARS")]
         if encoding == "BINARY":
             # Legacy binary VTK is big-endian by definition; trailing sections are ignored.
             data = read_samples(path, offset, dims, dtype, True, exact=False, kind="VTK")
@@ -379,15 +385,15 @@ def read_vtk(path, *, spacing=None, origin=None) -> Volume:
     return file_volume(data, spacing or (1.0, 1.0, 1.0), origin, path, meta, given)
 
 
-def _later_scalars(f, lines, encoding, npoints, vtype, path):
-    """The names of the point scalars after the ones read, which start at ``f``'s position.
+def _later_scalars(f, lines, npoints, vtype, path):
+    """The names of the point scalars of a binary file after the ones read, which start at
+    ``f``'s position (an ASCII file's are among the words `_read_ascii` reads past its samples).
 
     Only a note depends on them: a file whose rest cannot be read past gives none.
     """
     names = []
+    encoding = "BINARY"
     try:
-        if encoding == "ASCII" and vtype == "unsigned_char":
-            vtype = "float"             # COLOR_SCALARS in ASCII are written as value / 255
         _skip_values(f, encoding, npoints, vtype, path, "the scalars")
         _after_array(f, path, 1)
         for _ in range(_MAX_HEADER_LINES):
@@ -403,9 +409,12 @@ def _later_scalars(f, lines, encoding, npoints, vtype, path):
     return names
 
 
-def _read_ascii(f, dims, dtype, path):
+def _read_ascii(f, dims, dtype, path, rest=None):
+    """The samples as text words; ``rest`` (a list) is given the words after them."""
     count = dims[0] * dims[1] * dims[2]
     tokens = f.read().split()
+    if rest is not None:
+        rest.extend(tokens[count:])
     if len(tokens) < count:
         raise InputError(f"{path}: ASCII VTK data truncated: {count} samples needed, found {len(tokens)}")
     no_digit_separators(tokens[:count], path, "the ASCII VTK data")
@@ -424,13 +433,13 @@ def _read_ascii(f, dims, dtype, path):
     return values.astype(dt).reshape(dims[2], dims[1], dims[0])
 
 
-def _read_ascii_colors(f, dims, path):
+def _read_ascii_colors(f, dims, path, rest=None):
     # VTK writes uint8 COLOR_SCALARS in ASCII as value/255 (6 digits) and its reader
     # scales them back the same way; so do we: it restores the exact bytes, and the
     # ASCII and BINARY forms of one volume give the same uint8 data. As its reader: each
     # value read as a float, then 255 v + 0.5 in double, truncated (0.7 gives 178, where
     # 0.7 in double would round up to 179).
-    values = _read_ascii(f, dims, "float32", path)
+    values = _read_ascii(f, dims, "float32", path, rest)
     if not (values.min() >= 0 and values.max() <= 1):  # NaN fails here too
         raise InputError(f"{path}: ASCII VTK COLOR_SCALARS values outside [0, 1]")
     return np.floor(values.astype(np.float64) * 255.0 + 0.5).astype(np.uint8)
