@@ -35,6 +35,8 @@ def read_nifti(path, *, spacing=None, origin=None) -> Volume:
     Parameters
     ----------
     path : str or Path
+    spacing, origin : (x, y, z), optional
+        Replace the file's, before the Volume checks them (`data_tools.io._common.file_volume`).
 
     Returns
     -------

@@ -32,6 +32,8 @@ def read_npy(path, *, spacing=None, origin=None) -> Volume:
     Parameters
     ----------
     path : str or Path
+    spacing, origin : (x, y, z), optional
+        Replace the file's, before the Volume checks them (`data_tools.io._common.file_volume`).
 
     Returns
     -------

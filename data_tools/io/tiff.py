@@ -44,6 +44,8 @@ def read_tiff(path, *, spacing=None, origin=None) -> Volume:
     Parameters
     ----------
     path : str or Path
+    spacing, origin : (x, y, z), optional
+        Replace the file's, before the Volume checks them (`data_tools.io._common.file_volume`).
 
     Returns
     -------
@@ -212,6 +214,8 @@ def read_tiff_folder(path, *, spacing=None, origin=None) -> Volume:
     ----------
     path : str or Path
         The folder.
+    spacing, origin : (x, y, z), optional
+        Replace the file's, before the Volume checks them (`data_tools.io._common.file_volume`).
 
     Returns
     -------

@@ -253,6 +253,8 @@ def read_vtk(path, *, spacing=None, origin=None) -> Volume:
     Parameters
     ----------
     path : str or Path
+    spacing, origin : (x, y, z), optional
+        Replace the file's, before the Volume checks them (`data_tools.io._common.file_volume`).
 
     Returns
     -------
