@@ -93,8 +93,12 @@ def _bracketed_root(a, b, c, d, lo, hi, flo, fhi):
         return s
     df = (3.0 * a * s + 2.0 * b) * s + c
     for _ in range(ROOT_MAX_ITER):
-        # Newton when it stays inside the bracket and halves the step, else bisect.
-        if (((s - xh) * df - f) * ((s - xl) * df - f) > 0.0
+        # Newton when it stays inside the bracket and halves the step, else bisect. (The two
+        # ends' signs compared, not their product's: that over- or underflowed for cubics of
+        # coefficients near 1e154 or 1e-157, and Newton left the bracket.)
+        ph = (s - xh) * df - f
+        pl = (s - xl) * df - f
+        if ((ph > 0.0 and pl > 0.0) or (ph < 0.0 and pl < 0.0)
                 or abs(2.0 * f) > abs(dx_old * df)):
             dx_old = dx
             dx = 0.5 * (xh - xl)
@@ -156,6 +160,13 @@ def sign_changes(b0, b1, b2, b3, m):
     return int((b0 < 0.0) != (b1 < 0.0)) + int((b1 < 0.0) != (b2 < 0.0)) + int((b2 < 0.0) != (b3 < 0.0))
 
 
+@kernel
+def _scaled_by(e, a, b, c, d):
+    """``a .. d`` times ``2^e``: apart, so that the walk that inlines `first_root` carries none
+    of the rare rescaling's code."""
+    return math.ldexp(a, e), math.ldexp(b, e), math.ldexp(c, e), math.ldexp(d, e)
+
+
 @kernel(inline="always")
 def first_root(a, b, c, d, length):
     """Smallest root of ``a s^3 + b s^2 + c s + d`` in ``[0, length]``, or -1.
@@ -174,19 +185,18 @@ def first_root(a, b, c, d, length):
         # ray misses end here (135,261 of the 135,309 such solves of a CT head frame), at a
         # third of the cost of the search.
         return -1.0
-    top = max(max(abs(a), abs(b)), max(abs(c), abs(d)))
-    if (top > _LARGE or top < _SMALL) and top < math.inf:
-        # The search squares and multiplies coefficients (the derivative's discriminant,
-        # Newton's bracket test), which over- or underflow where samples are extreme (past
-        # 1e153 or below 1e-157 in unit cells) or cells tiny (index-space directions near
-        # 1e30). Scaled by a power of two the cubic is exactly the same search.
-        k = -math.frexp(top)[1]
-        a, b, c, d = math.ldexp(a, k), math.ldexp(b, k), math.ldexp(c, k), math.ldexp(d, k)
-        b0, b3 = math.ldexp(b0, k), math.ldexp(b3, k)
     if changes == 1:
         # Exactly one root in the interval (Descartes' rule for the
         # Bernstein basis), bracketed by the ends: no critical points needed.
         return _bracketed_root(a, b, c, d, 0.0, length, b0, b3)
+    top = max(max(abs(a), abs(b)), max(abs(c), abs(d)))
+    if (top > _LARGE or top < _SMALL) and top < math.inf:
+        # The derivative's discriminant squares the coefficients: it over- or underflowed
+        # where samples are extreme (past 1e153 or below 1e-157 in unit cells) or cells tiny
+        # (index-space directions near 1e30). Scaled by a power of two the cubic is exactly
+        # the same search. (Here, past the common case above, which squares nothing: the
+        # walk's hits pay nothing for it.)
+        a, b, c, d = _scaled_by(-math.frexp(top)[1], a, b, c, d)
     # Critical points in (0, length) from 3a s^2 + 2b s + c = 0.
     qa = 3.0 * a
     qb = 2.0 * b

@@ -44,7 +44,7 @@ from numba import prange, types
 from numba.extending import overload
 
 from .config import OVERLOAD_JIT, TILE_H, TILE_W, kernel
-from .cubic import _LARGE, _SMALL, cubic_along_ray, eval_cubic, first_root, trilinear_coefficients
+from .cubic import cubic_along_ray, eval_cubic, first_root, trilinear_coefficients
 from .rays import camera_ray, dealt_tile, spread_run, spread_runs, tile_count
 from .shade import headlight_pixel
 from .traverse import (TINY_DIRECTION, advance, axis_state, cell_corners, clip_box, cube_exit, entry_anchor,
@@ -88,24 +88,12 @@ def _ray_table(skip, Dx, Dy, Dz):
 
 @kernel
 def corners(data, iso, i, j, k):
-    """The eight corner samples of cell ``(i, j, k)`` minus ``iso``, and their min and max.
-
-    Differences beyond 2^±128 come scaled by a power of two towards 1 (exactly: the same
-    zero set, the same signs). The cubic multiplies them by up to three powers of the
-    index-space direction, as long as 1e30 or as short as 1e-30 in cells of 1e-30 or 1e30:
-    float64 samples of 1e-241 in the largest cells fell below its normal range there.
-    """
+    """The eight corner samples of cell ``(i, j, k)`` minus ``iso``, and their min and max."""
     c000, c100, c010, c110, c001, c101, c011, c111 = cell_corners(data, i, j, k)
     v000, v100, v010, v110 = c000 - iso, c100 - iso, c010 - iso, c110 - iso
     v001, v101, v011, v111 = c001 - iso, c101 - iso, c011 - iso, c111 - iso
     lo = min(min(min(v000, v100), min(v010, v110)), min(min(v001, v101), min(v011, v111)))
     hi = max(max(max(v000, v100), max(v010, v110)), max(max(v001, v101), max(v011, v111)))
-    top = max(hi, -lo)
-    if top > _LARGE or (top < _SMALL and top > 0.0):
-        e = -math.frexp(top)[1]
-        v000, v100, v010, v110 = math.ldexp(v000, e), math.ldexp(v100, e), math.ldexp(v010, e), math.ldexp(v110, e)
-        v001, v101, v011, v111 = math.ldexp(v001, e), math.ldexp(v101, e), math.ldexp(v011, e), math.ldexp(v111, e)
-        lo, hi = math.ldexp(lo, e), math.ldexp(hi, e)
     return v000, v100, v010, v110, v001, v101, v011, v111, lo, hi
 
 

@@ -410,10 +410,10 @@ def exact_cell_count(scene, o, d, near=1e-12):
       plane crossing within ``2 w`` of such a window is uncertain; if the two
       windows overlap, or a ray parallel to a box face lies in it up to
       rounding, or a direction component is below the caster's
-      ``TINY_DIRECTION``, or ``FLUSH_DIRECTION`` of the largest, while not
-      zero, anything goes (``n_uncertain`` infinite).
+      ``TINY_DIRECTION`` while not zero, anything goes (``n_uncertain``
+      infinite).
     """
-    from .traverse import FLUSH_DIRECTION, TINY_DIRECTION
+    from .traverse import TINY_DIRECTION
     nz, ny, nx = scene.shape
     n = (nx, ny, nz)
     o64, d64 = np.asarray(o, np.float64), np.asarray(d, np.float64)
@@ -436,7 +436,7 @@ def exact_cell_count(scene, o, d, near=1e-12):
     in_lo = in_hi = 0.0
     out_lo = out_hi = math.inf
     for a in range(3):
-        if D[a] != 0 and (abs(Dk[a]) < TINY_DIRECTION or abs(Dk[a]) < FLUSH_DIRECTION * np.abs(Dk).max()):
+        if D[a] != 0 and abs(Dk[a]) < TINY_DIRECTION:
             return 0, 0, math.inf
         if D[a] == 0:
             inside = 0 <= O[a] <= n[a] - 1

@@ -10,13 +10,10 @@ from .traverse import cell_corners
 
 @kernel
 def trilinear_gradient(data, i, j, k, u, v, w, spc):
-    """World-space gradient of the trilinear interpolant of cell (i, j, k) at local (u, v, w),
-    times a power of two where the spacing lies beyond 2^±64: every use is a direction.
+    """World-space gradient of the trilinear interpolant of cell (i, j, k) at local (u, v, w).
 
     Parker et al. Appendix A: the derivative of each corner weight, divided
-    by the cell's size along that axis. Divided by cells of 4e28, differences of float64
-    samples of 1e-301 fell below float64's range and the normal was lost; cells scaled
-    towards 1 by a power of two give the same direction.
+    by the cell's size along that axis.
     """
     v000, v100, v010, v110, v001, v101, v011, v111 = cell_corners(data, i, j, k)
     gu = ((1 - v) * (1 - w) * (v100 - v000) + v * (1 - w) * (v110 - v010)
@@ -25,12 +22,7 @@ def trilinear_gradient(data, i, j, k, u, v, w, spc):
           + (1 - u) * w * (v011 - v001) + u * w * (v111 - v101))
     gw = ((1 - u) * (1 - v) * (v001 - v000) + u * (1 - v) * (v101 - v100)
           + (1 - u) * v * (v011 - v010) + u * v * (v111 - v110))
-    sx, sy, sz = spc[0], spc[1], spc[2]
-    top = max(sx, max(sy, sz))
-    if top > 2.0 ** 64 or top < 2.0 ** -64:
-        e = -math.frexp(top)[1]
-        sx, sy, sz = math.ldexp(sx, e), math.ldexp(sy, e), math.ldexp(sz, e)
-    return gu / sx, gv / sy, gw / sz
+    return gu / spc[0], gv / spc[1], gw / spc[2]
 
 
 @kernel

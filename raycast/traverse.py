@@ -31,28 +31,15 @@ from .config import OVERLOAD_JIT, kernel
 
 #: Below this an index-space direction component counts as zero: its
 #: reciprocal would overflow, and the ray moves less than 1e-200 cells per
-#: unit of t along that axis. `to_index_space` leaves none between 0 and this.
+#: unit of t along that axis.
 TINY_DIRECTION = 1e-200
-#: `to_index_space` sets a component this much smaller than the largest to 0: a ray lying on a
-#: grid plane then starts in the same cell whatever the spacing (against an absolute bound, one
-#: 5e-191 long counted in cells of 1 and not in cells of 2^35). It moves under 1e-150 cells along
-#: that axis over the longest walk; with spacings at most 1e30 a component kept is above
-#: `TINY_DIRECTION`.
-FLUSH_DIRECTION = 1e-160
 
 
 @kernel
 def to_index_space(ox, oy, oz, dx, dy, dz, org, spc):
     """World ray -> index-space ray (O, D); ``org``/``spc`` are (x, y, z)."""
-    Dx, Dy, Dz = dx / spc[0], dy / spc[1], dz / spc[2]
-    tiny = FLUSH_DIRECTION * max(abs(Dx), max(abs(Dy), abs(Dz)))
-    if abs(Dx) < tiny:
-        Dx = 0.0
-    if abs(Dy) < tiny:
-        Dy = 0.0
-    if abs(Dz) < tiny:
-        Dz = 0.0
-    return (ox - org[0]) / spc[0], (oy - org[1]) / spc[1], (oz - org[2]) / spc[2], Dx, Dy, Dz
+    return ((ox - org[0]) / spc[0], (oy - org[1]) / spc[1], (oz - org[2]) / spc[2],
+            dx / spc[0], dy / spc[1], dz / spc[2])
 
 
 @kernel
