@@ -336,15 +336,23 @@ def compile_notice(say, kernels=()):
 
 def _cached(kernel, folder, samples):
     """Whether Numba's cache in ``folder`` holds ``kernel``, compiled for a first argument of
-    each of the Numba types ``samples``."""
-    path = next(folder.rglob(_index_name(kernel)), None)
-    if path is None:
+    each of the Numba types ``samples``.
+
+    Checkouts of the same sources share the folder, each with an index in a subfolder named
+    after its path: the one that counts is the one Numba reads for this checkout.
+    """
+    try:
+        own = Path(kernel._cache._cache_file._index_path)
+        paths = [folder / own.parent.name / own.name]
+    except AttributeError:                      # another Numba: any checkout's index
+        paths = list(folder.rglob(_index_name(kernel)))[:1]
+    if not paths or not paths[0].is_file():
         return False
     if not samples:
         return True
     try:
         # Numba's index: its version, then (source stamp, {(signature, target): data file}).
-        with open(path, "rb") as f:
+        with open(paths[0], "rb") as f:
             pickle.load(f)
             _, overloads = pickle.loads(f.read())
         taken = {str(key[0][0]) for key in overloads}

@@ -533,7 +533,6 @@ def test_the_bench_says_it_compiles_while_any_kind_of_render_is_uncompiled(tmp_p
     from parc.outputs import compile_notice
     from raycast.iso import cast_iso_image
     monkeypatch.setattr(raycast.config, "cache_folder", lambda: tmp_path)
-    (tmp_path / "raycast_0123").mkdir()
     kernels = [k for k, _ in _kernels_used()]
     modules = {k.py_func.__module__ for k in kernels}
     assert cast_iso_image in kernels and {"raycast.composite", "raycast.merged", "raycast.shadow",
@@ -545,7 +544,9 @@ def test_the_bench_says_it_compiles_while_any_kind_of_render_is_uncompiled(tmp_p
         return bool(said) and "compiling the ray casters" in said[0]
 
     def cache(kernel):
-        (tmp_path / "raycast_0123" / Path(kernel._cache._cache_file._index_path).name).write_bytes(b"")
+        own = Path(kernel._cache._cache_file._index_path)       # as Numba reads it, in the folder given
+        (tmp_path / own.parent.name).mkdir(exist_ok=True)
+        (tmp_path / own.parent.name / own.name).write_bytes(b"")
 
     cache(cast_iso_image)
     assert says()

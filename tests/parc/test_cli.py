@@ -1174,15 +1174,16 @@ def test_a_first_run_says_the_casters_compile(vol_file, tmp_path, capsys, monkey
     import numba.core.config
 
     import raycast.config       # noqa: F401 - first, or its import sets the folder patched here
+    from raycast.iso import cast_iso_image
+    own = Path(cast_iso_image._cache._cache_file._index_path)        # as Numba reads it, in the folder given
     empty = tmp_path / "cache"
-    (empty / "raycast_0123").mkdir(parents=True)      # Numba makes its folders before it compiles anything
+    (empty / own.parent.name).mkdir(parents=True)     # Numba makes its folders before it compiles anything
     monkeypatch.setattr(numba.core.config, "CACHE_DIR", str(empty))
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(empty))  # Numba reloads its config from the environment
     render = ["render", vol_file, "--iso", 4, "--size", 8, 8, "-o"]
     rc, _, err = _run(render + [tmp_path / "a.png"], capsys)
     assert rc == 0 and "compiling the ray casters for this machine, once" in err
-    from raycast.iso import cast_iso_image
-    index = empty / "raycast_0123" / Path(cast_iso_image._cache._cache_file._index_path).name
+    index = empty / own.parent.name / own.name
     index.write_bytes(b"")
     rc, _, err = _run(render + [tmp_path / "b.png"], capsys)
     assert rc == 0 and err and "compiling" not in err
@@ -1205,7 +1206,8 @@ def test_samples_of_a_type_not_yet_compiled_are_said_to_compile(tmp_path, monkey
     from parc.outputs import compile_notice
     from raycast.iso import cast_iso_image
     monkeypatch.setattr(raycast.config, "cache_folder", lambda: tmp_path)
-    index = tmp_path / "raycast_0123" / Path(cast_iso_image._cache._cache_file._index_path).name
+    own = Path(cast_iso_image._cache._cache_file._index_path)    # as Numba reads it, in the folder given
+    index = tmp_path / own.parent.name / own.name
     index.parent.mkdir()
 
     def samples(dtype, n=None):
@@ -1226,6 +1228,13 @@ def test_samples_of_a_type_not_yet_compiled_are_said_to_compile(tmp_path, monkey
     assert says((u8, i16), u8) and not says((u8, i16), i16, u8)
     assert not says((), u8)                                          # a kernel that takes no samples
     assert says((samples("uint8", 4),), samples("uint8", 3)) and not says((samples("uint8", 3),), samples("uint8", 3))
+    # Another checkout of the same sources sharing the folder keeps an index of its own, which
+    # this one's Numba does not read: the first found answered, and a run compiled unsaid.
+    other = tmp_path / "raycast_0123" / own.name
+    other.parent.mkdir()
+    other.write_bytes(pickle.dumps("0.68") + pickle.dumps(
+        (0.0, {((first, types.float64), "cpu"): "x.nbc" for first in (u8, i16)})))
+    assert says((i16,), u8) and not says((u8,), u8)
     index.unlink()
     said = []
     compile_notice(said.append, [(cast_iso_image, (u8,))])
