@@ -69,14 +69,21 @@ def read_nrrd(path, *, spacing=None, origin=None) -> Volume:
         meta["data_file"] = str(data_file)
     if "data files" in header:
         meta["data_files"] = tuple(str(p) for p in header["data files"][0])
-    spacing, note, unknown, reoriented = _spacing(header, path)
+    try:
+        spacing, note, unknown, reoriented = _spacing(header, path)
+    except InputError:
+        if given["spacing"] is None:
+            raise
+        # Directions the header cannot give (NaN) are what a spacing given replaces.
+        spacing, note, unknown, reoriented = given["spacing"], None, False, False
     if note:
         meta["note"] = note
     if reoriented:
         meta["reoriented"] = True           # a file written from it is no longer in the same place
     if unknown:
         meta["spacing_unknown"] = True      # a --spacing given replaces it, and its note
-    origin = _origin(header, spacing, path)
+    # An origin given replaces the header's, which is then not read: it may be unreadable (NaN).
+    origin = _origin(header, spacing, path) if given["origin"] is None else given["origin"]
     if spacing is None:
         spacing, origin = _from_extent(header, data.shape[::-1])
     if "space" in header:
@@ -371,8 +378,11 @@ def _spacing(header, path):
             dirs = np.asarray(dirs, dtype=np.float64)
         except (TypeError, ValueError):
             raise InputError(f"{path}: unreadable space directions {dirs!r}") from None
-        if dirs.shape[0] != 3 or not np.isfinite(dirs).all():
+        if dirs.shape[0] != 3:
             raise InputError(f"{path}: space directions must give one vector per axis (3 axes)")
+        if not np.isfinite(dirs).all():
+            raise InputError(f"{path}: space directions hold values that are not finite numbers; "
+                             "give --spacing SX,SY,SZ")
         # Rows are the per-axis vectors, in file axis order (x, y, z).
         norms = np.linalg.norm(dirs, axis=1)
         off = dirs.copy()
@@ -429,7 +439,7 @@ def _origin(header, spacing, path):
         arr = np.asarray(given, dtype=np.float64)
         if arr.shape != (3,) or not np.isfinite(arr).all():
             raise InputError(f"{path}: space origin must be three finite numbers, got "
-                             f"({','.join(f'{v:g}' for v in arr.ravel())})")
+                             f"({','.join(f'{v:g}' for v in arr.ravel())}); give --origin OX,OY,OZ")
     for key in ("space origin", "axis mins", "axismins"):
         val = header.get(key)
         if val is not None:

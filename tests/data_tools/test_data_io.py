@@ -762,6 +762,22 @@ def test_given_spacing_and_origin_replace_a_header_value_the_volume_refuses(tmp_
           (1, 2, 3) if field == "origin" else (7, 7, 7))
 
 
+@pytest.mark.parametrize("old, bad, field, words", [
+    ("space directions: (3,0,0)", "space directions: (nan,0,0)", "spacing",
+     "space directions hold values that are not finite numbers; give --spacing"),
+    ("space origin: (7,7,7)", "space origin: (nan,7,7)", "origin",
+     r"space origin must be three finite numbers, got \(nan,7,7\); give --origin"),
+])
+def test_an_unreadable_nrrd_placement_names_the_flag_that_replaces_it(tmp_path, old, bad, field, words):
+    arr = make_array("uint8")
+    name = save_volume(Volume(arr, spacing=(3, 3, 3), origin=(7, 7, 7)), tmp_path / "v.nhdr")
+    name.write_text(name.read_text().replace(old, bad))
+    with pytest.raises(InputError, match=words):
+        load_volume(name)
+    vol = load_volume(name, **{field: (1, 2, 3)})
+    check(vol, arr, (1, 2, 3) if field == "spacing" else (3, 3, 3), (1, 2, 3) if field == "origin" else (7, 7, 7))
+
+
 def test_save_unknown_extension(tmp_path):
     with pytest.raises(InputError, match="supported"):
         save_volume(Volume(make_array("uint8")), tmp_path / "v.tiff")
