@@ -548,11 +548,16 @@ def _pixel_affine(camera, f, r, u, th, width, height):
     return k0, kx, ky
 
 
+def _box_corners(lo, hi):
+    """The eight corners of the box ``[lo, hi]``, (8, 3)."""
+    return np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+
+
 def view_reach(camera, lo, hi, aspect):
     """How far from the eye the view of the box ``[lo, hi]`` reaches: its farthest corner, and
     in a parallel view the view plane's half diagonal."""
     eye = np.asarray(camera.eye, dtype=np.float64)
-    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    corners = _box_corners(lo, hi)
     with np.errstate(over="ignore"):
         reach = float(np.linalg.norm((corners - eye) / 2.0 ** 512, axis=1).max()) * 2.0 ** 512
     if camera.parallel:
@@ -563,7 +568,7 @@ def view_reach(camera, lo, hi, aspect):
 def scene_scale(camera, lo, hi, aspect):
     """A bound on coordinates and distances in this view: sizes the margins."""
     eye = np.asarray(camera.eye, dtype=np.float64)
-    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    corners = _box_corners(lo, hi)
     s = max(np.abs(eye).max(), np.abs(corners).max(), np.linalg.norm(corners - eye, axis=1).max())
     if camera.parallel:
         s += camera.parallel_scale * math.hypot(aspect, 1.0)

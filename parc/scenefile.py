@@ -350,10 +350,10 @@ def _read_file(where, t, cache, spacing, origin):
             try:
                 cache[placed] = load_volume(path, **options, spacing=spacing, origin=origin)
             except InputError as exc:
-                given = [k for k, v in (("spacing", spacing), ("origin", origin)) if v is not None]
-                said = str(exc).partition(": ")[2]
-                blame = "file" if str(exc) == cache[refused] else min(
-                    given, key=lambda k: said.find(k) if k in said else len(said))
+                # The Volume's refusals begin with the field they refuse, after the file's name.
+                field = str(exc).partition(": ")[2].split(" ", 1)[0]
+                blame = ("file" if str(exc) == cache[refused] else field if field in ("spacing", "origin")
+                         else "spacing" if spacing is not None else "origin")
                 with where.key(t.key(blame)):
                     raise
     return cache.get(source, cache.get(placed)), source

@@ -394,9 +394,8 @@ def _later_scalars(f, lines, npoints, vtype, path):
     Only a note depends on them: a file whose rest cannot be read past gives none.
     """
     names = []
-    encoding = "BINARY"
     try:
-        _skip_values(f, encoding, npoints, vtype, path, "the scalars")
+        _skip_values(f, "BINARY", npoints, vtype, path, "the scalars")
         _after_array(f, path, 1)
         for _ in range(_MAX_HEADER_LINES):
             line = lines.next("", required=False)
@@ -405,9 +404,9 @@ def _later_scalars(f, lines, npoints, vtype, path):
                 break
             if words[0].upper() in ("SCALARS", "COLOR_SCALARS") and len(words) > 1:
                 names.append(words[1])
-            _skip_attribute(f, lines, encoding, words, npoints, path, "POINT_DATA")
+            _skip_attribute(f, lines, "BINARY", words, npoints, path, "POINT_DATA")
     except InputError:
-        pass
+        return names                # the names before what could not be read past
     return names
 
 
