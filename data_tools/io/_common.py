@@ -73,15 +73,27 @@ def file_volume(data, spacing, origin, path, meta, place):
     They replace the file's before the Volume checks them, so a header whose
     own values it refuses (spacing 0 from an exporter that means "unknown",
     an origin in map coordinates far from its fine grid) opens with the
-    caller's. A note that the file gave no spacing goes with a spacing given.
+    caller's. A reader's note on where its spacing came from
+    (``meta['spacing_note']``: none given, or the lengths of rotated or
+    mirrored axes) becomes ``meta['note']`` with the file's spacing; with a
+    spacing given, only what still holds is said: a reoriented file's grid
+    is axis-aligned.
     """
+    meta = dict(meta)
+    said = meta.pop("spacing_note", None)
     if place.get("spacing") is not None:
         spacing = place["spacing"]
-        if meta.get("spacing_unknown"):
-            meta = {k: v for k, v in meta.items() if k not in ("note", "spacing_unknown")}
+        said = REORIENTED_NOTE if meta.get("reoriented") else None
+    if said:
+        meta["note"] = f"{meta['note']}; {said}" if meta.get("note") else said
     if place.get("origin") is not None:
         origin = place["origin"]
     return Volume(data, spacing=spacing, origin=origin, name=str(path), meta=meta)
+
+
+#: What a rotated or mirrored file's spacing note still says once a spacing is given.
+REORIENTED_NOTE = ("the file's axes are rotated or mirrored in space; they are read on an axis-aligned grid "
+                   "with the spacing given, and their orientation is ignored")
 
 
 @contextlib.contextmanager

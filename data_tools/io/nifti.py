@@ -101,7 +101,7 @@ def _read(nib, path, given):
     if scaled:
         meta["scaling"] = {"slope": float(proxy.slope), "inter": float(proxy.inter)}
     if note:
-        meta["note"] = note
+        meta["spacing_note"] = note         # `file_volume` says it, or what holds with a spacing given
     if reoriented:
         meta["reoriented"] = True           # a file written from it is no longer in the same place
     return file_volume(data, spacing, origin, path, meta, given)

@@ -70,18 +70,16 @@ def read_nrrd(path, *, spacing=None, origin=None) -> Volume:
     if "data files" in header:
         meta["data_files"] = tuple(str(p) for p in header["data files"][0])
     try:
-        spacing, note, unknown, reoriented = _spacing(header, path)
+        spacing, note, reoriented = _spacing(header, path)
     except InputError:
         if given["spacing"] is None:
             raise
         # Directions the header cannot give (NaN) are what a spacing given replaces.
-        spacing, note, unknown, reoriented = given["spacing"], None, False, False
+        spacing, note, reoriented = given["spacing"], None, False
     if note:
-        meta["note"] = note
+        meta["spacing_note"] = note         # `file_volume` says it, or what holds with a spacing given
     if reoriented:
         meta["reoriented"] = True           # a file written from it is no longer in the same place
-    if unknown:
-        meta["spacing_unknown"] = True      # a --spacing given replaces it, and its note
     # An origin given replaces the header's, which is then not read: it may be unreadable (NaN).
     origin = _origin(header, spacing, path) if given["origin"] is None else given["origin"]
     if spacing is None:
@@ -368,9 +366,9 @@ def _from_extent(header, sizes):
 
 
 def _spacing(header, path):
-    """``(spacing, note, unknown, reoriented)``: the spacing the header gives (None where ``axis
-    mins`` and ``axis maxs`` give it with the origin), a note on what was made of it, whether a
-    spacing was not given at all (NaN or infinite, taken as 1), and whether oblique or mirrored
+    """``(spacing, note, reoriented)``: the spacing the header gives (None where ``axis
+    mins`` and ``axis maxs`` give it with the origin), a note on what was made of it (spacings
+    not given at all, NaN or infinite, are taken as 1 and said), and whether oblique or mirrored
     axes were laid on the axis-aligned grid."""
     dirs = header.get("space directions")
     if dirs is not None:
@@ -396,7 +394,7 @@ def _spacing(header, path):
                     f"(their lengths {tuple(round(float(n), 6) for n in norms)}); orientation is ignored")
         elif mirrored:
             note = "negative space directions (mirrored axes) were reduced to positive spacings"
-        return tuple(float(n) for n in norms), note, False, oblique or mirrored
+        return tuple(float(n) for n in norms), note, oblique or mirrored
     spacings = header.get("spacings")
     if spacings is not None:
         sp = np.asarray(spacings, dtype=np.float64)
@@ -414,10 +412,10 @@ def _spacing(header, path):
             words = " and ".join(sorted({"NaN (unknown)" if np.isnan(v) else f"{v:g}" for v in sp[unknown]}))
             notes.append(f"spacings gives {words} for {axes}: taken as 1 (give --spacing SX,SY,SZ)")
         sp = np.where(unknown, 1.0, np.abs(sp))
-        return tuple(float(s) for s in sp), "; ".join(notes) or None, bool(unknown.any()), mirrored
+        return tuple(float(s) for s in sp), "; ".join(notes) or None, mirrored
     if _has_extent(header):
-        return None, None, False, False     # from axis mins and maxs (`_from_extent`), with the origin
-    return (1.0, 1.0, 1.0), None, False, False
+        return None, None, False     # from axis mins and maxs (`_from_extent`), with the origin
+    return (1.0, 1.0, 1.0), None, False
 
 
 def _has_extent(header):

@@ -58,8 +58,7 @@ def read_tiff(path, *, spacing=None, origin=None) -> Volume:
         data, axes, spacing, note, meta = _stack(tif, path)
     meta.update(format="tiff", axes=axes)
     if note:
-        # `file_volume` drops it when the caller gives the spacing.
-        meta.update(note=note, spacing_unknown=True)
+        meta["spacing_note"] = note         # `file_volume` drops it when the caller gives the spacing
     return file_volume(np.ascontiguousarray(to_native(data)), spacing, (0.0, 0.0, 0.0), path, meta, given)
 
 
@@ -250,7 +249,7 @@ def read_tiff_folder(path, *, spacing=None, origin=None) -> Volume:
         slices.append(to_native(image))
     note = (f"{len(files)} slices; the files give no spacing between them: 1 was used along z "
             "(give --spacing SX,SY,SZ)")
-    meta = {"format": "tiff slices", "files": len(files), "note": note, "spacing_unknown": True}
+    meta = {"format": "tiff slices", "files": len(files), "spacing_note": note}
     return file_volume(np.stack(slices), (spacing[0], spacing[1], 1.0), (0.0, 0.0, 0.0), path, meta, given)
 
 

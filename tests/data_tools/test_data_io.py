@@ -15,6 +15,7 @@ import pytest
 
 from data_tools import InputError, Volume
 from data_tools.io import load_volume, save_volume
+from data_tools.io._common import REORIENTED_NOTE
 from data_tools.io.raw import guess_from_name
 
 DTYPES = ["uint8", "int8", "uint16", "int16", "uint32", "int32", "float32", "float64"]
@@ -460,7 +461,10 @@ def test_nrrd_oblique_directions_become_norms_with_note(tmp_path):
                                                "space origin": [1, 2, 3]}, index_order="C")
     vol = load_volume(tmp_path / "o.nrrd")
     check(vol, arr, (2, 1, 3), (1, 2, 3))
-    assert "oblique" in vol.meta["note"]
+    assert "oblique" in vol.meta["note"] and "(their lengths (2.0, 1.0, 3.0))" in vol.meta["note"]
+    # A spacing given replaces the lengths the note spoke of; what still holds is the grid.
+    given = load_volume(tmp_path / "o.nrrd", spacing=(5, 6, 7))
+    assert given.spacing == (5.0, 6.0, 7.0) and given.meta["note"] == REORIENTED_NOTE
 
 
 def test_nrrd_mirrored_directions_become_spacings_with_note(tmp_path):
@@ -472,6 +476,7 @@ def test_nrrd_mirrored_directions_become_spacings_with_note(tmp_path):
     vol = load_volume(tmp_path / "m.nrrd")
     check(vol, arr, (2, 1, 3), (1, 2, 3))
     assert vol.meta["note"] == "negative space directions (mirrored axes) were reduced to positive spacings"
+    assert load_volume(tmp_path / "m.nrrd", spacing=(1, 1, 1)).meta["note"] == REORIENTED_NOTE
 
 
 def test_nrrd_axis_aligned_has_no_note(tmp_path):
@@ -942,14 +947,16 @@ def test_nrrd_negative_spacings_are_noted(tmp_path):
 ])
 def test_nrrd_unknown_spacings_are_1_with_a_note_that_a_given_spacing_drops(tmp_path, spacings, spacing, words):
     # NaN is NRRD's unknown spacing, and an infinite one is none: both were read as 1 without
-    # a word (-inf as a mirrored axis). The spacing given replaces them, and the note with them.
+    # a word (-inf as a mirrored axis). The spacing given replaces them, and the note with them,
+    # but for a mirrored axis's word: the volume is still read unmirrored.
     path = tmp_path / "s.nrrd"
     path.write_bytes(b"NRRD0004\ntype: short\ndimension: 3\nsizes: 5 4 3\nendian: little\nencoding: raw\n"
                      + f"spacings: {spacings}\n\n".encode() + _ZYX.astype("<i2").tobytes())
     vol = load_volume(path)
     assert vol.spacing == spacing and words in vol.meta["note"], vol.meta.get("note")
     given = load_volume(path, spacing=(1, 2, 3))
-    assert given.spacing == (1.0, 2.0, 3.0) and "note" not in given.meta
+    assert given.spacing == (1.0, 2.0, 3.0)
+    assert given.meta.get("note") == (REORIENTED_NOTE if "-0.5" in spacings else None)
 
 
 @pytest.mark.parametrize("sizes_first, kinds", [

@@ -14,6 +14,7 @@ import tifffile
 
 from data_tools import InputError, Volume, load_volume
 from data_tools.io import save_volume
+from data_tools.io._common import REORIENTED_NOTE
 
 RNG = np.random.default_rng(7)
 ZYX = (7, 5, 6)
@@ -86,6 +87,8 @@ def test_nifti_orientation_reduced_to_spacings_with_a_note(tmp_path, kind):
     assert np.array_equal(vol.data, a)
     assert np.allclose(vol.spacing, (0.8, 0.8, 1.6)) and vol.origin == (4.0, 5.0, 6.0)
     assert words in vol.meta["note"] and vol.meta["reoriented"]
+    given = load_volume(_nifti(tmp_path / "o.nii", a, affine), spacing=(1, 2, 3))
+    assert given.spacing == (1.0, 2.0, 3.0) and given.meta["note"] == REORIENTED_NOTE
 
 
 def test_nifti_trailing_axis_of_one_is_a_volume(tmp_path):
