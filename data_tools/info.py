@@ -183,7 +183,8 @@ def suggest_isovalues(vol: Volume, k: int = 3, *, bins: int = 256) -> list:
 
     Multi-level Otsu thresholds (``k`` thresholds, ``k + 1`` non-empty
     classes) on a subsample of the volume, leaving out samples equal to the
-    minimum (padding and clipped air would otherwise dominate). A threshold
+    minimum (padding, clipped air and fill values would otherwise dominate), binned over
+    the range of the samples kept. A threshold
     that falls in a gap of the histogram moves to the gap's middle. For
     integer data every value is at ``x.5``, so it never equals a sample.
 
@@ -215,7 +216,9 @@ def suggest_isovalues(vol: Volume, k: int = 3, *, bins: int = 256) -> list:
     # and no float32 sample, and the shortest number off the samples is taken.
     whole = integer or (bool(np.all(np.mod(values, 1.0) == 0.0)) and float(np.abs(values).max()) < 2.0 ** 24)
     seen = None if whole else np.unique(values)         # sorted, for `_shortest`
-    counts, edges = _histogram(fg, lo, hi, integer, bins)
+    # Binned over the samples kept, not the whole range: a fill value at the minimum (a float32
+    # -3.4e38 outside a scan) left every other sample in the top bin, and the cut in the gap.
+    counts, edges = _histogram(fg, fg.min(), fg.max(), integer, bins)
     if counts is None:
         # A float range too narrow (or too wide) to split into bins: offer its middle.
         mid = float(0.5 * lo + 0.5 * hi)

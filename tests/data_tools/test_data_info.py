@@ -71,6 +71,20 @@ def test_two_level_data_gives_the_gap_middle_at_any_scale(scale):
     assert suggest_isovalues(Volume(data)) == [pytest.approx(0.5 * scale, rel=1e-12)]
 
 
+@pytest.mark.parametrize("dtype, fill", [(np.float32, -3.4e38), (np.float32, -9999.0), (np.int16, -32768)])
+def test_a_fill_value_at_the_minimum_does_not_take_the_cuts(dtype, fill):
+    # Tissue near 100 and bone near 1000, outside the scan a fill value far below both: the cut
+    # between the two belongs between them, not in the gap to the fill.
+    rng = np.random.default_rng(5)
+    data = rng.normal(100.0, 5.0, (24, 24, 24))
+    data[8:16, 8:16, 8:16] = rng.normal(1000.0, 5.0, (8, 8, 8))
+    data = np.round(data).astype(dtype)
+    data[:, :, :4] = fill
+    iso = suggest_isovalues(Volume(data))
+    assert iso and all(80 < v < 1020 for v in iso), iso
+    assert any(130 < v < 970 for v in iso), iso
+
+
 def test_constant_volume_has_no_suggestion():
     assert suggest_isovalues(Volume(np.full((3, 3, 3), 7, np.int16))) == []
     assert "none" in format_info(volume_info(Volume(np.zeros((3, 3, 3), np.float32))))
