@@ -108,8 +108,9 @@ def test_parc_equals_brute_translucent(seed, gl):
     assert (res.work <= ref.work).all(), where
 
 
-def _slow_composite(vol, tf, o, d, step, threshold):
-    """The sample lattice and front-to-back compositing, one ray, in plain Python."""
+def _slow_lattice(vol, o, d, step):
+    """The trilinear values at the sample lattice ``t_in + n step`` of one ray through the
+    volume's box, in plain Python."""
     lo, hi = vol.bounds
     t_in, t_out = 0.0, math.inf
     for a in range(3):
@@ -117,19 +118,23 @@ def _slow_composite(vol, tf, o, d, step, threshold):
             continue
         t0, t1 = sorted(((lo[a] - o[a]) / d[a], (hi[a] - o[a]) / d[a]))
         t_in, t_out = max(t_in, t0), min(t_out, t1)
-    if t_in > t_out:
-        return np.zeros(4)
-    ref_step = 0.25 * min(vol.spacing)
-    c = np.zeros(3)
-    acc = 0.0
     n = 0
-    while t_in + n * step <= t_out:
+    while t_in <= t_out and t_in + n * step <= t_out:
         p = (o + (t_in + n * step) * d - np.array(vol.origin)) / np.array(vol.spacing)
         idx = np.clip(np.floor(p).astype(int), 0, np.array(vol.dims) - 2)
         f = p - idx
         cube = vol.data[idx[2]:idx[2] + 2, idx[1]:idx[1] + 2, idx[0]:idx[0] + 2].astype(float)
         wz, wy, wx = np.array([1 - f[2], f[2]]), np.array([1 - f[1], f[1]]), np.array([1 - f[0], f[0]])
-        v = np.einsum("kji,k,j,i->", cube, wz, wy, wx)
+        yield float(np.einsum("kji,k,j,i->", cube, wz, wy, wx))
+        n += 1
+
+
+def _slow_composite(vol, tf, o, d, step, threshold):
+    """Front-to-back compositing of the lattice's samples, one ray."""
+    ref_step = 0.25 * min(vol.spacing)
+    c = np.zeros(3)
+    acc = 0.0
+    for v in _slow_lattice(vol, o, d, step):
         a = float(tf.opacity(np.array([v]))[0])
         if a > 0:
             a = 1 - (1 - a) ** (step / ref_step)
@@ -137,8 +142,27 @@ def _slow_composite(vol, tf, o, d, step, threshold):
             acc += (1 - acc) * a
             if acc >= threshold:
                 break
-        n += 1
     return np.append(c, acc)
+
+
+def _slow_mip(vol, tf, o, d, step):
+    """The transfer function at the largest visible (non-zero opacity) sample, premultiplied."""
+    visible = [v for v in _slow_lattice(vol, o, d, step) if tf.opacity(np.array([v]))[0] > 0]
+    if not visible:
+        return np.zeros(4)
+    top = np.array([max(visible)])
+    a = float(tf.opacity(top)[0])
+    return np.append(a * tf.color(top)[0], a)
+
+
+def _slow_average(vol, tf, o, d, step):
+    """The visible samples' heights above the data's minimum, over all lattice samples and the range."""
+    lo, hi = vol.value_range()
+    values = list(_slow_lattice(vol, o, d, step))
+    if not values:
+        return np.zeros(4)
+    total = sum(v - lo for v in values if tf.opacity(np.array([v]))[0] > 0)
+    return np.full(4, min(max(total / len(values) / (hi - lo), 0.0), 1.0))
 
 
 def test_composite_matches_a_slow_reference():
@@ -152,6 +176,26 @@ def test_composite_matches_a_slow_reference():
     for y, x in zip(rng.integers(0, 12, 25), rng.integers(0, 16, 25)):
         want = _slow_composite(vol, tf, o[y, x], d[y, x], 0.3, 0.95)
         np.testing.assert_allclose(res.image[y, x], want, atol=1e-6)
+
+
+@pytest.mark.parametrize("mode, slow", [("mip", _slow_mip), ("average", _slow_average)])
+def test_mip_and_average_match_a_slow_reference(mode, slow):
+    # Opacity zero below 40: the largest visible sample is often not the last one on the ray
+    # (the blobs peak inside), and transparent samples count in the average's N only.
+    rng = np.random.default_rng(11)
+    vol = Volume(blobs(12, seed=3).data.astype(np.float32), spacing=(1.0, 1.2, 0.8), origin=(2.0, -1.0, 0.5))
+    tf = TransferFunction(opacity=[[40, 0.0], [40.5, 0.2], [255, 0.7]], color=[[0, 1, 0.5, 0], [255, 0, 0.5, 1]])
+    cam = Camera.framing(*vol.bounds, azimuth=40, elevation=20, zoom=1.4)
+    scene = Scene(camera=cam, size=(16, 12), volumes=[Translucent(vol, tf, mode=mode, step=0.3)])
+    res = render(scene)
+    o, d = cam.rays(16, 12)
+    peaked = 0
+    for y, x in zip(rng.integers(0, 12, 40), rng.integers(0, 16, 40)):
+        want = slow(vol, tf, o[y, x], d[y, x], 0.3)
+        np.testing.assert_allclose(res.image[y, x], want, atol=1e-6)
+        visible = [v for v in _slow_lattice(vol, o[y, x], d[y, x], 0.3) if v > 40]
+        peaked += bool(visible) and max(visible) > visible[-1]
+    assert peaked >= 5
 
 
 def test_opacity_correction_keeps_brightness_across_steps():
