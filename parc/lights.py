@@ -41,6 +41,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from data_tools.memory import check_memory
 from raycast.shadow import (KIND_DIRECTIONAL, KIND_POINT, N_VIEW, V_EYE, V_FWD, V_KIND, V_RIGHT, V_SCALE,
                              V_UP)
 
@@ -61,6 +62,13 @@ MAX_HALF_ANGLE = 44.0
 
 #: Cached buffers per volume index (light, classification, size): a few cover a scene's lights.
 LIGHT_BUFFER_CACHE_SIZE = 16
+#: ... and their bytes at most: a point light's six views at 8192 pixels take 6 GB, so a few
+#: moves of the light filled the memory. (The default size takes 6 MB a light.)
+LIGHT_BUFFER_CACHE_BYTES = 1 << 30
+#: Bytes a light buffer takes per pixel and view (near and far, float64), and per pixel of the
+#: one view being drawn (the pass's read-back and segments).
+_BYTES_PER_VIEW_PIXEL = 16
+_BYTES_PER_PASS_PIXEL = 24
 
 
 @dataclass
@@ -198,6 +206,9 @@ def light_buffers(light, proxy, *, size=LIGHT_BUFFER_SIZE):
     if not proxy.pc.any():
         return LightBuffers(*no_views(), 0, time.perf_counter() - t0)
     cams = light_views(light, lo, hi)
+    check_memory((_BYTES_PER_VIEW_PIXEL * len(cams) + _BYTES_PER_PASS_PIXEL) * size * size,
+                 f"shadow buffers of {size}x{size} pixels from {len(cams)} view{'s' * (len(cams) > 1)}",
+                 f": give a smaller light_buffer (the default is {LIGHT_BUFFER_SIZE})")
     near = np.empty((len(cams), size, size))
     far = np.empty((len(cams), size, size))
     for n, cam in enumerate(cams):

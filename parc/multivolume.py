@@ -37,7 +37,8 @@ from raycast.iso import NO_SHADING, cast_iso_image, keep_nearest
 from raycast.shadow import (KIND_HEADLIGHT, combine_lights, light_terms, shadow_accumulate, shadow_iso,
                             surface_frames)
 
-from .lights import LIGHT_BUFFER_CACHE_SIZE, LIGHT_BUFFER_SIZE, light_array, light_buffers, no_views
+from .lights import (LIGHT_BUFFER_CACHE_BYTES, LIGHT_BUFFER_CACHE_SIZE, LIGHT_BUFFER_SIZE, light_array,
+                     light_buffers, no_views)
 from .scene import DirectionalLight, Isosurface
 from .workspace import work_array
 
@@ -281,9 +282,14 @@ def _cached_light_buffers(light, vis, proxy, size, n):
     cache = index.kept("light buffers")
     buf = cache.get(key)
     if buf is None:
-        buf = light_buffers(light, proxy, size=n)
-        if len(cache) >= LIGHT_BUFFER_CACHE_SIZE:
+        # Room made before the new buffers are drawn, for as many views as the light can take:
+        # made after, the buffers of the light's last place and its new one were held at once.
+        views = 1 if kind == "sun" else 6
+        room = LIGHT_BUFFER_CACHE_BYTES - views * 2 * n * n * np.dtype(np.float64).itemsize
+        while cache and (len(cache) >= LIGHT_BUFFER_CACHE_SIZE
+                         or sum(b.near.nbytes + b.far.nbytes for b in cache.values()) > room):
             cache.pop(next(iter(cache)))
+        buf = light_buffers(light, proxy, size=n)
         cache[key] = buf
     return buf
 

@@ -559,3 +559,58 @@ def test_a_scenes_progress_ends_at_exactly_one():
                     report.part(phase, 0.5)
                     report.done(phase)
                 assert seen == sorted(seen) and seen[-1] == 1.0, (n_iso, n_trans, shadows, seen[-1])
+
+
+def _lit_blob(light_place, light_buffer=None):
+    vol = Volume(blobs(10, seed=2).data)
+    lo, hi = vol.bounds
+    cam = Camera.framing(lo, hi, azimuth=30, elevation=25)
+    return vol, Scene(camera=cam, size=(16, 12), volumes=[Isosurface(vol, 100.0)],
+                      lights=[PointLight(tuple(light_place))], shadows=True)
+
+
+def test_light_buffers_are_kept_while_only_the_camera_moves(gl):
+    from dataclasses import replace
+
+    from parc.classify import VolumeIndex
+    vol, scene = _lit_blob((30.0, -20.0, 25.0))
+    render(scene, method="parc")
+    kept = dict(VolumeIndex.of(vol).kept("light buffers"))
+    assert len(kept) == 1
+    moved = replace(scene, camera=Camera.framing(*vol.bounds, azimuth=-50, elevation=10))
+    again = render(moved, method="parc")
+    assert again.stats["seconds"]["raster_lights"] == 0.0
+    assert VolumeIndex.of(vol).kept("light buffers") == kept
+    ref = render(moved, method="brute")
+    assert np.array_equal(np.isfinite(again.depth), np.isfinite(ref.depth))
+    assert np.abs(again.image - ref.image).max() <= 1e-6
+
+
+def test_kept_light_buffers_stay_within_their_bytes(gl, monkeypatch):
+    # A light moved from frame to frame kept each place's buffers, 16 of them: at a light_buffer
+    # of 8192 a point light's take 6 GB, and a few moves filled the memory.
+    from dataclasses import replace
+
+    import parc.multivolume
+    from parc.classify import VolumeIndex
+    vol, scene = _lit_blob((30.0, -20.0, 25.0))
+    one = 2 * 64 * 64 * 8                                   # near and far of one 64x64 view
+    monkeypatch.setattr(parc.multivolume, "LIGHT_BUFFER_CACHE_BYTES", 8 * one)
+    for x in (30.0, 31.0, 32.0, 33.0):
+        res = render(replace(scene, lights=[PointLight((x, -20.0, 25.0))]), method="parc", light_buffer=64)
+        kept = VolumeIndex.of(vol).kept("light buffers")
+        held = sum(b.near.nbytes + b.far.nbytes for b in kept.values())
+        # Room for the next light's six views is made before it is drawn: at most 8 views kept.
+        assert 1 <= len(kept) and held <= 8 * one, (len(kept), held)
+        ref = render(replace(scene, lights=[PointLight((x, -20.0, 25.0))]), method="brute")
+        assert np.abs(res.image - ref.image).max() <= 1e-6
+
+
+def test_light_buffers_too_large_for_the_memory_are_refused_in_one_line(gl, monkeypatch):
+    import data_tools.memory
+    vol, scene = _lit_blob((4.5, 4.5, 4.5))                 # inside: six cube views
+    monkeypatch.setattr(data_tools.memory, "available_memory", lambda: 512 << 20)
+    with pytest.raises(InputError, match=r"^shadow buffers of 4096x4096 pixels from 6 views needs about 1.9 GB "
+                                         r"of memory; 512 MB is available: give a smaller light_buffer"):
+        render(scene, method="parc", light_buffer=4096)
+    assert render(scene, method="parc").image.shape == (12, 16, 4)    # the default size fits
