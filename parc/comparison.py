@@ -178,6 +178,7 @@ def method_names(methods, what="methods"):
             raise InputError(f"{what} {methods!r} has an empty name between commas")
         methods = methods.split(",")
     try:
+        methods = list(methods)         # a generator is read once, here
         if not all(isinstance(m, str) for m in methods):
             raise TypeError
         names = [m.strip() for m in methods if m.strip()]

@@ -161,6 +161,9 @@ def test_methods_may_be_named_in_one_string_each_once():
     # A name given twice would be timed once: refused, as a supercell size swept twice is.
     with pytest.raises(InputError, match="methods names 'parc' twice; to time a method twice, label"):
         parc.compare(_scene(), methods="brute,parc,parc", repeats=1, warmup=0)
+    # A generator is read once: its names, not "names no method" from a second, empty read.
+    rows = parc.compare(_scene(), methods=(m for m in ["brute", "parc"]), repeats=1, warmup=0)
+    assert [r["method"] for r in rows] == ["brute", "parc"]
 
 
 def test_a_string_is_not_taken_for_a_sequence_of_digits():

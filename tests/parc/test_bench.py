@@ -555,6 +555,19 @@ def test_the_bench_says_it_compiles_while_any_kind_of_render_is_uncompiled(tmp_p
     assert not says()
 
 
+def test_the_kernels_the_notice_asks_for_are_those_the_suite_runs(tmp_path):
+    # The notice asked for the shaded translucent casters too, which no scene of the suite
+    # uses: never cached by it, they made every later run say it was compiling. In a process
+    # of its own, so that no other test's renders compile them.
+    code = ("import sys; from pathlib import Path; from parc.bench import Suite, _kernels_used, run_bench; "
+            "run_bench(Path(sys.argv[1]), Suite.tiny(cache_dir=Path(sys.argv[2]))); "
+            "print(sorted(k.py_func.__name__ for k, _ in _kernels_used() if not k.signatures))")
+    p = subprocess.run([sys.executable, "-c", code, str(tmp_path / "out"), str(tmp_path / "cache")],
+                       capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0, p.stderr[-2000:]
+    assert p.stdout.strip().splitlines()[-1] == "[]"
+
+
 def test_a_stand_in_names_the_files_it_stands_in_for(tmp_path):
     # With neghip.slc present, the report said "`poship.slc`/`neghip.slc` not found".
     from parc.bench.scenes import iron_protein
