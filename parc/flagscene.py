@@ -15,7 +15,7 @@ from data_tools.info import exact_text
 
 from .camera import check_fov, check_parallel_scale, unit_vector
 from .outputs import note
-from .scene import check_eye_resolves, check_step, check_threshold
+from .scene import DEFAULT_THRESHOLD, check_eye_resolves, check_step, check_threshold
 
 
 def load_volume_flags(args):
@@ -138,7 +138,8 @@ def _volume_scene(args, say):
         if args.threshold is not None:
             check_threshold(args.threshold, "--threshold")
         vis = parc.Translucent(vol, args.tf, mode=args.mode or "composite", step=args.step,
-                               threshold=0.99 if args.threshold is None else args.threshold, shade=args.shade)
+                               threshold=DEFAULT_THRESHOLD if args.threshold is None else args.threshold,
+                               shade=args.shade)
         return parc.Scene(camera=_camera(args, vol, (w, h)), size=(w, h), volumes=[vis],
                           background=getattr(args, "background", None))
     for flag in ("mode", "step", "threshold", "shade"):

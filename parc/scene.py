@@ -61,6 +61,8 @@ class Isosurface:
 
 
 MODES = ("composite", "mip", "average")
+#: The composite mode's early-termination opacity, unless another is given.
+DEFAULT_THRESHOLD = 0.99
 
 
 @settled
@@ -79,7 +81,9 @@ class Translucent:
         World distance between samples; default a quarter of the smallest
         spacing (Sobierajski & Avila 1995, §6).
     threshold : float, default 0.99
-        Early ray termination once the accumulated opacity reaches it (composite).
+        Early ray termination once the accumulated opacity reaches it;
+        composite only (another value is refused with mip and average,
+        which take every sample).
     shade : bool, default False
         Shade composite samples with the gradient (headlight, Blinn-Phong);
         refused with mip and average, which do not shade.
@@ -95,7 +99,7 @@ class Translucent:
     tf: object = "greyscale"
     mode: str = "composite"
     step: float | None = None
-    threshold: float = 0.99
+    threshold: float = DEFAULT_THRESHOLD
     shade: bool = False
     material: tuple = DEFAULT_MATERIAL
 
@@ -115,6 +119,8 @@ class Translucent:
             self.step = reference_step(self.volume.spacing)
         self.step = check_step(self.step, self.volume.spacing)
         self.threshold = check_threshold(self.threshold)
+        if self.threshold != DEFAULT_THRESHOLD and self.mode != "composite":
+            raise InputError(f"threshold applies to mode composite; {self.mode} does not stop rays early")
         self.shade = _flag(self.shade, "shade")
         if self.shade and self.mode != "composite":
             raise InputError(f"shade applies to mode composite; {self.mode} does not shade samples")

@@ -106,6 +106,9 @@ CASES = {
                                                        method="parc", buffers="bits"), "has 2 volumes"),
     "supercell as text for brute": (lambda: parc.render(_scene(), supercell="a"), "supercell"),
     "shade with mip": (lambda: parc.Translucent(VOL, "greyscale", mode="mip", shade=True), "mode composite"),
+    # Taken and ignored before, where the command line and scene files refuse it.
+    "threshold with average": (lambda: parc.Translucent(VOL, "greyscale", mode="average", threshold=0.5),
+                               "threshold applies to mode composite; average does not stop rays early"),
     "step sweep repeats 0": (lambda: step_sweep(_fog(), [0.5], repeats=0), "repeats"),
     "step sweep of one number": (lambda: step_sweep(_fog(), 0.5), "sweep steps"),
     "step sweep of a word": (lambda: step_sweep(_fog(), ["fine"]), "sweep steps"),

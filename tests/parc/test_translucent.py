@@ -178,6 +178,14 @@ def test_composite_matches_a_slow_reference():
         np.testing.assert_allclose(res.image[y, x], want, atol=1e-6)
 
 
+def test_a_composite_volume_replaced_into_another_mode_keeps_its_default_threshold():
+    import dataclasses
+    vis = Translucent(Volume(blobs(6, seed=1).data), "greyscale")
+    assert dataclasses.replace(vis, mode="mip").threshold == vis.threshold == 0.99
+    with pytest.raises(InputError, match="threshold applies to mode composite"):
+        dataclasses.replace(vis, threshold=0.5, mode="mip")
+
+
 @pytest.mark.parametrize("mode, slow", [("mip", _slow_mip), ("average", _slow_average)])
 def test_mip_and_average_match_a_slow_reference(mode, slow):
     # Opacity zero below 40: the largest visible sample is often not the last one on the ray
