@@ -100,7 +100,8 @@ def _add_flag_lights(scene, args, say):
             flag = "light" if args.light else "sun" if args.sun else "shadows"
             raise InputError(f"--{flag}: {exc}") from None
     if scene.shadows and not scene.lights:
-        say("shadows with only the headlight show nothing (the light sits at the eye); add --light or --sun")
+        say("shadows with only the headlight show nothing (the light sits at the eye); add --light or --sun"
+            + (", or a [[light]] table to the scene file" if _is_scene_file(args) else ""))
     return scene
 
 

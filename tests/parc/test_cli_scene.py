@@ -273,3 +273,14 @@ def test_an_eye_or_a_parallel_view_on_the_command_line_drops_the_file_s_zoom(tmp
         assert rc == 0, err
     rc, _, err = _run(["render", scene, "--zoom", "1e300", "-o", tmp_path / "b.png"], capsys)
     _assert_refused(rc, err, tmp_path / "b.png", "a zoom of 1e+300 brings the eye onto the point it looks at")
+
+
+def test_shadows_without_a_light_say_how_to_add_one_where_it_can_go(scene_file):
+    # A scene file takes a [[light]] table too; a volume on the command line takes flags only.
+    text = scene_file.read_text()
+    scene_file.write_text("shadows = true\n" + text[:text.index("[[light]]")])
+    _, notes = _scene_of(["render", scene_file, "-o", "x.png"])
+    assert any("add --light or --sun, or a [[light]] table to the scene file" in n for n in notes), notes
+    ball = scene_file.parent / "data" / "ball.nrrd"
+    _, notes = _scene_of(["render", ball, "--iso", 0.5, "--shadows", "-o", "x.png"])
+    assert any(n.endswith("add --light or --sun") for n in notes), notes

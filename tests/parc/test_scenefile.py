@@ -319,6 +319,10 @@ BAD = [
     ("[[volume]]\nfile = 'data/ball.nrrd'\ndtype = 'float128'\niso = 0", "volume[1].dtype",
      "only to headerless raw files"),
     ("[camera]\neye = [0, 0, 50]\nlook_at = [0, 0, 0]\nup = [0, 0, 0]\n{V}", "camera.up", "is zero"),
+    ("[[volume]]\nfile = 'data/ball.nrrd'\ntf = 'greyscale'\n[[light]]\nposition = [0, 0, 0]", "light[1]",
+     "lights shine on isosurfaces and this scene has none"),
+    ("shadows = true\n[[volume]]\nfile = 'data/ball.nrrd'\ntf = 'greyscale'", "shadows",
+     "shadows fall on isosurfaces and this scene has none"),
 ]
 
 
