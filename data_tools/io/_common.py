@@ -147,9 +147,11 @@ def read_samples(path: Path, offset: int, dims, dtype, big_endian: bool, *,
     if actual < expected or (exact and actual != expected):
         where = f" after a {offset}-byte header" if offset else ""
         state = "truncated" if actual < expected else "too long"
+        # A header past the end leaves no bytes after it: the file's own size says more.
+        has = actual if actual >= 0 else f"only {actual + offset} bytes in all"
         raise InputError(
             f"{path}: {kind} data {state}: {nx}x{ny}x{nz} {np.dtype(dtype).name} needs "
-            f"{expected} bytes{where}, the file has {max(actual, 0)}")
+            f"{expected} bytes{where}, the file has {has}")
     if mmap:
         if not (dt.isnative or dt.itemsize == 1):
             raise InputError(f"{path}: cannot memory-map {kind} data in the other byte order; "

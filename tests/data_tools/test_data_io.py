@@ -148,6 +148,12 @@ def test_raw_offset(tmp_path, writers):
     arr = make_array("int32")
     p = writers.raw(tmp_path / "h.raw", arr, header=b"HEADER!!")
     check(load_volume(p, shape=(5, 4, 3), dtype="int32", offset=8), arr)
+    with pytest.raises(InputError, match=r"needs 240 bytes after a 10-byte header, the file has 238$"):
+        load_volume(p, shape=(5, 4, 3), dtype="int32", offset=10)
+    # An offset past the end: not "the file has 0", but the file's size.
+    with pytest.raises(InputError, match=r"needs 240 bytes after a 400-byte header, "
+                                         r"the file has only 248 bytes in all$"):
+        load_volume(p, shape=(5, 4, 3), dtype="int32", offset=400)
 
 
 def test_raw_writer_roundtrip(tmp_path):
