@@ -252,7 +252,7 @@ def build_parser():
                         "a label after a colon times a method twice, as in brute,parc:a,parc:b")
     c.add_argument("--sweep-supercell", metavar="LIST",
                    help="run parc once per supercell size, e.g. 0.5,1,2,4,8: speed against error "
-                        "(sizes of M,N,P cells apart by ';': '2,2,4;4,4,8')")
+                        "(sizes of M,N,P cells apart by ';': '2,2,4;4,4,8', one alone '2,2,4;')")
     c.add_argument("--sweep-step", metavar="LIST",
                    help="with --tf: run brute and parc once per sample step, e.g. 1,0.5,0.25, against a "
                         "reference at the finest step / 4: speed against error")

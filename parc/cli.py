@@ -457,11 +457,16 @@ def cmd_compare(args):
     # Every parc method gets the flags, labelled ones ("parc:x") too.
     options = {m: dict(common) for m in methods if m.split(":")[0] == "parc"}
     if args.sweep_supercell is not None:
-        sizes = [_supercell_or_error(v) for v in args.sweep_supercell.split(";" if ";" in args.sweep_supercell else ",")]
+        given = args.sweep_supercell
+        # One size of M,N,P cells is swept alone as "2,2,4;" (a trailing ';').
+        entries = given.removesuffix(";").split(";") if ";" in given else given.split(",")
+        sizes = [_supercell_or_error(v) for v in entries]
         labels = [f"parc:{_size_label(s)}" for s in sizes]
         twice = sorted({label for label in labels if labels.count(label) > 1})
         if twice:
-            raise InputError(f"--sweep-supercell gives {twice[0][5:]} twice")
+            raise InputError(f"--sweep-supercell gives {twice[0][5:]} twice"
+                             + ("" if ";" in given else "; sizes of M,N,P cells are apart by ';', "
+                                "as in '2,2,4;4,4,8' (one alone: '2,2,4;')"))
         methods = ["brute"] + labels
         options = {label: {"supercell": s, **common} for label, s in zip(labels, sizes)}
     elif args.supercell is not None:

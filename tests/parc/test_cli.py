@@ -1034,6 +1034,10 @@ def test_supercell_sweep_takes_sizes_per_axis(vol_file, capsys):
     rows = json.loads(out)
     assert [r["method"] for r in rows] == ["brute", "parc:1x2x3", "parc:2"]
     assert all(r["hit_mismatches"] == 0 for r in rows)
+    # One such size alone, by a trailing ';' (without it, "2,2,4" is three sizes, 2 twice).
+    rc, out, err = _run(["compare", vol_file, "--iso", 4, "--size", 12, 12, "--repeats", 1, "--json",
+                         "--sweep-supercell", "2,2,4;"], capsys)
+    assert rc == 0 and [r["method"] for r in json.loads(out)] == ["brute", "parc:2x2x4"], err
 
 
 @pytest.mark.parametrize("extra, words", [
@@ -1048,7 +1052,9 @@ def test_supercell_sweep_takes_sizes_per_axis(vol_file, capsys):
     (["--methods", "parc:,parc:"], "--methods: 'parc:' has an empty label"),      # not "named twice"
     (["--methods", "brute,magic"], "--methods: unknown method 'magic'"),
     (["--sweep-step", "1e-4"], "reference step"),
-    (["--sweep-supercell", "4,4.0"], "--sweep-supercell gives 4 twice"),
+    (["--sweep-supercell", "4,4.0"], "--sweep-supercell gives 4 twice; sizes of M,N,P cells are apart by ';'"),
+    (["--sweep-supercell", "2;2.0;"], "--sweep-supercell gives 2 twice\n"),
+    (["--sweep-supercell", "2;;4"], "--sweep-supercell"),
     (["--sweep-step", "1,0.5,0.50"], "--sweep-step gives 0.5 twice"),
     (["--methods", "brute,brute"], "--methods names 'brute' twice"),
     (["--methods", "parc:a,parc:a"], "--methods names 'parc:a' twice"),
