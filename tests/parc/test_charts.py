@@ -226,12 +226,20 @@ def test_heat_maps_share_one_log_scale(tmp_path):
     assert ca[1][0] == tuple(lut[round(255 * math.log(11) / math.log(101))])
 
 
-@pytest.mark.parametrize("maps", [{"zeros": np.zeros((3, 4))}, {"one": np.ones((1, 1))},
-                                  {"nan": np.full((2, 2), np.nan), "inf": np.full((2, 2), np.inf)}])
-def test_heat_maps_degenerate_input_renders(tmp_path, maps):
-    out = heat_maps(tmp_path / "h.png", maps, title="t", label="cells")
+@pytest.mark.parametrize("maps, colour", [({"zeros": np.zeros((2, 2))}, "white"), ({"one": np.ones((1, 1))}, "top"),
+                                          ({"nan": np.full((2, 2), np.nan), "inf": np.full((2, 2), np.inf)}, None)])
+def test_heat_maps_degenerate_input_renders(tmp_path, maps, colour):
+    # No work at all is white, one count alone the top of the scale; maps of no number still draw.
+    out = heat_maps(tmp_path / "h.png", maps, title="t", label="cells", panel=100)
     with Image.open(out) as im:
         im.verify()
+    with Image.open(out) as im:
+        img = np.asarray(im.convert("RGB"))
+    assert img.shape[1] >= 100 * len(maps)
+    if colour is not None:
+        n = next(iter(maps.values())).shape[0]
+        want = (255, 255, 255) if colour == "white" else tuple(_viridis_lut()[255])
+        assert {c for row in _cell_colours(img, 16, n, 100) for c in row} == {want}
 
 
 def test_heat_maps_need_a_map(tmp_path):

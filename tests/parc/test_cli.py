@@ -49,6 +49,15 @@ def test_render_writes_png_depth_and_stats(vol_file, tmp_path, capsys):
     assert np.isfinite(depth).any() and np.isinf(depth).any()
     stats = json.loads(st.read_text())
     assert stats["method"] == "brute" and stats["hits"] == int(np.isfinite(depth).sum())
+    # The file holds the render's whole stats: every count as the library gives it, times aside.
+    import parc
+    vol = parc.load_volume(vol_file)
+    lib = parc.render(parc.Scene(camera=parc.Camera.framing(*vol.bounds), size=(40, 30),
+                                 volumes=[parc.Isosurface(vol, 4.0)])).stats
+    assert set(stats) == set(lib)
+    for key, value in lib.items():
+        if key != "seconds":
+            assert stats[key] == json.loads(json.dumps(value, default=str)), key
 
 
 def test_progress_shows_only_for_work_that_takes_a_while(monkeypatch, capsys):
