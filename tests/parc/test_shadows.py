@@ -509,10 +509,10 @@ def test_stats_parameters_describe_the_volume_as_the_scene_states_it():
               "origin": [0.0, -2.0, 1.0]}
     tf = TransferFunction([(0.0, 0.0), (1.0, 0.5)])                        # unnamed: "custom"
     for mode in ("mip", "average", "composite"):
-        fog = Translucent(vol, tf=tf, mode=mode, step=0.25, threshold=0.9)
-        p = render(Scene(camera=cam, size=(8, 6), volumes=[fog]), "brute").stats["parameters"]
-        # Only compositing stops at the threshold: the others take every sample.
+        # Only compositing stops at a threshold (the others refuse one): the others take every sample.
         stops = {"threshold": 0.9} if mode == "composite" else {}
+        fog = Translucent(vol, tf=tf, mode=mode, step=0.25, **stops)
+        p = render(Scene(camera=cam, size=(8, 6), volumes=[fog]), "brute").stats["parameters"]
         assert p == {"size": [8, 6], **placed, "mode": mode, "step": 0.25, **stops, "transfer_function": "custom",
                      "camera": camera}
     p = render(Scene(camera=cam, size=(8, 6), volumes=[Isosurface(vol, value=0.3)]), "brute").stats["parameters"]
