@@ -8,6 +8,7 @@ import re
 import zlib
 from decimal import Decimal, localcontext
 from fractions import Fraction
+from pathlib import Path
 
 import nrrd
 import numpy as np
@@ -154,6 +155,15 @@ def test_raw_offset(tmp_path, writers):
     with pytest.raises(InputError, match=r"needs 240 bytes after a 400-byte header, "
                                          r"the file has only 248 bytes in all$"):
         load_volume(p, shape=(5, 4, 3), dtype="int32", offset=400)
+
+
+@pytest.mark.parametrize("ext", [".nrrd", ".nhdr", ".mhd", ".mha", ".vtk", ".npy"])
+def test_placement_round_trips_exactly(tmp_path, ext):
+    # Values no float32 holds: a writer or reader rounding them to float32 (0.1 to 0.10000000149)
+    # would pass a comparison within 1e-6.
+    vol = Volume(make_array("uint8"), spacing=(0.1, 1 / 3, 2.7), origin=(-12.345678901, 0.1, 1e-3))
+    back = load_volume(save_volume(vol, tmp_path / f"v{ext}"))
+    assert back.spacing == vol.spacing and back.origin == vol.origin
 
 
 def test_raw_writer_roundtrip(tmp_path):
@@ -419,7 +429,9 @@ def test_nrrd_samples_in_several_data_files_are_joined_in_order(tmp_path, encodi
     p = _split_nrrd(tmp_path, arr, encoding, blocks, data_file, lines=lines, skip=skip)
     vol = load_volume(p)
     check(vol, arr, (1, 1, 2))
-    assert len(vol.meta["files"]) == 1 + blocks         # the command line writes over none of them
+    # The command line writes over none of them: the header and each data file, named.
+    want = [p] + [tmp_path / f"part{n:02d}.dat" for n in range(blocks)]
+    assert sorted(Path(f).resolve() for f in vol.meta["files"]) == sorted(w.resolve() for w in want)
 
 
 def test_nrrd_numbered_data_files_count_down_and_in_slabs(tmp_path):
@@ -1141,7 +1153,9 @@ def test_metaimage_samples_in_several_data_files_are_joined_in_order(tmp_path, k
     p = _split_mhd(tmp_path, data_file, blocks, kind=kind, header_size=header_size, msb=msb)
     vol = load_volume(p)
     np.testing.assert_array_equal(vol.data, _A16)
-    assert len(vol.meta["files"]) == 1 + blocks         # the command line writes over none of them
+    # The command line writes over none of them: the header and each data file, named.
+    want = [p] + [tmp_path / f"s{n:02d}.dat" for n in range(blocks)]
+    assert sorted(Path(f).resolve() for f in vol.meta["files"]) == sorted(w.resolve() for w in want)
 
 
 @pytest.mark.parametrize("data_file, blocks, message", [

@@ -126,6 +126,19 @@ def test_merged_covers_the_same_faces(name, mask):
     assert b.n_polygons <= a.n_polygons
 
 
+def test_a_box_of_supercells_merges_into_its_six_sides():
+    # Any rectangular block's outer faces are six rectangles: a merge that joined the unit faces
+    # into strips only (one pass of two) leaves more.
+    rng = np.random.default_rng(3)
+    for _ in range(100):
+        shape = tuple(int(n) for n in rng.integers(1, 7, 3))
+        mask = np.zeros(shape, bool)
+        lo = [int(rng.integers(0, n)) for n in shape]
+        hi = [int(rng.integers(a + 1, n + 1)) for a, n in zip(lo, shape)]
+        mask[lo[0]:hi[0], lo[1]:hi[1], lo[2]:hi[2]] = True
+        assert _proxy(mask, merge=True).n_polygons == 6, (shape, lo, hi)
+
+
 @pytest.mark.parametrize("merge", [False, True])
 def test_world_quads(merge):
     mask = MASKS[0][1]
@@ -163,3 +176,14 @@ def test_proxy_for_iso():
     np.testing.assert_array_equal(lo, [1, 2, 3])
     np.testing.assert_array_equal(hi, np.array([1, 2, 3]) + np.array([7, 6, 5]) * np.array([0.5, 1, 2]))
     assert p.n_polygons > 0
+
+
+def test_proxy_for_iso_marks_the_supercells_holding_the_isovalue():
+    # Samples equal to their x index: 4.5 lies between samples 4 and 5 only, in the third
+    # column of 2-cell supercells (cells 4..5, samples 4..6), whatever y and z.
+    k, j, i = np.mgrid[0:6, 0:7, 0:9]
+    p = proxy_for_iso(Volume(i.astype(np.float32), spacing=(0.5, 1, 2), origin=(1, 2, 3)), 4.5, 2)
+    want = np.zeros(p.grid.shape, bool)
+    want[:, :, 2] = True
+    np.testing.assert_array_equal(p.pc, want)
+    assert p.n_polygons == 6

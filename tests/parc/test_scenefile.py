@@ -454,3 +454,24 @@ def test_a_look_at_alone_moves_the_framing_eye_with_it():
     framed = parc.Camera.framing(lo, hi)
     view = resolve_view(lo, hi, look_at=(100.0, 0.0, 0.0))
     np.testing.assert_allclose(np.subtract(view["eye"], view["look_at"]), np.subtract(framed.eye, framed.look_at))
+
+
+@pytest.mark.parametrize("size", [(100, 400), (400, 100), (64, 64)])
+def test_the_default_framing_fits_the_volume_in_the_image_as_shaped(folder, size):
+    # Geometry, not the framing code: every corner of the box projects inside the image, whose
+    # width over height is the file's size, and the box fills most of its tighter side.
+    scene = load_scene(write(folder, f"size = [{size[0]}, {size[1]}]\n" + textwrap.dedent(VOLUME)))
+    cam = scene.camera
+    f, r, u = cam.basis()
+    lo, hi = scene.volumes[0].volume.bounds
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    q = corners - np.asarray(cam.eye)
+    th = math.tan(math.radians(cam.fov) / 2)
+    across, up = np.abs(q @ r) / (q @ f) / (th * size[0] / size[1]), np.abs(q @ u) / (q @ f) / th
+    assert max(across.max(), up.max()) <= 1.0 and max(across.max(), up.max()) >= 0.5, (across.max(), up.max())
+
+
+def test_a_fov_given_makes_a_parallel_file_view_perspective(folder):
+    path = write(folder, "[camera]\nparallel = 12\n" + textwrap.dedent(VOLUME))
+    cam = load_scene(path, view={"fov": 40.0}).camera
+    assert not cam.parallel and cam.fov == 40.0

@@ -362,6 +362,10 @@ def test_ray_octants_cover_every_pixel(parallel):
         arr = cam.as_array()
         seen = {octant(*camera_ray(arr, w, h, x, y)[3:]) for x in range(w) for y in range(h)}
         assert seen <= set(ray_octants(cam, w, h)), (eye, look)
+        # ... and no more than the signs each axis takes over the image allow: an octant named
+        # needlessly costs a table built for no ray.
+        bits = [{o & (1 << a) for o in seen} for a in range(3)]
+        assert set(ray_octants(cam, w, h)) == {x | y | z for x in bits[0] for y in bits[1] for z in bits[2]}
 
 
 def test_a_segment_start_takes_the_sign_of_the_cell_before_from_the_table():

@@ -513,6 +513,16 @@ def test_presets_by_name_and_passthrough():
     assert load_transfer_function(tf) is tf
 
 
+def test_a_preset_mapped_onto_any_range_ends_exactly_at_its_top():
+    # lo + (1 - 0) * (hi - lo) rounds past hi for many ranges (this one among them): the last
+    # control point then lay beyond the data, and the data's maximum did not get the last colour.
+    lo, hi = -1311147.0622629568, 120.15111553890245
+    assert lo + (hi - lo) != hi
+    tf = preset("viridis", (lo, hi))
+    assert tf.opacity_points[-1, 0] == hi and tf.color_points[-1, 0] == hi
+    np.testing.assert_array_equal(tf.color(np.array([hi]))[0], tf.color_points[-1, 1:])
+
+
 def _check_error(exc, *parts):
     msg = str(exc.value)
     assert "\n" not in msg, msg
