@@ -350,9 +350,11 @@ def _checks_md(checks):
 
 def _kernels_used():
     """The kernels of every kind of render the suite makes (isosurfaces, each translucent mode
-    unshaded, bit planes, several volumes, shadows on isosurfaces), each asked for any sample type: a render's
-    run leaves some compiled and others not, and the suite's first scene of another kind
-    compiled for half a minute in silence. Other sample types compile in seconds, unsaid."""
+    unshaded, bit planes, several volumes, shadows on isosurfaces), each asked for any sample
+    type: a render's run leaves some compiled and others not, and the suite's first scene of
+    another kind compiled for half a minute in silence. Other sample types compile in seconds,
+    unsaid. Only those: a kernel no scene runs is never cached by the suite, and the notice
+    asking for it said "compiling" on every run."""
     import parc
     from data_tools.synthetic import blobs
 
