@@ -157,10 +157,11 @@ def _after_array(f, path, ncomp):
 
 def _field_arrays(f, lines, encoding, words, path, want=None):
     """Move past a FIELD's arrays. With ``want`` (a point count), the first array of one
-    component and ``want`` numeric values: ``(name, dtype, offset)``, where its values start;
-    None when there is none."""
+    component and ``want`` numeric values, ``(name, dtype, offset)`` where its values start
+    (None when there is none), and the names of every such array."""
     n = parse_numbers(words[2:], 1, int, path, "FIELD")[0]
     found = None
+    names = []
     for _ in range(n):
         line = lines.next("a FIELD array")
         parts = line.split()
@@ -170,11 +171,13 @@ def _field_arrays(f, lines, encoding, words, path, want=None):
             raise InputError(f"{path}: expected a FIELD array line 'name components tuples type', got {line[:60]!r}")
         ncomp, ntuples = parse_numbers(parts[1:3], 2, int, path, f"FIELD array {parts[0]}")
         vtype = parts[3].lower()
-        if found is None and want is not None and ncomp == 1 and ntuples == want and vtype in VTK_TYPES:
-            found = parts[0], VTK_TYPES[vtype], f.tell()
+        if want is not None and ncomp == 1 and ntuples == want and vtype in VTK_TYPES:
+            names.append(parts[0])
+            if found is None:
+                found = parts[0], VTK_TYPES[vtype], f.tell()
         _skip_values(f, encoding, ncomp * ntuples, vtype, path, f"FIELD array {parts[0]}")
         _after_array(f, path, ncomp)
-    return found
+    return found, names
 
 
 def _components(words, path):
@@ -316,6 +319,7 @@ def read_vtk(path, *, spacing=None, origin=None) -> Volume:
             # The scalars, past the attributes before them; else the first array of one
             # component written as field data (none marked as the scalars).
             field = key = None
+            field_names = []            # every array of field data the scalars could be
             for _ in range(_MAX_HEADER_LINES):
                 line = lines.next("SCALARS", required=field is None)
                 words = line.split() if line is not None else []
@@ -327,8 +331,9 @@ def read_vtk(path, *, spacing=None, origin=None) -> Volume:
                         raise InputError(f"{path}: no scalars in the VTK POINT_DATA")
                     break
                 if key == "FIELD":
-                    found = _field_arrays(f, lines, encoding, words, path, want=npoints)
+                    found, names = _field_arrays(f, lines, encoding, words, path, want=npoints)
                     field = field or found
+                    field_names += names
                     continue
                 _skip_attribute(f, lines, encoding, words, npoints, path, "POINT_DATA")
             else:
@@ -364,7 +369,7 @@ def read_vtk(path, *, spacing=None, origin=None) -> Volume:
                     # where their first bytes look like blank lines.
                     f.seek(pos)
             offset = f.tell()
-            others = []
+            others = field_names[1:] if field is not None else []
             if field is None and encoding == "BINARY":
                 others = _later_scalars(f, lines, npoints, "unsigned_char" if color else words[2], path)
                 f.seek(offset)

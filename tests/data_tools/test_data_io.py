@@ -668,6 +668,23 @@ def test_vtk_scalars_line_is_read_word_by_word_as_vtk_does(tmp_path, scalars):
     check(load_volume(p), arr)
 
 
+@pytest.mark.parametrize("ascii", [False, True])
+def test_vtk_field_arrays_that_could_be_the_scalars_are_named(tmp_path, ascii):
+    # Points whose arrays are all field data: the first of one component is read, and the
+    # others of one component are named, as several SCALARS are (a vector array is none).
+    arr = make_array("uint8")
+    nz, ny, nx = arr.shape
+    head = (f"# vtk DataFile Version 3.0\nt\n{'ASCII' if ascii else 'BINARY'}\nDATASET STRUCTURED_POINTS\n"
+            f"DIMENSIONS {nx} {ny} {nz}\nPOINT_DATA {arr.size}\nFIELD FieldData 3\n")
+    p = tmp_path / "v.vtk"
+    p.write_bytes(head.encode() + f"density 1 {arr.size} unsigned_char\n".encode() + _vtk_section(ascii, arr, "uint8")
+                  + f"flow 3 {arr.size} float\n".encode() + _vtk_section(ascii, np.zeros(3 * arr.size), "float32")
+                  + f"heat 1 {arr.size} float\n".encode() + _vtk_section(ascii, np.ones(arr.size), "float32"))
+    vol = load_volume(p)
+    check(vol, arr)
+    assert vol.meta["note"] == "the points carry 2 scalar arrays (density, heat); the first was read (density)"
+
+
 def test_vtk_null_arrays_of_field_data_are_read_past(tmp_path):
     # vtkDataWriter writes NULL_ARRAY for an array of field data that is not there.
     arr = make_array("uint8")
