@@ -214,14 +214,14 @@ def suggest_isovalues(vol: Volume, k: int = 3, *, bins: int = 256) -> list:
     # Float samples that are all whole numbers (a CT stored as float32) are cut at x.5 too, the
     # shortest number near a cut being often a sample value; from 2^24 on, x.5 is long to read
     # and no float32 sample, and the shortest number off the samples is taken.
-    whole = integer or (bool(np.all(np.mod(values, 1.0) == 0.0)) and float(np.abs(values).max()) < 2.0 ** 24)
+    whole = integer or (bool(np.all(np.mod(fg, 1.0) == 0.0)) and float(np.abs(fg).max()) < 2.0 ** 24)
     seen = None if whole else np.unique(values)         # sorted, for `_shortest`
     # Binned over the samples kept, not the whole range: a fill value at the minimum (a float32
     # -3.4e38 outside a scan) left every other sample in the top bin, and the cut in the gap.
     counts, edges = _histogram(fg, fg.min(), fg.max(), integer, bins)
     if counts is None:
         # A float range too narrow (or too wide) to split into bins: offer its middle.
-        mid = float(0.5 * lo + 0.5 * hi)
+        mid = float(0.5 * float(fg.min()) + 0.5 * float(fg.max()))
         return [mid] if lo < mid < hi else []
     nonempty = int(np.count_nonzero(counts))
     if nonempty < 2:

@@ -431,6 +431,18 @@ def cmd_compare(args):
         twice = sorted({v for v in steps if steps.count(v) > 1})
         if twice:
             raise InputError(f"--sweep-step gives {twice[0]:g} twice")
+    if args.sweep_supercell is not None:
+        # Parsed before the volume is read, as the other sweep's steps: refused before any work.
+        given = args.sweep_supercell.strip()
+        # One size of M,N,P cells is swept alone as "2,2,4;" (a trailing ';').
+        entries = given.removesuffix(";").split(";") if ";" in given else given.split(",")
+        sizes = [_supercell_or_error(v) for v in entries]
+        labels = [f"parc:{_size_label(s)}" for s in sizes]
+        twice = sorted({label for label in labels if labels.count(label) > 1})
+        if twice:
+            raise InputError(f"--sweep-supercell gives {twice[0][5:]} twice"
+                             + ("" if ";" in given else "; sizes of M,N,P cells are apart by ';', "
+                                "as in '2,2,4;4,4,8' (one alone: '2,2,4;')"))
     with _reading(args, say):
         scene, said = scene_and_notes(args)
     notes.extend(said)
@@ -457,16 +469,6 @@ def cmd_compare(args):
     # Every parc method gets the flags, labelled ones ("parc:x") too.
     options = {m: dict(common) for m in methods if m.split(":")[0] == "parc"}
     if args.sweep_supercell is not None:
-        given = args.sweep_supercell
-        # One size of M,N,P cells is swept alone as "2,2,4;" (a trailing ';').
-        entries = given.removesuffix(";").split(";") if ";" in given else given.split(",")
-        sizes = [_supercell_or_error(v) for v in entries]
-        labels = [f"parc:{_size_label(s)}" for s in sizes]
-        twice = sorted({label for label in labels if labels.count(label) > 1})
-        if twice:
-            raise InputError(f"--sweep-supercell gives {twice[0][5:]} twice"
-                             + ("" if ";" in given else "; sizes of M,N,P cells are apart by ';', "
-                                "as in '2,2,4;4,4,8' (one alone: '2,2,4;')"))
         methods = ["brute"] + labels
         options = {label: {"supercell": s, **common} for label, s in zip(labels, sizes)}
     elif args.supercell is not None:
@@ -543,6 +545,8 @@ def _check_sweep_flags(args):
 def _size_label(size):
     """A supercell size as a method label: ``4``, ``4.0000001`` or ``1x2x3``: every digit it
     needs, so that two sizes never share a label (and a row)."""
+    if isinstance(size, tuple) and len(set(size)) == 1:
+        size = size[0]              # 2,2,2 is the size 2: one label, so that a sweep takes it once
     return "x".join(map(exact_text, size)) if isinstance(size, tuple) else exact_text(size)
 
 

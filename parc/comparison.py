@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import statistics
 import time
+from collections.abc import Iterator
 
 import numpy as np
 
@@ -183,7 +184,9 @@ def method_names(methods, what="methods"):
             raise TypeError
         names = [m.strip() for m in methods if m.strip()]
     except (TypeError, AttributeError):
-        raise InputError(f"{what} must be names such as ('brute', 'parc'), got {methods!r}") from None
+        # What was given, but an iterator's items (read here, its repr names none).
+        shown = methods if isinstance(given, Iterator) and isinstance(methods, list) else given
+        raise InputError(f"{what} must be names such as ('brute', 'parc'), got {shown!r}") from None
     if not names:
         raise InputError(f"{what} names no method, got {given!r}; name some, such as 'brute,parc'")
     for m in names:

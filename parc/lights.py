@@ -41,6 +41,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+import data_tools.memory
 from data_tools.memory import check_memory
 from raycast.shadow import (KIND_DIRECTIONAL, KIND_POINT, N_VIEW, V_EYE, V_FWD, V_KIND, V_RIGHT, V_SCALE,
                              V_UP)
@@ -62,13 +63,23 @@ MAX_HALF_ANGLE = 44.0
 
 #: Cached buffers per volume index (light, classification, size): a few cover a scene's lights.
 LIGHT_BUFFER_CACHE_SIZE = 16
-#: ... and their bytes at most: a point light's six views at 8192 pixels take 6 GB, so a few
-#: moves of the light filled the memory. (The default size takes 6 MB a light.)
+#: ... and their bytes at most, or a quarter of the memory where that is more
+#: (`light_cache_bytes`): a point light's six views at 8192 pixels take 6 GB, so a few moves
+#: of the light filled the memory. (The default size takes 6 MB a light.)
 LIGHT_BUFFER_CACHE_BYTES = 1 << 30
 #: Bytes a light buffer takes per pixel and view (near and far, float64), and per pixel of the
 #: one view being drawn (the pass's read-back and segments).
 _BYTES_PER_VIEW_PIXEL = 16
 _BYTES_PER_PASS_PIXEL = 24
+
+
+def light_cache_bytes(held):
+    """Bytes of light buffers a volume may keep, ``held`` of them kept now: a quarter of the
+    memory they and the memory available make, at least `LIGHT_BUFFER_CACHE_BYTES`. (A fixed
+    bound alone made three lights inside a volume at 2048 pixels, 1.2 GB, evict each other
+    and be drawn again every frame.)"""
+    have = data_tools.memory.available_memory()
+    return LIGHT_BUFFER_CACHE_BYTES if have is None else max(LIGHT_BUFFER_CACHE_BYTES, (have + held) // 4)
 
 
 @dataclass

@@ -37,8 +37,8 @@ from raycast.iso import NO_SHADING, cast_iso_image, keep_nearest
 from raycast.shadow import (KIND_HEADLIGHT, combine_lights, light_terms, shadow_accumulate, shadow_iso,
                             surface_frames)
 
-from .lights import (LIGHT_BUFFER_CACHE_BYTES, LIGHT_BUFFER_CACHE_SIZE, LIGHT_BUFFER_SIZE, light_array,
-                     light_buffers, no_views)
+from .lights import (LIGHT_BUFFER_CACHE_SIZE, LIGHT_BUFFER_SIZE, light_array, light_buffers, light_cache_bytes,
+                     light_views, no_views)
 from .scene import DirectionalLight, Isosurface
 from .workspace import work_array
 
@@ -243,6 +243,7 @@ def _shadows(scene, method, lights, points, groups, vis, sizes, light_buffer, bl
             if method == "parc":
                 phase = {}
                 proxy, _ = cached_proxy(v, sizes[n], scene.size, phase, merge=False)
+                buf = None          # the last light's buffers, if evicted, are freed before these are drawn
                 buf = _cached_light_buffers(light, v, proxy, sizes[n], light_buffer)
                 timings["raster_lights"] += buf.seconds
                 buf.seconds = 0.0
@@ -282,12 +283,12 @@ def _cached_light_buffers(light, vis, proxy, size, n):
     cache = index.kept("light buffers")
     buf = cache.get(key)
     if buf is None:
-        # Room made before the new buffers are drawn, for as many views as the light can take:
+        # Room made before the new buffers are drawn, for the views this light takes (six at most):
         # made after, the buffers of the light's last place and its new one were held at once.
-        views = 1 if kind == "sun" else 6
-        room = LIGHT_BUFFER_CACHE_BYTES - views * 2 * n * n * np.dtype(np.float64).itemsize
-        while cache and (len(cache) >= LIGHT_BUFFER_CACHE_SIZE
-                         or sum(b.near.nbytes + b.far.nbytes for b in cache.values()) > room):
+        views = len(light_views(light, *proxy.bounds)) if proxy.pc.any() else 0
+        held = lambda: sum(b.near.nbytes + b.far.nbytes for b in cache.values())    # noqa: E731
+        room = light_cache_bytes(held()) - views * 2 * n * n * np.dtype(np.float64).itemsize
+        while cache and (len(cache) >= LIGHT_BUFFER_CACHE_SIZE or held() > room):
             cache.pop(next(iter(cache)))
         buf = light_buffers(light, proxy, size=n)
         cache[key] = buf

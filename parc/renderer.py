@@ -147,7 +147,8 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
     ------
     InputError
         An unknown method, a scene this renderer cannot show, or an image
-        too large for the memory available (`parc.workspace.check_frame_memory`).
+        too large for the memory available (`parc.workspace.check_frame_memory`),
+        or light buffers too large for it (give a smaller ``light_buffer``).
     OpenGLUnavailable
         ``method="parc"`` without an OpenGL context.
 

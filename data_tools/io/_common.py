@@ -83,7 +83,9 @@ def file_volume(data, spacing, origin, path, meta, place):
     said = meta.pop("spacing_note", None)
     if place.get("spacing") is not None:
         spacing = place["spacing"]
-        said = REORIENTED_NOTE if meta.get("reoriented") else None
+        # What still holds of a note on reoriented axes; a reader that said so itself (MetaImage's
+        # TransformMatrix note, in meta['note']) says it already.
+        said = REORIENTED_NOTE if said and meta.get("reoriented") else None
     if said:
         meta["note"] = f"{meta['note']}; {said}" if meta.get("note") else said
     if place.get("origin") is not None:

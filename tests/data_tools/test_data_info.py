@@ -88,6 +88,17 @@ def test_a_fill_value_at_the_minimum_does_not_take_the_cuts(dtype, fill):
     iso = suggest_isovalues(Volume(data))
     assert iso and all(80 < v < 1020 for v in iso), iso
     assert any(130 < v < 970 for v in iso), iso
+    # The samples kept are whole numbers, a float32 CT's: cut at x.5, as without the fill.
+    assert all(v % 1 == 0.5 for v in iso), iso
+
+
+def test_a_fill_value_beside_two_adjacent_values_suggests_their_middle():
+    # Too narrow a range to bin: the middle of the samples kept, not of the fill and the data.
+    data = np.full((4, 4, 4), np.float32(1.0))
+    data[2:] = np.nextafter(np.float32(1.0), np.float32(2.0))
+    data[0] = -3.4e38
+    iso = suggest_isovalues(Volume(data))
+    assert len(iso) == 1 and 1.0 < iso[0] < float(np.nextafter(np.float32(1.0), np.float32(2.0))), iso
 
 
 def test_constant_volume_has_no_suggestion():

@@ -1055,6 +1055,8 @@ def test_metaimage_with_a_rotation_says_it_is_read_on_an_axis_aligned_grid(tmp_p
     assert np.array_equal(vol.data, data)
     assert vol.meta["note"] == "non-identity TransformMatrix ignored: the volume is read on an axis-aligned grid"
     assert vol.meta["reoriented"]
+    # A spacing given leaves the note as it is: it said nothing of the spacing, and not twice.
+    assert load_volume(p, spacing=(1, 2, 3)).meta["note"] == vol.meta["note"]
 
 
 # MetaImage header fields as other writers spell them (the MetaIO documentation), and a raw

@@ -1064,6 +1064,7 @@ def test_supercell_sweep_takes_sizes_per_axis(vol_file, capsys):
     (["--sweep-supercell", "4,4.0"], "--sweep-supercell gives 4 twice; sizes of M,N,P cells are apart by ';'"),
     (["--sweep-supercell", "2;2.0;"], "--sweep-supercell gives 2 twice\n"),
     (["--sweep-supercell", "2;;4"], "--sweep-supercell"),
+    (["--sweep-supercell", "2,2,2;2"], "--sweep-supercell gives 2 twice\n"),
     (["--sweep-step", "1,0.5,0.50"], "--sweep-step gives 0.5 twice"),
     (["--methods", "brute,brute"], "--methods names 'brute' twice"),
     (["--methods", "parc:a,parc:a"], "--methods names 'parc:a' twice"),

@@ -591,18 +591,20 @@ def test_kept_light_buffers_stay_within_their_bytes(gl, monkeypatch):
     # of 8192 a point light's take 6 GB, and a few moves filled the memory.
     from dataclasses import replace
 
-    import parc.multivolume
+    import data_tools.memory
+    import parc.lights
     from parc.classify import VolumeIndex
-    vol, scene = _lit_blob((30.0, -20.0, 25.0))
+    vol, scene = _lit_blob((4.0, 4.5, 4.5))                 # inside: six cube views a place
     one = 2 * 64 * 64 * 8                                   # near and far of one 64x64 view
-    monkeypatch.setattr(parc.multivolume, "LIGHT_BUFFER_CACHE_BYTES", 8 * one)
-    for x in (30.0, 31.0, 32.0, 33.0):
-        res = render(replace(scene, lights=[PointLight((x, -20.0, 25.0))]), method="parc", light_buffer=64)
+    monkeypatch.setattr(parc.lights, "LIGHT_BUFFER_CACHE_BYTES", 8 * one)
+    monkeypatch.setattr(data_tools.memory, "available_memory", lambda: 20 * one)   # a quarter is less
+    for x in (4.0, 4.5, 5.0, 5.5):
+        res = render(replace(scene, lights=[PointLight((x, 4.5, 4.5))]), method="parc", light_buffer=64)
         kept = VolumeIndex.of(vol).kept("light buffers")
         held = sum(b.near.nbytes + b.far.nbytes for b in kept.values())
         # Room for the next light's six views is made before it is drawn: at most 8 views kept.
         assert 1 <= len(kept) and held <= 8 * one, (len(kept), held)
-        ref = render(replace(scene, lights=[PointLight((x, -20.0, 25.0))]), method="brute")
+        ref = render(replace(scene, lights=[PointLight((x, 4.5, 4.5))]), method="brute")
         assert np.abs(res.image - ref.image).max() <= 1e-6
 
 
@@ -614,3 +616,17 @@ def test_light_buffers_too_large_for_the_memory_are_refused_in_one_line(gl, monk
                                          r"of memory; 512 MB is available: give a smaller light_buffer"):
         render(scene, method="parc", light_buffer=4096)
     assert render(scene, method="parc").image.shape == (12, 16, 4)    # the default size fits
+
+
+def test_several_lights_are_kept_together_where_the_memory_allows(gl, monkeypatch):
+    # Three lights inside the volume, six views each, above the fixed bound: a quarter of the
+    # memory holds them, so none is drawn again when only the camera moves.
+    from dataclasses import replace
+
+    import parc.lights
+    monkeypatch.setattr(parc.lights, "LIGHT_BUFFER_CACHE_BYTES", 8 * 2 * 64 * 64 * 8)
+    vol, scene = _lit_blob((4.0, 4.5, 4.5))
+    scene = replace(scene, lights=[PointLight((x, 4.5, 4.5)) for x in (4.0, 4.5, 5.0)])
+    render(scene, method="parc", light_buffer=64)
+    moved = replace(scene, camera=Camera.framing(*vol.bounds, azimuth=-50, elevation=10))
+    assert render(moved, method="parc", light_buffer=64).stats["seconds"]["raster_lights"] == 0.0
