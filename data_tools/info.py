@@ -183,7 +183,8 @@ def suggest_isovalues(vol: Volume, k: int = 3, *, bins: int = 256) -> list:
 
     Multi-level Otsu thresholds (``k`` thresholds, ``k + 1`` non-empty
     classes) on a subsample of the volume, leaving out samples equal to the
-    minimum (padding, clipped air and fill values would otherwise dominate), binned over
+    minimum (padding, clipped air and fill values would otherwise dominate), and to the
+    maximum where it lies farther from the rest than they span (a fill value), binned over
     the range of the samples kept. A threshold
     that falls in a gap of the histogram moves to the gap's middle. For
     integer data every value is at ``x.5``, so it never equals a sample.
@@ -210,6 +211,12 @@ def suggest_isovalues(vol: Volume, k: int = 3, *, bins: int = 256) -> list:
     fg = values[values != vol.data.dtype.type(lo)]
     if fg.size == 0 or fg.min() == fg.max():
         fg = values  # background removal left one level: split the full data instead
+    top = fg.max()
+    rest = fg[fg != top]
+    if rest.size and rest.min() < rest.max() and float(top) - float(rest.max()) > float(rest.max()) - float(rest.min()):
+        # A value at the maximum farther from the others than they span is a fill too (a float32
+        # 3.4e38 outside a scan); a saturated top level (a CT's 4095 beside 4094) is kept.
+        fg = rest
     integer = vol.dtype.kind in "iu"
     # Float samples that are all whole numbers (a CT stored as float32) are cut at x.5 too, the
     # shortest number near a cut being often a sample value; from 2^24 on, x.5 is long to read
@@ -218,7 +225,7 @@ def suggest_isovalues(vol: Volume, k: int = 3, *, bins: int = 256) -> list:
     seen = None if whole else np.unique(values)         # sorted, for `_shortest`
     # Binned over the samples kept, not the whole range: a fill value at the minimum (a float32
     # -3.4e38 outside a scan) left every other sample in the top bin, and the cut in the gap.
-    counts, edges = _histogram(fg, fg.min(), fg.max(), integer, bins)
+    counts, edges = _histogram(fg, float(fg.min()), float(fg.max()), integer, bins)
     if counts is None:
         # A float range too narrow (or too wide) to split into bins: offer its middle.
         mid = float(0.5 * float(fg.min()) + 0.5 * float(fg.max()))

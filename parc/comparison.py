@@ -188,7 +188,8 @@ def method_names(methods, what="methods"):
         shown = methods if isinstance(given, Iterator) and isinstance(methods, list) else given
         raise InputError(f"{what} must be names such as ('brute', 'parc'), got {shown!r}") from None
     if not names:
-        raise InputError(f"{what} names no method, got {given!r}; name some, such as 'brute,parc'")
+        shown = methods if isinstance(given, Iterator) else given      # an iterator's items, as above
+        raise InputError(f"{what} names no method, got {shown!r}; name some, such as 'brute,parc'")
     for m in names:
         if m.endswith(":"):
             raise InputError(f"{what}: {m!r} has an empty label; write one after the colon, as in 'parc:a'")

@@ -74,7 +74,7 @@ _BYTES_PER_PASS_PIXEL = 24
 
 
 def light_cache_bytes(held):
-    """Bytes of light buffers a volume may keep, ``held`` of them kept now: a quarter of the
+    """Bytes of light buffers the volumes may keep, ``held`` of them kept now: a quarter of the
     memory they and the memory available make, at least `LIGHT_BUFFER_CACHE_BYTES`. (A fixed
     bound alone made three lights inside a volume at 2048 pixels, 1.2 GB, evict each other
     and be drawn again every frame.)"""

@@ -28,6 +28,7 @@ so the images are the same.
 from __future__ import annotations
 
 import time
+import weakref
 
 import numpy as np
 
@@ -281,18 +282,34 @@ def _cached_light_buffers(light, vis, proxy, size, n):
     where = light.direction if isinstance(light, DirectionalLight) else light.position
     key = (kind, tuple(where), what, tuple(size), n)
     cache = index.kept("light buffers")
-    buf = cache.get(key)
+    _LIT.add(index)
+    # Taken out and put back last: the oldest kept is then the longest unused (a light moved
+    # every frame evicts its own last places, not the lights that stay).
+    buf = cache.pop(key, None)
     if buf is None:
         # Room made before the new buffers are drawn, for the views this light takes (six at most):
         # made after, the buffers of the light's last place and its new one were held at once.
+        # The bound is on every volume's buffers together: this volume's go first, the longest
+        # unused first, then other volumes'.
         views = len(light_views(light, *proxy.bounds)) if proxy.pc.any() else 0
-        held = lambda: sum(b.near.nbytes + b.far.nbytes for b in cache.values())    # noqa: E731
-        room = light_cache_bytes(held()) - views * 2 * n * n * np.dtype(np.float64).itemsize
-        while cache and (len(cache) >= LIGHT_BUFFER_CACHE_SIZE or held() > room):
+        room = light_cache_bytes(_held()) - views * 2 * n * n * np.dtype(np.float64).itemsize
+        while len(cache) >= LIGHT_BUFFER_CACHE_SIZE:
             cache.pop(next(iter(cache)))
+        for kept in [cache] + [i.kept("light buffers") for i in _LIT if i is not index]:
+            while kept and _held() > room:
+                kept.pop(next(iter(kept)))
         buf = light_buffers(light, proxy, size=n)
-        cache[key] = buf
+    cache[key] = buf
     return buf
+
+
+#: The volume indexes keeping light buffers, for the bound on all of them (`_cached_light_buffers`).
+_LIT = weakref.WeakSet()
+
+
+def _held():
+    """Bytes of the light buffers every volume keeps."""
+    return sum(b.near.nbytes + b.far.nbytes for i in _LIT for b in i.kept("light buffers").values())
 
 
 def _read_only(a):

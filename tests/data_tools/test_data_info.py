@@ -76,10 +76,11 @@ def test_two_level_data_gives_the_gap_middle_at_any_scale(scale):
     assert suggest_isovalues(Volume(data)) == [pytest.approx(0.5 * scale, rel=1e-12)]
 
 
-@pytest.mark.parametrize("dtype, fill", [(np.float32, -3.4e38), (np.float32, -9999.0), (np.int16, -32768)])
+@pytest.mark.parametrize("dtype, fill", [(np.float32, -3.4e38), (np.float32, -9999.0), (np.int16, -32768),
+                                         (np.float32, 3.4e38), (np.float32, 1e9)])
 def test_a_fill_value_at_the_minimum_does_not_take_the_cuts(dtype, fill):
-    # Tissue near 100 and bone near 1000, outside the scan a fill value far below both: the cut
-    # between the two belongs between them, not in the gap to the fill.
+    # Tissue near 100 and bone near 1000, outside the scan a fill value far below or above both:
+    # the cut between the two belongs between them, not in the gap to the fill.
     rng = np.random.default_rng(5)
     data = rng.normal(100.0, 5.0, (24, 24, 24))
     data[8:16, 8:16, 8:16] = rng.normal(1000.0, 5.0, (8, 8, 8))

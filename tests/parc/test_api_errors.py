@@ -257,3 +257,12 @@ def test_a_masked_array_is_refused_where_masked_and_none_is_no_volume():
 def test_the_package_has_its_version():
     from importlib.metadata import version
     assert parc.__version__ == version("parc")
+
+
+@pytest.mark.parametrize("given, shown", [(iter(["brute", 1]), "['brute', 1]"), ((m for m in ["parc", None]), "['parc', None]"),
+                                          (iter(["", " "]), "['', ' ']"), ({"brute": 1, 3: 2}, "{'brute': 1, 3: 2}")])
+def test_refused_methods_show_what_was_given_an_iterators_items(given, shown):
+    from parc.comparison import method_names
+    with pytest.raises(InputError) as exc:
+        method_names(given)
+    assert f"got {shown}" in str(exc.value) and "object at" not in str(exc.value), str(exc.value)

@@ -11,6 +11,7 @@ Truth for the shadows themselves: a sphere over a floor slab under a
 vertical sun shadows exactly the floor points below the sphere's disc.
 """
 import warnings
+import weakref
 
 import numpy as np
 import pytest
@@ -593,9 +594,11 @@ def test_kept_light_buffers_stay_within_their_bytes(gl, monkeypatch):
 
     import data_tools.memory
     import parc.lights
+    import parc.multivolume
     from parc.classify import VolumeIndex
     vol, scene = _lit_blob((4.0, 4.5, 4.5))                 # inside: six cube views a place
     one = 2 * 64 * 64 * 8                                   # near and far of one 64x64 view
+    monkeypatch.setattr(parc.multivolume, "_LIT", weakref.WeakSet())    # no other test's volumes
     monkeypatch.setattr(parc.lights, "LIGHT_BUFFER_CACHE_BYTES", 8 * one)
     monkeypatch.setattr(data_tools.memory, "available_memory", lambda: 20 * one)   # a quarter is less
     for x in (4.0, 4.5, 5.0, 5.5):
@@ -624,9 +627,81 @@ def test_several_lights_are_kept_together_where_the_memory_allows(gl, monkeypatc
     from dataclasses import replace
 
     import parc.lights
+    import parc.multivolume
+    monkeypatch.setattr(parc.multivolume, "_LIT", weakref.WeakSet())    # no other test's volumes
     monkeypatch.setattr(parc.lights, "LIGHT_BUFFER_CACHE_BYTES", 8 * 2 * 64 * 64 * 8)
     vol, scene = _lit_blob((4.0, 4.5, 4.5))
     scene = replace(scene, lights=[PointLight((x, 4.5, 4.5)) for x in (4.0, 4.5, 5.0)])
     render(scene, method="parc", light_buffer=64)
     moved = replace(scene, camera=Camera.framing(*vol.bounds, azimuth=-50, elevation=10))
     assert render(moved, method="parc", light_buffer=64).stats["seconds"]["raster_lights"] == 0.0
+
+
+def test_room_is_made_for_the_views_the_light_takes_not_six(gl, monkeypatch):
+    # Two point lights outside the volume take one perspective view each: a bound of two views
+    # keeps both (room for six before each was drawn evicted the first).
+    from dataclasses import replace
+
+    import data_tools.memory
+    import parc.lights
+    import parc.multivolume
+    from parc.classify import VolumeIndex
+    from parc.lights import light_views
+    vol, scene = _lit_blob((30.0, -20.0, 25.0))
+    one = 2 * 64 * 64 * 8
+    monkeypatch.setattr(parc.multivolume, "_LIT", weakref.WeakSet())    # no other test's volumes
+    monkeypatch.setattr(parc.lights, "LIGHT_BUFFER_CACHE_BYTES", 2 * one)
+    monkeypatch.setattr(data_tools.memory, "available_memory", lambda: 4 * one)     # a quarter is less
+    lights = [PointLight((30.0, -20.0, 25.0)), PointLight((-25.0, 30.0, 20.0))]
+    assert all(len(light_views(light, *vol.bounds)) == 1 for light in lights)
+    render(replace(scene, lights=lights), method="parc", light_buffer=64)
+    assert len(VolumeIndex.of(vol).kept("light buffers")) == 2
+
+
+def test_a_light_moved_every_frame_evicts_its_own_last_places_not_the_lights_that_stay(gl, monkeypatch):
+    # Room for three lights of six views: two stay, one moves each frame. Only the moving one is
+    # drawn again, each frame: evicting the oldest kept, not the longest unused, drew the lights
+    # that stay again too.
+    from dataclasses import replace
+
+    import data_tools.memory
+    import parc.lights
+    import parc.multivolume
+    one = 2 * 64 * 64 * 8
+    monkeypatch.setattr(parc.multivolume, "_LIT", weakref.WeakSet())    # no other test's volumes
+    monkeypatch.setattr(parc.lights, "LIGHT_BUFFER_CACHE_BYTES", 18 * one)
+    monkeypatch.setattr(data_tools.memory, "available_memory", lambda: 40 * one)    # a quarter is less
+    drawn = []
+    draw = parc.multivolume.light_buffers
+    monkeypatch.setattr(parc.multivolume, "light_buffers", lambda light, proxy, size: drawn.append(light)
+                        or draw(light, proxy, size=size))
+    vol, scene = _lit_blob((4.0, 4.5, 4.5))
+    static = [PointLight((4.0, 4.5, 4.5)), PointLight((5.0, 4.5, 4.5))]
+    for frame in range(5):
+        drawn.clear()
+        moving = PointLight((4.5, 4.0 + 0.01 * frame, 4.5))
+        render(replace(scene, lights=[*static, moving]), method="parc", light_buffer=64)
+        assert drawn == ([*static, moving] if frame == 0 else [moving]), (frame, drawn)
+
+
+def test_the_bound_on_kept_light_buffers_holds_over_every_volume(gl, monkeypatch):
+    # Two volumes, each lit from inside by a light moved every frame: each volume keeping up to
+    # the bound would hold twice it together.
+    from dataclasses import replace
+
+    import data_tools.memory
+    import parc.lights
+    import parc.multivolume
+    from parc.classify import VolumeIndex
+    monkeypatch.setattr(parc.multivolume, "_LIT", weakref.WeakSet())    # no other test's volumes
+    one = 2 * 64 * 64 * 8
+    monkeypatch.setattr(parc.lights, "LIGHT_BUFFER_CACHE_BYTES", 8 * one)
+    monkeypatch.setattr(data_tools.memory, "available_memory", lambda: 20 * one)   # a quarter is less
+    (a, scene_a), (b, scene_b) = _lit_blob((4.0, 4.5, 4.5)), _lit_blob((4.0, 4.5, 4.5))
+    for frame in range(4):
+        for vol, scene in ((a, scene_a), (b, scene_b)):
+            lit = replace(scene, lights=[PointLight((4.0 + 0.25 * frame, 4.5, 4.5))])
+            render(lit, method="parc", light_buffer=64)
+            held = sum(buf.near.nbytes + buf.far.nbytes for v in (a, b)
+                       for buf in VolumeIndex.of(v).kept("light buffers").values())
+            assert held <= 8 * one, (frame, held)
