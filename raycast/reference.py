@@ -46,6 +46,10 @@ The float evaluation error scale of the caster's cubic is
    of the box may go either way). All other roots in the box grown by
    ``pad`` are *optional* (double and near-double roots, roots at the box
    boundary).
+1b. The first root ``r1`` of a pair ``r1 < r2`` that is not simple is
+   required too (tolerance ``max(tol, 16 dt(r1))``) when the cubic's
+   extremum between them is at least ``100 E`` from zero: floating point
+   surely separates the two roots there, so the first must be taken.
 2. If a required root exists, the first one ``r*`` must be hit:
    ``t_m`` finite and, if ``t_m >= r* - tol``, ``|t_m - r*| <= tol`` with
    ``tol = 1e-9 h + 4 eps |r*|`` (the last term is the rounding of ``t``
@@ -90,7 +94,7 @@ import numpy as np
 
 from .hardcases import cast_batch
 from .hardfields import field_grad
-from .mpcubic import box_intervals, index_ray, mpf, pderiv, peval, ray_cubic, real_roots
+from .mpcubic import _critical_points, box_intervals, index_ray, mpf, pderiv, peval, ray_cubic, real_roots
 
 EPS = 2.0 ** -52
 SIMPLE_REL = 1e-10      # dt <= SIMPLE_REL * h  -> simple root
@@ -98,6 +102,7 @@ HIT_REL = 1e-9          # |t_m - r| <= HIT_REL * h for a simple root
 BOX_PAD = 1e-12         # index units, plus dpos
 NONSIMPLE_REL = 1e-6    # cap of the conditioned tolerance of optional roots
 NOISE_FACTOR = 10.0     # |P(t_m)| <= NOISE_FACTOR * E(t_m) + ...
+RESOLVABLE = 100.0      # |P(e)| >= RESOLVABLE * E(e) between two roots: float sees them apart
 
 
 # ------------------------------------------------------- acceptance rule
@@ -150,6 +155,21 @@ class Truth:
             if not required:
                 tol = max(tol, min(16 * dt, NONSIMPLE_REL * self.h))
             self.roots.append((rf, dt, required, tol))
+        self._require_a_resolvable_pair()
+
+    def _require_a_resolvable_pair(self):
+        """Rule 1b: the first root of a close pair is required too when float evaluation surely
+        sees the dip between them (``|P(e)| >= 100 E(e)`` at the critical point ``e``), though
+        the pair leaves it too ill-conditioned to be simple: a caster taking the second root
+        or neither would pass rule 3, and one did (a search that stepped over shallow dips)."""
+        if len(self.roots) < 2 or self.roots[0][2]:
+            return
+        (r1, dt1, _, _), r2 = self.roots[0], self.roots[1][0]
+        if not (r1 > HIT_REL * self.h and self.inner[0] <= r1 <= self.inner[1]):
+            return
+        between = [e for e in _critical_points(self.p) if r1 < e < r2]
+        if between and abs(float(peval(self.p, between[0]))) >= RESOLVABLE * self.error_scale(float(between[0])):
+            self.roots[0] = (r1, dt1, True, max(HIT_REL * self.h + 4 * EPS * abs(r1), 16 * dt1))
 
     def point(self, t):
         return [float(self.O[a] + mpf(t) * self.D[a]) for a in range(3)]
