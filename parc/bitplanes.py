@@ -115,8 +115,8 @@ import numpy as np
 from data_tools import InputError
 
 from .gl import get_context, moderngl_module, program, set_uniform
-from .raster import (ABS_TOL, COVERAGE_PAD_PX, FLOAT32_REACH, GUARD_PX, TOL_REL, perspective_clip, scene_scale,
-                     set_view_uniforms, view_reach)
+from .raster import (ABS_TOL, COVERAGE_PAD_PX, FLOAT32_REACH, GUARD_PX, PASS_PHASES, TOL_REL, perspective_clip,
+                     scene_scale, set_view_uniforms, view_reach)
 # `plane_buffers` keeps as many proxies as the renderer, so that a supercell sweep keeps its planes' too.
 from .renderer import PROXY_CACHE_SIZE
 
@@ -353,7 +353,7 @@ def raster_bits(camera, width, height, plane_proxy, *, first, count, halo=False,
         bits = np.zeros((height, width, nwords), np.uint32)
         for w in range(nwords):
             bits[..., w] = np.uint32((1 << min(32, count - 32 * w)) - 1) if count > 32 * w else 0
-        seconds = dict.fromkeys(("prepare", "upload", "draw", "readback", "post", "total"), 0.0)
+        seconds = dict.fromkeys(PASS_PHASES, 0.0)
         return bits, {"seconds": seconds, "polygons": 0, "proxy_faces": proxy.n_polygons, "nwords": nwords,
                       "eye_inside": False, "d_min": None, "clip_near": 0.0, "eye_planes": [], "scale": scale,
                       "band": band, "every_plane": True}

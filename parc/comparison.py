@@ -178,17 +178,17 @@ def method_names(methods, what="methods"):
         if any(pieces) and not all(pieces):
             raise InputError(f"{what} {methods!r} has an empty name between commas")
         methods = methods.split(",")
+    shown = given           # in refusals: what was given, but an iterator's items (its repr names none)
     try:
         methods = list(methods)         # a generator is read once, here
+        if isinstance(given, Iterator):
+            shown = methods
         if not all(isinstance(m, str) for m in methods):
             raise TypeError
         names = [m.strip() for m in methods if m.strip()]
     except (TypeError, AttributeError):
-        # What was given, but an iterator's items (read here, its repr names none).
-        shown = methods if isinstance(given, Iterator) and isinstance(methods, list) else given
         raise InputError(f"{what} must be names such as ('brute', 'parc'), got {shown!r}") from None
     if not names:
-        shown = methods if isinstance(given, Iterator) else given      # an iterator's items, as above
         raise InputError(f"{what} names no method, got {shown!r}; name some, such as 'brute,parc'")
     for m in names:
         if m.endswith(":"):

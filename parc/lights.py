@@ -73,6 +73,11 @@ _BYTES_PER_VIEW_PIXEL = 16
 _BYTES_PER_PASS_PIXEL = 24
 
 
+def buffer_bytes(views, size):
+    """Bytes of the near and far buffers of ``views`` views of ``size`` x ``size`` pixels."""
+    return _BYTES_PER_VIEW_PIXEL * views * size * size
+
+
 def light_cache_bytes(held):
     """Bytes of light buffers the volumes may keep, ``held`` of them kept now: a quarter of the
     memory they and the memory available make, at least `LIGHT_BUFFER_CACHE_BYTES`. (A fixed
@@ -217,7 +222,7 @@ def light_buffers(light, proxy, *, size=LIGHT_BUFFER_SIZE):
     if not proxy.pc.any():
         return LightBuffers(*no_views(), 0, time.perf_counter() - t0)
     cams = light_views(light, lo, hi)
-    check_memory((_BYTES_PER_VIEW_PIXEL * len(cams) + _BYTES_PER_PASS_PIXEL) * size * size,
+    check_memory(buffer_bytes(len(cams), size) + _BYTES_PER_PASS_PIXEL * size * size,
                  f"shadow buffers of {size}x{size} pixels from {len(cams)} view{'s' * (len(cams) > 1)}",
                  f": give a smaller light_buffer (the default is {LIGHT_BUFFER_SIZE})")
     near = np.empty((len(cams), size, size))

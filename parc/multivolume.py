@@ -38,8 +38,8 @@ from raycast.iso import NO_SHADING, cast_iso_image, keep_nearest
 from raycast.shadow import (KIND_HEADLIGHT, combine_lights, light_terms, shadow_accumulate, shadow_iso,
                             surface_frames)
 
-from .lights import (LIGHT_BUFFER_CACHE_SIZE, LIGHT_BUFFER_SIZE, light_array, light_buffers, light_cache_bytes,
-                     light_views, no_views)
+from .lights import (LIGHT_BUFFER_CACHE_SIZE, LIGHT_BUFFER_SIZE, buffer_bytes, light_array, light_buffers,
+                     light_cache_bytes, light_views, no_views)
 from .scene import DirectionalLight, Isosurface
 from .workspace import work_array
 
@@ -292,7 +292,7 @@ def _cached_light_buffers(light, vis, proxy, size, n):
         # The bound is on every volume's buffers together: this volume's go first, the longest
         # unused first, then other volumes'.
         views = len(light_views(light, *proxy.bounds)) if proxy.pc.any() else 0
-        room = light_cache_bytes(_held()) - views * 2 * n * n * np.dtype(np.float64).itemsize
+        room = light_cache_bytes(_held()) - buffer_bytes(views, n)
         while len(cache) >= LIGHT_BUFFER_CACHE_SIZE:
             cache.pop(next(iter(cache)))
         for kept in [cache] + [i.kept("light buffers") for i in _LIT if i is not index]:

@@ -194,6 +194,8 @@ INSIDE_CLIP_REL = 2.0 ** -30
 #: scene's spacing-free scale, `scene_scale`) from the eye, 2^8 short of float32's largest,
 #: gets no pass: every ray's segment is whole, and the caster walks it as `brute` does.
 FLOAT32_REACH = 2.0 ** 120
+#: The phases a pass times (`Segments.seconds`, `parc.bitplanes.raster_bits`'s info).
+PASS_PHASES = ("prepare", "upload", "draw", "readback", "post", "total")
 
 #: An eye this close to the PC region (times the scene scale) counts as inside it: the caster
 #: moves the eye into index space, where one a rounding outside a face in world coordinates
@@ -392,7 +394,7 @@ def raster_segments(camera, width, height, proxy, *, pad_px=COVERAGE_PAD_PX, fac
         seg = np.empty((height, width, 2)) if out is None else out
         seg[..., 0] = 0.0
         seg[..., 1] = np.inf
-        seconds = dict.fromkeys(("prepare", "upload", "draw", "readback", "post", "total"), 0.0)
+        seconds = dict.fromkeys(PASS_PHASES, 0.0)
         info = {"eye_inside": False, "d_min": None, "clip_near": 0.0, "pixels": width * height,
                 "scale": scale, "drawn": 0, "whole_rays": True}
         return Segments(near=seg[..., 0], far=seg[..., 1], polygons=0, seconds=seconds, info=info, _seg=seg)
