@@ -119,8 +119,11 @@ class Translucent:
             self.step = reference_step(self.volume.spacing)
         self.step = check_step(self.step, self.volume.spacing)
         self.threshold = check_threshold(self.threshold)
-        if self.threshold != DEFAULT_THRESHOLD and self.mode != "composite":
-            raise InputError(f"threshold applies to mode composite; {self.mode} does not stop rays early")
+        if self.mode != "composite":
+            # The default given back in float32 (a value read from an array) is still the default.
+            if np.float32(self.threshold) != np.float32(DEFAULT_THRESHOLD):
+                raise InputError(f"threshold applies to mode composite; {self.mode} does not stop rays early")
+            self.threshold = DEFAULT_THRESHOLD
         self.shade = _flag(self.shade, "shade")
         if self.shade and self.mode != "composite":
             raise InputError(f"shade applies to mode composite; {self.mode} does not shade samples")

@@ -184,6 +184,10 @@ def test_a_composite_volume_replaced_into_another_mode_keeps_its_default_thresho
     assert dataclasses.replace(vis, mode="mip").threshold == vis.threshold == 0.99
     with pytest.raises(InputError, match="threshold applies to mode composite"):
         dataclasses.replace(vis, threshold=0.5, mode="mip")
+    # The default read back from a float32 array is the default, not another threshold.
+    assert Translucent(vis.volume, "greyscale", mode="mip", threshold=np.float32(0.99)).threshold == 0.99
+    with pytest.raises(InputError, match="threshold applies to mode composite"):
+        Translucent(vis.volume, "greyscale", mode="average", threshold=np.nextafter(np.float32(0.99), 1))
 
 
 @pytest.mark.parametrize("mode, slow", [("mip", _slow_mip), ("average", _slow_average)])
