@@ -52,6 +52,7 @@ def check_output(path, allowed):
         raise InputError(f"{path}: folder {folder} does not exist")
     if path.is_dir():
         raise InputError(f"{path}: is a folder")
+    written_path(path)      # a device or pipe, or a link to one, is refused before any work
     if path.is_symlink():
         # The file is written where the link leads (`atomic_write_all`): that folder must take it.
         target = Path(os.path.realpath(path))
@@ -91,7 +92,6 @@ def stale_sidecars(paths):
     them with the write. Both names count for a link: the sidecar beside the name given, which
     a reader of that name finds, and the one beside the file it leads to. A file of that name
     that is no sidecar (a run's stats) is left alone; a folder is refused before any work."""
-    from data_tools.io import written_path
     from data_tools.io.npy import is_sidecar, sidecar_path
     stale = []
     for path in paths:

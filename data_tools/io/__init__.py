@@ -255,9 +255,15 @@ def save_volume(volume: Volume, path, **options) -> Path:
 def written_path(path) -> Path:
     """The file a write to ``path`` replaces: a symbolic link's target (made if missing), else
     ``path``. Writes go through a temporary file renamed onto it, and renamed onto the link
-    itself they replaced the link with a file."""
+    itself they replaced the link with a file. Refused when that is neither a file nor absent
+    (nor a folder, which the writers refuse in their own words)."""
     path = Path(path)
-    return Path(os.path.realpath(path)) if path.is_symlink() else path
+    target = Path(os.path.realpath(path)) if path.is_symlink() else path
+    if target.exists() and not (target.is_file() or target.is_dir()):
+        # Renamed onto, a device (/dev/null) or a pipe would be replaced by a file: for root, silently.
+        where = f"a link to {target}, " if target != path else ""
+        raise InputError(f"{path}: {where}not a regular file (a device, pipe or socket); write to a file")
+    return target
 
 
 __all__ = ["load_volume", "save_volume", "written_path", "data_file_written", "volume_extension",

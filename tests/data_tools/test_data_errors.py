@@ -1,6 +1,8 @@
 """Bad input of every kind raises InputError with one line naming the file, never a raw exception."""
 from __future__ import annotations
 
+import os
+import stat
 import tracemalloc
 
 import nrrd
@@ -455,6 +457,17 @@ def test_a_volume_saved_through_a_link_lands_where_it_leads(tmp_path):
     assert save_volume(Volume(SMALL), tmp_path / "link.nrrd") == tmp_path / "link.nrrd"
     assert (tmp_path / "link.nrrd").is_symlink()
     np.testing.assert_array_equal(load_volume(tmp_path / "real.nrrd").data, SMALL)
+
+
+@pytest.mark.parametrize("ext", [".nrrd", ".nhdr", ".npy", ".raw"])
+def test_a_volume_saved_onto_a_pipe_is_refused_and_the_pipe_kept(tmp_path, ext):
+    # Renamed onto, a pipe (or, for root, a device such as /dev/null) became a plain file.
+    os.mkfifo(tmp_path / "fifo")
+    (tmp_path / ("link" + ext)).symlink_to(tmp_path / "fifo")
+    with pytest.raises(InputError, match="a link to .*fifo, not a regular file"):
+        save_volume(Volume(SMALL), tmp_path / ("link" + ext))
+    assert stat.S_ISFIFO(os.stat(tmp_path / "fifo").st_mode)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fifo", "link" + ext]
 
 
 # --- MetaImage -------------------------------------------------------------

@@ -4,6 +4,7 @@ import json
 import os
 import re
 import subprocess
+import stat
 import sys
 from pathlib import Path
 
@@ -548,6 +549,31 @@ def test_an_output_that_is_a_link_is_written_where_it_leads(vol_file, tmp_path, 
     assert (tmp_path / "i.png").is_symlink() and (tmp_path / "v.nrrd").is_symlink()
     assert Image.open(tmp_path / "out" / "real.png").size == (8, 8)
     assert np.array_equal(load_volume(tmp_path / "out" / "real.nrrd").data, load_volume(vol_file).data)
+
+
+@pytest.mark.parametrize("command", [["render", "{vol}", "--iso", 4, "--size", 8, 8, "-o", "{out}.png"],
+                                     ["render", "{vol}", "--iso", 4, "--size", 8, 8, "-o", "ok.png",
+                                      "--stats", "{out}.json"],
+                                     ["convert", "{vol}", "-o", "{out}.nrrd"]])
+@pytest.mark.parametrize("kind", ["pipe", "link to a pipe"])
+def test_an_output_on_a_pipe_is_refused_and_left_a_pipe(vol_file, tmp_path, capsys, command, kind):
+    # Renamed onto, a named pipe (or a device: a link to /dev/null, for root) became a plain file.
+    os.mkfifo(tmp_path / "fifo")
+    out = tmp_path / "o"
+    if kind == "pipe":
+        os.rename(tmp_path / "fifo", tmp_path / ("o" + Path(command[-1]).suffix))
+        pipe = tmp_path / ("o" + Path(command[-1]).suffix)
+    else:
+        (tmp_path / ("o" + Path(command[-1]).suffix)).symlink_to(tmp_path / "fifo")
+        pipe = tmp_path / "fifo"
+    argv = [str(a).format(vol=vol_file, out=out) for a in command]
+    argv = [str(tmp_path / a) if a == "ok.png" else a for a in argv]
+    rc, out_text, err = _run(argv, capsys)
+    assert rc == 2 and out_text == ""
+    assert err.startswith("parc: error: ") and "not a regular file (a device, pipe or socket)" in err
+    assert err.count("\n") == 1
+    assert stat.S_ISFIFO(os.stat(pipe).st_mode)
+    assert not (tmp_path / "ok.png").exists()
 
 
 @pytest.mark.parametrize("case, words", [
