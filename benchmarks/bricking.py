@@ -15,7 +15,6 @@ Without --volume: CThead skin (../shared/data) when present, else a CT-like phan
 """
 import argparse
 import statistics
-import sys
 import time
 
 import numba
@@ -29,7 +28,7 @@ from raycast.bricks import BRICK, MACRO, brick
 from raycast.composite import cast_accumulate_image
 from raycast.iso import NO_SKIP, cast_iso_image, empty_outputs
 
-from volumes import add_volume_flags, pick_volume   # beside this script
+from volumes import add_volume_flags, count, pick_volume, run   # beside this script
 
 
 def cast_iso(samples, vis, cam, w, h, seg, skip, jump_min):
@@ -62,15 +61,15 @@ def cast_translucent(samples, vis, cam, w, h, seg, skip, jump_min):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--size", type=int, default=512)
+    ap.add_argument("--size", type=count, default=512)
     add_volume_flags(ap)
     ap.add_argument("--tf", help="a transfer-function preset or file: cast a translucent volume instead")
-    ap.add_argument("--brick", type=int, default=BRICK, help="samples per brick side (n)")
-    ap.add_argument("--macro", type=int, default=MACRO, help="bricks per macrobrick side (m)")
+    ap.add_argument("--brick", type=count, default=BRICK, help="samples per brick side (n)")
+    ap.add_argument("--macro", type=count, default=MACRO, help="bricks per macrobrick side (m)")
     ap.add_argument("--azimuth", type=float, default=35.0)
     ap.add_argument("--elevation", type=float, default=25.0)
-    ap.add_argument("--threads", type=int, default=numba.config.NUMBA_NUM_THREADS)
-    ap.add_argument("--repeats", type=int, default=7)
+    ap.add_argument("--threads", type=count, default=numba.config.NUMBA_NUM_THREADS)
+    ap.add_argument("--repeats", type=count, default=7)
     args = ap.parse_args()
     vol, iso = pick_volume(args, need_iso=not args.tf)
     w = h = args.size
@@ -110,7 +109,4 @@ def main():
 
 
 if __name__ == "__main__":
-    try:
-        sys.exit(main())
-    except (ValueError, OSError) as e:         # InputError is a ValueError
-        sys.exit(f"bricking.py: error: {e}")
+    run(main)

@@ -25,7 +25,7 @@ import time
 import numba
 import numpy as np
 
-from volumes import add_volume_flags, pick_volume
+from volumes import add_volume_flags, count, pick_volume, run
 
 
 def best_ms(cast, repeats):
@@ -134,13 +134,13 @@ def translucent_parts(vol, tf_name, size, repeats):
     print(f"  speedup of the cast: {ms['brute'] / ms['parc']:.2f}x; same as brute: {same}")
 
 
-if __name__ == "__main__":
+def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     add_volume_flags(ap)
     ap.add_argument("--tf", help="a transfer-function preset or file: time the translucent cast instead")
-    ap.add_argument("--size", type=int, default=512, help="image side in pixels (default 512)")
-    ap.add_argument("--threads", type=int, default=1, help="Numba threads (default 1: no scheduling noise)")
-    ap.add_argument("--repeats", type=int, default=15)
+    ap.add_argument("--size", type=count, default=512, help="image side in pixels (default 512)")
+    ap.add_argument("--threads", type=count, default=1, help="Numba threads (default 1: no scheduling noise)")
+    ap.add_argument("--repeats", type=count, default=15)
     a = ap.parse_args()
     numba.set_num_threads(a.threads)
     volume, level = pick_volume(a, need_iso=a.tf is None)
@@ -149,3 +149,7 @@ if __name__ == "__main__":
         translucent_parts(volume, a.tf, a.size, a.repeats)
     else:
         iso_parts(volume, level, a.size, a.repeats)
+
+
+if __name__ == "__main__":
+    run(main)

@@ -11,6 +11,7 @@ import numpy as np
 from data_tools.synthetic import ct_phantom
 from parc import Camera, Isosurface, Scene, render
 from raycast.iso import NO_SHADING, NO_SKIP, cast_iso_image, empty_outputs
+from volumes import count, run   # beside this script
 
 
 def empty_space_rate(n, threads, width=512, repeats=3):
@@ -43,9 +44,9 @@ def ct_frame(n, size=512, repeats=3):
     return out
 
 
-if __name__ == "__main__":
+def main():
     ap = argparse.ArgumentParser(description=__doc__)
-    ap.add_argument("--size", type=int, default=256)
+    ap.add_argument("--size", type=count, default=256)
     a = ap.parse_args()
     print(f"threads available: {numba.config.NUMBA_NUM_THREADS}")
     for th in sorted({1, numba.config.NUMBA_NUM_THREADS}):
@@ -56,3 +57,7 @@ if __name__ == "__main__":
         print(f"CT phantom {a.size}^3 {name} iso {s['parameters']['isovalue']:g}, 512x512: "
               f"{s['seconds']['total']:.3f} s/frame (cast and shading {s['seconds']['cast']:.3f}), "
               f"{s['cells_visited'] / 1e6:.1f} M cells, {s['cubic_solves']:,} cubics, {s['hits']:,} hits")
+
+
+if __name__ == "__main__":
+    run(main)

@@ -25,7 +25,7 @@ import sys
 
 import numpy as np
 
-from volumes import add_volume_flags, pick_volume   # beside this script
+from volumes import add_volume_flags, count, pick_volume, run   # beside this script
 
 WAYS = {"threads": ("pinned", "unpinned"), "wait": ("default", "USLEEP", "NOTHING")}
 
@@ -57,20 +57,24 @@ def main():
     ap.add_argument("--setting", choices=sorted(WAYS), default="threads",
                     help="the context setting to vary (default threads; see above)")
     add_volume_flags(ap)
-    ap.add_argument("--size", type=int, default=512, help="image side in pixels (default 512)")
-    ap.add_argument("--repeats", type=int, default=21, help="timed frames a method in each run (default 21)")
-    ap.add_argument("--rounds", type=int, default=3, help="runs each way, alternated (default 3)")
+    ap.add_argument("--size", type=count, default=512, help="image side in pixels (default 512)")
+    ap.add_argument("--repeats", type=count, default=21, help="timed frames a method in each run (default 21)")
+    ap.add_argument("--rounds", type=count, default=3, help="runs each way, alternated (default 3)")
     ap.add_argument("--one", choices=[w for ways in WAYS.values() for w in ways], help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.one:
         one_run(args)
         return
+    pick_volume(args)           # bad input refused here, not in every child
     ways = WAYS[args.setting]
     runs = {way: [] for way in ways}
     for _ in range(args.rounds):
         for way in ways:
             child = subprocess.run([sys.executable, __file__, *sys.argv[1:], "--one", way],
-                                   capture_output=True, text=True, check=True)
+                                   capture_output=True, text=True)
+            if child.returncode:
+                sys.stderr.write(child.stderr)
+                return child.returncode
             row = json.loads(child.stdout.strip().splitlines()[-1])
             runs[way].append(row)
             print(f"  {way:9s} OpenGL pass {row['raster_ms']:6.2f} ms  parc {row['parc_s'] * 1e3:7.2f} ms  "
@@ -85,4 +89,4 @@ def main():
 
 
 if __name__ == "__main__":
-    main()
+    run(main)

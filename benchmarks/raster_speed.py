@@ -34,7 +34,7 @@ from parc.gl import get_context
 from parc.raster import raster_segments
 from raycast.iso import NO_SHADING, NO_SKIP, cast_iso_image, empty_outputs
 
-from volumes import add_volume_flags, pick_volume   # beside this script
+from volumes import add_volume_flags, count, pick_volume, run   # beside this script
 
 SIZES = (1, 2, 3, 4, 6, 8)
 
@@ -50,10 +50,10 @@ def cast(vol, cam, w, h, iso, seg=None):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--size", type=int, default=512)
+    ap.add_argument("--size", type=count, default=512)
     add_volume_flags(ap)
     ap.add_argument("--zoom", type=float, default=1.6)
-    ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--repeats", type=count, default=5)
     ap.add_argument("--parallel", action="store_true", help="a parallel view (default: perspective)")
     ap.add_argument("--stages", action="store_true", help="time the raster stages only (see above)")
     ap.add_argument("--supercell", type=float,
@@ -146,4 +146,4 @@ def stages(idx, vol, iso, cam, w, h, args):
 
 
 if __name__ == "__main__":
-    main()
+    run(main)

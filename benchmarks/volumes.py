@@ -1,4 +1,7 @@
-"""The volume a micro-benchmark script measures, from its flags (shared by the scripts here)."""
+"""What the micro-benchmark scripts here share: the volume one measures, from its flags, and
+how a script reads counts and ends on bad input."""
+import argparse
+import sys
 from pathlib import Path
 
 CTHEAD = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "CThead.nrrd"
@@ -12,7 +15,7 @@ def add_volume_flags(ap):
     ap.add_argument("--volume")
     ap.add_argument("--iso", type=float)
     ap.add_argument("--synthetic", help="a data_tools synthetic volume name (sphere, torus, ...)")
-    ap.add_argument("--n", type=int, default=256, help="synthetic volume size")
+    ap.add_argument("--n", type=count, default=256, help="synthetic volume size")
 
 
 def pick_volume(args, need_iso=True):
@@ -34,3 +37,25 @@ def pick_volume(args, need_iso=True):
     if iso is None and need_iso:
         raise ValueError("--volume needs --iso")
     return vol, iso
+
+
+def count(text):
+    """An argparse type: a whole number of at least 1 (a size, repeats, threads)."""
+    try:
+        n = int(text)
+    except ValueError:
+        n = 0
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"must be a whole number of at least 1, got {text!r}")
+    return n
+
+
+def run(main):
+    """Exit with ``main()``'s status; bad input (a missing file, a level outside the data) ends
+    in one line naming the script and status 2, as `parc`'s own commands do, not in a traceback."""
+    try:
+        status = main()
+    except (ValueError, OSError) as exc:         # InputError is a ValueError
+        print(f"{Path(sys.argv[0]).name}: error: {exc}", file=sys.stderr)
+        sys.exit(2)
+    sys.exit(status)

@@ -1,10 +1,14 @@
 """Hold Ctrl-C and the stop signals while several files are renamed into place, so that an
 output made of several files (an image with its depth and stats, a header with its data file,
-a report) is replaced all together or not at all."""
+a report) is replaced all together or not at all; and end a run at once, leaving none of the
+temporary files it was filling."""
 from __future__ import annotations
 
 import contextlib
+import os
+import shutil
 import signal
+from pathlib import Path
 
 #: Ctrl-C and the signals that stop a run (`parc.cli`); SIGHUP is not on every system.
 STOPS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
@@ -25,3 +29,30 @@ def signals_held(signums=STOPS):
             signal.signal(signum, signal.SIG_DFL if handler is None else handler)
         for signum in dict.fromkeys(held):
             signal.raise_signal(signum)
+
+
+#: Temporary files and folders a run is filling (`building`).
+_BUILDING = []
+
+
+@contextlib.contextmanager
+def building(path):
+    """Mark ``path``, a temporary file or folder the block fills, to be removed should the run
+    be ended at once (`end_at_once`), where no ``finally`` runs."""
+    _BUILDING.append(Path(path))
+    try:
+        yield
+    finally:
+        _BUILDING.remove(Path(path))
+
+
+def end_at_once(status):
+    """End the process now, without unwinding, removing what `building` marks first: for a
+    signal given again while Numba compiles (`parc.cli`), where an exception cannot be raised."""
+    for path in _BUILDING:
+        if path.is_dir() and not path.is_symlink():
+            shutil.rmtree(path, ignore_errors=True)
+        else:
+            with contextlib.suppress(OSError):
+                path.unlink()
+    os._exit(status)

@@ -22,7 +22,7 @@ from data_tools import InputError
 from data_tools.errors import os_reason
 from data_tools.info import exact_text
 from data_tools.io.npy import save_array
-from data_tools.signals import STOPS
+from data_tools.signals import STOPS, end_at_once
 
 from .arguments import build_parser, join_signed_values, supercell_size
 from .flagscene import load_volume_flags, scene_and_notes
@@ -114,14 +114,29 @@ class _Stopped(BaseException):
 
 
 def _stop_on_signals():
-    """Turn SIGTERM and SIGHUP into `_Stopped` for the run; the handlers they replace, to restore."""
+    """Turn SIGTERM and SIGHUP into `_Stopped` and Ctrl-C into KeyboardInterrupt for the run,
+    held while Numba compiles (`raycast.config.after_compile`): raised inside its compile,
+    they were lost, crashed the process or broke the kernel. A second signal then stops the
+    run at once. The handlers they replace, to restore."""
     def stop(signum, frame):
+        config = sys.modules.get("raycast.config")
+        if config is not None and config.compiling():
+            if config.after_compile(lambda: stop(signum, None)):
+                _error("stopping once this kernel has compiled (Ctrl-C again to stop at once)")
+                return
+            # Outputs are written after the casts; what a run fills meanwhile is marked `building`.
+            _error("interrupted" if signum == signal.SIGINT else f"stopped by {signal.Signals(signum).name}")
+            end_at_once(128 + signum)
+        if signum == signal.SIGINT:
+            raise KeyboardInterrupt
         raise _Stopped(signum)
     replaced = {}
     for signum in STOPS:
-        if signum != signal.SIGINT:     # Ctrl-C stays KeyboardInterrupt
-            with contextlib.suppress(ValueError, OSError):     # not the main thread, or no such signal here
-                replaced[signum] = signal.signal(signum, stop)
+        # An ignored signal stays ignored: SIGHUP under nohup, Ctrl-C for a job a script started with &.
+        if signal.getsignal(signum) == signal.SIG_IGN:
+            continue
+        with contextlib.suppress(ValueError, OSError):     # not the main thread, or no such signal here
+            replaced[signum] = signal.signal(signum, stop)
     return replaced
 
 

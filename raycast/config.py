@@ -25,6 +25,7 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 import numba  # noqa: E402
 import numba.core.config  # noqa: E402
+import numba.core.event  # noqa: E402
 
 #: Shares the parallel loops deal their tiles into (`raycast.rays.spread`):
 #: the threads Numba starts with. A compile-time constant (asking Numba in
@@ -114,6 +115,49 @@ def _cache_is_only_a_shortcut():
 
 
 _cache_is_only_a_shortcut()
+
+
+class _CompilerLockWatch(numba.core.event.Listener):
+    """How deep Numba's compiler lock is held (compiling, or loading a kernel from the cache),
+    and what is to be done once it is let go.
+
+    A KeyboardInterrupt raised inside a compile, or in the finalizers of llvmlite's objects
+    that run during one, was swallowed (the run went on and wrote its file), crashed the
+    process, or left the kernel broken ("no compiled object yet"). A run's signal handler
+    (`parc.cli`) therefore hands what it would raise to `after_compile` while `compiling`, and
+    it is raised here, after the lock's last release, where nothing is half built.
+    """
+
+    def __init__(self):
+        self.depth = 0
+        self.pending = None
+
+    def on_start(self, event):
+        self.depth += 1
+
+    def on_end(self, event):
+        self.depth -= 1
+        if self.depth == 0 and self.pending is not None:
+            act, self.pending = self.pending, None
+            act()
+
+
+_LOCK_WATCH = _CompilerLockWatch()
+numba.core.event.register("numba:compiler_lock", _LOCK_WATCH)
+
+
+def compiling():
+    """Whether Numba is compiling (or loading from its cache) a kernel now."""
+    return _LOCK_WATCH.depth > 0
+
+
+def after_compile(act):
+    """Call ``act`` once the compile under way ends (it may raise); False if one is already
+    waiting, which is then kept."""
+    if _LOCK_WATCH.pending is not None:
+        return False
+    _LOCK_WATCH.pending = act
+    return True
 
 
 def cache_folder():

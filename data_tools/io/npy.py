@@ -27,7 +27,7 @@ def read_npy(path, *, spacing=None, origin=None) -> Volume:
 
     Spacing and origin come from ``<path>.json`` (keys ``spacing``,
     ``origin``, each ``[x, y, z]``) when it exists, else ``(1, 1, 1)`` and
-    ``(0, 0, 0)``.
+    ``(0, 0, 0)``; with both given, the sidecar is not read.
 
     Parameters
     ----------
@@ -66,9 +66,11 @@ def read_npy(path, *, spacing=None, origin=None) -> Volume:
         raise InputError(f"{path}: holds several arrays (.npz?), expected one 3-D array")
     spacing, origin, meta = (1.0, 1.0, 1.0), (0.0, 0.0, 0.0), {"format": "npy"}
     side = sidecar_path(path)
-    if side.exists() and not side.is_file():
+    if given["spacing"] is not None and given["origin"] is not None:
+        side = None             # both replaced: the sidecar, whatever it holds, is not read
+    elif side.exists() and not side.is_file():
         raise InputError(f"{side}: the sidecar of {path.name} (its spacing and origin) is not a file")
-    if side.is_file():
+    if side is not None and side.is_file():
         try:
             info = json.loads(side.read_text(encoding="utf-8-sig"))
         except (OSError, ValueError) as exc:

@@ -34,7 +34,7 @@ import numpy as np
 
 from data_tools import InputError
 from data_tools.errors import os_reason
-from data_tools.signals import signals_held
+from data_tools.signals import building, signals_held
 
 from ..outputs import compile_notice, note, to_json
 from .scenes import default_data_dir
@@ -176,7 +176,8 @@ def run_bench(out, suite=None, *, progress=None, command=None):
     stage = _stage_for(out)
     try:
         try:
-            res = _run(stage, suite, progress or (lambda msg: None), command)
+            with building(stage):
+                res = _run(stage, suite, progress or (lambda msg: None), command)
         except OSError as exc:
             # A write into the hidden folder: its name, or none (a picture's save on a full
             # disk), would mean nothing to the user; the report's would.

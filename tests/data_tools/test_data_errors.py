@@ -185,6 +185,12 @@ def test_npy_bad_sidecar(tmp_path, text, match):
     with pytest.raises(InputError, match="s.npy.json") as exc:
         load_volume(tmp_path / "s.npy")
     assert match in str(exc.value)
+    with pytest.raises(InputError, match="s.npy.json"):
+        load_volume(tmp_path / "s.npy", spacing=(2, 3, 4))           # the origin would come from it
+    # Spacing and origin both given: nothing would be taken from the sidecar, so it is not read.
+    vol = load_volume(tmp_path / "s.npy", spacing=(2, 3, 4), origin=(1, 1, 1))
+    assert (vol.spacing, vol.origin) == ((2.0, 3.0, 4.0), (1.0, 1.0, 1.0))
+    np.testing.assert_array_equal(vol.data, SMALL)
 
 
 # --- NRRD ------------------------------------------------------------------

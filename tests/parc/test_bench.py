@@ -318,6 +318,23 @@ def test_benchmark_script_runs_on_a_tiny_volume(script, gl_context):
         assert text in run.stdout, (text, run.stdout[-2000:])
 
 
+@pytest.mark.parametrize("script, args, words", [
+    ("raster_speed.py", ["--volume", "nope.nrrd", "--iso", "3"], "nope.nrrd: no such file"),
+    ("cast_parts.py", ["--synthetic", "sphere", "--n", "8", "--tf", "nosuch"], "unknown transfer function preset"),
+    ("bricking.py", ["--synthetic", "sphere", "--n", "8", "--iso", "1e9"], "outside"),
+    ("context_settings.py", ["--volume", "nope.nrrd", "--iso", "3"], "nope.nrrd: no such file"),
+    ("caster_speed.py", ["--size", "0"], "must be a whole number of at least 1, got '0'"),
+    ("cast_parts.py", ["--repeats", "-2"], "must be a whole number of at least 1, got '-2'"),
+])
+def test_benchmark_script_refuses_bad_input_in_one_line(script, args, words):
+    # A missing file or a transfer function misspelt ended in a traceback.
+    path = Path(__file__).resolve().parents[2] / "benchmarks" / script
+    run = subprocess.run([sys.executable, str(path), *args], capture_output=True, text=True, timeout=300)
+    last = run.stderr.splitlines()[-1]
+    assert run.returncode == 2 and "Traceback" not in run.stderr, run.stderr[-2000:]
+    assert last.startswith(f"{script}: error: ") and words in last, last
+
+
 def test_a_report_folder_that_cannot_be_made_is_refused_before_any_work(tmp_path):
     from data_tools import InputError
     blocked = tmp_path / "file"

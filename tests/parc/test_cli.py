@@ -3,6 +3,7 @@ import importlib
 import json
 import os
 import re
+import signal
 import subprocess
 import stat
 import sys
@@ -1469,6 +1470,111 @@ def test_a_stop_signal_while_writing_leaves_no_temporary_file(signum, vol_file, 
     assert rc == 128 + getattr(signal, signum) and err == f"parc: stopped by {signum}\n"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["ball.nrrd"]
     assert signal.getsignal(getattr(signal, signum)) == before
+
+
+def test_an_ignored_stop_signal_stays_ignored(vol_file, tmp_path, capsys, monkeypatch):
+    # Under nohup SIGHUP is ignored, and a run replacing its handler was stopped by the hangup.
+    import signal
+    import parc.cli as cli
+    real = cli.write_png
+
+    def write_then_hang_up(image, path):
+        real(image, path)
+        os.kill(os.getpid(), signal.SIGHUP)
+    monkeypatch.setattr(cli, "write_png", write_then_hang_up)
+    before = signal.signal(signal.SIGHUP, signal.SIG_IGN)
+    try:
+        rc, _, err = _run(["render", vol_file, "--iso", 4, "--size", 8, 8, "-o", tmp_path / "o.png"], capsys)
+        assert signal.getsignal(signal.SIGHUP) == signal.SIG_IGN
+    finally:
+        signal.signal(signal.SIGHUP, before)
+    assert rc == 0, err
+    assert Image.open(tmp_path / "o.png").size == (8, 8)
+
+
+class _SignalInCompile:
+    """Sends ``signum`` to this process ``times`` times as Numba starts compiling a function."""
+
+    def __init__(self, signum, times):
+        import numba.core.event as ev
+
+        class Send(ev.Listener):
+            def on_start(self, event):
+                for _ in range(times):
+                    signal.raise_signal(signum)      # each handled before the next is sent
+
+            def on_end(self, event):
+                pass
+        self.kind, self.listener = "numba:compile", Send()
+
+    def __enter__(self):
+        import numba.core.event as ev
+        ev.register(self.kind, self.listener)
+
+    def __exit__(self, *exc):
+        import numba.core.event as ev
+        ev.unregister(self.kind, self.listener)
+
+
+def test_ctrl_c_while_a_kernel_compiles_is_raised_once_it_has_compiled(capsys):
+    # Raised inside Numba's compile, a KeyboardInterrupt was swallowed (the run went on and
+    # wrote its file), crashed the process, or broke the kernel ("no compiled object yet").
+    import numba
+    import raycast.config  # noqa: F401 - watches the compiler lock
+    from parc.cli import _stop_on_signals
+
+    @numba.njit
+    def twice(x):
+        return 2 * x
+    replaced = _stop_on_signals()
+    try:
+        with _SignalInCompile(signal.SIGINT, 1), pytest.raises(KeyboardInterrupt):
+            twice(3)
+    finally:
+        for signum, handler in replaced.items():
+            signal.signal(signum, handler)
+    assert len(twice.overloads) == 1        # compiled whole before the interrupt was raised
+    assert twice(3) == 6
+    assert capsys.readouterr().err == "parc: stopping once this kernel has compiled (Ctrl-C again to stop at once)\n"
+
+
+_TWO_CTRL_C_IN_A_COMPILE = """
+import signal, sys
+from pathlib import Path
+import numba
+import raycast.config
+from data_tools.signals import building
+from parc.cli import _stop_on_signals
+
+class CtrlCTwice(numba.core.event.Listener):
+    def on_start(self, event):
+        signal.raise_signal(signal.SIGINT)
+        signal.raise_signal(signal.SIGINT)
+
+    def on_end(self, event):
+        pass
+
+@numba.njit
+def twice(x):
+    return 2 * x
+_stop_on_signals()
+numba.core.event.register("numba:compile", CtrlCTwice())
+stage = Path(sys.argv[1]) / ".stage"
+stage.mkdir()
+(stage / "half.png").write_bytes(b"x")
+with building(stage):
+    twice(3)
+print("not reached")
+"""
+
+
+def test_ctrl_c_twice_while_a_kernel_compiles_stops_at_once_leaving_nothing(tmp_path):
+    p = subprocess.run([sys.executable, "-c", _TWO_CTRL_C_IN_A_COMPILE, tmp_path], capture_output=True, text=True,
+                       timeout=300, cwd=Path(__file__).parents[2])
+    assert (p.returncode, p.stdout) == (130, "")
+    assert p.stderr == ("parc: stopping once this kernel has compiled (Ctrl-C again to stop at once)\n"
+                        "parc: interrupted\n")
+    assert list(tmp_path.iterdir()) == []
 
 
 #: The `parc` script's own lines, with a Ctrl-C arriving as Python imports ``{module}``.
