@@ -110,6 +110,16 @@ def _ints(n):
     return parse
 
 
+def _byte_count(text):
+    try:
+        n = int(text)
+    except ValueError:
+        n = -1
+    if n < 0:
+        raise argparse.ArgumentTypeError(f"must be a byte count (a whole number >= 0), got {text!r}")
+    return n
+
+
 def _add_volume_options(p, scenes=True):
     g = p.add_argument_group("reading the volume",
                              "Headerless raw files need shape and dtype unless the name says, e.g. "
@@ -118,6 +128,8 @@ def _add_volume_options(p, scenes=True):
     g.add_argument("--shape", type=_ints(3), metavar="NX,NY,NZ", help="raw: samples along x, y, z")
     g.add_argument("--dtype", metavar="TYPE", help="raw: sample type, e.g. uint8, int16, uint16, float32")
     g.add_argument("--byte-order", choices=("little", "big"), help="raw: byte order (default little, or what the file name says: be, msb, bigendian...)")
+    g.add_argument("--offset", type=_byte_count, metavar="BYTES",
+                   help="raw: bytes before the samples, such as a vendor's header (default 0)")
     g.add_argument("--spacing", type=_floats(3), metavar="SX,SY,SZ",
                    help="sample spacing; replaces what the file says")
     g.add_argument("--origin", type=_floats(3), metavar="OX,OY,OZ",

@@ -25,12 +25,12 @@ def load_volume_flags(args):
         raise InputError(f"{args.volume}: a scene file; parc {args.command} reads one volume file "
                          "(parc render and parc compare read scenes)")
     return load_volume(args.volume, shape=args.shape, dtype=args.dtype, byte_order=args.byte_order,
-                       spacing=args.spacing, origin=args.origin)
+                       offset=args.offset, spacing=args.spacing, origin=args.origin)
 
 
 #: Flags that describe the one volume on the command line; a scene file sets
 #: these per volume, in its [[volume]] tables (under the same names).
-_VOLUME_FLAGS = ("iso", "tf", "mode", "step", "threshold", "shade", "shape", "dtype", "byte_order",
+_VOLUME_FLAGS = ("iso", "tf", "mode", "step", "threshold", "shade", "shape", "dtype", "byte_order", "offset",
                  "spacing", "origin")
 
 
@@ -114,7 +114,7 @@ def _volume_scene(args, say):
     if w < 1 or h < 1:
         raise InputError(f"--size must be two positive integers, got {w} {h}")
     if args.volume is None:
-        for name in ("shape", "dtype", "byte_order", "spacing", "origin"):
+        for name in ("shape", "dtype", "byte_order", "offset", "spacing", "origin"):
             if getattr(args, name, None) is not None:
                 raise InputError(f"--{name.replace('_', '-')} applies to a volume file; "
                                  "the built-in volume takes none")

@@ -149,8 +149,10 @@ def read_samples(path: Path, offset: int, dims, dtype, big_endian: bool, *,
     if actual < expected or (exact and actual != expected):
         where = f" after a {offset}-byte header" if offset else ""
         state = "truncated" if actual < expected else "too long"
-        # A header past the end leaves no bytes after it: the file's own size says more.
-        has = actual if actual >= 0 else f"only {actual + offset} bytes in all"
+        # Counted after the header ("has 0" of a file with 4096 bytes read as empty), and a
+        # header past the end leaves no bytes after it: the file's own size says more.
+        has = (f"only {actual + offset} bytes in all" if actual < 0 else
+               f"{actual} after it ({actual + offset} in all)" if offset else actual)
         raise InputError(
             f"{path}: {kind} data {state}: {nx}x{ny}x{nz} {np.dtype(dtype).name} needs "
             f"{expected} bytes{where}, the file has {has}")

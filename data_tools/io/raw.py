@@ -200,8 +200,8 @@ def read_raw(path, *, shape=None, dtype=None, byte_order=None, offset=0,
                              f"as its data: open {header.name} instead")
         raise InputError(
             f"{path}: a raw file has no header; give {' and '.join(flags[m] for m in missing)} "
-            f"(and --byte-order, --spacing if needed; in Python and scene files "
-            f"{', '.join(missing)}, byte_order, spacing), or name it like vol_64x64x64_uint8.raw")
+            f"(and --byte-order, --offset, --spacing if needed; in Python and scene files "
+            f"{', '.join(missing)}, byte_order, offset, spacing), or name it like vol_64x64x64_uint8.raw")
     dims = _parse_shape(shape, path)
     dtype = parse_dtype(dtype, path)
     if str(byte_order).lower() not in ("little", "big"):

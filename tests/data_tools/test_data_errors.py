@@ -796,8 +796,8 @@ def test_a_raw_file_without_shape_or_type_names_the_options_everywhere(tmp_path)
     # option in each spelling, not the command line's alone.
     p = tmp_path / "scan.raw"
     p.write_bytes(bytes(60))
-    fails(p, "give --shape NX,NY,NZ and --dtype TYPE (and --byte-order, --spacing if needed; "
-             "in Python and scene files shape, dtype, byte_order, spacing)")
+    fails(p, "give --shape NX,NY,NZ and --dtype TYPE (and --byte-order, --offset, --spacing if needed; "
+             "in Python and scene files shape, dtype, byte_order, offset, spacing)")
 
 
 @pytest.mark.parametrize("value", [np.float32(0.5), np.int64(3), np.uint8(7), np.int32(-2)])

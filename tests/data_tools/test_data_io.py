@@ -149,8 +149,12 @@ def test_raw_offset(tmp_path, writers):
     arr = make_array("int32")
     p = writers.raw(tmp_path / "h.raw", arr, header=b"HEADER!!")
     check(load_volume(p, shape=(5, 4, 3), dtype="int32", offset=8), arr)
-    with pytest.raises(InputError, match=r"needs 240 bytes after a 10-byte header, the file has 238$"):
+    with pytest.raises(InputError, match=r"needs 240 bytes after a 10-byte header, "
+                                         r"the file has 238 after it \(248 in all\)$"):
         load_volume(p, shape=(5, 4, 3), dtype="int32", offset=10)
+    # A header as long as the file: "the file has 0" said the file was empty.
+    with pytest.raises(InputError, match=r"the file has 0 after it \(248 in all\)$"):
+        load_volume(p, shape=(5, 4, 3), dtype="int32", offset=248)
     # An offset past the end: not "the file has 0", but the file's size.
     with pytest.raises(InputError, match=r"needs 240 bytes after a 400-byte header, "
                                          r"the file has only 248 bytes in all$"):

@@ -253,6 +253,24 @@ def test_convert_gives_a_raw_file_its_header(tmp_path, capsys):
     assert vol.spacing == (0.5, 0.5, 2.0) and vol.origin == (-1.0, 2.0, -3.0)
 
 
+def test_a_raw_file_behind_a_vendor_header_is_read_with_offset(tmp_path, capsys):
+    data = np.arange(5 * 4 * 3, dtype=np.uint16).reshape(5, 4, 3) * 1000     # [z, y, x]
+    raw = tmp_path / "scan.dat"
+    raw.write_bytes(b"VENDOR HEADER".ljust(100, b"\0") + data.tobytes())
+    flags = ["--shape", "3,4,5", "--dtype", "uint16", "--offset", "100"]
+    rc, stdout, err = _run(["convert", raw, *flags, "-o", tmp_path / "scan.nrrd"], capsys)
+    assert rc == 0, err
+    assert np.array_equal(load_volume(tmp_path / "scan.nrrd").data, data)
+    rc, stdout, err = _run(["info", raw, *flags], capsys)
+    assert rc == 0 and "range:       0 .. 59000, mean 29500" in stdout, (stdout, err)
+    for offset, words in (("-1", "--offset: must be a byte count (a whole number >= 0), got '-1'"),
+                          ("200", "needs 120 bytes after a 200-byte header, the file has 20 after it (220 in all)")):
+        rc, _, err = _run(["info", raw, *flags[:4], "--offset", offset], capsys)
+        assert rc == 2 and words in err and err.count("\n") == 1, err
+    rc, _, err = _run(["render", "--offset", "4", "-o", tmp_path / "b.png"], capsys)
+    assert rc == 2 and "--offset applies to a volume file; the built-in volume takes none" in err, err
+
+
 def test_convert_a_tiff_stack_says_when_its_spacing_is_unknown(tmp_path, capsys):
     import tifffile
     from data_tools.io import load_volume

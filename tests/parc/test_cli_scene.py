@@ -120,6 +120,7 @@ def test_multi_volume_scene_file_loads(tmp_path):
     (["--mode", "mip"], ["--mode does not apply"]),
     (["--spacing", "1,1,2"], ["--spacing does not apply"]),
     (["--byte-order", "big"], ["--byte-order does not apply"]),
+    (["--offset", "8"], ["--offset does not apply to a scene file"]),
     (["--sun", "0,0,0"], ["--sun: light direction must not be zero"]),
     (["--light", "1,2"], ["argument --light: must be 3 comma-separated finite numbers"]),
     (["--fov", "200"], ["camera.fov (given on the command line)", "180"]),
