@@ -705,3 +705,95 @@ def test_the_bound_on_kept_light_buffers_holds_over_every_volume(gl, monkeypatch
             held = sum(buf.near.nbytes + buf.far.nbytes for v in (a, b)
                        for buf in VolumeIndex.of(v).kept("light buffers").values())
             assert held <= 8 * one, (frame, held)
+
+
+#: The normal of `_plane_scene`'s plane (unit: 0.2304 + 0.1296 + 0.64 = 1).
+N_PLANE = np.array([0.48, 0.36, 0.8])
+
+
+def _plane_scene(lights):
+    # f = n . p - 14 sampled at the grid points: trilinear interpolation of a linear field is the
+    # field itself, so the isosurface f = 0 is the exact plane and its normal is exactly n.
+    k, j, i = np.mgrid[0:21, 0:21, 0:21].astype(np.float64)
+    data = N_PLANE[0] * i + N_PLANE[1] * j + N_PLANE[2] * k - 14.0
+    cam = Camera(eye=(10.0, 10.0, 100.0), look_at=(10.0, 10.0, 0.0), up=(0, 1, 0), parallel_scale=3.0)
+    surf = Isosurface(Volume(data, name="tilted plane"), 0.0, color=(1.0, 0.8, 0.6), material=(0.2, 0.5, 0.5, 4.0))
+    return Scene(camera=cam, size=(8, 8), volumes=[surf], lights=lights)
+
+
+def _blinn_phong(c, n, l, v, material=(0.2, 0.5, 0.5, 4.0)):
+    amb, kd, ks, s = material
+    h = (l + v) / np.linalg.norm(l + v)
+    return np.minimum(c * amb + c * kd * max(n @ l, 0.0) + ks * max(n @ h, 0.0) ** s, 1.0)
+
+
+@pytest.mark.parametrize("method", ["brute", "parc"])
+def test_a_tilted_plane_under_the_sun_has_the_analytic_shading(gl, method):
+    # A sun with x and y components: a wrong sign in any gradient component turns the normal
+    # and changes n.l and n.h.
+    sun = np.array([-0.3, -0.2, -1.0])
+    want = _blinn_phong(np.array([1.0, 0.8, 0.6]), N_PLANE, -sun / np.linalg.norm(sun), np.array([0.0, 0.0, 1.0]))
+    res = render(_plane_scene([DirectionalLight(tuple(sun))]), method)
+    assert (res.image[..., 3] == 1.0).all()
+    np.testing.assert_allclose(res.image[..., :3], np.broadcast_to(want, (8, 8, 3)), atol=1e-5, rtol=0)
+
+
+@pytest.mark.parametrize("method", ["brute", "parc"])
+def test_a_tilted_plane_under_the_headlight_has_the_analytic_shading(gl, method):
+    # No lights: a light at the eye, l = v = (0, 0, 1) for this parallel view, so h = v.
+    v = np.array([0.0, 0.0, 1.0])
+    want = _blinn_phong(np.array([1.0, 0.8, 0.6]), N_PLANE, v, v)
+    res = render(_plane_scene([]), method)
+    assert (res.image[..., 3] == 1.0).all()
+    np.testing.assert_allclose(res.image[..., :3], np.broadcast_to(want, (8, 8, 3)), atol=1e-5, rtol=0)
+
+
+def _floor_beside_a_wall(wall_data, wall_origin):
+    """A white floor (z = 5.5) seen straight down over x in [7, 13], y in [2, 8], and a tall wall
+    (an isosurface of ``wall_data`` at 0.5) standing beside the view."""
+    z = np.arange(11, dtype=np.float32)[:, None, None]
+    floor = Isosurface(Volume(np.broadcast_to(5.5 - z, (11, 11, 21)).copy(), name="floor"), 0.0,
+                       color=(1.0, 1.0, 1.0), material=(0.2, 0.5, 0.5, 4.0))
+    wall = Isosurface(Volume(wall_data, origin=wall_origin, name="wall"), 0.5)
+    cam = Camera(eye=(10.0, 5.0, 100.0), look_at=(10.0, 5.0, 0.0), up=(0, 1, 0), parallel_scale=3.0)
+    return cam, [floor, wall]
+
+
+def _lit_floor(towards_light):
+    """The floor's colour lit by one light from ``towards_light``: ambient + diffuse + specular."""
+    n = v = np.array([0.0, 0.0, 1.0])
+    l = np.asarray(towards_light, float) / np.linalg.norm(towards_light)
+    h = (l + v) / np.linalg.norm(l + v)
+    return min(0.2 + 0.5 * (n @ l) + 0.5 * (n @ h) ** 4, 1.0)
+
+
+@pytest.mark.parametrize("method", ["brute", "parc"])
+@pytest.mark.parametrize("blocked_first", [True, False])
+def test_a_wall_hides_one_sun_and_not_the_other(gl, method, blocked_first):
+    # A wall at x in [25, 27]: a sun travelling along (-1, 0, -1) comes from +x and is blocked;
+    # one along (1, 0, -1) comes from -x and is not. With each light taking the first one's
+    # shadow, the free sun counted twice or not at all (scenes of several lights were only
+    # checked against brute, which shares that code).
+    d = np.zeros((81, 21, 5), np.float32)
+    d[:, :, 1:4] = 1.0
+    cam, volumes = _floor_beside_a_wall(d, (24.0, -5.0, 0.0))
+    blocked, free = DirectionalLight((-1.0, 0.0, -1.0)), DirectionalLight((1.0, 0.0, -1.0))
+    scene = Scene(camera=cam, size=(8, 8), volumes=volumes,
+                  lights=[blocked, free] if blocked_first else [free, blocked], shadows=True)
+    img = render(scene, method).image
+    assert (img[..., 3] == 1.0).all()
+    np.testing.assert_allclose(img[..., :3], _lit_floor((-1.0, 0.0, 1.0)), atol=1e-5, rtol=0)
+
+
+@pytest.mark.parametrize("sy", [-1.0, 1.0])
+def test_the_sun_shadows_from_the_side_it_shines_from(gl, sy):
+    # A wall at y in [12.5, 15.5] up to z = 80: a sun travelling along (0, -1, -1) comes from +y,
+    # and every floor ray towards it meets the wall, so the floor shows ambient only; along
+    # (0, 1, -1) it comes from -y, where nothing stands, and the floor is lit.
+    d = np.zeros((81, 5, 41), np.float32)
+    d[:, 1:4, :] = 1.0
+    cam, volumes = _floor_beside_a_wall(d, (-10.0, 12.0, 0.0))
+    img = render(Scene(camera=cam, size=(8, 8), volumes=volumes, lights=[DirectionalLight((0.0, sy, -1.0))],
+                       shadows=True)).image
+    assert (img[..., 3] == 1.0).all()
+    np.testing.assert_allclose(img[..., :3], 0.2 if sy < 0 else _lit_floor((0.0, -1.0, 1.0)), atol=1e-5)

@@ -735,3 +735,14 @@ def test_a_transfer_function_takes_points_of_numpy_scalars():
     pts = np.array([[0, 0.0], [10, 1.0]], dtype=np.float32)
     tf = TransferFunction([tuple(p) for p in pts])          # tuples of np.float32
     assert len(tf.support()) == 1                           # built, not refused
+
+
+def test_paraview_rgb_points_keep_their_channel_order(tmp_path):
+    # Truth: the file's own numbers, read as ParaView writes them, [x, r, g, b] per point:
+    # Cool to Warm is blue at its low end and red at its high end.
+    p = tmp_path / "cool_warm.json"
+    p.write_text(json.dumps(PARAVIEW))
+    tf = load_transfer_function(p)
+    np.testing.assert_array_equal(tf.color([0.0, 1.0]), [[0.23, 0.299, 0.754], [0.706, 0.016, 0.15]])
+    low, high = tf.color([0.0, 1.0])
+    assert low[2] > low[0] and high[0] > high[2]

@@ -496,3 +496,26 @@ def test_a_new_transfer_function_on_the_same_volume_is_classified_anew(buffers, 
         assert (ref.image[..., 3] > 0).sum() >= 20
         res = render(scene, method="parc", buffers=buffers, supercell=supercell)
         assert np.abs(res.image - ref.image).max() <= 1e-6, (buffers, tf.opacity_points)
+
+
+@pytest.mark.parametrize("method", ["brute", "parc"])
+def test_a_shaded_linear_field_has_the_analytic_headlight_colour(gl, method):
+    # A linear field has one gradient n everywhere: every sample gets the same headlight
+    # Blinn-Phong colour c_s, and compositing one colour gives rgb = c_s * alpha. (A flat
+    # region, the only shaded case checked before, has no gradient: a wrong sign passed.)
+    n = np.array([0.48, 0.36, 0.8])
+    k, j, i = np.mgrid[0:13, 0:13, 0:13].astype(np.float64)
+    data = n[0] * i + n[1] * j + n[2] * k
+    c = np.array([0.9, 0.6, 0.3])
+    tf = TransferFunction(opacity=[[-100.0, 0.05], [100.0, 0.05]], color=[[0.0, *c]])
+    ka, kd, ks, s = 0.2, 0.5, 0.3, 8.0
+    d = np.array([-0.3, -0.2, -1.0]) / np.linalg.norm([-0.3, -0.2, -1.0])
+    cam = Camera(eye=tuple(np.array([6.0, 6.0, 6.0]) - 50.0 * d), look_at=(6.0, 6.0, 6.0), up=(0, 1, 0),
+                 parallel_scale=2.0)
+    vis = Translucent(Volume(data), tf, shade=True, material=(ka, kd, ks, s))
+    img = render(Scene(camera=cam, size=(6, 6), volumes=[vis]), method).image.astype(np.float64)
+    ndv = abs(n @ -d)                       # headlight: l = v = -d, so h = v
+    want = np.minimum(c * (ka + kd * ndv) + ks * ndv ** s, 1.0)
+    alpha = img[..., 3]
+    assert (alpha > 0.3).all()
+    np.testing.assert_allclose(img[..., :3], want * alpha[..., None], atol=1e-5, rtol=0)

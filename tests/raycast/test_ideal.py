@@ -21,7 +21,7 @@ from data_tools.synthetic import blobs, trilinear_field
 from parc import Camera, Scene, TransferFunction, Translucent, render
 from parc.ideal import contributing_cells, ideal_sample_counts, ideal_samples
 from parc.renderer import accumulation_params
-from raycast.composite import MODE_COMPOSITE, P_MODE, P_RATIO, P_THRESHOLD, cast_accumulate_image
+from raycast.composite import MODE_COMPOSITE, P_MODE, P_THRESHOLD, cast_accumulate_image
 from raycast.iso import NO_SKIP
 
 SIZE = (9, 7)
@@ -136,7 +136,9 @@ def _slow_counts(vis, cam, width, height, stop=None, every=False):
     contrib = _contributing(data, tf)
     org, spc = vol.origin, vol.spacing
     dims = vol.dims
-    ratio = accumulation_params(vis)[P_RATIO]
+    # Opacities refer to a slab a quarter of the smallest spacing thick (`parc.transfer`),
+    # worked out here and not read from the kernel's parameters, which a wrong ratio would pass.
+    ratio = vis.step / (0.25 * min(vol.spacing))
     cam = [float(c) for c in cam]
     out = np.zeros((height, width), np.int64)
     for y in range(height):

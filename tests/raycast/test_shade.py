@@ -7,7 +7,7 @@ normal turned towards the viewer first (two-sided lighting).
 import numpy as np
 import pytest
 
-from raycast.shade import blinn_phong, power
+from raycast.shade import blinn_phong, power, trilinear_gradient
 
 MATERIAL = np.array([0.1, 0.7, 0.5, 8.0])
 
@@ -88,3 +88,24 @@ def test_a_volume_scaled_by_a_power_of_ten_is_shaded_alike(scale):
         assert np.array_equal(np.isfinite(ref.depth), np.isfinite(got.depth))
         assert np.abs(ref.image - got.image).max() <= 1e-6
     assert np.isfinite(images[1.0][0].depth).sum() > 50
+
+
+def test_trilinear_gradient_is_the_derivative_of_the_interpolant():
+    # Truth: the trilinear interpolant written out as a weighted sum of corners; it is linear in
+    # each local coordinate, so a central difference of any width is its partial derivative.
+    rng = np.random.default_rng(3)
+    data = rng.normal(size=(3, 3, 3))
+    spc = np.array([0.7, 1.3, 0.9])
+
+    def f(c, u, v, w):
+        return sum(c[z, y, x] * (w if z else 1 - w) * (v if y else 1 - v) * (u if x else 1 - u)
+                   for z in (0, 1) for y in (0, 1) for x in (0, 1))
+
+    for _ in range(50):
+        i, j, k = (int(a) for a in rng.integers(0, 2, 3))
+        u, v, w = rng.uniform(0.0, 1.0, 3)
+        c = data[k:k + 2, j:j + 2, i:i + 2]
+        want = np.array([(f(c, u + 0.5, v, w) - f(c, u - 0.5, v, w)) / spc[0],
+                         (f(c, u, v + 0.5, w) - f(c, u, v - 0.5, w)) / spc[1],
+                         (f(c, u, v, w + 0.5) - f(c, u, v, w - 0.5)) / spc[2]])
+        np.testing.assert_allclose(trilinear_gradient(data, i, j, k, u, v, w, spc), want, rtol=1e-12, atol=1e-12)
