@@ -70,7 +70,8 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
         share, else None, and ``supercells`` each's), ``pixels``, ``opengl_share`` (the
         median run's share of time in `OPENGL_PHASES`), ``speedup_low`` and
         ``speedup_high`` (the lowest and highest of the rounds' own ratios,
-        each round timing every method once).
+        each round timing every method once), ``parameters`` (what was rendered, as `render`'s
+        stats give it: size, camera, volumes) and ``repeats``.
     """
     _check_runs("compare", scene, repeats, warmup)
     names = method_names(methods)
@@ -137,7 +138,9 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
                "samples": s.get("samples", 0),
                "shadow_cells": s.get("shadow_cells", 0), "shadow_solves": s.get("shadow_solves", 0),
                "hits": s["hits"], "pixels": s["pixels"], "polygons": s.get("polygons", 0),
-               "supercell": s.get("supercell")}
+               "supercell": s.get("supercell"),
+               # What was compared, in every row: rows saved from several runs tell which is which.
+               "parameters": s["parameters"], "repeats": repeats}
         if "volumes" in s:
             # A scene's volumes each have their grid: the one size they share, if they do, and each's.
             sizes = [v.get("supercell") for v in s["volumes"]]
@@ -298,7 +301,8 @@ def step_sweep(scene, steps, *, repeats=3, warmup=1, progress=None, options=None
     list of dict
         Per step: ``step``, ``brute_seconds``, ``parc_seconds``, ``speedup``,
         ``brute_samples``, ``parc_samples``, ``max_color`` / ``rmse`` / ``psnr``
-        against the reference, and ``parc_vs_brute`` (max |Δcolour|).
+        against the reference, ``parc_vs_brute`` (max |Δcolour|), and as in `compare`
+        ``parameters`` (what was rendered at that step) and ``repeats``.
 
     ``options``: `render` keyword arguments for ``parc`` (``buffers``,
     ``blocks``, ``supercell``...), as in `compare`.
@@ -368,6 +372,7 @@ def step_sweep(scene, steps, *, repeats=3, warmup=1, progress=None, options=None
         row.update({k: err[k] for k in ("max_color", "rmse", "psnr")})
         row["parc_vs_brute"] = image_error(results["parc"], results["brute"], cell)["max_color"]
         row["speedup"] = row["brute_seconds"] / row["parc_seconds"]
+        row["parameters"], row["repeats"] = results["parc"].stats["parameters"], repeats    # as `compare`'s
         rows.append(row)
     return rows
 

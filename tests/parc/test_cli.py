@@ -950,6 +950,22 @@ def test_compare_prints_a_table(vol_file, capsys):
     assert parc_row["hit_mismatches"] == 0 and parc_row["psnr"] is None   # identical: infinite PSNR
 
 
+def test_compare_json_rows_say_what_was_compared(vol_file, tmp_path, capsys):
+    # Saved from several runs, rows without the volume, level, size and view could not be told apart.
+    rc, out, err = _run(["compare", vol_file, "--iso", 4, "--size", 16, 12, "--repeats", 2, "--json",
+                         "--eye", "30,20,10"], capsys)
+    assert rc == 0, err
+    rc2, _, err = _run(["render", vol_file, "--iso", 4, "--size", 16, 12, "--eye", "30,20,10",
+                        "-o", tmp_path / "r.png", "--stats", tmp_path / "r.json"], capsys)
+    assert rc2 == 0, err
+    rendered = json.loads((tmp_path / "r.json").read_text())["parameters"]
+    for row in json.loads(out):
+        assert row["repeats"] == 2 and row["parameters"] == rendered
+        assert row["parameters"]["isovalue"] == 4.0 and row["parameters"]["size"] == [16, 12]
+        assert row["parameters"]["camera"]["eye"] == [30.0, 20.0, 10.0]
+        assert row["parameters"]["volume"] == str(vol_file)
+
+
 def test_compare_quiet_keeps_stderr_empty(vol_file, capsys):
     base = ["compare", vol_file, "--iso", 4, "--size", 12, 12, "--repeats", 1]
     rc, out, err = _run(base, capsys)
@@ -1154,6 +1170,8 @@ def test_compare_json_and_step_sweep(vol_file, capsys):
     rows = json.loads(out)
     assert [r["step"] for r in rows] == [1.0, 0.5] and all(r["parc_vs_brute"] == 0 for r in rows)
     assert rows[1]["brute_samples"] > rows[0]["brute_samples"] > 0
+    assert [(r["parameters"]["step"], r["parameters"]["transfer_function"], r["repeats"]) for r in rows] == \
+        [(1.0, "greyscale", 1), (0.5, "greyscale", 1)]
     # The table says what it measured, as compare's own table does, and against which reference.
     rc, out, err = _run(["compare", vol_file, "--tf", "greyscale", "--size", 12, 12, "--repeats", 1,
                          "--sweep-step", "1,0.5"], capsys)
