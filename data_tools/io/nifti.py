@@ -71,7 +71,10 @@ def _read(nib, path, given):
     while len(shape) > 3 and shape[-1] == 1:
         shape = shape[:-1]
     if len(shape) != 3:
-        more = f"; it holds {int(np.prod(shape[3:]))} volumes, render one" if len(shape) > 3 else ""
+        # Nothing here picks one: say how to make a file of one (nibabel keeps its placement).
+        more = (f"; it holds {int(np.prod(shape[3:]))} volumes: save one as a file of its own "
+                f"(in Python: nibabel.save(nibabel.load(path).slicer[..., k], 'one.nii')) "
+                "and render that") if len(shape) > 3 else ""
         raise InputError(f"{path}: NIfTI image has shape {img.shape}, expected a 3-D volume{more}")
     _check_length(img, path, start)
     try:

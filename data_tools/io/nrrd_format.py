@@ -328,7 +328,10 @@ def _check_data_file(path):
     data = Path(name) if Path(name).is_absolute() else path.parent / name
     if " " in name.strip() and not data.exists():
         return None             # numbered files ("slice%03d.raw 1 40 1"), checked as the read takes them
-    if data.exists() and not data.is_file():
+    if not data.exists():
+        # pynrrd's own words named the file as the header gives it, beside "[Errno 2]".
+        raise InputError(f"{path}: data file {data} not found")
+    if not data.is_file():
         raise InputError(f"{path}: data file {data} is not a regular file")
     return data
 

@@ -465,6 +465,15 @@ def test_nrrd_several_data_files_that_do_not_fit_are_one_line(tmp_path, data_fil
         load_volume(p)
 
 
+def test_nrrd_a_missing_data_file_is_named_as_missing(tmp_path):
+    # pynrrd's words were passed on: "cannot read NRRD file: [Errno 2] No such file or directory: 'gone.raw'".
+    p = tmp_path / "miss.nhdr"
+    p.write_text("NRRD0004\ntype: uint8\ndimension: 3\nsizes: 2 2 2\nencoding: raw\ndata file: gone.raw\n")
+    with pytest.raises(InputError) as exc:
+        load_volume(p)
+    assert str(exc.value) == f"{p}: data file {tmp_path / 'gone.raw'} not found"
+
+
 def test_nrrd_a_short_data_file_among_several_is_named(tmp_path):
     p = _split_nrrd(tmp_path, make_array("int16"), "raw", 3, "LIST")
     (tmp_path / "part01.dat").write_bytes(bytes(38))
