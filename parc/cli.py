@@ -200,24 +200,24 @@ def cmd_make(args):
         save_volume(vol, out)  # all-or-nothing itself, and keeps sidecar names right
     _out(f"wrote {_written(out)} ({'x'.join(map(str, vol.dims))} {vol.dtype}{_placement(vol, out)})")
     made_for = ISOVALUES[args.name]
-    if made_for:
-        # A small volume can miss the levels it is made for (a neuron of 3 samples a side):
-        # the command suggested must run.
-        lo, hi = vol.value_range()
-        levels = [v for v in made_for if lo <= v <= hi]
-        what = f"isovalue{'s' if len(levels) > 1 else ''} {' and '.join(exact_text(v) for v in levels)}"
-        if not levels:
-            from data_tools.info import suggest_isovalues
-            levels = suggest_isovalues(vol)[:1]
-            missed = f"level{'s' if len(made_for) > 1 else ''} {' and '.join(exact_text(v) for v in made_for)}"
-            what = (f"isovalue {exact_text(levels[0])}, from the histogram (at this size the samples, "
-                    f"{lo:.6g} to {hi:.6g}, miss the {missed} {args.name} is made for)" if levels else None)
-        if what is not None:
-            _out(f"{what}: " + " ".join(["parc render", shlex.quote(str(out)), *_raw_flags(vol, out),
-                                         f"--iso {exact_text(levels[0])}", "-o", shlex.quote(out.stem + ".png")]))
-        else:
-            _out(f"at this size every sample of the {args.name} is {exact_text(lo)}: it has no isosurface "
-                 "to render; give a larger --size")
+    # A small volume can miss the levels it is made for (a neuron of 3 samples a side), and a
+    # random trilinear field is made for none: the command suggested must run all the same.
+    lo, hi = vol.value_range()
+    levels = [v for v in made_for if lo <= v <= hi]
+    what = f"isovalue{'s' if len(levels) > 1 else ''} {' and '.join(exact_text(v) for v in levels)}"
+    if not levels:
+        from data_tools.info import suggest_isovalues
+        levels = suggest_isovalues(vol)[:1]
+        missed = f"level{'s' if len(made_for) > 1 else ''} {' and '.join(exact_text(v) for v in made_for)}"
+        why = (f" (at this size the samples, {lo:.6g} to {hi:.6g}, miss the {missed} {args.name} is made for)"
+               if made_for else "")
+        what = f"isovalue {exact_text(levels[0])}, from the histogram{why}" if levels else None
+    if what is not None:
+        _out(f"{what}: " + " ".join(["parc render", shlex.quote(str(out)), *_raw_flags(vol, out),
+                                     f"--iso {exact_text(levels[0])}", "-o", shlex.quote(out.stem + ".png")]))
+    else:
+        _out(f"at this size every sample of the {args.name} is {exact_text(lo)}: it has no isosurface "
+             "to render; give a larger --size")
     return 0
 
 
