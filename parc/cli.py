@@ -122,7 +122,8 @@ def _stop_on_signals():
         config = sys.modules.get("raycast.config")
         if config is not None and config.compiling():
             if config.after_compile(lambda: stop(signum, None)):
-                _error("stopping once this kernel has compiled (Ctrl-C again to stop at once)")
+                again = "Ctrl-C" if signum == signal.SIGINT else signal.Signals(signum).name
+                _error(f"stopping once this kernel has compiled ({again} again to stop at once)")
                 return
             # Outputs are written after the casts; what a run fills meanwhile is marked `building`.
             _error("interrupted" if signum == signal.SIGINT else f"stopped by {signal.Signals(signum).name}")

@@ -64,7 +64,8 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
     list of dict
         One row per method: ``method``, ``seconds`` (median total),
         ``phases`` (seconds per phase of the median run), ``speedup`` against brute,
-        the `image_error` fields, ``cells_visited``, ``cubic_solves``,
+        the `image_error` fields (depths in cells of the first volume's smallest spacing, the
+        strictest reading of "a cell"), ``cells_visited``, ``cubic_solves``,
         ``samples``, ``shadow_cells``, ``shadow_solves``, ``hits``,
         ``polygons``, ``supercell`` (for a scene of several volumes the size they
         share, else None, and ``supercells`` each's), ``pixels``, ``opengl_share`` (the

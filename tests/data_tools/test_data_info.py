@@ -207,3 +207,38 @@ def test_float_suggestions_avoid_the_sample_values():
         assert iso and not np.isin(iso, data).any(), iso
     big = suggest_isovalues(Volume(np.linspace(1e8, 1e9, 8000).astype(np.float32).reshape(20, 20, 20)))
     assert all(float(f"{v:.3g}") == v for v in big), big                               # not 325138488.5
+
+
+def test_mean_percentiles_and_their_text_by_hand():
+    # The values 0..198 and 1199: mean 99.5 + 1000 / 200 = 104.5 (the median stays 99.5); the p-th
+    # percentile (linear, NumPy's default) p * 1.99 up to 99%, which lies between 197 and 198.
+    data = np.arange(200, dtype=np.float64)
+    data[-1] = 1199.0
+    info = volume_info(Volume(data.reshape(2, 10, 10)))
+    assert info["mean"] == 104.5
+    for p, v in info["percentiles"].items():
+        assert abs(v - p * 1.99) <= 1.0, (p, v)          # within one sample step of the linear value
+    text = format_info(info)
+    assert "mean 104.5" in text
+    assert "1%: 1.99, 5%: 9.95, 25%: 49.75, 50%: 99.5, 75%: 149.25, 95%: 189.05, 99%: 197.01" in text
+
+
+def test_zero_fraction_counts_every_sample_of_a_subsampled_volume():
+    # 130^3 samples is past SAMPLE_LIMIT (2^21): the other statistics use every other sample,
+    # which here are all zeros. Zeros are counted over the whole volume: exactly half.
+    data = np.ones((130, 130, 130), np.uint8)
+    data[:, :, ::2] = 0
+    info = volume_info(Volume(data))
+    assert info["sampled"] < data.size
+    assert info["zero_fraction"] == 0.5
+    assert "zeros:       50.0%" in format_info(info)
+
+
+def test_histogram_shares_are_of_all_samples():
+    # Three quarters at 0 and one quarter at 200: the bars say 75.0% and 25.0%, the rest 0.0%.
+    data = np.zeros((4, 4, 4), np.uint8)
+    data[3] = 200
+    info = volume_info(Volume(data))
+    bars = [s for s in format_info(info).splitlines() if s.startswith("  ") and s.endswith("%")]
+    shares = [float(s.split()[-1].rstrip("%")) for s in bars]
+    assert shares[0] == 75.0 and shares[-1] == 25.0 and sum(shares[1:-1]) == 0.0

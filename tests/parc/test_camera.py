@@ -198,3 +198,46 @@ def test_framing_turns_smoothly_as_up_nears_y(up_y):
         eyes = [np.array(Camera.framing((0, 0, 0), (10, 20, 5), up=(0.0, up_y, sign * tilt), azimuth=30,
                                         elevation=20).eye) for tilt in (1e-3, 1e-5, 1e-7, 1e-9, 1e-12, 9e-13, 1e-200)]
         assert max(np.linalg.norm(e - eyes[0]) for e in eyes) < 0.1
+
+
+def test_parallel_projection_puts_pixel_centres_where_the_rays_go():
+    # As the perspective test: the parallel matrices must send a point on a pixel's ray to that pixel.
+    cam = Camera(eye=(2.0, -6.0, 3.0), look_at=(0.5, 0.5, 0.5), up=(0.0, 0.0, 1.0), parallel_scale=2.5)
+    w, h = 8, 6
+    o, d = cam.rays(w, h)
+    mvp = cam.projection_matrix(w, h, 0.1, 100.0) @ cam.view_matrix()
+    for y, x in ((0, 0), (2, 5), (5, 7)):
+        clip = mvp @ np.append(o[y, x] + 4.0 * d[y, x], 1.0)
+        ndc = clip[:3] / clip[3]
+        assert (ndc[0] + 1) / 2 * w == pytest.approx(x + 0.5, abs=1e-9)
+        assert h - (ndc[1] + 1) / 2 * h == pytest.approx(y + 0.5, abs=1e-9)
+
+
+@pytest.mark.parametrize("fov", [20.0, 30.0, 60.0])
+@pytest.mark.parametrize("aspect", [0.25, 1.0, 2.0])
+def test_framing_fits_the_bounding_sphere_snugly(fov, aspect):
+    # Whole in view (the existing test) is not enough: an eye twice as far keeps it in view at a
+    # quarter of the area. The sphere's angular radius is the narrower half-angle less the 2% margin.
+    lo, hi = np.array([-3.0, 2.0, 10.0]), np.array([40.0, 30.0, 25.0])
+    radius = 0.5 * float(np.linalg.norm(hi - lo))
+    centre = 0.5 * (lo + hi)
+    cam = Camera.framing(lo, hi, fov=fov, aspect=aspect)
+    dist = float(np.linalg.norm(np.array(cam.eye) - centre))
+    vertical = math.radians(fov) / 2
+    horizontal = math.atan(aspect * math.tan(vertical))
+    seen = math.asin(radius / dist)
+    assert seen <= min(vertical, horizontal)
+    assert seen >= 0.95 * min(vertical, horizontal)
+    par = Camera.framing(lo, hi, parallel=True, aspect=aspect)
+    half_height, half_width = par.parallel_scale, par.parallel_scale * aspect
+    assert radius <= min(half_height, half_width) <= 1.05 * radius
+
+
+def test_rays_of_some_rows_are_those_rows_of_the_whole_image():
+    # rows=(y0, y1) (several volumes' box entries, parallel origins) must be rows y0..y1-1, not 0..
+    for cam in (Camera(eye=(3.0, -7.0, 2.0), look_at=(0.5, 0.25, -1.0), up=(0, 0, 1), fov=40.0),
+                Camera(eye=(3.0, -7.0, 2.0), look_at=(0.5, 0.25, -1.0), up=(0, 0, 1), parallel_scale=3.0)):
+        o, d = cam.rays(7, 9)
+        ob, db = cam.rays(7, 9, rows=(3, 7))
+        np.testing.assert_array_equal(ob, o[3:7])
+        np.testing.assert_array_equal(db, d[3:7])

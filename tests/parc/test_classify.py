@@ -188,3 +188,18 @@ def test_volume_index_caches():
     assert idx.ranges(1) is idx.cell_minmax()
     pc = idx.classify(float(np.median(vol.data)), 2)
     assert pc.shape == idx.grid(2).shape and pc.dtype == bool
+
+
+@pytest.mark.parametrize("size", [0.5, 1.5, 2.25, (2, 3, 1.5)])
+def test_fractional_ranges_are_widened_by_a_billionth_at_most(size):
+    # The module's notes: 2^-32 (~2.3e-10) of the largest magnitude for grids under RANGE_PAD_CELLS.
+    data = _random((6, 7, 8), "float64", seed=23)
+    grid = supercell_grid((8, 7, 6), size)
+    mn, mx = supercell_ranges(data, grid)
+    bound = 1e-9 * float(np.abs(data).max())
+    ex, ey, ez = grid.edges
+    for c in range(grid.shape[0]):
+        for b in range(grid.shape[1]):
+            for a in range(grid.shape[2]):
+                rmn, rmx = box_range(data, (ex[a], ey[b], ez[c]), (ex[a + 1], ey[b + 1], ez[c + 1]))
+                assert rmn - bound <= mn[c, b, a] <= rmn and rmx <= mx[c, b, a] <= rmx + bound, (size, c, b, a)

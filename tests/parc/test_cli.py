@@ -1557,26 +1557,28 @@ class _SignalInCompile:
         ev.unregister(self.kind, self.listener)
 
 
-def test_ctrl_c_while_a_kernel_compiles_is_raised_once_it_has_compiled(capsys):
+@pytest.mark.parametrize("signum, again", [("SIGINT", "Ctrl-C"), ("SIGTERM", "SIGTERM")])
+def test_a_signal_while_a_kernel_compiles_is_raised_once_it_has_compiled(capsys, signum, again):
     # Raised inside Numba's compile, a KeyboardInterrupt was swallowed (the run went on and
     # wrote its file), crashed the process, or broke the kernel ("no compiled object yet").
     import numba
     import raycast.config  # noqa: F401 - watches the compiler lock
-    from parc.cli import _stop_on_signals
+    from parc.cli import _Stopped, _stop_on_signals
 
     @numba.njit
     def twice(x):
         return 2 * x
     replaced = _stop_on_signals()
     try:
-        with _SignalInCompile(signal.SIGINT, 1), pytest.raises(KeyboardInterrupt):
+        with _SignalInCompile(getattr(signal, signum), 1), \
+                pytest.raises(KeyboardInterrupt if signum == "SIGINT" else _Stopped):
             twice(3)
     finally:
-        for signum, handler in replaced.items():
-            signal.signal(signum, handler)
-    assert len(twice.overloads) == 1        # compiled whole before the interrupt was raised
+        for number, handler in replaced.items():
+            signal.signal(number, handler)
+    assert len(twice.overloads) == 1        # compiled whole before the signal was acted on
     assert twice(3) == 6
-    assert capsys.readouterr().err == "parc: stopping once this kernel has compiled (Ctrl-C again to stop at once)\n"
+    assert capsys.readouterr().err == f"parc: stopping once this kernel has compiled ({again} again to stop at once)\n"
 
 
 _TWO_CTRL_C_IN_A_COMPILE = """

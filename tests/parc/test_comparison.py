@@ -80,7 +80,7 @@ def test_a_rows_timings_come_from_its_median_run(monkeypatch):
         clock[0] += wall
         seconds = {"total": wall, "cast": wall / 2, "raster": wall / 4, "raster_bits": wall / 8}
         stats = {"seconds": seconds, "cells_visited": 1, "cubic_solves": 0, "hits": 0, "pixels": 64,
-                 "polygons": 0, "supercell": None, "volumes": [{"supercell": 2.0}, {"supercell": 4.0}]}
+                 "polygons": 0, "supercell": None, "parameters": {}, "volumes": [{"supercell": 2.0}, {"supercell": 4.0}]}
         return RenderResult(image=np.zeros((8, 8, 4), np.float32), depth=np.full((8, 8), np.inf), stats=stats)
 
     monkeypatch.setattr(comparison, "time", Clock)
@@ -94,3 +94,99 @@ def test_a_rows_timings_come_from_its_median_run(monkeypatch):
     assert parc_row["speedup"] == 6.0
     assert (parc_row["speedup_low"], parc_row["speedup_high"]) == (4.0, 8.0)       # 4/1, 2/0.25, 3/0.5
     assert parc_row["supercell"] is None and parc_row["supercells"] == [2.0, 4.0]
+
+
+def _scripted(monkeypatch, walls, phases_of, depth_of=None, image_of=None, size=(2, 2)):
+    """compare/step_sweep's render and clock replaced: each render takes walls[method].pop(0) s."""
+    import parc.comparison as comparison
+    clock = [0.0]
+
+    class Clock:
+        @staticmethod
+        def perf_counter():
+            return clock[0]
+
+    def scripted(scene, method="brute", **options):
+        wall = walls[method].pop(0)
+        clock[0] += wall
+        w, h = size
+        depth = np.full((h, w), 1.0) if depth_of is None else depth_of(method)
+        image = np.zeros((h, w, 4), np.float32) if image_of is None else image_of(method)
+        stats = {"seconds": phases_of(wall), "cells_visited": 1, "cubic_solves": 0, "hits": 0, "pixels": w * h,
+                 "polygons": 0, "supercell": None, "parameters": {}, "samples": 1}
+        return RenderResult(image=image, depth=depth, stats=stats)
+
+    monkeypatch.setattr(comparison, "time", Clock)
+    monkeypatch.setattr(comparison, "render", scripted)
+    return comparison
+
+
+def test_opengl_share_counts_the_light_buffers_pass(monkeypatch):
+    # A lit frame's OpenGL time is its depth, bit-plane and light-buffer passes: 1 + 0.5 + 2 of 8 s.
+    from data_tools.synthetic import blobs
+    from parc import Camera, Isosurface, Scene
+    phases = lambda wall: {"total": wall, "cast": wall / 2, "raster": wall / 8, "raster_bits": wall / 16,  # noqa: E731
+                           "raster_lights": wall / 4}
+    comparison = _scripted(monkeypatch, {"brute": [8.0], "parc": [8.0]}, phases)
+    vol = blobs(6, seed=1)
+    scene = Scene(camera=Camera.framing(*vol.bounds), size=(2, 2), volumes=[Isosurface(vol, 100.5)])
+    _, row = comparison.compare(scene, repeats=1, warmup=0)
+    assert row["opengl_share"] == pytest.approx((1.0 + 0.5 + 2.0) / 8.0, rel=1e-12)
+
+
+def test_compare_gives_the_depth_error_in_the_smallest_spacing(monkeypatch):
+    # Spacing (0.5, 1, 2): a cell is 0.5 world units (the finest), so a depth 0.25 off is half a cell.
+    from data_tools import Volume
+    from parc import Camera, Isosurface, Scene
+    depth = {"brute": np.array([[3.0, 4.0], [np.inf, 5.0]]), "parc": np.array([[3.25, 4.0], [np.inf, 5.0]])}
+    comparison = _scripted(monkeypatch, {"brute": [1.0], "parc": [1.0]}, lambda w: {"total": w},
+                           depth_of=lambda m: depth[m])
+    vol = Volume(np.arange(64, dtype=np.float32).reshape(4, 4, 4), spacing=(0.5, 1.0, 2.0))
+    scene = Scene(camera=Camera.framing(*vol.bounds), size=(2, 2), volumes=[Isosurface(vol, 10.5)])
+    brute, row = comparison.compare(scene, repeats=1, warmup=0)
+    assert brute["max_depth_cells"] == 0.0
+    assert row["max_depth_cells"] == pytest.approx(0.25 / 0.5, rel=1e-12)
+    assert row["hit_mismatches"] == 0
+
+
+def test_format_table_puts_each_figure_under_its_heading():
+    from parc.comparison import format_table
+    row = {"method": "parc", "seconds": 0.5, "speedup": 6.0, "speedup_low": 4.0, "speedup_high": 8.0,
+           "opengl_share": 0.25, "cells_visited": 300, "cubic_solves": 30, "samples": 0, "hits": 50,
+           "pixels": 100, "polygons": 1234, "hit_mismatches": 7, "max_depth_cells": 0.125,
+           "max_color": 0.5, "psnr": 18.0618, "phases": {"total": 0.5}}
+    head, _, line = format_table([row]).splitlines()[:3]
+    names = ["method", "time s", "speedup", "rounds", "OpenGL", "cells/px", "cubics/px", "samples/px",
+             "hits/px", "polygons", "hit≠", "max Δdepth", "max Δcolour", "PSNR"]
+    cells = line.split()
+    assert len(cells) == len(names) and all(n in head for n in names)
+    got = dict(zip(names, cells))
+    assert got == {"method": "parc", "time s": "0.5000", "speedup": "6.00x", "rounds": "4.00-8.00x",
+                   "OpenGL": "25%", "cells/px": "3.0", "cubics/px": "0.30", "samples/px": "0.0",
+                   "hits/px": "0.500", "polygons": "1,234", "hit≠": "7", "max Δdepth": "1.25e-01",
+                   "max Δcolour": "5.00e-01", "PSNR": "18.1"}
+
+
+def test_step_sweep_speedup_and_error_by_hand(monkeypatch):
+    # brute 4 s, parc 1 s at the one step: 4x. brute's image differs from the reference (step 0.125)
+    # by 0.5 in one channel of 16: max 0.5, RMSE sqrt(0.25 / 16) = 0.125; parc equals brute.
+    from data_tools.synthetic import blobs
+    from parc import Camera, Scene, Translucent
+    calls = []
+
+    def image_of(method):
+        calls.append(method)
+        img = np.zeros((2, 2, 4), np.float32)
+        if len(calls) > 1:                 # the first render is the reference
+            img[0, 1, 2] = 0.5
+        return img
+
+    comparison = _scripted(monkeypatch, {"brute": [0.0, 4.0], "parc": [1.0]}, lambda w: {"total": w},
+                           image_of=image_of)
+    vol = blobs(6, seed=1)
+    scene = Scene(camera=Camera.framing(*vol.bounds), size=(2, 2), volumes=[Translucent(vol, "greyscale")])
+    (row,) = comparison.step_sweep(scene, [0.5], repeats=1, warmup=0)
+    assert row["brute_seconds"] == 4.0 and row["parc_seconds"] == 1.0 and row["speedup"] == 4.0
+    assert row["max_color"] == 0.5 and row["rmse"] == pytest.approx(0.125, rel=1e-12)
+    assert row["psnr"] == pytest.approx(20 * math.log10(1 / 0.125), rel=1e-12)
+    assert row["parc_vs_brute"] == 0.0

@@ -187,3 +187,22 @@ def test_proxy_for_iso_marks_the_supercells_holding_the_isovalue():
     want[:, :, 2] = True
     np.testing.assert_array_equal(p.pc, want)
     assert p.n_polygons == 6
+
+
+@pytest.mark.parametrize("iso", [100.5, 140.0])
+def test_a_render_draws_exactly_the_supercells_holding_the_isovalue(iso, gl):
+    from data_tools.synthetic import blobs
+    from parc import Camera, Isosurface, Scene, render
+    vol = blobs(13, seed=4)
+    d = vol.data.astype(np.float64)
+    nz, ny, nx = d.shape
+    want = 0
+    for k in range(0, nz - 1, 2):
+        for j in range(0, ny - 1, 2):
+            for i in range(0, nx - 1, 2):
+                block = d[k:k + 3, j:j + 3, i:i + 3]     # a supercell of 2 cells: 3 samples a side
+                want += bool(block.min() <= iso <= block.max())
+    assert 0 < want < (nx // 2) * (ny // 2) * (nz // 2)      # some supercells, not all
+    scene = Scene(camera=Camera.framing(*vol.bounds), size=(16, 16), volumes=[Isosurface(vol, iso)])
+    stats = render(scene, method="parc", supercell=2).stats
+    assert stats["pc_supercells"] == want
