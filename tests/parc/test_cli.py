@@ -1562,12 +1562,13 @@ def test_a_signal_while_a_kernel_compiles_is_raised_once_it_has_compiled(capsys,
     # Raised inside Numba's compile, a KeyboardInterrupt was swallowed (the run went on and
     # wrote its file), crashed the process, or broke the kernel ("no compiled object yet").
     import numba
-    import raycast.config  # noqa: F401 - watches the compiler lock
     from parc.cli import _Stopped, _stop_on_signals
+    from raycast.config import compiling        # imported, it watches Numba's compiler lock
 
     @numba.njit
     def twice(x):
         return 2 * x
+    assert not compiling()
     replaced = _stop_on_signals()
     try:
         with _SignalInCompile(getattr(signal, signum), 1), \
@@ -1577,7 +1578,7 @@ def test_a_signal_while_a_kernel_compiles_is_raised_once_it_has_compiled(capsys,
         for number, handler in replaced.items():
             signal.signal(number, handler)
     assert len(twice.overloads) == 1        # compiled whole before the signal was acted on
-    assert twice(3) == 6
+    assert twice(3) == 6 and not compiling()
     assert capsys.readouterr().err == f"parc: stopping once this kernel has compiled ({again} again to stop at once)\n"
 
 
