@@ -181,14 +181,17 @@ def real_roots(p, lo, hi):
     The critical points split ``[lo, hi]`` into pieces on which P is
     monotone. A piece end where P is exactly 0 is a root; an interior
     critical point where ``|P|`` is ~0 (at the 1e-34 level of the
-    polynomial's scale) is a *touching* (double or triple) root; a piece
+    terms summed) is a *touching* (double or triple) root; a piece
     whose ends differ in sign holds one root, solved to ~1e-32.
     """
     if not lo <= hi:
         return []
     if p[3] == 0 and p[2] == 0 and p[1] == 0:
         return [(lo, True)] if p[0] == 0 else []
-    ztol = max(abs(x) for x in p) * max(1, abs(lo), abs(hi)) ** 3 * ZERO_REL
+    # Relative to the terms summed at the interval's ends: the largest coefficient times the
+    # largest t cubed counted an eye's distance twice (p0 holds it already), and for an eye 1e7
+    # cells away made every critical point a touching root.
+    ztol = max(sum(abs(c) * abs(x) ** k for k, c in enumerate(p)) for x in (lo, hi)) * ZERO_REL
     pts = [lo] + [e for e in _critical_points(p) if lo < e < hi] + [hi]
     vals = [peval(p, x) for x in pts]
     interior = [0 < n < len(pts) - 1 for n in range(len(pts))]
