@@ -46,13 +46,17 @@ def building(path):
         _BUILDING.remove(Path(path))
 
 
-def end_at_once(status):
-    """End the process now, without unwinding, removing what `building` marks first: for a
-    signal given again while Numba compiles (`parc.cli`), where an exception cannot be raised."""
+def end_at_once(status, cleanups=()):
+    """End the process now, without unwinding, for a signal given again while Numba compiles
+    (`parc.cli`), where an exception cannot be raised: first remove what `building` marks and
+    call ``cleanups``, what `atexit` would have done (`raycast.config.at_exit`)."""
     for path in _BUILDING:
         if path.is_dir() and not path.is_symlink():
             shutil.rmtree(path, ignore_errors=True)
         else:
             with contextlib.suppress(OSError):
                 path.unlink()
+    for cleanup in cleanups:
+        with contextlib.suppress(Exception):
+            cleanup()
     os._exit(status)

@@ -119,15 +119,17 @@ def _stop_on_signals():
     they were lost, crashed the process or broke the kernel. A second signal then stops the
     run at once. The handlers they replace, to restore."""
     def stop(signum, frame):
+        # Still importing, the module may not have defined these yet.
         config = sys.modules.get("raycast.config")
-        if config is not None and config.compiling():
+        compiling = getattr(config, "compiling", None)
+        if compiling is not None and compiling():
             if config.after_compile(lambda: stop(signum, None)):
                 again = "Ctrl-C" if signum == signal.SIGINT else signal.Signals(signum).name
-                _error(f"stopping once this kernel has compiled ({again} again to stop at once)")
+                _error(f"stopping once the kernel under way is ready ({again} again to stop at once)")
                 return
             # Outputs are written after the casts; what a run fills meanwhile is marked `building`.
             _error("interrupted" if signum == signal.SIGINT else f"stopped by {signal.Signals(signum).name}")
-            end_at_once(128 + signum)
+            end_at_once(128 + signum, config.EXIT_CLEANUPS)
         if signum == signal.SIGINT:
             raise KeyboardInterrupt
         raise _Stopped(signum)

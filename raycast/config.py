@@ -2,10 +2,12 @@
 kernels are cached (a folder per version of the sources, and a cache that treats a damaged
 entry as a miss)."""
 import atexit
+import functools
 import hashlib
 import os
 import shutil
 import tempfile
+import threading
 from pathlib import Path
 
 
@@ -31,6 +33,17 @@ import numba.core.event  # noqa: E402
 #: the threads Numba starts with. A compile-time constant (asking Numba in
 #: a kernel would keep it out of the cache), so the cache folder names it.
 SPREAD_WAYS = max(1, int(numba.config.NUMBA_NUM_THREADS))
+
+
+#: What this process undoes as it ends (`at_exit`), for a run ended at once, which skips `atexit`
+#: (`data_tools.signals.end_at_once`).
+EXIT_CLEANUPS = []
+
+
+def at_exit(fn, *args, **kwargs):
+    """Call ``fn(*args, **kwargs)`` when the process ends, by `atexit` or at once."""
+    atexit.register(fn, *args, **kwargs)
+    EXIT_CLEANUPS.append(functools.partial(fn, *args, **kwargs))
 
 
 def choose_cache_folder(environ, name):
@@ -59,7 +72,7 @@ def choose_cache_folder(environ, name):
     if writable:
         return folder, None
     temporary = tempfile.mkdtemp(prefix="parc-kernels-")
-    atexit.register(shutil.rmtree, temporary, ignore_errors=True)
+    at_exit(shutil.rmtree, temporary, ignore_errors=True)
     return temporary, folder
 
 
@@ -133,9 +146,12 @@ class _CompilerLockWatch(numba.core.event.Listener):
         self.pending = None
 
     def on_start(self, event):
-        self.depth += 1
+        if threading.current_thread() is threading.main_thread():    # where signal handlers run
+            self.depth += 1
 
     def on_end(self, event):
+        if threading.current_thread() is not threading.main_thread():
+            return
         self.depth -= 1
         if self.depth == 0 and self.pending is not None:
             act, self.pending = self.pending, None
@@ -147,7 +163,7 @@ numba.core.event.register("numba:compiler_lock", _LOCK_WATCH)
 
 
 def compiling():
-    """Whether Numba is compiling (or loading from its cache) a kernel now."""
+    """Whether the main thread is compiling a kernel with Numba (or loading one from its cache)."""
     return _LOCK_WATCH.depth > 0
 
 

@@ -92,6 +92,7 @@ from fractions import Fraction
 
 import numpy as np
 
+from .config import at_exit
 from .hardcases import cast_batch
 from .hardfields import field_grad
 from .mpcubic import _critical_points, box_intervals, index_ray, mpf, pderiv, peval, ray_cubic, real_roots
@@ -305,7 +306,6 @@ def _pool():
     forever. The parent alone stops, and terminates them (SIGTERM)."""
     global _POOL
     if _POOL is None and _workers() > 1:
-        import atexit
         import multiprocessing as mpc
         import signal
         try:
@@ -317,7 +317,7 @@ def _pool():
         finally:
             if was is not None:
                 signal.signal(signal.SIGINT, was)
-        atexit.register(_end_pool, _POOL)
+        at_exit(_end_pool, _POOL)
     return _POOL
 
 

@@ -34,6 +34,7 @@ import numpy as np
 
 from data_tools import InputError
 from data_tools.errors import os_reason
+from data_tools.io import written_path
 from data_tools.signals import building, signals_held
 
 from ..outputs import compile_notice, note, to_json
@@ -195,10 +196,12 @@ REPORT_FILES = ("report.md", "results.json")
 
 
 def _check_places(out, files, folders):
-    """Refuse, before any work, a report whose files or folders ``out`` holds the other way round."""
+    """Refuse, before any work, a report whose files or folders ``out`` holds the other way round,
+    or a file there that is a device or a pipe (renamed onto, it would become a plain file)."""
     for name in files:
         if (out / name).is_dir():
             raise InputError(f"{out / name}: is a folder; the report writes a file there")
+        written_path(out / name)
     for name in folders:
         if (out / name).exists() and not (out / name).is_dir():
             raise InputError(f"{out / name}: is a file; the report writes a folder there")

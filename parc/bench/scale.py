@@ -25,8 +25,6 @@ import tempfile
 import time
 from pathlib import Path
 
-from data_tools.signals import building
-
 from ..outputs import note
 
 ISOS = (("skin", 600.5), ("bone", 1500.5))
@@ -54,8 +52,7 @@ def visible_woman(suite, progress):
         fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".raw", dir=path.parent)
         os.close(fd)
         try:
-            with building(tmp):
-                ct_phantom_to_disk(tmp, suite.vw_shape)
+            ct_phantom_to_disk(tmp, suite.vw_shape)
             os.replace(tmp, path)
         except BaseException:
             Path(tmp).unlink(missing_ok=True)

@@ -1,6 +1,7 @@
 """`parc bench` on its tiny suite: the report is complete, its numbers consistent, its exactness claims true."""
 import copy
 import json
+import os
 import re
 import subprocess
 import sys
@@ -333,6 +334,18 @@ def test_benchmark_script_refuses_bad_input_in_one_line(script, args, words):
     last = run.stderr.splitlines()[-1]
     assert run.returncode == 2 and "Traceback" not in run.stderr, run.stderr[-2000:]
     assert last.startswith(f"{script}: error: ") and words in last, last
+
+
+def test_a_report_file_that_is_a_pipe_is_refused_before_any_work(tmp_path):
+    # Moved onto, a pipe (or for root a link to /dev/null) became a plain file.
+    import stat
+    from data_tools import InputError
+    out = tmp_path / "report"
+    out.mkdir()
+    os.mkfifo(out / "results.json")
+    with pytest.raises(InputError, match="results.json: not a regular file"):
+        run_bench(out, Suite.tiny())
+    assert stat.S_ISFIFO(os.stat(out / "results.json").st_mode) and sorted(os.listdir(out)) == ["results.json"]
 
 
 def test_a_report_folder_that_cannot_be_made_is_refused_before_any_work(tmp_path):

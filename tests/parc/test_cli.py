@@ -1579,11 +1579,25 @@ def test_a_signal_while_a_kernel_compiles_is_raised_once_it_has_compiled(capsys,
             signal.signal(number, handler)
     assert len(twice.overloads) == 1        # compiled whole before the signal was acted on
     assert twice(3) == 6 and not compiling()
-    assert capsys.readouterr().err == f"parc: stopping once this kernel has compiled ({again} again to stop at once)\n"
+    assert capsys.readouterr().err == f"parc: stopping once the kernel under way is ready ({again} again to stop at once)\n"
+
+
+def test_ctrl_c_while_the_kernel_module_is_still_importing_is_a_plain_interrupt(monkeypatch):
+    # A module half imported has no `compiling` yet: the handler raised AttributeError, a traceback.
+    import types
+    from parc.cli import _stop_on_signals
+    monkeypatch.setitem(sys.modules, "raycast.config", types.ModuleType("raycast.config"))
+    replaced = _stop_on_signals()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            signal.raise_signal(signal.SIGINT)
+    finally:
+        for number, handler in replaced.items():
+            signal.signal(number, handler)
 
 
 _TWO_CTRL_C_IN_A_COMPILE = """
-import signal, sys
+import shutil, signal, sys
 from pathlib import Path
 import numba
 import raycast.config
@@ -1606,6 +1620,9 @@ numba.core.event.register("numba:compile", CtrlCTwice())
 stage = Path(sys.argv[1]) / ".stage"
 stage.mkdir()
 (stage / "half.png").write_bytes(b"x")
+kernels = Path(sys.argv[1]) / "parc-kernels-temporary"       # as for a cache folder not writable
+kernels.mkdir()
+raycast.config.at_exit(shutil.rmtree, kernels)
 with building(stage):
     twice(3)
 print("not reached")
@@ -1613,10 +1630,12 @@ print("not reached")
 
 
 def test_ctrl_c_twice_while_a_kernel_compiles_stops_at_once_leaving_nothing(tmp_path):
+    # Ended at once, the run skips `atexit`: what it fills and what it would remove at exit
+    # (a temporary kernel folder, the root study's worker pool) are removed first.
     p = subprocess.run([sys.executable, "-c", _TWO_CTRL_C_IN_A_COMPILE, tmp_path], capture_output=True, text=True,
                        timeout=300, cwd=Path(__file__).parents[2])
     assert (p.returncode, p.stdout) == (130, "")
-    assert p.stderr == ("parc: stopping once this kernel has compiled (Ctrl-C again to stop at once)\n"
+    assert p.stderr == ("parc: stopping once the kernel under way is ready (Ctrl-C again to stop at once)\n"
                         "parc: interrupted\n")
     assert list(tmp_path.iterdir()) == []
 

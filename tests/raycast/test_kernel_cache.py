@@ -199,3 +199,39 @@ def test_a_cache_write_that_fails_leaves_the_kernel_uncached(tmp_path, monkeypat
     monkeypatch.setattr(IndexDataCacheFile, "_open_for_write", full)
     cache.save(("sig",), b"compiled")
     assert cache.load(("sig",)) is None
+
+
+def test_only_the_main_thread_compiling_counts_as_compiling():
+    # A run's signal handler holds a Ctrl-C while `compiling` and raises it where the compile
+    # ends, in the thread that compiled: a compile in another thread must neither hold the
+    # signal nor receive it.
+    import threading
+
+    import numba
+    import numba.core.event as ev
+    from raycast.config import compiling
+    seen = []
+
+    class Look(ev.Listener):
+        def on_start(self, event):
+            seen.append((threading.current_thread() is threading.main_thread(), compiling()))
+
+        def on_end(self, event):
+            pass
+
+    def fresh():
+        @numba.njit
+        def twice(x):
+            return 2 * x
+        return twice(3)
+    look = Look()
+    ev.register("numba:compile", look)
+    try:
+        worker = threading.Thread(target=fresh)
+        worker.start()
+        worker.join()
+        fresh()
+    finally:
+        ev.unregister("numba:compile", look)
+    assert seen == [(False, False), (True, True)]
+    assert not compiling()
