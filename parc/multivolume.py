@@ -54,7 +54,7 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
     Returns ``(image, depth, counts, timings, extra)``: the float32 RGBA
     image (without background), the ``(H, W)`` depth, the counters
     (cells, solves, samples, shadow_cells, shadow_solves, shadow_samples,
-    shadow_rays), seconds per phase and per-volume PARC details. ``blocks``:
+    shadow_rays, light_polygons: the faces the light buffers drawn this frame drew), seconds per phase and per-volume PARC details. ``blocks``:
     PARC's walks and shadow rays skip the volumes' empty cells
     (`parc.renderer.render`).
     """
@@ -66,7 +66,7 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
     cam = scene.camera.as_array()
     timings = {"raster": 0.0, "classify": 0.0, "proxy": 0.0}
     counts = dict.fromkeys(("cells", "solves", "samples", "shadow_cells", "shadow_solves",
-                            "shadow_samples", "shadow_rays"), 0)
+                            "shadow_samples", "shadow_rays", "light_polygons"), 0)
     extra = {"volumes": []}
     parc = method == "parc"
     bands = row_bands(h, w, progress)
@@ -246,6 +246,8 @@ def _shadows(scene, method, lights, points, groups, vis, sizes, light_buffer, bl
                 proxy, _ = cached_proxy(v, sizes[n], scene.size, phase, merge=False)
                 buf = None          # the last light's buffers, if evicted, are freed before these are drawn
                 buf = _cached_light_buffers(light, v, proxy, sizes[n], light_buffer)
+                if buf.seconds:         # drawn this frame (kept ones report no time, and no faces)
+                    counts["light_polygons"] += buf.polygons * len(buf.views)
                 timings["raster_lights"] += buf.seconds
                 buf.seconds = 0.0
                 views, near, far = buf.views, buf.near, buf.far

@@ -64,7 +64,11 @@ class RenderResult:
         ``method``, ``seconds`` per phase, ``pixels``, ``rays`` (one per pixel; with PARC,
         ``segment_pixels`` are those whose ray is walked), ``cells_visited``,
         ``cubic_solves``, ``samples``, ``hits``, ``polygons`` (all PARC drew: its proxy's and,
-        with bit planes, their ``plane_polygons``) and the parameters used.
+        with bit planes, their ``plane_polygons``; with shadows, the faces of the light
+        buffers drawn this frame, ``light_polygons``, every face once a view) and the
+        parameters used. ``cells_visited`` and ``cubic_solves`` count isosurfaces' work and
+        ``samples`` translucent volumes'; on a process's first frames ``seconds["total"]``
+        also holds what the phases listed leave out (loading the casters, making OpenGL's context).
     work : ndarray (H, W) int64 or None
         With ``render(..., work=True)``: per pixel, the cells its ray visited
         (an isosurface) or the samples it took (a translucent volume), so
@@ -292,11 +296,13 @@ def _render_general(scene, method, supercell, progress, light_buffer, skip_block
         "shadow_cells": counts["shadow_cells"],
         "shadow_solves": counts["shadow_solves"],
         "shadow_samples": counts["shadow_samples"],
+        "light_polygons": counts["light_polygons"],
         "parameters": {"size": [w, h], "camera": _camera_settings(scene.camera), "shadows": scene.shadows,
                        "lights": len(scene.lights),
                        "volumes": [_describe(v) for v in scene.volumes]},
     }
-    stats["polygons"] = sum(v.get("polygons", 0) for v in extra["volumes"]) if method == "parc" else 0
+    stats["polygons"] = (sum(v.get("polygons", 0) for v in extra["volumes"]) + counts["light_polygons"]
+                         if method == "parc" else 0)
     stats.update(extra)
     return RenderResult(image=image, depth=depth, stats=stats)
 

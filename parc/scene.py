@@ -216,7 +216,8 @@ class Scene:
     lights : list of PointLight or DirectionalLight
         Kept as a tuple.
         Light sources for isosurfaces (refused for a scene without one);
-        empty means a headlight at the eye.
+        empty means a headlight at the eye, shining along each pixel's ray (in a parallel
+        view, along the view direction, as `DirectionalLight` would, not `PointLight(eye)`).
     background : (r, g, b), (r, g, b, a) or None
         Composited under the image, each component in [0, 1]; three are
         opaque (a = 1). The colour is as seen, not yet multiplied by alpha

@@ -587,6 +587,31 @@ def test_light_buffers_are_kept_while_only_the_camera_moves(gl):
     assert np.abs(again.image - ref.image).max() <= 1e-6
 
 
+def test_polygons_count_the_light_buffers_drawn_this_frame(gl, monkeypatch):
+    # The docstring: polygons are all PARC drew. The light buffers' faces were left out.
+    from dataclasses import replace
+
+    import parc.multivolume
+    monkeypatch.setattr(parc.multivolume, "_LIT", weakref.WeakSet())
+    drawn = []
+    draw = parc.multivolume.light_buffers
+
+    def counted(light, proxy, size):
+        buf = draw(light, proxy, size=size)
+        drawn.append(proxy.n_polygons * len(buf.views))
+        return buf
+    monkeypatch.setattr(parc.multivolume, "light_buffers", counted)
+    vol, scene = _lit_blob((30.0, -20.0, 25.0))
+    first = render(scene, method="parc").stats
+    own = sum(v["polygons"] for v in first["volumes"])
+    assert len(drawn) == 1 and drawn[0] > 0
+    assert first["light_polygons"] == drawn[0] and first["polygons"] == own + drawn[0]
+    moved = render(replace(scene, camera=Camera.framing(*vol.bounds, azimuth=-50)), method="parc").stats
+    assert len(drawn) == 1 and moved["light_polygons"] == 0         # kept, not drawn again
+    assert moved["polygons"] == sum(v["polygons"] for v in moved["volumes"])
+    assert render(scene, method="brute").stats["polygons"] == 0
+
+
 def test_kept_light_buffers_stay_within_their_bytes(gl, monkeypatch):
     # A light moved from frame to frame kept each place's buffers, 16 of them: at a light_buffer
     # of 8192 a point light's take 6 GB, and a few moves filled the memory.
