@@ -6,6 +6,7 @@ import re
 import subprocess
 import sys
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 from PIL import Image
@@ -605,3 +606,65 @@ def test_a_stand_in_names_the_files_it_stands_in_for(tmp_path):
     assert iron_protein(8, tmp_path)[1].endswith("(`poship.slc` not found)")
     (tmp_path / "neghip.slc").unlink()
     assert iron_protein(8, tmp_path)[1].endswith("(`poship.slc` and `neghip.slc` not found)")
+
+
+# Every consistency check must fail on hand-made results that break exactly its claim: the suite's
+# own results are consistent, so a check made vacuous (a value compared with itself, a constant
+# True, a dropped row kind) passes on them. Truth: the numbers below, written by hand.
+
+def _exact_row(**kw):
+    return {"hit_mismatches": 0, "max_color": 0.0, **kw}
+
+
+@pytest.mark.parametrize("part, good, bad", [
+    ("steps", {"step": 0.5, "parc_vs_brute": 0.0}, {"step": 0.5, "parc_vs_brute": 1e-3}),
+    ("precision", {"volume": "v", "dtype": "uint8", "parc_vs_brute": 0.0},
+     {"volume": "v", "dtype": "uint8", "parc_vs_brute": 1e-3}),
+    ("supercells", _exact_row(supercell=4), _exact_row(supercell=4, hit_mismatches=3)),
+    ("time_shares", _exact_row(surface="skin", method="parc"), _exact_row(surface="skin", method="parc", max_color=0.1)),
+    ("visible_woman", _exact_row(surface="skin"), _exact_row(surface="skin", hit_mismatches=1)),
+])
+def test_each_exactness_check_fails_on_its_own_broken_row(part, good, bad):
+    def results(row):
+        res = _hand_results()
+        (res[part]["surfaces"] if part == "visible_woman" else res[part]["rows"]).append(row)
+        return res
+    assert _failed(results(good)) == []
+    assert len(_failed(results(bad))) == 1
+
+
+def test_casting_longer_than_the_total_fails_its_check():
+    ok = _t1("parc", 60)
+    assert _failed(_hand_results(t1_rows=[_t1("brute", 100), ok])) == []
+    broken = {**ok, "cast_seconds": 0.3, "total_seconds": 0.2}
+    assert [c for c in _failed(_hand_results(t1_rows=[_t1("brute", 100), broken])) if "casting ≤ total" in c]
+
+
+def test_a_root_finder_failure_fails_its_check():
+    res = _hand_results()
+    res["roots"]["rows"] = [{"name": "project", "failures": 2}]
+    assert [c for c in _failed(res) if "root finders" in c]
+
+
+@pytest.mark.parametrize("key", ["sums", "parc_within_brute"])
+def test_work_map_checks_fail_when_their_claim_is_false(key):
+    res = _hand_results(t1_rows=[_t1("brute", 100), _t1("parc", 60)])
+    res["table1"]["work"] = {"checks": {"sums": True, "parc_within_brute": True}}
+    assert _failed(res) == []
+    res["table1"]["work"]["checks"][key] = False
+    assert len(_failed(res)) == 1
+
+
+@pytest.mark.parametrize("parc_total", [60, 61])
+def test_work_maps_sum_check_compares_the_map_with_the_render_stats(monkeypatch, parc_total):
+    """`work_maps`'s "sums": each method's per-pixel map summed equals its stats' total (here by hand:
+    brute's map sums to 100, parc's to 60; parc's stats say `parc_total`)."""
+    import numpy as np
+    from parc.bench import tables
+    maps = {"brute": np.full((2, 5), 10), "parc": np.full((2, 5), 6)}
+    totals = {"brute": 100, "parc": parc_total}
+    monkeypatch.setattr(tables, "render", lambda scene, m, work: SimpleNamespace(
+        work=maps[m], stats={"samples": totals[m]}))
+    got = tables.work_maps(None, "samples")
+    assert got["checks"]["sums"] is (parc_total == 60)
+    assert got["checks"]["parc_within_brute"] is True

@@ -475,3 +475,31 @@ def test_a_fov_given_makes_a_parallel_file_view_perspective(folder):
     path = write(folder, "[camera]\nparallel = 12\n" + textwrap.dedent(VOLUME))
     cam = load_scene(path, view={"fov": 40.0}).camera
     assert not cam.parallel and cam.fov == 40.0
+
+
+# A translucent volume's `material` is a documented key (VOLUME_KEYS, the Translucent's shading
+# constants with shade = true), but no test writes it: dropping it after parsing passed every test.
+# Truth: the numbers written in the file; and a shaded render with the key must differ from one
+# without it (the default material), or the key never reached the caster.
+TRANSLUCENT_SHADED = """\
+    size = [24, 20]
+
+    [[volume]]
+    file = "data/blobs.nrrd"
+    tf = "data/warm.toml"
+    shade = true
+"""
+
+
+def test_a_translucent_volumes_material_reaches_the_scene_and_the_render(folder):
+    material = (0.3, 0.2, 0.6, 7.0)
+    with_key = load_scene(write(folder, TRANSLUCENT_SHADED + "    material = [0.3, 0.2, 0.6, 7]\n", "m.toml"))
+    without = load_scene(write(folder, TRANSLUCENT_SHADED, "d.toml"))
+    (tl,) = with_key.volumes
+    assert isinstance(tl, parc.Translucent) and tl.shade
+    assert tl.material == material
+    assert without.volumes[0].material != material
+    a = parc.render(with_key, method="brute").image
+    b = parc.render(without, method="brute").image
+    assert a[..., 3].max() > 0.05                       # the volume shows
+    assert np.abs(a - b).max() > 1e-3                   # and its material changes how it looks
