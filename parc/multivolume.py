@@ -54,7 +54,8 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
     Returns ``(image, depth, counts, timings, extra)``: the float32 RGBA
     image (without background), the ``(H, W)`` depth, the counters
     (cells, solves, samples, shadow_cells, shadow_solves, shadow_samples,
-    shadow_rays, light_polygons: the faces the light buffers drawn this frame drew), seconds per phase and per-volume PARC details. ``blocks``:
+    shadow_rays, and light_polygons: the faces of the light buffers drawn
+    this frame), seconds per phase and per-volume PARC details. ``blocks``:
     PARC's walks and shadow rays skip the volumes' empty cells
     (`parc.renderer.render`).
     """
