@@ -25,6 +25,7 @@ import contextlib
 import os
 import platform
 import shutil
+import subprocess
 import tempfile
 import time
 from dataclasses import asdict, dataclass, field, replace
@@ -140,8 +141,26 @@ def machine():
     return {"cpu": cpu, "cores": os.cpu_count(), "numba_threads": numba.config.NUMBA_NUM_THREADS,
             "opengl": f"{ctx.info['GL_RENDERER']} (OpenGL {ctx.info['GL_VERSION']})",
             "python": platform.python_version(), "numpy": np.__version__, "numba": numba.__version__,
-            "moderngl": moderngl.__version__, "os": platform.platform(),
+            "moderngl": moderngl.__version__, "os": platform.platform(), "parc": source_version(),
             "date": time.strftime("%Y-%m-%d %H:%M %Z")}
+
+
+def source_version():
+    """PARC's version and, run from a git checkout, its commit (``+changes`` when edited since):
+    a report's figures are then tied to the code that made them."""
+    from importlib.metadata import PackageNotFoundError, version
+    try:
+        v = version("parc")
+    except PackageNotFoundError:
+        v = "unknown"
+    root = Path(__file__).resolve().parents[2]
+    try:
+        git = subprocess.run(["git", "-C", str(root), "describe", "--always", "--dirty=+changes"],
+                             capture_output=True, text=True, timeout=10)
+    except (OSError, subprocess.SubprocessError):
+        return v
+    commit = git.stdout.strip()
+    return f"{v}, commit {commit}" if git.returncode == 0 and commit else v
 
 
 def run_bench(out, suite=None, *, progress=None, command=None):
@@ -284,8 +303,9 @@ def _report(res, out, report):
     md = ["# PARC benchmark report", "",
           f"Suite `{s['name']}`, run {m['date']} in {res['seconds'] / 60:.1f} min"
           + (f" with `{res['command']}`" if res.get("command") else "") + ".", "",
-          f"Machine: {m['cpu']}, {m['cores']} cores ({m['numba_threads']} Numba threads); OpenGL: {m['opengl']}; "
-          f"Python {m['python']}, NumPy {m['numpy']}, Numba {m['numba']}, moderngl {m['moderngl']}; {m['os']}.", "",
+          f"PARC {m.get('parc', 'unknown')}. Machine: {m['cpu']}, {m['cores']} cores ({m['numba_threads']} Numba "
+          f"threads); OpenGL: {m['opengl']}; Python {m['python']}, NumPy {m['numpy']}, Numba {m['numba']}, "
+          f"moderngl {m['moderngl']}; {m['os']}.", "",
           "Every speedup is a ratio of two times measured in this run on this machine: each the median of "
           f"{s['repeats']} renders after a warm-up. `brute` is the unaccelerated caster; `parc` casts the same "
           "rays over OpenGL-rasterized segments with the same traversal and intersection code.", ""]

@@ -160,6 +160,8 @@ def _data_axis(values, log, include_zero=False):
         pad = abs(lo) * 0.1 or 1.0
         lo, hi = (lo, hi + pad) if include_zero and lo == 0 else (lo - pad, hi + pad)
     step = _nice_step((hi - lo) / 4)
+    if values and all(float(v).is_integer() for v in values):
+        step = max(step, 1.0)       # counts (threads, sizes) get no ticks between whole numbers
     k0, k1 = math.floor(lo / step + 1e-9), math.ceil(hi / step - 1e-9)
     ticks = tuple(float(f"{k * step:.12g}") for k in range(k0, k1 + 1))
     return _Axis(ticks[0], ticks[-1], False, ticks=ticks)

@@ -100,6 +100,9 @@ def time_shares(suite, progress):
                          "shading": min(shading, max(cast - intersect, 0.0))}
                 if r["method"] != "brute":
                     parts["OpenGL"] = gl
+                # The frame's time the parts leave out (setup, the median's other runs): shares of
+                # the parts alone hid it.
+                parts["other"] = max(r["seconds"] - sum(parts.values()), 0.0)
                 total = sum(parts.values())
                 rows.append({"surface": f"{name} ({iso:g})", "method": r["method"], "seconds": r["seconds"],
                              "parts_seconds": parts,

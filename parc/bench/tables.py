@@ -123,6 +123,8 @@ def table3(suite, progress, images):
         for r in out[-len(rows):]:
             b = out[-len(rows)]
             r["primary_speedup"] = b["primary_cast_seconds"] / max(r["primary_cast_seconds"], 1e-12)
+            # The paper's primary-ray ratio is of totals (its 3.5x: 35.61 s / 10.06 s).
+            r["primary_total_speedup"] = b["primary_total_seconds"] / max(r["primary_total_seconds"], 1e-12)
             r["shadow_speedup"] = b["shadow_seconds"] / max(r["shadow_seconds"], 1e-12)
         images["table3"] = scene
     return {"source": source, "rows": out}
