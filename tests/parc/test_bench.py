@@ -100,6 +100,9 @@ def test_time_shares_add_up(bench):
     for r in res["time_shares"]["rows"]:
         assert sum(r["shares"].values()) == pytest.approx(1.0)
         assert ("OpenGL" in r["shares"]) == (r["method"] != "brute")
+        # Shares of the whole frame: the parts with the rest ("other") add up to its seconds.
+        assert sum(r["parts_seconds"].values()) == pytest.approx(max(r["seconds"], sum(
+            v for k, v in r["parts_seconds"].items() if k != "other")), rel=1e-12)
 
 
 def test_sweeps_cover_what_the_suite_asked(bench):

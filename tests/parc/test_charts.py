@@ -90,6 +90,13 @@ def test_log_zero_slot_is_beyond_the_smallest_positive(px0, px1):
     assert (f(1e-3) - f(1e-2)) * (px0 - px1) > 0
 
 
+def test_whole_numbers_get_whole_ticks():
+    # Threads 1 and 2 were ticked at 1.2, 1.4, 1.6.
+    assert _data_axis([1, 2], False).ticks == (1.0, 2.0)
+    assert all(float(t).is_integer() for t in _data_axis([1, 2, 4, 8], False).ticks)
+    assert not all(float(t).is_integer() for t in _data_axis([1.0, 1.5], False).ticks)
+
+
 def test_data_axis_degenerate_ranges_are_padded():
     for values, log in [([5.0, 5.0], False), ([0.0], False), ([], False), ([-2.0], False),
                         ([7.0], True), ([], True), ([0.0, 0.0], True)]:
