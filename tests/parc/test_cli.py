@@ -1557,8 +1557,20 @@ class _SignalInCompile:
         ev.unregister(self.kind, self.listener)
 
 
+@pytest.fixture
+def stop_signals_at_their_defaults():
+    """Ctrl-C and SIGTERM as a run started at a terminal has them: a run started in the
+    background (a CI job under &) inherits Ctrl-C ignored, which `_stop_on_signals` keeps."""
+    was = {signal.SIGINT: signal.signal(signal.SIGINT, signal.default_int_handler),
+           signal.SIGTERM: signal.signal(signal.SIGTERM, signal.SIG_DFL)}
+    yield
+    for signum, handler in was.items():
+        signal.signal(signum, handler)
+
+
 @pytest.mark.parametrize("signum, again", [("SIGINT", "Ctrl-C"), ("SIGTERM", "SIGTERM")])
-def test_a_signal_while_a_kernel_compiles_is_raised_once_it_has_compiled(capsys, signum, again):
+def test_a_signal_while_a_kernel_compiles_is_raised_once_it_has_compiled(capsys, signum, again,
+                                                                        stop_signals_at_their_defaults):
     # Raised inside Numba's compile, a KeyboardInterrupt was swallowed (the run went on and
     # wrote its file), crashed the process, or broke the kernel ("no compiled object yet").
     import numba
@@ -1582,7 +1594,8 @@ def test_a_signal_while_a_kernel_compiles_is_raised_once_it_has_compiled(capsys,
     assert capsys.readouterr().err == f"parc: stopping once the kernel under way is ready ({again} again to stop at once)\n"
 
 
-def test_ctrl_c_while_the_kernel_module_is_still_importing_is_a_plain_interrupt(monkeypatch):
+def test_ctrl_c_while_the_kernel_module_is_still_importing_is_a_plain_interrupt(monkeypatch,
+                                                                              stop_signals_at_their_defaults):
     # A module half imported has no `compiling` yet: the handler raised AttributeError, a traceback.
     import types
     from parc.cli import _stop_on_signals
@@ -1615,6 +1628,7 @@ class CtrlCTwice(numba.core.event.Listener):
 @numba.njit
 def twice(x):
     return 2 * x
+signal.signal(signal.SIGINT, signal.default_int_handler)     # ignored where the tests run in the background
 _stop_on_signals()
 numba.core.event.register("numba:compile", CtrlCTwice())
 stage = Path(sys.argv[1]) / ".stage"
