@@ -55,7 +55,11 @@ def paper_tables(res, out):
     t1, t2, t3 = res["table1"], res["table2"], res["table3"]
     md = ["## 1. Sobierajski & Avila, Tables 1–3", "",
           "Columns as in the paper: casting time includes rasterizing the proxy; total time is the whole "
-          "render. *Ideal* is what a caster touching contributing cells only would take (§5). "
+          "render. Unlike the paper's, a cast here shades its hits as it goes, so casting is most of the "
+          "total. In Table 1, `parc (depth, no blocks)` is the paper's depth-buffer PARC; `parc (depth)` "
+          "adds jumps over empty cells inside the segments, which neither of the paper's methods has, and "
+          "`parc (depth+bits)` adds to that the bit planes of its Color-buffer PARC. "
+          "*Ideal* is what a caster touching contributing cells only would take (§5). "
           "*Exact* means identical hit masks and |Δcolour| ≤ 1e-6 against `brute` on every pixel.", "",
           "### Table 1: CT, translucent (Fig. 11)", "", f"Volume: {t1['source']}; transfer function "
           "`ct_skin_bone`, composite, step a quarter of the smallest spacing.", ""]
