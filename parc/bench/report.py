@@ -230,10 +230,12 @@ def scale(res, out):
     best = max(1 / r["parc_seconds"] for r in vw["surfaces"])
     md += ["", f"Changing the isovalue (to {ch['isovalue']:g}): reclassification and proxy "
                f"{_s(ch['reclassify_proxy_seconds'])} s, first frame {_s(ch['first_frame_seconds'])} s.", "",
-           f"Parker et al. reached about 10 frames per second at 512² on 64 processors. Here `parc` gives "
-           f"{best:.1f} frames per second at {vw['size']}² on {vw['threads']} threads"
-           + (f", {best / 10:.0%} of their rate" if vw["size"] == 512 else " (a reduced size: not comparable)")
-           + ".", ""]
+           f"Parker et al. reached about 10 frames per second at 512² on 64 processors, over the real body "
+           f"and their views. Here `parc` gives {best:.1f} frames per second at {vw['size']}² on "
+           f"{vw['threads']} threads, on one view of a phantom simpler than the real body"
+           + (f" ({best / 10:.0%} of their rate; a like-for-like comparison would need the real data)"
+              if vw["size"] == 512 else " (a reduced size: not comparable)")
+           + ". Frames are timed round by round, `brute` and `parc` in turn.", ""]
     return md
 
 

@@ -18,7 +18,6 @@ import argparse
 import json
 import os
 import resource
-import statistics
 import subprocess
 import sys
 import tempfile
@@ -75,16 +74,6 @@ def visible_woman(suite, progress):
     return result
 
 
-def _render_timed(scene, method, repeats):
-    from ..renderer import render
-    runs = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        res = render(scene, method=method)
-        runs.append((time.perf_counter() - t0, res))
-    return statistics.median(t for t, _ in runs), runs[0][1]
-
-
 def measure(path, size, repeats, say):
     """Everything the section reports, measured in this process."""
     import numba
@@ -93,7 +82,7 @@ def measure(path, size, repeats, say):
 
     from ..camera import Camera
     from ..classify import VolumeIndex
-    from ..comparison import image_error
+    from ..comparison import compare
     from ..renderer import render
     from ..scene import Isosurface, Scene
 
@@ -125,23 +114,20 @@ def measure(path, size, repeats, say):
         first = render(scene, method="parc")
         first_wall = time.perf_counter() - t0
         ph = first.stats["seconds"]
-        say(f"{name}: parc frames")
-        parc_s, parc_res = _render_timed(scene, "parc", repeats)
-        say(f"{name}: brute frames")
-        render(scene, method="brute")
-        brute_s, brute_res = _render_timed(scene, "brute", repeats)
-        err = image_error(parc_res, brute_res, 1.0)
+        say(f"{name}: brute and parc frames, in turn")
+        # Timed round by round, as every other section: a drift in the machine's speed reaches both.
+        brute, parc = compare(scene, methods=("brute", "parc"), repeats=repeats)
         surfaces.append({
             "surface": name, "isovalue": iso,
-            "brute_seconds": brute_s, "parc_seconds": parc_s, "speedup": brute_s / parc_s,
+            "brute_seconds": brute["seconds"], "parc_seconds": parc["seconds"], "speedup": parc["speedup"],
             "first_frame_seconds": first_wall,
             "proxy_build_seconds": ph.get("classify", 0.0) + ph.get("proxy", 0.0),
-            "raster_seconds": parc_res.stats["seconds"].get("raster", 0.0),
-            "polygons": parc_res.stats.get("polygons", 0), "supercell": parc_res.stats.get("supercell"),
-            "brute_cells": brute_res.stats["cells_visited"], "parc_cells": parc_res.stats["cells_visited"],
-            "ideal_cells": brute_res.stats["cubic_solves"],
-            "hit_mismatches": err["hit_mismatches"], "max_depth_cells": err["max_depth_cells"],
-            "max_color": err["max_color"]})
+            "raster_seconds": parc["phases"].get("raster", 0.0),
+            "polygons": parc["polygons"], "supercell": parc["supercell"],
+            "brute_cells": brute["cells_visited"], "parc_cells": parc["cells_visited"],
+            "ideal_cells": brute["cubic_solves"],
+            "hit_mismatches": parc["hit_mismatches"], "max_depth_cells": parc["max_depth_cells"],
+            "max_color": parc["max_color"]})
     # Changing the isovalue: the proxy for a new level, from the cached min/max,
     # then the first frame; measured on a third level so no proxy is cached.
     scene = Scene(camera=cam, size=(size, size), volumes=[Isosurface(vol, 1200.5)])
