@@ -33,6 +33,11 @@ def _error(row):
     return {k: row[k] for k in ("hit_mismatches", "max_depth_cells", "max_color", "psnr")}
 
 
+def _spread(row):
+    """The lowest and highest of the rounds' own speedups (`parc.compare`): the run's noise."""
+    return {k: row[k] for k in ("speedup_low", "speedup_high") if k in row}
+
+
 def work_maps(scene, count):
     """``brute``'s and ``parc``'s work per pixel on ``scene`` (`parc.render`'s ``work``), with checks.
 
@@ -77,7 +82,7 @@ def table1(suite, progress, images):
                                    "parc": "parc (depth)", "parc:bits": "parc (depth+bits)"}[r["method"]],
                         "size": size, "samples": r["samples"], "ideal_samples": ideal,
                         "cast_seconds": _cast_seconds(r), "total_seconds": r["seconds"],
-                        "speedup": r["speedup"], "polygons": r["polygons"], **_error(r)})
+                        "speedup": r["speedup"], **_spread(r), "polygons": r["polygons"], **_error(r)})
         images["table1"] = scene
     return {"source": source, "rows": out, "work": work, "work_size": suite.sizes[0]}
 
@@ -97,7 +102,7 @@ def table2(suite, progress, images):
             out.append({"method": r["method"], "size": size, "cells": r["cells_visited"], "ideal_cells": ideal_c,
                         "samples": r["samples"], "ideal_samples": ideal_s,
                         "cast_seconds": _cast_seconds(r), "total_seconds": r["seconds"],
-                        "speedup": r["speedup"], "polygons": r["polygons"], **_error(r)})
+                        "speedup": r["speedup"], **_spread(r), "polygons": r["polygons"], **_error(r)})
         images["table2"] = scene
     return {"source": source, "rows": out}
 
@@ -119,7 +124,7 @@ def table3(suite, progress, images):
                         "primary_total_seconds": r["seconds"] - shadow,
                         "shadow_cells": r["shadow_cells"], "ideal_shadow_cells": brute["shadow_solves"],
                         "shadow_seconds": shadow, "total_seconds": r["seconds"],
-                        "speedup": r["speedup"], **_error(r)})
+                        "speedup": r["speedup"], **_spread(r), **_error(r)})
         for r in out[-len(rows):]:
             b = out[-len(rows)]
             r["primary_speedup"] = b["primary_cast_seconds"] / max(r["primary_cast_seconds"], 1e-12)
