@@ -121,9 +121,10 @@ def parker(res, out):
                          for k in ("traversal", "intersection", "shading", "OpenGL", "other")),
                        f"{r['cubics']:,}", f"{r['ns_per_solve']:.0f}") for r in sh["rows"]]))
     charts.stacked_bar_chart(out / "time_shares.png",
-                             [(f"{r['surface'].split()[0]} {r['method']} {1e3 * r['seconds']:.1f} ms", r["parts_seconds"])
-                              for r in sh["rows"]],
-                             title=f"Where an isosurface frame's time goes: CT at {sh['size']}x{sh['size']}, 1 thread")
+                             [(f"{r['surface'].split()[0]} {r['method']} {1e3 * r['seconds']:.1f} ms",
+                               r["parts_seconds"]) for r in sh["rows"]],
+                             title=f"Where an isosurface frame's time goes: CT at {sh['size']}x{sh['size']}, "
+                                   "1 thread")
     md += ["", "![time shares](time_shares.png)", "",
            f"### Thread scaling (their Table 2), bone isosurface at {th['size']}²", "",
            f"{th['cores']} cores available to Numba.", ""]
@@ -132,8 +133,8 @@ def parker(res, out):
                        _x(r["parc_speedup"])) for r in th["rows"]]))
     charts.line_chart(out / "thread_scaling.png",
                       {m: [(r["threads"], r[f"{m}_fps"]) for r in th["rows"]] for m in ("brute", "parc")},
-                      title=f"Frames per second against threads: CT bone at {th['size']}x{th['size']}", x_label="threads",
-                      y_label="frames per second")
+                      title=f"Frames per second against threads: CT bone at {th['size']}x{th['size']}",
+                      x_label="threads", y_label="frames per second")
     md += ["", "![thread scaling](thread_scaling.png)", ""]
     return md
 
@@ -194,10 +195,10 @@ def sweeps(res, out):
            "inaccurate, within a cell of the true root but outside its tolerance (1e-9 of a cell plus "
            "the rounding of t); cell, cell or local coordinates inconsistent with t.", ""]
     _scatter(out / "sweep_roots.png",
-                         [{"x": r["max_err_cells"], "y": r["ns_per_solve"], "label": f"{r['name']} ({r['failures']} fail)",
-                           "series": r["name"]} for r in rows],
-                         title="Root finders: time per solve against max error", x_label="max error (cells)",
-                         y_label="ns per solve")
+             [{"x": r["max_err_cells"], "y": r["ns_per_solve"], "label": f"{r['name']}: {r['failures']:,} failures",
+               "series": r["name"]} for r in rows],
+             title="Root finders: time per solve against max error", x_label="max error (cells)",
+             y_label="ns per solve")
     md += ["", "![root finders](sweep_roots.png)", "",
            f"### Storage precision at {pr['size']}²", "",
            "The caster computes in float64 whatever the samples' type; the volume is stored natively, as "
