@@ -193,7 +193,9 @@ def sweeps(res, out):
     md += ["", "Failures by kind (they add up to the failures): missed, a required root and no hit; false, "
            "a hit with no root within a cell; wrong, the first root skipped and a later one hit; "
            "inaccurate, within a cell of the true root but outside its tolerance (1e-9 of a cell plus "
-           "the rounding of t); cell, cell or local coordinates inconsistent with t.", ""]
+           "the rounding of t; for the first root of a close pair, which float can tell from the second, "
+           "16 times its conditioning); cell, cell or local "
+           "coordinates inconsistent with t.", ""]
     _scatter(out / "sweep_roots.png",
              [{"x": r["max_err_cells"], "y": r["ns_per_solve"], "label": f"{r['name']}: {r['failures']:,} failures",
                "series": r["name"]} for r in rows],
