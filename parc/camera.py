@@ -100,6 +100,16 @@ class Camera:
             cached = self.__dict__["_basis"] = (f, r, u)
         return cached
 
+    def settings(self):
+        """The camera as `Camera` takes it (and as the command line's view flags give it), for a
+        render's stats: a view chosen by default can be given again, or moved from."""
+        view = {"eye": list(self.eye), "look_at": list(self.look_at), "up": list(self.up)}
+        if self.parallel:
+            view["parallel_scale"] = self.parallel_scale
+        else:
+            view["fov"] = self.fov
+        return view
+
     def as_array(self):
         """The kernels' camera: ``[eye, f, r, u, tan(fov/2), parallel_scale, parallel]`` (a new array)."""
         cached = self.__dict__.get("_array")

@@ -24,14 +24,15 @@ def load_volume_flags(args):
     if _is_scene_file(args):
         raise InputError(f"{args.volume}: a scene file; parc {args.command} reads one volume file "
                          "(parc render and parc compare read scenes)")
-    return load_volume(args.volume, shape=args.shape, dtype=args.dtype, byte_order=args.byte_order,
-                       offset=args.offset, spacing=args.spacing, origin=args.origin)
+    return load_volume(args.volume, **{name: getattr(args, name) for name in _READING_FLAGS})
 
+
+#: Flags that say how to read the volume file: `load_volume`'s options, under the same names.
+_READING_FLAGS = ("shape", "dtype", "byte_order", "offset", "spacing", "origin")
 
 #: Flags that describe the one volume on the command line; a scene file sets
 #: these per volume, in its [[volume]] tables (under the same names).
-_VOLUME_FLAGS = ("iso", "tf", "mode", "step", "threshold", "shade", "shape", "dtype", "byte_order", "offset",
-                 "spacing", "origin")
+_VOLUME_FLAGS = ("iso", "tf", "mode", "step", "threshold", "shade") + _READING_FLAGS
 
 
 def _is_scene_file(args):
@@ -114,7 +115,7 @@ def _volume_scene(args, say):
     if w < 1 or h < 1:
         raise InputError(f"--size must be two positive integers, got {w} {h}")
     if args.volume is None:
-        for name in ("shape", "dtype", "byte_order", "offset", "spacing", "origin"):
+        for name in _READING_FLAGS:
             if getattr(args, name, None) is not None:
                 raise InputError(f"--{name.replace('_', '-')} applies to a volume file; "
                                  "the built-in volume takes none")

@@ -25,7 +25,7 @@ from raycast.composite import (MODE_AVERAGE, MODE_COMPOSITE, MODE_MIP, N_PARAMS,
                                P_RATIO, P_SHADE, P_STEP, P_THRESHOLD, cast_accumulate_image, over_background)
 from raycast.iso import cast_iso_image
 
-from .scene import Isosurface, Scene, Translucent
+from .scene import Isosurface, Scene, Translucent, describe_volume
 from .skip import octant_skip_tables, skip_table
 from .workspace import check_frame_memory, work_array
 
@@ -64,11 +64,10 @@ class RenderResult:
         ``method``, ``seconds`` per phase, ``pixels``, ``rays`` (one per pixel; with PARC,
         ``segment_pixels`` are those whose ray is walked), ``cells_visited``,
         ``cubic_solves``, ``samples``, ``hits``, ``polygons`` (all PARC drew: its proxy's and,
-        with bit planes, their ``plane_polygons``; with shadows, the faces of the light
-        buffers drawn this frame, ``light_polygons``, every face once a view) and the
-        parameters used. ``cells_visited`` and ``cubic_solves`` count isosurfaces' work and
-        ``samples`` translucent volumes'; on a process's first frames ``seconds["total"]``
-        also holds what the phases listed leave out (loading the casters, making OpenGL's context).
+        with bit planes, their ``plane_polygons``; with shadows, the light buffers' faces drawn
+        this frame, ``light_polygons``) and the parameters used. Cells and cubics count
+        isosurfaces' work, samples translucent volumes'; a process's first ``seconds["total"]``
+        also holds loading the casters and making OpenGL's context, beyond the phases listed.
     work : ndarray (H, W) int64 or None
         With ``render(..., work=True)``: per pixel, the cells its ray visited
         (an isosurface) or the samples it took (a translucent volume), so
@@ -262,7 +261,7 @@ def _render(scene, method, supercell, buffers, progress, light_buffer, blocks, w
         "cubic_solves": counts.get("solves", 0),
         "samples": counts.get("samples", 0),
         "polygons": 0,              # brute draws none; parc's count comes with `extra`
-        "parameters": {"size": [w, h], "camera": _camera_settings(scene.camera), **_describe(vis)},
+        "parameters": {"size": [w, h], "camera": scene.camera.settings(), **describe_volume(vis)},
     }
     stats.update(extra)
     stats["polygons"] = extra.get("polygons", 0) + extra.get("plane_polygons", 0)
@@ -297,39 +296,14 @@ def _render_general(scene, method, supercell, progress, light_buffer, skip_block
         "shadow_solves": counts["shadow_solves"],
         "shadow_samples": counts["shadow_samples"],
         "light_polygons": counts["light_polygons"],
-        "parameters": {"size": [w, h], "camera": _camera_settings(scene.camera), "shadows": scene.shadows,
+        "parameters": {"size": [w, h], "camera": scene.camera.settings(), "shadows": scene.shadows,
                        "lights": len(scene.lights),
-                       "volumes": [_describe(v) for v in scene.volumes]},
+                       "volumes": [describe_volume(v) for v in scene.volumes]},
     }
     stats["polygons"] = (sum(v.get("polygons", 0) for v in extra["volumes"]) + counts["light_polygons"]
                          if method == "parc" else 0)
     stats.update(extra)
     return RenderResult(image=image, depth=depth, stats=stats)
-
-
-def _camera_settings(camera):
-    """The camera as `Camera` takes it (and as the command line's view flags give it): a view
-    chosen by default can be given again, or moved from."""
-    view = {"eye": list(camera.eye), "look_at": list(camera.look_at), "up": list(camera.up)}
-    if camera.parallel:
-        view["parallel_scale"] = camera.parallel_scale
-    else:
-        view["fov"] = camera.fov
-    return view
-
-
-def _describe(vis):
-    """A volume of the scene, as the stats' parameters give it."""
-    vol = vis.volume
-    d = {"volume": vol.name, "dims": list(vol.dims), "dtype": str(vol.dtype),
-         "spacing": list(vol.spacing), "origin": list(vol.origin)}
-    if isinstance(vis, Isosurface):
-        d["isovalue"] = vis.value
-    else:
-        d.update({"mode": vis.mode, "step": vis.step, "transfer_function": vis.tf.name or "custom"})
-        if vis.mode == "composite":         # the others take every sample: no threshold applies
-            d["threshold"] = vis.threshold
-    return d
 
 
 def _render_iso(scene, iso, seg, use_seg, skip_blocks, timings, progress):

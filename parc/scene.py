@@ -284,6 +284,20 @@ class Scene:
         return self.size[1]
 
 
+def describe_volume(vis):
+    """A volume of a scene (an `Isosurface` or a `Translucent`), as a render's stats give it."""
+    vol = vis.volume
+    d = {"volume": vol.name, "dims": list(vol.dims), "dtype": str(vol.dtype),
+         "spacing": list(vol.spacing), "origin": list(vol.origin)}
+    if isinstance(vis, Isosurface):
+        d["isovalue"] = vis.value
+    else:
+        d.update({"mode": vis.mode, "step": vis.step, "transfer_function": vis.tf.name or "custom"})
+        if vis.mode == "composite":         # the others take every sample: no threshold applies
+            d["threshold"] = vis.threshold
+    return d
+
+
 def check_step(step, spacing, what="step"):
     """``step`` as a float, refused unless a positive, finite distance of at least 1e-4 of the
     smallest ``spacing``; ``what`` names it in messages (``--step`` on the command line)."""

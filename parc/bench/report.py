@@ -180,7 +180,7 @@ def sweeps(res, out):
     _scatter(out / "sweep_step.png", pts,
              title=f"Sample step (labels, world units): time against error, CT translucent at "
                    f"{st['size']}x{st['size']}",
-                         x_label="max colour difference against the fine-step reference", y_label="seconds per frame")
+             x_label="max colour difference against the fine-step reference", y_label="seconds per frame")
     rows = rt["rows"]
     md += ["", "![step sweep](sweep_step.png)", "",
            "### Cubic root finders on the hard-ray suite", "",
@@ -194,8 +194,7 @@ def sweeps(res, out):
            "a hit with no root within a cell; wrong, the first root skipped and a later one hit; "
            "inaccurate, within a cell of the true root but outside its tolerance (1e-9 of a cell plus "
            "the rounding of t; for the first root of a close pair, which float can tell from the second, "
-           "16 times its conditioning); cell, cell or local "
-           "coordinates inconsistent with t.", ""]
+           "16 times its conditioning); cell, cell or local coordinates inconsistent with t.", ""]
     _scatter(out / "sweep_roots.png",
              [{"x": r["max_err_cells"], "y": r["ns_per_solve"], "label": f"{r['name']}: {r['failures']:,} failures",
                "series": r["name"]} for r in rows],

@@ -125,11 +125,12 @@ def table3(suite, progress, images):
                         "shadow_cells": r["shadow_cells"], "ideal_shadow_cells": brute["shadow_solves"],
                         "shadow_seconds": shadow, "total_seconds": r["seconds"],
                         "speedup": r["speedup"], **_spread(r), **_error(r)})
+        b = out[-len(rows)]
         for r in out[-len(rows):]:
-            b = out[-len(rows)]
-            r["primary_speedup"] = b["primary_cast_seconds"] / max(r["primary_cast_seconds"], 1e-12)
-            # The paper's primary-ray ratio is of totals (its 3.5x: 35.61 s / 10.06 s).
-            r["primary_total_speedup"] = b["primary_total_seconds"] / max(r["primary_total_seconds"], 1e-12)
-            r["shadow_speedup"] = b["shadow_seconds"] / max(r["shadow_seconds"], 1e-12)
+            # The paper's primary-ray ratio is of totals (its 3.5x: 35.61 s / 10.06 s); casting is its own.
+            for ratio, seconds in (("primary_speedup", "primary_cast_seconds"),
+                                   ("primary_total_speedup", "primary_total_seconds"),
+                                   ("shadow_speedup", "shadow_seconds")):
+                r[ratio] = b[seconds] / max(r[seconds], 1e-12)
         images["table3"] = scene
     return {"source": source, "rows": out}
