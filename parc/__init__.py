@@ -18,6 +18,7 @@ _WHERE = {
     "PointLight": ".scene",
     "RenderResult": ".renderer",
     "Scene": ".scene",
+    "ShowsNothingWarning": ".scene",
     "TransferFunction": ".transfer",
     "Translucent": ".scene",
     "Volume": "data_tools",

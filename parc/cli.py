@@ -14,6 +14,7 @@ import os
 import shlex
 import signal
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -28,8 +29,10 @@ from .arguments import build_parser, join_signed_values, supercell_size
 from .flagscene import load_volume_flags, scene_and_notes
 from .outputs import (Progress, atomic_write_all, check_distinct, check_not_sidecar, check_output, compile_notice,
                       end_progress_line, note, slow_note, stale_sidecars, to_json, write_png)
+from .scene import ShowsNothingWarning
 
 EXIT_USAGE = 2
+
 
 def main(argv=None):
     """Entry point of the `parc` console script; returns the exit status."""
@@ -45,7 +48,10 @@ def main(argv=None):
     try:
         # Extreme but valid numbers (an eye at 1e200) may overflow on the way to
         # a clean error or a picture; NumPy's warnings would only add lines.
-        with np.errstate(all="ignore"):
+        # A volume that shows nothing is said once, in a note (`scene_and_notes`), not again as a
+        # warning from every copy of the scene a comparison makes.
+        with np.errstate(all="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore", ShowsNothingWarning)
             return _main(argv)
     except InputError as exc:
         _error(f"error: {exc}")

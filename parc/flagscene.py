@@ -8,6 +8,8 @@ are refused in one line, not ignored.
 """
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from data_tools import InputError
@@ -15,7 +17,7 @@ from data_tools.info import exact_text
 
 from .camera import check_fov, check_parallel_scale, unit_vector
 from .outputs import note
-from .scene import DEFAULT_THRESHOLD, check_eye_resolves, check_step, check_threshold
+from .scene import DEFAULT_THRESHOLD, ShowsNothingWarning, check_eye_resolves, check_step, check_threshold
 
 
 def load_volume_flags(args):
@@ -43,12 +45,14 @@ def scene_from_flags(args, say):
     """The Scene the arguments describe: a scene file or one volume, with the flags' lights."""
     if args.fov is not None and args.parallel is not None:
         raise InputError("give --fov (a perspective view) or --parallel (a parallel projection), not both")
-    scene = _file_scene(args) if _is_scene_file(args) else _volume_scene(args, say)
-    for vis in scene.volumes:
-        if hasattr(vis, "tf") and not vis.tf.nonzero_in(*vis.volume.value_range()):
-            lo, hi = vis.volume.value_range()
-            say(f"{vis.tf.title} is transparent over the data range "
-                f"[{exact_text(lo)}, {exact_text(hi)}] of {vis.volume.name}: that volume shows nothing")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ShowsNothingWarning)
+        scene = _file_scene(args) if _is_scene_file(args) else _volume_scene(args, say)
+    for w in caught:
+        if issubclass(w.category, ShowsNothingWarning):
+            say(str(w.message))
+        else:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     return _add_flag_lights(scene, args, say)
 
 

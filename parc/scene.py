@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import math
 import os
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -60,6 +61,11 @@ class Isosurface:
         self.material = _material(self.material)
 
 
+class ShowsNothingWarning(UserWarning):
+    """A translucent volume's transfer function is transparent over all of the volume's data:
+    the volume adds nothing to the image (`parc render` says so in a note)."""
+
+
 MODES = ("composite", "mip", "average")
 #: The composite mode's early-termination opacity, unless another is given.
 DEFAULT_THRESHOLD = 0.99
@@ -93,6 +99,11 @@ class Translucent:
     ------
     InputError
         An unknown mode, a step or threshold out of range, a bad transfer function.
+
+    Warns
+    -----
+    ShowsNothingWarning
+        The transfer function is transparent over the volume's whole data range.
     """
 
     volume: Volume
@@ -128,6 +139,13 @@ class Translucent:
         if self.shade and self.mode != "composite":
             raise InputError(f"shade applies to mode composite; {self.mode} does not shade samples")
         self.material = _material(self.material)
+        lo, hi = self.volume.value_range()
+        if not self.tf.nonzero_in(lo, hi):
+            # Legal (another volume of the scene may show), but a blank image is no way to learn it.
+            # stacklevel 4: past __post_init__, the dataclass's __init__ and `settled`'s, to the caller.
+            warnings.warn(f"{self.tf.title} is transparent over the data range [{exact_text(lo)}, "
+                          f"{exact_text(hi)}] of {self.volume.name}: that volume shows nothing",
+                          ShowsNothingWarning, stacklevel=4)
 
 
 #: Largest coordinate of a point light's position.

@@ -7,13 +7,14 @@ plain-Python reimplementation of the sample lattice and compositing for a
 handful of rays.
 """
 import math
+import warnings
 
 import numpy as np
 import pytest
 
 from data_tools import InputError, Volume
 from data_tools.synthetic import blobs, ct_phantom, trilinear_field
-from parc import Camera, Scene, TransferFunction, Translucent, render
+from parc import Camera, Scene, ShowsNothingWarning, TransferFunction, Translucent, render
 
 MODES = ("composite", "mip", "average")
 SUPERCELLS = (0.5, 1, 2, 3, 4.5, 8, (2, 3, 1.5))
@@ -347,6 +348,7 @@ def _past_the_range_scenes(data, tf_points, cam):
         yield Scene(camera=cam, size=(8, 8), volumes=[Translucent(vol, tf, mode=mode, step=0.05)])
 
 
+@pytest.mark.filterwarnings("ignore::parc.ShowsNothingWarning")      # so it should
 @pytest.mark.parametrize("case", ["float32 rounding", "float32 overflow"])
 def test_float32_samples_stay_in_their_cells_range(case, gl):
     """float32 corners are differenced in float64: in float32, 1 - (-0.6 2^-23)
@@ -519,3 +521,17 @@ def test_a_shaded_linear_field_has_the_analytic_headlight_colour(gl, method):
     alpha = img[..., 3]
     assert (alpha > 0.3).all()
     np.testing.assert_allclose(img[..., :3], want * alpha[..., None], atol=1e-5, rtol=0)
+
+
+def test_a_transfer_function_transparent_over_the_data_warns_the_caller():
+    # Zero up to above the largest sample, 10: the volume shows nothing.
+    vol = Volume(np.linspace(0, 10, 27, dtype=np.float32).reshape(3, 3, 3))
+    above = TransferFunction(opacity=[[10.5, 0], [20, 1]])
+    with pytest.warns(ShowsNothingWarning, match=r"transparent over the data range \[0, 10\]") as caught:
+        fog = Translucent(vol, above)
+    assert [w.filename for w in caught] == [__file__]        # the caller's line, not the library's
+    assert not render(Scene(camera=Camera.framing(*vol.bounds), size=(8, 8), volumes=[fog])).image[..., 3].any()
+    # Non-zero just below the largest sample: it shows, without a word.
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        Translucent(vol, TransferFunction(opacity=[[9.5, 0], [10, 1]]))
