@@ -75,6 +75,20 @@ class _Parser(argparse.ArgumentParser):
         raise InputError(message)
 
 
+class _OneSurface(argparse.Action):
+    """--iso or --tf given at most once: a second would not add a surface or volume, as a user
+    might expect, but replace the first, so it is refused with the way to show several."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        earlier = getattr(namespace, self.dest, None)
+        if earlier is not None:
+            def text(v):
+                return repr(v).removesuffix(".0") if isinstance(v, float) else v
+            raise InputError(f"{option_string} given twice ({text(earlier)} and {text(values)}); to show "
+                             "several surfaces or volumes, write a scene file (README, Scene files; examples/*.toml)")
+        setattr(namespace, self.dest, values)
+
+
 def _floats(n):
     # argparse names the flag: "argument --eye: must be ..."
     def parse(text):
@@ -139,8 +153,8 @@ def _add_volume_options(p, scenes=True):
 def _add_look_options(p):
     g = p.add_argument_group("what to show", "An isosurface, or with --tf a translucent volume; "
                              "a scene file sets these per volume instead.")
-    g.add_argument("--iso", type=float, metavar="V", help="isovalue (default: suggested from the histogram)")
-    g.add_argument("--tf", metavar="FILE|PRESET",
+    g.add_argument("--iso", type=float, action=_OneSurface, metavar="V", help="isovalue (default: suggested from the histogram)")
+    g.add_argument("--tf", action=_OneSurface, metavar="FILE|PRESET",
                    help="transfer function: a .toml/.json file, a ParaView colour-map .json, or a preset "
                         "(ct_skin, ct_bone, ct_skin_bone, greyscale, viridis); renders a translucent volume")
     g.add_argument("--mode", choices=("composite", "mip", "average"),
