@@ -191,14 +191,16 @@ def no_digit_separators(words, path, what: str):
 
 def parse_numbers(words, count: int, cast, path, what: str):
     """``count`` numbers from ``words`` (strings), or InputError naming ``what``."""
+    kind = "integer" if cast is int else "number"
+    wanted = ("an " if kind == "integer" else "a ") + kind if count == 1 else f"{count} {kind}s"
     if len(words) < count:
-        raise InputError(f"{path}: {what} needs {count} numbers, got {' '.join(words)!r}")
+        raise InputError(f"{path}: {what} needs {wanted}, got {' '.join(words)!r}")
     try:
         if any("_" in w for w in words[:count]):
             raise ValueError        # Python reads 1_000; the formats' readers do not (`no_digit_separators`)
         return tuple(cast(w) for w in words[:count])
     except ValueError:
-        raise InputError(f"{path}: {what} is not {count} numbers: {' '.join(words)!r}") from None
+        raise InputError(f"{path}: {what} is not {wanted}: {' '.join(words)!r}") from None
 
 
 def parse_dims(words, path, what: str):

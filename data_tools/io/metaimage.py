@@ -119,13 +119,15 @@ def _build(path, fields, data_start, given):
     if ndims is None or get("DimSize") is None or get("ElementType") is None:
         raise InputError(f"{path}: MetaImage header lacks NDims, DimSize or ElementType")
     # A fourth axis of length 1 (one time step, as ITK writes a series of one) is the volume itself.
+    # Integers as MetaIO reads them: "03" is 3; "1_0" (which Python would take for 10) is refused.
+    ndims = parse_numbers(ndims.split(), 1, int, path, "NDims")[0]
     sizes = get("DimSize").split()
-    if ndims.strip() == "4" and len(sizes) == 4 and sizes[3] == "1":
-        ndims = "3"
+    if ndims == 4 and len(sizes) == 4 and parse_numbers(sizes[3:], 1, int, path, "DimSize")[0] == 1:
+        ndims = 3
         square = 4                                      # TransformMatrix is 4x4: its top left is ours
     else:
         square = 3
-    if ndims.strip() != "3":
+    if ndims != 3:
         raise InputError(f"{path}: MetaImage has NDims = {ndims}, expected a 3-D volume")
     dims = parse_dims(sizes, path, "DimSize")
     etype = get("ElementType").upper()
@@ -141,10 +143,8 @@ def _build(path, fields, data_start, given):
     origin = _numbers(path, fields, ("Origin", "Offset", "Position"), (0.0, 0.0, 0.0))
     big = _flag(path, fields, ("BinaryDataByteOrderMSB", "ElementByteOrderMSB"), False)
     compressed = _flag(path, fields, ("CompressedData",), False)
-    try:
-        header_size = int(get("HeaderSize") or 0)
-    except ValueError:
-        raise InputError(f"{path}: HeaderSize must be an integer, got {get('HeaderSize')!r}") from None
+    header_size = get("HeaderSize")
+    header_size = 0 if header_size is None else parse_numbers(header_size.split(), 1, int, path, "HeaderSize")[0]
     if header_size < -1:
         raise InputError(f"{path}: HeaderSize must be -1 (data at the end) or a byte count, got {header_size}")
     meta = {"format": "metaimage", "byte_order": "big" if big else "little"}

@@ -76,14 +76,16 @@ def read_nrrd(path, *, spacing=None, origin=None) -> Volume:
             raise
         # Directions the header cannot give (NaN) are what a spacing given replaces.
         spacing, note, reoriented = given["spacing"], None, False
+    # An origin given replaces the header's, which is then not read: it may be unreadable (NaN).
+    origin = _origin(header, spacing, path) if given["origin"] is None else given["origin"]
+    if spacing is None:
+        spacing, origin, reoriented = _from_extent(header, data.shape[::-1])
+        if reoriented:
+            note = "axis mins above axis maxs (mirrored axes) were reduced to positive spacings"
     if note:
         meta["spacing_note"] = note         # `file_volume` says it, or what holds with a spacing given
     if reoriented:
         meta["reoriented"] = True           # a file written from it is no longer in the same place
-    # An origin given replaces the header's, which is then not read: it may be unreadable (NaN).
-    origin = _origin(header, spacing, path) if given["origin"] is None else given["origin"]
-    if spacing is None:
-        spacing, origin = _from_extent(header, data.shape[::-1])
     if "space" in header:
         meta["space"] = header["space"]
     return file_volume(data, spacing, origin, path, meta, given)
@@ -349,11 +351,12 @@ def _per_axis(value):
 
 
 def _from_extent(header, sizes):
-    """Spacing and origin from ``axis mins`` and ``axis maxs`` (no spacings given).
+    """``(spacing, origin, mirrored)`` from ``axis mins`` and ``axis maxs`` (no spacings given).
 
     With node centring the extremes are the first and last samples; with
     cell centring, NRRD's default, the outer edges of the first and last
-    cells, the samples half a spacing inside them.
+    cells, the samples half a spacing inside them. An axis whose min lies
+    above its max runs the other way: mirrored, placed from its smaller end.
     """
     lo = np.asarray(header["axis mins"], dtype=np.float64)
     hi = np.asarray(header["axis maxs"], dtype=np.float64)
@@ -365,7 +368,7 @@ def _from_extent(header, sizes):
         step = step if np.isfinite(step) and step > 0 else 1.0
         spacing.append(float(step))
         origin.append(float(min(a, b) + (0.0 if node else step / 2)))
-    return tuple(spacing), tuple(origin)
+    return tuple(spacing), tuple(origin), bool((lo > hi).any())
 
 
 def _spacing(header, path):

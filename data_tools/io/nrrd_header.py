@@ -76,7 +76,10 @@ _FIELDS = frozenset((
 #: teem's spellings without spaces that pynrrd does not parse (`_as_pynrrd`).
 _SPELLED_APART = {"spacedimension": "space dimension", "spaceunits": "space units", "spaceorigin": "space origin",
                   "spacedirections": "space directions", "measurementframe": "measurement frame",
-                  "sampleunits": "sample units"}
+                  "sampleunits": "sample units",
+                  # pynrrd parses these too, but under the name as written; the reader looks each
+                  # field up by one name.
+                  "axismins": "axis mins", "axismaxs": "axis maxs", "centerings": "centers"}
 
 
 def parse_header(lines, path):
@@ -140,7 +143,8 @@ def _check_line(line, path):
     if not text or text.startswith("#") or ":=" in text:
         return
     field, colon, value = text.partition(":")
-    if not colon:
+    if not colon or not text.replace("\t", " ").isprintable():
+        # Binary samples read as a header line: the blank line before them is missing.
         raise InputError(f"{path}: header line {text[:60]!r} is not 'field: value' (an attached "
                          "header ends at a blank line before the data)")
     field = field.strip()

@@ -21,19 +21,26 @@ class _Cursor:
     def __init__(self, buf: bytes, path):
         self.buf, self.pos, self.path = buf, 0, path
 
-    def token(self, what: str) -> bytes:
+    def token(self, what: str, stop: bytes = b"") -> bytes:
+        """The next word, ended by white space or a byte of ``stop`` (the ``X`` after a count:
+        VolVis and VTK read ``%d X``, which takes ``4X`` as well as ``4 X``)."""
         buf, n = self.buf, len(self.buf)
         while self.pos < n and buf[self.pos] in _WS:
             self.pos += 1
         start = self.pos
-        while self.pos < n and buf[self.pos] not in _WS and self.pos - start < 32:
+        while self.pos < n and buf[self.pos] not in _WS and buf[self.pos] not in stop and self.pos - start < 64:
             self.pos += 1
         if start == self.pos:
+            if self.pos < n:        # at an X, where the count should be
+                raise InputError(f"{self.path}: bad SLC header: {what} should be a number, got "
+                                 f"{buf[start:start + 20]!r}")
             raise InputError(f"{self.path}: SLC file ends before {what}")
+        if self.pos - start == 64 and self.pos < n and buf[self.pos] not in _WS and buf[self.pos] not in stop:
+            raise InputError(f"{self.path}: bad SLC header: {what} is not a number (over 64 characters)")
         return buf[start:self.pos]
 
-    def number(self, cast, what: str):
-        tok = self.token(what)
+    def number(self, cast, what: str, stop: bytes = b""):
+        tok = self.token(what, stop)
         try:
             if b"_" in tok:
                 raise ValueError    # Python reads 1_000; VolVis's and VTK's readers do not
@@ -95,7 +102,7 @@ def read_slc(path, *, spacing=None, origin=None) -> Volume:
         raise InputError(f"{path}: bad SLC size {nx}x{ny}x{nz}")
     if compression not in (0, 1):
         raise InputError(f"{path}: unknown SLC compression {compression} (0 raw, 1 run-length)")
-    icon_w, icon_h = cur.number(int, "icon width"), cur.number(int, "icon height")
+    icon_w, icon_h = cur.number(int, "icon width"), cur.number(int, "icon height", b"X")
     cur.marker("the icon")
     cur.take(3 * icon_w * icon_h, "the icon")
     plane = nx * ny
@@ -106,7 +113,7 @@ def read_slc(path, *, spacing=None, origin=None) -> Volume:
     for k in range(nz):
         what = f"slice {k}"
         if compression:
-            size = cur.number(int, f"the size of {what}")
+            size = cur.number(int, f"the size of {what}", b"X")
             cur.marker(what)
             flat[k] = np.frombuffer(_rle_decode(cur.take(size, what), plane, path, k), dtype=np.uint8)
         else:

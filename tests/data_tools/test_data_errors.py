@@ -537,7 +537,7 @@ def test_mhd_bad_numbers_are_named_by_their_own_field(tmp_path, line):
     ("ElementDataFile = ", "", "ElementDataFile is empty"),
     ("ElementDataFile = n.mhd", "", "names this header itself"),
     ("ElementDataFile = LOCAL", "HeaderSize = -5\n", "HeaderSize must be -1"),
-    ("ElementDataFile = LOCAL", "HeaderSize = abc\n", "HeaderSize must be an integer"),
+    ("ElementDataFile = LOCAL", "HeaderSize = abc\n", "HeaderSize is not an integer"),
 ])
 def test_mhd_bad_data_location(tmp_path, data_line, extra, match):
     p = tmp_path / "n.mhd"
