@@ -287,7 +287,7 @@ def _refuse_overwriting_input(out, inputs):
     if samples is None:
         return
     for source in inputs:
-        if source is not None and Path(source).resolve() == samples.resolve():
+        if source is not None and os.path.realpath(source) == os.path.realpath(samples):
             raise InputError(f"{out}: would write its samples to {samples}, which the volume is read from; "
                              "write the output elsewhere or under another name")
     for other in (out.with_suffix(".mhd"), out.with_suffix(".nhdr")):

@@ -3,6 +3,7 @@ all or nothing, strict JSON, and progress on stderr."""
 from __future__ import annotations
 
 import contextlib
+import errno
 import json
 import os
 import pickle
@@ -52,6 +53,9 @@ def check_output(path, allowed):
         raise InputError(f"{path}: folder {folder} does not exist")
     if path.is_dir():
         raise InputError(f"{path}: is a folder")
+    if path.is_symlink() and not path.exists() and _in_a_loop(path):
+        # No file can be written where it leads, and a rename onto it would replace the link.
+        raise InputError(f"{path}: a link in a loop")
     written_path(path)      # a device or pipe, or a link to one, is refused before any work
     if path.is_symlink():
         # The file is written where the link leads (`atomic_write_all`): that folder must take it.
@@ -64,17 +68,31 @@ def check_output(path, allowed):
     return path
 
 
+def _in_a_loop(path):
+    """Whether the links from ``path`` lead round in a loop."""
+    try:
+        os.stat(path)
+    except OSError as exc:
+        return exc.errno == errno.ELOOP
+    return False
+
+
+def _real(path):
+    """Where ``path`` leads: Path.resolve raises RuntimeError for a link in a loop (Python 3.11)."""
+    return Path(os.path.realpath(path))
+
+
 def check_distinct(source, outputs, read=()):
     """Refuse two outputs on one file, or an output on a file read: ``source`` (the volume or
     scene file named, or None) or one of ``read`` (a header's data file, a sidecar, a scene's
     volumes and transfer functions)."""
     seen = {}
-    named = Path(source).resolve() if source is not None else None
-    others = {Path(p).resolve() for p in read}
+    named = _real(source) if source is not None else None
+    others = {_real(p) for p in read}
     for path in outputs:
         if path is None:
             continue
-        key = path.resolve()
+        key = _real(path)
         if key in seen:
             raise InputError(f"{path}: given for two outputs ({seen[key]} and {path})")
         if key == named:

@@ -141,6 +141,11 @@ CASES = {
     "warmup none": (lambda: parc.compare(_scene(), warmup=None), "warmup"),
     "methods none": (lambda: parc.compare(_scene(), methods=None), "methods"),
     "options not dicts": (lambda: parc.compare(_scene(), options={"parc": None}), "options"),
+    "method misspelt": (lambda: parc.render(_scene(), "Parc"), "unknown method 'Parc'; choose one of brute, parc"),
+    "buffers none named": (lambda: parc.render(_fog(), "parc", buffers=[]), "PARC buffers must be"),
+    "light buffer of 1": (lambda: parc.render(_scene(lights=[parc.PointLight((1, 2, 3))]), light_buffer=1),
+                          "light buffers take a whole number of pixels from 2"),
+    "repeats True": (lambda: parc.compare(_scene(), repeats=True), "repeats must be a whole number"),
     "options for a method not run": (lambda: parc.compare(_scene(), methods=("brute",), options={"parc": {}}),
                                      "not among the methods"),
 }
@@ -266,3 +271,12 @@ def test_refused_methods_show_what_was_given_an_iterators_items(given, shown):
     with pytest.raises(InputError) as exc:
         method_names(given)
     assert f"got {shown}" in str(exc.value) and "object at" not in str(exc.value), str(exc.value)
+
+
+def test_the_public_names_are_listed_before_their_first_use():
+    # `import parc` loads them on first use (PEP 562); dir() and tab completion list them all the same.
+    import subprocess
+    import sys
+    p = subprocess.run([sys.executable, "-c", "import parc; print(sorted(set(parc.__all__) - set(dir(parc))))"],
+                       capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0 and p.stdout.strip() == "[]", p.stderr[-2000:]

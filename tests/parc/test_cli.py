@@ -1972,3 +1972,111 @@ def test_a_supercell_sweep_is_read_before_the_volume(value, words, tmp_path, cap
     rc, _, err = _run(["compare", tmp_path / "none.nrrd", "--iso", 4, "--size", 8, 8, "--repeats", 1,
                        "--sweep-supercell", value], capsys)
     assert rc == 2 and err.count("\n") == 1 and words in err, err
+
+
+@pytest.mark.parametrize("kind", ["folder", "pipe", "stats on a pipe"])
+def test_an_output_that_cannot_be_a_file_is_refused_before_the_render(kind, vol_file, tmp_path, capsys, monkeypatch):
+    # Refused only after the render, the same line would come once the wait was over.
+    import parc
+
+    def render(*args, **kwargs):
+        raise AssertionError("rendered")
+    monkeypatch.setattr(parc, "render", render)
+    out, stats = tmp_path / "o.png", tmp_path / "s.json"
+    argv = ["render", vol_file, "--iso", 4, "--size", 8, 8, "-o", out]
+    if kind == "folder":
+        out.mkdir()
+    elif kind == "pipe":
+        os.mkfifo(out)
+    else:
+        os.mkfifo(stats)
+        argv += ["--stats", stats]
+    rc, _, err = _run(argv, capsys)
+    words = "o.png: is a folder" if kind == "folder" else "not a regular file (a device, pipe or socket)"
+    assert rc == 2 and err.count("\n") == 1 and words in err, err
+
+
+def test_quiet_shows_no_progress_however_long_the_render(vol_file, tmp_path, capsys, monkeypatch):
+    import parc.cli as cli
+    from parc.outputs import Progress
+
+    class Eager(Progress):
+        def __init__(self, what):
+            super().__init__(what, delay=0.0)
+    monkeypatch.setattr(cli, "Progress", Eager)
+    argv = ["render", vol_file, "--iso", 4, "--size", 8, 8, "-o", tmp_path / "o.png"]
+    rc = main([str(a) for a in argv])
+    assert rc == 0 and "parc: rendering 8x8: " in capsys.readouterr().err
+    rc = main([str(a) for a in argv + ["--quiet"]])
+    assert rc == 0 and capsys.readouterr().err == ""
+
+
+def test_progress_ended_within_its_delay_says_nothing_later(capsys):
+    # Its timer, left running, would say "0%" a second on: after the result, or after an error line.
+    import time
+    from parc import outputs
+    quick = outputs.Progress("rendering 8x8", delay=0.05)
+    quick.done()
+    failed = outputs.Progress("rendering 8x8", delay=0.05)
+    outputs.end_progress_line()          # as an error line does
+    time.sleep(0.3)
+    assert capsys.readouterr().err == "" and quick.last < 0 and failed.last < 0
+
+
+@pytest.mark.parametrize("umask, mode", [(0o002, 0o664), (0o077, 0o600)])
+def test_outputs_take_the_umask(vol_file, tmp_path, capsys, umask, mode):
+    out, stats = tmp_path / "p.png", tmp_path / "s.json"
+    old = os.umask(umask)
+    try:
+        rc, _, err = _run(["render", vol_file, "--iso", 4, "--size", 8, 8, "-o", out, "--stats", stats], capsys)
+    finally:
+        os.umask(old)
+    assert rc == 0, err
+    assert stat.S_IMODE(out.stat().st_mode) == stat.S_IMODE(stats.stat().st_mode) == mode
+
+
+def test_a_raw_shape_may_be_given_as_nxnyxnz(tmp_path, capsys):
+    raw = tmp_path / "scan.raw"
+    np.arange(60, dtype=np.uint16).tofile(raw)
+    rc, stdout, err = _run(["info", raw, "--shape", "3x4x5", "--dtype", "uint16"], capsys)
+    assert rc == 0 and "dimensions:  3 x 4 x 5" in stdout and "uint16" in stdout, (stdout, err)
+
+
+@pytest.mark.parametrize("flag", ["--eye", "--look-at", "--light", "--sun"])
+def test_a_vector_of_infinities_is_refused_by_its_flag(flag, vol_file, tmp_path, capsys):
+    # Let through, "--eye inf,0,0" would be called "the centre of the volume".
+    rc, _, err = _run(["render", vol_file, "--iso", 4, "--size", 8, 8, flag, "inf,0,1", "-o", tmp_path / "o.png"],
+                      capsys)
+    assert rc == 2 and err.count("\n") == 1, err
+    assert f"argument {flag}: must be 3 comma-separated finite numbers, got 'inf,0,1'" in err, err
+
+
+@pytest.mark.parametrize("threads, ok", [("1024", True), ("1025", False), (" 4 ", True)])
+def test_numba_thread_counts_at_the_bounds(threads, ok, monkeypatch, capsys):
+    import parc.cli
+    from parc.console import main as console_main
+    monkeypatch.setenv("NUMBA_NUM_THREADS", threads)
+    monkeypatch.setattr(parc.cli, "main", lambda: 0)      # the check alone, before Numba would start them
+    assert console_main() == (0 if ok else 2)
+    assert ("must be a whole number from 1 to 1024" in capsys.readouterr().err) != ok
+
+
+@pytest.mark.parametrize("argv, loop", [(["render", "{loop}.nrrd", "--size", 8, 8, "-o", "{tmp}/o.png"], "input"),
+                                        (["convert", "{loop}.nrrd", "-o", "{tmp}/o.nrrd"], "input"),
+                                        (["render", "{vol}", "--iso", 4, "--size", 8, 8, "-o", "{loop}.png"], "output"),
+                                        (["render", "{vol}", "--iso", 4, "--size", 8, 8, "-o", "{tmp}/o.png",
+                                          "--stats", "{loop}.json"], "output"),
+                                        (["make", "sphere", "--size", 4, "-o", "{loop}.nrrd"], "output"),
+                                        (["convert", "{vol}", "-o", "{loop}.nrrd"], "output")])
+def test_a_link_in_a_loop_is_named_as_input_or_output(argv, loop, vol_file, tmp_path, capsys):
+    # Python 3.11's Path.resolve raises RuntimeError ("Symlink loop"), which would end in a
+    # traceback; and a file renamed onto the link would leave a file where the loop was.
+    suffix = Path(next(a for a in argv if "{loop}" in str(a))).suffix
+    first, second = tmp_path / f"loop{suffix}", tmp_path / f"loop2{suffix}"
+    first.symlink_to(second)
+    second.symlink_to(first)
+    argv = [str(a).format(loop=tmp_path / "loop", tmp=tmp_path, vol=vol_file) for a in argv]
+    rc, _, err = _run(argv, capsys)
+    assert rc == 2 and err.count("\n") == 1 and f"loop{suffix}: a link " in err and "in a loop" in err, err
+    assert first.is_symlink() and second.is_symlink()
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["ball.nrrd", first.name, second.name])

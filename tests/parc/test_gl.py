@@ -1,7 +1,11 @@
 """The OpenGL context's set-up: llvmpipe's rasterizer threads spread over the CPUs."""
 import os
+import threading
+import types
 
 import pytest
+
+from data_tools import InputError
 
 import parc.gl as glmod
 from parc.gl import RASTERIZER_START_WAIT, rasterizer_cpus, rasterizer_start_wait, spread_rasterizer_threads
@@ -86,3 +90,110 @@ def test_rasterizer_threads_that_name_themselves_late_are_pinned(monkeypatch):
     looks[:] = looks[:1]
     seen.clear()
     assert spread_rasterizer_threads(wait=0.5) == {} and len(seen) > 1 and pinned == {}   # polled again
+
+
+def test_a_wait_for_as_many_cpus_as_llvmpipe_starts_threads(monkeypatch):
+    # At LLVMPIPE_MAX_THREADS CPUs there is a thread for each, and each is pinned: worth the wait.
+    monkeypatch.setattr(glmod, "_cpus", lambda: set(range(glmod.LLVMPIPE_MAX_THREADS)))
+    assert rasterizer_start_wait("llvmpipe (LLVM 15.0.6, 256 bits)", {}) == RASTERIZER_START_WAIT
+
+
+def test_shaders_the_driver_cannot_compile_are_one_line(monkeypatch):
+    # A driver without float64 or geometry shaders: its compiler's log is many lines.
+    class Context:
+        info = {"GL_VERSION": "4.1 Metal"}
+
+        def program(self, **shaders):
+            raise Exception("GLSL Compiler failed\n\ngeometry_shader\n===============\n"
+                            "0:12(3): error: `double' not supported\n0:40(1): warning: unused\n")
+    monkeypatch.setattr(glmod, "_PROGRAMS", {})
+    with pytest.raises(glmod.OpenGLUnavailable) as err:
+        glmod.program(Context(), "segments", parallel=True)
+    msg = str(err.value)
+    assert "\n" not in msg, msg
+    assert msg == "OpenGL 4.1 Metal cannot compile PARC's segments shaders: 0:12(3): error: `double' not supported"
+
+
+def _ended_thread(name):
+    t = threading.Thread(target=lambda: None, name=name)
+    t.start()
+    t.join()
+    return t
+
+
+def test_a_context_the_driver_cannot_move_to_another_thread_is_one_line(monkeypatch):
+    class Context:
+        def __enter__(self):
+            raise Exception("eglMakeCurrent failed\nsecond line")
+    first = _ended_thread("worker-1")
+    monkeypatch.setattr(glmod, "_CONTEXT", Context())
+    monkeypatch.setattr(glmod, "_OWNER", first)
+    with pytest.raises(InputError) as err:
+        glmod.get_context()
+    msg = str(err.value)
+    assert "\n" not in msg and "worker-1, which has ended" in msg and "(eglMakeCurrent failed)" in msg, msg
+    assert "method='brute' renders on any" in msg and glmod._OWNER is first
+
+
+def test_the_thread_that_takes_the_context_over_keeps_it_while_it_runs(monkeypatch):
+    entered = []
+
+    class Context:
+        def __enter__(self):
+            entered.append(threading.current_thread().name)
+    ctx = Context()
+    monkeypatch.setattr(glmod, "_CONTEXT", ctx)
+    monkeypatch.setattr(glmod, "_OWNER", _ended_thread("worker-1"))
+    took, hold = threading.Event(), threading.Event()
+
+    def taker():
+        glmod.get_context()
+        took.set()
+        hold.wait(30)
+    t = threading.Thread(target=taker, name="taker")
+    t.start()
+    try:
+        assert took.wait(30)
+        # The context is current in "taker" now: another thread may not use it meanwhile.
+        with pytest.raises(InputError, match=r"the thread that first did it \(taker\)"):
+            glmod.get_context()
+    finally:
+        hold.set()
+        t.join()
+    assert glmod.get_context() is ctx and entered == ["taker", threading.current_thread().name]
+
+
+def test_a_uniform_the_compiler_left_out_is_not_set():
+    kept = types.SimpleNamespace(value=0.0)
+    prog = {"kept": kept}
+    glmod.set_uniform(prog, "optimized_away", 1.0)
+    glmod.set_uniform(prog, "kept", 2.0)
+    assert kept.value == 2.0
+
+
+def test_buffers_are_released_with_what_holds_them(gl):
+    # A proxy's buffers go with the proxy (moderngl keeps them until ctx.gc() otherwise).
+    assert gl.gc_mode == "auto"
+
+
+def test_brute_renders_where_there_is_no_opengl(monkeypatch):
+    import moderngl
+
+    import parc
+    from data_tools.synthetic import blobs
+
+    def fail(**kwargs):
+        raise Exception("eglGetDisplay failed")
+    monkeypatch.setattr(glmod, "_CONTEXT", None)
+    monkeypatch.setattr(moderngl, "create_standalone_context", fail)
+    vol = blobs(8, seed=2)
+    cam = parc.Camera.framing(*vol.bounds)
+    iso = parc.Isosurface(vol, float(vol.data.mean()))
+    for scene in (parc.Scene(camera=cam, size=(8, 8), volumes=[iso]),
+                  parc.Scene(camera=cam, size=(8, 8), volumes=[parc.Translucent(vol, "greyscale")]),
+                  parc.Scene(camera=cam, size=(8, 8), volumes=[iso], lights=[parc.PointLight((30, 30, 30))],
+                             shadows=True)):
+        assert parc.render(scene, "brute").image.shape == (8, 8, 4)
+        with pytest.raises(parc.OpenGLUnavailable):
+            parc.render(scene, "parc")
+    assert [r["method"] for r in parc.compare(scene, methods=("brute",), repeats=1, warmup=0)] == ["brute"]

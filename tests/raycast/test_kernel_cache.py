@@ -235,3 +235,82 @@ def test_only_the_main_thread_compiling_counts_as_compiling():
         ev.unregister("numba:compile", look)
     assert seen == [(False, False), (True, True)]
     assert not compiling()
+
+
+def test_numba_s_own_folder_wins_over_parc_s(tmp_path):
+    # As the first-compile notice tells the user: NUMBA_CACHE_DIR "wins over it when set".
+    from raycast.config import choose_cache_folder
+    name = "numba-0123abcd-2t"
+    env = {"NUMBA_CACHE_DIR": str(tmp_path / "n"), "PARC_CACHE_DIR": str(tmp_path / "p")}
+    assert choose_cache_folder(env, name) == (str(tmp_path / "n" / name), None)
+
+
+def test_the_default_cache_is_in_the_user_s_cache_folder_not_the_package(tmp_path, monkeypatch):
+    from raycast.config import choose_cache_folder
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    name = "numba-0123abcd-2t"
+    assert choose_cache_folder({}, name) == (str(tmp_path / "home" / ".cache" / "parc" / name), None)
+    assert (tmp_path / "home" / ".cache" / "parc" / name).is_dir()
+
+
+def test_the_folder_name_changes_with_any_kernel_source(tmp_path, monkeypatch):
+    # Numba checks only the file that defines a kernel: an edit to one it inlines must move the cache.
+    import raycast.config as config
+    src = tmp_path / "raycast"
+    src.mkdir()
+    (src / "config.py").write_text("# config\n")
+    (src / "cubic.py").write_text("def root():\n    return 1.0\n")
+    monkeypatch.setattr(config, "__file__", str(src / "config.py"))
+    before = config._source_digest()
+    (src / "cubic.py").write_text("def root():\n    return 2.0\n")
+    assert config._source_digest() != before
+
+
+_FOLDER_OF = "from raycast.config import cache_folder, cache_refused; print(cache_folder()); print(cache_refused())"
+
+
+def test_kernels_for_another_thread_count_are_cached_apart(tmp_path):
+    # SPREAD_WAYS, the thread count, is compiled into the kernels as a constant.
+    def folder(threads):
+        env = dict(os.environ, PARC_CACHE_DIR=str(tmp_path), NUMBA_NUM_THREADS=threads)
+        env.pop("NUMBA_CACHE_DIR", None)
+        p = subprocess.run([sys.executable, "-c", _FOLDER_OF], capture_output=True, text=True, timeout=120, env=env)
+        assert p.returncode == 0, p.stderr[-2000:]
+        return Path(p.stdout.splitlines()[0])
+    one, two = folder("1"), folder("2")
+    assert one != two and one.parent == two.parent == tmp_path
+
+
+def test_the_temporary_cache_of_a_refused_folder_goes_with_the_process(tmp_path):
+    # Otherwise each run leaves a folder of compiled kernels in /tmp.
+    (tmp_path / "a file").write_text("")
+    (tmp_path / "tmp").mkdir()
+    env = dict(os.environ, PARC_CACHE_DIR=str(tmp_path / "a file" / "cache"), TMPDIR=str(tmp_path / "tmp"))
+    env.pop("NUMBA_CACHE_DIR", None)
+    p = subprocess.run([sys.executable, "-c", _FOLDER_OF], capture_output=True, text=True, timeout=120, env=env)
+    assert p.returncode == 0, p.stderr[-2000:]
+    used, refused = p.stdout.splitlines()
+    assert Path(used).parent == tmp_path / "tmp" and refused.startswith(str(tmp_path / "a file" / "cache"))
+    assert list((tmp_path / "tmp").iterdir()) == []
+
+
+def test_a_damaged_data_file_under_a_whole_index_is_compiled_again(tmp_path):
+    # The index intact, Numba reads the data file it names: cut short, its unpickler's error would end the run.
+    (tmp_path / "tiny_kernel.py").write_text("from raycast.config import kernel\n\n\n"
+                                             "@kernel\ndef plus_one(x):\n    return x + 1.0\n")
+    env = dict(os.environ, PARC_CACHE_DIR=str(tmp_path / "cache"))
+    env.pop("NUMBA_CACHE_DIR", None)
+
+    def run():
+        p = subprocess.run([sys.executable, "-c", _ONE_KERNEL.format(folder=str(tmp_path))], capture_output=True,
+                           text=True, timeout=300, env=env)
+        assert p.returncode == 0, p.stderr[-2000:]
+        return p.stdout.split()
+    assert run() == ["2.0", "0"]
+    data = [f for f in (tmp_path / "cache").rglob("*.nbc")]
+    assert data
+    for cut in (0, 7):
+        for f in data:
+            f.write_bytes(f.read_bytes()[:cut])
+        assert run() == ["2.0", "0"]                       # compiled again, and written over
+        assert run() == ["2.0", "1"]
