@@ -337,8 +337,9 @@ def cmd_render(args):
     stats_out = check_output(args.stats, (".json",)) if args.stats is not None else None
     work_out = check_output(args.work, (".png", ".npy")) if args.work is not None else None
     check_distinct(args.volume, [out, depth_out, stats_out, work_out])
-    written = {p.resolve() for p in (out, depth_out, stats_out, work_out) if p is not None}
-    stale = [side for side in stale_sidecars([out, depth_out, work_out]) if side.resolve() not in written]
+    # realpath, not Path.resolve: a sidecar may be a link in a loop, which resolve raises for.
+    written = {os.path.realpath(p) for p in (out, depth_out, stats_out, work_out) if p is not None}
+    stale = [side for side in stale_sidecars([out, depth_out, work_out]) if os.path.realpath(side) not in written]
     say = (lambda *a: None) if args.quiet else note
     with _reading(args, say):
         scene, notes = scene_and_notes(args)

@@ -1,6 +1,7 @@
 """MetaImage volumes: ``.mhd`` with a detached data file, ``.mha`` with the data attached."""
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -191,7 +192,7 @@ def _build(path, fields, data_start, given):
         if not data_path.is_absolute():
             data_path = path.parent / data_path
         _check_data_file(path, data_path, "data file")
-        if data_path.resolve() == path.resolve():
+        if os.path.realpath(data_path) == os.path.realpath(path):
             raise InputError(f"{path}: ElementDataFile names this header itself; write LOCAL for attached data")
         meta["data_file"] = str(data_path)
         offset = 0

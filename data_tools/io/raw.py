@@ -1,6 +1,7 @@
 """Headerless raw volumes: shape and type from options or the file name."""
 from __future__ import annotations
 
+import os
 import re
 from pathlib import Path
 
@@ -146,7 +147,7 @@ def _header_beside(path):
                 data = nrrd_format._check_data_file(header)
         except (InputError, OSError):
             continue
-        if data is not None and data.resolve() == path.resolve():
+        if data is not None and os.path.realpath(data) == os.path.realpath(path):     # never raises, for loops too
             return header
     return None
 
