@@ -232,9 +232,10 @@ def cmd_make(args):
 
 def _written(out):
     """``out`` and the files written beside it (a header's data file, a ``.npy``'s sidecar)."""
-    from data_tools.io import data_file_written
+    from data_tools.io import data_file_written, written_path
     from data_tools.io.npy import sidecar_path
-    beside = data_file_written(out) or (sidecar_path(out) if out.suffix.lower() == ".npy" else None)
+    target = written_path(out)
+    beside = data_file_written(target) or (sidecar_path(target) if out.suffix.lower() == ".npy" else None)
     return f"{out} and {beside}" if beside is not None and beside.exists() else str(out)
 
 
@@ -282,7 +283,8 @@ def _refuse_overwriting_input(out, inputs):
     ``.mhd`` or ``.nhdr``) is a file the volume was read from (the header and its samples, or a
     raw file itself), or the data file of a header beside it (``STEM.nhdr`` for ``STEM.mhd``,
     either for ``STEM.raw``): writing it would change what that header reads."""
-    from data_tools.io import data_file_written
+    from data_tools.io import data_file_written, written_path
+    out = written_path(out)        # through a link, the files written are beside the file it leads to
     samples = out if out.suffix.lower() == ".raw" else data_file_written(out)
     if samples is None:
         return

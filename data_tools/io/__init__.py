@@ -215,12 +215,25 @@ def save_volume(volume: Volume, path, **options) -> Path:
     _check_write_options(ext, options)
     if ext == ".raw":
         raw.check_name(volume, path, options.get("byte_order"))
-    if ext == ".npy" and npy.sidecar_path(path).exists():
-        if not npy.sidecar_path(path).is_file():
-            raise InputError(f"{npy.sidecar_path(path)}: the sidecar of {path.name} (its spacing and origin) "
-                             "is not a file")
-        options.setdefault("sidecar", True)  # rewrite it, or it would go stale
     given, path = path, written_path(path)
+    if ext in (".mhd", ".nhdr"):
+        _check_data_file_name(given, path)
+    if ext == ".npy":
+        plain = volume.spacing == (1.0, 1.0, 1.0) and volume.origin == (0.0, 0.0, 0.0)
+        if options.get("sidecar") is False and not plain:
+            raise InputError(f"{given}: sidecar=False would lose the spacing {volume.spacing} and origin "
+                             f"{volume.origin}; a .npy file keeps them only in its sidecar")
+        sides = dict.fromkeys([npy.sidecar_path(given), npy.sidecar_path(path)])
+        for side in sides:
+            if side.exists() and not side.is_file():
+                raise InputError(f"{side}: the sidecar of {given.name} (its spacing and origin) is not a file")
+        if len(sides) > 1 and (not plain or any(side.exists() for side in sides)):
+            # Written beside the file the link leads to, a sidecar is not read through the link.
+            raise InputError(f"{given}: a link to {path}; its sidecar {npy.sidecar_path(path).name} would be "
+                             f"written beside that, and read through the link it would not be found: "
+                             f"write to {path} itself")
+        if npy.sidecar_path(path).exists():
+            options["sidecar"] = True   # rewrite it, or it would go stale
     tmpdir = None
     failed = given
     try:
@@ -250,6 +263,24 @@ def save_volume(volume: Volume, path, **options) -> Path:
         if tmpdir is not None:
             shutil.rmtree(tmpdir, ignore_errors=True)
     return given
+
+
+def _check_data_file_name(given, target):
+    """Refuse a ``.mhd`` or ``.nhdr`` header whose data file name its readers would not read
+    back (the header names it on a line of its own, relative to its folder): a link to a header
+    in another folder (read through the link, the name is looked for beside the link), a name
+    with control characters or blanks at either end, or one the readers take for a list of
+    data files (``LIST`` as its first word)."""
+    name = data_file_written(target).name
+    if os.path.realpath(given.parent) != os.path.realpath(target.parent):
+        raise InputError(f"{given}: a link to {target}; its data file {name} would be written beside that, "
+                         f"and read through the link the header would not find it: write to {target} itself")
+    words = name.split()
+    if (not name.replace("\t", " ").isprintable() or name != name.strip()
+            or (words and words[0].upper() == "LIST" and len(words) <= 2)):
+        raise InputError(f"{given}: its header would name the data file {name!r}, which it cannot be read "
+                         "back by (control characters, blanks at either end, or LIST, which names a list "
+                         "of files); choose another name")
 
 
 def written_path(path) -> Path:

@@ -244,6 +244,16 @@ def check_name(volume: Volume, path, byte_order: str | None = None) -> None:
     named = guess.get("dtypes") or ([guess["dtype"]] if "dtype" in guess else [])
     if named and not any(np.dtype(d) == volume.dtype for d in named):
         said.append(" or ".join(named))
+    elif len(named) > 1:
+        # Several types named: the reader takes the first of those the file's size fits, a
+        # type with its width before a C word (`_fitting_type`). One of the volume's width
+        # other than its own would read the samples back as that type, silently.
+        for kind in _type_words(path.stem):
+            fits = [d for d in kind if np.dtype(d).itemsize == volume.dtype.itemsize]
+            if len(fits) == 1 and np.dtype(fits[0]) != volume.dtype:
+                said.append(f"{fits[0]} (the type of its width it names first)")
+            if fits:
+                break
     if byte_order is not None and guess.get("byte_order", byte_order) != byte_order:
         said.append(f"{guess['byte_order']}-endian")
     if said:

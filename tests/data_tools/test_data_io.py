@@ -1416,3 +1416,72 @@ def test_a_writer_option_it_cannot_honour_is_refused(tmp_path, name, options, wo
     with pytest.raises(InputError, match=re.escape(words)):
         save_volume(Volume(make_array("uint8")), tmp_path / name, **options)
     assert not list(tmp_path.iterdir())
+
+
+# --- Companion files a reader must find again (links, data file names, sidecars) ----------
+
+def test_a_header_saved_through_a_link_to_another_folder_is_refused(tmp_path):
+    # Its data file would go beside the file the link leads to; read through the link, the
+    # header looks for it beside the link.
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    for ext in (".mhd", ".nhdr"):
+        (tmp_path / "a" / f"link{ext}").symlink_to(f"../b/real{ext}")
+        with pytest.raises(InputError, match=f"a link to .*real{ext}.*write to"):
+            save_volume(Volume(make_array("int16")), tmp_path / "a" / f"link{ext}")
+    assert sorted(p.name for p in (tmp_path / "b").iterdir()) == []
+
+
+def test_a_header_saved_through_a_link_in_its_folder_reads_back_through_the_link(tmp_path):
+    arr = make_array("int16")
+    (tmp_path / "link.mhd").symlink_to("real.mhd")
+    save_volume(Volume(arr, spacing=(0.5, 1, 2)), tmp_path / "link.mhd")
+    assert (tmp_path / "link.mhd").is_symlink() and (tmp_path / "real.raw").read_bytes() == arr.astype("<i2").tobytes()
+    check(load_volume(tmp_path / "link.mhd"), arr, (0.5, 1, 2))
+
+
+def test_a_npy_with_placement_saved_through_a_link_is_refused(tmp_path):
+    # The sidecar would go beside the target, and the volume read through the link lose its spacing.
+    (tmp_path / "link.npy").symlink_to("real.npy")
+    with pytest.raises(InputError, match="a link to .*real.npy.*sidecar"):
+        save_volume(Volume(make_array("uint8"), spacing=(2, 2, 2)), tmp_path / "link.npy")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["link.npy"]
+    save_volume(Volume(make_array("uint8")), tmp_path / "link.npy")       # nothing to lose: written
+    check(load_volume(tmp_path / "link.npy"), make_array("uint8"))
+
+
+@pytest.mark.parametrize("name", ["list 1.mhd", "List A.nhdr", " lead.mhd", " lead.nhdr", "new\nline.mhd",
+                                  "new\nline.nhdr", "esc\x1b.nhdr", "del\x7f.nhdr", "vt\x0b.nhdr"])
+def test_a_header_whose_data_file_name_it_cannot_read_back_is_refused(tmp_path, name):
+    # Each would be written, then refused by its own reader ("names no file", "not found", "not 'field: value'").
+    with pytest.raises(InputError, match="choose another name"):
+        save_volume(Volume(make_array("uint8")), tmp_path / name)
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("name", ["my vol.mhd", "a.b.c.nhdr", "tab\tx.mhd", "LIST.mhd", "list of scans.nhdr",
+                                  "#c.nhdr"])
+def test_a_header_with_an_unusual_data_file_name_reads_back(tmp_path, name):
+    arr = make_array("float32")
+    save_volume(Volume(arr, spacing=(0.1, 1 / 3, 7), origin=(-1e-7, 2, 3)), tmp_path / name)
+    assert (tmp_path / name).with_suffix(".raw").read_bytes() == arr.astype("<f4").tobytes()
+    check(load_volume(tmp_path / name), arr, (0.1, 1 / 3, 7), (-1e-7, 2, 3))
+
+
+def test_save_npy_without_sidecar_leaves_none_stale_and_loses_no_placement(tmp_path):
+    save_volume(Volume(make_array("uint8"), spacing=(2, 2, 2)), tmp_path / "s.npy")
+    save_volume(Volume(make_array("uint8")), tmp_path / "s.npy", sidecar=False)
+    assert load_volume(tmp_path / "s.npy").spacing == (1, 1, 1)
+    with pytest.raises(InputError, match="sidecar=False would lose the spacing"):
+        save_volume(Volume(make_array("uint8"), spacing=(3, 3, 3)), tmp_path / "t.npy", sidecar=False)
+    assert not (tmp_path / "t.npy").exists()
+
+
+@pytest.mark.parametrize("name, dtype", [("float_5x4x3_int32.raw", "float32"), ("uint_5x4x3_int32.raw", "uint32"),
+                                         ("char_5x4x3_uint8.raw", "int8")])
+def test_a_raw_name_that_reads_back_as_another_type_of_its_width_is_refused(tmp_path, name, dtype):
+    # The reader takes the type named with its width first (int32 over float): float32 samples
+    # saved as float_5x4x3_int32.raw would be read back as int32.
+    with pytest.raises(InputError, match="the name says"):
+        save_volume(Volume(make_array(dtype)), tmp_path / name)
+    assert list(tmp_path.iterdir()) == []

@@ -2080,3 +2080,19 @@ def test_a_link_in_a_loop_is_named_as_input_or_output(argv, loop, vol_file, tmp_
     assert rc == 2 and err.count("\n") == 1 and f"loop{suffix}: a link " in err and "in a loop" in err, err
     assert first.is_symlink() and second.is_symlink()
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["ball.nrrd", first.name, second.name])
+
+
+def test_convert_through_a_link_keeps_another_headers_samples(tmp_path, capsys):
+    # The samples are written beside the file the link leads to, where real.raw is real.nhdr's:
+    # the check looks there, not beside the link's name.
+    (tmp_path / "b").mkdir()
+    theirs = np.arange(27, dtype=np.uint8).reshape(3, 3, 3)
+    save_volume(Volume(theirs), tmp_path / "b" / "real.nhdr")
+    before = (tmp_path / "b" / "real.raw").read_bytes()
+    mine = tmp_path / "mine.npy"
+    np.save(mine, np.full((4, 4, 4), 7, np.int16))
+    (tmp_path / "b" / "same.mhd").symlink_to("real.mhd")
+    rc, _, err = _run(["convert", mine, "-o", tmp_path / "b" / "same.mhd"], capsys)
+    assert rc == 2 and err.count("\n") == 1 and "holds real.nhdr's samples" in err, err
+    assert (tmp_path / "b" / "real.raw").read_bytes() == before
+    assert sorted(p.name for p in (tmp_path / "b").iterdir()) == ["real.nhdr", "real.raw", "same.mhd"]
