@@ -126,3 +126,85 @@ def test_the_check_pool_ends_at_exit_without_a_ctrl_c_traceback():
     env = dict(os.environ, PARC_TEST_WORKERS="2")
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, env=env)
     assert (p.returncode, p.stdout, p.stderr) == (0, "done\n", "")
+
+
+def _from_roots(lead, *roots):
+    """Float coefficients (a, b, c, d) of ``lead * prod(s - r)``; exact for dyadic roots."""
+    coef = [1.0]
+    for r in roots:
+        coef = [x - r * y for x, y in zip(coef + [0.0], [0.0] + coef)]
+    coef = [0.0] * (4 - len(coef)) + [lead * x for x in coef]
+    return tuple(coef)
+
+
+def test_closed_form_takes_the_smaller_of_two_roots_and_roots_at_the_ends():
+    # Analytic: (s - 1/4)(s - 3/4), exact coefficients; the smaller root is -sqrt(disc) - p.
+    assert first_root_closed_form(*_from_roots(1.0, 0.25, 0.75), 1.0) == 0.25
+    assert first_root_closed_form(*_from_roots(-2.0, 0.75, 0.25), 1.0) == 0.25
+    # A root exactly at the interval's end is in [0, length].
+    assert first_root_closed_form(0.0, 0.0, 1.0, -1.0, 1.0) == 1.0
+    assert first_root_closed_form(*_from_roots(1.0, 1.0, 3.0, 5.0), 1.0) == 1.0
+
+
+def test_closed_form_double_and_triple_roots_with_exact_zero_discriminant():
+    # (s - 1/2)^2 (s - 2): the discriminant comes out exactly 0 (the double-root branch);
+    # the first root in [0, 1] is the double root 1/2.
+    assert first_root_closed_form(*_from_roots(1.0, 0.5, 0.5, 2.0), 1.0) == 0.5
+    assert first_root_closed_form(*_from_roots(1.0, 0.25, 0.25, -0.5), 1.0) == 0.25
+    # (s - r)^3: discriminant and q exactly 0 (the triple-root branch).
+    for r in (0.25, 0.5, 0.75):
+        assert first_root_closed_form(*_from_roots(1.0, r, r, r), 1.0) == r
+
+
+def test_closed_form_zero_test_is_parkers_1e_30():
+    # Parker et al. set EQN_EPS to 1e-30: a cubic of coefficients near 1e-10 is a cubic, not a constant.
+    a, b, c, d = (1e-10 * x for x in _from_roots(1.0, 0.25, 0.5, 0.75))
+    assert abs(first_root_closed_form(a, b, c, d, 1.0) - 0.25) < 1e-12
+
+
+def test_isolating_splits_a_quadratic_at_its_vertex():
+    # (s - 1/4)(s - 3/4): two roots in [0, 1], the vertex 1/2 between them.
+    assert abs(first_root_isolating(*_from_roots(1.0, 0.25, 0.75), 1.0, 400) - 0.25) < 1e-12
+    assert abs(first_root_isolating(*_from_roots(-3.0, 0.75, 0.25), 1.0, 400) - 0.25) < 1e-12
+
+
+def test_marmitt_takes_exactly_two_regula_falsi_steps():
+    # Truth: the same two steps in exact rationals on the isolating bracket [0, 1/2] of
+    # (s - 1/4)(s - 3/4) (its vertex splits [0, 1]): 0 -> 3/8 -> 3/10.
+    from fractions import Fraction as Fr
+
+    def p(s):
+        return (s - Fr(1, 4)) * (s - Fr(3, 4))
+    s0, s1 = Fr(0), Fr(1, 2)
+    for _ in range(2):
+        s = s0 + (s1 - s0) * p(s0) / (p(s0) - p(s1))
+        if (p(s) < 0) == (p(s0) < 0):
+            s0 = s
+        else:
+            s1 = s
+    assert s == Fr(3, 10)
+    assert abs(first_root_marmitt(*_from_roots(1.0, 0.25, 0.75), 1.0) - float(s)) < 1e-15
+
+
+def test_aimed_at_means_the_nearest_true_root_less_than_a_cell_away():
+    # Analytic: a ray along x on a grid of spacing (2, 1, 1); roots at t = 3 and t = 10.
+    from types import SimpleNamespace
+
+    from parc.rootstudy import _aimed_at
+    b = SimpleNamespace(dirs=np.array([[1.0, 0.0, 0.0]]), scene=SimpleNamespace(spacing=np.array([2.0, 1.0, 1.0])))
+    roots = [3.0, 10.0]
+    assert _aimed_at(b, 0, 3.0, 3.0, roots)
+    assert _aimed_at(b, 0, 4.9, 3.0, roots)             # 0.95 of a cell past it
+    assert _aimed_at(b, 0, 1.2, 3.0, roots)             # 0.9 of a cell before it
+    assert not _aimed_at(b, 0, 5.1, 3.0, roots)         # more than a cell (2 units) away
+    assert not _aimed_at(b, 0, 9.0, 3.0, roots)         # nearest to the other root
+    assert not _aimed_at(b, 0, math.inf, 3.0, roots)
+
+
+def test_required_rays_are_all_hit_by_the_project_finder(study):
+    # The project's finder has no failures, so every ray with a required root is a hit of the
+    # caster: `required` can be no more than the caster's hits on the same suite.
+    from parc.rootstudy import _suite
+    from raycast.hardcases import cast_batch
+    hits = sum(int(np.isfinite(cast_batch(b)[0]).sum()) for b in _suite(40, 0))
+    assert 0 < study[0]["required"] <= hits

@@ -232,11 +232,13 @@ def test_a_cubic_in_a_cell_2_to_the_j_as_large_has_its_first_root_2_to_the_j_as_
     # Spacing times 2^j: the index-space direction is 2^-j times as long, so the cubic in the
     # ray's distance is a s^3 2^-3j + b s^2 2^-2j + c s 2^-j + d on an interval 2^j long. At
     # spacings near 1e-30 its leading coefficients reach 1e90 times the samples'.
+    # With samples near 2^-400 (1e-120) the largest coefficient is below 2^-128 but above the
+    # discriminant's own underflow: the rescaling must start at 2^-128, not later.
     rng = np.random.default_rng(abs(j) + 7)
     for n in range(2000):
         a, b, c, d = (float(x) for x in _random_cubic(rng, n))
         L = float(rng.choice([1.0, rng.uniform(0.01, 2.0)]))
-        for v in (1.0, 2.0 ** 300, 2.0 ** -300):
+        for v in (1.0, 2.0 ** 300, 2.0 ** -300, 2.0 ** -400):
             want = call(a * v, b * v, c * v, d * v, L)
             got = call(math.ldexp(a * v, -3 * j), math.ldexp(b * v, -2 * j), math.ldexp(c * v, -j), d * v,
                        math.ldexp(L, j))
@@ -252,6 +254,13 @@ def test_no_root():
     assert call(1.0, 2.0, 3.0, 4.0, -1.0) == -1.0            # empty interval
     assert call(1.0, 2.0, 3.0, 4.0, math.nan) == -1.0
     assert call(1.0, -1.0, 0.0, 1.0, 0.0) == -1.0            # zero-length interval, D != 0
+
+
+def test_zero_length_interval_holds_a_root_at_zero():
+    # [0, 0] holds s = 0 when d == 0: a cell the ray only touches (through an edge or a vertex,
+    # c0 == c1) with the surface there. Analytic: P(0) = d = 0 exactly.
+    assert call(1.0, 2.0, 3.0, 0.0, 0.0) == 0.0
+    assert call(0.0, 0.0, -1.0, 0.0, 0.0) == 0.0
 
 
 # --------------------------------------------------------- random cubics

@@ -118,4 +118,9 @@ def test_segment_start_gives_identical_hits(category):
                             cell2[m].tolist()))
     assert n_hits > 1000
     assert not bad, f"{len(bad)} rays differ when started at a segment, e.g. {bad[:5]}"
+    if category in ("face-edge-vertex", "iso-sample"):
+        # Not vacuous: these categories aim at roots on cell faces, edges and vertices, so many
+        # hits lie at their cell's entry (about a fifth); a generator that no longer puts the
+        # isovalue at the aimed point has none.
+        assert n_seeded > 0.05 * n_hits, (n_seeded, n_hits)
     print(f"{category}: {n_hits} hits, {n_seeded} at their cell's entry")

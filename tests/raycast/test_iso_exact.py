@@ -213,3 +213,21 @@ def test_segment_start_past_the_hit_in_a_cell_entered_through_an_edge(edge):
     assert not bad, f"{len(bad)} of {rays} rays differ with a start past the hit, e.g. {bad[:3]}"
     # Not vacuous: many hits lie at the entry of a cell entered through the edge.
     assert at_entry > 0.05 * rays
+
+
+def test_a_segment_bounds_the_walk_to_its_cells():
+    """``[seg0, seg1]`` limits the walk to the cells it meets: a surface in cells wholly before
+    ``seg0`` or wholly after ``seg1`` is not hit. Analytic: samples ``f(i) = 0, 2, 2, 2, 2, 0``
+    along x (constant in y, z) at isovalue 1 cross it at x = 0.5 and x = 4.5 exactly; the ray
+    runs along x from x = -1, so at t = 1.5 and t = 5.5."""
+    f = np.array([0.0, 2.0, 2.0, 2.0, 2.0, 0.0])
+    sc = SimpleNamespace(data=np.broadcast_to(f, (4, 4, 6)).copy(), origin=np.zeros(3), spacing=np.ones(3))
+    o = np.array([[-1.0, 1.5, 1.5]] * 4)
+    d = np.array([[1.0, 0.0, 0.0]] * 4)
+    seg = np.array([[-np.inf, np.inf],      # the whole ray: the first crossing
+                    [2.2, np.inf],          # from inside cell 1: the second
+                    [0.0, 2.4],             # cells 0 and 1 only: the first
+                    [2.2, 3.4]])            # cells 1 and 2 only: none
+    t, cell, uvw, _ = cast(sc, o, d, 1.0, seg)
+    assert t[0] == 1.5 and t[1] == 5.5 and t[2] == 1.5 and t[3] == np.inf, t
+    assert cell[0].tolist() == [0, 1, 1] and cell[1].tolist() == [4, 1, 1], cell
