@@ -1,9 +1,9 @@
 """The hard-ray suite's inputs are the hard cases they are named for.
 
-`test_hard_rays` only checks the caster on the rays `raycast.hardcases` builds; nothing
-checked that the rays are what their category says, so a generator that drifted (grazing
-rays no longer tangent, rays no longer through the dyadic point whose value is the
-isovalue) left every test green while the suite stopped testing its hard case.
+`test_hard_rays` checks the caster on the rays `raycast.hardcases` builds; these check that
+the rays are what their category says. A generator that drifted (grazing rays no longer
+tangent, rays no longer through the dyadic point whose value is the isovalue) would leave
+`test_hard_rays` green while the suite no longer tested its hard case.
 
 Truth: analytic. The scenes are exact-trilinear fields ``F`` with known coefficients
 (`raycast.hardfields.field_value`, `field_grad`); the point each batch is aimed at is
