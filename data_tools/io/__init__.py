@@ -227,6 +227,10 @@ def save_volume(volume: Volume, path, **options) -> Path:
         for side in sides:
             if side.exists() and not side.is_file():
                 raise InputError(f"{side}: the sidecar of {given.name} (its spacing and origin) is not a file")
+            if side.exists() and not npy.is_sidecar(side):
+                # A run's stats, say: written over, or read back as the volume's sidecar.
+                raise InputError(f"{side}: where {given.name}'s sidecar (its spacing and origin) goes, a file "
+                                 "of another kind; move it or write elsewhere")
         if len(sides) > 1 and (not plain or any(side.exists() for side in sides)):
             # Written beside the file the link leads to, a sidecar is not read through the link.
             raise InputError(f"{given}: a link to {path}; its sidecar {npy.sidecar_path(path).name} would be "

@@ -1485,3 +1485,13 @@ def test_a_raw_name_that_reads_back_as_another_type_of_its_width_is_refused(tmp_
     with pytest.raises(InputError, match="the name says"):
         save_volume(Volume(make_array(dtype)), tmp_path / name)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_npy_is_not_saved_over_a_file_of_another_kind_where_its_sidecar_goes(tmp_path):
+    # A run's stats by that name: written over, or, left, read back as the volume's sidecar.
+    stats = tmp_path / "t.npy.json"
+    stats.write_text('{"method": "brute"}')
+    for spacing in ((1, 1, 1), (2, 2, 2)):
+        with pytest.raises(InputError, match="a file of another kind; move it or write elsewhere"):
+            save_volume(Volume(make_array("uint8"), spacing=spacing), tmp_path / "t.npy")
+    assert stats.read_text() == '{"method": "brute"}' and sorted(p.name for p in tmp_path.iterdir()) == [stats.name]
