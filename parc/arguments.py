@@ -84,8 +84,9 @@ class _OneSurface(argparse.Action):
         if earlier is not None:
             def text(v):
                 return repr(v).removesuffix(".0") if isinstance(v, float) else v
-            raise InputError(f"{option_string} given twice ({text(earlier)} and {text(values)}); to show "
-                             "several surfaces or volumes, write a scene file (README, Scene files; examples/*.toml)")
+            raise InputError(f"{self.option_strings[-1]} given twice ({text(earlier)} and {text(values)}); "
+                             "several surfaces or volumes are shown by a scene file's [[volume]] tables "
+                             "(README, Scene files; examples/*.toml)")
         setattr(namespace, self.dest, values)
 
 

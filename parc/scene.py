@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import math
 import os
+import sys
 import warnings
 from dataclasses import dataclass, field
 
@@ -142,10 +143,21 @@ class Translucent:
         lo, hi = self.volume.value_range()
         if not self.tf.nonzero_in(lo, hi):
             # Legal (another volume of the scene may show), but a blank image is no way to learn it.
-            # stacklevel 4: past __post_init__, the dataclass's __init__ and `settled`'s, to the caller.
+            # Said at the caller's line: past __post_init__, the dataclass's __init__, `settled`'s,
+            # and any of PARC's or dataclasses' own (load_scene, dataclasses.replace, step_sweep).
             warnings.warn(f"{self.tf.title} is transparent over the data range [{exact_text(lo)}, "
                           f"{exact_text(hi)}] of {self.volume.name}: that volume shows nothing",
-                          ShowsNothingWarning, stacklevel=4)
+                          ShowsNothingWarning, stacklevel=_callers_level())
+
+
+def _callers_level():
+    """The ``stacklevel`` that, for a warning given by this function's caller, names the first
+    line outside PARC, data_tools and dataclasses (a user's call, however deep inside it is made)."""
+    frame, level = sys._getframe(1), 1
+    while frame.f_back is not None and (frame.f_globals.get("__name__", "").partition(".")[0]
+                                        in ("parc", "data_tools", "dataclasses")):
+        frame, level = frame.f_back, level + 1
+    return level
 
 
 #: Largest coordinate of a point light's position.

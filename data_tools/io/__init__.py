@@ -1,6 +1,7 @@
 """Volume files in and out: ``load_volume`` and ``save_volume`` dispatch on the extension."""
 from __future__ import annotations
 
+import errno
 import os
 import shutil
 import tempfile
@@ -231,7 +232,7 @@ def save_volume(volume: Volume, path, **options) -> Path:
                 # A run's stats, say: written over, or read back as the volume's sidecar.
                 raise InputError(f"{side}: where {given.name}'s sidecar (its spacing and origin) goes, a file "
                                  "of another kind; move it or write elsewhere")
-        if len(sides) > 1 and (not plain or any(side.exists() for side in sides)):
+        if len(sides) > 1 and (not plain or npy.sidecar_path(given).exists()):
             # Written beside the file the link leads to, a sidecar is not read through the link.
             raise InputError(f"{given}: a link to {path}; its sidecar {npy.sidecar_path(path).name} would be "
                              f"written beside that, and read through the link it would not be found: "
@@ -293,6 +294,13 @@ def written_path(path) -> Path:
     itself they replaced the link with a file. Refused when that is neither a file nor absent
     (nor a folder, which the writers refuse in their own words)."""
     path = Path(path)
+    if path.is_symlink():
+        try:
+            os.stat(path)
+        except OSError as exc:
+            if exc.errno == errno.ELOOP:
+                # realpath stops somewhere in the loop: the rename would replace a link with a file.
+                raise InputError(f"{path}: a link in a loop; write elsewhere") from None
     target = Path(os.path.realpath(path)) if path.is_symlink() else path
     if target.exists() and not (target.is_file() or target.is_dir()):
         # Renamed onto, a device (/dev/null) or a pipe would be replaced by a file: for root, silently.

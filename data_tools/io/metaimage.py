@@ -144,8 +144,8 @@ def _build(path, fields, data_start, given):
     origin = _numbers(path, fields, ("Origin", "Offset", "Position"), (0.0, 0.0, 0.0))
     big = _flag(path, fields, ("BinaryDataByteOrderMSB", "ElementByteOrderMSB"), False)
     compressed = _flag(path, fields, ("CompressedData",), False)
-    header_size = get("HeaderSize")
-    header_size = 0 if header_size is None else parse_numbers(header_size.split(), 1, int, path, "HeaderSize")[0]
+    header_size = (get("HeaderSize") or "").split()           # given empty, as absent: 0
+    header_size = parse_numbers(header_size, 1, int, path, "HeaderSize")[0] if header_size else 0
     if header_size < -1:
         raise InputError(f"{path}: HeaderSize must be -1 (data at the end) or a byte count, got {header_size}")
     meta = {"format": "metaimage", "byte_order": "big" if big else "little"}

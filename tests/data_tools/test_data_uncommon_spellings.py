@@ -99,3 +99,10 @@ def test_attached_nrrd_data_without_the_blank_line_before_it_is_named(tmp_path):
         load_volume(p)
     p.write_bytes(b"NRRD0004\n" + b"".join(f + b"\n" for f in header) + b"\n" + samples)
     assert np.array_equal(load_volume(p).data.ravel(), np.frombuffer(samples, "<i2"))
+
+
+def test_an_empty_metaimage_header_size_is_no_header_size(tmp_path):
+    p = tmp_path / "e.mha"
+    p.write_bytes(b"ObjectType = Image\nNDims = 3\nHeaderSize =\nDimSize = 2 3 4\nElementType = MET_SHORT\n"
+                  b"ElementDataFile = LOCAL\n" + ARR16.astype("<i2").tobytes())
+    assert np.array_equal(load_volume(p).data, ARR16)

@@ -776,8 +776,8 @@ def test_a_vector_starting_with_a_minus_sign_is_a_value(vol_file, tmp_path, caps
     (["--fov", "20", "--parallel", "40"], "not both"),
     (["--threshold", "0"], "--threshold applies to translucent volumes"),     # 0 is given, not absent
     (["--stats", ""], "the output path is empty"),                             # was ".: output must end in"
-    # Not a second surface, as it may look, but the last one alone, as it was.
-    (["--iso=5"], "--iso given twice (4 and 5); to show several surfaces or volumes, write a scene file"),
+    # Refused: it would not add a second surface, as it may look, but replace the first (also abbreviated).
+    (["--is=5"], "--iso given twice (4 and 5); several surfaces or volumes are shown by a scene file's [[volume]]"),
     (["--tf", "greyscale", "--tf", "viridis"], "--tf given twice (greyscale and viridis)"),
 ])
 def test_more_bad_arguments(extra, words, vol_file, tmp_path, capsys):

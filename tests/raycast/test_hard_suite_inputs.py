@@ -36,10 +36,10 @@ def _batches(category, n=600):
 def test_rays_of_a_batch_meet_at_a_point_on_the_level_set(category):
     checked = 0
     for b in _batches(category):
+        if np.linalg.matrix_rank(np.array(b.dirs)) < 2:
+            continue                                    # parallel rays meet nowhere in particular
         q, spread = _meeting_point(b.origins, b.dirs)
         h = float(np.min(b.scene.spacing))
-        if np.linalg.matrix_rank(np.array(b.dirs)) < 2:
-            continue
         assert spread <= 1e-9 * h, (b.scene.name, spread)
         idx = (q - b.scene.origin) / b.scene.spacing
         value = field_value(b.scene.coeffs, *idx)
@@ -53,6 +53,8 @@ def test_rays_of_a_batch_meet_at_a_point_on_the_level_set(category):
 def test_grazing_rays_are_tangent_to_the_level_set():
     checked = 0
     for b in _batches("grazing"):
+        if np.linalg.matrix_rank(np.array(b.dirs)) < 2:
+            continue
         q, _ = _meeting_point(b.origins, b.dirs)
         idx = (q - b.scene.origin) / b.scene.spacing
         g = np.array(field_grad(b.scene.coeffs, *idx)) / b.scene.spacing     # world gradient
