@@ -48,7 +48,7 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
     repeats : int, default 3
         Timed renders per method, taken in rounds of one render per method
         (so that a drift in the machine's speed reaches every method
-        alike); the median total time is reported.
+        alike); the median wall time of a whole `render` call is reported.
     warmup : int, default 1
         Untimed renders first (JIT compilation, OpenGL context, caches).
     options : dict of method -> dict, optional
@@ -62,8 +62,10 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
     Returns
     -------
     list of dict
-        One row per method: ``method``, ``seconds`` (median total),
-        ``phases`` (seconds per phase of the median run), ``speedup`` against brute,
+        One row per method: ``method``, ``seconds`` (the median wall time of a `render` call:
+        its frame, ``phases["total"]``, and also its argument and memory checks, which
+        for a small image can be as long as the frame), ``phases`` (seconds per phase of
+        the median run), ``speedup`` against brute (brute's ``seconds`` over the method's),
         the `image_error` fields (depths in cells of the first volume's smallest spacing, the
         strictest reading of "a cell"), ``cells_visited``, ``cubic_solves``,
         ``samples``, ``shadow_cells``, ``shadow_solves``, ``hits``,
@@ -72,7 +74,8 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
         median run's share of time in `OPENGL_PHASES`), ``speedup_low`` and
         ``speedup_high`` (the lowest and highest of the rounds' own ratios,
         each round timing every method once), ``parameters`` (what was rendered, as `render`'s
-        stats give it: size, camera, volumes) and ``repeats``.
+        stats give it: size and camera, and the volume's own fields for a scene of one volume
+        without lights, else ``volumes``, ``lights`` and ``shadows``) and ``repeats``.
     """
     _check_runs("compare", scene, repeats, warmup)
     names = method_names(methods)

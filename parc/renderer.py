@@ -68,6 +68,9 @@ class RenderResult:
         this frame, ``light_polygons``) and the parameters used. Cells and cubics count
         isosurfaces' work, samples translucent volumes'; a process's first ``seconds["total"]``
         also holds loading the casters and making OpenGL's context, beyond the phases listed.
+        A scene of several volumes or with lights also gives ``shadow_rays``, ``shadow_cells``,
+        ``shadow_solves`` and ``shadow_samples``, and each volume's ``polygons``,
+        ``segment_pixels`` and ``supercell`` under ``volumes`` (with PARC), not at the top.
     work : ndarray (H, W) int64 or None
         With ``render(..., work=True)``: per pixel, the cells its ray visited
         (an isosurface) or the samples it took (a translucent volume), so
@@ -188,9 +191,11 @@ def check_request(scene, buffers, work, names=("buffers", "work")):
     if "depth" not in buffers and not any(isinstance(v, Translucent) for v in scene.volumes):
         raise InputError(f"{names[0]} {','.join(buffers)} leave out the depth buffers isosurfaces use; "
                          "bit planes apply to translucent volumes")
+    # A lone isosurface too: bit planes are drawn for one translucent volume, and "depth,bits"
+    # for an isosurface would otherwise leave them out without a word.
+    if "bits" in buffers and bits_refused(scene):
+        raise InputError(f"{names[0]} {','.join(buffers)}: {bits_refused(scene)}")
     if len(scene.volumes) != 1 or scene.lights:
-        if "bits" in buffers:
-            raise InputError(f"{names[0]} {','.join(buffers)}: {bits_refused(scene)}")
         if work:
             raise InputError(f"{names[1]}: per-pixel work is counted for scenes of one volume without lights")
     return buffers

@@ -82,7 +82,9 @@ class Translucent:
     volume : Volume
     tf : TransferFunction or str
         A transfer function, a preset name or a file (see
-        `parc.transfer.load_transfer_function`).
+        `parc.transfer.load_transfer_function`). One made from a name, here or by
+        `load_transfer_function`, is made again from it for another volume or mode
+        (``dataclasses.replace(tr, mode="mip")``); one built as a TransferFunction is kept.
     mode : {"composite", "mip", "average"}, default "composite"
     step : float or None
         World distance between samples; default a quarter of the smallest
@@ -125,6 +127,11 @@ class Translucent:
                                  f"got {type(self.tf).__name__}")
         if self.mode not in MODES:
             raise InputError(f"unknown mode {self.mode!r}; choose one of {', '.join(MODES)}")
+        made_from = getattr(self.tf, "made_from", None)
+        if made_from is not None and made_from[1:] != (self.volume.value_range(), self.mode):
+            # Made from a name for another volume's range or another mode (`dataclasses.replace(tr,
+            # mode="mip")`): made again from that name, as `Translucent(vol, name, mode=...)` makes it.
+            self.tf = made_from[0]
         if not isinstance(self.tf, TransferFunction):
             self.tf = load_transfer_function(self.tf, data_range=self.volume.value_range(), mode=self.mode)
         if self.step is None:

@@ -98,6 +98,8 @@ def load_transfer_function(spec, data_range=None, mode="composite"):
     Returns
     -------
     TransferFunction
+        With ``made_from`` set to ``(name, data_range, mode)`` (a file's name made absolute):
+        `parc.Translucent` makes it again from that name for another volume's range or mode.
 
     Raises
     ------
@@ -108,6 +110,14 @@ def load_transfer_function(spec, data_range=None, mode="composite"):
         raise InputError(f"unknown mode {mode!r}; choose one of composite, mip, average")
     if isinstance(spec, TransferFunction):
         return spec
+    tf = _from_name(spec, data_range, mode)
+    text = os.fspath(spec)
+    tf.made_from = (text if text in PRESETS else os.path.abspath(text), data_range, mode)
+    return tf
+
+
+def _from_name(spec, data_range, mode):
+    """`load_transfer_function` for a preset name or a file."""
     if not isinstance(spec, (str, os.PathLike)):
         raise InputError(f"a transfer function is a TransferFunction, a preset name or a file's path, "
                          f"got {type(spec).__name__}")

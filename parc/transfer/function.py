@@ -109,6 +109,12 @@ class TransferFunction:
         Where it came from (a file path, ``"preset ct_bone"``), prefixed to
         error messages.
 
+    Attributes
+    ----------
+    made_from : (name, data_range, mode) or None
+        Set by `load_transfer_function` for one made from a preset or file
+        name; None for one built here.
+
     Raises
     ------
     InputError
@@ -134,6 +140,7 @@ class TransferFunction:
         self.name = " ".join("".join(c if c.isprintable() else " " for c in str(name or "")).split())
         self.description = str(description)
         self.source = str(source)
+        self.made_from = None
         self._op_x = _frozen(op[:, 0])
         self._op_y = _frozen(op[:, 1])
         self._col_x = _frozen(col[:, 0])

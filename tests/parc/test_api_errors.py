@@ -100,6 +100,12 @@ CASES = {
     "load_scene of None": (lambda: parc.load_scene(None), "path of a scene file"),
     "load_scene view with a typo": (lambda: parc.load_scene("scene.toml", view={"fvo": 50}), "view takes camera"),
     "bit planes for an isosurface": (lambda: parc.render(_scene(), method="parc", buffers="bits"), "bit planes"),
+    # As the render docstring says ("asking them for bit planes is an error") and `parc render
+    # --buffers` refuses, rather than left out without a word; brute checks them too.
+    "depth and bit planes for an isosurface": (lambda: parc.render(_scene(), method="parc", buffers="depth,bits"),
+                                               "this one has an isosurface"),
+    "depth and bit planes for an isosurface, brute": (lambda: parc.render(_scene(), buffers=("depth", "bits")),
+                                                      "this one has an isosurface"),
     "lights on a translucent volume": (lambda: _scene(volumes=[parc.Translucent(VOL, "greyscale")],
                                                       lights=[parc.PointLight((1, 2, 3))]), "shine on isosurfaces"),
     "bit planes for two volumes": (lambda: parc.render(_scene(volumes=[parc.Translucent(VOL, "greyscale")] * 2),

@@ -196,6 +196,19 @@ def test_synthetic_parallel_and_look_at_only(folder):
     assert cam.eye == pytest.approx(expected["eye"])
 
 
+def test_a_files_preset_follows_a_replaced_mode_as_the_same_preset_named_in_python(folder):
+    import dataclasses
+    path = write(folder, """\
+        [[volume]]
+        file = "data/ball.nrrd"
+        tf = "greyscale"
+    """)
+    vis = load_scene(path).volumes[0]
+    mip = dataclasses.replace(vis, mode="mip")
+    # The ramp ends opaque for mip (`parc.transfer.presets.ramp_opacity`), at the data's maximum.
+    assert mip.tf.opacity_points[-1].tolist() == [vis.volume.value_range()[1], 1.0]
+
+
 def test_view_and_size_given_by_the_caller_win(folder):
     path = write(folder, TWO_VOLUMES)
     scene = load_scene(path, view={"eye": (0, -80, 8), "parallel": 20, "up": None}, size=(8, 6))

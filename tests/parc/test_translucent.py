@@ -14,7 +14,7 @@ import pytest
 
 from data_tools import InputError, Volume
 from data_tools.synthetic import blobs, ct_phantom, trilinear_field
-from parc import Camera, Scene, ShowsNothingWarning, TransferFunction, Translucent, render
+from parc import Camera, Scene, ShowsNothingWarning, TransferFunction, Translucent, load_transfer_function, render
 
 MODES = ("composite", "mip", "average")
 SUPERCELLS = (0.5, 1, 2, 3, 4.5, 8, (2, 3, 1.5))
@@ -189,6 +189,28 @@ def test_a_composite_volume_replaced_into_another_mode_keeps_its_default_thresho
     assert Translucent(vis.volume, "greyscale", mode="mip", threshold=np.float32(0.99)).threshold == 0.99
     with pytest.raises(InputError, match="threshold applies to mode composite"):
         Translucent(vis.volume, "greyscale", mode="average", threshold=np.nextafter(np.float32(0.99), 1))
+
+
+def test_a_preset_named_follows_a_replaced_mode_or_volume_as_when_named_anew():
+    # README: make a new one with dataclasses.replace. A ramp preset is made for the volume's
+    # range and the mode (it ends opaque for mip and average, `ramp_opacity`); kept as made for
+    # the old range and mode, a mip of greyscale would peak at 0.1.
+    import dataclasses
+    data = np.broadcast_to(np.arange(8, dtype=np.float32)[:, None, None] * 10, (8, 8, 8)).copy()
+    vis = Translucent(Volume(data), "greyscale")
+    assert vis.tf.opacity_points[-1].tolist() == [70.0, 0.1]
+    mip = dataclasses.replace(vis, mode="mip")
+    assert mip.tf.opacity_points[-1].tolist() == [70.0, 1.0]
+    assert mip.tf == Translucent(vis.volume, "greyscale", mode="mip").tf
+    other = dataclasses.replace(vis, volume=Volume(data * 3))
+    assert other.tf.opacity_points[-1].tolist() == [210.0, 0.1]
+    # Only what was named is made again: a TransferFunction given as such is kept as it is.
+    tf = TransferFunction([(0, 0.0), (70, 0.1)])
+    assert dataclasses.replace(Translucent(vis.volume, tf), mode="mip", volume=Volume(data * 3)).tf is tf
+    assert dataclasses.replace(vis, step=0.5).tf is vis.tf
+    # One loaded by name for a mode is made again for another, as a name given here would be.
+    loaded = load_transfer_function("greyscale", data_range=vis.volume.value_range())
+    assert Translucent(vis.volume, loaded, mode="average").tf.opacity_points[-1].tolist() == [70.0, 1.0]
 
 
 @pytest.mark.parametrize("mode, slow", [("mip", _slow_mip), ("average", _slow_average)])
