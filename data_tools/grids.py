@@ -1,6 +1,8 @@
 """Helpers the synthetic volumes share: grid sizes, world coordinates, names, soft edges."""
 from __future__ import annotations
 
+import operator
+
 import numpy as np
 
 from .errors import InputError
@@ -9,8 +11,9 @@ from .errors import InputError
 def grid_dims(size, what="size"):
     """``(nx, ny, nz)`` from an int ``n`` (a cube) or three ints."""
     try:
-        dims = (int(size),) * 3 if np.ndim(size) == 0 else tuple(int(s) for s in size)
-    except (TypeError, ValueError):
+        # operator.index: a whole number of a whole-number type (12.7 is not cut to 12, nor "12" read).
+        dims = (operator.index(size),) * 3 if np.ndim(size) == 0 else tuple(operator.index(s) for s in size)
+    except TypeError:
         raise InputError(f"{what} must be an integer or three integers, got {size!r}") from None
     if len(dims) != 3 or min(dims) < 2:
         raise InputError(f"{what} must give at least 2 samples per axis, got {size!r}")

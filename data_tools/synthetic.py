@@ -166,7 +166,7 @@ def trilinear_field(size, coeffs=None, *, seed=0, dtype="float64",
     Volume
         ``meta['coeffs']`` (the 8 coefficients as Python numbers),
         ``meta['exact']`` (whether the stored samples equal ``F`` exactly) and
-        ``meta['iso']`` (a level strictly inside the value range).
+        ``meta['iso']`` (a level strictly inside the value range; for a constant field, its value).
     """
     dims = grid_dims(size)
     if coeffs is None:
@@ -192,7 +192,8 @@ def trilinear_field(size, coeffs=None, *, seed=0, dtype="float64",
         if f.min() < info.min or f.max() > info.max:
             raise InputError(f"trilinear_field values {f.min()}..{f.max()} do not fit {dt.name}")
     data = np.ascontiguousarray(f.astype(dt))
-    exact = bool(np.array_equal(data.astype(f.dtype) if dt.kind != "f" else data, f))
+    # Compare in the type of F: comparing float samples with int64 F would round F the same way.
+    exact = bool(np.array_equal(data.astype(f.dtype), f))
     lo, hi = float(f.min()), float(f.max())
     iso = lo + 0.5 * (hi - lo) + (0.25 if hi - lo > 1 else 0.0)
     return Volume(data, spacing=spacing, origin=origin, name=volume_label("trilinear_field", dims),
