@@ -8,6 +8,7 @@ from collections.abc import Iterator
 import numpy as np
 
 from data_tools import InputError
+from data_tools.info import exact_text
 from data_tools.volume import text_or_flag
 
 from .renderer import render
@@ -68,7 +69,7 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
         the median run), ``speedup`` against brute (brute's ``seconds`` over the method's),
         the `image_error` fields (depths in cells of the first volume's smallest spacing, the
         strictest reading of "a cell"), ``cells_visited``, ``cubic_solves``,
-        ``samples``, ``shadow_cells``, ``shadow_solves``, ``hits``,
+        ``samples``, ``shadow_cells``, ``shadow_solves``, ``shadow_samples``, ``shadow_rays``, ``hits``,
         ``polygons``, ``supercell`` (for a scene of several volumes the size they
         share, else None, and ``supercells`` each's), ``pixels``, ``opengl_share`` (the
         median run's share of time in `OPENGL_PHASES`), ``speedup_low`` and
@@ -141,6 +142,8 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
                "cells_visited": s["cells_visited"], "cubic_solves": s["cubic_solves"],
                "samples": s.get("samples", 0),
                "shadow_cells": s.get("shadow_cells", 0), "shadow_solves": s.get("shadow_solves", 0),
+               # A translucent volume dims shadow rays by sampling: that work too, as render's stats give it.
+               "shadow_samples": s.get("shadow_samples", 0), "shadow_rays": s.get("shadow_rays", 0),
                "hits": s["hits"], "pixels": s["pixels"], "polygons": s.get("polygons", 0),
                "supercell": s.get("supercell"),
                # What was compared, in every row: rows saved from several runs tell which is which.
@@ -323,6 +326,8 @@ def step_sweep(scene, steps, *, repeats=3, warmup=1, progress=None, options=None
         raise InputError(f"options must be a dict of render() arguments, got {options!r}")
     options = dict(options or {})
     _check_render_options("parc", options)
+    # A supercell size the volume cannot take is refused before the reference is rendered, as `compare` does.
+    check_supercells(scene, {"parc": options})
     try:
         items = None if isinstance(steps, (str, bytes)) else list(steps)
         if any(text_or_flag(v) for v in items):
@@ -387,11 +392,12 @@ def format_step_table(rows):
            f"{'samples parc':>12}  {'max Δ vs fine':>13}  {'PSNR':>6}  {'parc≠brute':>10}"]
     for r in rows:
         psnr = "inf" if r["psnr"] == float("inf") else f"{r['psnr']:.1f}"
-        out.append(f"{r['step']:>8g}  {r['brute_seconds']:>8.4f}  {r['parc_seconds']:>8.4f}  "
+        # Every digit a step needs: two steps never share a label (with :g, 0.5 and 0.5000001 both read "0.5").
+        out.append(f"{exact_text(r['step']):>8}  {r['brute_seconds']:>8.4f}  {r['parc_seconds']:>8.4f}  "
                    f"{r['speedup']:>6.2f}x  {r['brute_samples']:>13,}  {r['parc_samples']:>12,}  "
                    f"{r['max_color']:>13.2e}  {psnr:>6}  {r['parc_vs_brute']:>10.1e}")
     if rows:
         fine = min(r["step"] for r in rows) / 4
-        out.append(f"max Δ vs fine, PSNR: brute's image against brute's at step {fine:g} (a quarter of the "
+        out.append(f"max Δ vs fine, PSNR: brute's image against brute's at step {exact_text(fine)} (a quarter of the "
                    "finest), the reference; parc≠brute: max |Δcolour| between the methods at one step.")
     return "\n".join(out)

@@ -415,6 +415,9 @@ def main(args):
     if args.data is not None:
         if not Path(args.data).is_dir():
             raise InputError(f"--data {args.data}: " + ("not a folder" if Path(args.data).exists() else "no such folder"))
+        if args.tiny:
+            # The tiny suite's volumes are synthetic by design: real ones would make it neither tiny nor quick.
+            raise InputError("--data does not combine with --tiny (the tiny suite uses tiny synthetic volumes)")
         suite = replace(suite, data_dir=Path(args.data))
     out = Path(args.out)
     if out.exists() and not out.is_dir():

@@ -32,6 +32,12 @@ def _missing(data_dir, names):
     return "the tiny suite's stand-in" if data_dir is None else f"{names} not found"
 
 
+def _describe(vol):
+    """A loaded volume as the report names it: ``256×256×113 int16, spacing 1, 1, 2``."""
+    from data_tools.info import exact_text
+    return (f"{'×'.join(map(str, vol.dims))} {vol.dtype}, spacing {', '.join(map(exact_text, vol.spacing))}")
+
+
 def _real(data_dir, name):
     if data_dir is None:
         return None
@@ -43,7 +49,9 @@ def ct_volume(data_dir, tiny):
     """The CT head (Stanford CThead, 256x256x113 int16, spacing 1,1,2) or a CT-like phantom of its shape."""
     path = _real(data_dir, "CThead.nrrd")
     if path is not None:
-        return load_volume(path), f"`{path.name}` (Stanford CT head, 256×256×113 int16, spacing 1, 1, 2)"
+        # What was read, not what the Stanford CT head is: a file of that name under --data may be another.
+        vol = load_volume(path)
+        return vol, f"`{path.name}` ({_describe(vol)})"
     dims = (32, 32, 16) if tiny else (256, 256, 113)
     vol = ct_phantom(dims, spacing=(1.0, 1.0, 2.0))
     return vol, (f"synthetic CT phantom {dims[0]}×{dims[1]}×{dims[2]} int16, spacing 1, 1, 2 "
@@ -82,7 +90,8 @@ def iron_protein(size, data_dir=None, tiny=False):
     pos, neg = _real(data_dir, "poship.slc"), _real(data_dir, "neghip.slc")
     if pos is not None and neg is not None:
         vp, vn = load_volume(pos), load_volume(neg)
-        source = "`poship.slc` isosurface 80 inside `neghip.slc` translucent (iron protein, 66³ uint8)"
+        source = (f"`poship.slc` isosurface 80 ({_describe(vp)}) inside `neghip.slc` translucent "
+                  f"({_describe(vn)})")
     else:
         n = 24 if tiny else 66
         vp, vn = blobs(n, seed=3), blobs(n, seed=4)
