@@ -72,9 +72,11 @@ def main(argv=None):
         return EXIT_USAGE
     except MemoryError as exc:
         # NumPy says how much it could not allocate; the usual cause is a
-        # --size too large for this machine.
+        # --size too large for this machine, or for parc a --supercell far below a cell.
         detail = f": {exc}" if str(exc) else ""
-        _error(f"error: out of memory{detail}; try a smaller --size")
+        supercell = (" (or a larger --supercell)"
+                     if any(str(a).startswith(("--supercell", "--sweep-supercell")) for a in argv) else "")
+        _error(f"error: out of memory{detail}; try a smaller --size{supercell}")
         return 1
     except KeyboardInterrupt:
         _error("interrupted")

@@ -253,8 +253,8 @@ def format_table(rows):
     for r in rows:
         px = max(r["pixels"], 1)
         gl = r["opengl_share"]
-        lines.append((r["method"], f"{r['seconds']:.4f}", f"{r['speedup']:.2f}x",
-                      f"{r['speedup_low']:.2f}-{r['speedup_high']:.2f}x", f"{100 * gl:.0f}%" if gl else "-",
+        lines.append((r["method"], f"{r['seconds']:.4f}", f"{_ratio(r['speedup'])}x",
+                      f"{_ratio(r['speedup_low'])}-{_ratio(r['speedup_high'])}x", f"{100 * gl:.0f}%" if gl else "-",
                       f"{r['cells_visited'] / px:.1f}", f"{r['cubic_solves'] / px:.2f}",
                       f"{r.get('samples', 0) / px:.1f}",
                       f"{r['hits'] / px:.3f}", f"{r['polygons']:,}", str(r["hit_mismatches"]),
@@ -386,6 +386,11 @@ def step_sweep(scene, steps, *, repeats=3, warmup=1, progress=None, options=None
     return rows
 
 
+def _ratio(x):
+    """A speedup to two decimals, or two significant digits below 0.01 (a slow method is not 0.00x)."""
+    return f"{x:.2f}" if not 0 < x < 0.01 else f"{x:.2g}"
+
+
 def format_step_table(rows):
     """A terminal table of `step_sweep` rows."""
     out = [f"{'step':>8}  {'brute s':>8}  {'parc s':>8}  {'speedup':>7}  {'samples brute':>13}  "
@@ -394,7 +399,7 @@ def format_step_table(rows):
         psnr = "inf" if r["psnr"] == float("inf") else f"{r['psnr']:.1f}"
         # Every digit a step needs: two steps never share a label (with :g, 0.5 and 0.5000001 both read "0.5").
         out.append(f"{exact_text(r['step']):>8}  {r['brute_seconds']:>8.4f}  {r['parc_seconds']:>8.4f}  "
-                   f"{r['speedup']:>6.2f}x  {r['brute_samples']:>13,}  {r['parc_samples']:>12,}  "
+                   f"{_ratio(r['speedup']):>6}x  {r['brute_samples']:>13,}  {r['parc_samples']:>12,}  "
                    f"{r['max_color']:>13.2e}  {psnr:>6}  {r['parc_vs_brute']:>10.1e}")
     if rows:
         fine = min(r["step"] for r in rows) / 4

@@ -752,7 +752,19 @@ def test_running_out_of_memory_gets_one_line(vol_file, tmp_path, capsys, monkeyp
     monkeypatch.setattr(data_tools.synthetic, "make_synthetic", too_big)
     rc, _, err = _run(["make", "sphere", "--size", 16, "-o", tmp_path / "s.nrrd"], capsys)
     assert rc == 1 and err.count("\n") == 1 and "out of memory: Unable to allocate 931. GiB" in err
-    assert not (tmp_path / "s.nrrd").exists()
+    assert err.endswith("try a smaller --size\n") and not (tmp_path / "s.nrrd").exists()
+    # A supercell far below a cell is the likelier cause where one is given.
+    import parc
+
+    monkeypatch.setattr(parc, "render", too_big)
+    rc, _, err = _run(["render", vol_file, "--iso", 4, "--size", 8, 8, "--method", "parc", "--supercell", "0.5",
+                       "-o", tmp_path / "o.png"], capsys)
+    assert rc == 1 and err.endswith("try a smaller --size (or a larger --supercell)\n"), err
+
+
+def test_a_speedup_below_a_hundredth_keeps_two_digits():
+    from parc.comparison import _ratio
+    assert (_ratio(0.0042), _ratio(0.01), _ratio(3.14159), _ratio(0.0)) == ("0.0042", "0.01", "3.14", "0.00")
 
 
 def test_a_vector_starting_with_a_minus_sign_is_a_value(vol_file, tmp_path, capsys):
