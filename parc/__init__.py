@@ -5,7 +5,7 @@ The names below are imported on first use (PEP 562), as scikit-image does:
 (`parc.console`) starts inside its own error handling, and a Ctrl-C while
 the libraries load ends in one line like any other.
 """
-import importlib
+import importlib as _importlib
 
 #: Public name -> the module that defines it.
 _WHERE = {
@@ -40,7 +40,7 @@ def __getattr__(name):
     where = _WHERE.get(name)
     if where is None:
         raise AttributeError(f"module 'parc' has no attribute {name!r}")
-    value = getattr(importlib.import_module(where, __name__), name)
+    value = getattr(_importlib.import_module(where, __name__), name)
     globals()[name] = value
     return value
 

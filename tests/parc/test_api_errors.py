@@ -286,3 +286,5 @@ def test_the_public_names_are_listed_before_their_first_use():
     p = subprocess.run([sys.executable, "-c", "import parc; print(sorted(set(parc.__all__) - set(dir(parc))))"],
                        capture_output=True, text=True, timeout=120)
     assert p.returncode == 0 and p.stdout.strip() == "[]", p.stderr[-2000:]
+    # and nothing else public: tab completion offers parc's names, not the modules it uses.
+    assert {n for n in dir(parc) if not n.startswith("_")} == set(parc.__all__)
