@@ -146,7 +146,7 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
         diffuse = np.empty((len(lights), nh))
         specular = np.empty((len(lights), nh))
         light_terms(points, normals, views, materials, lights, diffuse, specular)
-        vis = (diffuse > 0.0).astype(np.float64)
+        vis = ((diffuse > 0.0) | (specular > 0.0)).astype(np.float64)   # lit: a highlight with no diffuse term too
         timings["shade"] = time.perf_counter() - t0
         if scene.shadows and scene.lights:
             _shadows(scene, method, lights, points, groups, vis, sizes, light_buffer, blocks, timings,
