@@ -7,6 +7,8 @@ noisy, and a tiled slab to cast shadows on.
 """
 from __future__ import annotations
 
+import operator
+
 import numpy as np
 
 from .errors import InputError
@@ -235,8 +237,8 @@ def floor(size=128, *, height=None, thickness=None, tile=None, relief=None) -> V
     """
     if np.ndim(size) == 0:
         try:
-            n = int(size)
-        except (TypeError, ValueError):
+            n = operator.index(size)      # as grid_dims: 12.7 is refused, not cut to 12
+        except TypeError:
             raise InputError(f"size must be an integer or three integers, got {size!r}") from None
         dims = grid_dims((n, n, height if height is not None else floor_height(n)))
     else:

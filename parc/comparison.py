@@ -393,12 +393,14 @@ def _ratio(x):
 
 def format_step_table(rows):
     """A terminal table of `step_sweep` rows."""
-    out = [f"{'step':>8}  {'brute s':>8}  {'parc s':>8}  {'speedup':>7}  {'samples brute':>13}  "
+    # Every digit a step needs (with :g, 0.5 and 0.5000001 both read "0.5"), in a column as wide as the longest.
+    labels = [exact_text(r["step"]) for r in rows]
+    sw = max([8] + [len(t) for t in labels])
+    out = [f"{'step':>{sw}}  {'brute s':>8}  {'parc s':>8}  {'speedup':>7}  {'samples brute':>13}  "
            f"{'samples parc':>12}  {'max Δ vs fine':>13}  {'PSNR':>6}  {'parc≠brute':>10}"]
-    for r in rows:
+    for r, label in zip(rows, labels):
         psnr = "inf" if r["psnr"] == float("inf") else f"{r['psnr']:.1f}"
-        # Every digit a step needs: two steps never share a label (with :g, 0.5 and 0.5000001 both read "0.5").
-        out.append(f"{exact_text(r['step']):>8}  {r['brute_seconds']:>8.4f}  {r['parc_seconds']:>8.4f}  "
+        out.append(f"{label:>{sw}}  {r['brute_seconds']:>8.4f}  {r['parc_seconds']:>8.4f}  "
                    f"{_ratio(r['speedup']):>6}x  {r['brute_samples']:>13,}  {r['parc_samples']:>12,}  "
                    f"{r['max_color']:>13.2e}  {psnr:>6}  {r['parc_vs_brute']:>10.1e}")
     if rows:

@@ -82,9 +82,10 @@ class Translucent:
     volume : Volume
     tf : TransferFunction or str
         A transfer function, a preset name or a file (see
-        `parc.transfer.load_transfer_function`). One made from a name, here or by
-        `load_transfer_function`, is made again from it for another volume or mode
-        (``dataclasses.replace(tr, mode="mip")``); one built as a TransferFunction is kept.
+        `parc.transfer.load_transfer_function`). A name is made into a function for this
+        volume's range and mode (its ``made_from`` says so), which is made again from the
+        name for another volume or mode (``dataclasses.replace(tr, mode="mip")``); any
+        other TransferFunction is kept as it is.
     mode : {"composite", "mip", "average"}, default "composite"
     step : float or None
         World distance between samples; default a quarter of the smallest
@@ -118,7 +119,7 @@ class Translucent:
     material: tuple = DEFAULT_MATERIAL
 
     def __post_init__(self):
-        from .transfer import TransferFunction, load_transfer_function, reference_step
+        from .transfer import TransferFunction, load_for_volume, reference_step
         if not isinstance(self.volume, Volume):
             raise InputError(f"Translucent needs a Volume, got {type(self.volume).__name__}")
         if not isinstance(self.tf, TransferFunction):
@@ -127,13 +128,13 @@ class Translucent:
                                  f"got {type(self.tf).__name__}")
         if self.mode not in MODES:
             raise InputError(f"unknown mode {self.mode!r}; choose one of {', '.join(MODES)}")
-        made_from = getattr(self.tf, "made_from", None)
+        made_from = self.tf.made_from if isinstance(self.tf, TransferFunction) else None
         if made_from is not None and made_from[1:] != (self.volume.value_range(), self.mode):
             # Made from a name for another volume's range or another mode (`dataclasses.replace(tr,
             # mode="mip")`): made again from that name, as `Translucent(vol, name, mode=...)` makes it.
             self.tf = made_from[0]
         if not isinstance(self.tf, TransferFunction):
-            self.tf = load_transfer_function(self.tf, data_range=self.volume.value_range(), mode=self.mode)
+            self.tf = load_for_volume(self.tf, self.volume, self.mode)
         if self.step is None:
             self.step = reference_step(self.volume.spacing)
         self.step = check_step(self.step, self.volume.spacing)

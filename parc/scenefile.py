@@ -260,7 +260,7 @@ def _load_volume(where, t, cache):
     if "color" in t:
         raise t.error("color", "applies to an isosurface (iso); a translucent volume's colours "
                                "come from its transfer function (tf)")
-    from .transfer import PRESETS, load_transfer_function
+    from .transfer import PRESETS, load_for_volume
     spec = t.string("tf")
     mode = t.string("mode")
     if mode is not None and mode not in MODES:
@@ -275,7 +275,7 @@ def _load_volume(where, t, cache):
         if path.exists() or Path(spec).suffix or os.sep in spec or "/" in spec:
             spec = os.fspath(path)
     with where.key(t.key("tf")):
-        tf = load_transfer_function(spec, data_range=vol.value_range(), mode=mode or "composite")
+        tf = load_for_volume(spec, vol, mode or "composite")
     given = {"mode": mode, "step": step, "threshold": threshold, "shade": shade, "material": material}
     keyed = [(name, name, value) for name, value in given.items() if value is not None]
     return construct(where, t.prefix, Translucent, {"volume": vol, "tf": tf}, keyed)

@@ -11,12 +11,12 @@ The casters' kernels are `raycast.transfer`'s; `correct_opacity`,
 """
 from raycast.transfer import correct_opacity, tf_lookup, tf_opacity
 
-from .files import load_transfer_function, save_transfer_function
+from .files import load_for_volume, load_transfer_function, save_transfer_function
 from .function import REFERENCE_STEP_FRACTION, TransferFunction, reference_step
 from .presets import PRESET_DESCRIPTIONS, PRESETS, RAMP_OPACITY, VIRIDIS, preset
 
 __all__ = [
     "PRESETS", "PRESET_DESCRIPTIONS", "RAMP_OPACITY", "REFERENCE_STEP_FRACTION", "VIRIDIS",
-    "TransferFunction", "correct_opacity", "load_transfer_function", "preset",
+    "TransferFunction", "correct_opacity", "load_for_volume", "load_transfer_function", "preset",
     "reference_step", "save_transfer_function", "tf_lookup", "tf_opacity",
 ]

@@ -98,8 +98,6 @@ def load_transfer_function(spec, data_range=None, mode="composite"):
     Returns
     -------
     TransferFunction
-        With ``made_from`` set to ``(name, data_range, mode)`` (a file's name made absolute):
-        `parc.Translucent` makes it again from that name for another volume's range or mode.
 
     Raises
     ------
@@ -110,14 +108,6 @@ def load_transfer_function(spec, data_range=None, mode="composite"):
         raise InputError(f"unknown mode {mode!r}; choose one of composite, mip, average")
     if isinstance(spec, TransferFunction):
         return spec
-    tf = _from_name(spec, data_range, mode)
-    text = os.fspath(spec)
-    tf.made_from = (text if text in PRESETS else os.path.abspath(text), data_range, mode)
-    return tf
-
-
-def _from_name(spec, data_range, mode):
-    """`load_transfer_function` for a preset name or a file."""
     if not isinstance(spec, (str, os.PathLike)):
         raise InputError(f"a transfer function is a TransferFunction, a preset name or a file's path, "
                          f"got {type(spec).__name__}")
@@ -171,6 +161,19 @@ def _from_name(spec, data_range, mode):
         kind = {str: "a string", int: "a number", float: "a number", bool: "true or false"}.get(type(doc), "null")
         raise InputError(f"{where}: expected an object with 'opacity' and 'color' keys, got {kind}")
     return _from_ours(doc, where, text, data_range)
+
+def load_for_volume(spec, volume, mode="composite"):
+    """`load_transfer_function` for ``volume``'s own value range, as `parc.Translucent` and scene
+    files resolve a name: one made from a name is marked ``made_from = (name, data_range, mode)``
+    (a file's name made absolute), so that a Translucent replaced with another volume or mode
+    (``dataclasses.replace``) makes it again for them. A TransferFunction is returned as is."""
+    data_range = volume.value_range()
+    tf = load_transfer_function(spec, data_range=data_range, mode=mode)
+    if tf is not spec:
+        text = os.fspath(spec)
+        tf.made_from = (text if text in PRESETS else os.path.abspath(text), data_range, mode)
+    return tf
+
 
 def _from_ours(doc, where, source, data_range):
     unknown = sorted(set(doc) - set(_OUR_KEYS))

@@ -112,8 +112,8 @@ class TransferFunction:
     Attributes
     ----------
     made_from : (name, data_range, mode) or None
-        Set by `load_transfer_function` for one made from a preset or file
-        name; None for one built here.
+        Set for one `parc.Translucent` or a scene file made from a preset or
+        file name for its volume's range (`load_for_volume`); None otherwise.
 
     Raises
     ------

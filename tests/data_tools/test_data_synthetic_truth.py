@@ -270,3 +270,10 @@ def test_a_size_that_is_not_whole_numbers_is_refused(size):
     with pytest.raises(InputError, match="must be an integer or three integers"):
         sphere(size)
     assert sphere(np.int64(12)).data.shape == (12, 12, 12) and sphere((np.uint8(9), 8, 7)).data.shape == (7, 8, 9)
+
+
+def test_floor_refuses_a_size_that_is_not_whole_as_the_others_do():
+    from data_tools.neuron import floor
+    with pytest.raises(InputError, match="integer"):
+        floor(12.7)
+    assert floor(np.int64(16)).dims == (16, 16, 8)

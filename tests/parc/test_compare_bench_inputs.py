@@ -80,3 +80,13 @@ def test_the_tiny_suite_refuses_real_volumes_before_any_work(tmp_path, monkeypat
     args = SimpleNamespace(tiny=True, quick=False, out=str(tmp_path / "out"), data=str(tmp_path), argv=[])
     with pytest.raises(InputError, match="--tiny"):
         bench.main(args)
+
+
+def test_a_long_step_label_widens_its_column():
+    from parc.comparison import format_step_table
+    row = dict(step=0.1 * 3, brute_seconds=1.0, parc_seconds=0.5, speedup=2.0, brute_samples=10,
+               parc_samples=5, max_color=0.1, psnr=30.0, parc_vs_brute=0.0)
+    lines = format_step_table([row, dict(row, step=0.25)]).splitlines()
+    assert lines[1].startswith("0.30000000000000004  ")
+    # Every column ends where the heading's does.
+    assert len({line.index("1.0000") + 6 for line in lines[1:3]} | {lines[0].index("brute s") + 7}) == 1

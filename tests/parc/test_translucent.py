@@ -208,9 +208,26 @@ def test_a_preset_named_follows_a_replaced_mode_or_volume_as_when_named_anew():
     tf = TransferFunction([(0, 0.0), (70, 0.1)])
     assert dataclasses.replace(Translucent(vis.volume, tf), mode="mip", volume=Volume(data * 3)).tf is tf
     assert dataclasses.replace(vis, step=0.5).tf is vis.tf
-    # One loaded by name for a mode is made again for another, as a name given here would be.
-    loaded = load_transfer_function("greyscale", data_range=vis.volume.value_range())
-    assert Translucent(vis.volume, loaded, mode="average").tf.opacity_points[-1].tolist() == [70.0, 1.0]
+    # A scene file's name is the volume's own as well.
+    assert Translucent(Volume(data * 3), vis.tf).tf.opacity_points[-1].tolist() == [210.0, 0.1]
+
+
+def test_a_transfer_function_given_is_kept_whatever_it_was_loaded_for(tmp_path):
+    # A window the caller chose (a numpy one too) is no stale range, and a file loaded once is
+    # the function given: not read again when the Translucent is made or replaced.
+    import dataclasses
+    data = np.broadcast_to(np.arange(8, dtype=np.float32)[:, None, None] * 10, (8, 8, 8)).copy()
+    vol = Volume(data)
+    for window in (load_transfer_function("greyscale", data_range=(20.0, 50.0)),
+                   load_transfer_function("greyscale", data_range=np.array([20.0, 50.0]))):
+        assert Translucent(vol, window).tf is window and Translucent(vol, window, mode="mip").tf is window
+        assert dataclasses.replace(Translucent(vol, window), volume=Volume(data * 3)).tf is window
+        assert window.opacity_points[-1].tolist() == [50.0, 0.1]
+    path = tmp_path / "tf.toml"
+    path.write_text("opacity = [[0, 0.0], [70, 0.5]]\n")
+    loaded = load_transfer_function(path)
+    path.unlink()
+    assert dataclasses.replace(Translucent(vol, loaded), mode="mip").tf is loaded
 
 
 @pytest.mark.parametrize("mode, slow", [("mip", _slow_mip), ("average", _slow_average)])
