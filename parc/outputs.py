@@ -336,7 +336,8 @@ def compile_notice(say, kernels=()):
     else:
         missing = next(folder.rglob("*.nbi"), None) is None
     if missing:
-        say(f"compiling the ray casters for this machine, once (kept in {folder})")
+        say(f"compiling the ray casters for this kind of render and sample type, once on this machine "
+            f"(kept in {folder})")
 
 
 def _cached(kernel, folder, samples):

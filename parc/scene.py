@@ -153,8 +153,13 @@ class Translucent:
             # Legal (another volume of the scene may show), but a blank image is no way to learn it.
             # Said at the caller's line: past __post_init__, the dataclass's __init__, `settled`'s,
             # and any of PARC's or dataclasses' own (load_scene, dataclasses.replace, step_sweep).
+            hint = ""
+            if self.tf.source.startswith("preset ct_"):
+                # A newcomer's likeliest mistake: a CT preset on 8-bit or MRI data.
+                hint = ("; the ct_ presets are for CThead-like CT values (skin 400-1000, bone 1200 and up):"
+                        " greyscale or viridis span any data range")
             warnings.warn(f"{self.tf.title} is transparent over the data range [{exact_text(lo)}, "
-                          f"{exact_text(hi)}] of {self.volume.name}: that volume shows nothing",
+                          f"{exact_text(hi)}] of {self.volume.name}: that volume shows nothing{hint}",
                           ShowsNothingWarning, stacklevel=_callers_level())
 
 

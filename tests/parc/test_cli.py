@@ -1309,14 +1309,14 @@ def test_a_first_run_says_the_casters_compile(vol_file, tmp_path, capsys, monkey
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(empty))  # Numba reloads its config from the environment
     render = ["render", vol_file, "--iso", 4, "--size", 8, 8, "-o"]
     rc, _, err = _run(render + [tmp_path / "a.png"], capsys)
-    assert rc == 0 and "compiling the ray casters for this machine, once" in err
+    assert rc == 0 and "compiling the ray casters for this kind of render and sample type, once" in err
     index = empty / own.parent.name / own.name
     index.write_bytes(b"")
     rc, _, err = _run(render + [tmp_path / "b.png"], capsys)
     assert rc == 0 and err and "compiling" not in err
     # Another kind of render compiles casters of its own, and says so too.
     rc, _, err = _run(["render", vol_file, "--tf", "greyscale", "--size", 8, 8, "-o", tmp_path / "t.png"], capsys)
-    assert rc == 0 and "compiling the ray casters for this machine, once" in err
+    assert rc == 0 and "compiling the ray casters for this kind of render and sample type, once" in err
     index.unlink()
     rc, _, err = _run(render + [tmp_path / "c.png", "--quiet"], capsys)
     assert rc == 0 and err == ""
@@ -2108,3 +2108,14 @@ def test_convert_through_a_link_keeps_another_headers_samples(tmp_path, capsys):
     assert rc == 2 and err.count("\n") == 1 and "holds real.nhdr's samples" in err, err
     assert (tmp_path / "b" / "real.raw").read_bytes() == before
     assert sorted(p.name for p in (tmp_path / "b").iterdir()) == ["real.nhdr", "real.raw", "same.mhd"]
+
+
+def test_average_mode_on_a_transparent_background_says_how_to_see_it(vol_file, tmp_path, capsys):
+    """The average mode's grey is white at that opacity: without --background a note says so; with one, none."""
+    render = ["render", vol_file, "--tf", "greyscale", "--mode", "average", "--size", 8, 8, "-o"]
+    rc, _, err = _run(render + [tmp_path / "a.png"], capsys)
+    assert rc == 0 and "--background 0,0,0" in err
+    rc, _, err = _run(render + [tmp_path / "b.png", "--background", "0,0,0"], capsys)
+    assert rc == 0 and "--background" not in err
+    rc, _, err = _run(render + [tmp_path / "c.png", "--quiet"], capsys)
+    assert rc == 0 and err == ""

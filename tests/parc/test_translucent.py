@@ -574,3 +574,14 @@ def test_a_transfer_function_transparent_over_the_data_warns_the_caller():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         Translucent(vol, TransferFunction(opacity=[[9.5, 0], [10, 1]]))
+
+
+def test_a_ct_preset_on_8_bit_data_says_which_presets_fit():
+    # A CT preset (values 400 and up) over uint8 samples shows nothing: the note names the ramps.
+    vol = Volume(np.arange(27, dtype=np.uint8).reshape(3, 3, 3) * 9)
+    with pytest.warns(ShowsNothingWarning, match=r"greyscale or viridis span any data range"):
+        Translucent(vol, "ct_skin")
+    # A file's function that is transparent there gets no preset hint.
+    with pytest.warns(ShowsNothingWarning) as caught:
+        Translucent(vol, TransferFunction(opacity=[[300, 0], [400, 1]]))
+    assert "viridis" not in str(caught[0].message)
