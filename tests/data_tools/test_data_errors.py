@@ -13,19 +13,9 @@ from data_tools import InputError, Volume
 from data_tools.io import READ_EXTENSIONS, load_volume, save_volume
 from data_tools.volume import is_number, three_numbers
 
+from load_errors import fails
+
 SMALL = np.arange(4 * 5 * 6, dtype=np.uint8).reshape(4, 5, 6)
-
-
-def fails(path, match=None, **options):
-    """Load ``path`` expecting InputError; the message is one line that names the file."""
-    with pytest.raises(InputError) as info:
-        load_volume(path, **options)
-    msg = str(info.value)
-    assert "\n" not in msg
-    assert str(path) in msg
-    if match:
-        assert match.lower() in msg.lower(), msg
-    return msg
 
 
 @pytest.mark.parametrize("ext", READ_EXTENSIONS)

@@ -16,6 +16,8 @@ from data_tools import InputError, Volume, load_volume
 from data_tools.io import save_volume
 from data_tools.io._common import REORIENTED_NOTE
 
+from load_errors import fails
+
 RNG = np.random.default_rng(7)
 ZYX = (7, 5, 6)
 
@@ -34,15 +36,6 @@ def _nifti(path, zyx, affine, cls=nib.Nifti1Image, slope_inter=None):
         img.header.set_slope_inter(*slope_inter)
     nib.save(img, str(path))
     return path
-
-
-def fails(path, match):
-    with pytest.raises(InputError) as info:
-        load_volume(path)
-    msg = str(info.value)
-    assert "\n" not in msg and str(path) in msg
-    assert match.lower() in msg.lower(), msg
-    return msg
 
 
 @pytest.mark.parametrize("ext", [".nii", ".nii.gz", ".NII.GZ"])

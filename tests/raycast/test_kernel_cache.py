@@ -162,9 +162,9 @@ print(plus_one(1.0), sum(plus_one.stats.cache_hits.values()))
 """
 
 
-def test_a_damaged_cache_entry_is_compiled_again(tmp_path):
-    # A killed process or a full disk can leave an index or data file cut short; Numba
-    # raised the unpickler's EOFError on every run until the folder was removed.
+def _tiny_kernel_runs(tmp_path):
+    """A function that runs, each time in a new process, a one-line kernel cached under
+    ``tmp_path / "cache"``, and returns what it prints: its result and its cache hits."""
     (tmp_path / "tiny_kernel.py").write_text("from raycast.config import kernel\n\n\n"
                                              "@kernel\ndef plus_one(x):\n    return x + 1.0\n")
     env = dict(os.environ, PARC_CACHE_DIR=str(tmp_path / "cache"))
@@ -175,6 +175,13 @@ def test_a_damaged_cache_entry_is_compiled_again(tmp_path):
                            text=True, timeout=300, env=env)
         assert p.returncode == 0, p.stderr[-2000:]
         return p.stdout.split()
+    return run
+
+
+def test_a_damaged_cache_entry_is_compiled_again(tmp_path):
+    # A killed process or a full disk can leave an index or data file cut short; Numba
+    # raised the unpickler's EOFError on every run until the folder was removed.
+    run = _tiny_kernel_runs(tmp_path)
     assert run() == ["2.0", "0"]                           # compiled, and saved
     assert run() == ["2.0", "1"]                           # loaded
     entries = [f for f in (tmp_path / "cache").rglob("*") if f.suffix in (".nbi", ".nbc")]
@@ -296,16 +303,7 @@ def test_the_temporary_cache_of_a_refused_folder_goes_with_the_process(tmp_path)
 
 def test_a_damaged_data_file_under_a_whole_index_is_compiled_again(tmp_path):
     # The index intact, Numba reads the data file it names: cut short, its unpickler's error would end the run.
-    (tmp_path / "tiny_kernel.py").write_text("from raycast.config import kernel\n\n\n"
-                                             "@kernel\ndef plus_one(x):\n    return x + 1.0\n")
-    env = dict(os.environ, PARC_CACHE_DIR=str(tmp_path / "cache"))
-    env.pop("NUMBA_CACHE_DIR", None)
-
-    def run():
-        p = subprocess.run([sys.executable, "-c", _ONE_KERNEL.format(folder=str(tmp_path))], capture_output=True,
-                           text=True, timeout=300, env=env)
-        assert p.returncode == 0, p.stderr[-2000:]
-        return p.stdout.split()
+    run = _tiny_kernel_runs(tmp_path)
     assert run() == ["2.0", "0"]
     data = [f for f in (tmp_path / "cache").rglob("*.nbc")]
     assert data
