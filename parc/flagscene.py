@@ -143,8 +143,10 @@ def _volume_scene(args, say):
             check_step(args.step, vol.spacing, "--step")
         if args.threshold is not None:
             check_threshold(args.threshold, "--threshold")
-        if args.mode == "average" and getattr(args, "background", None) is None:
+        if (args.mode == "average" and getattr(args, "background", None) is None
+                and getattr(args, "command", "render") == "render"):
             # Its grey level is white at that opacity: over a white page or viewer, nothing shows.
+            # (Said where an image is written: parc compare writes none.)
             say("--mode average draws white at the grey level's opacity; on the default transparent "
                 "background it reads as an X-ray over black: add --background 0,0,0 for an opaque image")
         vis = parc.Translucent(vol, args.tf, mode=args.mode or "composite", step=args.step,

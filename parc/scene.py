@@ -84,8 +84,10 @@ class Translucent:
         A transfer function, a preset name or a file (see
         `parc.transfer.load_transfer_function`). A name is made into a function for this
         volume's range and mode (its ``made_from`` says so), which is made again from the
-        name for another volume or mode (``dataclasses.replace(tr, mode="mip")``); any
-        other TransferFunction is kept as it is.
+        name for another volume or mode (``dataclasses.replace(tr, mode="mip")``), and so
+        is ``tr.tf`` given to a Translucent of another volume (it takes that volume's own
+        range; for the same mapping, pass ``load_transfer_function(name, data_range=...)``);
+        any other TransferFunction is kept as it is.
     mode : {"composite", "mip", "average"}, default "composite"
     step : float or None
         World distance between samples; default a quarter of the smallest

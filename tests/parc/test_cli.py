@@ -2119,3 +2119,10 @@ def test_average_mode_on_a_transparent_background_says_how_to_see_it(vol_file, t
     assert rc == 0 and "--background" not in err
     rc, _, err = _run(render + [tmp_path / "c.png", "--quiet"], capsys)
     assert rc == 0 and err == ""
+
+
+def test_average_mode_in_compare_gets_no_note_about_an_image(capsys):
+    """parc compare writes no image: the render's note on the average mode's background is no help there."""
+    rc, out, err = _run(["compare", "--tf", "greyscale", "--mode", "average", "--size", 8, 8, "--repeats", 1,
+                         "--json"], capsys)
+    assert rc == 0 and out and "--background" not in err, err
