@@ -306,7 +306,8 @@ def build_parser():
     size.add_argument("--tiny", action="store_true",
                       help="tiny synthetic volumes and images, seconds once the casters are compiled: checks "
                            "the report, not the speed")
-    b.add_argument("--data", metavar="DIR", help="folder of real volumes (default ../shared/data beside the checkout)")
+    b.add_argument("--data", metavar="DIR", help="folder of real volumes (default $PARC_DATA_DIR, else ../shared/data beside "
+                        "the checkout); not with --tiny")
 
     i = sub.add_parser("info", help="describe a volume and suggest isovalues",
                        description="Describe a volume: its dimensions, sample type, spacing and origin, the "
