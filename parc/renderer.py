@@ -193,8 +193,8 @@ def check_request(scene, buffers, work, names=("buffers", "work")):
                          "bit planes apply to translucent volumes")
     # A lone isosurface too: bit planes are drawn for one translucent volume, and "depth,bits"
     # for an isosurface would otherwise leave them out without a word.
-    if "bits" in buffers and bits_refused(scene):
-        raise InputError(f"{names[0]} {','.join(buffers)}: {bits_refused(scene)}")
+    if "bits" in buffers and (why := bits_refused(scene)):
+        raise InputError(f"{names[0]} {','.join(buffers)}: {why}")
     if len(scene.volumes) != 1 or scene.lights:
         if work:
             raise InputError(f"{names[1]}: per-pixel work is counted for scenes of one volume without lights")

@@ -28,14 +28,15 @@ class _Cursor:
         while self.pos < n and buf[self.pos] in _WS:
             self.pos += 1
         start = self.pos
-        while self.pos < n and buf[self.pos] not in _WS and buf[self.pos] not in stop and self.pos - start < 64:
+        ends = _WS + stop
+        while self.pos < n and buf[self.pos] not in ends and self.pos - start < 64:
             self.pos += 1
         if start == self.pos:
             if self.pos < n:        # at an X, where the count should be
                 raise InputError(f"{self.path}: bad SLC header: {what} should be a number, got "
                                  f"{buf[start:start + 20]!r}")
             raise InputError(f"{self.path}: SLC file ends before {what}")
-        if self.pos - start == 64 and self.pos < n and buf[self.pos] not in _WS and buf[self.pos] not in stop:
+        if self.pos - start == 64 and self.pos < n and buf[self.pos] not in ends:
             raise InputError(f"{self.path}: bad SLC header: {what} is not a number (over 64 characters)")
         return buf[start:self.pos]
 
