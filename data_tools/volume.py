@@ -94,6 +94,9 @@ class Volume:
     meta: dict = field(default_factory=dict)
 
     def __post_init__(self):
+        if not isinstance(self.name, str):
+            # Every message and stats table names the volume by it.
+            raise InputError(f"a volume's name must be text, got {self.name!r}")
         if self.data is None:
             raise InputError(f"{self.name}: no samples given (None); give a 3-D array")
         if isinstance(self.data, np.ma.MaskedArray):
@@ -258,10 +261,11 @@ def three_numbers(value):
     booleans are not numbers (``"123"`` would otherwise read as (1, 2, 3), ``True`` as 1).
     The caller checks the count and the range."""
     try:
-        if isinstance(value, (str, bytes)) or any(text_or_flag(v) for v in value):
+        # A dict or set iterates its keys, in an order not the caller's.
+        if isinstance(value, (str, bytes, dict, set, frozenset)) or any(text_or_flag(v) for v in value):
             return None
         return tuple(float(v) for v in value)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         return None
 
 

@@ -12,6 +12,7 @@ direction ``normalize(f + tan(fov/2) (sx r + sy u))``; parallel rays start at
 from __future__ import annotations
 
 import math
+import operator
 from dataclasses import dataclass
 
 import numpy as np
@@ -128,6 +129,7 @@ class Camera:
         volumes (`parc.multivolume`), the parallel origins PARC tests (`parc.origins`), the
         Parker bench, and tests. ``rows=(y0, y1)``: only those rows, ``(y1 - y0, W, 3)``.
         """
+        width, height = _image_size(width, height)
         f, r, u = self.basis()
         y0, y1 = (0, height) if rows is None else rows
         x = np.arange(width) + 0.5
@@ -159,6 +161,15 @@ class Camera:
 
     def projection_matrix(self, width, height, near, far):
         """Eye -> clip 4x4 for an image of ``width x height`` and depth range [near, far]."""
+        width, height = _image_size(width, height)
+        try:
+            near, far = float(near), float(far)
+        except (TypeError, ValueError, OverflowError):
+            near = far = math.nan
+        # A perspective divides by the distances themselves; a parallel view only by their difference.
+        if not (math.isfinite(near) and math.isfinite(far) and near < far and (self.parallel or near > 0.0)):
+            raise InputError(f"depth range must be finite numbers near < far{'' if self.parallel else ', near > 0'}, "
+                             f"got near {near}, far {far}")
         a = width / height
         m = np.zeros((4, 4))
         if self.parallel:
@@ -199,7 +210,7 @@ class Camera:
                 raise TypeError
             zoom, azimuth, elevation = float(zoom), float(azimuth), float(elevation)
             aspect = float(aspect)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             raise InputError("framing needs two corners of three numbers and numeric zoom, azimuth, "
                              "elevation and aspect") from None
         if not (math.isfinite(aspect) and aspect > 0.0):
@@ -247,6 +258,17 @@ class Camera:
         return cls(eye=tuple(c + back * dist), look_at=tuple(c), up=up, fov=fov)
 
 
+def _image_size(width, height):
+    """``(width, height)`` as ints, refused unless whole numbers from 1."""
+    try:
+        w, h = operator.index(width), operator.index(height)
+    except TypeError:
+        w = h = 0
+    if isinstance(width, (bool, np.bool_)) or isinstance(height, (bool, np.bool_)) or w < 1 or h < 1:
+        raise InputError(f"image size must be two positive integers, got {width!r} x {height!r}")
+    return w, h
+
+
 def _view_from(azimuth, elevation, up):
     """Unit vector from the look-at point towards the eye: ``elevation`` degrees above the plane
     across ``up`` (towards it), ``azimuth`` degrees round ``up`` from the front.
@@ -273,7 +295,7 @@ def check_fov(fov, what="field of view"):
     ``what`` names it in the message (``--fov`` on the command line)."""
     try:
         ok = not text_or_flag(fov) and 0.0 < float(fov) < 180.0
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         ok = False
     if not ok:
         raise InputError(f"{what} must be a number of degrees between 0 and 180, got {fov!r}")
@@ -283,7 +305,7 @@ def check_parallel_scale(scale, what="parallel scale"):
     """``scale`` as a float, refused unless a positive, finite number; ``what`` as for `check_fov`."""
     try:
         value = math.nan if text_or_flag(scale) else float(scale)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         value = math.nan
     if not (math.isfinite(value) and value > 0.0):
         raise InputError(f"{what} must be positive and finite, got {scale!r}")

@@ -200,7 +200,7 @@ def supercell_size(size):
         if any(text_or_flag(s) for s in parts):
             raise TypeError
         t = tuple(float(s) for s in parts)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise InputError(f"supercell size must be a number or three numbers, got {size!r}") from None
     if len(t) != 3:
         raise InputError(f"supercell size must be a number or three numbers, got {len(t)}: {size!r}")

@@ -80,9 +80,11 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
     """
     _check_runs("compare", scene, repeats, warmup)
     names = method_names(methods)
-    if not isinstance(options or {}, dict) or not all(isinstance(o, dict) for o in (options or {}).values()):
+    if options is None:
+        options = {}
+    if not isinstance(options, dict) or not all(isinstance(o, dict) for o in options.values()):
         raise InputError(f"options must map method names to dicts of render() arguments, got {options!r}")
-    options = dict(options or {})
+    options = dict(options)
     unused = sorted(set(options) - set(names))
     if unused:
         raise InputError(f"options for {', '.join(map(repr, unused))}, which is not among the methods run")
@@ -188,6 +190,9 @@ def method_names(methods, what="methods"):
         if any(pieces) and not all(pieces):
             raise InputError(f"{what} {methods!r} has an empty name between commas")
         methods = methods.split(",")
+    if isinstance(methods, (set, frozenset)):
+        # Its order changes from run to run, and the rows of the table with it.
+        raise InputError(f"{what} must be in an order, as a list or tuple, not a set: {methods!r}")
     shown = given           # in refusals: what was given, but an iterator's items (its repr names none)
     try:
         methods = list(methods)         # a generator is read once, here
@@ -222,8 +227,13 @@ def _check_render_options(name, opts):
 
 
 def check_supercells(scene, options):
-    """Refuse a supercell size no volume of the scene can take, before any render is timed."""
+    """Refuse what `render` would refuse about each method's options (``buffers``, ``blocks``,
+    ``light_buffer``), and a supercell size no volume of the scene can take, before any render
+    is timed: brute's warm-up (or a sweep's reference) may take minutes."""
     from .classify import VolumeIndex
+    from .renderer import check_arguments
+    for name, opts in options.items():
+        check_arguments(scene, name.split(":")[0], **opts)
     for opts in options.values():
         if opts.get("supercell") is not None:
             for vis in scene.volumes:
@@ -322,9 +332,11 @@ def step_sweep(scene, steps, *, repeats=3, warmup=1, progress=None, options=None
     vis = scene.volumes[0]
     if len(scene.volumes) != 1 or not isinstance(vis, Translucent):
         raise InputError("a step sweep takes a scene of one translucent volume (--tf)")
-    if not isinstance(options or {}, dict):
+    if options is None:
+        options = {}
+    if not isinstance(options, dict):
         raise InputError(f"options must be a dict of render() arguments, got {options!r}")
-    options = dict(options or {})
+    options = dict(options)
     _check_render_options("parc", options)
     # A supercell size the volume cannot take is refused before the reference is rendered, as `compare` does.
     check_supercells(scene, {"parc": options})
@@ -333,7 +345,7 @@ def step_sweep(scene, steps, *, repeats=3, warmup=1, progress=None, options=None
         if any(text_or_flag(v) for v in items):
             raise TypeError
         values = sorted({float(v) for v in items}, reverse=True)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         values = []
     if not values or not all(np.isfinite(values)) or min(values) <= 0:
         raise InputError(f"sweep steps must be a list of positive numbers, got {steps!r}")

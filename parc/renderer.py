@@ -201,10 +201,13 @@ def check_request(scene, buffers, work, names=("buffers", "work")):
     return buffers
 
 
-def _render(scene, method, supercell, buffers, progress, light_buffer, blocks, work):
+def check_arguments(scene, method="brute", *, supercell=None, buffers=DEFAULT_BUFFERS, progress=None,
+                    light_buffer=None, blocks=True, work=False):
+    """What `render` refuses about its arguments, checked before any work (`parc.compare` asks for
+    each method's options before its first render): ``(buffers, light_buffer)`` as parsed."""
     if not isinstance(scene, Scene):
         raise InputError(f"render takes a Scene, got {type(scene).__name__}")
-    if method not in METHODS:
+    if not isinstance(method, str) or method not in METHODS:
         raise InputError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
     if not isinstance(blocks, (bool, np.bool_)):
         raise InputError(f"blocks must be True or False, got {blocks!r}")
@@ -215,9 +218,13 @@ def _render(scene, method, supercell, buffers, progress, light_buffer, blocks, w
     if supercell is not None:
         from .classify import supercell_size
         supercell_size(supercell)
+    return check_request(scene, buffers, work), _light_buffer_size(light_buffer)
+
+
+def _render(scene, method, supercell, buffers, progress, light_buffer, blocks, work):
+    buffers, light_buffer = check_arguments(scene, method, supercell=supercell, buffers=buffers, progress=progress,
+                                            light_buffer=light_buffer, blocks=blocks, work=work)
     skip_blocks = method == "parc" and bool(blocks)
-    buffers = check_request(scene, buffers, work)
-    light_buffer = _light_buffer_size(light_buffer)
     check_frame_memory(*scene.size, layers=len(scene.volumes))
     if len(scene.volumes) != 1 or scene.lights:
         return _render_general(scene, method, supercell, progress, light_buffer, skip_blocks)

@@ -52,10 +52,12 @@ class Isosurface:
             if text_or_flag(self.value):
                 raise TypeError
             self.value = float(self.value)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             raise InputError(f"isovalue must be a number, got {self.value!r}") from None
+        if not math.isfinite(self.value):
+            raise InputError(f"isovalue must be finite, got {self.value}")
         lo, hi = self.volume.value_range()
-        if not math.isfinite(self.value) or not lo <= self.value <= hi:
+        if not lo <= self.value <= hi:
             raise InputError(f"isovalue {exact_text(self.value)} is outside the data range "
                              f"[{exact_text(lo)}, {exact_text(hi)}] of {self.volume.name}")
         self.color = _unit_triple(self.color, "surface colour")
@@ -350,7 +352,7 @@ def check_step(step, spacing, what="step"):
         if text_or_flag(step):
             raise TypeError
         value = float(step)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise InputError(f"{what} must be a number, got {step!r}") from None
     if not (math.isfinite(value) and value > 0.0):
         raise InputError(f"{what} must be a positive, finite distance, got {value}")
@@ -364,7 +366,7 @@ def check_threshold(threshold, what="opacity threshold"):
     """``threshold`` as a float, refused unless an opacity in (0, 1]; ``what`` as for `check_step`."""
     try:
         value = math.nan if text_or_flag(threshold) else float(threshold)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         value = math.nan
     if not 0.0 < value <= 1.0:
         raise InputError(f"{what} must be an opacity in (0, 1], got {threshold!r}")
@@ -402,7 +404,7 @@ def _finite_triple(v, what):
 def _non_negative(v, what):
     try:
         x = math.nan if text_or_flag(v) else float(v)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         x = math.nan
     if not (math.isfinite(x) and x >= 0.0):
         raise InputError(f"{what} must be a finite number >= 0, got {v!r}")
@@ -427,7 +429,7 @@ def _material(v):
     """``(ambient, diffuse, specular, shininess)``: finite, the weights >= 0, shininess > 0."""
     try:
         a = np.asarray(v, dtype=np.float64)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         a = np.zeros(0)
     if a.shape != (4,) or not np.isfinite(a).all() or (a[:3] < 0).any() or not a[3] > 0:
         raise InputError(f"material must be (ambient, diffuse, specular, shininess): finite, "

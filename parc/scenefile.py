@@ -141,9 +141,8 @@ def load_scene(path, *, view=None, size=None, progress=None) -> Scene:
     # mistake in the file should not wait for a run without the flag to show.
     image_size = top.integers("size", 2, default=DEFAULT_SIZE, minimum=1)
     if size is not None:
-        image_size = tuple(size)
         with where.key("size (given on the command line)"):
-            _check_size(image_size)
+            image_size = _check_size(size)
     camera_table = Table(where, "camera", doc.get("camera", {}), CAMERA_KEYS)
     camera = _load_camera(where, camera_table, volumes, {k: v for k, v in (view or {}).items() if v is not None},
                           image_size[0] / image_size[1])
@@ -218,12 +217,15 @@ def resolve_view(lo, hi, *, eye=None, look_at=None, up=None, fov=None, parallel=
 
 
 def _check_size(size):
+    """``size`` as a tuple, refused unless two positive integers (an infinite float overflows
+    ``int``; a lone number is not iterated)."""
     try:
         ok = len(size) == 2 and all(int(v) == v and v >= 1 for v in size)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         ok = False
     if not ok:
         raise InputError(f"image size must be two positive integers, got {size!r}")
+    return tuple(size)
 
 
 # --- volumes --------------------------------------------------------------

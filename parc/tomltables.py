@@ -127,7 +127,7 @@ class Table:
         if name not in self.raw:
             return default
         value = self.raw[name]
-        if not is_number(value) or not math.isfinite(value):
+        if not _finite(value):
             raise self.wrong(name, "a finite number")
         return float(value)
 
@@ -139,7 +139,7 @@ class Table:
         value = self.raw[name]
         want = " or ".join(map(str, counts)) + " finite numbers"
         if (not isinstance(value, list) or len(value) not in counts
-                or not all(is_number(v) and math.isfinite(v) for v in value)):
+                or not all(_finite(v) for v in value)):
             raise self.wrong(name, f"an array of {want}")
         return tuple(float(v) for v in value)
 
@@ -176,6 +176,15 @@ class Table:
         if m is not None and min(m) < 0.0:
             raise self.error(name, f"ambient, diffuse, specular and shininess must be >= 0, got {list(m)}")
         return m
+
+
+def _finite(value):
+    """Whether ``value`` is a finite number: TOML's integers have no bound in `tomllib`, and one
+    beyond float64's range (``iso = 1`` and 400 zeros) makes `math.isfinite` raise OverflowError."""
+    try:
+        return is_number(value) and math.isfinite(value)
+    except OverflowError:
+        return False
 
 
 def array_tables(where, name, raw, *, required):

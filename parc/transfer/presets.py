@@ -97,7 +97,7 @@ def data_range_of(data_range, who):
         raise InputError(f"{who} spans the data range: give the data range (lo, hi)")
     try:
         lo, hi = (float(v) for v in data_range)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise InputError(f"{who}: data range must be two numbers, got {short_repr(data_range)}") from None
     if not (math.isfinite(lo) and math.isfinite(hi) and math.isfinite(hi - lo)):
         raise InputError(f"{who}: data range must be finite, got ({lo:g}, {hi:g})")
@@ -132,4 +132,7 @@ def preset(name, data_range=None, mode="composite"):
     end opaque for maximum and average intensity, `ramp_opacity`); see `PRESETS`."""
     if name not in PRESETS:
         raise InputError(f"unknown transfer function preset {name!r}; known: {', '.join(PRESETS)}")
+    if data_range is not None:
+        # Checked for the CT presets too, which do not use it: a wrong range is a wrong call.
+        data_range_of(data_range, name)
     return PRESETS[name](data_range, mode)

@@ -112,7 +112,7 @@ CASES = {
                                                        method="parc", buffers="bits"), "has 2 volumes"),
     "supercell as text for brute": (lambda: parc.render(_scene(), supercell="a"), "supercell"),
     "shade with mip": (lambda: parc.Translucent(VOL, "greyscale", mode="mip", shade=True), "mode composite"),
-    # Taken and ignored before, where the command line and scene files refuse it.
+    # Refused as the command line and scene files refuse it, not taken and ignored.
     "threshold with average": (lambda: parc.Translucent(VOL, "greyscale", mode="average", threshold=0.5),
                                "threshold applies to mode composite; average does not stop rays early"),
     "step sweep repeats 0": (lambda: step_sweep(_fog(), [0.5], repeats=0), "repeats"),
@@ -124,11 +124,25 @@ CASES = {
     "step as text": (lambda: parc.Translucent(VOL, "greyscale", step="0.5"), "step must be a number"),
     "step True": (lambda: parc.Translucent(VOL, "greyscale", step=True), "step must be a number"),
     "threshold True": (lambda: parc.Translucent(VOL, "greyscale", threshold=True), "threshold"),
+    "rays of no rows": (lambda: parc.Camera(eye=(0, 0, 5), look_at=(0, 0, 0)).rays(8, 0),
+                        "image size must be two positive integers, got 8 x 0"),
+    "rays of a float width": (lambda: parc.Camera(eye=(0, 0, 5), look_at=(0, 0, 0)).rays(8.0, 8),
+                              "image size must be two positive integers, got 8.0 x 8"),
+    "projection of no depth": (lambda: parc.Camera(eye=(0, 0, 5), look_at=(0, 0, 0)).projection_matrix(8, 8, 1, 1),
+                               "depth range must be finite numbers near < far, near > 0, got near 1.0, far 1.0"),
+    "perspective from the eye": (lambda: parc.Camera(eye=(0, 0, 5), look_at=(0, 0, 0)).projection_matrix(8, 8, 0, 1),
+                                 "near > 0"),
+    "CT preset over a reversed range": (lambda: parc.load_transfer_function("ct_skin", (1, 0)),
+                                        "ct_skin: data range (1, 0) is reversed"),
+    "CT preset over a range of text": (lambda: parc.load_transfer_function("ct_bone", "0,100"),
+                                       "ct_bone: data range must be two numbers"),
     "fov as text": (lambda: parc.Camera(eye=(0, 0, 5), look_at=(0, 0, 0), fov="30"), "field of view"),
     "fov True": (lambda: parc.Camera(eye=(0, 0, 5), look_at=(0, 0, 0), fov=True), "field of view"),
     "light intensity True": (lambda: parc.PointLight((1, 2, 3), intensity=True), "intensity"),
     "isovalue as text": (lambda: parc.Isosurface(VOL, str(ISO)), "isovalue must be a number"),
     "isovalue True": (lambda: parc.Isosurface(VOL, True), "isovalue must be a number"),
+    "isovalue NaN": (lambda: parc.Isosurface(VOL, math.nan), "isovalue must be finite, got nan"),
+    "isovalue inf": (lambda: parc.Isosurface(VOL, -math.inf), "isovalue must be finite, got -inf"),
     "size of booleans": (lambda: _scene(size=(True, True)), "image size"),
     "size as text": (lambda: _scene(size=("8", "8")), "image size"),
     "supercell True": (lambda: parc.render(_scene(), method="parc", supercell=True), "supercell"),
@@ -138,6 +152,8 @@ CASES = {
                                  "supercell size must be a number or three numbers, got 2: (1, 2)"),
     "parallel scale True": (lambda: parc.Camera(eye=(0, 0, 5), look_at=(0, 0, 0), parallel_scale=True),
                             "parallel scale"),
+    "volume named by a number": (lambda: Volume(VOL.data, name=5), "a volume's name must be text, got 5"),
+    "eye as a dict": (lambda: parc.Camera(eye={0: 1, 1: 2, 2: 3}), "camera eye must be three finite numbers"),
     "volume meta as a list": (lambda: Volume(VOL.data, meta=[1, 2]), "meta must be a dict"),
     "ragged nested list": (lambda: Volume([[[1, 2], [3]], [[1, 2], [3, 4]]]), "3-D array"),
     "compare option unknown": (lambda: parc.compare(_scene(), options={"parc": {"bogus": 1}}), "bogus"),
@@ -145,9 +161,16 @@ CASES = {
     "compare progress 5": (lambda: parc.compare(_scene(), progress=5), "progress"),
     "repeats 1.5": (lambda: parc.compare(_scene(), repeats=1.5), "repeats"),
     "warmup none": (lambda: parc.compare(_scene(), warmup=None), "warmup"),
+    "methods as a set": (lambda: parc.compare(_scene(), methods={"brute", "parc"}), "not a set"),
     "methods none": (lambda: parc.compare(_scene(), methods=None), "methods"),
     "options not dicts": (lambda: parc.compare(_scene(), options={"parc": None}), "options"),
+    # Empty, but not a dict: a mistake in the call, not "no options".
+    "options an empty list": (lambda: parc.compare(_scene(), options=[]), "options must map method names"),
+    "step sweep options an empty list": (lambda: step_sweep(_fog(), [0.5], options=[]),
+                                         "options must be a dict of render() arguments"),
     "method misspelt": (lambda: parc.render(_scene(), "Parc"), "unknown method 'Parc'; choose one of brute, parc"),
+    # An array of one name would pass `in METHODS` (NumPy compares element-wise) and come back as stats["method"].
+    "method as an array": (lambda: parc.render(_scene(), np.array(["brute"])), "unknown method array(['brute']"),
     "buffers none named": (lambda: parc.render(_fog(), "parc", buffers=[]), "PARC buffers must be"),
     "light buffer of 1": (lambda: parc.render(_scene(lights=[parc.PointLight((1, 2, 3))]), light_buffer=1),
                           "light buffers take a whole number of pixels from 2"),
@@ -180,8 +203,57 @@ def test_methods_may_be_named_in_one_string_each_once():
     assert [r["method"] for r in rows] == ["brute", "parc"]
 
 
+@pytest.mark.parametrize("options, words", [
+    ({"parc": {"buffers": "bits"}}, "buffers bits leave out the depth buffers isosurfaces use"),
+    ({"parc": {"buffers": "bogus"}}, "PARC buffers must be depth, bits or both"),
+    ({"parc": {"blocks": "yes"}}, "blocks must be True or False, got 'yes'"),
+    ({"parc:a": {"light_buffer": 1}}, "light buffers take a whole number of pixels from 2"),
+    ({"brute": {"buffers": "depth,bits"}}, "this one has an isosurface"),
+])
+def test_a_comparisons_options_are_refused_before_brute_renders(options, words):
+    # Refused by the method's own first render, they would come after brute's warm-up
+    # (minutes on a large scene).
+    said = []
+    with pytest.raises(InputError, match=re.escape(words)):
+        parc.compare(_scene(), methods=["parc:a" if "parc:a" in options else "parc"], options=options, repeats=1,
+                     progress=said.append)
+    assert said == []
+
+
+def test_a_step_sweeps_options_are_refused_before_its_reference_renders():
+    said = []
+    with pytest.raises(InputError, match="blocks must be True or False"):
+        step_sweep(_fog(), [0.5], repeats=1, options={"blocks": "no"}, progress=said.append)
+    assert said == []
+
+
+#: A Python int float() cannot hold: it raises OverflowError, not the ValueError the checks catch.
+BEYOND_FLOAT = 10 ** 400
+
+
+@pytest.mark.parametrize("make, words", [
+    (lambda: Volume(VOL.data, spacing=(BEYOND_FLOAT, 1, 1)), "spacing must be three numbers"),
+    (lambda: parc.Isosurface(VOL, BEYOND_FLOAT), "isovalue must be a number"),
+    (lambda: parc.Isosurface(VOL, ISO, material=(0.1, 0.7, 0.2, BEYOND_FLOAT)), "material must be"),
+    (lambda: parc.Translucent(VOL, "greyscale", step=BEYOND_FLOAT), "step must be a number"),
+    (lambda: parc.Translucent(VOL, "greyscale", threshold=BEYOND_FLOAT), "opacity threshold must be"),
+    (lambda: parc.Camera(eye=(BEYOND_FLOAT, 0, 0)), "camera eye must be three finite numbers"),
+    (lambda: parc.Camera(fov=BEYOND_FLOAT), "field of view must be"),
+    (lambda: parc.Camera(parallel_scale=BEYOND_FLOAT), "parallel scale must be"),
+    (lambda: parc.Camera.framing(*VOL.bounds, zoom=BEYOND_FLOAT), "numeric zoom"),
+    (lambda: parc.PointLight((1, 2, 3), intensity=BEYOND_FLOAT), "light intensity must be"),
+    (lambda: _scene(background=(BEYOND_FLOAT, 0, 0)), "background must be"),
+    (lambda: parc.render(_scene(), supercell=BEYOND_FLOAT), "supercell size must be"),
+    (lambda: parc.load_transfer_function("greyscale", (0, BEYOND_FLOAT)), "data range must be two numbers"),
+    (lambda: step_sweep(_fog(), [BEYOND_FLOAT]), "sweep steps must be"),
+], ids=lambda v: "" if callable(v) else v.split(" must")[0].replace(" ", "_"))
+def test_an_integer_beyond_float64_is_refused_not_overflowed(make, words):
+    with pytest.raises(InputError, match=re.escape(words)):
+        make()
+
+
 def test_a_string_is_not_taken_for_a_sequence_of_digits():
-    # Before: Volume(spacing="123") was spacing (1, 2, 3).
+    # Iterated, "123" would be spacing (1, 2, 3).
     assert dataclasses.replace(VOL, spacing=(1, 2, 3)).spacing == (1.0, 2.0, 3.0)
     with pytest.raises(InputError, match="spacing must be three numbers"):
         dataclasses.replace(VOL, spacing="123")

@@ -258,6 +258,9 @@ BAD = [
     ("size = [32, 32\n{V}", None, "malformed TOML", "(at line 2, column 1)"),
     ("size = " + "[" * 100000 + "]" * 100000 + "\n{V}", None, "malformed TOML", "nested too deeply"),
     ("size = [1" + "0" * 5000 + ", 32]\n{V}", None, "malformed TOML", "a number too long to read"),
+    # Read (tomllib bounds no integer), but beyond float64: float() raises OverflowError.
+    ("[[volume]]\nfile = 'data/ball.nrrd'\niso = 1" + "0" * 400, "volume[1].iso", "must be a finite number"),
+    ("[camera]\neye = [1" + "0" * 400 + ", 0, 0]\n{V}", "camera.eye", "must be an array of 3 finite numbers"),
     ("volumes = 1\n{V}", "volumes", "unknown key; did you mean volume?"),
     ("[camera]\nfvo = 20\n{V}", "camera.fvo", "unknown key; did you mean fov? (known: eye, look_at, up, fov, parallel, zoom)"),
     ("camera = 3\n{V}", "camera", "must be a table"),
@@ -397,6 +400,10 @@ def test_errors_from_the_command_line_view_say_so(folder):
         load_scene(path, view={"fov": 190.0})
     with pytest.raises(InputError, match=r"size \(given on the command line\)"):
         load_scene(path, size=(0, 10))
+    # An infinite width overflows int(), and a lone number cannot be iterated.
+    for size in ((math.inf, 10), 10):
+        with pytest.raises(InputError, match=r"size \(given on the command line\): image size must be two positive"):
+            load_scene(path, size=size)
     eyed = write(folder, "[camera]\neye = [40, 1, 2]\n" + textwrap.dedent(VOLUME), name="eyed.toml")
     with pytest.raises(InputError, match=r"camera.look_at \(given on the command line\): eye and look_at are the same"):
         load_scene(eyed, view={"look_at": (40.0, 1.0, 2.0)})
