@@ -65,6 +65,7 @@ from pathlib import Path
 import numpy as np
 
 from data_tools import InputError, Volume
+from data_tools.volume import text_or_flag
 
 from .camera import Camera, check_fov, check_parallel_scale, unit_vector
 from .scene import MODES, DirectionalLight, Isosurface, PointLight, Scene, Translucent, check_eye_resolves
@@ -220,7 +221,7 @@ def _check_size(size):
     """``size`` as a tuple, refused unless two positive integers (an infinite float overflows
     ``int``; a lone number is not iterated)."""
     try:
-        ok = len(size) == 2 and all(int(v) == v and v >= 1 for v in size)
+        ok = len(size) == 2 and all(not text_or_flag(v) and int(v) == v and v >= 1 for v in size)
     except (TypeError, ValueError, OverflowError):
         ok = False
     if not ok:
@@ -271,12 +272,13 @@ def _load_volume(where, t, cache):
     if threshold is not None and mode not in (None, "composite"):
         raise t.error("threshold", f"applies to mode composite; {mode} does not stop rays early")
     vol = _volume_data(where, t, cache)
-    if spec not in PRESETS:
-        path = where.resolve(spec)
-        # A bare word that is no file is meant as a preset: let the loader list the presets.
-        if path.exists() or Path(spec).suffix or os.sep in spec or "/" in spec:
-            spec = os.fspath(path)
     with where.key(t.key("tf")):
+        if spec not in PRESETS:
+            path = where.resolve(spec)
+            # A bare word that is no file is meant as a preset: let the loader list the presets.
+            # (exists() raises for a name too long: named with the file and key, as the loader's.)
+            if path.exists() or Path(spec).suffix or os.sep in spec or "/" in spec:
+                spec = os.fspath(path)
         tf = load_for_volume(spec, vol, mode or "composite")
     given = {"mode": mode, "step": step, "threshold": threshold, "shade": shade, "material": material}
     keyed = [(name, name, value) for name, value in given.items() if value is not None]

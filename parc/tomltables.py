@@ -49,7 +49,13 @@ class Where:
             raise self.error(key, f"{where}{os_reason(exc)}") from None
 
     def read(self):
-        if not self.path.exists():
+        try:
+            exists = self.path.exists()
+        except OSError as exc:              # a name too long for the system, say
+            raise InputError(f"{self.path}: {os_reason(exc)}") from None
+        if not exists:
+            if self.path.is_symlink():
+                raise InputError(f"{self.path}: a link that leads nowhere (or in a loop)")
             raise InputError(f"{self.path}: no such scene file")
         if self.path.is_dir():
             raise InputError(f"{self.path}: is a folder, not a scene file")

@@ -185,6 +185,9 @@ def _from_ours(doc, where, source, data_range):
             raise InputError(f"{where}: {key}: must be a string, got {short_repr(doc[key])}")
     if "opacity" not in doc:
         raise InputError(f"{where}: opacity: missing; give opacity = [[value, alpha], ...]")
+    if "color" in doc and doc["color"] is None:      # JSON's null: leave the key out for white
+        raise InputError(f"{where}: color: expected a list of [value, r, g, b] points, got null; "
+                         "leave color out for white")
     space = doc.get("space", "data")
     if space not in ("data", "normalized"):
         raise InputError(f"{where}: space: must be \"data\" or \"normalized\", got {space!r}")
@@ -226,7 +229,7 @@ def _from_paraview(doc, where, source, data_range, mode):
         span = x1 - x0 if x1 > x0 else 1.0
         op = np.array(ramp_opacity(mode))
         op[:, 0] = x0 + op[:, 0] * span
-        op[-1, 0] = x0 + span
+        op[-1, 0] = x1 if x1 > x0 else x0 + span      # x0 + span may round past x1
     tf = TransferFunction(op, col, name=name, source=source)
     x0, x1 = col[0, 0], col[-1, 0]
     normalized = x1 > x0 and abs(x1 - 1.0) <= 1e-6 and (abs(x0) <= 1e-6 or abs(x0 + 1.0) <= 1e-6)
@@ -281,4 +284,8 @@ def save_transfer_function(tf, path):
         raise InputError(f"transfer function {path}: unknown file type {ext or '(none)'!r}; "
                          "use .toml or .json")
     data = text.encode("utf-8")             # before the file is opened: a failure leaves no empty file
-    path.write_bytes(data)
+    try:
+        path.write_bytes(data)
+    except (OSError, ValueError) as exc:    # a folder, a missing folder, a NUL in the name
+        reason = os_reason(exc) if isinstance(exc, OSError) else str(exc)
+        raise InputError(f"transfer function {path}: cannot write: {reason}") from None

@@ -138,7 +138,7 @@ class TransferFunction:
         # A label for notes and reports: one line of printable text (a file's name may hold
         # newlines or terminal escapes), "" for none.
         self.name = " ".join("".join(c if c.isprintable() else " " for c in str(name or "")).split())
-        self.description = str(description)
+        self.description = "" if description is None else str(description)
         self.source = str(source)
         self.made_from = None
         self._op_x = _frozen(op[:, 0])
@@ -358,6 +358,17 @@ def short_repr(x, limit=40):
     r = repr(x)
     return r if len(r) <= limit else r[:limit - 3] + "..."
 
+def _sized(x):
+    """Whether ``x`` is a sequence of points or numbers: not text, a mapping or a set (no order),
+    and ``len`` works (a NumPy 0-d array has ``__len__`` but no length)."""
+    if isinstance(x, (str, bytes, dict, set, frozenset)):
+        return False
+    try:
+        len(x)
+    except TypeError:
+        return False
+    return True
+
 def control_points(raw, key, fields, where, label=None):
     """Validated ``(n, 1 + len(fields))`` float64 control points from user input.
 
@@ -370,13 +381,13 @@ def control_points(raw, key, fields, where, label=None):
             return f"{key} point {i + 1}"
     width = 1 + len(fields)
     shape = "[value, " + ", ".join(fields) + "]"
-    if isinstance(raw, (str, bytes, dict)) or not hasattr(raw, "__len__"):
+    if not _sized(raw):
         raise InputError(f"{where}: {key}: expected a list of {shape} points, got {short_repr(raw)}")
     if len(raw) == 0:
         raise InputError(f"{where}: {key}: the list is empty; give at least one {shape} point")
     out = np.empty((len(raw), width), dtype=np.float64)
     for i, p in enumerate(raw):
-        if isinstance(p, (str, bytes, dict)) or not hasattr(p, "__len__") or len(p) != width:
+        if not _sized(p) or len(p) != width:
             raise InputError(f"{where}: {label(i, 0)}: expected {shape}, got {short_repr(p)}")
         for j, (name, x) in enumerate(zip(("value",) + fields, p)):
             if not is_number(x):

@@ -339,6 +339,27 @@ BAD = [
      "lights shine on isosurfaces and this scene has none"),
     ("shadows = true\n[[volume]]\nfile = 'data/ball.nrrd'\ntf = 'greyscale'", "shadows",
      "shadows fall on isosurfaces and this scene has none"),
+    # One check each: a row fails where its check is dropped or loosened.
+    ("[[volume]]\nfile = 'data/ball.nrrd'\niso = true", "volume[1].iso", "must be a finite number, got a boolean true"),
+    ("size = [true, 16]\n{V}", "size", "an array of 2 integers"),
+    ("[[volume]]\nsynthetic = 'sphere'\nsize = 'big'\niso = 0", "volume[1].size",
+     "an integer or an array of 3 integers", "got a string 'big'"),
+    ("[[volume]]\nsynthetic = 'sphere'\nsize = [1, 8, 8]\niso = 0", "volume[1].size", "at least 2"),
+    ("[[volume]]\nsynthetic = 'blobs'\nseed = -1\niso = 100", "volume[1].seed", "an integer >= 0, got a number -1"),
+    ("[[volume]]\nsynthetic = 'blobs'\nseed = true\niso = 100", "volume[1].seed", "got a boolean true"),
+    ("[[volume]]\nfile = 'data/v_2x2x2.raw'\ndtype = 'uint8'\noffset = -1\niso = 0", "volume[1].offset",
+     "an integer >= 0 (bytes before the samples)"),
+    ("[[volume]]\nfile = 'data/v_2x2x2.raw'\ndtype = 'uint8'\noffset = true\niso = 0", "volume[1].offset",
+     "got a boolean true"),
+    ("[[volume]]\nfile = 'data/v_2x2x2.raw'\ndtype = 'uint8'\nbyte_order = 'middle'\niso = 0",
+     "volume[1].byte_order", 'must be "little" or "big"'),
+    ("[[volume]]\nfile = 'data/v_2x2x2.raw'\ndtype = 'uint8'\nshape = [1, 2, 4]\niso = 0", "volume[1].shape",
+     "at least 2"),
+    ("[[volume]]\nfile = 'data/ball.nrrd'\ntf = 'greyscale'\nmode = ''", "volume[1].mode", "a non-empty string"),
+    ("background = [-0.1, 0, 0]\n{V}", "background", "[0, 1]"),
+    ("[camera]\nzoom = 0\n{V}", "camera.zoom", "positive"),
+    ("[[volume]]\nfile = 'data/ball.nrrd'\niso = 0\niso_value_of_the_surface = 1",
+     "volume[1].iso_value_of_the_surface", "unknown key; did you mean iso?"),
 ]
 
 
@@ -373,6 +394,25 @@ def test_unreadable_scene_files(tmp_path):
         load_scene(tmp_path / "latin1.toml")
 
 
+def test_a_byte_order_mark_before_a_scene_file_is_read_past(tmp_path):
+    # Editors on Windows write one; the transfer-function reader skips it and so must this one.
+    (tmp_path / "bom.toml").write_bytes(b'\xef\xbb\xbf[[volume]]\nsynthetic = "sphere"\nsize = 8\niso = 0\n')
+    (vis,) = load_scene(tmp_path / "bom.toml").volumes
+    assert vis.value == 0.0 and vis.volume.dims == (8, 8, 8)
+
+
+def test_a_relative_scene_files_transfer_function_is_made_again_from_the_same_file(folder, monkeypatch):
+    # made_from keeps the file's absolute name: replaced after a chdir, the Translucent reads
+    # the file the scene named, not one relative to the new working folder.
+    import dataclasses
+    monkeypatch.chdir(folder)
+    text = "[[volume]]\nfile = 'data/blobs.nrrd'\ntf = 'data/warm.toml'\n"
+    (vis,) = load_scene(write(folder, text, "rel.toml").relative_to(folder)).volumes
+    assert vis.tf.made_from[0] == str(folder / "data" / "warm.toml")
+    monkeypatch.chdir(folder / "data")
+    assert dataclasses.replace(vis, mode="mip").tf.opacity_points.tolist() == [[0.0, 0.0], [255.0, 0.5]]
+
+
 def test_the_files_values_are_checked_where_the_command_line_replaces_them(folder):
     vol = textwrap.dedent(VOLUME)
     for text, key, view, size in [(f"size = 'big'\n{vol}", "size", None, (16, 16)),
@@ -401,7 +441,7 @@ def test_errors_from_the_command_line_view_say_so(folder):
     with pytest.raises(InputError, match=r"size \(given on the command line\)"):
         load_scene(path, size=(0, 10))
     # An infinite width overflows int(), and a lone number cannot be iterated.
-    for size in ((math.inf, 10), 10):
+    for size in ((math.inf, 10), 10, (True, True), ("8", "8")):
         with pytest.raises(InputError, match=r"size \(given on the command line\): image size must be two positive"):
             load_scene(path, size=size)
     eyed = write(folder, "[camera]\neye = [40, 1, 2]\n" + textwrap.dedent(VOLUME), name="eyed.toml")
@@ -523,3 +563,19 @@ def test_a_translucent_volumes_material_reaches_the_scene_and_the_render(folder)
     b = parc.render(without, method="brute").image
     assert a[..., 3].max() > 0.05                       # the volume shows
     assert np.abs(a - b).max() > 1e-3                   # and its material changes how it looks
+
+
+def test_names_the_system_refuses_are_input_errors_naming_the_file(folder):
+    # Path.exists() raises for a name too long: an OSError, where load_scene's errors are
+    # InputErrors, and a scene's tf names its file and key.
+    long = "a" * 300
+    with pytest.raises(InputError, match="File name too long"):
+        load_scene(folder / f"{long}.toml")
+    for tf in (f"{long}.toml", long):
+        path = write(folder, f"[[volume]]\nfile = 'data/ball.nrrd'\ntf = '{tf}'\n")
+        with pytest.raises(InputError, match=re.escape(f"{path}: volume[1].tf: ") + ".*File name too long"):
+            load_scene(path)
+    loop = folder / "loop.toml"
+    loop.symlink_to(loop)
+    with pytest.raises(InputError, match="a link that leads nowhere"):
+        load_scene(loop)

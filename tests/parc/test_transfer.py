@@ -577,6 +577,17 @@ BAD_FILES = [
     ("pv_name.json", '[{"Name": 5, "RGBPoints": [0, 0, 0, 0]}]', ["pv_name.json", "Name"]),
     ("tf.yaml", "opacity: []", ["tf.yaml", ".yaml", ".toml or .json"]),
     ("both.json", '{"RGBPoints": [0, 0, 0, 0], "opacity": [[0, 1]]}', ["both.json", "keep one kind"]),
+    # One check each: a row fails where its check is dropped or loosened.
+    ("both_color.json", '{"RGBPoints": [0, 0, 0, 0], "color": [[0, 1, 1, 1]]}', ["both_color.json", "keep one kind"]),
+    ("pv_points.json", '{"Points": [0, 0, 0.5, 0]}', ["pv_points.json", "needs RGBPoints"]),
+    ("pv_space.json", '{"ColorSpace": "RGB"}', ["pv_space.json", "needs RGBPoints"]),
+    ("ours_name.json", '{"Name": "x", "color": [[0, 1, 1, 1]]}', ["ours_name.json", "unknown key 'Name'"]),
+    ("desc.json", '{"opacity": [[0, 0]], "description": 5}', ["desc.json", "description: must be a string"]),
+    ("normcolor.toml", 'space = "normalized"\nopacity = [[0, 0], [1, 1]]\ncolor = [[0, 0, 0, 0], [2, 1, 1, 1]]',
+     ["normcolor.toml", "color point 2", "outside [0, 1]"]),
+    ("normneg.toml", 'space = "normalized"\nopacity = [[-0.5, 0], [1, 1]]', ["normneg.toml", "opacity point 1", "outside [0, 1]"]),
+    ("pv_indexed.json", '[{"Name": "x", "IndexedColors": [1, 0, 0]}]', ["pv_indexed.json", "indexed/categorical"]),
+    ("nullcolor.json", '{"opacity": [[0, 0]], "color": null}', ["nullcolor.json", "color:", "null"]),
 ]
 
 
@@ -746,3 +757,54 @@ def test_paraview_rgb_points_keep_their_channel_order(tmp_path):
     np.testing.assert_array_equal(tf.color([0.0, 1.0]), [[0.23, 0.299, 0.754], [0.706, 0.016, 0.15]])
     low, high = tf.color([0.0, 1.0])
     assert low[2] > low[0] and high[0] > high[2]
+
+
+def test_file_errors_name_the_file_and_the_fault(tmp_path):
+    import os
+    # A name with a folder and no suffix is a missing file, not an unknown preset.
+    with pytest.raises(InputError, match="transfer function file not found"):
+        load_transfer_function(str(tmp_path / "nope"))
+    # Not UTF-8.
+    (tmp_path / "latin1.toml").write_bytes(b"name = 'caf\xe9'\nopacity = [[0, 0]]\n")
+    with pytest.raises(InputError, match="latin1.toml: not a UTF-8 text file"):
+        load_transfer_function(tmp_path / "latin1.toml")
+
+    class BytesPath(os.PathLike):
+        def __fspath__(self):
+            return b"x.toml"
+    with pytest.raises(InputError, match="path must be text, got bytes"):
+        load_transfer_function(BytesPath())
+    with pytest.raises(InputError, match="takes a file's path, got BytesPath"):
+        save_transfer_function(TransferFunction([[0, 0]]), BytesPath())
+    # Writing: a folder, or a folder that is not there, is an InputError naming the file.
+    (tmp_path / "d.toml").mkdir()
+    for target in (tmp_path / "d.toml", tmp_path / "no" / "x.json"):
+        with pytest.raises(InputError, match=f"{re.escape(str(target))}: cannot write"):
+            save_transfer_function(TransferFunction([[0, 0]]), target)
+
+
+def test_a_description_with_a_control_character_survives_a_toml_round_trip(tmp_path):
+    # TOML forbids a raw DEL in a string: the writer escapes it.
+    tf = TransferFunction([[0, 0], [1, 1]], description="a\x7fb\tc")
+    save_transfer_function(tf, tmp_path / "d.toml")
+    assert load_transfer_function(tmp_path / "d.toml").description == "a\x7fb\tc"
+
+
+def test_a_paraview_ramp_ends_exactly_at_the_last_colour_point(tmp_path):
+    # x0 + 1 * (x1 - x0) rounds past x1 here: the ramp's last point must still be x1.
+    lo, hi = -1311147.0622629568, 120.15111553890245
+    assert lo + (hi - lo) != hi
+    p = tmp_path / "abs.json"
+    p.write_text(json.dumps({"RGBPoints": [lo, 0, 0, 0, hi, 1, 1, 1]}))
+    assert load_transfer_function(p).opacity_points[-1, 0] == hi
+
+
+def test_a_zero_dimensional_array_or_a_set_is_refused_as_points():
+    # A 0-d array has __len__ but no length; a set has no order.
+    for bad in (np.array(5.0), [np.array(5.0)], {(0.0, 0.0), (1.0, 1.0)}):
+        with pytest.raises(InputError, match="opacity"):
+            TransferFunction(bad)
+
+
+def test_a_description_of_none_is_none():
+    assert TransferFunction([[0, 0]], description=None).description == ""
