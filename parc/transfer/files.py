@@ -283,9 +283,11 @@ def save_transfer_function(tf, path):
     else:
         raise InputError(f"transfer function {path}: unknown file type {ext or '(none)'!r}; "
                          "use .toml or .json")
-    data = text.encode("utf-8")             # before the file is opened: a failure leaves no empty file
+    data = text.encode("utf-8")
+    from ..outputs import atomic_write_all
     try:
-        path.write_bytes(data)
-    except (OSError, ValueError) as exc:    # a folder, a missing folder, a NUL in the name
-        reason = os_reason(exc) if isinstance(exc, OSError) else str(exc)
-        raise InputError(f"transfer function {path}: cannot write: {reason}") from None
+        # Through a file beside it, renamed once whole: a failure leaves no half-written file
+        # (and an InputError naming the path).
+        atomic_write_all([(path, lambda tmp: tmp.write_bytes(data))])
+    except ValueError as exc:               # a NUL in the name
+        raise InputError(f"transfer function {path}: cannot write: {exc}") from None

@@ -808,3 +808,21 @@ def test_a_zero_dimensional_array_or_a_set_is_refused_as_points():
 
 def test_a_description_of_none_is_none():
     assert TransferFunction([[0, 0]], description=None).description == ""
+
+
+def test_a_save_that_fails_midway_leaves_the_old_file_whole(tmp_path, monkeypatch):
+    import errno
+    import pathlib
+    target = tmp_path / "tf.json"
+    save_transfer_function(TransferFunction([[0, 0], [1, 1]]), target)
+    before = target.read_bytes()
+
+    def half_then_full(self, data):
+        with open(self, "wb") as f:
+            f.write(data[:len(data) // 2])
+        raise OSError(errno.ENOSPC, "No space left on device")
+    monkeypatch.setattr(pathlib.Path, "write_bytes", half_then_full)
+    with pytest.raises(InputError, match=re.escape(f"{target}: cannot write: No space left on device")):
+        save_transfer_function(TransferFunction([[0, 0], [5, 1]]), target)
+    assert target.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["tf.json"]
