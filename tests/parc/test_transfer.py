@@ -505,6 +505,11 @@ def test_paraview_json(tmp_path):
     r.write_text(json.dumps([{"RGBPoints": [-1, 0, 0, 1, 0, 1, 1, 1, 1, 1, 0, 0]}]))
     tf = load_transfer_function(r, data_range=(-5, 5))
     np.testing.assert_array_equal(tf.arrays()[2], [-5, 0, 5])
+    # Spans near those but not them are data values: [0, 0.9], [0.1, 1] and [-1, 0.9] stay put.
+    for lo, hi in ((0.0, 0.9), (0.1, 1.0), (-1.0, 0.9), (0.0, 1.0 + 1e-5)):
+        near = tmp_path / "near.json"
+        near.write_text(json.dumps({"RGBPoints": [lo, 0, 0, 0, hi, 1, 1, 1]}))
+        np.testing.assert_array_equal(load_transfer_function(near, data_range=(1000, 2000)).arrays()[2], [lo, hi])
 
 
 def test_presets_by_name_and_passthrough():
