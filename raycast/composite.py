@@ -149,8 +149,14 @@ def clear_planes(bits, py, px, params, Aa, Da, Ua, ta, c0, c1):
     p1 = Aa + c1 * Da
     err = POS_ROUNDING * (abs(Ua) + max(abs((ta + c0) * Da), abs((ta + c1) * Da)))
     tol = PLANE_TOL + err / m
-    q_lo = int(math.floor(min(p0, p1) / m - tol))
-    q_hi = int(math.floor(max(p0, p1) / m + tol))
+    # Only planes first .. last have bits; the others are clear. Clamped to one plane either
+    # side of them while still floats (math.floor gives an int64 in kernels): along a plane axis
+    # of tiny spacing an origin far off makes ``tol`` huge (spacing 1e-21, eye 14 away: ~5e7
+    # planes, some 1e8 turns of the loop a cell), and past 2^63 planes the conversion wraps.
+    first = params[P_PLANE_FIRST]
+    last = first + params[P_PLANE_COUNT] - 1.0
+    q_lo = int(math.floor(min(max(min(p0, p1) / m - tol, first - 1.0), last + 1.0)))
+    q_hi = int(math.floor(max(min(max(p0, p1) / m + tol, last + 1.0), first - 1.0)))
     for q in range(q_lo, q_hi + 1):
         if _bit(bits, py, px, q, params):
             if Da == 0.0:

@@ -659,6 +659,33 @@ def test_a_span_within_rounding_of_a_set_plane_tests_it(direction):
     assert clear and 4.0 - 2 * PLANE_TOL * 2.0 <= t < 4.0       # t, as the position, in cells
 
 
+@pytest.mark.parametrize("origin", [1e40, 1e10])
+def test_planes_tested_are_those_that_exist_whatever_the_tolerance(origin):
+    # An origin far off along the plane axis (in cells) widens the tolerance past every plane
+    # there is: 3.5e25 planes at 1e40 (floor of that, as an int64, wraps), 1.8e-5 at 1e10. The
+    # set plane 1 ([2, 4)) lies in the span either way; it is found, not passed over as clear.
+    from raycast.composite import clear_planes
+    bits, params = _one_set_bit(1)
+    clear, _, t0, t1 = clear_planes(bits, 0, 0, params, 0.0, 1.0, origin, 0.0, 0.5, 5.0)
+    assert not clear and sorted((t0, t1)) == pytest.approx([2.0, 4.0])
+
+
+def test_bit_planes_of_a_tiny_spacing_seen_from_far_along_it_equal_brute(gl):
+    # Planes along x, 1e-30 units apart: from 3,000 or 1e5 units away the eye lies some 1e33
+    # planes off, and the caster's tolerance at plane boundaries with it.
+    from parc import Scene, Translucent, TransferFunction, render
+    data = np.random.default_rng(0).normal(size=(8, 7, 8)).astype(np.float32)
+    vol = Volume(data, spacing=(1e-30, 1.0, 1.0), origin=(0.0, -3.0, -3.5))
+    tf = TransferFunction([[-3, 0.0], [3, 0.6]])
+    for eye_x in (-3000.0, -1e5):
+        cam = Camera(eye=(eye_x, 0.0, 0.0), look_at=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), parallel_scale=3.6)
+        scene = Scene(camera=cam, size=(3, 3), volumes=[Translucent(vol, tf, mode="mip", step=0.25)])
+        want = render(scene, "brute").image
+        assert want[..., 3].max() > 0.1
+        for buffers in ("bits", "depth,bits"):
+            np.testing.assert_array_equal(render(scene, "parc", supercell=1, buffers=buffers).image, want)
+
+
 def test_major_axis_from_inside_the_box_is_the_view_directions():
     # Outside, the planes follow the direction to the box's centre; inside, the view direction.
     box = (np.zeros(3), np.array([10.0, 10.0, 10.0]))
