@@ -141,7 +141,7 @@ class Translucent:
             self.tf = load_for_volume(self.tf, self.volume, self.mode)
         if self.step is None:
             self.step = reference_step(self.volume.spacing)
-        self.step = check_step(self.step, self.volume.spacing)
+        self.step = check_step(self.step, self.volume.spacing, across=_diagonal(self.volume))
         self.threshold = check_threshold(self.threshold)
         if self.mode != "composite":
             # The default given back in float32 (a value read from an array) is still the default.
@@ -345,9 +345,19 @@ def describe_volume(vis):
     return d
 
 
-def check_step(step, spacing, what="step"):
+#: The most lattice points a translucent volume's step may put on a ray across its box.
+MAX_RAY_SAMPLES = 1e8
+
+
+def _diagonal(volume):
+    lo, hi = volume.bounds
+    return math.dist(lo, hi)
+
+
+def check_step(step, spacing, what="step", *, across=None):
     """``step`` as a float, refused unless a positive, finite distance of at least 1e-4 of the
-    smallest ``spacing``; ``what`` names it in messages (``--step`` on the command line)."""
+    smallest ``spacing`` and, given the length ``across`` of the volume's box diagonal, of at most
+    `MAX_RAY_SAMPLES` steps over it; ``what`` names it in messages (``--step`` on the command line)."""
     try:
         if text_or_flag(step):
             raise TypeError
@@ -359,6 +369,12 @@ def check_step(step, spacing, what="step"):
     if value < 1e-4 * min(spacing):
         raise InputError(f"{what} {value:g} is below 1e-4 of the smallest spacing ({min(spacing):g}); "
                          "that is too many samples per ray")
+    if across is not None and across / value > MAX_RAY_SAMPLES:
+        # The rule above bounds samples per cell: spacings (1e-6, 1, 1) and the default step put
+        # 1e7 on a ray crossing the unit cells, and past 2^63 a lattice's count wraps.
+        raise InputError(f"{what} {value:g} puts {across / value:.2g} samples on a ray across the volume's "
+                         f"diagonal ({across:g}), more than {MAX_RAY_SAMPLES:.0e}: give a larger step (the "
+                         f"default is a quarter of the smallest spacing, {min(spacing):g})")
     return value
 
 

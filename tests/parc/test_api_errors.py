@@ -122,6 +122,12 @@ CASES = {
     "step sweep of a Translucent": (lambda: step_sweep(parc.Translucent(VOL, "greyscale"), [0.5]), "Scene"),
     "step sweep progress 5": (lambda: step_sweep(_fog(), [0.5], progress=5), "progress"),
     "step as text": (lambda: parc.Translucent(VOL, "greyscale", step="0.5"), "step must be a number"),
+    # 1e-4 of the smallest spacing per step, but 4e8 steps across the box's diagonal (9.9).
+    "step too fine for the box": (lambda: parc.Translucent(Volume(np.zeros((8, 8, 8)), spacing=(1e-7, 1, 1)),
+                                                           "greyscale"),
+                                  "step 2.5e-08 puts 4e+08 samples on a ray across the volume's diagonal (9.89949), "
+                                  "more than 1e+08: give a larger step (the default is a quarter of the smallest "
+                                  "spacing, 1e-07)"),
     "step True": (lambda: parc.Translucent(VOL, "greyscale", step=True), "step must be a number"),
     "threshold True": (lambda: parc.Translucent(VOL, "greyscale", threshold=True), "threshold"),
     "rays of no rows": (lambda: parc.Camera(eye=(0, 0, 5), look_at=(0, 0, 0)).rays(8, 0),
@@ -250,6 +256,16 @@ BEYOND_FLOAT = 10 ** 400
 def test_an_integer_beyond_float64_is_refused_not_overflowed(make, words):
     with pytest.raises(InputError, match=re.escape(words)):
         make()
+
+
+def test_a_step_may_put_up_to_the_bound_of_samples_across_the_box():
+    from parc.scene import MAX_RAY_SAMPLES
+    vol = Volume(np.arange(512.0).reshape(8, 8, 8), spacing=(1e-7, 1, 1))
+    diagonal = float(np.linalg.norm(np.subtract(*vol.bounds)))
+    step = diagonal / MAX_RAY_SAMPLES * (1 + 1e-12)
+    assert parc.Translucent(vol, "greyscale", step=step).step == step
+    with pytest.raises(InputError, match="samples on a ray across"):
+        parc.Translucent(vol, "greyscale", step=step * (1 - 1e-9))
 
 
 def test_a_string_is_not_taken_for_a_sequence_of_digits():

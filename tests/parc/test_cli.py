@@ -812,6 +812,8 @@ def test_more_bad_arguments(extra, words, vol_file, tmp_path, capsys):
     (["--parallel", "-2"], "--parallel must be positive and finite, got -2"),
     (["--size", "0", "8"], "--size must be two positive integers, got 0 8"),
     (["--step", "1e-300"], "--step 1e-300 is below 1e-4 of the smallest spacing"),
+    (["--spacing", "1e-7,1,1"], "more than 1e+08: give a larger step (the default is a quarter of the smallest"),
+    (["--spacing", "1e-7,1,1", "--step", "1e-8"], "--step 1e-08 puts"),
     (["--eye", "1e20,0,0", "--parallel", "5"], "--eye: the eye (1e+20, 0.0, 0.0) is over 2^32 times"),
     (["--background", "2,0,0"], "background components must be in [0, 1]"),
 ])
