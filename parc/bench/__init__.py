@@ -344,14 +344,18 @@ def consistency(res):
     for r in res["ideal"]:
         check(f"{r['scene']} {r['size']}² {r['method']}: ideal {r['unit']} > 0 and ≤ touched",
               0 < r["ideal"] <= r["touched"])
-    for n, key in ((1, "samples"), (2, "cells"), (3, "primary_cells")):
+    for n, keys in ((1, ("samples",)), (2, ("cells", "samples")), (3, ("primary_cells", "shadow_cells"))):
         rows = res[f"table{n}"]["rows"]
-        brute = {r["size"]: r[key] for r in rows if r["method"] == "brute"}
+        for key in keys:
+            brute = {r["size"]: r[key] for r in rows if r["method"] == "brute"}
+            for r in rows:
+                check(f"table{n} {r['method']} {r['size']}²: {key} positive and ≤ brute's",
+                      0 < r[key] <= brute[r["size"]])
         for r in rows:
-            check(f"table{n} {r['method']} {r['size']}²: {key} positive and ≤ brute's",
-                  0 < r[key] <= brute[r["size"]])
             check(f"table{n} {r['method']} {r['size']}²: times positive, casting ≤ total",
                   0 < r.get("cast_seconds", r.get("primary_cast_seconds", 0)) <= r["total_seconds"])
+    for r in res["visible_woman"]["surfaces"]:
+        check(f"Visible Woman {r['surface']}: parc's cells positive and ≤ brute's", 0 < r["parc_cells"] <= r["brute_cells"])
     for key, what in (("supercells", "cells visited"), ("table1", "samples taken")):
         work = res[key].get("work")
         if work is not None:
