@@ -263,8 +263,9 @@ def format_table(rows):
     for r in rows:
         px = max(r["pixels"], 1)
         gl = r["opengl_share"]
-        lines.append((r["method"], f"{r['seconds']:.4f}", f"{_ratio(r['speedup'])}x",
-                      f"{_ratio(r['speedup_low'])}-{_ratio(r['speedup_high'])}x", f"{100 * gl:.0f}%" if gl else "-",
+        lines.append((r["method"], f"{r['seconds']:.4f}", f"{ratio_text(r['speedup'])}x",
+                      f"{ratio_text(r['speedup_low'])}-{ratio_text(r['speedup_high'])}x",
+                      f"{100 * gl:.0f}%" if gl else "-",
                       f"{r['cells_visited'] / px:.1f}", f"{r['cubic_solves'] / px:.2f}",
                       f"{r.get('samples', 0) / px:.1f}",
                       f"{r['hits'] / px:.3f}", f"{r['polygons']:,}", str(r["hit_mismatches"]),
@@ -398,7 +399,7 @@ def step_sweep(scene, steps, *, repeats=3, warmup=1, progress=None, options=None
     return rows
 
 
-def _ratio(x):
+def ratio_text(x):
     """A speedup to two decimals, or two significant digits below 0.01 (a slow method is not 0.00x)."""
     return f"{x:.2f}" if not 0 < x < 0.01 else f"{x:.2g}"
 
@@ -413,7 +414,7 @@ def format_step_table(rows):
     for r, label in zip(rows, labels):
         psnr = "inf" if r["psnr"] == float("inf") else f"{r['psnr']:.1f}"
         out.append(f"{label:>{sw}}  {r['brute_seconds']:>8.4f}  {r['parc_seconds']:>8.4f}  "
-                   f"{_ratio(r['speedup']):>6}x  {r['brute_samples']:>13,}  {r['parc_samples']:>12,}  "
+                   f"{ratio_text(r['speedup']):>6}x  {r['brute_samples']:>13,}  {r['parc_samples']:>12,}  "
                    f"{r['max_color']:>13.2e}  {psnr:>6}  {r['parc_vs_brute']:>10.1e}")
     if rows:
         fine = min(r["step"] for r in rows) / 4

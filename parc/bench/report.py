@@ -4,6 +4,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+from ..comparison import ratio_text
 from ..rootstudy import FAILURE_KINDS
 from . import charts, heatmaps
 
@@ -22,14 +23,14 @@ def _k(n):
 
 
 def _x(v):
-    return f"{v:.2f}×"
+    return f"{ratio_text(v)}×"
 
 
 def _xr(r):
     """A row's speedup with, where the run has them, the lowest and highest of its rounds."""
     if "speedup_low" not in r or r["method"].startswith("brute"):
         return _x(r["speedup"])
-    return f"{_x(r['speedup'])} ({r['speedup_low']:.2f}–{r['speedup_high']:.2f})"
+    return f"{_x(r['speedup'])} ({ratio_text(r['speedup_low'])}–{ratio_text(r['speedup_high'])})"
 
 
 def _err(v):

@@ -228,3 +228,8 @@ def test_thread_table_says_what_each_ratio_is_against(tmp_path):
     rows = _table_cells(report.parker({"time_shares": sh, "threads": th}, tmp_path), "### Thread scaling")
     assert [(r["brute vs 1 thread"], r["parc vs 1 thread"], r["speedup (parc over brute)"]) for r in rows] == \
         [("1.00×", "1.00×", "4.00×"), ("2.00×", "1.25×", "2.50×")]
+
+
+def test_a_slow_methods_ratio_keeps_two_significant_digits():
+    # 0.004 at two decimals reads 0.00×, as if the method never finished.
+    assert [report._x(v) for v in (0.004, 0.0123, 3.456)] == ["0.004×", "0.01×", "3.46×"]

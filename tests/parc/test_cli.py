@@ -763,8 +763,8 @@ def test_running_out_of_memory_gets_one_line(vol_file, tmp_path, capsys, monkeyp
 
 
 def test_a_speedup_below_a_hundredth_keeps_two_digits():
-    from parc.comparison import _ratio
-    assert (_ratio(0.0042), _ratio(0.01), _ratio(3.14159), _ratio(0.0)) == ("0.0042", "0.01", "3.14", "0.00")
+    from parc.comparison import ratio_text
+    assert (ratio_text(0.0042), ratio_text(0.01), ratio_text(3.14159), ratio_text(0.0)) == ("0.0042", "0.01", "3.14", "0.00")
 
 
 def test_a_vector_starting_with_a_minus_sign_is_a_value(vol_file, tmp_path, capsys):
