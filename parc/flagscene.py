@@ -83,7 +83,8 @@ def _file_scene(args):
                              f"set {name} in its [[volume]] tables")
     view = {"eye": args.eye, "look_at": args.look_at, "up": args.up, "fov": args.fov, "parallel": args.parallel,
             "zoom": args.zoom}
-    scene = load_scene(args.volume, view=view, size=args.size, progress=None if args.quiet else note)
+    scene = load_scene(args.volume, view=view, size=args.size, progress=None if args.quiet else note,
+                       replaced_by="given on the command line")
     if getattr(args, "background", None) is not None:
         scene = replace(scene, background=args.background)
     return scene

@@ -88,7 +88,7 @@ DEFAULT_FOV = 30.0
 DEFAULT_UP = (0.0, 0.0, 1.0)
 
 
-def load_scene(path, *, view=None, size=None, progress=None) -> Scene:
+def load_scene(path, *, view=None, size=None, progress=None, replaced_by="given to load_scene") -> Scene:
     """Read a scene file (see the module notes for the schema).
 
     Parameters
@@ -105,6 +105,9 @@ def load_scene(path, *, view=None, size=None, progress=None) -> Scene:
         Replaces the file's image size.
     progress : callable(str), optional
         Told, in a line, before a synthetic volume that takes seconds to make.
+    replaced_by : str
+        How messages about ``view`` and ``size`` say where they came from, after the key they
+        replace (``parc render`` says "given on the command line").
 
     Returns
     -------
@@ -118,6 +121,8 @@ def load_scene(path, *, view=None, size=None, progress=None) -> Scene:
         key, a value of the wrong type or out of range, a missing volume or
         transfer-function file, an isovalue outside the data range.
     """
+    if not isinstance(replaced_by, str):
+        raise InputError(f"replaced_by takes text, got {type(replaced_by).__name__}")
     if not isinstance(path, (str, os.PathLike)):
         raise InputError(f"load_scene takes the path of a scene file, got {type(path).__name__}")
     if view is not None and (not isinstance(view, dict) or set(view) - set(CAMERA_KEYS)):
@@ -142,11 +147,11 @@ def load_scene(path, *, view=None, size=None, progress=None) -> Scene:
     # mistake in the file should not wait for a run without the flag to show.
     image_size = top.integers("size", 2, default=DEFAULT_SIZE, minimum=1)
     if size is not None:
-        with where.key("size (given on the command line)"):
+        with where.key(f"size ({replaced_by})"):
             image_size = _check_size(size)
     camera_table = Table(where, "camera", doc.get("camera", {}), CAMERA_KEYS)
     camera = _load_camera(where, camera_table, volumes, {k: v for k, v in (view or {}).items() if v is not None},
-                          image_size[0] / image_size[1])
+                          image_size[0] / image_size[1], replaced_by)
     background = top.numbers("background", (3, 4), default=None)
     if background is not None and not all(0.0 <= c <= 1.0 for c in background):
         raise where.error("background", f"must be numbers in [0, 1], got {list(background)}")
@@ -437,13 +442,13 @@ def _check_view(where, settings, label):
         raise where.error(label("up"), f"up {list(settings['up'])} is zero: give a direction")
 
 
-def _load_camera(where, t, volumes, view, aspect):
+def _load_camera(where, t, volumes, view, aspect, replaced_by):
     settings = {"eye": t.numbers("eye", 3), "look_at": t.numbers("look_at", 3), "up": t.numbers("up", 3),
                 "fov": t.number("fov"), "parallel": t.number("parallel"), "zoom": t.number("zoom")}
     if settings["fov"] is not None and settings["parallel"] is not None:
         raise t.error("parallel", "give fov (perspective) or parallel (a parallel projection), not both")
     _check_view(where, settings, t.key)
-    # A view given on the command line wins; its projection replaces the file's, and an eye or
+    # A view given in place of the file's wins; its projection replaces the file's, and an eye or
     # a parallel view the file's zoom, which applies to neither.
     if "parallel" in view:
         settings["fov"] = None
@@ -454,7 +459,7 @@ def _load_camera(where, t, volumes, view, aspect):
     settings.update(view)
 
     def label(name):
-        return t.key(name) + (" (given on the command line)" if name in view else "")
+        return t.key(name) + (f" ({replaced_by})" if name in view else "")
 
     _check_view(where, settings, label)
 

@@ -434,19 +434,24 @@ def test_a_view_of_the_wrong_type_is_named(folder, view, words):
         load_scene(write(folder, TWO_VOLUMES), view=view)
 
 
-def test_errors_from_the_command_line_view_say_so(folder):
+def test_errors_from_a_view_or_size_given_in_place_of_the_files_say_so(folder):
     path = write(folder, TWO_VOLUMES)
-    with pytest.raises(InputError, match=r"camera.fov \(given on the command line\): .*180"):
+    with pytest.raises(InputError, match=r"camera.fov \(given to load_scene\): .*180"):
         load_scene(path, view={"fov": 190.0})
-    with pytest.raises(InputError, match=r"size \(given on the command line\)"):
+    with pytest.raises(InputError, match=r"size \(given to load_scene\)"):
         load_scene(path, size=(0, 10))
     # An infinite width overflows int(), and a lone number cannot be iterated.
     for size in ((math.inf, 10), 10, (True, True), ("8", "8")):
-        with pytest.raises(InputError, match=r"size \(given on the command line\): image size must be two positive"):
+        with pytest.raises(InputError, match=r"size \(given to load_scene\): image size must be two positive"):
             load_scene(path, size=size)
     eyed = write(folder, "[camera]\neye = [40, 1, 2]\n" + textwrap.dedent(VOLUME), name="eyed.toml")
-    with pytest.raises(InputError, match=r"camera.look_at \(given on the command line\): eye and look_at are the same"):
+    with pytest.raises(InputError, match=r"camera.look_at \(given to load_scene\): eye and look_at are the same"):
         load_scene(eyed, view={"look_at": (40.0, 1.0, 2.0)})
+    # parc render names its own flags' origin.
+    with pytest.raises(InputError, match=r"camera.fov \(given on the command line\): .*180"):
+        load_scene(path, view={"fov": 190.0}, replaced_by="given on the command line")
+    with pytest.raises(InputError, match="replaced_by takes text, got int"):
+        load_scene(path, replaced_by=5)
 
 
 def test_resolve_view_matches_framing():
