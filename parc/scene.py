@@ -93,7 +93,8 @@ class Translucent:
     mode : {"composite", "mip", "average"}, default "composite"
     step : float or None
         World distance between samples; default a quarter of the smallest
-        spacing (Sobierajski & Avila 1995, §6).
+        spacing (Sobierajski & Avila 1995, §6), worked out again for another
+        volume (``dataclasses.replace(tr, volume=finer)``).
     threshold : float, default 0.99
         Early ray termination once the accumulated opacity reaches it;
         composite only (another value is refused with mip and average,
@@ -139,9 +140,10 @@ class Translucent:
             self.tf = made_from[0]
         if not isinstance(self.tf, TransferFunction):
             self.tf = load_for_volume(self.tf, self.volume, self.mode)
-        if self.step is None:
-            self.step = reference_step(self.volume.spacing)
-        self.step = check_step(self.step, self.volume.spacing, across=_diagonal(self.volume))
+        default = self.step is None or isinstance(self.step, _SpacingStep)
+        step = reference_step(self.volume.spacing) if default else self.step
+        step = check_step(step, self.volume.spacing, across=_diagonal(self.volume))
+        self.step = _SpacingStep(step) if default else step
         self.threshold = check_threshold(self.threshold)
         if self.mode != "composite":
             # The default given back in float32 (a value read from an array) is still the default.
@@ -343,6 +345,12 @@ def describe_volume(vis):
         if vis.mode == "composite":         # the others take every sample: no threshold applies
             d["threshold"] = vis.threshold
     return d
+
+
+class _SpacingStep(float):
+    """A default step (a quarter of the smallest spacing), marked as such: a Translucent made
+    again with it for another volume (``dataclasses.replace``) takes that volume's default."""
+    __slots__ = ()
 
 
 #: The most lattice points a translucent volume's step may put on a ray across its box.

@@ -212,6 +212,23 @@ def test_a_preset_named_follows_a_replaced_mode_or_volume_as_when_named_anew():
     assert Translucent(Volume(data * 3), vis.tf).tf.opacity_points[-1].tolist() == [210.0, 0.1]
 
 
+def test_a_default_step_follows_a_replaced_volume_and_a_given_step_stays():
+    # As a named preset does: the default is the new volume's, a quarter of its smallest
+    # spacing; a step given as a number is the caller's, whatever the volume.
+    import dataclasses
+    import pickle
+    data = blobs(6, seed=1).data
+    vis = Translucent(Volume(data), "greyscale")
+    finer = Volume(data, spacing=(0.5, 0.2, 0.4))
+    assert vis.step == 0.25
+    assert dataclasses.replace(vis, volume=finer).step == Translucent(finer, "greyscale").step == 0.05
+    assert dataclasses.replace(dataclasses.replace(vis, volume=finer), volume=vis.volume).step == 0.25
+    assert dataclasses.replace(Translucent(Volume(data), "greyscale", step=0.25), volume=finer).step == 0.25
+    assert dataclasses.replace(vis, volume=finer, step=0.3).step == 0.3
+    # Pickled (as parc bench's children send scenes), still the default.
+    assert dataclasses.replace(pickle.loads(pickle.dumps(vis)), volume=finer).step == 0.05
+
+
 def test_a_transfer_function_given_is_kept_whatever_it_was_loaded_for(tmp_path):
     # A window the caller chose (a numpy one too) is no stale range, and a file loaded once is
     # the function given: not read again when the Translucent is made or replaced.
