@@ -317,7 +317,9 @@ def raster_bits(camera, width, height, plane_proxy, *, first, count, halo=False,
         ``post``, ``total``), ``polygons`` (faces drawn: the proxy's,
         re-merged for the mode), ``proxy_faces``, ``nwords``,
         ``eye_inside``, ``d_min``, ``clip_near``, ``eye_planes`` (set for
-        every pixel), ``scale``, ``band``.
+        every pixel), ``scale``, ``band``; and ``every_plane`` (True) when
+        the view reaches too far for the float32 pass and every pixel has
+        every plane's bit set without drawing.
 
     Raises
     ------

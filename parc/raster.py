@@ -306,7 +306,9 @@ class Segments:
     info : dict
         ``eye_inside``, ``d_min``, ``clip_near``, ``pixels`` (with a segment),
         ``scale``, ``drawn`` (faces drawn: those bordering cavities are
-        skipped while no ray starts in one).
+        skipped while no ray starts in one); and ``whole_rays`` (True) when
+        the view reaches too far for the float32 pass and every pixel's
+        segment is its whole ray, nothing drawn.
     """
 
     near: np.ndarray

@@ -2,14 +2,12 @@
 
 The camera is unpacked at the boundary (`parc.camera.Camera.as_array`) into
 ``cam = [eye(3), f(3), r(3), u(3), tan(fov/2), parallel_scale, parallel]``
-(`CAM_SIZE` numbers); this is DESIGN's ray formula for the kernels, and
+(15 numbers); this is DESIGN's ray formula for the kernels, and
 `parc.camera.Camera.rays` its NumPy twin.
 """
 import math
 
 from .config import SPREAD_CHUNK, SPREAD_WAYS, TILE_H, TILE_W, kernel
-
-CAM_SIZE = 15
 
 
 @kernel(inline="always")

@@ -340,6 +340,8 @@ def judge_batches(batches, chunk=500):
     batches : list of (scene, origins, dirs, isos, answers)
         ``answers`` is a list of ``(t, cell, uvw)``, one per caster (or
         root finder) being judged, each with one entry per ray.
+    chunk : int, default 500
+        Rays per job handed to a worker process.
 
     Returns
     -------

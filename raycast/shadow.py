@@ -137,8 +137,11 @@ def shadow_span(light, views, near, far, use_seg, px, py, pz, eps, dist):
 def shadow_ray(points, n, light, eps, views, near, far, use_seg, org, spc):
     """Shadow ray of ``points[n]`` in a volume's index space, and the span it walks.
 
-    Returns ``(s0, s1, O, D, l, dist)``: ``s0 > s1`` when nothing needs
-    walking (the point at the light, or no PC supercell on the way).
+    Returns ``(s0, s1, Ox, Oy, Oz, Dx, Dy, Dz, lx, ly, lz, dist)``: the span,
+    the index-space ray ``O + s D``, the world unit direction ``l`` to the
+    light and its distance; ``s0 > s1`` when nothing needs walking (the
+    point at the light, or no PC supercell on the way; ``O`` and ``D`` are
+    then zero).
     """
     px, py, pz = points[n, 0], points[n, 1], points[n, 2]
     lx, ly, lz, dist = to_light(light, px, py, pz)

@@ -187,7 +187,9 @@ def save_volume(volume: Volume, path, **options) -> Path:
         (+ ``.raw``), ``.mha``, ``.vtk``, ``.raw`` (samples only).
     **options
         Passed to the writer: ``compress`` (NRRD), ``byte_order`` (MetaImage,
-        raw), ``ascii`` (VTK).
+        raw), ``ascii`` (VTK), ``sidecar`` (NumPy: True always writes the
+        ``.npy.json``, False never, refused when the spacing or origin is not
+        the default; None, the default, as above).
 
     Returns
     -------

@@ -141,7 +141,9 @@ def write_npy(volume: Volume, path, *, sidecar=None) -> Path:
     """Write the array, and a ``.json`` sidecar with spacing and origin.
 
     ``sidecar=None`` writes it only when they are not the defaults;
-    ``True`` always (so an existing sidecar cannot go stale).
+    ``True`` always (so an existing sidecar cannot go stale); ``False``
+    never (`save_volume` refuses it for a volume whose spacing or origin
+    is not the default).
     """
     path = Path(path)
     save_array(path, volume.data)

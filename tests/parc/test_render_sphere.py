@@ -4,8 +4,10 @@ Truth: the sphere |p - c| = r. The trilinear interpolant of the distance
 field differs from the true distance by at most ``h^2 / (8 rho)`` per axis
 summed (second derivatives of |p - c| are below ``1 / rho`` at distance
 ``rho`` from the centre), so a hit point's distance from the centre is
-within ``BOUND`` of r, and only rays passing within ``BOUND`` of the sphere
-may disagree on hit or miss.
+within ``bound = 3 h^2 / (8 rho_min)`` of r (``h`` the largest spacing,
+``rho_min = r - 2 h`` a lower bound on ``rho`` in the cells the surface
+crosses), and only rays passing within ``bound`` of the sphere may disagree
+on hit or miss.
 """
 import numpy as np
 import pytest
