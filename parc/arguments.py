@@ -161,7 +161,8 @@ def _add_look_options(p):
     g.add_argument("--mode", choices=("composite", "mip", "average"),
                    help="with --tf: front-to-back compositing (default), maximum or average intensity")
     g.add_argument("--step", type=float, metavar="S",
-                   help="with --tf: world distance between samples (default a quarter of the smallest spacing)")
+                   help="with --tf: world distance between samples (default a quarter of the smallest spacing; "
+                        "at least 1e-4 of it, and at most 1e8 samples across the volume's diagonal)")
     g.add_argument("--threshold", type=float, metavar="A",
                    help="with --tf, composite: stop a ray once its opacity reaches A (default 0.99)")
     g.add_argument("--shade", action="store_true", help="with --tf, composite: shade samples with the gradient")

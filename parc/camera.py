@@ -264,8 +264,10 @@ def _image_size(width, height):
         w, h = operator.index(width), operator.index(height)
     except TypeError:
         w = h = 0
-    if isinstance(width, (bool, np.bool_)) or isinstance(height, (bool, np.bool_)) or w < 1 or h < 1:
-        raise InputError(f"image size must be two positive integers, got {width!r} x {height!r}")
+    # Bounded as OpenGL and the kernels' int32 pixel indices are (10**400 / 1 overflows a float).
+    if (isinstance(width, (bool, np.bool_)) or isinstance(height, (bool, np.bool_))
+            or not (1 <= w < 2 ** 31 and 1 <= h < 2 ** 31)):
+        raise InputError(f"image size must be two positive integers, got {width!r:.40} x {height!r:.40}")
     return w, h
 
 

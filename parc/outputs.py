@@ -6,6 +6,7 @@ import contextlib
 import json
 import os
 import pickle
+import stat
 import sys
 import tempfile
 import threading
@@ -151,8 +152,13 @@ def atomic_write_all(writes, remove=()):
             write(Path(tmp))
         umask = os.umask(0)
         os.umask(umask)
-        for tmp, _, _ in done:
-            os.chmod(tmp, 0o666 & ~umask)    # mkstemp makes owner-only files; outputs are ordinary files
+        for tmp, target, _ in done:
+            # mkstemp makes owner-only files; outputs are ordinary files, and a file replaced keeps its mode.
+            try:
+                mode = stat.S_IMODE(os.stat(target).st_mode)
+            except FileNotFoundError:
+                mode = 0o666 & ~umask
+            os.chmod(tmp, mode)
         with signals_held():        # a Ctrl-C between two renames would leave a mixed set
             for path in remove:
                 path.unlink(missing_ok=True)

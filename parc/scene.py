@@ -94,7 +94,10 @@ class Translucent:
     step : float or None
         World distance between samples; default a quarter of the smallest
         spacing (Sobierajski & Avila 1995, §6), worked out again for another
-        volume (``dataclasses.replace(tr, volume=finer)``).
+        volume (``dataclasses.replace(tr, volume=finer)``). Refused below 1e-4
+        of the smallest spacing, and where it would put more than
+        `MAX_RAY_SAMPLES` (1e8) samples on a ray across the volume's box
+        diagonal: the default too, for a spacing tiny against the volume's extent.
     threshold : float, default 0.99
         Early ray termination once the accumulated opacity reaches it;
         composite only (another value is refused with mip and average,
@@ -142,7 +145,8 @@ class Translucent:
             self.tf = load_for_volume(self.tf, self.volume, self.mode)
         default = self.step is None or isinstance(self.step, _SpacingStep)
         step = reference_step(self.volume.spacing) if default else self.step
-        step = check_step(step, self.volume.spacing, across=_diagonal(self.volume))
+        step = check_step(step, self.volume.spacing, "the default step" if default else "step",
+                          across=_diagonal(self.volume))
         self.step = _SpacingStep(step) if default else step
         self.threshold = check_threshold(self.threshold)
         if self.mode != "composite":
@@ -380,9 +384,12 @@ def check_step(step, spacing, what="step", *, across=None):
     if across is not None and across / value > MAX_RAY_SAMPLES:
         # The rule above bounds samples per cell: spacings (1e-6, 1, 1) and the default step put
         # 1e7 on a ray crossing the unit cells, and past 2^63 a lattice's count wraps.
+        # The smallest step allowed, rounded up at its third digit so that it passes itself.
+        least = across / MAX_RAY_SAMPLES
+        unit = 10.0 ** (math.floor(math.log10(least)) - 2)
         raise InputError(f"{what} {value:g} puts {across / value:.2g} samples on a ray across the volume's "
-                         f"diagonal ({across:g}), more than {MAX_RAY_SAMPLES:.0e}: give a larger step (the "
-                         f"default is a quarter of the smallest spacing, {min(spacing):g})")
+                         f"diagonal ({across:g}), more than {MAX_RAY_SAMPLES:.0e}: give a step of at least "
+                         f"{math.ceil(least / unit) * unit:.3g}")
     return value
 
 

@@ -125,15 +125,21 @@ CASES = {
     # 1e-4 of the smallest spacing per step, but 4e8 steps across the box's diagonal (9.9).
     "step too fine for the box": (lambda: parc.Translucent(Volume(np.zeros((8, 8, 8)), spacing=(1e-7, 1, 1)),
                                                            "greyscale"),
-                                  "step 2.5e-08 puts 4e+08 samples on a ray across the volume's diagonal (9.89949), "
-                                  "more than 1e+08: give a larger step (the default is a quarter of the smallest "
-                                  "spacing, 1e-07)"),
+                                  "the default step 2.5e-08 puts 4e+08 samples on a ray across the volume's diagonal "
+                                  "(9.89949), more than 1e+08: give a step of at least 9.9e-08"),
     "step True": (lambda: parc.Translucent(VOL, "greyscale", step=True), "step must be a number"),
     "threshold True": (lambda: parc.Translucent(VOL, "greyscale", threshold=True), "threshold"),
     "rays of no rows": (lambda: parc.Camera(eye=(0, 0, 5), look_at=(0, 0, 0)).rays(8, 0),
                         "image size must be two positive integers, got 8 x 0"),
     "rays of a float width": (lambda: parc.Camera(eye=(0, 0, 5), look_at=(0, 0, 0)).rays(8.0, 8),
                               "image size must be two positive integers, got 8.0 x 8"),
+    "projection past int32 pixels": (
+        lambda: parc.Camera(eye=(0, 0, 5), look_at=(0, 0, 0)).projection_matrix(2 ** 31, 1, 0.1, 10),
+        "image size must be two positive integers, got 2147483648 x 1"),
+    # Its repr cut short: 401 digits would make the one line a screenful.
+    "rays of a size past float": (lambda: parc.Camera(eye=(0, 0, 5), look_at=(0, 0, 0)).rays(10 ** 400, 1),
+                                  "image size must be two positive integers, got "
+                                  "1000000000000000000000000000000000000000 x 1"),
     "projection of no depth": (lambda: parc.Camera(eye=(0, 0, 5), look_at=(0, 0, 0)).projection_matrix(8, 8, 1, 1),
                                "depth range must be finite numbers near < far, near > 0, got near 1.0, far 1.0"),
     "perspective from the eye": (lambda: parc.Camera(eye=(0, 0, 5), look_at=(0, 0, 0)).projection_matrix(8, 8, 0, 1),

@@ -812,7 +812,8 @@ def test_more_bad_arguments(extra, words, vol_file, tmp_path, capsys):
     (["--parallel", "-2"], "--parallel must be positive and finite, got -2"),
     (["--size", "0", "8"], "--size must be two positive integers, got 0 8"),
     (["--step", "1e-300"], "--step 1e-300 is below 1e-4 of the smallest spacing"),
-    (["--spacing", "1e-7,1,1"], "more than 1e+08: give a larger step (the default is a quarter of the smallest"),
+    (["--spacing", "1e-7,1,1"], "the default step 2.5e-08 puts 6.2e+08 samples on a ray across the volume's "
+                                "diagonal (15.5563), more than 1e+08: give a step of at least 1.56e-07"),
     (["--spacing", "1e-7,1,1", "--step", "1e-8"], "--step 1e-08 puts"),
     (["--eye", "1e20,0,0", "--parallel", "5"], "--eye: the eye (1e+20, 0.0, 0.0) is over 2^32 times"),
     (["--background", "2,0,0"], "background components must be in [0, 1]"),
@@ -2047,6 +2048,23 @@ def test_outputs_take_the_umask(vol_file, tmp_path, capsys, umask, mode):
         os.umask(old)
     assert rc == 0, err
     assert stat.S_IMODE(out.stat().st_mode) == stat.S_IMODE(stats.stat().st_mode) == mode
+
+
+def test_an_output_written_over_keeps_its_mode(vol_file, tmp_path, capsys):
+    # As an editor's save does: a private file stays private whatever the umask, while a new one
+    # beside it takes the umask.
+    out, new = tmp_path / "p.png", tmp_path / "n.png"
+    out.write_bytes(b"old")
+    out.chmod(0o600)
+    old = os.umask(0o022)
+    try:
+        for path in (out, new):
+            rc, _, err = _run(["render", vol_file, "--iso", 4, "--size", 8, 8, "-o", path], capsys)
+            assert rc == 0, err
+    finally:
+        os.umask(old)
+    assert out.read_bytes()[:4] == b"\x89PNG"
+    assert (stat.S_IMODE(out.stat().st_mode), stat.S_IMODE(new.stat().st_mode)) == (0o600, 0o644)
 
 
 def test_a_raw_shape_may_be_given_as_nxnyxnz(tmp_path, capsys):

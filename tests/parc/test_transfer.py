@@ -815,6 +815,16 @@ def test_a_description_of_none_is_none():
     assert TransferFunction([[0, 0]], description=None).description == ""
 
 
+def test_a_saved_file_keeps_its_mode(tmp_path):
+    import stat
+    target = tmp_path / "tf.toml"
+    target.write_text("")
+    target.chmod(0o600)
+    save_transfer_function(TransferFunction([[0, 0], [1, 1]]), target)
+    assert stat.S_IMODE(target.stat().st_mode) == 0o600
+    assert load_transfer_function(target) == TransferFunction([[0, 0], [1, 1]])
+
+
 def test_a_save_that_fails_midway_leaves_the_old_file_whole(tmp_path, monkeypatch):
     import errno
     import pathlib
