@@ -223,15 +223,16 @@ def resolve_view(lo, hi, *, eye=None, look_at=None, up=None, fov=None, parallel=
 
 
 def _check_size(size):
-    """``size`` as a tuple, refused unless two positive integers (an infinite float overflows
-    ``int``; a lone number is not iterated)."""
+    """``size`` (any iterable of two) as a tuple, refused unless two positive integers (an
+    infinite float overflows ``int``; a lone number is not iterable)."""
     try:
+        size = tuple(size)
         ok = len(size) == 2 and all(not text_or_flag(v) and int(v) == v and v >= 1 for v in size)
     except (TypeError, ValueError, OverflowError):
         ok = False
     if not ok:
         raise InputError(f"image size must be two positive integers, got {size!r}")
-    return tuple(size)
+    return size
 
 
 # --- volumes --------------------------------------------------------------

@@ -447,6 +447,7 @@ def test_errors_from_a_view_or_size_given_in_place_of_the_files_say_so(folder):
     eyed = write(folder, "[camera]\neye = [40, 1, 2]\n" + textwrap.dedent(VOLUME), name="eyed.toml")
     with pytest.raises(InputError, match=r"camera.look_at \(given to load_scene\): eye and look_at are the same"):
         load_scene(eyed, view={"look_at": (40.0, 1.0, 2.0)})
+    assert load_scene(path, size=iter((12, 10))).size == (12, 10)
     # parc render names its own flags' origin.
     with pytest.raises(InputError, match=r"camera.fov \(given on the command line\): .*180"):
         load_scene(path, view={"fov": 190.0}, replaced_by="given on the command line")
