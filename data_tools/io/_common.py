@@ -165,6 +165,26 @@ def read_samples(path: Path, offset: int, dims, dtype, big_endian: bool, *,
     return to_native(arr).reshape(nz, ny, nx)
 
 
+def check_tail(path: Path, end: int, kind: str, follows=()):
+    """Refuse bytes after a header's samples (which end at byte ``end``) other than white space
+    or, for a format with further sections, a line whose first word is one of ``follows``.
+
+    A header misread by a line (one repeated, a keyword garbled) moves the samples' start:
+    they take bytes of the header, and their own last bytes are left over."""
+    with open(path, "rb") as f:
+        f.seek(end)
+        tail = f.read(4096).lstrip()
+    if not tail:
+        return
+    word = tail.split(None, 1)[0]
+    if word.isascii() and word.decode("ascii").upper() in follows:
+        return
+    size = path.stat().st_size
+    what = "a further section" if follows else "white space"
+    raise InputError(f"{path}: {size - end} bytes after the {kind} samples the header states, and they are not "
+                     f"{what}: the header does not match the data (corrupt?)")
+
+
 def decompress(blob: bytes, expected: int, path, kind: str) -> bytes:
     """Inflate zlib or gzip data and check it yields exactly ``expected`` bytes."""
     dec = zlib.decompressobj(zlib.MAX_WBITS | 32)  # 32: accept zlib and gzip headers

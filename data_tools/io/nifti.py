@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 import os
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -114,11 +115,14 @@ def _check_length(img, path, start):
     """Refuse an uncompressed file shorter than its header's samples before nibabel allocates
     them: a truncated file whose header claims a huge volume failed as out of memory."""
     name = img.file_map["image"].filename
-    if start is None or name is None or str(name).lower().endswith(".gz"):
+    if start is None or name is None:
         return
     shape = tuple(int(n) for n in img.shape)
     dtype = img.header.get_data_dtype()
     need = int(start) + math.prod(shape) * dtype.itemsize
+    if str(name).lower().endswith(".gz"):
+        _check_gzip(name, path, need, f"{'x'.join(map(str, shape))} {dtype.name}")
+        return
     size = os.stat(name).st_size
     if size < need:
         raise InputError(f"{path}: truncated: its header's {'x'.join(map(str, shape))} {dtype.name} samples need "
@@ -152,3 +156,24 @@ def _geometry(affine, zooms):
     elif flipped:
         note = "flipped voxel axes (negative affine diagonal) were reduced to positive spacings"
     return tuple(float(n) for n in lengths), tuple(float(v) for v in a[:3, 3]), note, bool(rotated or flipped)
+
+
+def _check_gzip(name, path, need, samples):
+    """Refuse a gzip stream that is corrupt before or after the samples. nibabel inflates only
+    up to the samples' end and stops, so a damaged stream would give wrong samples silently:
+    gzip's check (CRC-32 and length) comes at the end of the stream, after them. Inflated a piece at a
+    time and discarded, to the end of the stream or a little past the header's samples."""
+    inflate = zlib.decompressobj(zlib.MAX_WBITS | 16)
+    total = 0
+    with open(name, "rb") as f:
+        while not inflate.eof and total <= need + (1 << 16):
+            chunk = inflate.unconsumed_tail or f.read(1 << 20)
+            if not chunk:
+                raise InputError(f"{path}: truncated: the compressed samples end early")
+            try:
+                total += len(inflate.decompress(chunk, 1 << 24))
+            except zlib.error as exc:
+                raise InputError(f"{path}: corrupt compressed data ({one_line(exc)})") from None
+    if total < need:
+        raise InputError(f"{path}: truncated: its header's {samples} samples need {need} bytes, the compressed "
+                         f"data hold {total}")

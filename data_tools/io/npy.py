@@ -73,6 +73,9 @@ def read_npy(path, *, spacing=None, origin=None) -> Volume:
     if side is not None and side.is_file():
         try:
             info = json.loads(side.read_text(encoding="utf-8-sig"))
+        except RecursionError:
+            raise InputError(f"{side}: bad sidecar (arrays or objects nested too deep); "
+                             "expected JSON with spacing and origin") from None
         except (OSError, ValueError) as exc:
             raise InputError(f"{side}: bad sidecar ({one_line(exc)}); expected JSON with spacing and origin") from None
         if not isinstance(info, dict):
@@ -100,7 +103,7 @@ def is_sidecar(path) -> bool:
         if not Path(path).is_file() or Path(path).stat().st_size > 1 << 16:
             return False
         info = json.loads(Path(path).read_text(encoding="utf-8-sig"))
-    except (OSError, ValueError):
+    except (OSError, ValueError, RecursionError):
         return False
     return isinstance(info, dict) and set(info) <= {"spacing", "origin"}
 
@@ -119,11 +122,22 @@ def _check_length(path):
             raise InputError(f"{path}: its header gives the shape {shape}, with a negative size")
         if dtype.hasobject:
             return
-        need = f.tell() + math.prod(shape) * dtype.itemsize
+        start = f.tell()
+        f.seek(start - 1)
+        if f.read(1) != b"\n":
+            # The format's header ends in a newline (NumPy writes one; its reader does not look):
+            # a header edited to another length, its stated length unchanged, shifts every sample.
+            raise InputError(f"{path}: its header does not end where its stated length says "
+                             "(edited or corrupt); the samples' start is unknown")
+        need = start + math.prod(shape) * dtype.itemsize
         size = os.fstat(f.fileno()).st_size
     if size < need:
         raise InputError(f"{path}: truncated: its header's {'x'.join(map(str, shape))} {dtype} array needs "
                          f"{need} bytes, the file has {size}")
+    if size > need:
+        # numpy.save writes nothing after the array; NumPy's reader ignores what follows it.
+        raise InputError(f"{path}: {size - need} bytes after its header's {'x'.join(map(str, shape))} {dtype} "
+                         f"array ({need} bytes): several arrays in one file, or a corrupt header")
 
 
 def save_array(path, array):

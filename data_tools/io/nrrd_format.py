@@ -8,6 +8,7 @@ import contextlib
 import io
 import math
 import os
+import sys
 import zlib
 from pathlib import Path
 
@@ -16,7 +17,7 @@ import nrrd
 
 from ..errors import InputError
 from ..volume import Volume
-from ._common import file_volume, data_file_block, text_values
+from ._common import check_tail, file_volume, data_file_block, text_values
 from .nrrd_header import explain, header_lines, parse_header, read_header
 
 EXTENSIONS = (".nrrd", ".nhdr")
@@ -126,6 +127,8 @@ def _read(path, data_file):
                 data = _read_text(header, src, path, lines, skip)
         else:
             data = nrrd.read_data(header, fh, str(path), index_order="C")
+            if data_file is None and encoding == "raw" and skip != -1:
+                check_tail(path, fh.tell(), "NRRD")
     return data, header
 
 
@@ -243,7 +246,13 @@ def _read_decoded(header, encoding, fh, path, data_file, lines, skip):
         blob, skip = blob[skip:], 0
     if not blob:
         raise InputError(f"{path}: no {encoding} data after the header (line skip {lines})")
-    raw = _decode(blob, encoding, path)
+    # Inflate no further than the header's samples (and a little past, to say by how much they
+    # overrun): a 1 MB stream of zeros inflated to 1 GB, held in memory, before being refused.
+    wanted = skip + math.prod(int(n) for n in np.atleast_1d(header["sizes"])) * _sample_type(header).itemsize
+    raw = _decode(blob, encoding, path, min(wanted + _OVERRUN, sys.maxsize - 1))   # zlib's bound
+    if len(raw) > wanted + _OVERRUN - 1 and encoding != "hex":
+        raise InputError(f"{path}: the {encoding} data inflate to more than the {wanted - skip} bytes the header "
+                         f"states{' after the byte skip' if skip else ''}")
     if skip > len(raw):
         raise InputError(f"{path}: byte skip {skip} passes the end of the {len(raw)} decompressed bytes")
     plain = {key: value for key, value in header.items()
@@ -259,7 +268,11 @@ def _read_decoded(header, encoding, fh, path, data_file, lines, skip):
 _GZIP_MAGIC = b"\x1f\x8b"
 
 
-def _decode(blob, encoding, path):
+#: Bytes inflated past a header's samples before compressed data are refused as too long.
+_OVERRUN = 1 << 16
+
+
+def _decode(blob, encoding, path, limit):
     """The bytes of every member of a gzip file (as ``cat a.gz b.gz`` or a parallel
     compressor writes them; teem's reader, through zlib's ``gzread``, reads them all) or
     every stream of a bzip2 one (``pbzip2``). What follows the last member and is not
@@ -273,14 +286,19 @@ def _decode(blob, encoding, path):
             bad = next((chr(c) for c in digits if chr(c) not in "0123456789abcdefABCDEF"), None)
             why = f"{bad!r} is not a hex digit" if bad is not None else f"an odd number of digits ({len(digits)})"
             raise InputError(f"{path}: hex data: {why}") from None
-    if encoding not in ("gzip", "gz"):
-        return bz2.decompress(blob)
+    gz = encoding in ("gzip", "gz")
     raw = bytearray()
     while True:
-        member = zlib.decompressobj(zlib.MAX_WBITS | 16)
-        raw += member.decompress(blob)
+        # At most ``limit`` bytes in all (and one more, to tell that there are more).
+        member = zlib.decompressobj(zlib.MAX_WBITS | 16) if gz else bz2.BZ2Decompressor()
+        room = limit + 1 - len(raw)
+        raw += member.decompress(blob, room) if gz else member.decompress(blob, max_length=room)
+        if len(raw) > limit:
+            return raw
+        if not gz and not member.eof:
+            raise InputError(f"{path}: bzip2 data truncated (the stream ends early)")
         blob = member.unused_data
-        if not (member.eof and blob.startswith(_GZIP_MAGIC)):
+        if not (member.eof and blob.startswith(_GZIP_MAGIC if gz else b"BZh")):
             return raw
 
 

@@ -119,6 +119,11 @@ def read_slc(path, *, spacing=None, origin=None) -> Volume:
             flat[k] = np.frombuffer(_rle_decode(cur.take(size, what), plane, path, k), dtype=np.uint8)
         else:
             flat[k] = np.frombuffer(cur.take(plane, what), dtype=np.uint8)
+    if cur.pos < len(buf):
+        # Nothing follows the last slice: bytes left over mean the header or the icon was
+        # misread (a size edited, a line repeated), and every sample shifted with them.
+        raise InputError(f"{path}: {len(buf) - cur.pos} bytes after the last of its {nz} slices; "
+                         "the header's sizes or icon do not match the data (corrupt?)")
     meta = {"format": "slc", "compression": "rle" if compression else "raw",
             "unit_type": unit, "data_origin": data_origin, "data_modification": modification}
     return file_volume(data, spacing, (0.0, 0.0, 0.0), path, meta, given)

@@ -8,6 +8,7 @@ made for.
 from __future__ import annotations
 
 import contextlib
+import math
 import re
 import struct
 from pathlib import Path
@@ -101,10 +102,30 @@ def _grey_pages(tif, path):
     return page
 
 
+def _check_shaped(tif, series, path):
+    """Refuse a file whose tifffile description (``{"shape": [...]}``) and pages disagree.
+
+    With more slices stated than pages, tifffile reads the stated samples on from the first
+    page's data, through the tags after them (garbage slices); with its chain of pages broken,
+    it falls back to the pages it can join, and a slice goes missing."""
+    if not tif.is_shaped:
+        return
+    stated = (tif.shaped_metadata or ({},))[0]
+    if series.kind in ("generic", "uniform") and len(tif.series) > 1:
+        # tifffile found the stated shape wrong and split the pages: the first part is not the stack.
+        raise InputError(f"{path}: its {len(tif.pages)} pages do not make the shape its description "
+                         "states, and split into several series (corrupt or edited)")
+    if (series.kind == "shaped" and not stated.get("truncated")
+            and len(series.pages) * series.keyframe.size < math.prod(series.shape)):
+        raise InputError(f"{path}: its description states the shape {series.shape}, more samples than its "
+                         f"{len(tif.pages)} pages hold (corrupt or edited)")
+
+
 def _stack(tif, path):
     """``(data [z, y, x], axes, spacing, note, meta)`` of an open TIFF file."""
     page = _grey_pages(tif, path)
     series = tif.series[0]
+    _check_shaped(tif, series, path)
     axes = series.axes
     data = series.asarray()
     if data.ndim == 2 and len(tif.pages) > 1:

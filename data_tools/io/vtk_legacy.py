@@ -8,8 +8,8 @@ import numpy as np
 
 from ..errors import InputError
 from ..volume import Volume
-from ._common import (file_volume, float32_from_text, no_digit_separators, parse_dims, parse_numbers, read_samples,
-                      reading)
+from ._common import (check_tail, file_volume, float32_from_text, no_digit_separators, parse_dims, parse_numbers,
+                      read_samples, reading)
 
 EXTENSIONS = (".vtk",)
 
@@ -51,6 +51,13 @@ class _Lines:
                 raise InputError(f"{self.path}: binary bytes in the VTK header where {what} was expected") from None
             if line:
                 return line
+
+
+#: The keywords that may begin what follows a binary file's samples: another attribute,
+#: dataset section or field, or the array's metadata.
+_SECTIONS = frozenset(("SCALARS", "COLOR_SCALARS", "LOOKUP_TABLE", "VECTORS", "NORMALS", "TEXTURE_COORDINATES",
+                       "TENSORS", "FIELD", "POINT_DATA", "CELL_DATA", "METADATA", "INFORMATION", "NAME", "DATA",
+                       "GLOBAL_IDS", "PEDIGREE_IDS", "EDGE_FLAGS", "HIGHER_ORDER_DEGREES"))
 
 
 def _skip_lookup_table(f) -> bool:
@@ -385,6 +392,8 @@ def read_vtk(path, *, spacing=None, origin=None) -> Volume:
         if encoding == "BINARY":
             # Legacy binary VTK is big-endian by definition; trailing sections are ignored.
             data = read_samples(path, offset, dims, dtype, True, exact=False, kind="VTK")
+            if field is None:       # a field's next array begins with its own name
+                check_tail(path, offset + data.nbytes, "VTK", _SECTIONS)
     meta = {"format": "vtk", "scalars": words[1]}
     if others:
         meta["note"] = (f"the points carry {len(others) + 1} scalar arrays ({', '.join([words[1]] + others)}); "

@@ -1,6 +1,8 @@
 """Bad input of every kind raises InputError with one line naming the file, never a raw exception."""
 from __future__ import annotations
 
+import bz2
+import gzip
 import os
 import stat
 import tracemalloc
@@ -869,3 +871,155 @@ def test_a_file_that_is_not_nrrd_is_refused_at_its_first_line(tmp_path, monkeypa
     fails(p, "magic")
     p.write_bytes(b"NRRD0004\n" + b"#" * 4096)
     fails(p, "no end to the NRRD header in its first")
+
+
+# --- a header that does not match its data ------------------------------------
+
+def test_npy_sidecar_nested_too_deep_is_an_input_error(tmp_path):
+    # json.loads raises RecursionError (neither OSError nor ValueError), in load_volume and in
+    # save_volume's check of what lies where the sidecar goes.
+    p = tmp_path / "v.npy"
+    np.save(p, SMALL)
+    (tmp_path / "v.npy.json").write_text("[" * 5000)
+    fails(p, "nested too deep")
+    with pytest.raises(InputError, match="a file of another kind"):
+        save_volume(Volume(SMALL), p)
+
+
+@pytest.mark.parametrize("edit", [
+    lambda b: b.replace(b"}", b"} #", 1),              # the header one byte longer than it says
+    lambda b: b.replace(b"(4, 5, 6)", b"(4, 5, +6)"),
+    lambda b: b.replace(b"(4, 5, 6)", b"(4, 5, 6)\t"),
+])
+def test_npy_header_longer_than_its_stated_length_is_refused(tmp_path, edit):
+    # NumPy's reader would take the first samples from the header's last bytes, shifted, and
+    # ignore the bytes left at the end.
+    p = tmp_path / "v.npy"
+    np.save(p, SMALL)
+    p.write_bytes(edit(p.read_bytes()))
+    fails(p)
+
+
+@pytest.mark.parametrize("extra", [b"\x00", bytes(8), bytes(120)])
+def test_npy_bytes_after_the_array_are_refused(tmp_path, extra):
+    p = tmp_path / "v.npy"
+    np.save(p, SMALL)
+    p.write_bytes(p.read_bytes() + extra)
+    fails(p, f"{len(extra)} bytes after its header's 4x5x6 uint8 array")
+    p.write_bytes(p.read_bytes().replace(b"(4, 5, 6)", b"(3, 5, 6)")[:-len(extra)])   # a size edited down
+    fails(p, "30 bytes after")
+
+
+@pytest.mark.parametrize("encoding, pack", [("gzip", gzip.compress), ("bzip2", bz2.compress)])
+def test_nrrd_compressed_data_are_not_inflated_past_the_header_sizes(tmp_path, encoding, pack):
+    # 64 MB of zeros in a few kB, inflated whole, would be held in memory before being refused
+    # as more than the 60 bytes the header states (1 GB in 1 MB: 3 GB at the peak, 11 s).
+    p = tmp_path / "bomb.nrrd"
+    p.write_bytes(f"NRRD0004\ntype: uint8\ndimension: 3\nsizes: 5 4 3\nencoding: {encoding}\n\n".encode()
+                  + pack(bytes(64 << 20)))
+    tracemalloc.start()
+    try:
+        fails(p, "more than the 60 bytes the header states")
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 8 << 20
+
+
+def test_slc_bytes_after_the_last_slice_are_refused(tmp_path):
+    # A repeated header line or an icon size edited shifts every sample, and leaves bytes over
+    # at the end.
+    arr = np.arange(60, dtype=np.uint8).reshape(3, 4, 5)
+    head = b"11111\n5 4 3 8\n1 1 1\n0 0 0 0\n2 2 X" + bytes(12)
+    p = tmp_path / "v.slc"
+    p.write_bytes(head + arr.tobytes())
+    np.testing.assert_array_equal(load_volume(p).data, arr)
+    p.write_bytes(head.replace(b"2 2 X", b"1 2 X") + arr.tobytes())
+    fails(p, "6 bytes after the last of its 3 slices")
+    p.write_bytes(head + arr.tobytes() + b"\n")
+    fails(p, "1 bytes after")
+
+
+@pytest.mark.parametrize("edit", [
+    lambda b: b.replace(b"ElementDataFile = LOCAL\n", b"ElementDataFile = LOCAL\n" * 2),   # a line repeated
+    lambda b: b.replace(b"DimSize = 6 5 4", b"DimSize = 5 5 4"),                            # a size edited down
+    lambda b: b + b"\x07",
+])
+def test_mha_bytes_after_the_samples_are_refused(tmp_path, edit):
+    # MetaImage's attached samples would take the repeated line's bytes as their first, and
+    # leave bytes over at the end.
+    p = save_volume(Volume(SMALL), tmp_path / "v.mha")
+    p.write_bytes(edit(p.read_bytes()))
+    fails(p, "bytes after the MetaImage samples")
+
+
+def test_mha_white_space_after_the_samples_is_read_past(tmp_path):
+    p = save_volume(Volume(SMALL), tmp_path / "v.mha")
+    p.write_bytes(p.read_bytes() + b"\n")
+    np.testing.assert_array_equal(load_volume(p).data, SMALL)
+
+
+@pytest.mark.parametrize("edit", [
+    lambda b: b.replace(b"LOOKUP_TABLE default", b"LOOKUP_TA LE default"),        # a keyword garbled
+    lambda b: b.replace(b"LOOKUP_TABLE default\n", b"CELL_DATA default\n"),
+    lambda b: b.replace(b"unsigned_char 1\n", b"unsigned_char 1\nSCALARS s unsigned_char 1\n"),
+    lambda b: b + b"\x07\x08",
+])
+def test_vtk_binary_bytes_after_the_samples_that_begin_no_section_are_refused(tmp_path, edit):
+    # With no LOOKUP_TABLE line recognised, the samples would start at the line after SCALARS,
+    # and their last bytes, left over, do not begin a section.
+    p = save_volume(Volume(SMALL), tmp_path / "v.vtk")
+    p.write_bytes(edit(p.read_bytes()))
+    fails(p, "bytes after the VTK samples")
+
+
+def test_vtk_binary_sections_after_the_samples_are_read_past(tmp_path):
+    p = save_volume(Volume(SMALL), tmp_path / "v.vtk")
+    p.write_bytes(p.read_bytes() + b"\nCELL_DATA 60\nSCALARS c unsigned_char 1\nLOOKUP_TABLE default\n" + bytes(60))
+    np.testing.assert_array_equal(load_volume(p).data, SMALL)
+
+
+@pytest.mark.parametrize("stated", [b"[4, 5, 6]", b"[9, 5, 6]"])
+def test_tiff_description_stating_more_slices_than_pages_is_refused(tmp_path, stated):
+    # tifffile reads the stated samples on from the first page's data, through the tags after
+    # them: garbage slices.
+    tifffile = pytest.importorskip("tifffile")
+    p = tmp_path / "s.tif"
+    tifffile.imwrite(p, SMALL[:3], photometric="minisblack")
+    p.write_bytes(p.read_bytes().replace(b"[3, 5, 6]", stated))
+    fails(p, "more samples than its 3 pages hold")
+
+
+def test_tiff_truncated_by_tifffile_is_read(tmp_path):
+    tifffile = pytest.importorskip("tifffile")
+    p = tmp_path / "t.tif"
+    tifffile.imwrite(p, SMALL, photometric="minisblack", truncate=True)
+    np.testing.assert_array_equal(load_volume(p).data, SMALL)
+
+
+@pytest.mark.parametrize("where", ["samples", "check"])
+def test_nifti_gz_with_a_corrupt_stream_is_refused(tmp_path, where):
+    # nibabel inflates up to the samples' end and stops: a damaged byte among the samples would
+    # come back as a wrong sample, and gzip's CRC-32 after them is never read.
+    nib = pytest.importorskip("nibabel")
+    plain = tmp_path / "v.nii"
+    arr = np.arange(20 * 20 * 20, dtype=np.uint16).reshape(20, 20, 20)   # more than nibabel's first look
+    nib.save(nib.Nifti1Image(arr.T, np.eye(4)), plain)
+    blob = bytearray(gzip.compress(plain.read_bytes(), compresslevel=0))    # stored: bytes as they are
+    at = len(blob) // 2 if where == "samples" else len(blob) - 6             # a sample; the CRC-32
+    blob[at] ^= 0xFF
+    p = tmp_path / "v.nii.gz"
+    p.write_bytes(bytes(blob))
+    fails(p, "corrupt compressed data")
+
+
+def test_nrrd_raw_bytes_after_the_samples_are_refused(tmp_path):
+    # A second blank line after the header: teem and pynrrd take it for the first sample's
+    # byte, and the samples' last byte is left over.
+    arr = np.arange(60, dtype=np.float32).reshape(3, 4, 5)
+    p = save_volume(Volume(arr), tmp_path / "v.nrrd", compress=False)
+    good = p.read_bytes()
+    p.write_bytes(good.replace(b"\n\n", b"\n\n\n", 1))
+    fails(p, "1 bytes after the NRRD samples")
+    p.write_bytes(good + b"\n")                 # a final newline is read past
+    np.testing.assert_array_equal(load_volume(p).data, arr)
