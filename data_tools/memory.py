@@ -34,5 +34,8 @@ def _amount(n):
     """Bytes in MB or GB, and a need past a thousand TB as a power of ten (a header's
     99999999^3 samples needed a 32-digit number of GB)."""
     if n >= 2**50:
-        return f"{n / 2**30:.1e} GB"
+        try:
+            return f"{n / 2**30:.1e} GB"
+        except OverflowError:       # an integer past float's range (an image --size 10**400 1)
+            return "over 1e+300 GB"
     return f"{n / 2**30:.1f} GB" if n >= 2**30 else f"{n / 2**20:.0f} MB"

@@ -269,8 +269,11 @@ ISOVALUES = {"sphere": (0.0,), "torus": (0.0,), "marschner_lobb": (0.5,), "blobs
 def check_synthetic_size(size, what, name=None):
     """Refuse a size (samples per axis: one number or three) whose volume ``name`` would not
     fit in memory while it is made."""
-    dims = np.broadcast_to(np.asarray(size, dtype=float), 3).copy()
-    if name == "floor" and np.ndim(size) == 0:
+    try:
+        dims = np.broadcast_to(np.asarray(size, dtype=float), 3).copy()
+    except OverflowError:           # an integer past float's range (--size 10**400): no memory holds it
+        dims = np.full(3, np.inf)
+    if name == "floor" and np.ndim(size) == 0 and np.isfinite(dims).all():
         dims[2] = floor_height(int(size))
     per_sample = SLAB_BYTES_PER_SAMPLE.get(name, SYNTHETIC_BYTES_PER_SAMPLE)
     check_memory(per_sample * float(np.prod(dims)), what)

@@ -357,7 +357,8 @@ def cmd_render(args):
         _refuse_parc_flags(args, "applies to --method parc")
     check_request(scene, kwargs.get("buffers", DEFAULT_BUFFERS), work_out is not None, ("--buffers", "--work"))
     check_frame_memory(*scene.size, layers=len(scene.volumes))
-    if kwargs.get("supercell") is not None:
+    if args.method == "parc":
+        # Its options, a supercell no volume takes and an image past OpenGL's limit: refused before any note.
         check_supercells(scene, {args.method: kwargs})
     # What the render will refuse is refused by now, so a note (the level chosen, a transfer
     # function that shows nothing) is said before the wait, not after it.

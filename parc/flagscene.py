@@ -120,6 +120,9 @@ def _volume_scene(args, say):
     w, h = args.size or (512, 512)
     if w < 1 or h < 1:
         raise InputError(f"--size must be two positive integers, got {w} {h}")
+    # Before the camera divides one by the other: --size 10**400 8 overflows a float.
+    from .workspace import check_frame_memory
+    check_frame_memory(w, h)
     if args.volume is None:
         for name in _READING_FLAGS:
             if getattr(args, name, None) is not None:

@@ -30,6 +30,14 @@ class OpenGLUnavailable(InputError):
     """No usable OpenGL 4.3 context (headless EGL) on this machine."""
 
 
+def check_viewport(width, height):
+    """Refuse an image larger than this OpenGL's viewport limit (creating the context if need be),
+    so that `render` and `compare` refuse it before any note, warm-up or frame."""
+    max_w, max_h = get_context().info["GL_MAX_VIEWPORT_DIMS"]
+    if int(width) > max_w or int(height) > max_h:
+        raise InputError(f"image {int(width)}x{int(height)} exceeds this OpenGL's limit {max_w}x{max_h}")
+
+
 def get_context():
     """The process-wide headless OpenGL context, created on first call.
 

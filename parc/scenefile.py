@@ -149,6 +149,9 @@ def load_scene(path, *, view=None, size=None, progress=None, replaced_by="given 
     if size is not None:
         with where.key(f"size ({replaced_by})"):
             image_size = _check_size(size)
+    # Before the camera's aspect divides one by the other: a size of 10**400 overflows a float.
+    from .workspace import check_frame_memory
+    check_frame_memory(*image_size)
     camera_table = Table(where, "camera", doc.get("camera", {}), CAMERA_KEYS)
     camera = _load_camera(where, camera_table, volumes, {k: v for k, v in (view or {}).items() if v is not None},
                           image_size[0] / image_size[1], replaced_by)

@@ -876,12 +876,39 @@ def test_a_failed_write_leaves_no_output_of_the_set(vol_file, tmp_path, capsys, 
 @pytest.mark.parametrize("argv, words", [
     (["make", "blobs", "--size", 8, "--seed", -1], "--seed must be 0 or more"),
     (["make", "sphere", "--size", 10**7], "needs about"),
+    (["make", "sphere", "--size", 10**400], "needs about"),
+    (["make", "floor", "--size", 10**400], "needs about"),
 ])
 def test_make_refuses_what_it_cannot_make(argv, words, tmp_path, capsys):
     out = tmp_path / "m.nrrd"
     rc, _, err = _run(argv + ["-o", out], capsys)
     assert rc == 2 and err.count("\n") == 1 and words in err, err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("cmd", [["render", "--method", "parc", "-o", "o.png"], ["compare", "--repeats", 1]])
+def test_an_image_past_the_opengl_limit_is_refused_alone(cmd, vol_file, tmp_path, capsys):
+    # No --iso: refused in the render, the limit would come after the level's note, and for
+    # compare after brute's warm-up.
+    argv = [cmd[0], vol_file, "--size", 100000, 1] + [tmp_path / a if a == "o.png" else a for a in cmd[1:]]
+    rc, _, err = _run(argv, capsys)
+    assert rc == 2 and err.count("\n") == 1 and "exceeds this OpenGL's limit" in err, err
+    assert list(tmp_path.iterdir()) == [tmp_path / "ball.nrrd"]
+
+
+@pytest.mark.parametrize("size", [[10**400, 8], [8, 10**400]])
+@pytest.mark.parametrize("scene", [False, True])
+def test_a_size_past_float_range_is_refused_in_one_line(size, scene, vol_file, tmp_path, capsys):
+    src = vol_file
+    if scene:
+        src = tmp_path / "s.toml"
+        src.write_text(f'[[volume]]\nfile = "{Path(vol_file).as_posix()}"\niso = 4\n')
+    out = tmp_path / "o.png"
+    for argv in (["render", src, "--iso", 4, "-o", out], ["compare", src, "--iso", 4, "--repeats", 1]):
+        argv = [a for a in argv if not (scene and a in ("--iso", 4))]
+        rc, _, err = _run(argv + ["--size", *size], capsys)
+        assert rc == 2 and err.count("\n") == 1 and "needs about" in err, err
+        assert not out.exists()
 
 
 def test_pipes_are_refused_not_read(vol_file, tmp_path, capsys):
