@@ -404,6 +404,17 @@ def test_nrrd_layout_that_names_no_array_of_numbers(tmp_path, fields, match):
     fails(p, match)
 
 
+def _fails_within(path, words, most):
+    """`fails`, holding at most ``most`` bytes of Python memory at its peak."""
+    tracemalloc.start()
+    try:
+        fails(path, words)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < most, peak
+
+
 @pytest.mark.parametrize("kind", ["nrrd", "mhd"])
 def test_numbered_data_files_that_cannot_match_are_refused_before_naming_them(tmp_path, kind):
     # A header of a few bytes numbering 1 to 2,000,000 files for 8 samples: every name was
@@ -415,13 +426,7 @@ def test_numbered_data_files_that_cannot_match_are_refused_before_naming_them(tm
     else:
         p = tmp_path / "f.mhd"
         p.write_text("NDims = 3\nDimSize = 2 2 2\nElementType = MET_UCHAR\nElementDataFile = s%07d.raw 1 2000000 1\n")
-    tracemalloc.start()
-    try:
-        fails(p, "2000000 data files of")
-        peak = tracemalloc.get_traced_memory()[1]
-    finally:
-        tracemalloc.stop()
-    assert peak < 20e6, peak
+    _fails_within(p, "2000000 data files of", 20e6)
 
 
 @pytest.mark.parametrize("empty", ["", b""])
@@ -917,13 +922,7 @@ def test_nrrd_compressed_data_are_not_inflated_past_the_header_sizes(tmp_path, e
     p = tmp_path / "bomb.nrrd"
     p.write_bytes(f"NRRD0004\ntype: uint8\ndimension: 3\nsizes: 5 4 3\nencoding: {encoding}\n\n".encode()
                   + pack(bytes(64 << 20)))
-    tracemalloc.start()
-    try:
-        fails(p, "more than the 60 bytes the header states")
-        peak = tracemalloc.get_traced_memory()[1]
-    finally:
-        tracemalloc.stop()
-    assert peak < 8 << 20
+    _fails_within(p, "more than the 60 bytes the header states", 8 << 20)
 
 
 def test_slc_bytes_after_the_last_slice_are_refused(tmp_path):
@@ -940,42 +939,31 @@ def test_slc_bytes_after_the_last_slice_are_refused(tmp_path):
     fails(p, "1 bytes after")
 
 
-@pytest.mark.parametrize("edit", [
-    lambda b: b.replace(b"ElementDataFile = LOCAL\n", b"ElementDataFile = LOCAL\n" * 2),   # a line repeated
-    lambda b: b.replace(b"DimSize = 6 5 4", b"DimSize = 5 5 4"),                            # a size edited down
-    lambda b: b + b"\x07",
+@pytest.mark.parametrize("suffix, edit", [
+    (".mha", lambda b: b.replace(b"ElementDataFile = LOCAL\n", b"ElementDataFile = LOCAL\n" * 2)),  # repeated
+    (".mha", lambda b: b.replace(b"DimSize = 6 5 4", b"DimSize = 5 5 4")),                          # edited down
+    (".mha", lambda b: b + b"\x07"),
+    (".vtk", lambda b: b.replace(b"LOOKUP_TABLE default", b"LOOKUP_TA LE default")),                # garbled
+    (".vtk", lambda b: b.replace(b"LOOKUP_TABLE default\n", b"CELL_DATA default\n")),
+    (".vtk", lambda b: b.replace(b"unsigned_char 1\n", b"unsigned_char 1\nSCALARS s unsigned_char 1\n")),
+    (".vtk", lambda b: b + b"\x07\x08"),
 ])
-def test_mha_bytes_after_the_samples_are_refused(tmp_path, edit):
-    # MetaImage's attached samples would take the repeated line's bytes as their first, and
-    # leave bytes over at the end.
-    p = save_volume(Volume(SMALL), tmp_path / "v.mha")
+def test_bytes_after_attached_samples_that_begin_no_section_are_refused(tmp_path, suffix, edit):
+    # A header misread by a line moves where the samples start: they would take the header's
+    # last bytes as their first, and leave bytes over at the end (with no LOOKUP_TABLE line
+    # recognised, VTK's would start at the line after SCALARS).
+    p = save_volume(Volume(SMALL), tmp_path / f"v{suffix}")
     p.write_bytes(edit(p.read_bytes()))
-    fails(p, "bytes after the MetaImage samples")
+    fails(p, f"bytes after the {'MetaImage' if suffix == '.mha' else 'VTK'} samples")
 
 
-def test_mha_white_space_after_the_samples_is_read_past(tmp_path):
-    p = save_volume(Volume(SMALL), tmp_path / "v.mha")
-    p.write_bytes(p.read_bytes() + b"\n")
-    np.testing.assert_array_equal(load_volume(p).data, SMALL)
-
-
-@pytest.mark.parametrize("edit", [
-    lambda b: b.replace(b"LOOKUP_TABLE default", b"LOOKUP_TA LE default"),        # a keyword garbled
-    lambda b: b.replace(b"LOOKUP_TABLE default\n", b"CELL_DATA default\n"),
-    lambda b: b.replace(b"unsigned_char 1\n", b"unsigned_char 1\nSCALARS s unsigned_char 1\n"),
-    lambda b: b + b"\x07\x08",
+@pytest.mark.parametrize("suffix, tail", [
+    (".mha", b"\n"),
+    (".vtk", b"\nCELL_DATA 60\nSCALARS c unsigned_char 1\nLOOKUP_TABLE default\n" + bytes(60)),
 ])
-def test_vtk_binary_bytes_after_the_samples_that_begin_no_section_are_refused(tmp_path, edit):
-    # With no LOOKUP_TABLE line recognised, the samples would start at the line after SCALARS,
-    # and their last bytes, left over, do not begin a section.
-    p = save_volume(Volume(SMALL), tmp_path / "v.vtk")
-    p.write_bytes(edit(p.read_bytes()))
-    fails(p, "bytes after the VTK samples")
-
-
-def test_vtk_binary_sections_after_the_samples_are_read_past(tmp_path):
-    p = save_volume(Volume(SMALL), tmp_path / "v.vtk")
-    p.write_bytes(p.read_bytes() + b"\nCELL_DATA 60\nSCALARS c unsigned_char 1\nLOOKUP_TABLE default\n" + bytes(60))
+def test_white_space_or_a_section_after_attached_samples_is_read_past(tmp_path, suffix, tail):
+    p = save_volume(Volume(SMALL), tmp_path / f"v{suffix}")
+    p.write_bytes(p.read_bytes() + tail)
     np.testing.assert_array_equal(load_volume(p).data, SMALL)
 
 
