@@ -35,7 +35,9 @@ def _amount(n):
     99999999^3 samples needed a 32-digit number of GB)."""
     if n >= 2**50:
         try:
-            return f"{n / 2**30:.1e} GB"
+            gb = n / 2**30
         except OverflowError:       # an integer past float's range (an image --size 10**400 1)
-            return "over 1e+300 GB"
+            gb = float("inf")
+        # A size past float's range (parc make --size 10**400) is infinite by the time it is counted.
+        return f"{gb:.1e} GB" if gb < float("inf") else "over 1e+300 GB"
     return f"{n / 2**30:.1f} GB" if n >= 2**30 else f"{n / 2**20:.0f} MB"

@@ -331,7 +331,7 @@ LARGE_WRITE_PIXELS = 1 << 22
 def cmd_render(args):
     import parc
 
-    from .comparison import check_supercells
+    from .comparison import check_opengl, check_supercells
     from .renderer import DEFAULT_BUFFERS, check_request, kernel_samples
     from .workspace import check_frame_memory
 
@@ -360,6 +360,7 @@ def cmd_render(args):
     if args.method == "parc":
         # Its options, a supercell no volume takes and an image past OpenGL's limit: refused before any note.
         check_supercells(scene, {args.method: kwargs})
+        check_opengl(scene, [args.method])
     # What the render will refuse is refused by now, so a note (the level chosen, a transfer
     # function that shows nothing) is said before the wait, not after it.
     for line in notes:

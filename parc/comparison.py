@@ -93,11 +93,7 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
     _check_progress(progress, "a line of text")
     check_frame_memory(*scene.size, layers=len(scene.volumes), kept_images=len(names))
     check_supercells(scene, options)
-    if any(name.split(":")[0] == "parc" for name in names):
-        from .gl import get_context
-        from .renderer import _ONE_AT_A_TIME
-        with _ONE_AT_A_TIME:    # as a render takes it: the context is made by one thread at a time
-            get_context()       # no OpenGL: said before brute's warm-up, not after it
+    check_opengl(scene, names)
     vol = scene.volumes[0].volume
     cell = float(min(vol.spacing))
     runs = {name: [] for name in names}
@@ -224,6 +220,18 @@ def _check_render_options(name, opts):
     if unknown:
         raise InputError(f"options for {name!r}: {', '.join(map(repr, unknown))} is not a render() option; "
                          f"known: {', '.join(sorted(RENDER_OPTIONS))}")
+
+
+def check_opengl(scene, names):
+    """For a run that includes parc, make the OpenGL context (as a render does, one thread at a
+    time) and refuse an image past its viewport limit: no OpenGL, or too large an image, is said
+    before brute's warm-up or a note, not after. Called once every argument is checked, so that
+    their own refusals neither wait on making the context nor hide behind its absence."""
+    if any(str(name).split(":")[0] == "parc" for name in names):
+        from .gl import check_viewport
+        from .renderer import _ONE_AT_A_TIME
+        with _ONE_AT_A_TIME:
+            check_viewport(*scene.size)
 
 
 def check_supercells(scene, options):
@@ -366,6 +374,7 @@ def step_sweep(scene, steps, *, repeats=3, warmup=1, progress=None, options=None
         raise InputError(f"the reference step, a quarter of the finest ({min(steps) / 4:g}), "
                          f"is too small: {exc}") from None
 
+    check_opengl(scene, ["parc"])
     if progress:
         progress(f"reference at step {min(steps) / 4:g}")
     reference = render(at(min(steps) / 4), method="brute")

@@ -218,9 +218,6 @@ def check_arguments(scene, method="brute", *, supercell=None, buffers=DEFAULT_BU
     if supercell is not None:
         from .classify import supercell_size
         supercell_size(supercell)
-    if method == "parc":
-        from .gl import check_viewport
-        check_viewport(*scene.size)
     return check_request(scene, buffers, work), _light_buffer_size(light_buffer)
 
 

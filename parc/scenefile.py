@@ -59,6 +59,7 @@ array are counted from 1 in file order: ``volume[1]`` is the first
 """
 from __future__ import annotations
 
+import itertools
 import os
 from pathlib import Path
 
@@ -229,13 +230,14 @@ def _check_size(size):
     """``size`` (any iterable of two) as a tuple, refused unless two positive integers (an
     infinite float overflows ``int``; a lone number is not iterable)."""
     try:
-        size = tuple(size)
-        ok = len(size) == 2 and all(not text_or_flag(v) and int(v) == v and v >= 1 for v in size)
+        # At most three taken: an endless iterator (itertools.count) or a range of 10**10 is refused, not drawn out.
+        pair = () if text_or_flag(size) else tuple(itertools.islice(size, 3))
+        ok = len(pair) == 2 and all(not text_or_flag(v) and int(v) == v and v >= 1 for v in pair)
     except (TypeError, ValueError, OverflowError):
         ok = False
     if not ok:
         raise InputError(f"image size must be two positive integers, got {size!r}")
-    return size
+    return pair
 
 
 # --- volumes --------------------------------------------------------------

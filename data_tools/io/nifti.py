@@ -166,8 +166,20 @@ def _check_gzip(name, path, need, samples):
     inflate = zlib.decompressobj(zlib.MAX_WBITS | 16)
     total = 0
     with open(name, "rb") as f:
-        while not inflate.eof and total <= need + (1 << 16):
-            chunk = inflate.unconsumed_tail or f.read(1 << 20)
+        while total <= need + (1 << 16):
+            if inflate.eof:
+                if total >= need:
+                    break
+                # Another member follows (``cat a.gz b.gz``, bgzip): Python's gzip reader, which
+                # nibabel uses, reads on into it, as does teem's for NRRD (`nrrd_format._decode`).
+                chunk = inflate.unused_data
+                if len(chunk) < 2:
+                    chunk += f.read(1 << 20)
+                if not chunk.startswith(b"\x1f\x8b"):
+                    break
+                inflate = zlib.decompressobj(zlib.MAX_WBITS | 16)
+            else:
+                chunk = inflate.unconsumed_tail or f.read(1 << 20)
             if not chunk:
                 raise InputError(f"{path}: truncated: the compressed samples end early")
             try:

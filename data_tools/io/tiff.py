@@ -8,6 +8,7 @@ made for.
 from __future__ import annotations
 
 import contextlib
+import json
 import math
 import re
 import struct
@@ -111,14 +112,24 @@ def _check_shaped(tif, series, path):
     if not tif.is_shaped:
         return
     stated = (tif.shaped_metadata or ({},))[0]
-    if series.kind in ("generic", "uniform") and len(tif.series) > 1:
-        # tifffile found the stated shape wrong and split the pages: the first part is not the stack.
+    if series.kind in ("generic", "uniform") and len(tif.series) > 1 and _first_shape(tif) != tuple(series.shape):
+        # tifffile found the stated shape wrong and split the pages: the first part is not the
+        # stack. (A first series of the shape the first page states is: a page after the stack
+        # without the description, a thumbnail another writer added, drops it to "generic" too.)
         raise InputError(f"{path}: its {len(tif.pages)} pages do not make the shape its description "
                          "states, and split into several series (corrupt or edited)")
     if (series.kind == "shaped" and not stated.get("truncated")
             and len(series.pages) * series.keyframe.size < math.prod(series.shape)):
         raise InputError(f"{path}: its description states the shape {series.shape}, more samples than its "
                          f"{len(tif.pages)} pages hold (corrupt or edited)")
+
+
+def _first_shape(tif):
+    """The shape the first page's tifffile description states, or None."""
+    try:
+        return tuple(int(n) for n in json.loads(tif.pages[0].description)["shape"])
+    except Exception:  # noqa: BLE001 - any description that is not such JSON
+        return None
 
 
 def _stack(tif, path):

@@ -56,8 +56,8 @@ class _Lines:
 #: The keywords that may begin what follows a binary file's samples: another attribute,
 #: dataset section or field, or the array's metadata.
 _SECTIONS = frozenset(("SCALARS", "COLOR_SCALARS", "LOOKUP_TABLE", "VECTORS", "NORMALS", "TEXTURE_COORDINATES",
-                       "TENSORS", "FIELD", "POINT_DATA", "CELL_DATA", "METADATA", "INFORMATION", "NAME", "DATA",
-                       "GLOBAL_IDS", "PEDIGREE_IDS", "EDGE_FLAGS", "HIGHER_ORDER_DEGREES"))
+                       "TENSORS", "TENSORS6", "FIELD", "POINT_DATA", "CELL_DATA", "METADATA", "INFORMATION",
+                       "NAME", "DATA", "GLOBAL_IDS", "PEDIGREE_IDS", "EDGE_FLAGS", "HIGHER_ORDER_DEGREES"))
 
 
 def _skip_lookup_table(f) -> bool:

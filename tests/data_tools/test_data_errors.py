@@ -1011,3 +1011,32 @@ def test_nrrd_raw_bytes_after_the_samples_are_refused(tmp_path):
     fails(p, "1 bytes after the NRRD samples")
     p.write_bytes(good + b"\n")                 # a final newline is read past
     np.testing.assert_array_equal(load_volume(p).data, arr)
+
+
+def test_nifti_gz_of_several_members_is_read(tmp_path):
+    # ``cat a.gz b.gz``, bgzip: Python's gzip reader (nibabel's) reads on into the next member.
+    nib = pytest.importorskip("nibabel")
+    arr = np.arange(20 * 20 * 20, dtype=np.uint16).reshape(20, 20, 20)
+    plain = tmp_path / "v.nii"
+    nib.save(nib.Nifti1Image(arr.T, np.eye(4)), plain)
+    blob = plain.read_bytes()
+    p = tmp_path / "v.nii.gz"
+    for cut in (352, 5000):
+        p.write_bytes(gzip.compress(blob[:cut]) + gzip.compress(blob[cut:]))
+        np.testing.assert_array_equal(load_volume(p).data, arr)
+
+
+def test_vtk_binary_symmetric_tensors_after_the_samples_are_read_past(tmp_path):
+    p = save_volume(Volume(SMALL), tmp_path / "v.vtk")
+    p.write_bytes(p.read_bytes() + b"TENSORS6 t float\n" + bytes(SMALL.size * 24) + b"\n")
+    np.testing.assert_array_equal(load_volume(p).data, SMALL)
+
+
+def test_tiff_stack_with_a_page_after_it_without_the_description_is_read(tmp_path):
+    # tifffile drops to "generic" series (the stack, then the page), the first of the stated shape.
+    tifffile = pytest.importorskip("tifffile")
+    p = tmp_path / "s.tif"
+    with tifffile.TiffWriter(p) as w:
+        w.write(SMALL, photometric="minisblack")
+        w.write(SMALL[0, ::2, ::2], photometric="minisblack", metadata=None)
+    np.testing.assert_array_equal(load_volume(p).data, SMALL)

@@ -382,3 +382,20 @@ def test_the_public_names_are_listed_before_their_first_use():
             "sorted({n for n in dir(parc) if not n.startswith('_')} - set(parc.__all__)))")
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert p.returncode == 0 and p.stdout.strip() == "[] []", (p.stdout, p.stderr[-2000:])
+
+
+@pytest.mark.parametrize("call, words", [
+    (lambda: parc.render(_fog(), "parc", buffers="junk"), "PARC buffers must be"),
+    (lambda: parc.render(_scene(lights=[parc.PointLight((1, 2, 3))]), "parc", light_buffer=1), "light buffers"),
+    (lambda: parc.compare(_scene(), options={"parc": {"buffers": "junk"}}), "PARC buffers must be"),
+    (lambda: step_sweep(_fog(), "word"), "sweep steps"),
+])
+def test_an_arguments_own_refusal_comes_before_opengl_is_asked_for(call, words, monkeypatch):
+    # Without OpenGL (simulated), a bad argument is still named, not hidden behind OpenGL's absence.
+    import parc.gl
+
+    def no_context():
+        raise parc.OpenGLUnavailable("OpenGL is not available (simulated)")
+    monkeypatch.setattr(parc.gl, "get_context", no_context)
+    with pytest.raises(InputError, match=words):
+        call()

@@ -876,8 +876,8 @@ def test_a_failed_write_leaves_no_output_of_the_set(vol_file, tmp_path, capsys, 
 @pytest.mark.parametrize("argv, words", [
     (["make", "blobs", "--size", 8, "--seed", -1], "--seed must be 0 or more"),
     (["make", "sphere", "--size", 10**7], "needs about"),
-    (["make", "sphere", "--size", 10**400], "needs about"),
-    (["make", "floor", "--size", 10**400], "needs about"),
+    (["make", "sphere", "--size", 10**400], "needs about over 1e+300 GB of memory"),
+    (["make", "floor", "--size", 10**400], "needs about over 1e+300 GB of memory"),
 ])
 def test_make_refuses_what_it_cannot_make(argv, words, tmp_path, capsys):
     out = tmp_path / "m.nrrd"
@@ -887,7 +887,7 @@ def test_make_refuses_what_it_cannot_make(argv, words, tmp_path, capsys):
 
 
 @pytest.mark.parametrize("cmd", [["render", "--method", "parc", "-o", "o.png"], ["compare", "--repeats", 1]])
-def test_an_image_past_the_opengl_limit_is_refused_alone(cmd, vol_file, tmp_path, capsys):
+def test_an_image_past_the_opengl_limit_is_refused_alone(cmd, vol_file, tmp_path, capsys, gl_context):
     # No --iso: refused in the render, the limit would come after the level's note, and for
     # compare after brute's warm-up.
     argv = [cmd[0], vol_file, "--size", 100000, 1] + [tmp_path / a if a == "o.png" else a for a in cmd[1:]]

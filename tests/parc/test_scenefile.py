@@ -448,6 +448,12 @@ def test_errors_from_a_view_or_size_given_in_place_of_the_files_say_so(folder):
     with pytest.raises(InputError, match=r"camera.look_at \(given to load_scene\): eye and look_at are the same"):
         load_scene(eyed, view={"look_at": (40.0, 1.0, 2.0)})
     assert load_scene(path, size=iter((12, 10))).size == (12, 10)
+    # An endless iterator (itertools.count), or range(10**10), is refused after its third item, not drawn out.
+    def endless():
+        yield from (8, 9, 10)
+        raise AssertionError("drawn past its third item")
+    with pytest.raises(InputError, match=r"size \(given to load_scene\): image size must be two positive"):
+        load_scene(path, size=endless())
     # parc render names its own flags' origin.
     with pytest.raises(InputError, match=r"camera.fov \(given on the command line\): .*180"):
         load_scene(path, view={"fov": 190.0}, replaced_by="given on the command line")
