@@ -161,8 +161,8 @@ def _geometry(affine, zooms):
 def _check_gzip(name, path, need, samples):
     """Refuse a gzip stream that is corrupt before or after the samples. nibabel inflates only
     up to the samples' end and stops, so a damaged stream would give wrong samples silently:
-    gzip's check (CRC-32 and length) comes at the end of the stream, after them. Inflated a piece at a
-    time and discarded, to the end of the stream or a little past the header's samples."""
+    gzip's check (CRC-32 and length) comes at the end of the stream, after them. Inflated a
+    piece at a time and discarded, to the end of the stream or a little past the samples."""
     inflate = zlib.decompressobj(zlib.MAX_WBITS | 16)
     total = 0
     with open(name, "rb") as f:
