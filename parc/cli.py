@@ -331,7 +331,7 @@ LARGE_WRITE_PIXELS = 1 << 22
 def cmd_render(args):
     import parc
 
-    from .comparison import check_opengl, check_supercells
+    from .comparison import check_opengl, check_options
     from .renderer import DEFAULT_BUFFERS, check_request, kernel_samples
     from .workspace import check_frame_memory
 
@@ -358,8 +358,8 @@ def cmd_render(args):
     check_request(scene, kwargs.get("buffers", DEFAULT_BUFFERS), work_out is not None, ("--buffers", "--work"))
     check_frame_memory(*scene.size, layers=len(scene.volumes))
     if args.method == "parc":
-        # Its options, a supercell no volume takes and an image past OpenGL's limit: refused before any note.
-        check_supercells(scene, {args.method: kwargs})
+        # Its options (a supercell no volume takes), then OpenGL and its image limit: refused before any note.
+        check_options(scene, {args.method: kwargs})
         check_opengl(scene, [args.method])
     # What the render will refuse is refused by now, so a note (the level chosen, a transfer
     # function that shows nothing) is said before the wait, not after it.

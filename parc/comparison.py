@@ -92,7 +92,7 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
         _check_render_options(name, opts)
     _check_progress(progress, "a line of text")
     check_frame_memory(*scene.size, layers=len(scene.volumes), kept_images=len(names))
-    check_supercells(scene, options)
+    check_options(scene, options)
     check_opengl(scene, names)
     vol = scene.volumes[0].volume
     cell = float(min(vol.spacing))
@@ -234,7 +234,7 @@ def check_opengl(scene, names):
             check_viewport(*scene.size)
 
 
-def check_supercells(scene, options):
+def check_options(scene, options):
     """Refuse what `render` would refuse about each method's options (``buffers``, ``blocks``,
     ``light_buffer``), and a supercell size no volume of the scene can take, before any render
     is timed: brute's warm-up (or a sweep's reference) may take minutes."""
@@ -242,7 +242,6 @@ def check_supercells(scene, options):
     from .renderer import check_arguments
     for name, opts in options.items():
         check_arguments(scene, name.split(":")[0], **opts)
-    for opts in options.values():
         if opts.get("supercell") is not None:
             for vis in scene.volumes:
                 VolumeIndex.of(vis.volume).grid(opts["supercell"])
@@ -347,8 +346,9 @@ def step_sweep(scene, steps, *, repeats=3, warmup=1, progress=None, options=None
         raise InputError(f"options must be a dict of render() arguments, got {options!r}")
     options = dict(options)
     _check_render_options("parc", options)
-    # A supercell size the volume cannot take is refused before the reference is rendered, as `compare` does.
-    check_supercells(scene, {"parc": options})
+    # Options parc would refuse (a supercell size the volume cannot take) are refused before the
+    # reference is rendered, as `compare` does.
+    check_options(scene, {"parc": options})
     try:
         items = None if isinstance(steps, (str, bytes)) else list(steps)
         if any(text_or_flag(v) for v in items):

@@ -8,7 +8,6 @@ are refused in one line, not ignored.
 """
 from __future__ import annotations
 
-import math
 import warnings
 
 import numpy as np
@@ -145,7 +144,7 @@ def _volume_scene(args, say):
                                      "nor stops rays early")
         # The scene's own checks, named by the flag.
         if args.step is not None:
-            check_step(args.step, vol.spacing, "--step", across=math.dist(*vol.bounds))
+            check_step(args.step, vol, "--step")
         if args.threshold is not None:
             check_threshold(args.threshold, "--threshold")
         if (args.mode == "average" and getattr(args, "background", None) is None

@@ -145,8 +145,7 @@ class Translucent:
             self.tf = load_for_volume(self.tf, self.volume, self.mode)
         default = self.step is None or isinstance(self.step, _SpacingStep)
         step = reference_step(self.volume.spacing) if default else self.step
-        step = check_step(step, self.volume.spacing, "the default step" if default else "step",
-                          across=_diagonal(self.volume))
+        step = check_step(step, self.volume, "the default step" if default else "step")
         self.step = _SpacingStep(step) if default else step
         self.threshold = check_threshold(self.threshold)
         if self.mode != "composite":
@@ -361,15 +360,10 @@ class _SpacingStep(float):
 MAX_RAY_SAMPLES = 1e8
 
 
-def _diagonal(volume):
-    lo, hi = volume.bounds
-    return math.dist(lo, hi)
-
-
-def check_step(step, spacing, what="step", *, across=None):
+def check_step(step, volume, what="step"):
     """``step`` as a float, refused unless a positive, finite distance of at least 1e-4 of the
-    smallest ``spacing`` and, given the length ``across`` of the volume's box diagonal, of at most
-    `MAX_RAY_SAMPLES` steps over it; ``what`` names it in messages (``--step`` on the command line)."""
+    ``volume``'s smallest spacing and of at most `MAX_RAY_SAMPLES` steps across its box's
+    diagonal; ``what`` names it in messages (``--step`` on the command line)."""
     try:
         if text_or_flag(step):
             raise TypeError
@@ -378,10 +372,12 @@ def check_step(step, spacing, what="step", *, across=None):
         raise InputError(f"{what} must be a number, got {step!r}") from None
     if not (math.isfinite(value) and value > 0.0):
         raise InputError(f"{what} must be a positive, finite distance, got {value}")
+    spacing = volume.spacing
     if value < 1e-4 * min(spacing):
         raise InputError(f"{what} {value:g} is below 1e-4 of the smallest spacing ({min(spacing):g}); "
                          "that is too many samples per ray")
-    if across is not None and across / value > MAX_RAY_SAMPLES:
+    across = math.dist(*volume.bounds)
+    if across / value > MAX_RAY_SAMPLES:
         # The rule above bounds samples per cell: spacings (1e-6, 1, 1) and the default step put
         # 1e7 on a ray crossing the unit cells, and past 2^63 a lattice's count wraps.
         # The smallest step allowed, rounded up at its third digit so that it passes itself.

@@ -132,14 +132,16 @@ def to_native(arr: np.ndarray) -> np.ndarray:
 
 
 def read_samples(path: Path, offset: int, dims, dtype, big_endian: bool, *,
-                 exact: bool = True, kind: str = "raw", mmap: bool = False) -> np.ndarray:
+                 exact: bool = True, follows=(), kind: str = "raw", mmap: bool = False) -> np.ndarray:
     """Read ``nx*ny*nz`` samples from ``path`` at byte ``offset`` as ``[z, y, x]``.
 
-    With ``exact`` the data must end the file; otherwise trailing bytes
-    (a final newline, further sections) are ignored. A short file is an
-    InputError stating the expected and actual byte counts. With ``mmap``
-    the samples are a read-only memory map of the file (pages are read as
-    rays touch them), which needs the machine's byte order.
+    With ``exact`` the data must end the file; otherwise what follows them
+    must be white space (a final newline) or begin with a word of
+    ``follows`` (a format's further sections), `check_tail`; ``follows=None``
+    takes anything. A short file is an InputError stating the expected and
+    actual byte counts. With ``mmap`` the samples are a read-only memory
+    map of the file (pages are read as rays touch them), which needs the
+    machine's byte order.
     """
     nx, ny, nz = (int(n) for n in dims)
     dt = file_order_dtype(dtype, big_endian)
@@ -156,6 +158,8 @@ def read_samples(path: Path, offset: int, dims, dtype, big_endian: bool, *,
         raise InputError(
             f"{path}: {kind} data {state}: {nx}x{ny}x{nz} {np.dtype(dtype).name} needs "
             f"{expected} bytes{where}, the file has {has}")
+    if not exact and follows is not None:
+        check_tail(path, offset + expected, kind, follows)
     if mmap:
         if not (dt.isnative or dt.itemsize == 1):
             raise InputError(f"{path}: cannot memory-map {kind} data in the other byte order; "

@@ -8,8 +8,8 @@ import numpy as np
 
 from ..errors import InputError
 from ..volume import Volume
-from ._common import (check_tail, file_volume, data_file_block, decompress, parse_dims, parse_numbers, read_samples,
-                      reading, several_data_files, text_values, to_native)
+from ._common import (file_volume, data_file_block, decompress, parse_dims, parse_numbers, read_samples, reading,
+                      several_data_files, text_values, to_native)
 
 EXTENSIONS = (".mhd", ".mha")
 
@@ -234,10 +234,7 @@ def _samples(data_path, offset, header_size, dims, dtype, big, text, compressed,
         offset = max(data_path.stat().st_size - count * itemsize, 0)
     else:
         offset += max(header_size, 0)
-    data = read_samples(data_path, offset, dims, dtype, big, exact=exact, kind="MetaImage").ravel()
-    if not exact and header_size != -1:
-        check_tail(data_path, offset + count * itemsize, "MetaImage")
-    return data
+    return read_samples(data_path, offset, dims, dtype, big, exact=exact, kind="MetaImage").ravel()
 
 
 def _text_samples(blob, count, dtype, path):

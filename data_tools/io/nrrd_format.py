@@ -249,8 +249,9 @@ def _read_decoded(header, encoding, fh, path, data_file, lines, skip):
     # Inflate no further than the header's samples (and a little past, to say by how much they
     # overrun): a 1 MB stream of zeros inflated to 1 GB, held in memory, before being refused.
     wanted = skip + math.prod(int(n) for n in np.atleast_1d(header["sizes"])) * _sample_type(header).itemsize
-    raw = _decode(blob, encoding, path, min(wanted + _OVERRUN, sys.maxsize - 1))   # zlib's bound
-    if len(raw) > wanted + _OVERRUN - 1 and encoding != "hex":
+    limit = min(wanted + _OVERRUN, sys.maxsize - 1)     # zlib's bound on an output length
+    raw = _decode(blob, encoding, path, limit)
+    if len(raw) > limit and encoding != "hex":
         raise InputError(f"{path}: the {encoding} data inflate to more than the {wanted - skip} bytes the header "
                          f"states{' after the byte skip' if skip else ''}")
     if skip > len(raw):

@@ -8,8 +8,8 @@ import numpy as np
 
 from ..errors import InputError
 from ..volume import Volume
-from ._common import (check_tail, file_volume, float32_from_text, no_digit_separators, parse_dims, parse_numbers,
-                      read_samples, reading)
+from ._common import (file_volume, float32_from_text, no_digit_separators, parse_dims, parse_numbers, read_samples,
+                      reading)
 
 EXTENSIONS = (".vtk",)
 
@@ -390,10 +390,10 @@ def read_vtk(path, *, spacing=None, origin=None) -> Volume:
                 others = [rest[n + 1].decode("ascii", "replace") for n in range(len(rest) - 1)
                           if rest[n].upper() in (b"SCALARS", b"COLOR_SCALARS")]
         if encoding == "BINARY":
-            # Legacy binary VTK is big-endian by definition; trailing sections are ignored.
-            data = read_samples(path, offset, dims, dtype, True, exact=False, kind="VTK")
-            if field is None:       # a field's next array begins with its own name
-                check_tail(path, offset + data.nbytes, "VTK", _SECTIONS)
+            # Legacy binary VTK is big-endian by definition. Further sections may follow the
+            # samples; a field's next array begins with its own name, whatever it is.
+            data = read_samples(path, offset, dims, dtype, True, exact=False,
+                                follows=_SECTIONS if field is None else None, kind="VTK")
     meta = {"format": "vtk", "scalars": words[1]}
     if others:
         meta["note"] = (f"the points carry {len(others) + 1} scalar arrays ({', '.join([words[1]] + others)}); "
