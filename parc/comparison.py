@@ -228,10 +228,13 @@ def check_opengl(scene, names):
     before brute's warm-up or a note, not after. Called once every argument is checked, so that
     their own refusals neither wait on making the context nor hide behind its absence."""
     if any(str(name).split(":")[0] == "parc" for name in names):
-        from .gl import check_viewport
+        from .gl import check_viewport, release_context
         from .renderer import _ONE_AT_A_TIME
         with _ONE_AT_A_TIME:
-            check_viewport(*scene.size)
+            try:
+                check_viewport(*scene.size)
+            finally:
+                release_context()
 
 
 def check_options(scene, options):

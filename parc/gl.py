@@ -22,8 +22,11 @@ from data_tools import InputError
 SHADER_DIR = Path(__file__).with_name("shaders")
 
 _CONTEXT = None
-#: The thread the context was made on, the only one it is current in.
+#: The thread the context was made on (or last moved to), the only one it is made current in.
 _OWNER = None
+#: Whether the context is current in `_OWNER` now: each render lets it go as it ends
+#: (`release_context`), and the next call makes it current again.
+_CURRENT = False
 _PROGRAMS = {}
 
 class OpenGLUnavailable(InputError):
@@ -43,7 +46,8 @@ def get_context():
 
     An OpenGL context is current in one thread: the one that first called,
     the only one that may call again while it runs. Once it has ended, the
-    context is made current in the next thread that calls.
+    context is made current in the next thread that calls. Renders let it go
+    as they end (`release_context`), and this makes it current again.
 
     Returns
     -------
@@ -58,7 +62,7 @@ def get_context():
     InputError
         A call from another thread while the first still runs.
     """
-    global _CONTEXT, _OWNER
+    global _CONTEXT, _OWNER, _CURRENT
     if _CONTEXT is not None:
         # The thread itself, not its id: a new thread may get the id of one that has ended,
         # and the context is not current in it.
@@ -69,6 +73,9 @@ def get_context():
                                  f"{here.name}; render with method='parc' from that thread "
                                  "(method='brute' renders on any)")
             _adopt(here)
+        elif not _CURRENT:
+            _CONTEXT.__enter__()
+            _CURRENT = True
         return _CONTEXT
     try:
         import moderngl
@@ -92,20 +99,35 @@ def get_context():
     # Buffers uploaded for a proxy are released when the proxy goes away.
     ctx.gc_mode = "auto"
     spread_rasterizer_threads(wait=rasterizer_start_wait(ctx.info.get("GL_RENDERER", ""), os.environ))
-    _CONTEXT, _OWNER = ctx, threading.current_thread()
+    _CONTEXT, _OWNER, _CURRENT = ctx, threading.current_thread(), True
     return ctx
 
 
+def release_context():
+    """Make the context current in no thread, if it is current in this one (`render` calls this as
+    it ends). A thread that ends with the context current keeps it: Mesa's EGL then refuses
+    to make it current in another, without a word, and that thread's OpenGL calls do
+    nothing (a pass read back the last frame's buffers, and drew that frame's segments)."""
+    global _CURRENT
+    if _CONTEXT is not None and _CURRENT and threading.current_thread() is _OWNER:
+        _CONTEXT.__exit__(None, None, None)
+        _CURRENT = False
+
+
 def _adopt(thread):
-    """Make the context current in ``thread``, its first thread having ended (a worker's, say)."""
-    global _OWNER
+    """Make the context current in ``thread``, its first thread having ended (a worker's, say).
+
+    The driver may refuse without raising (the context still current in the ended thread):
+    a buffer made there tells, and the move is refused rather than drawn with no context."""
+    global _OWNER, _CURRENT
     try:
         _CONTEXT.__enter__()
+        _CONTEXT.buffer(reserve=4).release()
     except Exception as exc:  # moderngl raises plain Exceptions from the driver
         reason = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
         raise InputError(f"OpenGL work ran on thread {_OWNER.name}, which has ended, and the driver cannot "
                          f"move its context to {thread.name} ({reason}); method='brute' renders on any") from None
-    _OWNER = thread
+    _OWNER, _CURRENT = thread, True
 
 
 #: Mesa's CPU rasterizer names its threads ``llvmpipe-0``, ``llvmpipe-1``, ...

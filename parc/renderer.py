@@ -25,6 +25,7 @@ from raycast.composite import (MODE_AVERAGE, MODE_COMPOSITE, MODE_MIP, N_PARAMS,
                                P_RATIO, P_SHADE, P_STEP, P_THRESHOLD, cast_accumulate_image, over_background)
 from raycast.iso import cast_iso_image
 
+from .gl import release_context
 from .scene import Isosurface, Scene, Translucent, describe_volume
 from .skip import octant_skip_tables, skip_table
 from .workspace import check_frame_memory, work_array
@@ -181,6 +182,8 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
             return _render(scene, method, supercell, buffers, progress, light_buffer, blocks, work)
         finally:
             _RENDERING[0] = False
+            # Let go, so that the context can move to another thread once this one ends.
+            release_context()
 
 
 def check_request(scene, buffers, work, names=("buffers", "work")):

@@ -223,6 +223,39 @@ def test_the_opengl_context_moves_to_a_new_thread_once_its_own_has_ended(gl):
     assert p.returncode == 0 and p.stdout.strip() == "True", p.stderr[-2000:]
 
 
+_AFTER_A_WORKER = """
+import threading, numpy as np
+from parc import Camera, Isosurface, Scene, Translucent, Volume, render
+z, y, x = np.mgrid[0:12, 0:14, 0:16]
+vol = Volume((np.sqrt((x - 4.0) ** 2 + (y - 9.0) ** 2 + (z - 5.0) ** 2) + 0.3 * x).astype(np.float32))
+scenes = [Scene(camera=Camera.framing(*vol.bounds, azimuth=a, elevation=e), size=(24, 20), volumes=[v])
+          for a, e, v in ((30, 20, Isosurface(vol, 5.0)), (200, -40, Isosurface(vol, 5.0)),
+                          (120, 60, Translucent(vol, "viridis")), (300, 10, Isosurface(vol, 6.0)))]
+got = []
+def run(scene):
+    try:
+        got.append(bool(np.array_equal(render(scene, "parc").image, render(scene, "brute").image)))
+    except Exception as exc:
+        got.append(type(exc).__name__)
+for scene in scenes[:2]:                   # each from a new thread, the one before it ended
+    worker = threading.Thread(target=run, args=(scene,))
+    worker.start(); worker.join()
+run(scenes[2]); run(scenes[3])             # proxies never uploaded
+print(got)
+"""
+
+
+def test_parc_draws_in_the_thread_after_a_worker_that_rendered_has_ended(gl):
+    # The worker's thread ended with the context current, which Mesa's EGL then would not
+    # make current in the next thread, without a word: its pass drew nothing and read back
+    # the last frame's segments (another view's image), and a new proxy's upload raised
+    # moderngl's "cannot create buffer". No sphere: its segments are alike from every side.
+    import subprocess
+    import sys
+    p = subprocess.run([sys.executable, "-c", _AFTER_A_WORKER], capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0 and p.stdout.strip() == "[True, True, True, True]", (p.stdout, p.stderr[-2000:])
+
+
 # `test_a_frame_larger_than_memory_is_refused_before_casting` sizes its fake memory by
 # FRAME_BYTES_PER_PIXEL itself, so any value of the constant (0 included: nothing ever refused)
 # passes it. Truth here: the need measured and written down in parc/workspace.py -- peak resident
