@@ -553,7 +553,8 @@ def cached_proxy(vis, supercell, size_px, timings, *, merge=True):
         if key not in chosen:
             chosen[key] = choose_supercell(index, classify=classify, pixels=w * h)
         supercell, table = chosen[key]
-        extra["supercell_model"] = table
+        # A copy: the caller's stats are theirs to change, the kept table is not.
+        extra["supercell_model"] = [dict(row) for row in table]
     size = supercell_size(supercell)
     proxies = index.kept("proxies")
     key = (size, what, merge)

@@ -269,3 +269,17 @@ def test_the_renderer_models_its_own_image_size():
             assert r["rays"] == pytest.approx(costmodel.RAY_COVER * w * h * r["share"], rel=1e-12)
         best = min(table, key=lambda r: r["total_s"])["size"]
         assert extra["supercell"] == [best] * 3
+
+
+def test_a_caller_changing_the_reported_model_changes_no_later_report():
+    """The model's table is kept per classification; what a render reports is the caller's."""
+    from data_tools.synthetic import blobs
+    from parc.renderer import cached_proxy
+    from parc.scene import Isosurface
+    vol = blobs(20, seed=2, count=3)
+    _, first = cached_proxy(Isosurface(vol, 100.0), None, (64, 48), {})
+    expected = [dict(r) for r in first["supercell_model"]]
+    first["supercell_model"][0]["total_s"] = -1.0
+    first["supercell_model"].clear()
+    _, again = cached_proxy(Isosurface(vol, 100.0), None, (64, 48), {})
+    assert again["supercell_model"] == expected
