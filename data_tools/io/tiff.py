@@ -9,14 +9,17 @@ from __future__ import annotations
 
 import contextlib
 import json
+import lzma
 import math
 import re
 import struct
+import zlib
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputError
+from ..memory import check_memory
 from ..volume import Volume
 from ._common import file_volume, one_line, optional_library, silenced, to_native
 
@@ -57,7 +60,7 @@ def read_tiff(path, *, spacing=None, origin=None) -> Volume:
     path = Path(path)
     tifffile = optional_library("tifffile", path, "TIFF", "tiff")
     with _reading_tiff(path), tifffile.TiffFile(str(path)) as tif:
-        data, axes, spacing, note, meta = _stack(tif, path)
+        data, axes, spacing, note, meta = _stack(tifffile, tif, path)
     meta.update(format="tiff", axes=axes)
     if note:
         meta["spacing_note"] = note         # `file_volume` drops it when the caller gives the spacing
@@ -132,18 +135,20 @@ def _first_shape(tif):
         return None
 
 
-def _stack(tif, path):
+def _stack(tifffile, tif, path):
     """``(data [z, y, x], axes, spacing, note, meta)`` of an open TIFF file."""
     page = _grey_pages(tif, path)
     series = tif.series[0]
     _check_shaped(tif, series, path)
     axes = series.axes
+    _check_decoding(tifffile, tif, series.pages, series.shape, series.dtype, path)
     data = series.asarray()
     if data.ndim == 2 and len(tif.pages) > 1:
         pages = list(tif.pages)
         if any(p.shape != page.shape or p.dtype != page.dtype for p in pages):
             raise InputError(f"{path}: its {len(pages)} TIFF pages differ in size or sample type; "
                              "a stack needs equal pages")
+        _check_decoding(tifffile, tif, pages, (len(pages), *page.shape), page.dtype, path)
         data = np.stack([p.asarray() for p in pages])
         axes = "Z" + axes
     keep = [i for i, n in enumerate(data.shape) if n != 1]
@@ -159,6 +164,115 @@ def _stack(tif, path):
         raise InputError(f"{path}: the stack's slices are channels ({shape}), not z slices")
     spacing, note, meta = _spacing(tif, path)
     return data, axes, spacing, note, meta
+
+
+#: Compressions that tifffile decodes, without imagecodecs, with Python's own decompressors or
+#: its own PackBits loop: each strip or tile inflated whole, however far past its size, and
+#: then cut to it.
+_STREAMS = {8: "deflate", 32946: "deflate", 50013: "deflate", 34925: "LZMA", 32773: "PackBits",
+            50000: "Zstandard", 34926: "Zstandard"}
+
+
+def _check_decoding(tifffile, tif, pages, shape, dtype, path):
+    """Refuse, before tifffile decodes ``pages`` (the samples of a stack of ``shape`` and ``dtype``),
+    samples more than the memory available, and a compressed strip or tile that decodes to more
+    than its size.
+
+    A compressed (or empty) strip holds far fewer bytes than it decodes to: a file of a few
+    hundred bytes stated 3 GB of samples. And decoded whole, a 1 MB strip of deflated zeros
+    took 1 GB and 13 s for a 16x16 page, once for every page that names it."""
+    pages = [p for p in pages if p is not None]
+    largest = 0
+    seen = set()
+    for number, page in enumerate(pages, 1):
+        key = getattr(page, "keyframe", None) or page
+        kind = _STREAMS.get(int(key.compression))
+        if kind not in _DECOMPRESSORS or not _decoded_whole(tifffile, key.compression):
+            continue            # Zstandard before Python 3.14: tifffile cannot decode it either
+        most = _segment_bytes(key)
+        largest = max(largest, most)
+        for offset, size in zip(page.dataoffsets, page.databytecounts):
+            if not offset or not size or (offset, size, most) in seen:
+                continue
+            seen.add((offset, size, most))
+            tif.filehandle.seek(offset)
+            data = tif.filehandle.read(max(min(size, tif.filehandle.size - offset), 0))
+            if _decoded_length(kind, data, most) > most:
+                raise InputError(f"{path}: page {number}: one of its {kind} strips or tiles decodes to more than "
+                                 f"the {most} bytes the page states for it (corrupt, or made to exhaust memory)")
+    need = math.prod(int(n) for n in shape) * np.dtype(dtype).itemsize + largest
+    check_memory(need, f"{path}: a {'x'.join(str(int(n)) for n in shape[::-1])} {np.dtype(dtype).name} stack")
+
+
+def _decoded_whole(tifffile, compression):
+    """Whether tifffile decodes ``compression`` with a stand-in of its own, which decodes a
+    strip or tile whole; imagecodecs (when installed) decodes into the size tifffile gives it."""
+    try:
+        codec = tifffile.TIFF.DECOMPRESSORS[compression]
+    except KeyError:
+        return False            # not decoded at all: tifffile says why
+    except Exception:  # noqa: BLE001 - a tifffile without that table
+        return True
+    return not str(getattr(codec, "__module__", "")).startswith("imagecodecs")
+
+
+def _segment_bytes(page):
+    """The bytes a whole strip or tile of ``page`` decodes to (the last strip's rows all)."""
+    bits = page.bitspersample
+    bits = max(bits) if isinstance(bits, tuple) else int(bits)
+    samples = page.samplesperpixel if page.planarconfig == 1 else 1
+    if page.is_tiled:
+        pixels = page.tiledepth * page.tilelength * page.tilewidth
+    else:
+        pixels = min(max(page.rowsperstrip, 1), page.imagelength) * page.imagewidth
+    return pixels * samples * -(-bits // 8)
+
+
+def _decoded_length(kind, data, most):
+    """The bytes ``data`` decode to, counted to ``most + 1`` at most; data that do not decode
+    count as far as they do (tifffile then says what is wrong with them)."""
+    if kind == "PackBits":
+        return _packbits_length(data, most)
+    total = 0
+    while data and total <= most:
+        stream = _DECOMPRESSORS[kind]()
+        try:
+            total += len(stream.decompress(data, max_length=most + 1 - total))
+        except _CODEC_ERRORS:
+            break
+        # Python's zlib.decompress reads one stream; lzma's and zstd's read on into the next.
+        if not stream.eof or kind == "deflate":
+            break
+        data = stream.unused_data
+    return total
+
+
+def _packbits_length(data, most):
+    """The bytes PackBits ``data`` decode to, counted as tifffile's own decoder decodes them
+    (a run cut short by the end gives what is left of it), to ``most + 1`` at most."""
+    total, at, end = 0, 0, len(data)
+    while at < end and total <= most:
+        head = data[at]
+        at += 1
+        if head < 128:
+            total += min(head + 1, end - at)
+            at += head + 1
+        elif head > 128:
+            total += 257 - head if at < end else 0
+            at += 1
+    return total
+
+
+#: The decompressors of `_STREAMS` here (PackBits is counted by `_packbits_length`).
+_DECOMPRESSORS = {"deflate": zlib.decompressobj, "LZMA": lzma.LZMADecompressor, "PackBits": None}
+_CODEC_ERRORS = (zlib.error, lzma.LZMAError, EOFError, ValueError)
+try:
+    from compression import zstd as _zstd          # Python 3.14 on: tifffile's stand-in for Zstandard
+except ImportError:
+    pass
+else:
+    _DECOMPRESSORS["Zstandard"] = _zstd.ZstdDecompressor
+    _CODEC_ERRORS += (_zstd.ZstdError,)
 
 
 #: OME's length units as powers of ten of a metre (its default is µm; the micro sign comes in
@@ -269,7 +383,11 @@ def read_tiff_folder(path, *, spacing=None, origin=None) -> Volume:
     for n, f in enumerate(files):
         with _reading_tiff(f), tifffile.TiffFile(str(f)) as tif:
             _grey_pages(tif, f)
-            image = tif.series[0].asarray()
+            series = tif.series[0]
+            # The first slice's size stands for all of them (others are refused below).
+            shape = (len(files), *series.shape) if n == 0 else series.shape
+            _check_decoding(tifffile, tif, series.pages, shape, series.dtype, f)
+            image = series.asarray()
             if n == 0:
                 spacing, _, _ = _spacing(tif, f)
         image = image.reshape([d for d in image.shape if d != 1] or [1])

@@ -6,12 +6,13 @@ import gzip
 import os
 import stat
 import tracemalloc
+import zlib
 
 import nrrd
 import numpy as np
 import pytest
 
-from data_tools import InputError, Volume
+from data_tools import InputError, Volume, memory
 from data_tools.io import READ_EXTENSIONS, load_volume, save_volume
 from data_tools.volume import is_number, three_numbers
 
@@ -923,6 +924,38 @@ def test_nrrd_compressed_data_are_not_inflated_past_the_header_sizes(tmp_path, e
     p.write_bytes(f"NRRD0004\ntype: uint8\ndimension: 3\nsizes: 5 4 3\nencoding: {encoding}\n\n".encode()
                   + pack(bytes(64 << 20)))
     _fails_within(p, "more than the 60 bytes the header states", 8 << 20)
+
+
+def _compressed_zeros(path, shape):
+    """A file of zeros of ``shape`` (x, y, z) in the compressed form its suffix names."""
+    nx, ny, nz = shape
+    if path.suffix == ".mha":
+        path.write_bytes(f"NDims = 3\nDimSize = {nx} {ny} {nz}\nElementType = MET_UCHAR\nCompressedData = True\n"
+                         "ElementDataFile = LOCAL\n".encode() + zlib.compress(bytes(nx * ny * nz)))
+    elif path.suffix == ".gz":
+        nib = pytest.importorskip("nibabel")
+        nib.save(nib.Nifti1Image(np.zeros(shape, np.uint8), np.eye(4)), str(path))
+    else:
+        encoding, pack = (("bzip2", bz2.compress) if path.stem.endswith("bz2") else ("gzip", gzip.compress))
+        path.write_bytes(f"NRRD0004\ntype: uint8\ndimension: 3\nsizes: {nx} {ny} {nz}\nencoding: {encoding}\n\n"
+                         .encode() + pack(bytes(nx * ny * nz)))
+    return path
+
+
+@pytest.mark.parametrize("name", ["v.nrrd", "v_bz2.nrrd", "v.mha", "v.nii.gz"])
+def test_compressed_volume_larger_than_the_memory_available_is_refused_before_it_is_held(tmp_path, monkeypatch, name):
+    # A few kB of stream state gigabytes: inflated block by block, the memory would all be
+    # taken before any refusal (the system's out-of-memory killer ends the process). A .nii.gz is
+    # inflated a piece at a time first, to tell a truncated stream, and then refused.
+    p = _compressed_zeros(tmp_path / name, (200, 200, 200))
+    monkeypatch.setattr(memory, "available_memory", lambda: 1 << 20)
+    words = "200x200x200 uint8 volume its header states needs about 8 MB of memory; 1 MB is available"
+    if name.endswith(".gz"):
+        fails(p, words)
+    else:
+        _fails_within(p, words, 4 << 20)
+    monkeypatch.setattr(memory, "available_memory", lambda: 8 << 20)
+    assert load_volume(p).dims == (200, 200, 200)
 
 
 def test_slc_bytes_after_the_last_slice_are_refused(tmp_path):

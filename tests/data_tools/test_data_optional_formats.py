@@ -5,14 +5,18 @@ missing library, get one InputError line naming the file.
 """
 from __future__ import annotations
 
+import lzma
+import struct
 import sys
+import tracemalloc
+import zlib
 
 import nibabel as nib
 import numpy as np
 import pytest
 import tifffile
 
-from data_tools import InputError, Volume, load_volume
+from data_tools import InputError, Volume, load_volume, memory
 from data_tools.io import save_volume
 from data_tools.io._common import REORIENTED_NOTE
 
@@ -427,3 +431,107 @@ def test_ome_tiff_sizes_in_units_that_do_not_convert_take_the_spacing_given(tmp_
     assert vol.spacing == (1.0, 1.0, 1.0) and "cannot be converted" in vol.meta["note"]
     given = load_volume(p, spacing=(0.3, 0.3, 1.2))
     assert given.spacing == (0.3, 0.3, 1.2) and "note" not in given.meta and np.array_equal(given.data, a)
+
+
+def _put(raw, tag, value, index=0):
+    """``value`` in place of item ``index`` of a TIFF tag's value, at its place in the file bytes ``raw``."""
+    size = tag.valuebytecount // tag.count
+    struct.pack_into("<" + {2: "H", 4: "I"}[size], raw, tag.valueoffset + index * size, value)
+
+
+def _tiff_with_one_strip_for_every_page(path, strip, compression):
+    """A stack of three 16x16 uint8 pages whose strip is ``strip``, one block of bytes that
+    every page names, in ``compression`` (a TIFF code)."""
+    tifffile.imwrite(path, np.zeros((3, 16, 16), np.uint8), photometric="minisblack")
+    raw = bytearray(path.read_bytes())
+    with tifffile.TiffFile(path) as tif:
+        tags = [p.tags for p in tif.pages]
+    for t in tags:
+        _put(raw, t["Compression"], compression)
+        _put(raw, t["StripOffsets"], len(raw))
+        _put(raw, t["StripByteCounts"], len(strip))
+    path.write_bytes(bytes(raw) + strip)
+    return path
+
+
+@pytest.mark.parametrize("compression, pack", [
+    (8, lambda b: zlib.compress(b, 9)),                     # deflate: 16 kB
+    (34925, lambda b: lzma.compress(b, preset=0)),          # LZMA: 3 kB
+    (32773, lambda b: b"\x81\x00" * (len(b) // 128)),       # PackBits: 256 kB
+], ids=["deflate", "LZMA", "PackBits"])
+def test_tiff_strip_that_decodes_past_its_size_is_refused_before_it_is_decoded(tmp_path, compression, pack):
+    # tifffile decodes a strip whole and keeps the 256 bytes of the page: 1 GB and 13 s a page
+    # for 1 MB of deflated zeros; PackBits in a list of Python integers, 8 bytes a byte.
+    p = _tiff_with_one_strip_for_every_page(tmp_path / "bomb.tif", pack(bytes(16 << 20)), compression)
+    tracemalloc.start()
+    try:
+        fails(p, "strips or tiles decodes to more than the 256 bytes")
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 4 << 20, peak
+
+
+@pytest.mark.parametrize("compression, strip", [
+    (8, zlib.compress(bytes(256))),
+    (34925, lzma.compress(bytes(256))),
+    (32773, b"\x81\x00\x81\x00"),
+], ids=["deflate", "LZMA", "PackBits"])
+def test_tiff_strip_of_its_size_named_by_every_page_is_read(tmp_path, compression, strip):
+    p = _tiff_with_one_strip_for_every_page(tmp_path / "shared.tif", strip, compression)
+    assert np.array_equal(load_volume(p).data, np.zeros((3, 16, 16), np.uint8))
+
+
+@pytest.mark.parametrize("compression, predictor", [("zlib", False), ("zlib", True), ("lzma", True)])
+def test_compressed_tiff_in_several_strips_reads_as_written(tmp_path, compression, predictor):
+    a = _data("uint16")
+    p = tmp_path / "c.tif"
+    # 5 rows in strips of 2: the last strip holds 1 row.
+    tifffile.imwrite(p, a, photometric="minisblack", compression=compression, predictor=predictor, rowsperstrip=2)
+    with tifffile.TiffFile(p) as tif:
+        assert len(tif.pages[0].dataoffsets) == 3
+    assert np.array_equal(load_volume(p).data, a)
+
+
+def test_packbits_tiff_reads_as_written(tmp_path):
+    from PIL import Image
+    a = _data("uint8")
+    p = tmp_path / "packbits.tif"
+    pages = [Image.fromarray(page) for page in a]
+    pages[0].save(p, compression="packbits", save_all=True, append_images=pages[1:])
+    with tifffile.TiffFile(p) as tif:
+        assert tif.pages[0].compression == 32773
+    assert np.array_equal(load_volume(p).data, a)
+
+
+def test_tiff_last_strip_holding_every_row_of_a_strip_is_read(tmp_path):
+    # Some writers fill the last strip to its full rows; tifffile keeps the rows the image has.
+    a = _data("uint8")[:, :4]
+    p = tmp_path / "full.tif"
+    tifffile.imwrite(p, a, photometric="minisblack", compression="zlib", rowsperstrip=3)
+    raw = bytearray(p.read_bytes())
+    with tifffile.TiffFile(p) as tif:
+        tags = [pg.tags for pg in tif.pages]
+    for k, t in enumerate(tags):
+        rows = np.concatenate([a[k, 3:], np.full((2, a.shape[2]), 99, np.uint8)])
+        strip = zlib.compress(rows.tobytes())
+        _put(raw, t["StripOffsets"], len(raw), 1)
+        _put(raw, t["StripByteCounts"], len(strip), 1)
+        raw += strip
+    p.write_bytes(bytes(raw))
+    assert np.array_equal(load_volume(p).data, a)
+
+
+def test_tiff_stating_more_samples_than_memory_holds_is_refused_before_reading(tmp_path, monkeypatch):
+    # Empty compressed strips, which tifffile fills with zeros: a file of a few hundred bytes stated
+    # 3 GB of samples (and a folder of such slices, as many times over).
+    p = _tiff_with_one_strip_for_every_page(tmp_path / "sparse.tif", b"", 8)
+    monkeypatch.setattr(memory, "available_memory", lambda: 700)
+    fails(p, "a 16x16x3 uint8 stack needs about")
+    (tmp_path / "slices").mkdir()
+    for k in range(3):
+        tifffile.imwrite(tmp_path / "slices" / f"z{k}.tif", np.zeros((16, 16), np.uint8), compression="zlib")
+    fails(tmp_path / "slices", "a 16x16x3 uint8 stack needs about")
+    monkeypatch.setattr(memory, "available_memory", lambda: 2000)
+    assert load_volume(tmp_path / "slices").dims == (16, 16, 3)
+    assert load_volume(p).dims == (16, 16, 3)
