@@ -127,6 +127,22 @@ def _check_shaped(tif, series, path):
                          f"{len(tif.pages)} pages hold (corrupt or edited)")
 
 
+def _check_gapless(tif, series, path):
+    """Refuse a stack whose pages lie among full-size pages of another size or type.
+
+    tifffile makes its first series of the pages like the first, wherever they lie, and leaves
+    the others out: pages of two sizes taking turns read as half the slices. Pages after the
+    stack (a page another writer added) and reduced-size pages (thumbnails) are left out."""
+    indices = [p.index for p in series.pages if p is not None]
+    if not indices or len(indices) == indices[-1] - indices[0] + 1:
+        return
+    between = sorted(set(range(indices[0], indices[-1] + 1)) - set(indices))
+    other = next((i for i in between if not tif.pages[i].is_reduced), None)
+    if other is not None:
+        raise InputError(f"{path}: its TIFF pages differ in size or sample type (page {other + 1} of "
+                         f"{len(tif.pages)} is not like page {indices[0] + 1}); a stack needs equal pages")
+
+
 def _first_shape(tif):
     """The shape the first page's tifffile description states, or None."""
     try:
@@ -140,6 +156,7 @@ def _stack(tifffile, tif, path):
     page = _grey_pages(tif, path)
     series = tif.series[0]
     _check_shaped(tif, series, path)
+    _check_gapless(tif, series, path)
     axes = series.axes
     _check_decoding(tifffile, tif, series.pages, series.shape, series.dtype, path)
     data = series.asarray()

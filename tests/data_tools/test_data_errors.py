@@ -1073,3 +1073,18 @@ def test_tiff_stack_with_a_page_after_it_without_the_description_is_read(tmp_pat
         w.write(SMALL, photometric="minisblack")
         w.write(SMALL[0, ::2, ::2], photometric="minisblack", metadata=None)
     np.testing.assert_array_equal(load_volume(p).data, SMALL)
+
+
+def test_tiff_pages_of_two_sizes_taking_turns_are_refused(tmp_path):
+    # tifffile's first series holds the pages like the first, wherever they lie: half the slices.
+    tifffile = pytest.importorskip("tifffile")
+    p = tmp_path / "s.tif"
+    with tifffile.TiffWriter(p) as w:
+        for k in range(6):
+            w.write(np.full((4, 5) if k % 2 == 0 else (2, 3), k, np.uint8), photometric="minisblack", metadata=None)
+    fails(p, "page 2 of 6 is not like page 1")
+    with tifffile.TiffWriter(p) as w:              # reduced-size pages (thumbnails) between are not slices
+        for k in range(6):
+            w.write(np.full((4, 5) if k % 2 == 0 else (2, 3), k, np.uint8), photometric="minisblack", metadata=None,
+                    subfiletype=k % 2)
+    np.testing.assert_array_equal(load_volume(p).data[:, 0, 0], [0, 2, 4])
