@@ -241,3 +241,23 @@ def test_rays_of_some_rows_are_those_rows_of_the_whole_image():
         ob, db = cam.rays(7, 9, rows=(3, 7))
         np.testing.assert_array_equal(ob, o[3:7])
         np.testing.assert_array_equal(db, d[3:7])
+
+
+@pytest.mark.parametrize("parallel", [False, True])
+def test_projection_maps_the_depth_range_to_minus_one_to_one(parallel):
+    # OpenGL's convention, which x and y alone do not show: a point ``near`` ahead of the eye goes to
+    # z = -1, one ``far`` ahead to +1, in every pixel, with w > 0 in front of the eye.
+    view = {"parallel_scale": 2.5} if parallel else {"fov": 35.0}
+    cam = Camera(eye=(2.0, -6.0, 3.0), look_at=(0.5, 0.5, 0.5), up=(0.0, 0.0, 1.0), **view)
+    w, h, near, far = 8, 6, 0.5, 40.0
+    mvp = cam.projection_matrix(w, h, near, far) @ cam.view_matrix()
+    f = cam.basis()[0]
+    o, d = cam.rays(w, h)
+    for y, x in ((0, 0), (2, 5), (5, 7)):
+        for ahead, z in ((near, -1.0), (far, 1.0), (0.5 * (near + far), None)):
+            clip = mvp @ np.append(o[y, x] + ahead / np.dot(d[y, x], f) * d[y, x], 1.0)
+            assert clip[3] > 0.0
+            if z is not None:
+                assert clip[2] / clip[3] == pytest.approx(z, abs=1e-9)
+            else:
+                assert -1.0 < clip[2] / clip[3] < 1.0
