@@ -693,17 +693,147 @@ def test_major_axis_from_inside_the_box_is_the_view_directions():
     assert major_axis(Camera(eye=(5, 5, -30), look_at=(5, 40, -30), up=(0, 0, 1)), box) == 2
 
 
-def test_the_eyes_own_plane_past_the_sixteenth_is_set_on_its_own_bit(gl):
-    # The eye inside a one-plane slab (plane 20 of 40): its plane's bit is set at every pixel,
-    # and planes with no PC supercell are set nowhere (bit q & 31 of word q >> 5).
-    vol = Volume(np.zeros((4, 4, 41), np.float32))         # 40 cells along x
+@pytest.mark.parametrize("cells, plane", [(40, 20), (50, 40)])
+def test_the_eyes_own_plane_past_the_sixteenth_is_set_on_its_own_bit(gl, cells, plane):
+    # The eye inside a one-plane slab (plane 20 of 40, or 40 of 50, in the second word): its
+    # plane's bit is set at every pixel, and no other (bit q & 31 of word q >> 5).
+    vol = Volume(np.zeros((4, 4, cells + 1), np.float32))          # `cells` cells along x
     grid = VolumeIndex.of(vol).grid(1)
     pc = np.zeros(grid.shape, bool)
-    pc[:, :, 20] = True
+    pc[:, :, plane] = True
     proxy = build_plane_proxy(grid, pc, grid.world_edges(vol), 0)
-    cam = Camera(eye=(20.5, 1.5, 1.5), look_at=(40.0, 1.5, 1.5), up=(0, 0, 1), fov=40)
-    bits, info = raster_bits(cam, 16, 12, proxy, first=0, count=40, halo=False)
-    assert info["eye_inside"] and bits.shape == (12, 16, 2)
-    word = bits[..., 0]
-    assert ((word >> np.uint32(20)) & np.uint32(1)).all()
-    assert not ((word >> np.uint32(4)) & np.uint32(1)).any() and not bits[..., 1].any()
+    cam = Camera(eye=(plane + 0.5, 1.5, 1.5), look_at=(cells, 1.5, 1.5), up=(0, 0, 1), fov=40)
+    bits, info = raster_bits(cam, 16, 12, proxy, first=0, count=cells, halo=False)
+    assert info["eye_inside"] and info["eye_planes"] == [plane] and bits.shape == (12, 16, 2)
+    want = np.zeros_like(bits)
+    want[..., plane >> 5] = np.uint32(1 << (plane & 31))
+    assert np.array_equal(bits, want)
+
+
+def test_a_view_past_float32s_reach_sets_every_plane_of_every_word(gl):
+    # No pass so far out: every pixel gets all 40 planes' bits, bit 31 of word 0 among them. (A
+    # lost bit between two set planes would not show in the image: the caster tests the planes
+    # at both ends of a cell's span, so the truth here is the contract itself.)
+    t = 2.0 ** 93
+    vol = Volume(np.zeros((6, 6, 41), np.float32), spacing=(t, t, t))
+    far = 0.9 * 2.0 ** 32 * float(np.linalg.norm(np.subtract(*vol.bounds)))
+    cam = Camera(eye=(-far, 2.5 * t, 2.5 * t), look_at=(20.0 * t, 2.5 * t, 2.5 * t), up=(0, 0, 1),
+                 parallel_scale=4.0 * t)
+    grid = VolumeIndex.of(vol).grid(1)
+    pb = plane_buffers(cam, 6, 5, vol, np.ones(grid.shape, bool), grid)
+    assert pb.info["every_plane"] and (pb.axis, pb.first, pb.count) == (0, 0, 40)
+    assert (pb.bits[..., 0] == np.uint32(0xFFFFFFFF)).all() and (pb.bits[..., 1] == np.uint32(0xFF)).all()
+
+
+def _one_box():
+    """A volume [0, 4]^3 of one PC supercell."""
+    vol = Volume(np.zeros((5, 5, 5), np.float32))
+    return vol, supercell_grid((5, 5, 5), 4), np.ones((1, 1, 1), bool)
+
+
+def test_parallel_view_plane_a_touch_past_a_face_keeps_its_plane(gl, planes_report):
+    """A parallel view clips faces a rounding *behind* its view plane: rays starting a touch
+    (half the reference's 1e-12 of the scene scale) past the box's exit face meet it at t = 0,
+    and that face is their only one."""
+    from parc.raster import scene_scale
+    vol, grid, pc = _one_box()
+    w, h = 20, 16
+
+    def camera(x):
+        return Camera(eye=(x, 2.0, 2.0), look_at=(x + 1.0, 2.0, 2.0), up=(0, 0, 1), parallel_scale=3.0)
+
+    x = 4.0 + 0.5e-12 * scene_scale(camera(4.0), *vol.bounds, w / h)
+    res = _check_bits(camera(x), vol, grid, pc, w, h, "parallel plane a touch past a face", planes_report, axis=0)
+    assert res[False].count == 1 and res[False].bits.any()
+
+
+def test_eye_inside_a_hair_from_a_plane_met_only_in_the_clipped_sliver(gl, planes_report):
+    """Plane axis x, 4-cell supercells: plane 0 PC at both y halves, plane 1 at y < 4 only. The
+    eye, in plane 0, lies 2.5 clip_near from x = 4 and 0.5 clip_near from y = 4, looking along
+    +y with a 170-degree view: rays more than ~79 degrees to the right cross plane 1's box
+    entirely at forward distances below clip_near, where no face is drawn. Only the eye rule
+    (slabs within 2 clip_near / cos_max, the widest ray's reach) gives them plane 1."""
+    from parc.raster import INSIDE_CLIP_REL, scene_scale
+    vol = Volume(np.zeros((5, 9, 9), np.float32))
+    grid = supercell_grid((9, 9, 5), 4)
+    pc = np.zeros(grid.shape, bool)
+    pc[0, :, 0] = True
+    pc[0, 0, 1] = True
+    w, h = 48, 8
+
+    def camera(at):
+        return Camera(eye=tuple(at), look_at=tuple(at + np.array([0.0, 1.0, 0.0])), up=(0, 0, 1), fov=170.0)
+
+    c = INSIDE_CLIP_REL * scene_scale(camera(np.array([4.0, 4.0, 2.0])), *vol.bounds, w / h)
+    cam = camera(np.array([4.0 - 2.5 * c, 4.0 - 0.5 * c, 2.0]))
+    res = _check_bits(cam, vol, grid, pc, w, h, "eye a hair from a plane met in the sliver", planes_report, axis=0)
+    pb = res[False]
+    assert pb.info["eye_inside"] and 2.4 < 2.5 * c / pb.info["clip_near"] < 2.6
+    assert pb.info["eye_planes"] == [0, 1]
+
+
+@pytest.mark.parametrize("halo", [False, True], ids=["strict", "halo"])
+@pytest.mark.parametrize("first, count", [(3, 4), (2, 5), (0, 1)])
+@pytest.mark.parametrize("slabs", [False, True], ids=["band", "slabs"])
+def test_a_window_of_planes_is_those_bits_of_the_full_pass(gl, halo, first, count, slabs):
+    # Parallel rays along y through integer x and z run on slab ends: they cross plane p's y faces
+    # there, where halo mode also sets p - 1 and p + 1, bits a window cuts or shifts. With PC
+    # slabs at planes 2 and 6 alone, nothing else sets planes 3 and 5.
+    vol = smooth_volume(4, dims=(12, 9, 8))
+    grid, pc = band_classes(vol, 1, frac=0.5)
+    if slabs:
+        pc = np.zeros(grid.shape, bool)
+        pc[:, :, [2, 6]] = True
+    proxy = build_plane_proxy(grid, pc, grid.world_edges(vol), 0)
+    cam = Camera(eye=(7.5, -20.0, 3.5), look_at=(7.5, 0.0, 3.5), up=(0, 0, 1), parallel_scale=8.0)
+    full, _ = raster_bits(cam, 16, 16, proxy, first=-1, count=grid.counts[0] + 2, halo=halo)
+    part, _ = raster_bits(cam, 16, 16, proxy, first=first, count=count, halo=halo)
+    ref = (full[..., 0] >> np.uint32(first + 1)) & np.uint32((1 << count) - 1)
+    assert np.array_equal(part[..., 0], ref)
+    if slabs and halo:
+        assert ((full[..., 0] >> np.uint32(4)) & np.uint32(1)).any()      # plane 3, from plane 2's faces
+
+
+@pytest.mark.parametrize("halo", [False, True], ids=["strict", "halo"])
+def test_a_planes_bit_does_not_depend_on_where_the_words_start(gl, halo):
+    # 70 planes along x, PC slabs at every third; parallel rays along y through integer x, on slab
+    # ends. Moving `first` down by k = 0 .. 31 puts every face's three-plane window across every
+    # word boundary in turn: plane p's bit (bit p - first) must not change, and must hold every
+    # plane the rays meet.
+    from parc.raster import scene_scale
+    vol = Volume(np.zeros((6, 5, 71), np.float32))
+    grid = VolumeIndex.of(vol).grid(1)
+    pc = np.zeros(grid.shape, bool)
+    pc[1:4, :, 1::3] = True
+    proxy = build_plane_proxy(grid, pc, grid.world_edges(vol), 0)
+    cam = Camera(eye=(35.5, -20.0, 1.5), look_at=(35.5, 0.0, 1.5), up=(0, 0, 1), parallel_scale=4.0)
+    n = grid.counts[0]
+    met = planes_met(cam, 72, 8, proxy, touch=1e-12 * scene_scale(cam, *vol.bounds, 72 / 8))
+    ref = None
+    for k in range(32):
+        first = -1 - k
+        bits, _ = raster_bits(cam, 72, 8, proxy, first=first, count=n + 2 + k, halo=halo)
+        have = _bit_array(bits, first, n)
+        if ref is None:
+            ref = have
+            assert met.any() and not (met & ~have).any()
+        assert np.array_equal(have, ref), (
+            f"first={first}: bits differ at (y, x, plane) {np.argwhere(have != ref)[:5].tolist()}")
+
+
+@pytest.mark.parametrize("side", [-1, 1], ids=["below", "above"])
+def test_halo_bits_cover_the_snapped_boundarys_sliver(gl, planes_report, side):
+    """Supercells 0.7 -+ 5e-11 cells along x: boundary 10 lies at 7 -+ 5e-10, snapped to 7 (`SNAP`).
+    Rays in the plane x = 7 + side 2e-10 run through that sliver, inside the one PC plane (10
+    above 7, 9 below), where ``floor(pos / m)`` gives the empty plane across: halo mode must set
+    its bit. Truth: the caster's samples (`_check_bits`)."""
+    m = 0.7 + 5e-11 if side < 0 else 0.7 - 5e-11
+    vol = Volume(np.zeros((5, 5, 9), np.float32))
+    grid = supercell_grid((9, 5, 5), (m, 2.0, 2.0))
+    assert grid.edges[0][10] == 7.0
+    pc = np.zeros(grid.shape, bool)
+    pc[:, :, 10 if side < 0 else 9] = True
+    x = 7.0 - side * 2e-10
+    cam = Camera(eye=(x, -10.0, 2.0), look_at=(x, 0.0, 2.0), up=(1, 0, 0), parallel_scale=0.15)
+    res = _check_bits(cam, vol, grid, pc, 12, 1, f"snapped boundary sliver {side:+d}", planes_report, axis=0)
+    assert res[True].count == 3

@@ -356,3 +356,19 @@ def test_a_view_reaching_past_float32s_range_is_drawn_by_parc_too(gl, parallel, 
     got = render(scene, method="parc", **({} if what == "iso" else {"buffers": what}))
     assert (ref.image[..., 3] > 0).sum() > 50
     assert np.array_equal(got.depth, ref.depth) and np.abs(got.image - ref.image).max() <= 1e-6
+
+
+@pytest.mark.parametrize("buffers", ["bits", "depth,bits"])
+def test_a_parallel_view_wider_than_float32s_range_is_drawn_by_parc_too(gl, buffers):
+    # A parallel scale of 1e39 puts the outer pixels' ray origins past float32's largest: the
+    # view reaches that far though the eye is near the volume, and the passes are skipped
+    # (every ray whole): drawn, the bit-plane pass's float32 forms would overflow, and the centre
+    # pixel, whose ray starts at the eye, would lose its bits.
+    rng = np.random.default_rng(0)
+    vol = Volume(np.round(rng.normal(size=(6, 6, 6)) * 256) / 256)
+    cam = Camera(eye=(-10.0, 2.5, 2.5), look_at=(0.0, 2.5, 2.5), up=(0, 0, 1), parallel_scale=1e39)
+    scene = Scene(camera=cam, size=(3, 3), volumes=[Translucent(vol, TransferFunction([[-3, 0.3], [3, 0.6]]))])
+    ref = render(scene, method="brute")
+    assert ref.image[1, 1, 3] > 0.5
+    got = render(scene, method="parc", supercell=1, buffers=buffers)
+    assert np.abs(got.image - ref.image).max() <= 1e-6
