@@ -145,3 +145,53 @@ def test_merged_volumes_correct_opacity_each_for_its_own_step():
     for vols in ([near, far], [far, near]):
         both = render(Scene(camera=CAM, size=(4, 4), volumes=vols)).image
         np.testing.assert_allclose(both, a + (1.0 - a[..., 3:4]) * b, atol=1e-5, rtol=0)
+
+
+def _over(*rgbas):
+    """Front-to-back ``over`` of premultiplied RGBA colours, nearest first."""
+    out = np.zeros(4)
+    for c in rgbas:
+        out += (1.0 - out[3]) * np.asarray(c, np.float64)
+    return out
+
+
+@pytest.mark.parametrize("case", ["aside, red, fog", "aside, fog, red", "red, blue, fog"])
+def test_layers_tied_with_samples_go_by_their_place_in_the_scene(case):
+    # Every volume shares one box (one aside, out of every ray): each ray meets the layers and
+    # the fog's first sample at one depth, and the volume listed first goes first; later fog
+    # samples come after. A constant field makes each layer one colour and the fog 33 samples of a.
+    a = 0.1
+    fog = Translucent(_const(name="fog"), TransferFunction([[0, a], [200, a]], [[0, 0.0, 1.0, 0.0]]), threshold=1.0)
+    red = Translucent(_const(name="red"), TransferFunction([[0, 0.3], [200, 0.3]], [[0, 1.0, 0.0, 0.0]]), mode="mip")
+    blue = Translucent(_const(name="blue"), TransferFunction([[0, 0.5], [200, 0.5]], [[0, 0.0, 0.0, 1.0]]),
+                       mode="mip")
+    aside = Translucent(_const(origin=(100.0, 0.0, 0.0), name="aside"),
+                        TransferFunction([[0, a], [200, a]], [[0, 1.0, 1.0, 1.0]]), threshold=1.0)
+    fog_alpha = 1.0 - (1.0 - a) ** 33
+    fog_rgba = [0.0, fog_alpha, 0.0, fog_alpha]
+    if case == "aside, red, fog":
+        vols, want = [aside, red, fog], _over([0.3, 0, 0, 0.3], fog_rgba)
+    elif case == "aside, fog, red":
+        rest = 1.0 - (1.0 - a) ** 32
+        vols, want = [aside, fog, red], _over([0, a, 0, a], [0.3, 0, 0, 0.3], [0, rest, 0, rest])
+    else:
+        vols, want = [red, blue, fog], _over([0.3, 0, 0, 0.3], [0, 0, 0.5, 0.5], fog_rgba)
+    img = render(Scene(camera=CAM, size=(4, 4), volumes=vols)).image.astype(np.float64)
+    np.testing.assert_allclose(img, np.broadcast_to(want, img.shape), atol=1e-5, rtol=0)
+
+
+@pytest.mark.parametrize("near_first", [True, False])
+def test_merged_volumes_of_other_sample_types_and_tables_keep_their_values(near_first):
+    # 8-bit samples beside float ones below 1 (the merged walk reads one sample type, and pads
+    # the shorter transfer function's tables): the float volume's samples keep their fractions,
+    # each volume its own table, and each looks as it does alone.
+    near = Translucent(Volume(np.full((N, N, N), 100, np.uint8), name="near"),
+                       TransferFunction([[0, 0.05], [50, 0.05], [150, 0.05], [255, 0.05]],
+                                        [[0, 1.0, 0.0, 0.0], [100, 1.0, 0.0, 0.0], [255, 1.0, 0.0, 0.0]]),
+                       threshold=1.0)
+    far = Translucent(Volume(np.full((N, N, N), 0.75, np.float32), origin=(0, 0, 20), name="far"),
+                      TransferFunction([[0, 0.0], [1, 0.04]], [[0, 0.0, 0.0, 1.0]]), threshold=1.0)
+    a, b = (render(Scene(camera=CAM, size=(4, 4), volumes=[v])).image.astype(np.float64) for v in (near, far))
+    np.testing.assert_allclose(b[..., 3], 1 - (1 - 0.03) ** 33, atol=1e-5)
+    both = render(Scene(camera=CAM, size=(4, 4), volumes=[near, far] if near_first else [far, near])).image
+    np.testing.assert_allclose(both, a + (1.0 - a[..., 3:4]) * b, atol=1e-5, rtol=0)

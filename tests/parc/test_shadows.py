@@ -587,6 +587,45 @@ def test_light_buffers_are_kept_while_only_the_camera_moves(gl):
     assert np.abs(again.image - ref.image).max() <= 1e-6
 
 
+@pytest.mark.parametrize("change", ["surface", "light_buffer", "supercell", "kind_of_light"])
+def test_light_buffers_are_drawn_anew_for_what_they_depend_on(gl, monkeypatch, change):
+    # Kept light buffers serve only the proxy and the light they were drawn for: another
+    # isovalue, buffer size, supercell size or a sun where a lamp was must draw its own.
+    from dataclasses import replace
+
+    import parc.multivolume
+    monkeypatch.setattr(parc.multivolume, "_LIT", weakref.WeakSet())
+    vol, scene = _lit_blob((0.0, 0.0, 1.0))
+    first = render(scene, method="parc", supercell=2, light_buffer=16)
+    assert first.stats["light_polygons"] > 0
+    kw = dict(supercell=2, light_buffer=16)
+    if change == "surface":
+        scene = replace(scene, volumes=[Isosurface(vol, 60.0)])
+    elif change == "light_buffer":
+        kw["light_buffer"] = 8
+    elif change == "supercell":
+        kw["supercell"] = 3
+    else:
+        scene = replace(scene, lights=[DirectionalLight((0.0, 0.0, 1.0))])
+    again = render(scene, method="parc", **kw)
+    assert again.stats["light_polygons"] > 0
+    ref = render(scene, method="brute")
+    assert np.abs(again.image - ref.image).max() <= 1e-6
+
+
+def test_kept_light_buffers_are_at_most_so_many_places(gl, monkeypatch):
+    from dataclasses import replace
+
+    import parc.multivolume
+    from parc.classify import VolumeIndex
+    monkeypatch.setattr(parc.multivolume, "_LIT", weakref.WeakSet())
+    monkeypatch.setattr(parc.multivolume, "LIGHT_BUFFER_CACHE_SIZE", 2)
+    vol, scene = _lit_blob((30.0, -20.0, 25.0))
+    for k in range(4):
+        render(replace(scene, lights=[DirectionalLight((1.0, float(k), -1.0))]), method="parc", light_buffer=8)
+        assert len(VolumeIndex.of(vol).kept("light buffers")) == min(k + 1, 2)
+
+
 def test_polygons_count_the_light_buffers_drawn_this_frame(gl, monkeypatch):
     # The docstring: polygons are all PARC drew. The light buffers' faces were left out.
     from dataclasses import replace
