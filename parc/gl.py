@@ -76,6 +76,7 @@ def get_context():
         elif not _CURRENT:
             _CONTEXT.__enter__()
             _CURRENT = True
+        _delete_dropped()
         return _CONTEXT
     try:
         import moderngl
@@ -96,8 +97,10 @@ def get_context():
     finally:
         if quiet:
             del os.environ["EGL_LOG_LEVEL"]
-    # Buffers uploaded for a proxy are released when the proxy goes away.
-    ctx.gc_mode = "auto"
+    # Buffers uploaded for a proxy are released when the proxy goes away; kept until the context
+    # is current again, not released at once: a proxy dropped between renders (the context let
+    # go) would have its buffers deleted in no context, which does nothing, and kept them for good.
+    ctx.gc_mode = "context_gc"
     spread_rasterizer_threads(wait=rasterizer_start_wait(ctx.info.get("GL_RENDERER", ""), os.environ))
     _CONTEXT, _OWNER, _CURRENT = ctx, threading.current_thread(), True
     return ctx
@@ -110,8 +113,19 @@ def release_context():
     nothing (a pass read back the last frame's buffers, and drew that frame's segments)."""
     global _CURRENT
     if _CONTEXT is not None and _CURRENT and threading.current_thread() is _OWNER:
+        _delete_dropped()
         _CONTEXT.__exit__(None, None, None)
         _CURRENT = False
+
+
+def _delete_dropped():
+    """Delete the OpenGL objects dropped since the last call (the context current in this thread)."""
+    dropped = getattr(_CONTEXT, "objects", None)
+    while dropped:
+        # One released by hand is left as moderngl's InvalidObject, with nothing to release.
+        release = getattr(dropped.popleft(), "release", None)
+        if release is not None:
+            release()
 
 
 def _adopt(thread):

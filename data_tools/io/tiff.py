@@ -130,14 +130,19 @@ def _check_shaped(tif, series, path):
 def _check_gapless(tif, series, path):
     """Refuse a stack whose pages lie among full-size pages of another size or type.
 
-    tifffile makes its first series of the pages like the first, wherever they lie, and leaves
-    the others out: pages of two sizes taking turns read as half the slices. Pages after the
-    stack (a page another writer added) and reduced-size pages (thumbnails) are left out."""
+    Without metadata naming its pages, tifffile makes its first series of the pages like the
+    first, wherever they lie, and leaves the others out: pages of two sizes taking turns read
+    as half the slices. Pages after the stack (a page another writer added), reduced-size
+    pages (thumbnails) and transparency masks are left out. OME, ImageJ and LSM metadata
+    name the pages of each image, which may take turns with another image's."""
+    if series.kind != "generic":
+        return
     indices = [p.index for p in series.pages if p is not None]
     if not indices or len(indices) == indices[-1] - indices[0] + 1:
         return
     between = sorted(set(range(indices[0], indices[-1] + 1)) - set(indices))
-    other = next((i for i in between if not tif.pages[i].is_reduced), None)
+    # NewSubfileType: 1 a reduced-size image, 4 a transparency mask.
+    other = next((i for i in between if not getattr(tif.pages[i], "subfiletype", 0) & 0b101), None)
     if other is not None:
         raise InputError(f"{path}: its TIFF pages differ in size or sample type (page {other + 1} of "
                          f"{len(tif.pages)} is not like page {indices[0] + 1}); a stack needs equal pages")
@@ -208,15 +213,26 @@ def _check_decoding(tifffile, tif, pages, shape, dtype, path):
             continue            # Zstandard before Python 3.14: tifffile cannot decode it either
         most = _segment_bytes(key)
         largest = max(largest, most)
-        for offset, size in zip(page.dataoffsets, page.databytecounts):
-            if not offset or not size or (offset, size, most) in seen:
-                continue
-            seen.add((offset, size, most))
-            tif.filehandle.seek(offset)
-            data = tif.filehandle.read(max(min(size, tif.filehandle.size - offset), 0))
-            if _decoded_length(kind, data, most) > most:
-                raise InputError(f"{path}: page {number}: one of its {kind} strips or tiles decodes to more than "
-                                 f"the {most} bytes the page states for it (corrupt, or made to exhaust memory)")
+        # An OME-TIFF's pages may lie in the other files of its set (closed until tifffile reads
+        # them): their offsets are there.
+        fh = getattr(getattr(page, "parent", None), "filehandle", None) or tif.filehandle
+        reopened = fh.closed
+        if reopened:
+            fh.open()
+        try:
+            for offset, size in zip(page.dataoffsets, page.databytecounts):
+                if not offset or not size or (id(fh), offset, size, most) in seen:
+                    continue
+                seen.add((id(fh), offset, size, most))
+                fh.seek(offset)
+                data = fh.read(max(min(size, fh.size - offset), 0))
+                if _decoded_length(kind, data, most) > most:
+                    raise InputError(f"{path}: page {number}: one of its {kind} strips or tiles decodes to more "
+                                     f"than the {most} bytes the page states for it (corrupt, or made to exhaust "
+                                     "memory)")
+        finally:
+            if reopened:
+                fh.close()
     need = math.prod(int(n) for n in shape) * np.dtype(dtype).itemsize + largest
     check_memory(need, f"{path}: a {'x'.join(str(int(n)) for n in shape[::-1])} {np.dtype(dtype).name} stack")
 

@@ -1088,3 +1088,39 @@ def test_tiff_pages_of_two_sizes_taking_turns_are_refused(tmp_path):
             w.write(np.full((4, 5) if k % 2 == 0 else (2, 3), k, np.uint8), photometric="minisblack", metadata=None,
                     subfiletype=k % 2)
     np.testing.assert_array_equal(load_volume(p).data[:, 0, 0], [0, 2, 4])
+
+
+def _ome_image(number, shape, ifds):
+    z, y, x = shape
+    planes = "".join(f'<TiffData IFD="{ifd}" FirstZ="{k}" PlaneCount="1"/>' for k, ifd in enumerate(ifds))
+    return (f'<Image ID="Image:{number}"><Pixels ID="Pixels:{number}" DimensionOrder="XYZCT" Type="uint8" '
+            f'SizeX="{x}" SizeY="{y}" SizeZ="{z}" SizeC="1" SizeT="1">'
+            f'<Channel ID="Channel:{number}:0" SamplesPerPixel="1"/>{planes}</Pixels></Image>')
+
+
+@pytest.mark.parametrize("other, subfiletype", [((2, 3), 0), ((5, 6), 0), ((2, 3), 1)])
+def test_ome_tiff_images_taking_turns_are_each_read(tmp_path, other, subfiletype):
+    # OME's TiffData names each image's pages: the first image's slices are pages 1, 3 and 5,
+    # whatever lies between them (another image of any size, or its thumbnails).
+    tifffile = pytest.importorskip("tifffile")
+    p = tmp_path / "s.ome.tif"
+    first, second = SMALL[:3], np.full((3, *other), 7, np.uint8)
+    xml = ('<?xml version="1.0" encoding="UTF-8"?>'
+           '<OME xmlns="http://www.openmicroscopy.org/Schemas/OME/2016-06">'
+           + _ome_image(0, first.shape, [0, 2, 4]) + _ome_image(1, second.shape, [1, 3, 5]) + "</OME>")
+    with tifffile.TiffWriter(p) as w:
+        for k in range(3):
+            w.write(first[k], description=xml if k == 0 else None, photometric="minisblack", metadata=None)
+            w.write(second[k], photometric="minisblack", metadata=None, subfiletype=subfiletype)
+    np.testing.assert_array_equal(load_volume(p).data, first)
+
+
+def test_tiff_transparency_masks_between_the_slices_are_left_out(tmp_path):
+    # NewSubfileType 4: a page that masks the one before it, of its full size, not a slice.
+    tifffile = pytest.importorskip("tifffile")
+    p = tmp_path / "s.tif"
+    with tifffile.TiffWriter(p) as w:
+        for k in range(4):
+            w.write(SMALL[k], photometric="minisblack", metadata=None)
+            w.write(np.ones(SMALL.shape[1:], bool), photometric="minisblack", metadata=None, subfiletype=4)
+    np.testing.assert_array_equal(load_volume(p).data, SMALL)

@@ -535,3 +535,37 @@ def test_tiff_stating_more_samples_than_memory_holds_is_refused_before_reading(t
     monkeypatch.setattr(memory, "available_memory", lambda: 2000)
     assert load_volume(tmp_path / "slices").dims == (16, 16, 3)
     assert load_volume(p).dims == (16, 16, 3)
+
+
+def _ome_tiff_set(folder, strip=None):
+    """An OME-TIFF of three 16x16 uint8 slices: the first in ``a.ome.tif``, which names the set,
+    the other two in ``b.ome.tif``, whose pages both name ``strip`` (deflated) when given."""
+    folder.mkdir()
+    planes = "".join(f'<TiffData FirstZ="{z}" IFD="{ifd}" PlaneCount="1"><UUID FileName="{name}">'
+                     f'urn:uuid:00000000-0000-0000-0000-00000000000{name[0]}</UUID></TiffData>'
+                     for z, ifd, name in ((0, 0, "a.ome.tif"), (1, 0, "b.ome.tif"), (2, 1, "b.ome.tif")))
+    xml = ('<?xml version="1.0" encoding="UTF-8"?><OME xmlns="http://www.openmicroscopy.org/Schemas/OME/2016-06" '
+           'UUID="urn:uuid:00000000-0000-0000-0000-00000000000a"><Image ID="Image:0"><Pixels ID="Pixels:0" '
+           'DimensionOrder="XYZCT" Type="uint8" SizeX="16" SizeY="16" SizeZ="3" SizeC="1" SizeT="1">'
+           f'<Channel ID="Channel:0:0" SamplesPerPixel="1"/>{planes}</Pixels></Image></OME>')
+    tifffile.imwrite(folder / "a.ome.tif", np.zeros((16, 16), np.uint8), description=xml, metadata=None,
+                     photometric="minisblack", compression="zlib")
+    other = folder / "b.ome.tif"
+    tifffile.imwrite(other, np.ones((2, 16, 16), np.uint8), metadata=None, photometric="minisblack", compression="zlib")
+    if strip is not None:
+        raw = bytearray(other.read_bytes())
+        with tifffile.TiffFile(other) as tif:
+            tags = [p.tags for p in tif.pages]
+        for t in tags:
+            _put(raw, t["StripOffsets"], len(raw))
+            _put(raw, t["StripByteCounts"], len(strip))
+        other.write_bytes(bytes(raw) + strip)
+    return folder / "a.ome.tif"
+
+
+def test_ome_tiff_strip_in_another_file_of_the_set_is_checked_there(tmp_path):
+    # The offsets of the second file's pages are the second file's: read in the first, they
+    # would name its own bytes, and the strip that decodes to 16 MB would be let through.
+    assert np.array_equal(load_volume(_ome_tiff_set(tmp_path / "set")).data[:, 0, 0], [0, 1, 1])
+    fails(_ome_tiff_set(tmp_path / "bomb", zlib.compress(bytes(16 << 20), 9)),
+          "page 2: one of its deflate strips or tiles decodes to more than the 256 bytes")
