@@ -268,7 +268,14 @@ def cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, seg0, seg1, skip, jump_min):
     the opposite sign from its predecessor's value there (the cell the ray
     leaves through that face, on the same numbers) is hit at its entry.
     The walk carries that sign from cell to cell; for the first cell of a
-    segment it is recomputed, so any start gives the same answers.
+    segment it is recomputed, so any start gives the same answers. A cell
+    whose corners all lie on the other side of the isovalue from the value
+    its predecessor's cubic ends with is hit at its entry too: the surface is
+    then within that cubic's rounding of the face, and the cell's own values
+    there, all of one sign, hold no root (samples near 1e18 put a cubic's
+    rounding far above a value 1e-18 from the isovalue: without this rule the
+    ray would miss that surface). Between two cells of one sign each, signs
+    cannot differ.
 
     Where the ray enters or leaves the volume there is no neighbour to ask,
     and an isosurface lying on the volume's own face (the isovalue is the
@@ -312,6 +319,8 @@ def _walk_iso(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, seg0, seg1, skip, jump_min, anc
     # cell is the neighbour across the face of the latest entry time (ties:
     # the last axis, as `step_axis` steps x, then y, then z).
     prev = 0.0
+    # Whether prev is the previous cell's cubic, rounded at its exit, rather than its sign.
+    rounded = False
     first = True
     cells = 0
     solves = 0
@@ -323,6 +332,8 @@ def _walk_iso(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, seg0, seg1, skip, jump_min, anc
         if jump_min >= 0:
             entry = skip[k, j, i]
             sign = _cell_sign(entry)
+            if rounded and prev * sign < 0.0:
+                return _signed_entry(Ox, Oy, Oz, Dx, Dy, Dz, i, j, k, c0, cells, solves)
             r = abs(entry) - 1
             if r >= jump_min:
                 tb = cube_exit(Ox, Oy, Oz, sx, sy, sz, ix, iy, iz, i, j, k, r)
@@ -338,17 +349,25 @@ def _walk_iso(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, seg0, seg1, skip, jump_min, anc
                     c1 = min(t_out, min(tx1, min(ty1, tz1)))
                     first = False
                     prev = float(sign)
+                    rounded = False
                     # The landing cell is the one the walk is in at tb:
                     # mostly just past the cube, else still on its edge.
                     sign = _cell_sign(skip[k, j, i])
         if sign != 0:
             prev = float(sign)
+            rounded = False
         else:
             v000, v100, v010, v110, v001, v101, v011, v111, lo, hi = corners(data, iso, i, j, k)
             if lo > 0.0:
+                if rounded and prev < 0.0:
+                    return _signed_entry(Ox, Oy, Oz, Dx, Dy, Dz, i, j, k, c0, cells, solves)
                 prev = 1.0
+                rounded = False
             elif hi < 0.0:
+                if rounded and prev > 0.0:
+                    return _signed_entry(Ox, Oy, Oz, Dx, Dy, Dz, i, j, k, c0, cells, solves)
                 prev = -1.0
+                rounded = False
             else:
                 if first and c0 > t_in:
                     # Only a possibly contributing start cell needs the sign its
@@ -375,6 +394,7 @@ def _walk_iso(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, seg0, seg1, skip, jump_min, anc
                         return c1, i, j, k, u0 + L * Dx, v0 + L * Dy, w0 + L * Dz, cells, solves
                     f = eval_cubic(A, B, C, D, L)
                     prev = 1.0 if f > 0.0 else (-1.0 if f < 0.0 else 0.0)
+                    rounded = True
         first = False
         if c1 >= t_end:
             break
@@ -383,6 +403,13 @@ def _walk_iso(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, seg0, seg1, skip, jump_min, anc
         if not inside:
             break
     return math.inf, -1, -1, -1, 0.0, 0.0, 0.0, cells, solves
+
+
+@kernel
+def _signed_entry(Ox, Oy, Oz, Dx, Dy, Dz, i, j, k, c0, cells, solves):
+    """`_walk_iso`'s hit at the entry ``c0`` of cell ``(i, j, k)``, all of whose corners lie on
+    the side of the isovalue opposite to the sign the walk carries in."""
+    return c0, i, j, k, (Ox - i) + c0 * Dx, (Oy - j) + c0 * Dy, (Oz - k) + c0 * Dz, cells, solves
 
 
 @kernel

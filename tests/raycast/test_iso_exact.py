@@ -231,3 +231,27 @@ def test_a_segment_bounds_the_walk_to_its_cells():
     t, cell, uvw, _ = cast(sc, o, d, 1.0, seg)
     assert t[0] == 1.5 and t[1] == 5.5 and t[2] == 1.5 and t[3] == np.inf, t
     assert cell[0].tolist() == [0, 1, 1] and cell[1].tolist() == [4, 1, 1], cell
+
+
+@pytest.mark.parametrize("table", [False, True], ids=["corners", "skip-table"])
+@pytest.mark.parametrize("big", [2.0 ** 60, 1e28])
+def test_a_root_within_rounding_of_a_face_into_a_cell_of_one_sign(big, table):
+    """Two cells along y: samples -big on the face y = 0, 1 everywhere else, isovalue 0. The
+    first cell is -big + (big + 1) v, 1e-18 short of 1 at the face y = 1, where the second
+    cell (all corners 1) begins, so the surface lies on that face to well within 1e-9. The
+    first cell's value there rounds to either sign (its terms are 1e18); where it rounds below
+    zero, the one-signed cell after it must still be hit at its entry, with or without a skip
+    table signing it, not missed."""
+    data = np.ones((2, 3, 2))
+    data[:, 0, :] = -big
+    sc = SimpleNamespace(data=data, origin=np.zeros(3), spacing=np.ones(3))
+    rng = np.random.default_rng(3)
+    n = 400
+    o = np.stack([rng.uniform(0.05, 0.95, n), np.full(n, -0.5), rng.uniform(0.05, 0.95, n)], 1)
+    d = np.stack([rng.uniform(-0.02, 0.02, n), np.ones(n), rng.uniform(-0.02, 0.02, n)], 1)
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    skip = (np.array([[[0], [1]]], np.int8), 1) if table else None
+    t, cell, uvw, _ = cast(sc, o, d, 0.0, skip=skip)
+    face = (1.0 - o[:, 1]) / d[:, 1]
+    assert np.all(np.isfinite(t)), f"{np.sum(~np.isfinite(t))} of {n} rays miss the surface"
+    assert np.max(np.abs(t - face)) <= 1e-9
