@@ -1083,11 +1083,6 @@ def test_tiff_pages_of_two_sizes_taking_turns_are_refused(tmp_path):
         for k in range(6):
             w.write(np.full((4, 5) if k % 2 == 0 else (2, 3), k, np.uint8), photometric="minisblack", metadata=None)
     fails(p, "page 2 of 6 is not like page 1")
-    with tifffile.TiffWriter(p) as w:              # reduced-size pages (thumbnails) between are not slices
-        for k in range(6):
-            w.write(np.full((4, 5) if k % 2 == 0 else (2, 3), k, np.uint8), photometric="minisblack", metadata=None,
-                    subfiletype=k % 2)
-    np.testing.assert_array_equal(load_volume(p).data[:, 0, 0], [0, 2, 4])
 
 
 def _ome_image(number, shape, ifds):
@@ -1115,12 +1110,15 @@ def test_ome_tiff_images_taking_turns_are_each_read(tmp_path, other, subfiletype
     np.testing.assert_array_equal(load_volume(p).data, first)
 
 
-def test_tiff_transparency_masks_between_the_slices_are_left_out(tmp_path):
-    # NewSubfileType 4: a page that masks the one before it, of its full size, not a slice.
+@pytest.mark.parametrize("subfiletype, between", [(1, np.zeros((2, 3), np.uint8)),
+                                                   (4, np.ones(SMALL.shape[1:], bool))], ids=["thumbnails", "masks"])
+def test_tiff_thumbnails_and_masks_between_the_slices_are_left_out(tmp_path, subfiletype, between):
+    # NewSubfileType 1: a reduced-size copy of the page before it; 4: a page that masks it, of
+    # its full size. Neither is a slice.
     tifffile = pytest.importorskip("tifffile")
     p = tmp_path / "s.tif"
     with tifffile.TiffWriter(p) as w:
         for k in range(4):
             w.write(SMALL[k], photometric="minisblack", metadata=None)
-            w.write(np.ones(SMALL.shape[1:], bool), photometric="minisblack", metadata=None, subfiletype=4)
+            w.write(between, photometric="minisblack", metadata=None, subfiletype=subfiletype)
     np.testing.assert_array_equal(load_volume(p).data, SMALL)

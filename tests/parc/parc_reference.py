@@ -14,10 +14,14 @@ Sources of truth
   test on closed boxes; the exact entry (clamped to the ray start) and
   exit over all boxes the ray meets.
 
+- Open empty space: a breadth-first search from a corner cell through
+  faces, edges and corners (`reached`).
+
 Also the smooth random volumes the raster and bit-plane tests share
 (`smooth_volume`, `band_classes`): PC regions that are blobs with holes.
 """
 import math
+from collections import deque
 
 import numpy as np
 
@@ -166,3 +170,22 @@ def segments_reference(camera, width, height, proxy, *, touch=0.0):
         near = np.minimum(near, np.where(meet, enter, np.inf).min(axis=1))
         far = np.maximum(far, np.where(meet, np.maximum(leave, enter), -np.inf).max(axis=1))
     return near.reshape(height, width), far.reshape(height, width)
+
+
+def reached(empty):
+    """Cells of ``empty`` reachable from ``empty[0, 0, 0]`` through faces, edges or corners (plain BFS)."""
+    seen = np.zeros_like(empty)
+    if not empty[0, 0, 0]:
+        return seen
+    seen[0, 0, 0] = True
+    todo = deque([(0, 0, 0)])
+    while todo:
+        z, y, x = todo.popleft()
+        for dz in (-1, 0, 1):
+            for dy in (-1, 0, 1):
+                for dx in (-1, 0, 1):
+                    q = (z + dz, y + dy, x + dx)
+                    if all(0 <= c < s for c, s in zip(q, empty.shape)) and empty[q] and not seen[q]:
+                        seen[q] = True
+                        todo.append(q)
+    return seen

@@ -122,39 +122,34 @@ def _ended_thread(name):
     return t
 
 
-def test_a_context_the_driver_cannot_move_to_another_thread_is_one_line(monkeypatch):
-    class Context:
-        def __enter__(self):
-            raise Exception("eglMakeCurrent failed\nsecond line")
+class _RaisingMove:
+    """A context the driver cannot make current in another thread: it says so."""
+    def __enter__(self):
+        raise Exception("eglMakeCurrent failed\nsecond line")
+
+
+class _SilentMove:
+    """Mesa's EGL keeps a context current in the thread that ended with it: making it current
+    elsewhere fails without raising, and every OpenGL call there does nothing."""
+    def __enter__(self):
+        pass
+
+    def buffer(self, reserve):
+        raise Exception("cannot create buffer")
+
+
+@pytest.mark.parametrize("context, reason", [(_RaisingMove, "(eglMakeCurrent failed)"),
+                                             (_SilentMove, "(cannot create buffer)")], ids=["raises", "silent"])
+def test_a_context_the_driver_cannot_move_to_another_thread_is_one_line(monkeypatch, context, reason):
     first = _ended_thread("worker-1")
-    monkeypatch.setattr(glmod, "_CONTEXT", Context())
+    monkeypatch.setattr(glmod, "_CONTEXT", context())
     monkeypatch.setattr(glmod, "_OWNER", first)
     monkeypatch.setattr(glmod, "_CURRENT", False)
     with pytest.raises(InputError) as err:
         glmod.get_context()
     msg = str(err.value)
-    assert "\n" not in msg and "worker-1, which has ended" in msg and "(eglMakeCurrent failed)" in msg, msg
-    assert "method='brute' renders on any" in msg and glmod._OWNER is first
-
-
-def test_a_move_the_driver_refuses_without_a_word_is_refused_in_one_line(monkeypatch):
-    # Mesa's EGL keeps a context current in the thread that ended with it: making it current
-    # elsewhere fails without raising, and every OpenGL call there does nothing.
-    class Context:
-        def __enter__(self):
-            pass
-
-        def buffer(self, reserve):
-            raise Exception("cannot create buffer")
-    first = _ended_thread("worker-1")
-    monkeypatch.setattr(glmod, "_CONTEXT", Context())
-    monkeypatch.setattr(glmod, "_OWNER", first)
-    monkeypatch.setattr(glmod, "_CURRENT", False)
-    with pytest.raises(InputError) as err:
-        glmod.get_context()
-    msg = str(err.value)
-    assert "\n" not in msg and "worker-1, which has ended" in msg and "(cannot create buffer)" in msg, msg
-    assert glmod._OWNER is first and not glmod._CURRENT
+    assert "\n" not in msg and "worker-1, which has ended" in msg and reason in msg, msg
+    assert "method='brute' renders on any" in msg and glmod._OWNER is first and not glmod._CURRENT
 
 
 def test_the_thread_that_takes_the_context_over_keeps_it_while_it_runs(monkeypatch):

@@ -6,7 +6,6 @@ corners for the open empty space, closed boxes for the ray origins of a
 parallel view (`parc_reference.caster_rays`) -- and boxes placed by hand
 for the cavity tests.
 """
-from collections import deque
 from types import SimpleNamespace
 
 import numpy as np
@@ -17,7 +16,7 @@ from parc import origins
 from parc.camera import Camera
 from parc.classify import supercell_grid
 from parc.proxy import build_proxy
-from parc_reference import caster_rays
+from parc_reference import caster_rays, reached
 
 #: Random grids' shapes (supercells along z, y, x): unequal, so that one axis taken for
 #: another shows.
@@ -47,22 +46,6 @@ def _boxes(proxy, mask):
     return np.stack([ex[kx], ey[ky], ez[kz]], axis=1), np.stack([ex[kx + 1], ey[ky + 1], ez[kz + 1]], axis=1)
 
 
-def _reached(empty):
-    """Cells of ``empty`` reachable from ``empty[0, 0, 0]`` through faces, edges or corners."""
-    seen = np.zeros_like(empty)
-    seen[0, 0, 0] = empty[0, 0, 0]
-    todo = deque([(0, 0, 0)] if empty[0, 0, 0] else [])
-    while todo:
-        z, y, x = todo.popleft()
-        for dz in (-1, 0, 1):
-            for dy in (-1, 0, 1):
-                for dx in (-1, 0, 1):
-                    q = (z + dz, y + dy, x + dx)
-                    if all(0 <= c < s for c, s in zip(q, empty.shape)) and empty[q] and not seen[q]:
-                        seen[q] = True
-                        todo.append(q)
-    return seen
-
 
 @pytest.mark.parametrize("axes", [(0, 1, 2), (1, 2, 0), (2, 0, 1)], ids=str)
 def test_the_fill_passes_through_single_edges_and_corners(axes):
@@ -77,7 +60,7 @@ def test_the_fill_passes_through_single_edges_and_corners(axes):
     want[tuple(np.array([(3, 0, 4), (0, 6, 0)]).T[list(axes)])] = False
     assert want.sum() == len(chain)
     np.testing.assert_array_equal(origins.flood_from_corner(empty), want)
-    np.testing.assert_array_equal(_reached(empty), want)
+    np.testing.assert_array_equal(reached(empty), want)
 
 
 @pytest.mark.parametrize("shape", SHAPES, ids=str)
@@ -118,7 +101,7 @@ def test_open_faces_of_random_grids(shape, seed):
     proxy = _grid_proxy(pc, seed=seed)
     is_open, cavity = origins.open_faces(proxy)
     empty = ~np.pad(pc, 1)
-    ref = (empty & ~_reached(empty))[1:-1, 1:-1, 1:-1]
+    ref = (empty & ~reached(empty))[1:-1, 1:-1, 1:-1]
     assert ref.sum() >= 3 and (~pc & ~ref).sum() >= 3
     np.testing.assert_array_equal(cavity, ref)
     # Unit face by unit face: open where its empty supercell (or the outside) is not a cavity.

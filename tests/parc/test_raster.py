@@ -22,7 +22,7 @@ from parc.camera import Camera
 from parc.classify import VolumeIndex
 from parc.proxy import build_proxy
 from parc.raster import Segments, margin, raster_segments
-from parc_reference import band_classes, segments_reference, smooth_volume
+from parc_reference import band_classes, reached, segments_reference, smooth_volume
 
 SIZES = [1, 0.5, 1.5, (2, 3, 1.5)]
 #: How much longer than the reference a segment may be, in cells: at most, and on average.
@@ -257,30 +257,11 @@ def _shell_proxy(size):
     return vol, build_proxy(grid, idx.classify(0.5, size), grid.world_edges(vol))
 
 
-def _reached(empty):
-    """Cells of ``empty`` reachable from ``empty[0, 0, 0]`` through faces, edges or corners (plain BFS)."""
-    from collections import deque
-    seen = np.zeros_like(empty)
-    if not empty[0, 0, 0]:
-        return seen
-    seen[0, 0, 0] = True
-    todo = deque([(0, 0, 0)])
-    while todo:
-        z, y, x = todo.popleft()
-        for dz in (-1, 0, 1):
-            for dy in (-1, 0, 1):
-                for dx in (-1, 0, 1):
-                    q = (z + dz, y + dy, x + dx)
-                    if all(0 <= c < s for c, s in zip(q, empty.shape)) and empty[q] and not seen[q]:
-                        seen[q] = True
-                        todo.append(q)
-    return seen
-
 
 def _cavity_reference(pc):
     """Empty supercells not reachable from outside through faces, edges or corners."""
     empty = ~np.pad(pc, 1)
-    return (empty & ~_reached(empty))[1:-1, 1:-1, 1:-1]
+    return (empty & ~reached(empty))[1:-1, 1:-1, 1:-1]
 
 
 def _thin_grids():
@@ -306,14 +287,14 @@ def _thin_grids():
 @pytest.mark.parametrize("empty", list(_thin_grids()), ids=lambda e: "x".join(map(str, e.shape)))
 def test_flood_fill_of_a_thin_grid(empty):
     from parc import origins
-    np.testing.assert_array_equal(origins.flood_from_corner(empty), _reached(empty))
+    np.testing.assert_array_equal(origins.flood_from_corner(empty), reached(empty))
     # The kernel's Python twin raises where the compiled one would write past its stack.
     nz, ny, nx = (n + 2 for n in empty.shape)
     cells = np.pad(empty, 1).ravel()
     left = cells.copy()
     origins._flood.py_func(left, ny, nx, (ny + 1) * nx + 1)
     cleared = (cells & ~left).reshape(nz, ny, nx)[1:-1, 1:-1, 1:-1]
-    np.testing.assert_array_equal(cleared, _reached(empty))
+    np.testing.assert_array_equal(cleared, reached(empty))
 
 
 @pytest.mark.parametrize("size", [1, 1.5, 2], ids=str)
