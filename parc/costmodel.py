@@ -135,9 +135,9 @@ def raster_costs(renderer=None):
     no OpenGL (the model then only ranks sizes for a renderer to come).
     """
     if renderer is None:
-        from .gl import OpenGLUnavailable, get_context
+        from .gl import OpenGLUnavailable, context_info
         try:
-            renderer = get_context().info["GL_RENDERER"]
+            renderer = context_info()["GL_RENDERER"]
         except OpenGLUnavailable:
             renderer = "software"
     if any(name in renderer.lower() for name in SOFTWARE_RENDERERS):

@@ -118,6 +118,17 @@ def release_context():
         _CURRENT = False
 
 
+def context_info():
+    """The context's ``info`` (`get_context`), leaving it current only where it already was: a
+    thread that asks for no more than that (the cost model's renderer, a report's machine)
+    would otherwise end holding the context, and no other thread could take it over."""
+    held = _CONTEXT is not None and _CURRENT and threading.current_thread() is _OWNER
+    info = get_context().info
+    if not held:
+        release_context()
+    return info
+
+
 def _delete_dropped():
     """Delete the OpenGL objects dropped since the last call (the context current in this thread)."""
     dropped = getattr(_CONTEXT, "objects", None)

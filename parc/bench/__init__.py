@@ -132,14 +132,14 @@ def machine():
     import moderngl
     import numba
 
-    from ..gl import get_context
+    from ..gl import context_info
     cpu = platform.processor() or platform.machine()
     with contextlib.suppress(OSError):           # no /proc off Linux: keep platform's name
         with open("/proc/cpuinfo") as f:
             cpu = next((ln.split(":", 1)[1].strip() for ln in f if ln.startswith("model name")), cpu)
-    ctx = get_context()
+    info = context_info()
     return {"cpu": cpu, "cores": os.cpu_count(), "numba_threads": numba.config.NUMBA_NUM_THREADS,
-            "opengl": f"{ctx.info['GL_RENDERER']} (OpenGL {ctx.info['GL_VERSION']})",
+            "opengl": f"{info['GL_RENDERER']} (OpenGL {info['GL_VERSION']})",
             "python": platform.python_version(), "numpy": np.__version__, "numba": numba.__version__,
             "moderngl": moderngl.__version__, "os": platform.platform(), "parc": source_version(),
             "date": time.strftime("%Y-%m-%d %H:%M %Z")}

@@ -184,6 +184,34 @@ def test_the_thread_that_takes_the_context_over_keeps_it_while_it_runs(monkeypat
     assert glmod.get_context() is ctx and entered == ["taker", threading.current_thread().name]
 
 
+@pytest.mark.parametrize("ask", ["cost model", "bench machine"])
+def test_a_thread_that_only_reads_the_renderer_lets_the_context_go(monkeypatch, ask):
+    # Mesa's EGL refuses to move a context that a thread ended holding: a worker that only
+    # picked a supercell size (or described the machine) would leave no thread able to render.
+    from parc import costmodel
+    from parc.bench import machine
+    made_current, let_go = [], []
+
+    class Context:
+        info = {"GL_RENDERER": "llvmpipe (LLVM 15.0.7, 256 bits)", "GL_VERSION": "4.5"}
+
+        def __enter__(self):
+            made_current.append(threading.current_thread().name)
+
+        def __exit__(self, *exc):
+            let_go.append(threading.current_thread().name)
+
+        def buffer(self, reserve):
+            return types.SimpleNamespace(release=lambda: None)
+    monkeypatch.setattr(glmod, "_CONTEXT", Context())
+    monkeypatch.setattr(glmod, "_OWNER", _ended_thread("worker-1"))
+    monkeypatch.setattr(glmod, "_CURRENT", False)
+    t = threading.Thread(target=costmodel.raster_costs if ask == "cost model" else machine, name="asker")
+    t.start()
+    t.join()
+    assert made_current == ["asker"] and let_go == ["asker"] and not glmod._CURRENT
+
+
 def test_a_uniform_the_compiler_left_out_is_not_set():
     kept = types.SimpleNamespace(value=0.0)
     prog = {"kept": kept}
