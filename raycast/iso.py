@@ -275,7 +275,11 @@ def cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, seg0, seg1, skip, jump_min):
     there, all of one sign, hold no root (samples near 1e18 put a cubic's
     rounding far above a value 1e-18 from the isovalue: without this rule the
     ray would miss that surface). Between two cells of one sign each, signs
-    cannot differ.
+    cannot differ. That hit needs the solved cell before it: a walk started
+    inside the one-signed cell would not see it. No segment starts there:
+    PARC's segments start in front of a possibly contributing supercell,
+    and the cells before it are one-signed and unsolved in `brute`'s walk
+    too.
 
     Where the ray enters or leaves the volume there is no neighbour to ask,
     and an isosurface lying on the volume's own face (the isovalue is the
