@@ -195,3 +195,35 @@ def test_merged_volumes_of_other_sample_types_and_tables_keep_their_values(near_
     np.testing.assert_allclose(b[..., 3], 1 - (1 - 0.03) ** 33, atol=1e-5)
     both = render(Scene(camera=CAM, size=(4, 4), volumes=[near, far] if near_first else [far, near])).image
     np.testing.assert_allclose(both, a + (1.0 - a[..., 3:4]) * b, atol=1e-5, rtol=0)
+
+
+def test_a_merged_volume_adds_nothing_once_the_opacity_reaches_its_own_threshold():
+    # Two overlapping volumes, the first stopping at 0.5, the second (from z = 0.3) at 1: the
+    # first's sample at z = 0 takes the opacity to exactly 0.5, so its next one, at z = 0.25 and
+    # before any of the second's, adds nothing, as alone; the second takes all 33 of its samples.
+    red = Translucent(_const(name="red"), TransferFunction([[0, 0.5], [200, 0.5]], [[0, 1.0, 0.0, 0.0]]),
+                      threshold=0.5, shade=False)
+    blue = Translucent(_const(origin=(0.0, 0.0, 0.3), name="blue"),
+                       TransferFunction([[0, 0.1], [200, 0.1]], [[0, 0.0, 0.0, 1.0]]), threshold=1.0, shade=False)
+    alone = render(Scene(camera=CAM, size=(4, 4), volumes=[red])).image.astype(np.float64)
+    np.testing.assert_allclose(alone, np.broadcast_to([0.5, 0.0, 0.0, 0.5], alone.shape), atol=1e-6, rtol=0)
+    img = render(Scene(camera=CAM, size=(4, 4), volumes=[red, blue])).image.astype(np.float64)
+    blue_alpha = 1.0 - (1.0 - 0.1) ** 33
+    want = _over([0.5, 0.0, 0.0, 0.5], [0.0, 0.0, blue_alpha, blue_alpha])
+    np.testing.assert_allclose(img, np.broadcast_to(want, img.shape), atol=1e-5, rtol=0)
+
+
+def test_layers_behind_the_point_where_the_samples_reach_the_threshold_still_show():
+    # The fog (threshold 0.5, 0.1 a sample) stops at its 7th sample, z = 1.5, while it still has
+    # samples to take; a maximum-intensity layer entered at z = 4, behind that, is finished, so it
+    # still shows under the fog, as a surface behind it would.
+    a = 0.1
+    fog = Translucent(_const(name="fog"), TransferFunction([[0, a], [200, a]], [[0, 0.0, 1.0, 0.0]]),
+                      threshold=0.5, shade=False)
+    red = Translucent(_const(origin=(0.0, 0.0, 4.0), name="red"),
+                      TransferFunction([[0, 0.3], [200, 0.3]], [[0, 1.0, 0.0, 0.0]]), mode="mip")
+    fog_alpha = 1.0 - (1.0 - a) ** 7
+    for vols in ([fog, red], [red, fog]):
+        img = render(Scene(camera=CAM, size=(4, 4), volumes=vols)).image.astype(np.float64)
+        want = _over([0.0, fog_alpha, 0.0, fog_alpha], [0.3, 0.0, 0.0, 0.3])
+        np.testing.assert_allclose(img, np.broadcast_to(want, img.shape), atol=1e-5, rtol=0)
