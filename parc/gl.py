@@ -110,7 +110,7 @@ def release_context():
     """Make the context current in no thread, if it is current in this one (`render` calls this as
     it ends). A thread that ends with the context current keeps it: Mesa's EGL then refuses
     to make it current in another, without a word, and that thread's OpenGL calls do
-    nothing (a pass read back the last frame's buffers, and drew that frame's segments)."""
+    nothing (a pass would read back the last frame's buffers, and draw that frame's segments)."""
     global _CURRENT
     if _CONTEXT is not None and _CURRENT and threading.current_thread() is _OWNER:
         _delete_dropped()
