@@ -38,6 +38,5 @@ def _amount(n):
             gb = n / 2**30
         except OverflowError:       # an integer past float's range (an image --size 10**400 1)
             gb = float("inf")
-        # A size past float's range (parc make --size 10**400) is infinite by the time it is counted.
         return f"{gb:.1e} GB" if gb < float("inf") else "over 1e+300 GB"
     return f"{n / 2**30:.1f} GB" if n >= 2**30 else f"{n / 2**20:.0f} MB"

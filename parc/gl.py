@@ -112,7 +112,7 @@ def release_context():
     to make it current in another, without a word, and that thread's OpenGL calls do
     nothing (a pass would read back the last frame's buffers, and draw that frame's segments)."""
     global _CURRENT
-    if _CONTEXT is not None and _CURRENT and threading.current_thread() is _OWNER:
+    if _current_here():
         _delete_dropped()
         _CONTEXT.__exit__(None, None, None)
         _CURRENT = False
@@ -122,11 +122,15 @@ def context_info():
     """The context's ``info`` (`get_context`), leaving it current only where it already was: a
     thread that asks for no more than that (the cost model's renderer, a report's machine)
     would otherwise end holding the context, and no other thread could take it over."""
-    held = _CONTEXT is not None and _CURRENT and threading.current_thread() is _OWNER
+    held = _current_here()
     info = get_context().info
     if not held:
         release_context()
     return info
+
+
+def _current_here():
+    return _CONTEXT is not None and _CURRENT and threading.current_thread() is _OWNER
 
 
 def _delete_dropped():

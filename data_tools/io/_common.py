@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from ..memory import check_memory
 from ..volume import Volume
 
 #: Exceptions a reader may meet on bad input; all become one-line InputErrors.
@@ -187,6 +188,16 @@ def check_tail(path: Path, end: int, kind: str, follows=()):
     what = "a further section" if follows else "white space"
     raise InputError(f"{path}: {size - end} bytes after the {kind} samples the header states, and they are not "
                      f"{what}: the header does not match the data (corrupt?)")
+
+
+def check_inflatable(path, dims, dtype):
+    """Refuse compressed samples (``dims`` x, y, z of ``dtype``, as the header states them) that
+    the memory cannot hold, before inflating them: a few kB of stream state gigabytes, and
+    inflated block by block they would fill the memory before any refusal."""
+    dims = [int(n) for n in dims]
+    check_memory(math.prod(dims) * np.dtype(dtype).itemsize,
+                 f"{path}: the {'x'.join(map(str, dims))} {np.dtype(dtype).name} volume its header states",
+                 " (or the header's sizes are wrong)")
 
 
 def decompress(blob: bytes, expected: int, path, kind: str) -> bytes:

@@ -7,10 +7,9 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..memory import check_memory
 from ..volume import Volume
-from ._common import (file_volume, data_file_block, decompress, parse_dims, parse_numbers, read_samples, reading,
-                      several_data_files, text_values, to_native)
+from ._common import (check_inflatable, file_volume, data_file_block, decompress, parse_dims, parse_numbers,
+                      read_samples, reading, several_data_files, text_values, to_native)
 
 EXTENSIONS = (".mhd", ".mha")
 
@@ -169,10 +168,7 @@ def _build(path, fields, data_start, given):
                          f"not {'text' if text else 'compressed'} ones")
     nx, ny, nz = dims
     if compressed:
-        # A few kB of stream state gigabytes, inflated block by block: asked before inflating them.
-        check_memory(nx * ny * nz * np.dtype(dtype).itemsize,
-                     f"{path}: the {nx}x{ny}x{nz} {np.dtype(dtype).name} volume its header states",
-                     " (or the header's sizes are wrong)")
+        check_inflatable(path, dims, dtype)
     files = several_data_files(path, "ElementDataFile", data_name, lambda: _lines_after(path, data_start), len(dims))
     if files is not None:
         paths, subdim = files

@@ -14,9 +14,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..memory import check_memory
 from ..volume import Volume
-from ._common import file_volume, one_line, optional_library, silenced, to_native
+from ._common import check_inflatable, file_volume, one_line, optional_library, silenced, to_native
 
 EXTENSIONS = (".nii", ".nii.gz")
 
@@ -123,10 +122,8 @@ def _check_length(img, path, start):
     need = int(start) + math.prod(shape) * dtype.itemsize
     if str(name).lower().endswith(".gz"):
         _check_gzip(name, path, need, f"{'x'.join(map(str, shape))} {dtype.name}")
-        # A few kB of stream hold gigabytes: nibabel's array of them (inflated above a piece at a
-        # time, and let go) is asked for before it is allocated.
-        check_memory(math.prod(shape) * dtype.itemsize,
-                     f"{path}: the {'x'.join(map(str, shape))} {dtype.name} volume its header states")
+        # Inflated above a piece at a time, and let go: nibabel's array of them is asked for next.
+        check_inflatable(path, shape, dtype)
         return
     size = os.stat(name).st_size
     if size < need:

@@ -16,9 +16,8 @@ import numpy as np
 import nrrd
 
 from ..errors import InputError
-from ..memory import check_memory
 from ..volume import Volume
-from ._common import check_tail, file_volume, data_file_block, text_values
+from ._common import check_inflatable, check_tail, file_volume, data_file_block, text_values
 from .nrrd_header import explain, header_lines, parse_header, read_header
 
 EXTENSIONS = (".nrrd", ".nhdr")
@@ -118,11 +117,7 @@ def _read(path, data_file):
             raise InputError(f"{path}: byte skip -1 (the data end the file) applies to raw data only, "
                              f"not {encoding}")
         if encoding in _DECODED and encoding != "hex" and header.get("sizes") is not None:
-            # A few kB of stream state gigabytes, inflated block by block: asked before inflating them.
-            sizes = [int(n) for n in np.atleast_1d(header["sizes"])]
-            check_memory(math.prod(sizes) * _sample_type(header).itemsize,
-                         f"{path}: the {'x'.join(map(str, sizes))} {header.get('type')} volume its header states",
-                         " (or the header's sizes are wrong)")
+            check_inflatable(path, np.atleast_1d(header["sizes"]), _sample_type(header))
         if files is not None:
             return _joined(header, files, path, encoding, lines, skip), dict(header, **{"data files": files})
         if encoding == "raw" and isinstance(skip, int) and skip > size:

@@ -302,8 +302,8 @@ _CODEC_ERRORS = (zlib.error, lzma.LZMAError, EOFError, ValueError)
 try:
     from compression import zstd as _zstd          # Python 3.14 on: tifffile's stand-in for Zstandard
 except ImportError:
-    pass
-else:
+    _zstd = None
+if _zstd is not None:
     _DECOMPRESSORS["Zstandard"] = _zstd.ZstdDecompressor
     _CODEC_ERRORS += (_zstd.ZstdError,)
 
