@@ -21,7 +21,8 @@ import numba
 import numpy as np
 
 from parc.camera import Camera
-from parc.renderer import _NO_STOP, accumulation_params, parc_segments
+from parc.renderer import _NO_STOP, accumulation_params
+from parc.segments import parc_segments
 from parc.skip import skip_table
 from parc.scene import Isosurface, Scene, Translucent
 from raycast.bricks import BRICK, MACRO, brick

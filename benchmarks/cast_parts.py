@@ -44,7 +44,7 @@ def frame(vis, size):
     ``(cam, org, spc, seg, skip, jump_min, extra)``, the segments PARC's OpenGL pass finds and its stats,
     and the skip tables the renderer gives these rays (by ray octant for an isosurface)."""
     from parc import Camera, Isosurface, Scene
-    from parc.renderer import parc_segments
+    from parc.segments import parc_segments
     from parc.skip import octant_skip_tables, skip_table
 
     vol = vis.volume

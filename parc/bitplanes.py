@@ -118,7 +118,7 @@ from .gl import get_context, moderngl_module, program, set_uniform
 from .raster import (ABS_TOL, COVERAGE_PAD_PX, FLOAT32_REACH, GUARD_PX, PASS_PHASES, TOL_REL, perspective_clip,
                      scene_scale, set_view_uniforms, view_reach)
 # `plane_buffers` keeps as many proxies as the renderer, so that a supercell sweep keeps its planes' too.
-from .renderer import PROXY_CACHE_SIZE
+from .segments import PROXY_CACHE_SIZE
 
 #: Width of the boundary band (halo mode), in cells along the plane axis:
 #: far above the caster's mismatch between ``floor(pos / m)`` and the

@@ -59,7 +59,8 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
     PARC's walks and shadow rays skip the volumes' empty cells
     (`parc.renderer.render`).
     """
-    from .renderer import accumulation_params, iso_work, parc_segments, row_bands
+    from .renderer import accumulation_params, iso_work, row_bands
+    from .segments import parc_segments
     from .skip import octant_skip_tables, skip_table
 
     w, h = scene.size
@@ -230,7 +231,8 @@ def _shadows(scene, method, lights, points, groups, vis, sizes, light_buffer, bl
     surface. A shadow ray starts and ends `SHADOW_EPS` of its own surface's smallest spacing
     off (the smallest in the scene let a tiny volume anywhere make surfaces shadow themselves).
     """
-    from .renderer import accumulation_params, cached_proxy
+    from .renderer import accumulation_params
+    from .segments import cached_proxy
     from .skip import skip_table
 
     nh = len(points)
@@ -277,7 +279,7 @@ def _shadows(scene, method, lights, points, groups, vis, sizes, light_buffer, bl
 def _cached_light_buffers(light, vis, proxy, size, n):
     """Light buffers of one volume's proxy from one light, kept while only the camera moves."""
     from .classify import VolumeIndex
-    from .renderer import classifier
+    from .segments import classifier
 
     index = VolumeIndex.of(vis.volume)
     what, _ = classifier(index, vis)

@@ -2,13 +2,12 @@
 
 One driver per kind of volume: `_render_iso` (opaque isosurface: first hit,
 shaded as soon as it is found) and `_render_translucent` (accumulation). Both get their
-ray segments from `parc_segments` when the method is ``"parc"`` (a translucent
+ray segments from `parc.segments` when the method is ``"parc"`` (a translucent
 volume drawn with bit planes alone takes only the proxy, `cached_proxy`); the
 casting kernels are the same for both methods. Scenes of several volumes or
 with lights go to `_render_general` (`parc.multivolume`).
 
-Also here, shared with `parc.multivolume` and the benchmarks: the proxy a frame
-takes from a volume's caches (`cached_proxy`, `classifier`) and the kernels'
+Also here, shared with `parc.multivolume` and the benchmarks: the kernels'
 arguments (`accumulation_params`, `iso_work`); the skip tables are `parc.skip`'s.
 """
 from __future__ import annotations
@@ -17,7 +16,6 @@ import threading
 import time
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
 from data_tools import InputError
@@ -27,6 +25,7 @@ from raycast.iso import cast_iso_image
 
 from .gl import release_context
 from .scene import Isosurface, Scene, Translucent, describe_volume
+from .segments import cached_proxy, parc_segments
 from .skip import octant_skip_tables, skip_table
 from .workspace import check_frame_memory, work_array
 
@@ -36,13 +35,6 @@ METHODS = ("brute", "parc")
 _ONE_AT_A_TIME = threading.RLock()
 #: Whether a render is under way: one inside it would overwrite its work arrays and buffers.
 _RENDERING = [False]
-
-#: Proxies kept per volume (classification, supercell size), least recently
-#: used dropped first, so that only a camera change re-rasterizes: enough for
-#: flipping between skin and bone, and for a supercell sweep, whose methods
-#: take turns repeat by repeat (with 4 entries a sweep of five sizes rebuilt
-#: every proxy every frame, and timed it).
-PROXY_CACHE_SIZE = 8
 
 _NO_STOP = np.empty((1, 1))
 
@@ -503,79 +495,6 @@ def _render_translucent(scene, vis, seg, use_seg, skip_blocks, timings, progress
             progress((n + 1) / len(bands))
     timings["cast"] = time.perf_counter() - t0
     return image, np.full((h, w), np.inf), {"hits": 0, "samples": int(samples), "per_pixel": counts}
-
-
-def classifier(index, vis):
-    """``(key, classify(size) -> bool array)`` of the possibly contributing supercells."""
-    from .classify import classify_tf, tf_key
-    if isinstance(vis, Isosurface):
-        return ("iso", vis.value), lambda size: index.classify(vis.value, size)
-    return tf_key(vis.tf), lambda size: classify_tf(*index.ranges(size), vis.tf)
-
-
-def parc_segments(scene, vis, supercell, timings, slot=0):
-    """The proxy (built or reused) rasterized: per-pixel segments, stats and the proxy.
-
-    The segments are written into a work array (`parc.workspace`); ``slot``
-    tells apart the volumes of one frame.
-    """
-    from .raster import raster_segments
-
-    w, h = scene.size
-    proxy, extra = cached_proxy(vis, supercell, scene.size, timings)
-    segs = raster_segments(scene.camera, w, h, proxy, out=work_array(("seg", slot), (h, w, 2)))
-    timings["raster"] = segs.seconds["total"]
-    extra.update({"polygons": segs.polygons,
-                  "segment_pixels": segs.info["pixels"],
-                  "raster_seconds": dict(segs.seconds)})
-    return segs.seg, extra, proxy
-
-
-def cached_proxy(vis, supercell, size_px, timings, *, merge=True):
-    """Classify and build (or reuse) the outer-face proxy of the possibly contributing supercells.
-
-    ``merge=False`` keeps one face per supercell face (the light buffers' proxy, `parc.lights`).
-    """
-    from .classify import VolumeIndex, supercell_size
-    from .costmodel import choose_supercell
-    from .proxy import build_proxy
-
-    vol = vis.volume
-    w, h = size_px
-    t0 = time.perf_counter()
-    index = VolumeIndex.of(vol)
-    what, classify = classifier(index, vis)
-    extra = {}
-    if supercell is None:
-        # The model classifies every candidate size: do it once per classification and image size.
-        chosen = index.kept("supercell size")
-        key = (what, w * h, numba.get_num_threads())
-        if key not in chosen:
-            chosen[key] = choose_supercell(index, classify=classify, pixels=w * h)
-        supercell, table = chosen[key]
-        # A copy: the caller's stats are theirs to change, the kept table is not.
-        extra["supercell_model"] = [dict(row) for row in table]
-    size = supercell_size(supercell)
-    proxies = index.kept("proxies")
-    key = (size, what, merge)
-    proxy = proxies.pop(key, None)
-    if proxy is not None:
-        proxies[key] = proxy    # now the most recently used
-        timings["classify"] = time.perf_counter() - t0
-        timings["proxy"] = 0.0
-    else:
-        pc = classify(size)
-        timings["classify"] = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        grid = index.grid(size)
-        proxy = build_proxy(grid, pc, grid.world_edges(vol), merge=merge)
-        if len(proxies) >= PROXY_CACHE_SIZE:
-            proxies.pop(next(iter(proxies)))
-        proxies[key] = proxy
-        timings["proxy"] = time.perf_counter() - t0
-    extra.update({"supercell": list(size), "pc_supercells": int(proxy.pc.sum()),
-                  "supercells": int(proxy.pc.size)})
-    return proxy, extra
 
 
 def column_totals(counts):

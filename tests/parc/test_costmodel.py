@@ -257,7 +257,7 @@ def test_the_renderer_models_its_own_image_size():
     """Without a supercell size the renderer asks the model for the frame's pixels and
     builds the proxy at the size with the least estimated time."""
     from data_tools.synthetic import blobs
-    from parc.renderer import cached_proxy
+    from parc.segments import cached_proxy
     from parc.scene import Isosurface
     vol = blobs(20, seed=2, count=3)
     fixed, per_strip = costmodel.raster_costs()
@@ -274,7 +274,7 @@ def test_the_renderer_models_its_own_image_size():
 def test_a_caller_changing_the_reported_model_changes_no_later_report():
     """The model's table is kept per classification; what a render reports is the caller's."""
     from data_tools.synthetic import blobs
-    from parc.renderer import cached_proxy
+    from parc.segments import cached_proxy
     from parc.scene import Isosurface
     vol = blobs(20, seed=2, count=3)
     _, first = cached_proxy(Isosurface(vol, 100.0), None, (64, 48), {})
