@@ -95,9 +95,10 @@ def _reading_tiff(path):
         raise InputError(f"{path}: cannot read TIFF file: {detail}") from None
 
 
-def _grey_pages(tif, path):
-    """The first page of an open TIFF file, after checking it holds grey-level images."""
-    if len(tif.pages) == 0 or not tif.series:
+def _grey_pages(tif, path, *, series=True):
+    """The first page of an open TIFF file, after checking it holds grey-level images (and,
+    with ``series``, that tifffile makes a series of them)."""
+    if len(tif.pages) == 0 or (series and not tif.series):
         raise InputError(f"{path}: no readable image in this TIFF file")
     page = tif.pages[0]
     if page.samplesperpixel > 1:
@@ -148,6 +149,43 @@ def _check_gapless(tif, series, path):
                          f"{len(tif.pages)} is not like page {indices[0] + 1}); a stack needs equal pages")
 
 
+def _check_uniform(tif, series, path):
+    """Refuse a stack whose pages are not all like the first.
+
+    tifffile makes one series of a file's pages when its second, eighth and last pages are like
+    the first, and reads every page with the first's size, type and compression: a page twice as
+    tall would lose its lower half, a 16-bit page come back as twice as many 8-bit samples."""
+    if series.kind != "uniform":
+        return
+    first = _decoding_entries(tif, series.keyframe)
+    for page in series.pages:
+        # Equal entries are equal pages; others may still be (a value stored elsewhere, other
+        # padding, a default written out): tifffile's own reading of the page decides.
+        if page is None or _decoding_entries(tif, page) == first or page.aspage().hash == series.keyframe.hash:
+            continue
+        raise InputError(f"{path}: its TIFF pages differ in size, sample type or compression (page "
+                         f"{page.index + 1} of {len(tif.pages)} is not like page 1); a stack needs equal pages")
+
+
+#: The tags that decide how tifffile decodes a page (`TiffPage.hash`): its size and samples,
+#: strips or tiles, compression and predictor.
+_DECODING_TAGS = frozenset({256, 257, 258, 259, 262, 266, 277, 278, 284, 317, 322, 323, 338, 339, 530,
+                            32997, 32998})
+
+
+def _decoding_entries(tif, page):
+    """``{code: raw entry}`` of `_DECODING_TAGS` in ``page``'s IFD: type, count, and the value (or
+    where it is stored), as the file holds them."""
+    tiff, fh = tif.tiff, tif.filehandle
+    fh.seek(page.offset)
+    count = struct.unpack(tiff.tagnoformat, fh.read(tiff.tagnosize))[0]
+    raw = fh.read(count * tiff.tagsize)
+    code = tiff.byteorder + "H"
+    return {struct.unpack_from(code, raw, at)[0]: raw[at + 2:at + tiff.tagsize]
+            for at in range(0, len(raw) - tiff.tagsize + 1, tiff.tagsize)
+            if struct.unpack_from(code, raw, at)[0] in _DECODING_TAGS}
+
+
 def _first_shape(tif):
     """The shape the first page's tifffile description states, or None."""
     try:
@@ -156,23 +194,49 @@ def _first_shape(tif):
         return None
 
 
+def _described_one_by_one(tif):
+    """The file's pages when each one's tifffile description states that page alone, as tifffile
+    writes pages one at a time (``TiffWriter.write`` of each slice); otherwise None.
+
+    tifffile makes each such page a series of its own, and sorts them in time quadratic in their
+    number (minutes for tens of thousands of pages); its first series is the first page, and the
+    stack all the pages, which are read here without the series. A page with another description,
+    or none, gives other series (`_check_shaped`)."""
+    if len(tif.pages) < 2 or not _states_itself(tif.pages[0]):
+        return None
+    pages = list(tif.pages)
+    return pages if all(_states_itself(p) for p in pages) else None
+
+
+def _states_itself(page):
+    """Whether ``page``'s tifffile description (``{"shape": [y, x]}``) states that page alone."""
+    if page.subifds or page.shaped_description is None:
+        return False
+    try:
+        stated = json.loads(page.shaped_description)
+        shape = tuple(int(n) for n in stated["shape"])
+    except Exception:  # noqa: BLE001 - any description that is not such JSON
+        return False
+    return shape == page.shape and stated.get("axes", page.axes) == page.axes
+
+
 def _stack(tifffile, tif, path):
     """``(data [z, y, x], axes, spacing, note, meta)`` of an open TIFF file."""
-    page = _grey_pages(tif, path)
-    series = tif.series[0]
-    _check_shaped(tif, series, path)
-    _check_gapless(tif, series, path)
-    axes = series.axes
-    _check_decoding(tifffile, tif, series.pages, series.shape, series.dtype, path)
-    data = series.asarray()
-    if data.ndim == 2 and len(tif.pages) > 1:
-        pages = list(tif.pages)
-        if any(p.shape != page.shape or p.dtype != page.dtype for p in pages):
-            raise InputError(f"{path}: its {len(pages)} TIFF pages differ in size or sample type; "
-                             "a stack needs equal pages")
-        _check_decoding(tifffile, tif, pages, (len(pages), *page.shape), page.dtype, path)
-        data = np.stack([p.asarray() for p in pages])
-        axes = "Z" + axes
+    pages = _described_one_by_one(tif)
+    if pages:
+        page = _grey_pages(tif, path, series=False)
+        data, axes = _every_page(tifffile, tif, page, pages, path), "Z" + page.axes
+    else:
+        page = _grey_pages(tif, path)
+        series = tif.series[0]
+        _check_shaped(tif, series, path)
+        _check_gapless(tif, series, path)
+        _check_uniform(tif, series, path)
+        axes = series.axes
+        _check_decoding(tifffile, tif, series.pages, series.shape, series.dtype, path)
+        data = series.asarray()
+        if data.ndim == 2 and len(tif.pages) > 1:
+            data, axes = _every_page(tifffile, tif, page, list(tif.pages), path), "Z" + axes
     keep = [i for i, n in enumerate(data.shape) if n != 1]
     shape = " x ".join(f"{n} {a}" for n, a in zip(data.shape, axes))
     if len(keep) < 3:
@@ -186,6 +250,15 @@ def _stack(tifffile, tif, path):
         raise InputError(f"{path}: the stack's slices are channels ({shape}), not z slices")
     spacing, note, meta = _spacing(tif, path)
     return data, axes, spacing, note, meta
+
+
+def _every_page(tifffile, tif, page, pages, path):
+    """The file's ``pages`` stacked in file order [z, y, x], all of ``page``'s shape and type."""
+    if any(p.shape != page.shape or p.dtype != page.dtype for p in pages):
+        raise InputError(f"{path}: its {len(pages)} TIFF pages differ in size or sample type; "
+                         "a stack needs equal pages")
+    _check_decoding(tifffile, tif, pages, (len(pages), *page.shape), page.dtype, path)
+    return np.stack([p.asarray() for p in pages])
 
 
 #: Compressions that tifffile decodes, without imagecodecs, with Python's own decompressors or

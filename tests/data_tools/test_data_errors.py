@@ -1085,6 +1085,40 @@ def test_tiff_pages_of_two_sizes_taking_turns_are_refused(tmp_path):
     fails(p, "page 2 of 6 is not like page 1")
 
 
+@pytest.mark.parametrize("odd, how", [
+    (np.zeros((10, 6), np.uint8), {}),
+    (np.full((5, 6), 1000, np.uint16), {}),
+    (np.full((5, 6), 7, np.uint8), {"compression": "zlib"}),
+], ids=["taller", "16-bit", "deflated"])
+def test_tiff_page_unlike_the_others_away_from_those_tifffile_compares_is_refused(tmp_path, odd, how):
+    # tifffile compares pages 2, 8 and the last with the first, and reads the others as the first
+    # is: the taller page's first rows, the 16-bit page's bytes or the deflated page's stream as
+    # 8-bit samples.
+    tifffile = pytest.importorskip("tifffile")
+    p = tmp_path / "s.tif"
+    with tifffile.TiffWriter(p) as w:
+        for k in range(10):
+            w.write(odd if k == 3 else np.full((5, 6), k, np.uint8), photometric="minisblack", metadata=None,
+                    **(how if k == 3 else {}))
+    fails(p, "page 4 of 10 is not like page 1")
+
+
+def test_tiff_page_whose_tags_differ_but_read_alike_is_read(tmp_path):
+    # RowsPerStrip left at TIFF's default, 2**32 - 1: all the rows in one strip, as the other pages.
+    tifffile = pytest.importorskip("tifffile")
+    import struct
+    arr = np.arange(10 * 5 * 6, dtype=np.uint8).reshape(10, 5, 6)
+    p = tmp_path / "s.tif"
+    tifffile.imwrite(p, arr, photometric="minisblack", metadata=None)
+    with tifffile.TiffFile(p) as tif:
+        at = tif.pages[3].tags["RowsPerStrip"].valueoffset
+    raw = bytearray(p.read_bytes())
+    assert struct.unpack_from("<I", raw, at)[0] == 5
+    struct.pack_into("<I", raw, at, 2 ** 32 - 1)
+    p.write_bytes(bytes(raw))
+    np.testing.assert_array_equal(load_volume(p).data, arr)
+
+
 def _ome_image(number, shape, ifds):
     z, y, x = shape
     planes = "".join(f'<TiffData IFD="{ifd}" FirstZ="{k}" PlaneCount="1"/>' for k, ifd in enumerate(ifds))
@@ -1121,4 +1155,16 @@ def test_tiff_thumbnails_and_masks_between_the_slices_are_left_out(tmp_path, sub
         for k in range(4):
             w.write(SMALL[k], photometric="minisblack", metadata=None)
             w.write(between, photometric="minisblack", metadata=None, subfiletype=subfiletype)
+    np.testing.assert_array_equal(load_volume(p).data, SMALL)
+
+
+def test_tiff_thumbnails_between_slices_each_with_its_own_description_are_left_out(tmp_path):
+    # tifffile describes each slice it writes (its shape alone), and not the thumbnails another
+    # writer added: one series of the slices, the thumbnails its reduced level.
+    tifffile = pytest.importorskip("tifffile")
+    p = tmp_path / "s.tif"
+    with tifffile.TiffWriter(p) as w:
+        for k in range(4):
+            w.write(SMALL[k], photometric="minisblack")
+            w.write(SMALL[k, ::2, ::2], photometric="minisblack", metadata=None, subfiletype=1)
     np.testing.assert_array_equal(load_volume(p).data, SMALL)

@@ -5,6 +5,7 @@ missing library, get one InputError line naming the file.
 """
 from __future__ import annotations
 
+import json
 import lzma
 import struct
 import sys
@@ -192,6 +193,38 @@ def test_tiff_pages_written_one_by_one_are_stacked(tmp_path):
         for page in a:
             w.write(page, contiguous=False)
     assert np.array_equal(load_volume(p).data, a)
+
+
+@pytest.mark.parametrize("metadata", [{}, {"axes": "YX"}, {"name": "slice"}])
+def test_tiff_pages_each_with_its_own_description_are_stacked_without_tifffile_series(tmp_path, monkeypatch,
+                                                                                      metadata):
+    # Each page's description states that page alone: tifffile makes a series of each page and
+    # sorts every series against every other, in time quadratic in the pages (minutes for 20,000).
+    a = _data("uint16")
+    p = tmp_path / "pages.tif"
+    with tifffile.TiffWriter(p) as w:
+        for page in a:
+            w.write(page, photometric="minisblack", metadata=metadata)
+    with tifffile.TiffFile(p) as tif:
+        assert json.loads(tif.pages[-1].description)["shape"] == [5, 6]
+
+    def unsorted(tif):
+        raise RuntimeError("the pages were sorted into series")
+
+    monkeypatch.setattr(tifffile.TiffFile, "series", property(unsorted))
+    vol = load_volume(p)
+    assert vol.data.dtype == np.uint16 and np.array_equal(vol.data, a)
+    assert vol.meta["axes"] == "ZYX" and vol.spacing == (1.0, 1.0, 1.0) and "--spacing" in vol.meta["note"]
+
+
+@pytest.mark.parametrize("odd", [np.zeros((5, 7), np.uint8), np.zeros((5, 6), np.uint16)], ids=["size", "type"])
+def test_tiff_pages_each_with_its_own_description_that_differ_are_refused(tmp_path, odd):
+    a = _data("uint8")
+    p = tmp_path / "pages.tif"
+    with tifffile.TiffWriter(p) as w:
+        for k, page in enumerate(a):
+            w.write(odd if k == 4 else page, photometric="minisblack")
+    fails(p, f"its {len(a)} TIFF pages differ in size or sample type")
 
 
 @pytest.mark.parametrize("byte, flip", [(28, 0xFF), (43, 0xFF), (38, 0x01)])
