@@ -36,7 +36,7 @@ def eyes_outside(rng, scene, n, margin=0.6):
         p = a + (b - a) * rng.uniform(-margin, 1 + margin, 3)
         if np.any(p < a) or np.any(p > b):
             out.append(p)
-    return np.array(out)
+    return np.array(out).reshape(n, 3)
 
 
 def perspective_rays(rng, scene, n, inside=False):

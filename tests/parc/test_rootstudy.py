@@ -197,6 +197,8 @@ def test_aimed_at_means_the_nearest_true_root_less_than_a_cell_away():
     assert _aimed_at(b, 0, 4.9, 3.0, roots)             # 0.95 of a cell past it
     assert _aimed_at(b, 0, 1.2, 3.0, roots)             # 0.9 of a cell before it
     assert not _aimed_at(b, 0, 5.1, 3.0, roots)         # more than a cell (2 units) away
+    assert not _aimed_at(b, 0, 5.0, 3.0, roots)         # exactly a cell away is not less than one
+    assert not _aimed_at(b, 0, 1.0, 3.0, roots)
     assert not _aimed_at(b, 0, 9.0, 3.0, roots)         # nearest to the other root
     assert not _aimed_at(b, 0, math.inf, 3.0, roots)
 
@@ -206,5 +208,159 @@ def test_required_rays_are_all_hit_by_the_project_finder(study):
     # caster: `required` can be no more than the caster's hits on the same suite.
     from parc.rootstudy import _suite
     from raycast.hardcases import cast_batch
-    hits = sum(int(np.isfinite(cast_batch(b)[0]).sum()) for b in _suite(40, 0))
+    cast = [cast_batch(b) for b in _suite(40, 0)]
+    hits = sum(int(np.isfinite(t).sum()) for t, _, _, _ in cast)
     assert 0 < study[0]["required"] <= hits
+    # The cubics timed are the project's walk's, once: the caster's own count of them, less
+    # at most one per hit (it counts the cell where the predecessor's sign decides the hit
+    # before any root finder is called).
+    solves = sum(int(counts[:, 1].sum()) for _, _, _, counts in cast)
+    assert solves - hits <= study[0]["solves"] <= solves
+
+
+def test_table_columns_hold_their_rows_numbers():
+    # Every number a row holds differs from the others, so a column showing another's is seen.
+    def row(name, ns, errs, kinds, cats):
+        return dict(name=name, description=f"{name} finder", ns_per_solve=ns, solves=12345, rays=400,
+                    required=321, failures=sum(kinds), **dict(zip(FAILURE_KINDS, kinds)),
+                    max_err_cells=errs[0], median_err_cells=errs[1], failures_by_category=cats)
+    rows = [row("project", 61.25, (3.5e-12, 1.25e-14), (0, 0, 0, 0, 0), {}),
+            row("marmitt", 17.5, (0.375, 0.0625), (1, 2, 3, 40, 5), {"grazing": 30, "faces": 21})]
+    lines = format_table(rows).splitlines()
+    assert lines[0].startswith("hard-ray suite: 400 rays (321 with a required root), 12,345 cubics timed")
+    assert lines[1].split() == ["finder", "ns/solve", "max", "err", "med", "err", "fail", "missed", "false",
+                                "wrong", "inacc", "cell"]
+    for r, line in zip(rows, lines[2:4]):
+        cols = line.split()
+        assert cols[0] == r["name"]
+        assert [float(c) for c in cols[1:4]] == pytest.approx(
+            [r["ns_per_solve"], r["max_err_cells"], r["median_err_cells"]], rel=1e-2)
+        assert [int(c) for c in cols[4:]] == [r["failures"], r["missed"], r["false"], r["wrong"],
+                                              r["inaccurate"], r["cell"]]
+    assert lines[4] == "failures by category:"
+    assert lines[5].split() == ["project", "none"]
+    assert lines[6].split() == ["marmitt", "faces", "21,", "grazing", "30"]
+
+
+def test_solve_times_are_the_best_repeat_per_solve(monkeypatch):
+    # A clock whose intervals are set here: variant v's r-th timing lasts durations[r][v] ns.
+    from types import SimpleNamespace
+
+    from parc import rootstudy
+    durations = [[900, 1800, 2700], [300, 600, 900], [600, 1500, 1200]]
+    ticks, now = [], 0
+    for per_variant in durations:
+        for d in per_variant:
+            ticks += [now, now + d]
+            now += d
+    clock = iter(ticks)
+    monkeypatch.setattr(rootstudy, "time", SimpleNamespace(perf_counter_ns=lambda: next(clock)))
+    monkeypatch.setattr(rootstudy, "TIMED_SOLVES", 40)
+    rec = np.array([_from_roots(1.0, 0.25, 0.5, 0.75) + (1.0,)] * 8)
+    ns = rootstudy._time_solves(rec)
+    # 40 solves of 8 cubics: 5 passes; each variant's best of 3 over the 40 solves.
+    assert ns == {code: min(d[v] for d in durations) / 40 for v, (_, code, _) in enumerate(VARIANTS)}
+
+
+def test_each_variant_walks_and_times_its_own_finder():
+    # The walk's switch gives the named finder's root; the checksum of each timed loop is the
+    # sum of its finder's roots, called one by one.
+    from parc.rootstudy import CLOSED_FORM, MARMITT, PROJECT, _solve, solve_all
+    from raycast.cubic import first_root
+    rec = np.array([c[:4] + (1.0,) for c in _cubics(5, 40)])
+    for code, finder in ((PROJECT, first_root), (CLOSED_FORM, first_root_closed_form),
+                         (MARMITT, first_root_marmitt)):
+        roots = [finder(*row) for row in rec]
+        assert [_solve(code, *row) for row in rec] == roots, code
+        assert solve_all(rec, code, 2) == pytest.approx(2 * sum(roots), rel=1e-12), code
+    assert solve_all(rec, MARMITT, 1) != pytest.approx(solve_all(rec, CLOSED_FORM, 1), rel=1e-9)
+
+
+def test_error_columns_are_distances_to_the_true_root_in_smallest_spacings(monkeypatch):
+    # The columns by their definition, from each ray's answer and its mpmath roots: |t - r| over
+    # the scene's smallest spacing, where r is the first required root, the true root nearest
+    # the hit and less than a cell away along every axis. On scenes of unequal spacings.
+    from parc import rootstudy
+    from raycast.reference import judge_batches
+    batches = [b for b in rootstudy._suite(25, 0) if len(set(b.scene.spacing)) == 3][:40]
+    monkeypatch.setattr(rootstudy, "_suite", lambda n, seed: batches)
+    monkeypatch.setattr(rootstudy, "TIMED_SOLVES", 1)
+    rows = root_study(n=25)
+    for row, (_, code, _) in zip(rows, rootstudy.VARIANTS):
+        answers = [rootstudy._walk(b, code)[:3] for b in batches]
+        judged = judge_batches([(b.scene, b.origins, b.dirs, b.isos, [a]) for b, a in zip(batches, answers)])
+        errs = []
+        for b, (t, _, _), res in zip(batches, answers, judged):
+            for m, (first, roots, _) in enumerate(res):
+                if first is None or not np.isfinite(t[m]):
+                    continue
+                r = first[0]
+                cells = np.abs((t[m] - r) * np.asarray(b.dirs[m]) / np.asarray(b.scene.spacing))
+                if roots[int(np.argmin(np.abs(np.asarray(roots) - t[m])))] == r and cells.max() < 1.0:
+                    errs.append(abs(float(t[m]) - r) / float(np.min(b.scene.spacing)))
+        assert errs, row["name"]
+        assert row["max_err_cells"] == max(errs), row["name"]
+        assert row["median_err_cells"] == pytest.approx(float(np.median(errs)), rel=1e-12), row["name"]
+    assert rows[2]["name"] == "marmitt" and rows[2]["max_err_cells"] > 1e-9       # not all zeros
+
+
+@pytest.mark.parametrize("n", [1, 5, 24])
+def test_a_study_of_few_rays_has_that_many_per_category(n):
+    # `--n` is rays per category; a small one leaves some of a category's batches without
+    # rays, which must still be (0, 3) arrays for the walk and the truth.
+    from collections import Counter
+
+    from parc.rootstudy import _suite
+    from raycast.hardcases import CATEGORIES
+    per = Counter()
+    for b in _suite(n, 0):
+        assert b.origins.shape == b.dirs.shape == (len(b.isos), 3)
+        per[b.category] += len(b.origins)
+    assert per == {c: n for c in CATEGORIES}
+
+
+def test_a_walk_that_drifts_from_the_caster_is_refused(monkeypatch):
+    # The project's finder must give the caster's hits bit for bit, or the comparison is not of
+    # root finders alone: one ulp off on one ray stops the study.
+    from parc import rootstudy
+    real = rootstudy._walk
+
+    def drifted(batch, variant, record=False):
+        t, cell, uvw, rec = real(batch, variant, record)
+        hit = np.flatnonzero(np.isfinite(t))
+        if variant == rootstudy.PROJECT and hit.size:
+            t = t.copy()
+            t[hit[0]] = np.nextafter(t[hit[0]], np.inf)
+        return t, cell, uvw, rec
+    monkeypatch.setattr(rootstudy, "_walk", drifted)
+    with pytest.raises(RuntimeError, match="no longer matches"):
+        root_study(n=25)
+
+
+def test_the_cubics_recorded_are_each_rays_own_in_ray_order():
+    # Walked one ray at a time, a ray's cubics start the record: no offsets to get wrong.
+    # Grazing rays solve several cubics each.
+    from parc.rootstudy import PROJECT, walk
+    from raycast.hardcases import hard_batches
+    for b in hard_batches("grazing", 100, 0)[:2]:
+        grid = (b.scene.data, b.scene.origin, b.scene.spacing)
+        rec = walk(*grid, b.origins, b.dirs, b.isos, PROJECT, record=True)[3]
+        alone = [walk(*grid, b.origins[m:m + 1], b.dirs[m:m + 1], b.isos[m:m + 1], PROJECT, record=True)[3]
+                 for m in range(len(b.origins))]
+        assert sum(len(r) > 1 for r in alone) > 3
+        np.testing.assert_array_equal(rec, np.concatenate(alone))
+
+
+def test_the_project_walk_is_the_casters_over_a_whole_category():
+    # The study checks its walk against the caster on the suite it runs; the suite above is a
+    # small sample, and the whole suite's 16-bit category holds rays that enter the box on a
+    # face lying in the level set, which the walk must decide as the caster does.
+    from parc.rootstudy import FULL_RAYS_PER_CATEGORY, PROJECT, _walk
+    from raycast.hardcases import cast_batch, hard_batches
+    for b in hard_batches("mag16", FULL_RAYS_PER_CATEGORY, 0):
+        t, cell, uvw, _ = _walk(b, PROJECT)
+        ref_t, ref_cell, ref_uvw, _ = cast_batch(b)
+        hit = np.isfinite(ref_t)
+        np.testing.assert_array_equal(t, ref_t)
+        np.testing.assert_array_equal(cell[hit], ref_cell[hit])
+        np.testing.assert_array_equal(uvw[hit], ref_uvw[hit])

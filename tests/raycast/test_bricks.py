@@ -34,6 +34,26 @@ def test_one_brick_is_contiguous():
     assert sorted(q.ravel()) == list(range(q.min(), q.min() + 64))
 
 
+def test_offsets_are_appendix_bs_expression():
+    """Parker et al.'s example: a 40 x 20 x 19 volume in 2^3-brick macrobricks of 5^3-sample bricks,
+    padded to 40 x 20 x 20. Their x runs slowest; here the array's last axis runs fastest, so the
+    expression is theirs with x and z exchanged."""
+    n, m = 5, 2
+    shape = (40, 20, 19)
+    fz, fy, fx, total = brick_tables(shape, n, m)
+    pz, py, px = 40, 20, 20
+    assert total == pz * py * px == 4 * 2 * 2 * (n * m) ** 3
+    for z in range(shape[0]):
+        for y in range(shape[1]):
+            for x in range(shape[2]):
+                q = ((z // n // m) * n**3 * m**3 * (py // n // m) * (px // n // m)
+                     + (y // n // m) * n**3 * m**3 * (px // n // m)
+                     + (x // n // m) * n**3 * m**3
+                     + (z // n % m) * n**3 * m**2 + (y // n % m) * n**3 * m + (x // n % m) * n**3
+                     + (z % n) * n**2 + (y % n) * n + x % n)
+                assert fz[z] + fy[y] + fx[x] == q, (x, y, z)
+
+
 def test_brick_keeps_every_sample():
     rng = np.random.default_rng(3)
     data = rng.integers(-3000, 3000, (9, 11, 6)).astype(np.int16)
@@ -46,15 +66,30 @@ def test_brick_keeps_every_sample():
         assert cell_corners(b, i, j, k) == cell_corners(data, i, j, k)
 
 
-@pytest.mark.parametrize("bad", [dict(n=0), dict(m=0), dict(n=2.5)])
+def test_the_padding_holds_zeros():
+    data = np.full((9, 11, 6), 7, np.int16)
+    total = brick_tables(data.shape, 2, 2)[3]
+    freed = np.full(total, -1, np.int16)    # memory a new array of the same size may reuse
+    del freed
+    b = brick(data, 2, 2)
+    q = (b.fz[:, None, None] + b.fy[None, :, None] + b.fx[None, None, :]).ravel()
+    pad = np.ones(total, bool)
+    pad[q] = False
+    assert pad.sum() == total - data.size > 0
+    assert (b.flat[pad] == 0).all() and (b.flat[q] == 7).all()
+
+
+@pytest.mark.parametrize("bad", [dict(n=0), dict(m=0), dict(n=2.5), dict(m=2.5)])
 def test_bad_brick_sizes_are_refused(bad):
     with pytest.raises(ValueError, match="brick sizes"):
         brick(np.zeros((4, 4, 4)), **bad)
 
 
-def test_a_grid_too_small_is_refused():
+@pytest.mark.parametrize("shape", [(4, 4), (1, 4, 4), (4, 4, 1)])
+def test_a_grid_too_small_is_refused(shape):
+    # A grid one sample thick has no cells.
     with pytest.raises(ValueError, match="3-D grid"):
-        brick(np.zeros((4, 4)))
+        brick(np.zeros(shape))
 
 
 def _noise(seed, shape=(14, 19, 11)):

@@ -251,7 +251,10 @@ def test_composite_with_stop_matches_slow_reference():
     vis = Translucent(vol, TINY_TF, step=0.29, threshold=0.8)
     w, h = SIZE
     stop = np.random.default_rng(3).uniform(0.0, 60.0, (h, w))
-    np.testing.assert_array_equal(_kernel_counts(vis, cam, SIZE, stop), _slow_counts(vis, cam.as_array(), w, h, stop))
+    want = _slow_counts(vis, cam.as_array(), w, h, stop)
+    np.testing.assert_array_equal(_kernel_counts(vis, cam, SIZE, stop), want)
+    scene = Scene(camera=cam, size=SIZE, volumes=[vis])
+    assert ideal_samples(scene, vis, stop) == want.sum() < ideal_samples(scene, vis)
 
 
 @pytest.mark.parametrize("view", ["perspective", "parallel-z"])
@@ -280,6 +283,43 @@ def test_a_stop_exactly_on_a_lattice_point_takes_no_sample_there(view):
                           accumulation_params(vis), *vis.tf.arrays(), np.empty((1, 1, 2)), False, stop, True,
                           np.zeros((1, 1, 1), np.uint32), False, NO_SKIP, -1, image, brute, 0, h)
     np.testing.assert_array_equal(brute.reshape(h, w), _slow_counts(vis, cam.as_array(), w, h, stop, every=True))
+
+
+def test_a_composite_ray_stops_at_the_sample_that_reaches_the_threshold_exactly():
+    # Opacity 1/2 everywhere and a step of a quarter spacing (no step correction): the
+    # accumulated opacity is 1/2 after one sample and exactly 3/4, the threshold, after two.
+    vol = Volume(np.full((5, 6, 7), 100.0, np.float32))
+    tf = TransferFunction(opacity=[[0, 0.5], [255, 0.5]], color=[[0, 1.0, 1.0, 1.0], [255, 1.0, 1.0, 1.0]])
+    vis = Translucent(vol, tf, step=0.25, threshold=0.75)
+    cam = Camera.framing(*vol.bounds, azimuth=30.0, elevation=20.0, zoom=1.6)
+    w, h = SIZE
+    arr = [float(c) for c in cam.as_array()]
+    want = np.zeros((h, w), np.int64)
+    for y in range(h):
+        for x in range(w):
+            o, d = _pixel_ray(arr, w, h, x, y)
+            t_in, t_out = _clip(o, d, vol.dims)
+            if t_in <= t_out:
+                want[y, x] = min(2, math.floor((t_out - t_in) / 0.25) + 1)
+    assert (want == 2).sum() > 20
+    np.testing.assert_array_equal(_kernel_counts(vis, cam, SIZE), want)
+    image = np.empty((h, w, 4), np.float32)
+    brute = np.empty(w * h, np.int64)
+    cast_accumulate_image(vol.data, np.array(vol.origin), np.array(vol.spacing), cam.as_array(), w, h,
+                          accumulation_params(vis), *vis.tf.arrays(), np.empty((1, 1, 2)), False,
+                          np.empty((1, 1)), False, np.zeros((1, 1, 1), np.uint32), False, NO_SKIP, -1,
+                          image, brute, 0, h)
+    np.testing.assert_array_equal(brute.reshape(h, w), want)
+
+
+def test_an_isosurface_has_no_ideal_samples_and_is_refused():
+    from data_tools import InputError
+    from parc import Isosurface
+    vol = _tiny_volume("float32")
+    surf = Isosurface(vol, 150.0)
+    scene = Scene(camera=_tiny_cameras(vol)["perspective"], size=SIZE, volumes=[surf])
+    with pytest.raises(InputError, match="Translucent volume, got Isosurface"):
+        ideal_samples(scene, surf)
 
 
 # --------------------------------------------------------------------------
