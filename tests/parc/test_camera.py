@@ -13,8 +13,9 @@ from parc import Camera, InputError
 from raycast.rays import camera_ray
 
 
-def test_kernel_rays_match_numpy_rays():
-    cam = Camera(eye=(3.0, -7.0, 2.0), look_at=(0.5, 0.25, -1.0), up=(0.0, 0.0, 1.0), fov=40.0)
+@pytest.mark.parametrize("projection", [dict(fov=40.0), dict(parallel_scale=2.5)])
+def test_kernel_rays_match_numpy_rays(projection):
+    cam = Camera(eye=(3.0, -7.0, 2.0), look_at=(0.5, 0.25, -1.0), up=(0.0, 0.0, 1.0), **projection)
     o, d = cam.rays(7, 5)
     arr = cam.as_array()
     for y in range(5):

@@ -722,6 +722,40 @@ def test_room_is_made_for_the_views_the_light_takes_not_six(gl, monkeypatch):
     assert len(VolumeIndex.of(vol).kept("light buffers")) == 2
 
 
+def test_a_lamp_outside_the_box_takes_only_the_views_that_see_the_box():
+    # Box [0, 10]^3. Beyond the +x face at x = 25 its corners lie within 26 degrees of the
+    # centre (cos = 15 / sqrt(275)): one perspective view. Half a unit beyond that face some
+    # corners lie 86 degrees off (cos = 0.5 / sqrt(50.25)): cube views, all but those looking
+    # away from the whole box (down +x; and +y too half a unit past the +y face). Inside it:
+    # all six. (Each view is a buffer drawn and kept.)
+    from parc.lights import light_views
+    lo, hi = (0.0, 0.0, 0.0), (10.0, 10.0, 10.0)
+    far = light_views(PointLight((25.0, 5.0, 5.0)), lo, hi)
+    assert len(far) == 1 and not far[0].parallel
+    np.testing.assert_allclose(far[0].basis()[0], (-1.0, 0.0, 0.0), atol=1e-15)
+
+    def axes(position):
+        return sorted(tuple(int(c) for c in np.round(cam.basis()[0]))
+                      for cam in light_views(PointLight(position), lo, hi))
+    six = sorted([(1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1)])
+    assert axes((10.5, 5.0, 5.0)) == [a for a in six if a != (1, 0, 0)]
+    assert axes((10.5, 10.5, 5.0)) == [a for a in six if a not in ((1, 0, 0), (0, 1, 0))]
+    assert axes((5.0, 5.0, 5.0)) == six
+
+
+def test_kept_light_buffers_may_take_a_quarter_of_the_memory_they_and_the_available_make(monkeypatch):
+    import data_tools.memory
+    import parc.lights
+    from parc.lights import LIGHT_BUFFER_CACHE_BYTES, light_cache_bytes
+    monkeypatch.setattr(data_tools.memory, "available_memory", lambda: 40 << 30)
+    assert light_cache_bytes(0) == 10 << 30
+    assert light_cache_bytes(8 << 30) == 12 << 30
+    monkeypatch.setattr(data_tools.memory, "available_memory", lambda: 1 << 30)
+    assert light_cache_bytes(1 << 30) == LIGHT_BUFFER_CACHE_BYTES
+    monkeypatch.setattr(data_tools.memory, "available_memory", lambda: None)
+    assert light_cache_bytes(8 << 30) == parc.lights.LIGHT_BUFFER_CACHE_BYTES
+
+
 def test_a_light_moved_every_frame_evicts_its_own_last_places_not_the_lights_that_stay(gl, monkeypatch):
     # Room for three lights of six views: two stay, one moves each frame. Only the moving one is
     # drawn again, each frame: evicting the oldest kept, not the longest unused, drew the lights

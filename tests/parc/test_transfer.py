@@ -6,6 +6,7 @@ control point in it, the midpoints between them, and the floats just
 outside each end), which no interval table is involved in.
 """
 import bisect
+import decimal
 import json
 import math
 import re
@@ -232,10 +233,15 @@ def test_arrays_are_float64_contiguous_and_read_only():
 
 def test_correct_opacity():
     a = np.array([0.0, 1e-12, 0.01, 0.3, 0.9, 0.999999, 1.0])
-    for ratio in (0.1, 0.5, 1.0, 2.0, 4.0, 37.5):
-        got = np.array([correct_opacity(x, ratio) for x in a])
-        np.testing.assert_allclose(got, 1.0 - (1.0 - a) ** ratio, rtol=1e-12, atol=1e-15)
+    with decimal.localcontext() as ctx:
+        # 1 - (1 - a) ** ratio in float64 loses the digits of a small a in 1 - a; 50 digits keep them.
+        ctx.prec = 50
+        for ratio in (0.1, 0.5, 1.0, 2.0, 4.0, 37.5):
+            got = np.array([correct_opacity(x, ratio) for x in a])
+            want = np.array([float(1 - (1 - decimal.Decimal(x)) ** decimal.Decimal(ratio)) for x in a])
+            np.testing.assert_allclose(got, want, rtol=1e-12, atol=0)
     assert correct_opacity(0.3, 1.0) == 0.3
+    assert all(correct_opacity(x, 1.0) == x for x in np.random.default_rng(4).random(200))
     assert correct_opacity(0.0, 3.0) == 0.0 and correct_opacity(1.0, 0.25) == 1.0
     # Two half steps are one whole step.
     half = correct_opacity(0.4, 0.5)

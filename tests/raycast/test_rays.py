@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from raycast.config import TILE_H, TILE_W
+from raycast.config import SPREAD_CHUNK, TILE_H, TILE_W
 from raycast.rays import chunk_count, dealt_tile, spread, spread_run, spread_runs, tile_count, tile_rect
 
 
@@ -50,25 +50,27 @@ def test_one_way_is_the_natural_order():
 def test_chunks_and_tiles_cover_the_items():
     assert chunk_count(0, 64) == 0 and chunk_count(64, 64) == 1 and chunk_count(65, 64) == 2
     width, row0, row1 = 70, 3, 18
-    seen = np.zeros((row1, width), int)
+    # A margin past the image: a tile's rectangle running beyond it (pixels the casters
+    # would read and write out of bounds) counts there instead of being cut off by the slice.
+    seen = np.zeros((row1 + TILE_H, width + TILE_W), int)
     for tile in range(tile_count(width, row0, row1, 32, 4)):
         x0, x1, y0, y1 = tile_rect(tile, width, row0, row1, 32, 4)
         seen[y0:y1, x0:x1] += 1
-    assert (seen[row0:] == 1).all() and (seen[:row0] == 0).all()
+    assert (seen[row0:row1, :width] == 1).all() and seen.sum() == (row1 - row0) * width
     # The parallel loops' tiles (the project's tile size, dealt to threads) cover them too.
     seen[:] = 0
     tiles = tile_count(width, row0, row1, TILE_W, TILE_H)
     for it in range(tiles):
         x0, x1, y0, y1 = dealt_tile(it, tiles, width, row0, row1)
         seen[y0:y1, x0:x1] += 1
-    assert (seen[row0:] == 1).all() and (seen[:row0] == 0).all()
+    assert (seen[row0:row1, :width] == 1).all() and seen.sum() == (row1 - row0) * width
 
 
 @pytest.mark.parametrize("n", [0, 1, 63, 64, 65, 1000])
 def test_spread_runs_cover_every_ray_once(n):
     runs = spread_runs(n)
-    seen = np.zeros(n, int)
+    seen = np.zeros(n + SPREAD_CHUNK, int)      # a run past the last ray shows in the margin
     for it in range(runs):
         lo, hi = spread_run(it, runs, n)
         seen[lo:hi] += 1
-    assert (seen == 1).all()
+    assert (seen[:n] == 1).all() and (seen[n:] == 0).all()

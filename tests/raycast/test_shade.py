@@ -2,12 +2,16 @@
 
 Truth: diffuse ``kd max(n.l, 0)``, specular ``ks (n.h / |h|)^s`` with the
 half vector ``h = l + v``, zero where the light is behind the surface, the
-normal turned towards the viewer first (two-sided lighting).
+normal turned towards the viewer first (two-sided lighting). Normals: the
+gradient over its ``math.hypot`` length; a headlight pixel: the colour times
+ambient plus diffuse, plus the highlight, clamped to 1.
 """
+import math
+
 import numpy as np
 import pytest
 
-from raycast.shade import blinn_phong, power, trilinear_gradient
+from raycast.shade import blinn_phong, headlight_pixel, power, trilinear_gradient, unit_normal
 
 MATERIAL = np.array([0.1, 0.7, 0.5, 8.0])
 
@@ -43,6 +47,14 @@ def test_the_highlight_lies_halfway_between_light_and_eye():
     assert blinn_phong(*n, *v, *l, MATERIAL)[1] == pytest.approx(0.5 * np.cos(np.radians(30)) ** 8, rel=1e-13)
 
 
+def test_a_light_in_the_tangent_plane_gives_no_highlight():
+    # n.l = 0 exactly: the light is not in front of the surface, so neither term lights it,
+    # though the half vector between that light and the eye still leans towards the normal.
+    v = _unit([1.0, 0.0, 1.0])
+    assert blinn_phong(0.0, 0.0, 1.0, *v, 1.0, 0.0, 0.0, MATERIAL) == (0.0, 0.0)
+    assert blinn_phong(0.0, 0.0, -1.0, *v, 0.0, 1.0, 0.0, MATERIAL) == (0.0, 0.0)
+
+
 @pytest.mark.parametrize("seed", range(3))
 def test_random_directions_match_the_model(seed):
     rng = np.random.default_rng(seed)
@@ -60,6 +72,44 @@ def test_power_is_pow():
     for e in (0.0, 1.0, 2.0, 7.0, 40.0, 1024.0, 2.5, 1025.0):
         for x in (0.0, 0.3, 0.999, 1.0):
             assert power(x, e) == pytest.approx(x ** e, rel=1e-13, abs=1e-300)
+
+
+@pytest.mark.parametrize("scale", [1.0, 1e-200, 1e-160, 1e150, 1e160, 1e199])
+def test_unit_normal_is_the_gradient_over_its_length(scale):
+    # math.hypot neither overflows nor underflows, so it is the length at every scale.
+    rng = np.random.default_rng(7)
+    for _ in range(100):
+        g = rng.normal(size=3) * rng.choice([0.01, 1.0, 30.0]) * scale
+        want = g / math.hypot(*g)
+        np.testing.assert_allclose(unit_normal(*g, 0.0, 0.0, 1.0), want, rtol=1e-15, atol=1e-300)
+
+
+def test_a_zero_gradient_gives_a_normal_facing_the_viewer():
+    d = _unit([0.3, -0.4, 0.8])
+    assert unit_normal(0.0, 0.0, 0.0, *d) == tuple(-d)
+    assert unit_normal(-0.0, 0.0, -0.0, *d) == tuple(-d)
+
+
+def test_a_headlight_pixel_is_ambient_and_diffuse_times_the_colour_plus_the_highlight_clamped():
+    # A cell of the linear field a.p has the gradient a everywhere (not unit length, on a
+    # spacing that is not 1). Headlight: l = v = -d, so h = v and n.l = n.h = |n.v|. The red
+    # channel sums past 1 and is clamped; green and blue are not.
+    a = np.array([0.6, -1.2, 2.0])
+    spc = np.array([0.5, 2.0, 1.5])
+    k, j, i = np.mgrid[0:2, 0:2, 0:2].astype(np.float64)
+    data = a[0] * i * spc[0] + a[1] * j * spc[1] + a[2] * k * spc[2]
+    d = _unit([0.3, -0.2, -1.0])
+    color = np.array([0.9, 0.6, 0.2])
+    ka, kd, ks, s = material = np.array([0.3, 0.5, 0.8, 1.0])
+    ndv = abs(_unit(a) @ -d)
+    want = np.minimum(color * (ka + kd * ndv) + ks * ndv ** s, 1.0)
+    assert want[0] == 1.0 and want[1] < 1.0
+    image = np.zeros((2, 3, 4), np.float32)
+    headlight_pixel(data, spc, 0, 0, 0, 0.3, 0.6, 0.2, *d, color, material, image, 1, 2)
+    np.testing.assert_allclose(image[1, 2, :3], want, rtol=0, atol=1e-6)
+    assert image[1, 2, 3] == 1.0
+    image[1, 2] = 0.0
+    assert not image.any()
 
 
 @pytest.mark.parametrize("scale", [1e-200, 1e-160, 1e150, 1e160, 1e199])
