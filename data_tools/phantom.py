@@ -11,7 +11,7 @@ import numpy as np
 
 from .errors import InputError, os_reason
 from .grids import grid_dims, soft_inside, volume_label
-from .volume import Volume
+from .volume import Volume, _triple
 
 
 #: Voxels per slab when phantoms are built slab by slab (bounds temporary memory).
@@ -121,9 +121,11 @@ def ct_phantom(size=128, *, seed=0, dtype="int16", spacing=(1.0, 1.0, 1.0), nois
     """
     dims = grid_dims(size)
     dt = _ct_dtype(dtype)
+    # Checked here, not by the Volume at the end: the slabs divide by it.
+    spacing = _triple(spacing, "spacing", volume_label("ct_phantom", dims), positive=True)
     nx, ny, nz = dims
     data = np.empty((nz, ny, nx), dtype=dt)
-    for k0, k1, slab in _ct_slabs(dims, tuple(spacing), seed, noise, dt):
+    for k0, k1, slab in _ct_slabs(dims, spacing, seed, noise, dt):
         data[k0:k1] = slab
     return Volume(data, spacing=spacing, name=volume_label("ct_phantom", dims),
                   meta={"iso": 600.5, "bone_iso": 1500.5, "seed": seed, "synthetic": "ct_phantom"})
@@ -153,7 +155,9 @@ def ct_phantom_to_disk(path, shape=(512, 512, 512), *, seed=0, dtype="int16",
     ext = path.suffix.lower()
     if ext not in (".nrrd", ".raw"):
         raise InputError(f"{path}: the streaming phantom writer makes .nrrd or .raw files")
-    sx, sy, sz = (float(s) for s in spacing)
+    # Checked before the file is opened: a spacing refused halfway would leave a header without
+    # its samples.
+    sx, sy, sz = _triple(spacing, "spacing", str(path), positive=True)
     try:
         with open(path, "wb") as f:
             if ext == ".nrrd":

@@ -242,3 +242,92 @@ def test_histogram_shares_are_of_all_samples():
     bars = [s for s in format_info(info).splitlines() if s.startswith("  ") and s.endswith("%")]
     shares = [float(s.split()[-1].rstrip("%")) for s in bars]
     assert shares[0] == 75.0 and shares[-1] == 25.0 and sum(shares[1:-1]) == 0.0
+
+
+@pytest.mark.parametrize("lo, levels", [(0, 17), (100, 40), (-40, 5)])
+def test_integer_histogram_bins_by_hand(lo, levels):
+    # Values lo .. lo + levels - 1: bins `ceil(levels / 16)` values wide, edges at x.5 from lo - 0.5,
+    # at most HISTOGRAM_BINS of them, each counting the samples between its edges.
+    from data_tools.info import HISTOGRAM_BINS
+    data = (lo + np.arange(4096) % levels).astype(np.int16).reshape(16, 16, 16)
+    hist = volume_info(Volume(data))["histogram"]
+    width = -(-levels // HISTOGRAM_BINS)
+    nb = -(-levels // width)
+    assert len(hist["counts"]) == nb <= HISTOGRAM_BINS
+    assert hist["edges"] == [lo - 0.5 + width * m for m in range(nb + 1)]
+    assert hist["counts"] == [int(((data > a) & (data < b)).sum()) for a, b in zip(hist["edges"], hist["edges"][1:])]
+
+
+def test_float_histogram_is_numpys_sixteen_equal_bins():
+    data = np.linspace(-1, 1, 4096).reshape(16, 16, 16) ** 3
+    hist = volume_info(Volume(data))["histogram"]
+    counts, edges = np.histogram(data, bins=16)
+    assert hist["counts"] == counts.tolist()
+    np.testing.assert_allclose(hist["edges"], edges, rtol=0, atol=1e-15)
+
+
+def test_a_range_of_one_float_step_has_no_histogram_of_empty_bins():
+    # Sixteen bins between 1 and the next double would share edges: none is drawn.
+    data = np.ones((4, 4, 4))
+    data[2:] = np.nextafter(1.0, 2.0)
+    info = volume_info(Volume(data))
+    assert info["histogram"] is None and "histogram" not in format_info(info)
+
+
+def test_size_and_subsample_lines_by_hand():
+    # 64^3 float64 samples are 2 MiB (2 * 2^20 bytes), and few enough that every one is counted.
+    info = volume_info(Volume(np.zeros((64, 64, 64)) + np.arange(64)))
+    text = format_info(info)
+    assert "dimensions:  64 x 64 x 64 (x, y, z), 262144 samples" in text
+    assert "type:        float64, 2.0 MiB" in text
+    assert info["sampled"] == 64 ** 3 and "subsample" not in text
+    # Edges at multiples of 63/16 = 3.9375 are printed with the digits they need.
+    assert "  3.9375 .. 7.875 " in text
+
+
+def test_the_subsample_takes_the_smallest_stride_that_fits():
+    # 160 x 256 x 256 samples are 5 times SAMPLE_LIMIT: every second sample along each axis
+    # (a stride of 3 would leave about a fifth as many).
+    data = np.zeros((160, 256, 256), np.uint8)
+    data[:, :, 1::3] = 1
+    info = volume_info(Volume(data))
+    sub = data[::2, ::2, ::2]
+    assert info["sampled"] == sub.size
+    assert info["mean"] == sub.mean()
+
+
+def test_a_saturated_top_level_next_to_the_data_keeps_its_surface():
+    # Tissue 100..200 and a saturated level 250, nearer the tissue than the tissue spans: not a
+    # fill value. The cut between them lies in the middle of the gap, 225, at x.5.
+    data = np.zeros((16, 16, 16), np.int16)
+    data[4:12] = (100 + np.arange(8 * 256) % 101).reshape(8, 16, 16)
+    data[8:12, 4:12] = 250
+    iso = suggest_isovalues(Volume(data))
+    assert any(abs(v - 225) == 0.5 for v in iso), iso
+
+
+@pytest.mark.parametrize("first, background", [(100, 0), (-107, -200)])
+def test_uniform_levels_are_cut_into_equal_classes(first, background):
+    # Eight equally common levels first .. first + 7 above a background at the minimum: Otsu's
+    # cuts split a uniform histogram into equal classes, at the x.5 between two levels.
+    data = np.full((8, 8, 8), background, np.int16)
+    data[2:6] = (first + np.arange(256) % 8).reshape(4, 8, 8)
+    assert suggest_isovalues(Volume(data), k=1) == [first + 3.5]
+    assert suggest_isovalues(Volume(data)) == [first + 1.5, first + 3.5, first + 5.5]
+
+
+def test_histogram_bars_grow_with_the_log_of_the_count():
+    # 48 samples at 0 and 16 at 200: the longest bar is 40 characters, the other 40 ln(17) / ln(49)
+    # = 29.1 of them (a bar by the count itself would be 13).
+    data = np.zeros((4, 4, 4), np.uint8)
+    data[3] = 200
+    bars = [s for s in format_info(volume_info(Volume(data))).splitlines() if s.startswith("  ")]
+    assert [b.count("#") for b in bars] == [40] + [0] * (len(bars) - 2) + [29]
+
+
+def test_a_float_suggestion_is_never_the_data_minimum_or_maximum():
+    # 1 and 2 are the shortest numbers near these cuts, but the data's range ends there: no
+    # surface lies at either.
+    from data_tools.info import _shortest
+    assert _shortest(1.0, 0.5, 1.5, 1.0, 2.0) == 1.1
+    assert _shortest(2.0, 1.5, 2.5, 1.0, 2.0) == 1.9

@@ -10,8 +10,9 @@ import pytest
 from data_tools import InputError
 from data_tools.grids import grid_axes, grid_dims
 from data_tools.neuron import _blur
-from data_tools.synthetic import (DESCRIPTIONS, ISOVALUES, SYNTHETIC, blobs, ct_phantom, floor, make_synthetic,
-                                  making_note, marschner_lobb, neuron, sphere, torus, trilinear_field)
+from data_tools.synthetic import (DESCRIPTIONS, ISOVALUES, SYNTHETIC, blobs, ct_phantom, ct_phantom_to_disk, floor,
+                                  make_synthetic, making_note, marschner_lobb, neuron, sphere, torus,
+                                  trilinear_field)
 
 DIMS = (10, 7, 5)     # nx, ny, nz: every axis different, so a swapped axis shows
 
@@ -277,3 +278,115 @@ def test_floor_refuses_a_size_that_is_not_whole_as_the_others_do():
     with pytest.raises(InputError, match="integer"):
         floor(12.7)
     assert floor(np.int64(16)).dims == (16, 16, 8)
+
+
+def test_ct_phantom_levels_along_a_row_by_the_formula():
+    # Noise-free, along x through the head at v = 1/127, w = 0.2 (the box as [-1, 1]^3): air 0,
+    # the skin where the head's ellipsoid (centre (0, 0, 0.15), semi-axes 0.68, 0.8, 0.72) is
+    # crossed, bone ~2200 (tissue 1000 and a shell of 1200), brain 1050, a ventricle 40 less.
+    # Spacing 1, 1, 8 makes the 16 slices as long as the 128 samples across: edges as sharp as
+    # at 128^3, about a voxel.
+    row = ct_phantom((128, 128, 16), spacing=(1, 1, 8), noise=0.0).data[9, 64, :].astype(float)
+    v, w = -1 + 2 * 64 / 127, -1 + 2 * 9 / 15
+    u = 0.68 * math.sqrt(1 - (v / 0.8) ** 2 - ((w - 0.15) / 0.72) ** 2)
+    skin = [(1 - u) * 127 / 2, (1 + u) * 127 / 2]
+    assert _crossing(row, 500.0) [:1] + _crossing(row, 500.0)[-1:] == pytest.approx(skin, abs=0.15)
+    assert row[:15].max() == 0 and row[-15:].max() == 0
+    assert 2150 <= row.max() <= 2200
+    assert row[40] == row[87] == 1050
+    assert row[72] == row[55] == 1010                   # ventricles centred at u = -0.14 and 0.14
+    ramp = (row > 100) & (row < 900)
+    assert ramp[:64].sum() <= 3 and ramp[64:].sum() <= 3
+
+
+def test_ct_phantom_to_disk_header_and_samples_byte_by_byte(tmp_path):
+    path = ct_phantom_to_disk(tmp_path / "ct.nrrd", (6, 5, 4), seed=2, dtype="uint16", spacing=(0.5, 2, 3))
+    header = ("NRRD0004\ntype: uint16\ndimension: 3\nspace dimension: 3\nsizes: 6 5 4\n"
+              "space directions: (0.5,0,0) (0,2.0,0) (0,0,3.0)\nkinds: domain domain domain\n"
+              "endian: little\nencoding: raw\nspace origin: (0,0,0)\n\n").encode("ascii")
+    ref = ct_phantom((6, 5, 4), seed=2, dtype="uint16", spacing=(0.5, 2, 3)).data
+    body = b"".join(int(s).to_bytes(2, "little") for s in ref.reshape(-1))     # x fastest
+    assert path.read_bytes() == header + body
+
+
+@pytest.mark.parametrize("spacing", [(0, 1, 1), (1, 1, 0), (1, 1, -2), (1, 1), "abc", (1, "x", 1)])
+def test_ct_phantom_refuses_a_bad_spacing_and_writes_nothing(tmp_path, spacing):
+    with pytest.raises(InputError, match="spacing must be"):
+        ct_phantom(8, spacing=spacing)
+    path = tmp_path / "ct.nrrd"
+    with pytest.raises(InputError, match="spacing must be"):
+        ct_phantom_to_disk(path, (8, 8, 8), spacing=spacing)
+    assert not path.exists()
+
+
+def test_ct_phantom_noise_is_added_before_rounding_to_the_nearest_level():
+    # On the brain's plateau (1050) a sample is 1050 plus its slice's documented draw, rounded
+    # to the nearest level, not cut toward zero.
+    vol = ct_phantom((128, 128, 16), spacing=(1, 1, 8), seed=3)
+    draw = np.random.default_rng((3, 9)).normal(0.0, 20.0, size=(128, 128)).astype(np.float32)
+    np.testing.assert_array_equal(vol.data[9, 64, 32:47], np.rint(np.float32(1050) + draw[64, 32:47]))
+
+
+def test_floor_tiles_alternate_along_x_and_y():
+    # Tiles 9 voxels wide, from x = y = -0.5: samples 4, 13 and 22 lie in their middles. The top
+    # is raised relief / 2 where a tile's column and row numbers are both even or both odd, and
+    # lowered as much where they differ (a checkerboard).
+    vol = floor((27, 27, 16), tile=9.0, relief=1.0)
+    top = vol.meta["top"]
+    for a, x in enumerate((4, 13, 22)):
+        for b, y in enumerate((4, 13, 22)):
+            expected = top + (0.5 if (a + b) % 2 == 0 else -0.5)
+            assert _crossing(vol.data[:, y, x], 127.5)[-1] == pytest.approx(expected, abs=0.05), (x, y)
+
+
+def test_floor_samples_are_the_soft_step_of_the_distance_and_small_floors_are_inset_a_tenth():
+    # Away from the sides a column is 255 (0.5 - 0.5 tanh(d / 0.5)) of the distance d to the
+    # slab's faces, rounded: a step about half a voxel wide.
+    flat = floor((20, 16, 12), relief=0.0)
+    z = np.arange(12.0)
+    d = np.maximum(flat.meta["bottom"] - z, z - flat.meta["top"])
+    np.testing.assert_array_equal(flat.data[:, 8, 10], np.rint(255 * (0.5 - 0.5 * np.tanh(d / 0.5))))
+    # 12 x 10 samples across: the sides are a tenth of the smaller extent (0.9) inside the box.
+    small = floor((12, 10, 8), relief=0.0)
+    assert _crossing(small.data[3, 5, :], 127.5) == pytest.approx([0.9, 10.1], abs=0.1)
+    assert _crossing(small.data[3, :, 6], 127.5) == pytest.approx([0.9, 8.1], abs=0.1)
+
+
+def test_ct_phantom_meta_carries_both_registry_levels():
+    # parc make suggests the registry's skin and bone levels; the volume says the same.
+    meta = ct_phantom(8).meta
+    assert (meta["iso"], meta["bone_iso"]) == ISOVALUES["ct_phantom"] == (600.5, 1500.5)
+
+
+@pytest.mark.parametrize("name", ["ct.npy", "ct.mhd", "ct"])
+def test_ct_phantom_to_disk_refuses_other_formats_and_writes_nothing(tmp_path, name):
+    with pytest.raises(InputError, match="makes .nrrd or .raw files"):
+        ct_phantom_to_disk(tmp_path / name, (4, 4, 4))
+    assert not any(tmp_path.iterdir())
+
+
+def test_neuron_haze_brightens_the_dark_around_the_soma():
+    # Out-of-focus light around the soma: without noise, no sample within 10 voxels of its
+    # centre is as dark as the background in the box's corners (12 photons).
+    vol = neuron(48, seed=1, noise=False)
+    d = vol.data
+    k, j, i = np.indices(d.shape)
+    sx, sy, sz = vol.meta["soma"]
+    near = (i - sx) ** 2 + (j - sy) ** 2 + (k - sz) ** 2 <= 10 ** 2
+    assert d[0, 0, 0] == d[-1, -1, -1] == 12
+    assert d[near].min() > 12
+
+
+def test_a_neurite_segment_is_a_soft_tapered_capsule():
+    # Radius 2 at (5, 4, 4) tapering to 1 at (15, 4, 4): along the axis the distance to the
+    # segment is 0 between its ends and the distance to the nearer end beyond them, less the
+    # radius there; across its middle, the distance to the axis less 1.5.
+    from data_tools.neuron import _add_tube
+    out = np.zeros((9, 9, 21), np.float32)
+    _add_tube(out, (21, 9, 9), np.array([5.0, 4.0, 4.0]), np.array([15.0, 4.0, 4.0]), 2.0, 1.0, 0.6)
+    x = np.arange(21.0)
+    t = np.clip((x - 5) / 10, 0, 1)
+    along = np.maximum(5 - x, 0) + np.maximum(x - 15, 0) - (2 - t)
+    soft = lambda d: 0.5 - 0.5 * np.tanh(d / 0.6)  # noqa: E731
+    np.testing.assert_allclose(out[4, 4, :], soft(along), atol=1e-4)
+    np.testing.assert_allclose(out[:, 4, 10], soft(np.abs(np.arange(9.0) - 4) - 1.5), atol=1e-4)

@@ -1,0 +1,87 @@
+"""The Volume: samples kept as the kernels read them and checked slab by slab, spacing and origin
+checked, its bounds, and new volumes made from it (replace, copies, pickles)."""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from data_tools import InputError, Volume
+
+
+@pytest.mark.parametrize("data", [np.arange(4 * 5 * 12, dtype=np.int16).reshape(4, 5, 12)[:, :, ::2],
+                                  np.asfortranarray(np.arange(4 * 5 * 6, dtype=np.float32).reshape(4, 5, 6)),
+                                  np.arange(4 * 5 * 6, dtype=">u2").reshape(4, 5, 6)])
+def test_samples_are_kept_c_contiguous_in_native_byte_order(data):
+    # The kernels read the buffer as x fastest, in this machine's byte order.
+    vol = Volume(data)
+    assert vol.data.flags.c_contiguous and vol.dtype.isnative
+    assert vol.dtype == data.dtype.newbyteorder("=") and np.array_equal(vol.data, data)
+
+
+def test_non_finite_samples_and_the_largest_are_found_in_every_slab():
+    # A volume is checked some z-slices at a time: a NaN in its last slices, or a fill value
+    # in its first, counts however the slabs fall.
+    from data_tools.volume import _count_non_finite
+    late = np.zeros((5, 3, 4))
+    late[4, 2, 3], late[3, 0, 0] = np.nan, -np.inf
+    early = np.zeros((5, 3, 4))
+    early[0, 1, 1] = -3e250
+    for slab_bytes in (1, late[0].nbytes, 2 * late[0].nbytes, 64 << 20):
+        assert _count_non_finite(late, slab_bytes)[0] == np.count_nonzero(~np.isfinite(late)) == 2
+        assert _count_non_finite(early, slab_bytes) == (0, 3e250)
+
+
+@pytest.mark.parametrize("origin, ok", [((2.0 ** 32 - 9, 0, 0), True), ((2.0 ** 32 - 8, 0, 0), False),
+                                        ((-2.0 ** 32, 0, 0), True), ((-2.0 ** 32 - 1, 0, 0), False)])
+def test_a_grid_reaching_past_2_32_cells_from_0_is_refused(origin, ok):
+    # Ten samples of spacing 2 (extent 18): the far corner may lie 2^32 cells (2^33 units) out.
+    data = np.zeros((2, 2, 10), np.uint8)
+    origin = tuple(2 * v for v in origin)
+    if ok:
+        assert Volume(data, spacing=(2, 1, 1), origin=origin).origin == origin
+    else:
+        with pytest.raises(InputError, match="more than 2\\^32 cells from 0"):
+            Volume(data, spacing=(2, 1, 1), origin=origin)
+
+
+def test_a_volume_made_anew_from_another_keeps_none_of_its_caches():
+    # dataclasses.replace passes the old meta on: its cached range belonged to the old samples.
+    vol = Volume(np.zeros((2, 2, 2), np.uint8), meta={"note": "kept"})
+    assert vol.value_range() == (0.0, 0.0)
+    new = dataclasses.replace(vol, data=np.arange(8, dtype=np.uint8).reshape(2, 2, 2))
+    assert new.meta == {"note": "kept"} and new.value_range() == (0.0, 7.0)
+
+
+@pytest.mark.parametrize("spacing", [(0, 1, 1), (1, -0.0, 1), (1, 1, -2)])
+def test_a_spacing_not_above_zero_is_refused_as_such(spacing):
+    with pytest.raises(InputError, match="spacing must be positive"):
+        Volume(np.zeros((2, 2, 2), np.uint8), spacing=spacing)
+
+
+@pytest.mark.parametrize("lo, hi, kept_as", [(-2 ** 31, 2 ** 31 - 1, np.int32), (0, 2 ** 32 - 1, np.uint32)])
+def test_64_bit_integers_at_the_ends_of_a_32_bit_type_are_kept_in_it(lo, hi, kept_as):
+    data = np.full((2, 2, 2), lo, np.int64)
+    data[1] = hi
+    vol = Volume(data)
+    assert vol.dtype == kept_as and vol.value_range() == (lo, hi)
+
+
+def test_bounds_and_centre_by_hand():
+    # 6 x 5 x 4 samples of spacing 0.5, 2, 3 from (-1, 10, 100): the far corner 2.5, 8, 9 further.
+    vol = Volume(np.zeros((4, 5, 6), np.uint8), spacing=(0.5, 2, 3), origin=(-1, 10, 100))
+    lo, hi = vol.bounds
+    assert lo.tolist() == [-1, 10, 100] and hi.tolist() == [1.5, 18, 109]
+    assert vol.center.tolist() == [0.25, 14, 104.5]
+
+
+def test_copies_and_pickles_keep_the_name_placement_and_meta():
+    import copy
+    import pickle
+    vol = Volume(np.arange(8, dtype=np.uint8).reshape(2, 2, 2), spacing=(1, 2, 3), origin=(4, 5, 6), name="v",
+                 meta={"note": "oblique directions reduced", "iso": 3.5})
+    vol.value_range()
+    for other in (copy.copy(vol), copy.deepcopy(vol), pickle.loads(pickle.dumps(vol))):
+        assert (other.name, other.spacing, other.origin) == ("v", (1, 2, 3), (4, 5, 6))
+        assert other.meta == {"note": "oblique directions reduced", "iso": 3.5}
