@@ -80,6 +80,22 @@ def test_merged_volumes_are_shaded_each_by_its_own_setting():
     assert np.abs(a[..., :3] / a[..., 3:] - b[..., :3] / b[..., 3:]).max() > 0.05
 
 
+def test_merged_volumes_are_shaded_each_with_its_own_spacing():
+    # Both shaded, one field, spacings 1 and 2 along z: a linear field has one gradient, (0.48,
+    # 0.36, 0.8) over the spacing, so each volume has one shaded colour, set by its own spacing.
+    k, j, i = np.mgrid[0:N, 0:N, 0:N].astype(np.float32)
+    data = 0.48 * i + 0.36 * j + 0.8 * k
+    tf = TransferFunction([[-100, 0.05], [100, 0.05]], [[0, 0.9, 0.6, 0.3]])
+    near = Translucent(Volume(data, name="near"), tf, shade=True, threshold=1.0)
+    far = Translucent(Volume(data, spacing=(1.0, 1.0, 2.0), origin=(0, 0, 20), name="far"), tf, shade=True,
+                      threshold=1.0)
+    a, b = (render(Scene(camera=CAM, size=(4, 4), volumes=[v])).image.astype(np.float64) for v in (near, far))
+    for vols in ([near, far], [far, near]):
+        both = render(Scene(camera=CAM, size=(4, 4), volumes=vols)).image
+        np.testing.assert_allclose(both, a + (1.0 - a[..., 3:4]) * b, atol=1e-5, rtol=0)
+    assert np.abs(a[..., :3] / a[..., 3:] - b[..., :3] / b[..., 3:]).max() > 0.05
+
+
 @pytest.mark.parametrize("order", [0, 1])
 def test_a_layer_and_a_composite_volume_seen_from_afar_go_near_over_far(order):
     # From 1e5 units away each ray is anchored at its entry: the layer's depth must still be a
@@ -227,3 +243,87 @@ def test_layers_behind_the_point_where_the_samples_reach_the_threshold_still_sho
         img = render(Scene(camera=CAM, size=(4, 4), volumes=vols)).image.astype(np.float64)
         want = _over([0.0, fog_alpha, 0.0, fog_alpha], [0.3, 0.0, 0.0, 0.3])
         np.testing.assert_allclose(img, np.broadcast_to(want, img.shape), atol=1e-5, rtol=0)
+
+
+@pytest.mark.parametrize("method", ["brute", "parc"])
+@pytest.mark.parametrize("view", ["edge", "eye on a face"])
+def test_a_ray_meeting_a_merged_volume_at_one_point_takes_its_one_sample(gl, method, view):
+    # A ray that enters and leaves the box at the same t still has one lattice point there
+    # (N = floor(0 / step) + 1): parallel rays along (1, -1, 0) through the edge x = y = 0 (the
+    # middle column), or rays from an eye on the exit face z = 8 looking out. That eye sits on
+    # the corner of four cells, which every ray leaves at t = 0 too: the walk ends with the box,
+    # not in those cells. The volume aside, which no ray meets, makes the walk the merged one;
+    # alone, the volume looks the same.
+    a = 0.1
+    tf = TransferFunction([[0, a], [200, a]], [[0, 1.0, 1.0, 1.0]])
+    fog = Translucent(_const(), tf, threshold=1.0)
+    aside = Translucent(_const(origin=(100.0, 0.0, 0.0), name="aside"), tf, threshold=1.0)
+    if view == "edge":
+        cam = Camera(eye=(-4.0, 4.0, 4.0), look_at=(4.0, -4.0, 4.0), up=(0, 0, 1), parallel_scale=3.0)
+    else:
+        cam = Camera(eye=(4.0, 4.0, 8.0), look_at=(4.0, 4.0, 20.0), up=(0, 1, 0), fov=60.0)
+    alone = render(Scene(camera=cam, size=(5, 5), volumes=[fog]), method).image.astype(np.float64)
+    img = render(Scene(camera=cam, size=(5, 5), volumes=[fog, aside]), method).image.astype(np.float64)
+    touched = img[:, 2] if view == "edge" else img.reshape(-1, 4)
+    np.testing.assert_allclose(touched, a, atol=1e-6, rtol=0)
+    np.testing.assert_allclose(img, alone, atol=1e-6, rtol=0)
+
+
+@pytest.mark.parametrize("method", ["brute", "parc"])
+def test_merged_walks_take_the_samples_each_volume_takes_alone(gl, method):
+    # A slab seen for 3 <= z <= 5 only, and a volume aside that no ray meets: brute takes every
+    # lattice point, 33 a ray (z = 0 .. 8 every 0.25); PARC, without the skip tables, the lattice
+    # points of the cells its segments meet, as the volume's own walk does alone, and fewer.
+    z = np.arange(N, dtype=np.float32)[:, None, None]
+    slab = np.broadcast_to(np.where((z >= 3) & (z <= 5), 100.0, 0.0), (N, N, N)).astype(np.float32)
+    tf = TransferFunction([[0, 0.0], [50, 0.0], [100, 0.1], [200, 0.1]], [[0, 1.0, 1.0, 1.0]])
+    fog = Translucent(Volume(slab.copy(), name="slab"), tf, threshold=1.0)
+    aside = Translucent(Volume(slab.copy(), origin=(100.0, 0.0, 0.0), name="aside"), tf, threshold=1.0)
+    alone = render(Scene(camera=CAM, size=(4, 4), volumes=[fog]), method, supercell=1, blocks=False)
+    both = render(Scene(camera=CAM, size=(4, 4), volumes=[fog, aside]), method, supercell=1, blocks=False)
+    ref = render(Scene(camera=CAM, size=(4, 4), volumes=[fog]), "brute")
+    np.testing.assert_allclose(both.image, ref.image, atol=1e-6, rtol=0)
+    assert both.stats["samples"] == alone.stats["samples"]
+    if method == "brute":
+        assert both.stats["samples"] == 16 * 33
+    else:
+        assert both.stats["samples"] < 16 * 33
+
+
+@pytest.mark.parametrize("near_first", [True, False])
+def test_layers_at_two_depths_go_near_over_far_over_the_samples_behind(near_first):
+    # Two maximum-intensity layers entered at z = 0 and z = 2, a fog from z = 4: each layer one
+    # colour (a constant field), the fog 33 samples of a; near over far, whatever their order.
+    a = 0.1
+    near = Translucent(_const(name="near"), TransferFunction([[0, 0.3], [200, 0.3]], [[0, 1.0, 0.0, 0.0]]),
+                       mode="mip")
+    far = Translucent(_const(origin=(0.0, 0.0, 2.0), name="far"),
+                      TransferFunction([[0, 0.5], [200, 0.5]], [[0, 0.0, 0.0, 1.0]]), mode="mip")
+    fog = Translucent(_const(origin=(0.0, 0.0, 4.0), name="fog"),
+                      TransferFunction([[0, a], [200, a]], [[0, 0.0, 1.0, 0.0]]), threshold=1.0)
+    fog_alpha = 1.0 - (1.0 - a) ** 33
+    want = _over([0.3, 0, 0, 0.3], [0, 0, 0.5, 0.5], [0, fog_alpha, 0, fog_alpha])
+    img = render(Scene(camera=CAM, size=(4, 4), volumes=[near, far, fog] if near_first else [far, near, fog])).image
+    np.testing.assert_allclose(img.astype(np.float64), np.broadcast_to(want, img.shape), atol=1e-5, rtol=0)
+
+
+def test_a_surface_and_a_layer_over_half_the_picture_act_there_only():
+    # A wall at z = 4.6 and a maximum-intensity layer, both over x >= 4 only (the two left
+    # columns: the camera's right is -x): there the layer goes first (listed first, tied with the
+    # fog's first sample) and the fog takes its 19 samples before the wall; elsewhere all 33.
+    a = 0.1
+    fog = Translucent(_const(), TransferFunction([[0, a], [200, a]], [[0, 1.0, 1.0, 1.0]]), threshold=1.0)
+    red = Translucent(_const(origin=(4.0, 0.0, 0.0), name="red"),
+                      TransferFunction([[0, 0.3], [200, 0.3]], [[0, 1.0, 0.0, 0.0]]), mode="mip")
+    wall = Isosurface(_ramp_z(origin=(4.0, 0.0, 0.0), name="wall"), 4.6)
+    surf = render(Scene(camera=CAM, size=(4, 4), volumes=[wall])).image.astype(np.float64)
+    img = render(Scene(camera=CAM, size=(4, 4), volumes=[red, fog, wall])).image.astype(np.float64)
+    assert (surf[:, :2, 3] == 1.0).all() and not surf[:, 2:].any()
+    fog19, fog33 = 1.0 - (1.0 - a) ** 19, 1.0 - (1.0 - a) ** 33
+    for x in range(4):
+        for y in range(4):
+            if x >= 2:
+                want = _over([fog33] * 4)
+            else:
+                want = _over([0.3, 0.0, 0.0, 0.3], [fog19] * 4, surf[y, x])
+            np.testing.assert_allclose(img[y, x], want, atol=1e-5, rtol=0)
