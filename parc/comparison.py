@@ -362,7 +362,8 @@ def step_sweep(scene, steps, *, repeats=3, warmup=1, progress=None, options=None
     if not values or not all(np.isfinite(values)) or min(values) <= 0:
         raise InputError(f"sweep steps must be a list of positive numbers, got {steps!r}")
     steps = values
-    check_frame_memory(*scene.size, kept_images=2 * len(steps) + 1)
+    # Held at once: the reference and the step's image from each method; earlier steps' are let go.
+    check_frame_memory(*scene.size, kept_images=3)
 
     def at(step):
         return Scene(camera=scene.camera, size=scene.size, background=scene.background,

@@ -119,6 +119,8 @@ CASES = {
     "step sweep of one number": (lambda: step_sweep(_fog(), 0.5), "sweep steps"),
     "step sweep of a word": (lambda: step_sweep(_fog(), ["fine"]), "sweep steps"),
     "step sweep of a boolean": (lambda: step_sweep(_fog(), [True]), "sweep steps"),
+    # Named as given, not as the reference a quarter of it would be.
+    "step sweep of a step too fine": (lambda: step_sweep(_fog(), [0.5, 1e-5]), "step 1e-05 is below 1e-4"),
     "step sweep of a Translucent": (lambda: step_sweep(parc.Translucent(VOL, "greyscale"), [0.5]), "Scene"),
     "step sweep progress 5": (lambda: step_sweep(_fog(), [0.5], progress=5), "progress"),
     "step as text": (lambda: parc.Translucent(VOL, "greyscale", step="0.5"), "step must be a number"),
@@ -317,6 +319,19 @@ def test_a_comparison_counts_the_images_it_keeps(monkeypatch):
     parc.render(scene)                                     # one frame fits
     with pytest.raises(InputError, match="needs about"):
         parc.compare(scene, methods=("brute", "parc"))     # a frame and two kept images do not
+
+
+def test_a_step_sweep_counts_the_images_it_holds_at_once(monkeypatch):
+    # The reference and each method's image of the step being timed: a step's images go once its row is made.
+    import parc.workspace as workspace
+    from data_tools import memory
+    one = 8 * 8 * workspace.FRAME_BYTES_PER_PIXEL
+    kept = 8 * 8 * workspace.KEPT_IMAGE_BYTES_PER_PIXEL
+    monkeypatch.setattr(memory, "available_memory", lambda: one + 3 * kept)
+    assert len(step_sweep(_fog(), [1.0, 0.75, 0.5, 0.25], repeats=1, warmup=0)) == 4
+    monkeypatch.setattr(memory, "available_memory", lambda: one + 2 * kept)
+    with pytest.raises(InputError, match="needs about"):
+        step_sweep(_fog(), [1.0], repeats=1, warmup=0)
 
 
 def test_load_volume_of_something_not_a_path_says_what_to_do():

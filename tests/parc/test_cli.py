@@ -2115,7 +2115,7 @@ def test_a_vector_of_infinities_is_refused_by_its_flag(flag, vol_file, tmp_path,
     assert f"argument {flag}: must be 3 comma-separated finite numbers, got 'inf,0,1'" in err, err
 
 
-@pytest.mark.parametrize("threads, ok", [("1024", True), ("1025", False), (" 4 ", True)])
+@pytest.mark.parametrize("threads, ok", [("1", True), ("1024", True), ("1025", False), (" 4 ", True)])
 def test_numba_thread_counts_at_the_bounds(threads, ok, monkeypatch, capsys):
     import parc.cli
     from parc.console import main as console_main
@@ -2123,6 +2123,18 @@ def test_numba_thread_counts_at_the_bounds(threads, ok, monkeypatch, capsys):
     monkeypatch.setattr(parc.cli, "main", lambda: 0)      # the check alone, before Numba would start them
     assert console_main() == (0 if ok else 2)
     assert ("must be a whole number from 1 to 1024" in capsys.readouterr().err) != ok
+
+
+@pytest.mark.parametrize("threads", ["", "  "])
+def test_an_empty_numba_thread_count_is_unset_before_numba_reads_it(threads, monkeypatch, capsys):
+    # Numba reads "" with a warning that prints a traceback; unset, it takes its default quietly.
+    import parc.cli
+    from parc.console import main as console_main
+    monkeypatch.setenv("NUMBA_NUM_THREADS", threads)
+    seen = []
+    monkeypatch.setattr(parc.cli, "main", lambda: seen.append(os.environ.get("NUMBA_NUM_THREADS")) or 0)
+    assert console_main() == 0 and seen == [None]
+    assert capsys.readouterr().err == ""
 
 
 @pytest.mark.parametrize("argv, loop", [(["render", "{loop}.nrrd", "--size", 8, 8, "-o", "{tmp}/o.png"], "input"),

@@ -96,7 +96,7 @@ def test_a_rows_timings_come_from_its_median_run(monkeypatch):
     assert parc_row["supercell"] is None and parc_row["supercells"] == [2.0, 4.0]
 
 
-def _scripted(monkeypatch, walls, phases_of, depth_of=None, image_of=None, size=(2, 2)):
+def _scripted(monkeypatch, walls, phases_of, depth_of=None, image_of=None, size=(2, 2), stats_of=None):
     """compare/step_sweep's render and clock replaced: each render takes walls[method].pop(0) s."""
     import parc.comparison as comparison
     clock = [0.0]
@@ -114,6 +114,8 @@ def _scripted(monkeypatch, walls, phases_of, depth_of=None, image_of=None, size=
         image = np.zeros((h, w, 4), np.float32) if image_of is None else image_of(method)
         stats = {"seconds": phases_of(wall), "cells_visited": 1, "cubic_solves": 0, "hits": 0, "pixels": w * h,
                  "polygons": 0, "supercell": None, "parameters": {}, "samples": 1}
+        if stats_of is not None:
+            stats.update(stats_of(method))
         return RenderResult(image=image, depth=depth, stats=stats)
 
     monkeypatch.setattr(comparison, "time", Clock)
@@ -190,3 +192,131 @@ def test_step_sweep_speedup_and_error_by_hand(monkeypatch):
     assert row["max_color"] == 0.5 and row["rmse"] == pytest.approx(0.125, rel=1e-12)
     assert row["psnr"] == pytest.approx(20 * math.log10(1 / 0.125), rel=1e-12)
     assert row["parc_vs_brute"] == 0.0
+
+
+def test_max_colour_and_rmse_count_the_alpha_channel():
+    # Coverage is a channel of the image as much as colour is: 0.5 off in one alpha of sixteen channels.
+    ref = _result([[1.0, 1.0], [1.0, 1.0]], np.zeros((2, 2, 4)))
+    changed = np.zeros((2, 2, 4))
+    changed[0, 1, 3] = 0.5
+    err = image_error(_result([[1.0, 1.0], [1.0, 1.0]], changed), ref, 1.0)
+    assert err["max_color"] == 0.5
+    assert err["rmse"] == pytest.approx(math.sqrt(0.25 / 16), rel=1e-12)
+
+
+def _iso_scene(size=(2, 2)):
+    from data_tools.synthetic import blobs
+    from parc import Camera, Isosurface, Scene
+    vol = blobs(6, seed=1)
+    return Scene(camera=Camera.framing(*vol.bounds), size=size, volumes=[Isosurface(vol, 100.5)])
+
+
+def test_an_even_number_of_rounds_gives_the_mean_of_the_middle_two_and_the_lower_ones_phases(monkeypatch):
+    # A warm-up, then 4 rounds. brute sorted 1, 2, 3, 4: median 2.5; parc sorted 0.25, 0.5, 1, 2:
+    # median 0.75, and its phases are those of the 0.5 s run (the lower of the middle two).
+    walls = {"brute": [9.0, 4.0, 1.0, 3.0, 2.0], "parc": [9.0, 1.0, 0.5, 2.0, 0.25]}
+    phases = lambda wall: {"total": wall, "raster": wall / 2 if wall == 0.5 else 0.0}       # noqa: E731
+    comparison = _scripted(monkeypatch, walls, phases)
+    brute, row = comparison.compare(_iso_scene(), repeats=4)
+    assert brute["seconds"] == 2.5 and row["seconds"] == 0.75
+    assert row["phases"] == {"total": 0.5, "raster": 0.25} and row["opengl_share"] == 0.5
+    assert row["speedup"] == pytest.approx(2.5 / 0.75, rel=1e-12)
+    # Round by round: 4/1, 1/0.5, 3/2, 2/0.25.
+    assert (row["speedup_low"], row["speedup_high"]) == (1.5, 8.0)
+    assert brute["repeats"] == row["repeats"] == 4
+
+
+def test_a_rows_time_is_the_whole_render_call_and_its_opengl_share_the_frames(monkeypatch):
+    # The frame is 0.8 of each 2 s call (the rest: argument and memory checks); OpenGL is 0.4 of 1.6 s.
+    phases = lambda wall: {"total": 0.8 * wall, "cast": 0.4 * wall, "raster": 0.2 * wall}    # noqa: E731
+    comparison = _scripted(monkeypatch, {"brute": [2.0], "parc": [2.0]}, phases)
+    _, row = comparison.compare(_iso_scene(), repeats=1, warmup=0)
+    assert row["seconds"] == 2.0
+    assert row["phases"] == {"total": 1.6, "cast": 0.8, "raster": 0.4}
+    assert row["opengl_share"] == pytest.approx(0.25, rel=1e-12)
+
+
+def test_a_rows_counts_are_its_own_methods_render_stats(monkeypatch):
+    counts = {"brute": dict(cells_visited=101, cubic_solves=11, samples=1001, shadow_cells=21, shadow_solves=22,
+                            shadow_samples=23, shadow_rays=24, hits=3, pixels=4, polygons=0),
+              "parc": dict(cells_visited=51, cubic_solves=12, samples=501, shadow_cells=31, shadow_solves=32,
+                           shadow_samples=33, shadow_rays=34, hits=2, pixels=4, polygons=77)}
+    # Both volumes on one grid of 2x2x4 cells: the row has that one size.
+    grids = [{"supercell": (2.0, 2.0, 4.0)}, {"supercell": (2.0, 2.0, 4.0)}]
+    comparison = _scripted(monkeypatch, {"brute": [1.0], "parc": [1.0]}, lambda w: {"total": w},
+                           stats_of=lambda m: {**counts[m], "volumes": grids})
+    rows = comparison.compare(_iso_scene(), repeats=1, warmup=0)
+    for row in rows:
+        assert {k: row[k] for k in counts[row["method"]]} == counts[row["method"]]
+        assert row["supercell"] == (2.0, 2.0, 4.0) and row["supercells"] == [(2.0, 2.0, 4.0)] * 2
+
+
+def test_methods_keep_the_order_given_with_brute_first():
+    from parc.comparison import method_names
+    assert method_names("parc:b,parc,brute,parc:a") == ["brute", "parc:b", "parc", "parc:a"]
+
+
+@pytest.mark.parametrize("warmup, walls, rounds", [
+    # Three warm-ups of 1 s a round: no round is slow, so none is announced.
+    (3, [0.5] * 3 + [0.5] * 3, []),
+    # A slow warm-up (3 s): every round is announced, fast ones after it too.
+    (1, [1.5] + [0.05] * 3, [1, 2, 3]),
+    # No warm-up: the first round, once it proves slow, announces the rest.
+    (0, [1.5] + [0.05] * 2, [2, 3]),
+])
+def test_rounds_are_announced_from_the_first_slow_round_on(warmup, walls, rounds, monkeypatch):
+    comparison = _scripted(monkeypatch, {"brute": list(walls), "parc": list(walls)}, lambda w: {"total": w})
+    monkeypatch.setattr(comparison, "SLOW_ROUND", 2.0)
+    said = []
+    comparison.compare(_iso_scene(), repeats=3, warmup=warmup, progress=said.append)
+    assert said == ["warming up brute", "warming up parc"] + [f"timing round {r} of 3" for r in rounds]
+
+
+def test_format_table_gives_each_row_its_own_samples_share_and_phases():
+    from parc.comparison import format_table
+    base = {"seconds": 1.0, "speedup": 1.0, "speedup_low": 1.0, "speedup_high": 1.0, "cells_visited": 0,
+            "cubic_solves": 0, "hits": 0, "pixels": 100, "polygons": 0, "hit_mismatches": 0,
+            "max_depth_cells": 0.0, "max_color": 0.0, "psnr": math.inf}
+    rows = [dict(base, method="brute", opengl_share=0.0, samples=250, phases={"total": 1.0, "cast": 0.75}),
+            dict(base, method="parc", opengl_share=0.5, samples=40, phases={"total": 0.5, "raster": 0.25})]
+    lines = format_table(rows).splitlines()
+    brute, parc_line = (line.split() for line in lines[2:4])
+    # OpenGL, samples/px: "-" for no OpenGL time at all; 250 and 40 samples over 100 pixels.
+    assert (brute[4], brute[7]) == ("-", "2.5") and (parc_line[4], parc_line[7]) == ("50%", "0.4")
+    assert "  brute      cast=0.7500  raster=0.0000  total=1.0000" in lines
+    assert "  parc       cast=0.0000  raster=0.2500  total=0.5000" in lines
+
+
+def test_step_sweep_takes_each_methods_median_and_samples_and_brutes_image_against_the_reference(monkeypatch):
+    # Reference: zeros. brute's image is 0.5 off it in one channel; parc's differs from brute's by
+    # 0.75 in another: "max Δ vs fine" is brute's 0.5, parc≠brute 0.75.
+    from data_tools.synthetic import blobs
+    from parc import Camera, Scene, Translucent
+    calls = []
+
+    def image_of(method):
+        calls.append(method)
+        img = np.zeros((2, 2, 4), np.float32)
+        if len(calls) > 1:
+            img[0, 1, 2] = 0.5
+        if method == "parc":
+            img[1, 0, 0] = 0.75
+        return img
+
+    # brute's reference, then three rounds: brute 5, 1, 3 (median 3) and parc 2, 0.5, 1 (median 1).
+    comparison = _scripted(monkeypatch, {"brute": [0.0, 5.0, 1.0, 3.0], "parc": [2.0, 0.5, 1.0]},
+                           lambda w: {"total": w}, image_of=image_of, stats_of=lambda m: {"samples": len(m)})
+    vol = blobs(6, seed=1)
+    scene = Scene(camera=Camera.framing(*vol.bounds), size=(2, 2), volumes=[Translucent(vol, "greyscale")])
+    (row,) = comparison.step_sweep(scene, [0.5], repeats=3, warmup=0)
+    assert (row["brute_seconds"], row["parc_seconds"], row["speedup"]) == (3.0, 1.0, 3.0)
+    assert (row["brute_samples"], row["parc_samples"]) == (5, 4)
+    assert row["max_color"] == 0.5 and row["parc_vs_brute"] == 0.75
+
+
+def test_format_step_table_puts_each_error_under_its_heading():
+    from parc.comparison import format_step_table
+    row = dict(step=0.5, brute_seconds=2.0, parc_seconds=0.5, speedup=4.0, brute_samples=1000,
+               parc_samples=400, max_color=0.25, psnr=30.0, parc_vs_brute=0.5)
+    cells = format_step_table([row]).splitlines()[1].split()
+    assert cells == ["0.5", "2.0000", "0.5000", "4.00x", "1,000", "400", "2.50e-01", "30.0", "5.0e-01"]
