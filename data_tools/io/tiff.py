@@ -195,17 +195,19 @@ def _first_shape(tif):
 
 
 def _described_one_by_one(tif):
-    """The file's pages when each one's tifffile description states that page alone, as tifffile
+    """The file's slices when each one's tifffile description states that page alone, as tifffile
     writes pages one at a time (``TiffWriter.write`` of each slice); otherwise None.
 
     tifffile makes each such page a series of its own, and sorts them in time quadratic in their
     number (minutes for tens of thousands of pages); its first series is the first page, and the
-    stack all the pages, which are read here without the series. A page with another description,
-    or none, gives other series (`_check_shaped`)."""
+    stack all the slices, which are read here without the series. Reduced-size pages (thumbnails)
+    and transparency masks are no slices, described or not (as in `_check_gapless`). A slice with
+    another description, or none, gives other series (`_check_shaped`)."""
     if len(tif.pages) < 2 or not _states_itself(tif.pages[0]):
         return None
-    pages = list(tif.pages)
-    return pages if all(_states_itself(p) for p in pages) else None
+    # NewSubfileType: 1 a reduced-size image, 4 a transparency mask.
+    pages = [p for p in tif.pages if not getattr(p, "subfiletype", 0) & 0b101]
+    return pages if len(pages) > 1 and all(_states_itself(p) for p in pages) else None
 
 
 def _states_itself(page):

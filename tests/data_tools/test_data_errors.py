@@ -5,6 +5,7 @@ import bz2
 import gzip
 import os
 import stat
+import struct
 import tracemalloc
 import zlib
 
@@ -1085,28 +1086,29 @@ def test_tiff_pages_of_two_sizes_taking_turns_are_refused(tmp_path):
     fails(p, "page 2 of 6 is not like page 1")
 
 
-@pytest.mark.parametrize("odd, how", [
-    (np.zeros((10, 6), np.uint8), {}),
-    (np.full((5, 6), 1000, np.uint16), {}),
-    (np.full((5, 6), 7, np.uint8), {"compression": "zlib"}),
-], ids=["taller", "16-bit", "deflated"])
-def test_tiff_page_unlike_the_others_away_from_those_tifffile_compares_is_refused(tmp_path, odd, how):
+@pytest.mark.parametrize("odd, how, every", [
+    (np.zeros((10, 6), np.uint8), {}, {}),
+    (np.full((5, 6), 1000, np.uint16), {}, {}),
+    (np.full((5, 6), 7, np.uint8), {"compression": "zlib"}, {}),
+    (np.full((5, 6), -7, np.int8), {}, {}),
+    (np.full((5, 6), 7, np.uint8), {"compression": "zlib", "predictor": True}, {"compression": "zlib"}),
+], ids=["taller", "16-bit", "deflated", "signed", "predictor"])
+def test_tiff_page_unlike_the_others_away_from_those_tifffile_compares_is_refused(tmp_path, odd, how, every):
     # tifffile compares pages 2, 8 and the last with the first, and reads the others as the first
-    # is: the taller page's first rows, the 16-bit page's bytes or the deflated page's stream as
-    # 8-bit samples.
+    # is: the taller page's first rows, the 16-bit page's bytes, the deflated page's stream, the
+    # signed page's samples or the predicted page's differences as unsigned 8-bit samples.
     tifffile = pytest.importorskip("tifffile")
     p = tmp_path / "s.tif"
     with tifffile.TiffWriter(p) as w:
         for k in range(10):
             w.write(odd if k == 3 else np.full((5, 6), k, np.uint8), photometric="minisblack", metadata=None,
-                    **(how if k == 3 else {}))
+                    **(how if k == 3 else every))
     fails(p, "page 4 of 10 is not like page 1")
 
 
 def test_tiff_page_whose_tags_differ_but_read_alike_is_read(tmp_path):
     # RowsPerStrip left at TIFF's default, 2**32 - 1: all the rows in one strip, as the other pages.
     tifffile = pytest.importorskip("tifffile")
-    import struct
     arr = np.arange(10 * 5 * 6, dtype=np.uint8).reshape(10, 5, 6)
     p = tmp_path / "s.tif"
     tifffile.imwrite(p, arr, photometric="minisblack", metadata=None)
@@ -1167,4 +1169,21 @@ def test_tiff_thumbnails_between_slices_each_with_its_own_description_are_left_o
         for k in range(4):
             w.write(SMALL[k], photometric="minisblack")
             w.write(SMALL[k, ::2, ::2], photometric="minisblack", metadata=None, subfiletype=1)
+    np.testing.assert_array_equal(load_volume(p).data, SMALL)
+
+
+@pytest.mark.parametrize("subfiletype, between", [(1, np.zeros((2, 3), np.uint8)),
+                                                   (4, np.ones(SMALL.shape[1:], bool))], ids=["thumbnails", "masks"])
+def test_tiff_thumbnails_and_masks_tifffile_describes_between_the_slices_are_left_out(tmp_path, subfiletype,
+                                                                                      between):
+    # Written with tifffile's own description, as the slices are: each page states its own shape,
+    # and is still no slice.
+    tifffile = pytest.importorskip("tifffile")
+    p = tmp_path / "s.tif"
+    with tifffile.TiffWriter(p) as w:
+        for k in range(4):
+            w.write(SMALL[k], photometric="minisblack")
+            w.write(between, photometric="minisblack", subfiletype=subfiletype)
+    with tifffile.TiffFile(p) as tif:
+        assert all(page.description.startswith('{"shape": [') for page in tif.pages)
     np.testing.assert_array_equal(load_volume(p).data, SMALL)
