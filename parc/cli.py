@@ -356,7 +356,7 @@ def cmd_render(args):
     if args.method != "parc":
         _refuse_parc_flags(args, "applies to --method parc")
     check_request(scene, kwargs.get("buffers", DEFAULT_BUFFERS), work_out is not None, ("--buffers", "--work"))
-    check_frame_memory(*scene.size, layers=len(scene.volumes))
+    check_frame_memory(*scene.size, layers=len(scene.volumes), lights=len(scene.lights))
     if args.method == "parc":
         # Its options (a supercell no volume takes), then OpenGL and its image limit: refused before any note.
         check_options(scene, {args.method: kwargs})

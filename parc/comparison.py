@@ -91,7 +91,8 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
     for name, opts in options.items():
         _check_render_options(name, opts)
     _check_progress(progress, "a line of text")
-    check_frame_memory(*scene.size, layers=len(scene.volumes), kept_images=len(names))
+    check_frame_memory(*scene.size, layers=len(scene.volumes), lights=len(scene.lights),
+                       kept_images=len(names))
     check_options(scene, options)
     check_opengl(scene, names)
     vol = scene.volumes[0].volume

@@ -220,7 +220,7 @@ def _render(scene, method, supercell, buffers, progress, light_buffer, blocks, w
     buffers, light_buffer = check_arguments(scene, method, supercell=supercell, buffers=buffers, progress=progress,
                                             light_buffer=light_buffer, blocks=blocks, work=work)
     skip_blocks = method == "parc" and bool(blocks)
-    check_frame_memory(*scene.size, layers=len(scene.volumes))
+    check_frame_memory(*scene.size, layers=len(scene.volumes), lights=len(scene.lights))
     if len(scene.volumes) != 1 or scene.lights:
         return _render_general(scene, method, supercell, progress, light_buffer, skip_blocks)
     vis = scene.volumes[0]

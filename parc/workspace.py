@@ -68,21 +68,29 @@ def release():
 KEPT_IMAGE_BYTES_PER_PIXEL = 32
 
 
-def check_frame_memory(width, height, layers=1, kept_images=0):
+#: Memory a frame takes per pixel and light source: the diffuse, specular and visibility terms of
+#: every lit pixel (float64 each, `parc.multivolume`), with room.
+LIGHT_BYTES_PER_PIXEL = 32
+
+
+def check_frame_memory(width, height, layers=1, kept_images=0, lights=0):
     """Refuse, with one line, a frame whose per-pixel arrays would not fit in memory.
 
-    ``layers`` counts the per-pixel array sets alive at once (several volumes
-    or lights); ``kept_images`` the finished images held meanwhile (a
-    comparison keeps one per method). Without the check a huge image stops
-    on NumPy's allocation error, or the system kills the process once the
-    pages are touched.
+    ``layers`` counts the per-pixel array sets alive at once (several
+    volumes); ``lights`` the scene's light sources, whose shading terms take
+    `LIGHT_BYTES_PER_PIXEL` each; ``kept_images`` the finished images held
+    meanwhile (a comparison keeps one per method). Without the check a huge
+    image stops on NumPy's allocation error, or the system kills the process
+    once the pages are touched.
 
     Raises
     ------
     InputError
-        The estimate (`FRAME_BYTES_PER_PIXEL` per pixel and layer) exceeds
-        the memory available.
+        The estimate (`FRAME_BYTES_PER_PIXEL` per pixel and layer,
+        `LIGHT_BYTES_PER_PIXEL` per pixel and light) exceeds the memory
+        available.
     """
     need = int(width) * int(height) * (FRAME_BYTES_PER_PIXEL * max(1, int(layers))
+                                       + LIGHT_BYTES_PER_PIXEL * int(lights)
                                        + KEPT_IMAGE_BYTES_PER_PIXEL * int(kept_images))
     check_memory(need, f"a {width}x{height} image", ": render a smaller image (--size, or size in a scene file)")

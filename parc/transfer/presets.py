@@ -92,7 +92,8 @@ def _viridis(data_range=None, mode="composite"):
     return tf.mapped(lo, hi)
 
 def data_range_of(data_range, who):
-    """``(lo, hi)`` floats with ``hi > lo`` (a one-value range is widened to ``(lo, lo + 1)``)."""
+    """``(lo, hi)`` floats with ``hi > lo`` (a one-value range is widened to ``(lo, lo + max(1, 1e-9 |lo|))``,
+    a span float64 holds at any ``lo``)."""
     if data_range is None:
         raise InputError(f"{who} spans the data range: give the data range (lo, hi)")
     try:

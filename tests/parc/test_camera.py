@@ -262,3 +262,40 @@ def test_projection_maps_the_depth_range_to_minus_one_to_one(parallel):
                 assert clip[2] / clip[3] == pytest.approx(z, abs=1e-9)
             else:
                 assert -1.0 < clip[2] / clip[3] < 1.0
+
+
+def test_default_framing_stands_where_its_documented_angles_and_margin_put_it():
+    # By hand for the cube [0, 10]^3: azimuth 35 and elevation 25 degrees round +z put the eye along
+    # (cos 25 sin 35, -cos 25 cos 35, sin 25) from the centre, at the distance where the bounding
+    # sphere (radius 5 sqrt 3) fills half the 30-degree field of view, plus 2%; zoom 2 halves it.
+    centre, radius = np.array([5.0, 5.0, 5.0]), 5.0 * math.sqrt(3.0)
+    el, az = math.radians(25.0), math.radians(35.0)
+    back = np.array([math.cos(el) * math.sin(az), -math.cos(el) * math.cos(az), math.sin(el)])
+    dist = radius / math.sin(math.radians(15.0)) * 1.02
+    for zoom in (1.0, 2.0):
+        cam = Camera.framing((0, 0, 0), (10, 10, 10), zoom=zoom)
+        np.testing.assert_allclose(cam.eye, centre + back * dist / zoom, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(cam.look_at, centre, rtol=0, atol=1e-12)
+        assert cam.fov == 30.0 and not cam.parallel
+    for zoom in (1.0, 2.0):
+        par = Camera.framing((0, 0, 0), (10, 10, 10), parallel=True, zoom=zoom)
+        assert par.parallel_scale == pytest.approx(radius * 1.02 / zoom, rel=1e-15)
+
+
+def test_a_zoomed_parallel_framing_keeps_its_eye_outside_the_bounding_sphere():
+    # Zoom only magnifies a parallel view: the eye must not move in among the box's corners,
+    # whichever way it looks (a cube's corners lie all round its centre, at the sphere's radius).
+    lo, hi = np.zeros(3), np.full(3, 10.0)
+    for az in (0.0, 35.0, 45.0, 120.0):
+        cam = Camera.framing(lo, hi, parallel=True, zoom=4.0, azimuth=az)
+        assert np.linalg.norm(np.array(cam.eye) - 5.0) >= 5.0 * math.sqrt(3.0) * (1.0 - 1e-12)
+
+
+@pytest.mark.parametrize("view", [dict(fov=40.0), dict(parallel_scale=2.5)])
+def test_a_cameras_settings_make_the_same_camera_again(view):
+    cam = Camera(eye=(3.0, -7.0, 2.0), look_at=(0.5, 0.25, -1.0), up=(0.0, 0.0, 1.0), **view)
+    settings = cam.settings()
+    assert set(settings) == {"eye", "look_at", "up"} | set(view)
+    again = Camera(**settings)
+    assert again == cam and again.parallel == cam.parallel
+    np.testing.assert_array_equal(again.as_array(), cam.as_array())

@@ -847,3 +847,78 @@ def test_a_save_that_fails_midway_leaves_the_old_file_whole(tmp_path, monkeypatc
         save_transfer_function(TransferFunction([[0, 0], [5, 1]]), target)
     assert target.read_bytes() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["tf.json"]
+
+
+def test_a_jump_survives_mapping_onto_the_data_range():
+    # Two equal values are a jump, continuous from the right; mapping [0, 1] onto [0, 10] moves it to 5.
+    tf = TransferFunction([(0.0, 0.0), (0.5, 0.0), (0.5, 1.0), (1.0, 1.0)]).mapped(0.0, 10.0)
+    np.testing.assert_array_equal(tf.opacity([4.999, 5.0, 5.001]), [0.0, 1.0, 1.0])
+    np.testing.assert_array_equal(tf.opacity_points[:, 0], [0.0, 5.0, 5.0, 10.0])
+
+
+def test_mapping_from_a_span_of_one_value_is_refused_by_name():
+    tf = TransferFunction([(0.0, 0.5)])
+    for src in ((2.0, 2.0), (3.0, 2.0)):
+        with pytest.raises(InputError, match="cannot map from an empty value span"):
+            tf.mapped(0.0, 1.0, src=src)
+
+
+def test_rounding_widens_a_range_by_its_largest_magnitude():
+    # [0, 100] widened by 1e-6 of 100 reaches 100.0001, past the support's start at 100.00005;
+    # by 1e-6 of its smaller end (0) it would not.
+    tf = TransferFunction([(100.00005, 0.0), (101.0, 0.5)])
+    assert not tf.nonzero_in(0.0, 100.0)
+    assert tf.nonzero_in(0.0, 100.0, rounding=1e-6)
+
+
+def test_rounding_of_16_bit_ranges_is_a_fraction_of_the_types_largest_magnitude():
+    # int16's largest magnitude is 32768: with rounding 1e-3, [0, 100] reaches 132.768, past a
+    # support starting at 132.7675; 1e-3 of 32767 (132.767) falls short.
+    tf = TransferFunction([(132.7675, 0.0), (133.0, 0.5)])
+    assert tf.nonzero_in(np.int16(0), np.int16(100), rounding=1e-3)
+    assert not tf.nonzero_in(np.int16(0), np.int16(99), rounding=1e-3)
+
+
+def test_functions_differing_only_in_colour_are_not_equal():
+    op = [(0.0, 0.0), (1.0, 0.5)]
+    assert TransferFunction(op, [(0.0, 1, 0, 0)]) == TransferFunction(op, [(0.0, 1, 0, 0)])
+    assert TransferFunction(op, [(0.0, 1, 0, 0)]) != TransferFunction(op, [(0.0, 0, 1, 0)])
+    assert TransferFunction(op, [(0.0, 1, 0, 0)]) != TransferFunction(op, [(0.5, 1, 0, 0)])
+
+
+@pytest.mark.parametrize("name", ["greyscale", "viridis"])
+def test_the_ramp_presets_end_at_opacity_0_1_for_compositing(name):
+    # README: the ramp presets "end at opacity 0.1 for compositing", transparent below 10% of the range.
+    tf = preset(name, (0.0, 200.0))
+    np.testing.assert_array_equal(tf.opacity([20.0, 200.0, 300.0]), [0.0, 0.1, 0.1])
+    assert tf.opacity(110.0) == pytest.approx(0.05, abs=1e-15)
+
+
+def test_ct_skin_bone_veils_the_skin_at_0_024():
+    # The presets' notes: 0.08 makes a few voxels of skin a visible shell, 0.024 (skin in
+    # ct_skin_bone) a veil; the bone is the same as ct_bone's.
+    for v in (600.0, 700.0, 850.0):
+        assert preset("ct_skin").opacity(v) == pytest.approx(0.08, abs=1e-15)
+        assert preset("ct_skin_bone").opacity(v) == pytest.approx(0.024, abs=1e-15)
+    np.testing.assert_array_equal(preset("ct_skin_bone").opacity([1500.0, 3000.0]),
+                                  preset("ct_bone").opacity([1500.0, 3000.0]))
+
+
+@pytest.mark.parametrize("value", [1e17, -3e20, 0.0])
+def test_a_ramp_over_a_one_value_range_keeps_its_ramp(value):
+    # A one-value range is widened to a span float64 can hold above the value: at 1e17,
+    # value + 1 is the value itself.
+    tf = preset("greyscale", (value, value))
+    x = tf.opacity_points[:, 0]
+    assert x[0] == value and x[-1] > value and len(np.unique(x)) == 3
+    assert tf.opacity(value) == 0.0 and tf.opacity(x[-1]) == 0.1
+
+
+def test_a_paraview_list_uses_its_first_map(tmp_path):
+    maps = [{"Name": "first", "RGBPoints": [0, 1, 0, 0, 10, 1, 0, 0], "Points": [0, 0.5, 0.5, 0, 10, 0.5, 0.5, 0]},
+            {"Name": "second", "RGBPoints": [0, 0, 0, 1, 10, 0, 0, 1], "Points": [0, 0.2, 0.5, 0, 10, 0.2, 0.5, 0]}]
+    path = tmp_path / "two.json"
+    path.write_text(json.dumps(maps))
+    tf = load_transfer_function(str(path))
+    assert tf.name == "first"
+    np.testing.assert_array_equal(tf.lookup(5.0), [1.0, 0.0, 0.0, 0.5])

@@ -12,7 +12,7 @@ import pytest
 import parc.workspace as workspace
 from data_tools import InputError, Volume, memory
 from data_tools.synthetic import blobs
-from parc import Camera, Isosurface, PointLight, Scene, render
+from parc import Camera, Isosurface, PointLight, Scene, Translucent, render
 from parc.gl import OpenGLUnavailable
 from parc.workspace import release, work_array
 
@@ -268,6 +268,75 @@ def test_memory_below_a_frames_measured_need_is_refused(monkeypatch):
     vol = blobs(12, seed=1)
     scene = _scene(vol, float(vol.data.mean()))
     monkeypatch.setattr(memory, "available_memory", lambda: 64 * 48 * MEASURED_PEAK_BYTES_PER_PIXEL - 1)
+    for method in ("brute", "parc"):
+        with pytest.raises(InputError, match="64x48 image needs about .* available"):
+            render(scene, method=method)
+
+
+def test_arrays_up_to_the_bound_together_are_all_kept_and_the_oldest_goes_first(monkeypatch):
+    # Kept "up to KEEP_BYTES": arrays filling it exactly stay; one more pushes out the oldest.
+    release()
+    monkeypatch.setattr(workspace, "KEEP_BYTES", 1600)
+    whole = work_array("whole", (200,))          # 1600 bytes: exactly the bound
+    assert work_array("whole", (200,)) is whole
+    a = work_array("a", (100,))
+    b = work_array("b", (100,))                  # a and b: 1600 bytes together
+    assert work_array("a", (100,)) is a and work_array("b", (100,)) is b
+    c = work_array("c", (100,))
+    assert work_array("b", (100,)) is b and work_array("c", (100,)) is c
+    assert work_array("a", (100,)) is not a
+    release()
+
+
+def test_a_name_given_a_new_shape_gives_up_its_old_array_before_others_go(monkeypatch):
+    release()
+    monkeypatch.setattr(workspace, "KEEP_BYTES", 1600)
+    x = work_array("x", (100,))
+    work_array("y", (50,))
+    work_array("y", (100,))                      # replaces y's 400 bytes: x and y fill the bound
+    assert work_array("x", (100,)) is x
+    release()
+
+
+def test_the_frame_memory_check_counts_every_layer_and_kept_image(monkeypatch):
+    # Documented: FRAME_BYTES_PER_PIXEL per pixel and layer (at least one), and each kept image at
+    # least its float32 RGBA and float64 depth, 4 * 4 + 8 = 24 bytes a pixel.
+    per = workspace.FRAME_BYTES_PER_PIXEL
+    for layers in (0, 1, 3):
+        need = 64 * 48 * per * max(1, layers)
+        monkeypatch.setattr(memory, "available_memory", lambda: need - 1)
+        with pytest.raises(InputError, match="64x48 image needs about"):
+            workspace.check_frame_memory(64, 48, layers=layers)
+        monkeypatch.setattr(memory, "available_memory", lambda: need)
+        workspace.check_frame_memory(64, 48, layers=layers)
+    monkeypatch.setattr(memory, "available_memory", lambda: 64 * 48 * (per + 3 * 24) - 1)
+    with pytest.raises(InputError, match="64x48 image needs about"):
+        workspace.check_frame_memory(64, 48, kept_images=3)
+
+
+def test_memory_below_a_translucent_frames_measured_need_is_refused(monkeypatch):
+    # The CT head translucent frame with depth buffers and bit planes was measured at 170 bytes a pixel.
+    vol = blobs(12, seed=1)
+    scene = Scene(camera=Camera.framing(*vol.bounds), size=(64, 48), volumes=[Translucent(vol, "greyscale")])
+    monkeypatch.setattr(memory, "available_memory", lambda: 64 * 48 * 170 - 1)
+    for method, options in (("brute", {}), ("parc", {"buffers": "depth,bits"})):
+        with pytest.raises(InputError, match="64x48 image needs about .* available"):
+            render(scene, method=method, **options)
+
+
+def test_memory_for_a_frame_but_not_its_lights_shading_terms_is_refused(monkeypatch):
+    # A plane z = 3.5 seen from above fills every pixel; each light then holds a diffuse, a specular
+    # and a visibility term in float64 for every pixel: 24 bytes a pixel and light, on top of the
+    # 90 measured for brute's isosurface frame (PARC's 105). 64 lights at 200 bytes a pixel in all
+    # were let through.
+    z = np.broadcast_to(np.arange(8.0)[:, None, None], (8, 8, 8)).copy()
+    vol = Volume(z)
+    cam = Camera(eye=(3.5, 3.5, 20.0), look_at=(3.5, 3.5, 0.0), up=(0, 1, 0), parallel_scale=2.0)
+    lights = [PointLight((3.5 + np.cos(k), 3.5 + np.sin(k), 10.0), intensity=0.01) for k in range(64)]
+    scene = Scene(camera=cam, size=(64, 48), volumes=[Isosurface(vol, 3.5)], lights=lights)
+    assert np.isfinite(render(scene, method="brute").depth).all()
+    monkeypatch.setattr(memory, "available_memory",
+                        lambda: 64 * 48 * (90 + 3 * 8 * len(lights)) - 1)
     for method in ("brute", "parc"):
         with pytest.raises(InputError, match="64x48 image needs about .* available"):
             render(scene, method=method)

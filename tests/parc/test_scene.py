@@ -1,0 +1,117 @@
+"""Scene, Isosurface, Translucent and lights: the limits their docstrings give, at and past each bound.
+
+Truth: the documented ranges and formulas (``size`` both at least 1, components in [0, 1],
+intensity >= 0, shininess > 0, a light's coordinates up to 1e150, the eye within 2^32 volume
+sizes, ``radiance = colour * intensity``) and the data range computed with NumPy.
+"""
+import math
+
+import numpy as np
+import pytest
+
+import parc
+from data_tools import InputError, Volume
+from data_tools.synthetic import blobs
+from parc.scene import describe_volume
+
+VOL = blobs(12, seed=3)
+ISO = float(VOL.data.mean())
+CAM = parc.Camera.framing(*VOL.bounds)
+
+
+def _scene(**kw):
+    args = dict(camera=CAM, size=(8, 8), volumes=[parc.Isosurface(VOL, ISO)])
+    args.update(kw)
+    return parc.Scene(**args)
+
+
+def test_an_isovalue_at_either_end_of_the_data_range_is_taken_and_one_past_it_refused():
+    lo, hi = float(np.min(VOL.data)), float(np.max(VOL.data))
+    assert parc.Isosurface(VOL, lo).value == lo
+    assert parc.Isosurface(VOL, hi).value == hi
+    for past in (np.nextafter(lo, -math.inf), np.nextafter(hi, math.inf)):
+        with pytest.raises(InputError, match="outside the data range"):
+            parc.Isosurface(VOL, past)
+
+
+@pytest.mark.parametrize("size", [(8, 0), (0, 8), (-1, 8)])
+def test_an_image_without_pixels_is_refused(size):
+    with pytest.raises(InputError, match="image size must be two positive integers"):
+        _scene(size=size)
+
+
+def test_a_one_pixel_image_is_a_scene():
+    assert _scene(size=(1, 1)).size == (1, 1)
+
+
+@pytest.mark.parametrize("bg", [(-0.1, 0.0, 0.0), (0.0, 0.0, 0.0, -1e-9), (0.0, 1.5, 0.0)])
+def test_background_components_outside_zero_to_one_are_refused(bg):
+    with pytest.raises(InputError, match=r"background components must be in \[0, 1\]"):
+        _scene(background=bg)
+
+
+def test_a_scene_without_volumes_is_refused():
+    with pytest.raises(InputError, match="give at least one volume"):
+        _scene(volumes=[])
+
+
+def test_shadows_without_an_isosurface_are_refused():
+    with pytest.raises(InputError, match="shadows fall on isosurfaces"):
+        _scene(volumes=[parc.Translucent(VOL, "greyscale")], shadows=True)
+
+
+@pytest.mark.parametrize("make", [
+    lambda c: parc.PointLight((1, 2, 3), color=c),
+    lambda c: parc.DirectionalLight((1, 2, 3), color=c),
+    lambda c: parc.Isosurface(VOL, ISO, color=c),
+])
+def test_colour_components_below_zero_are_refused(make):
+    with pytest.raises(InputError, match=r"colour must be three numbers in \[0, 1\]"):
+        make((-0.25, 0.5, 0.5))
+
+
+def test_a_material_needs_a_positive_shininess_and_takes_zero_weights():
+    with pytest.raises(InputError, match="shininess > 0"):
+        parc.Isosurface(VOL, ISO, material=(0.1, 0.7, 0.2, 0.0))
+    assert parc.Isosurface(VOL, ISO, material=(0, 0, 0, 1)).material == (0.0, 0.0, 0.0, 1.0)
+
+
+@pytest.mark.parametrize("light", [parc.PointLight, parc.DirectionalLight])
+def test_a_lights_radiance_is_its_colour_times_its_intensity(light):
+    assert light((1, 2, 3), color=(0.5, 0.25, 1.0), intensity=2.0).radiance == (1.0, 0.5, 2.0)
+    assert light((1, 2, 3), intensity=0).radiance == (0.0, 0.0, 0.0)
+    with pytest.raises(InputError, match="intensity must be a finite number >= 0"):
+        light((1, 2, 3), intensity=-1e-12)
+
+
+def test_a_point_light_may_stand_up_to_1e150_away_and_no_further():
+    assert parc.PointLight((-1e150, 0, 1e150)).position == (-1e150, 0.0, 1e150)
+    with pytest.raises(InputError, match="a light that far is a DirectionalLight"):
+        parc.PointLight((0, 1.0000001e150, 0))
+
+
+@pytest.mark.parametrize("view", [dict(fov=30.0), dict(parallel_scale=5.0)])
+def test_the_eye_may_stand_up_to_2_to_the_32_volume_sizes_from_the_origin(view):
+    lo, hi = VOL.bounds
+    size = float(np.linalg.norm(np.subtract(hi, lo)))
+    centre = tuple(0.5 * (np.asarray(lo) + np.asarray(hi)))
+    near = parc.Camera(eye=(2.0 ** 31 * size, centre[1], centre[2]), look_at=centre, up=(0, 0, 1), **view)
+    assert _scene(camera=near).camera is near
+    far = parc.Camera(eye=(2.0 ** 33 * size, centre[1], centre[2]), look_at=centre, up=(0, 0, 1), **view)
+    with pytest.raises(InputError, match="over 2\\^32 times the volumes' size"):
+        _scene(camera=far)
+
+
+@pytest.mark.parametrize("step", [math.inf, math.nan, -0.5, 0.0])
+def test_a_step_that_is_no_positive_finite_distance_is_refused(step):
+    with pytest.raises(InputError, match="step must be a positive, finite distance"):
+        parc.Translucent(VOL, "greyscale", step=step)
+
+
+@pytest.mark.parametrize("mode", ["mip", "average"])
+def test_a_volume_described_for_the_stats_has_a_threshold_only_where_rays_stop_early(mode):
+    composite = describe_volume(parc.Translucent(VOL, "greyscale", threshold=0.5))
+    assert composite["threshold"] == 0.5 and composite["mode"] == "composite"
+    other = describe_volume(parc.Translucent(VOL, "greyscale", mode=mode))
+    assert other["mode"] == mode and "threshold" not in other
+    assert describe_volume(parc.Isosurface(VOL, ISO))["isovalue"] == ISO
