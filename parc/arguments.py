@@ -346,9 +346,11 @@ def build_parser():
 #: Options taking one value that may start with a minus sign (argparse reads
 #: ``--sun -1,1,-1`` as two options, and only plain negative numbers as values).
 _SIGNED_OPTIONS = {"--eye", "--look-at", "--up", "--light", "--sun", "--spacing", "--origin", "--iso",
-                   "--step", "--threshold", "--fov", "--parallel", "--supercell", "--background", "--shape",
-                   "--sweep-supercell", "--sweep-step"}
-_NUMBERS = re.compile(r"-[\d.][\d.eE+\-,; ]*|-(inf|nan)", re.IGNORECASE)
+                   "--step", "--threshold", "--fov", "--parallel", "--zoom", "--supercell", "--background",
+                   "--shape", "--sweep-supercell", "--sweep-step"}
+#: A number or list starting with a minus sign, "inf" and "nan" anywhere in it too ("-1,inf,0"),
+#: so that its flag's own check names what is wrong with it.
+_NUMBERS = re.compile(r"-([\d.]|inf|nan)[\w.+\-,; ]*", re.IGNORECASE)
 
 
 def join_signed_values(argv):

@@ -448,6 +448,9 @@ def cmd_compare(args):
 
     warming = None if args.quiet else announce
     methods = method_names(args.methods, "--methods")
+    if not any(m.split(":")[0] == "parc" for m in methods):
+        # Before the scene and the note on compiling the casters: a run refused has its error line alone.
+        _refuse_parc_flags(args, "applies to parc, which --methods leaves out")
     if args.repeats < 1:
         raise InputError(f"--repeats must be at least 1, got {args.repeats}")
     _check_sweep_flags(args)
@@ -504,8 +507,6 @@ def cmd_compare(args):
         options = {label: {"supercell": s, **common} for label, s in zip(labels, sizes)}
     elif args.supercell is not None:
         options = {m: {"supercell": args.supercell, **opts} for m, opts in options.items()}
-    if not options:
-        _refuse_parc_flags(args, "applies to parc, which --methods leaves out")
     rows = compare(scene, methods=methods, repeats=args.repeats, options=options, progress=warming)
     if args.json:
         _out(to_json(rows))
