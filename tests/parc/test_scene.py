@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import parc
-from data_tools import InputError, Volume
+from data_tools import InputError
 from data_tools.synthetic import blobs
 from parc.scene import describe_volume
 
