@@ -112,6 +112,8 @@ def _critical_points(p):
     disc = b * b - 4 * a * c
     if disc < 0:
         return []
+    if disc == 0:           # one (double) point: listed twice, a triple root there would come out twice
+        return [-b / (2 * a)]
     q = -(b + MP.sqrt(disc)) / 2 if b >= 0 else -(b - MP.sqrt(disc)) / 2
     if q == 0:
         return [ZERO]
