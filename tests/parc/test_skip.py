@@ -392,3 +392,41 @@ def test_a_segment_start_takes_the_sign_of_the_cell_before_from_the_table():
                 t, cell, uvw, _ = cast(sc, eyes, dirs, 0.0, seg, skip=(tab, jump_min))
                 assert np.array_equal(t, np.full(3, want_x + 3.0)), (seg, want_x, jump_min)
                 assert (cell[:, 0] == 2).all() and np.array_equal(uvw[:, 0], np.full(3, want_x - 2.0))
+
+
+@pytest.mark.parametrize("by_octant", [False, True], ids=["centred", "octant"])
+def test_a_cube_holding_the_whole_grid_is_left_at_once_every_way(by_octant):
+    """Samples all above the isovalue, and a table giving every cell a cube of radius 126, more
+    than the grid: the cube's exit lies past the ray's exit from the grid, whichever way the
+    ray goes, so the walk looks at its first cell alone and misses."""
+    data = np.ones((6, 7, 8))
+    sc = _Grid(data, (0.0, 0.0, 0.0), (1.0, 1.0, 1.0))
+    rng = np.random.default_rng(5)
+    n = 400
+    eyes = rng.uniform(0.1, [6.9, 5.9, 4.9], (n, 3))
+    dirs = random_dirs(rng, n)
+    table = np.full((OCTANTS, 5, 6, 7) if by_octant else (5, 6, 7), 127, np.int8)
+    t, _, _, counts = cast(sc, eyes, dirs, 0.0, skip=(table, 1))
+    assert np.all(np.isinf(t))
+    assert np.all(counts[:, 0] == 1), np.unique(np.sign(dirs[counts[:, 0] != 1]), axis=0)
+
+
+@pytest.mark.parametrize("axis", [0, 1, 2], ids=["x", "y", "z"])
+@pytest.mark.parametrize("step", [1, -1])
+def test_a_jump_passes_over_its_whole_cube(axis, step):
+    """Ten samples along one axis, all above the isovalue, each cell a cube of radius 2, the
+    smallest worth a jump: a ray along that axis looks at cell 0, jumps to the exit of cell 2
+    (the cube's far face) and steps on into cell 3, looks at it, jumps to the exit of cell 5,
+    steps into cell 6, and from there the cube's exit lies on the grid's last face, where it
+    ends. Three cells of nine, the same walking backwards."""
+    shape = [3, 3, 3]
+    shape[2 - axis] = 10
+    data = np.ones(shape)
+    sc = _Grid(data, (0.0, 0.0, 0.0), (1.0, 1.0, 1.0))
+    eye = np.full(3, 0.5)
+    eye[axis] = -2.0 if step > 0 else 11.0
+    d = np.zeros(3)
+    d[axis] = step
+    table = np.full([n - 1 for n in shape], 3, np.int8)
+    t, _, _, counts = cast(sc, eye[None], d[None], 0.0, skip=(table, 2))
+    assert np.isinf(t[0]) and counts[0, 0] == 3, counts

@@ -215,43 +215,151 @@ def test_segment_start_past_the_hit_in_a_cell_entered_through_an_edge(edge):
     assert at_entry > 0.05 * rays
 
 
-def test_a_segment_bounds_the_walk_to_its_cells():
+@pytest.mark.parametrize("far", [0.0, 2.0 ** 20], ids=["near-eye", "far-eye"])
+def test_a_segment_bounds_the_walk_to_its_cells(far):
     """``[seg0, seg1]`` limits the walk to the cells it meets: a surface in cells wholly before
     ``seg0`` or wholly after ``seg1`` is not hit. Analytic: samples ``f(i) = 0, 2, 2, 2, 2, 0``
     along x (constant in y, z) at isovalue 1 cross it at x = 0.5 and x = 4.5 exactly; the ray
-    runs along x from x = -1, so at t = 1.5 and t = 5.5."""
+    runs along x from x = -1 - ``far``, so at t = 1.5 and t = 5.5 past ``far``. An eye that far
+    is walked from where its ray enters the volume (`raycast.traverse.entry_anchor`), and the
+    segment, measured from the eye, with it."""
     f = np.array([0.0, 2.0, 2.0, 2.0, 2.0, 0.0])
     sc = SimpleNamespace(data=np.broadcast_to(f, (4, 4, 6)).copy(), origin=np.zeros(3), spacing=np.ones(3))
-    o = np.array([[-1.0, 1.5, 1.5]] * 4)
-    d = np.array([[1.0, 0.0, 0.0]] * 4)
-    seg = np.array([[-np.inf, np.inf],      # the whole ray: the first crossing
-                    [2.2, np.inf],          # from inside cell 1: the second
-                    [0.0, 2.4],             # cells 0 and 1 only: the first
-                    [2.2, 3.4]])            # cells 1 and 2 only: none
-    t, cell, uvw, _ = cast(sc, o, d, 1.0, seg)
-    assert t[0] == 1.5 and t[1] == 5.5 and t[2] == 1.5 and t[3] == np.inf, t
+    o = np.array([[-1.0 - far, 1.5, 1.5]] * 5)
+    d = np.array([[1.0, 0.0, 0.0]] * 5)
+    seg = far + np.array([[-np.inf, np.inf],      # the whole ray: the first crossing
+                          [2.2, np.inf],          # from inside cell 1: the second
+                          [0.0, 2.4],             # cells 0 and 1 only: the first
+                          [2.2, 3.4],             # cells 1 and 2 only: none
+                          [2.2, 5.0]])            # cells 1 to 3, ending on cell 4's face: none
+    t, cell, uvw, counts = cast(sc, o, d, 1.0, seg)
+    assert t[0] == far + 1.5 and t[1] == far + 5.5 and t[2] == far + 1.5 and t[3] == t[4] == np.inf, t
     assert cell[0].tolist() == [0, 1, 1] and cell[1].tolist() == [4, 1, 1], cell
+    # The cells walked: 1 to 4 (the hit), 0 (the hit), 1 and 2 (x = 1.2 to 2.4), 1 to 3.
+    assert counts[1:, 0].tolist() == [4, 1, 2, 3], counts
 
 
 @pytest.mark.parametrize("table", [False, True], ids=["corners", "skip-table"])
 @pytest.mark.parametrize("big", [2.0 ** 60, 1e28])
-def test_a_root_within_rounding_of_a_face_into_a_cell_of_one_sign(big, table):
+@pytest.mark.parametrize("side", [1.0, -1.0], ids=["above", "below"])
+def test_a_root_within_rounding_of_a_face_into_a_cell_of_one_sign(side, big, table):
     """Two cells along y: samples -big on the face y = 0, 1 everywhere else, isovalue 0. The
     first cell is -big + (big + 1) v, 1e-18 short of 1 at the face y = 1, where the second
     cell (all corners 1) begins, so the surface lies on that face to well within 1e-9. The
     first cell's value there rounds to either sign (its terms are 1e18); where it rounds below
     zero, the one-signed cell after it must still be hit at its entry, with or without a skip
-    table signing it, not missed."""
+    table signing it, not missed. The same with every sample negated (the second cell below
+    the isovalue)."""
     data = np.ones((2, 3, 2))
     data[:, 0, :] = -big
+    data *= side
     sc = SimpleNamespace(data=data, origin=np.zeros(3), spacing=np.ones(3))
     rng = np.random.default_rng(3)
     n = 400
     o = np.stack([rng.uniform(0.05, 0.95, n), np.full(n, -0.5), rng.uniform(0.05, 0.95, n)], 1)
     d = np.stack([rng.uniform(-0.02, 0.02, n), np.ones(n), rng.uniform(-0.02, 0.02, n)], 1)
     d /= np.linalg.norm(d, axis=1, keepdims=True)
-    skip = (np.array([[[0], [1]]], np.int8), 1) if table else None
+    skip = (np.array([[[0], [int(side)]]], np.int8), 1) if table else None
     t, cell, uvw, _ = cast(sc, o, d, 0.0, skip=skip)
     face = (1.0 - o[:, 1]) / d[:, 1]
     assert np.all(np.isfinite(t)), f"{np.sum(~np.isfinite(t))} of {n} rays miss the surface"
     assert np.max(np.abs(t - face)) <= 1e-9
+    # The hit's cell and local coordinates, which shading reads, are the same point.
+    assert np.max(np.abs(cell + uvw - (o + t[:, None] * d))) <= 1e-9
+
+
+@pytest.mark.parametrize("corner", range(8))
+def test_a_face_with_one_corner_off_the_isovalue_is_no_level_face(corner):
+    """One cell, samples 0 but for one corner at 1 (bit 0 of ``corner``: x = 1, bit 1: y, bit 2:
+    z), isovalue 0. Analytic: the interpolant is the product over the axes of the distance from
+    the face away from that corner, so it is zero on those three faces and positive everywhere
+    else in the cell, also on the three faces at the corner, whose other three corners are at
+    the isovalue. A ray entering through a zero face hits it there; one entering through a face
+    at the corner hits where it leaves through a zero face, or misses. Either way the hit's
+    cell and local coordinates are the point ``o + t d``."""
+    data = np.zeros((2, 2, 2))
+    bits = np.array([corner & 1, (corner >> 1) & 1, (corner >> 2) & 1])
+    data[bits[2], bits[1], bits[0]] = 1.0
+    sc = SimpleNamespace(data=data, origin=np.zeros(3), spacing=np.ones(3))
+    rng = np.random.default_rng(corner)
+    n = 600
+    o = 0.5 + 3.0 * random_dirs(rng, n)
+    d = rng.uniform(0.05, 0.95, (n, 3)) - o
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    with np.errstate(divide="ignore"):
+        near = np.where(d > 0, 0.0, 1.0)
+        t_near, t_far = (near - o) / d, (1.0 - near - o) / d
+    entry, leave = np.argmax(t_near, 1), np.argmin(t_far, 1)
+    t_in, t_out = t_near.max(1), t_far.min(1)
+    # Through a face's edge or corner, the face a ray enters or leaves by is a tie: not judged.
+    clear = (np.sort(t_near, 1)[:, -2] < t_in - 1e-6) & (np.sort(t_far, 1)[:, 1] > t_out + 1e-6)
+    rows = np.arange(n)
+    zero_in = near[rows, entry] != bits[entry]
+    zero_out = 1.0 - near[rows, leave] != bits[leave]
+    want = np.where(zero_in, t_in, np.where(zero_out, t_out, np.inf))
+    t, cell, uvw, _ = cast(sc, o, d, 0.0)
+    got, want = t[clear], want[clear]
+    wrong = np.flatnonzero(np.isfinite(got) != np.isfinite(want))
+    assert not wrong.size, f"{wrong.size} rays hit where they should miss or miss where they should hit"
+    hit = np.isfinite(want)
+    assert np.max(np.abs(got[hit] - want[hit])) <= 1e-12
+    assert np.max(np.abs(cell + uvw - (o + t[:, None] * d))[np.isfinite(t)]) <= 1e-12
+    # Not vacuous: rays of all three kinds.
+    kinds = [zero_in, zero_out & ~zero_in, ~zero_in & ~zero_out]
+    assert min(k[clear].sum() for k in kinds) > 20
+
+
+@pytest.mark.parametrize("flat", [0, 1], ids=["no-x", "no-y"])
+def test_a_level_face_seen_from_afar_by_rays_with_a_zero_component(flat):
+    """Samples at 100 on the face z = 0, the volume's minimum, and strictly above it elsewhere:
+    the isosurface at 100 is that face. Eyes 1e5 cells below it, so each ray is walked from where
+    it enters the volume, and only to within a rounding (`raycast.traverse.entry_anchor`), with
+    no x (or y) component, so the ray never crosses a plane of that axis: every ray hits the
+    face where it enters, ``z = 0``."""
+    rng = np.random.default_rng(17 + flat)
+    data = rng.uniform(101, 899, (5, 6, 7)).round()
+    data[0] = 100.0
+    sc = SimpleNamespace(data=data, origin=np.zeros(3), spacing=np.ones(3))
+    n = 300
+    d = np.stack([rng.uniform(-1, 1, n), rng.uniform(-1, 1, n), rng.uniform(0.3, 1, n)], 1)
+    d[:, flat] = 0.0
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    target = np.stack([rng.uniform(0.05, 5.95, n), rng.uniform(0.05, 4.95, n), np.zeros(n)], 1)
+    o = target - 1e5 * d
+    t, _, _, _ = cast(sc, o, d, 100.0)
+    face = -o[:, 2] / d[:, 2]
+    assert np.all(np.isfinite(t)), f"{np.sum(~np.isfinite(t))} of {n} rays miss the face"
+    assert np.max(np.abs(t - face)) <= 1e-6
+
+
+def test_a_ray_grazing_an_edge_of_a_level_face_hits_it_there():
+    """Samples at 100 on the face z = 0, the volume's minimum, and above it elsewhere, so the
+    isosurface at 100 is that face. Rays at 45 degrees in the planes y = const touch the volume
+    only on the face's edges x = 0 and x = 6 (entering and leaving at one time): the volume is
+    closed, so each hits the face there, at ``t = sqrt(2)`` from one cell away."""
+    rng = np.random.default_rng(23)
+    data = rng.uniform(101, 899, (5, 6, 7)).round()
+    data[0] = 100.0
+    sc = SimpleNamespace(data=data, origin=np.zeros(3), spacing=np.ones(3))
+    y = rng.uniform(0.0, 5.0, 40)
+    a = 1.0 / np.sqrt(2.0)
+    o = np.concatenate([np.stack([np.full(20, -1.0), y[:20], np.full(20, 1.0)], 1),
+                        np.stack([np.full(20, 7.0), y[20:], np.full(20, 1.0)], 1)])
+    d = np.concatenate([np.tile([a, 0.0, -a], (20, 1)), np.tile([-a, 0.0, -a], (20, 1))])
+    t, cell, _, _ = cast(sc, o, d, 100.0)
+    assert np.all(np.abs(t - np.sqrt(2.0)) <= 1e-12), t
+    assert set(cell[:, 0]) == {0, 5} and np.all(cell[:, 2] == 0)
+
+
+def test_a_segment_starting_past_a_crossing_takes_the_sign_the_cell_before_ends_with():
+    """Samples ``0, 2, 0`` along x (constant in y, z) at isovalue 1 cross it at x = 0.5 and
+    x = 1.5 exactly. A ray along x from x = -1 whose segment starts at x = 1.2, in the second
+    cell, past the first crossing, hits the second at t = 2.5: the sign that cell is entered
+    with is the first cell's at its exit (above), the same as its own there, not the one the
+    first cell starts with (below), which would make a hit of its entry."""
+    f = np.array([0.0, 2.0, 0.0])
+    sc = SimpleNamespace(data=np.broadcast_to(f, (3, 3, 3)).copy(), origin=np.zeros(3), spacing=np.ones(3))
+    o = np.array([[-1.0, 0.5, 0.5], [-1.0, 1.25, 1.5]])
+    d = np.array([[1.0, 0.0, 0.0]] * 2)
+    t, cell, _, _ = cast(sc, o, d, 1.0, np.array([[2.2, np.inf]] * 2))
+    assert t.tolist() == [2.5, 2.5] and cell[:, 0].tolist() == [1, 1], (t, cell)

@@ -147,3 +147,25 @@ def test_ties_step_x_then_y_then_z(signs):
     assert cells == want
     assert lengths[1::3] == lengths[2::3] == [0.0] * (n - 2)       # touched at the vertex only
     assert all(length > 0.5 for length in lengths[0::3])
+
+
+@pytest.mark.parametrize("axis", [0, 1, 2], ids=["x", "y", "z"])
+@pytest.mark.parametrize("step", [1, -1])
+def test_a_walk_along_an_axis_leaves_the_grid_after_its_last_cell(axis, step):
+    """A ray along one axis of a 5 x 6 x 7 grid crosses every cell of its row on that axis, and
+    `step_cell` says it is outside as it steps past the last: 4, 5 or 6 cells, in order."""
+    from raycast.traverse import step_cell, walk_from
+    shape = (5, 6, 7)                                  # samples along x, y, z
+    o = np.array([1.5, 2.5, 3.5])
+    o[axis] = -1.0 if step > 0 else shape[axis]
+    d = np.zeros(3)
+    d[axis] = step
+    i, j, k, sx, sy, sz, ix, iy, iz, tx0, tx1, ty0, ty1, tz0, tz1 = walk_from(*o, *d, 1.0, *shape)
+    cells = []
+    inside = True
+    while inside:
+        cells.append((i, j, k)[axis])
+        inside, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1 = step_cell(*o, sx, sy, sz, ix, iy, iz, i, j, k,
+                                                                  tx0, tx1, ty0, ty1, tz0, tz1, *shape)
+    want = list(range(shape[axis] - 1))
+    assert cells == (want if step > 0 else want[::-1])
