@@ -333,7 +333,7 @@ def cmd_render(args):
 
     from .comparison import check_opengl, check_options
     from .renderer import DEFAULT_BUFFERS, check_request, kernel_samples
-    from .workspace import check_frame_memory
+    from .workspace import check_scene_memory
 
     out = check_output(args.output, (".png", ".npy"))
     # An empty path is a mistake to name, not a flag to ignore.
@@ -356,7 +356,7 @@ def cmd_render(args):
     if args.method != "parc":
         _refuse_parc_flags(args, "applies to --method parc")
     check_request(scene, kwargs.get("buffers", DEFAULT_BUFFERS), work_out is not None, ("--buffers", "--work"))
-    check_frame_memory(*scene.size, layers=len(scene.volumes), lights=len(scene.lights))
+    check_scene_memory(scene)
     if args.method == "parc":
         # Its options (a supercell no volume takes), then OpenGL and its image limit: refused before any note.
         check_options(scene, {args.method: kwargs})

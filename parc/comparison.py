@@ -12,7 +12,7 @@ from data_tools.info import exact_text
 from data_tools.volume import text_or_flag
 
 from .renderer import render
-from .workspace import check_frame_memory
+from .workspace import check_scene_memory
 
 
 def image_error(result, reference, cell_size):
@@ -91,8 +91,7 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
     for name, opts in options.items():
         _check_render_options(name, opts)
     _check_progress(progress, "a line of text")
-    check_frame_memory(*scene.size, layers=len(scene.volumes), lights=len(scene.lights),
-                       kept_images=len(names))
+    check_scene_memory(scene, kept_images=len(names))
     check_options(scene, options)
     check_opengl(scene, names)
     vol = scene.volumes[0].volume
@@ -364,7 +363,7 @@ def step_sweep(scene, steps, *, repeats=3, warmup=1, progress=None, options=None
         raise InputError(f"sweep steps must be a list of positive numbers, got {steps!r}")
     steps = values
     # Held at once: the reference and the step's image from each method; earlier steps' are let go.
-    check_frame_memory(*scene.size, kept_images=3)
+    check_scene_memory(scene, kept_images=3)
 
     def at(step):
         return Scene(camera=scene.camera, size=scene.size, background=scene.background,

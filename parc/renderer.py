@@ -27,7 +27,7 @@ from .gl import release_context
 from .scene import Isosurface, Scene, Translucent, describe_volume
 from .segments import cached_proxy, parc_segments
 from .skip import octant_skip_tables, skip_table
-from .workspace import check_frame_memory, work_array
+from .workspace import check_scene_memory, work_array
 
 METHODS = ("brute", "parc")
 #: Held by every render. Re-entrant, so that a render asked for inside a render's
@@ -220,7 +220,7 @@ def _render(scene, method, supercell, buffers, progress, light_buffer, blocks, w
     buffers, light_buffer = check_arguments(scene, method, supercell=supercell, buffers=buffers, progress=progress,
                                             light_buffer=light_buffer, blocks=blocks, work=work)
     skip_blocks = method == "parc" and bool(blocks)
-    check_frame_memory(*scene.size, layers=len(scene.volumes), lights=len(scene.lights))
+    check_scene_memory(scene)
     if len(scene.volumes) != 1 or scene.lights:
         return _render_general(scene, method, supercell, progress, light_buffer, skip_blocks)
     vis = scene.volumes[0]

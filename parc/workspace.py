@@ -94,3 +94,8 @@ def check_frame_memory(width, height, layers=1, kept_images=0, lights=0):
                                        + LIGHT_BYTES_PER_PIXEL * int(lights)
                                        + KEPT_IMAGE_BYTES_PER_PIXEL * int(kept_images))
     check_memory(need, f"a {width}x{height} image", ": render a smaller image (--size, or size in a scene file)")
+
+
+def check_scene_memory(scene, kept_images=0):
+    """`check_frame_memory` for a scene's image size, volumes and lights."""
+    check_frame_memory(*scene.size, layers=len(scene.volumes), kept_images=kept_images, lights=len(scene.lights))

@@ -128,6 +128,12 @@ def _check_shaped(tif, series, path):
                          f"{len(tif.pages)} pages hold (corrupt or edited)")
 
 
+def _is_slice(page):
+    """Whether ``page`` may be a slice: not a reduced-size image (thumbnail, NewSubfileType 1)
+    nor a transparency mask (4)."""
+    return not getattr(page, "subfiletype", 0) & 0b101
+
+
 def _check_gapless(tif, series, path):
     """Refuse a stack whose pages lie among full-size pages of another size or type.
 
@@ -142,8 +148,7 @@ def _check_gapless(tif, series, path):
     if not indices or len(indices) == indices[-1] - indices[0] + 1:
         return
     between = sorted(set(range(indices[0], indices[-1] + 1)) - set(indices))
-    # NewSubfileType: 1 a reduced-size image, 4 a transparency mask.
-    other = next((i for i in between if not getattr(tif.pages[i], "subfiletype", 0) & 0b101), None)
+    other = next((i for i in between if _is_slice(tif.pages[i])), None)
     if other is not None:
         raise InputError(f"{path}: its TIFF pages differ in size or sample type (page {other + 1} of "
                          f"{len(tif.pages)} is not like page {indices[0] + 1}); a stack needs equal pages")
@@ -205,8 +210,7 @@ def _described_one_by_one(tif):
     another description, or none, gives other series (`_check_shaped`)."""
     if len(tif.pages) < 2 or not _states_itself(tif.pages[0]):
         return None
-    # NewSubfileType: 1 a reduced-size image, 4 a transparency mask.
-    pages = [p for p in tif.pages if not getattr(p, "subfiletype", 0) & 0b101]
+    pages = [p for p in tif.pages if _is_slice(p)]
     return pages if len(pages) > 1 and all(_states_itself(p) for p in pages) else None
 
 

@@ -1146,44 +1146,26 @@ def test_ome_tiff_images_taking_turns_are_each_read(tmp_path, other, subfiletype
     np.testing.assert_array_equal(load_volume(p).data, first)
 
 
-@pytest.mark.parametrize("subfiletype, between", [(1, np.zeros((2, 3), np.uint8)),
-                                                   (4, np.ones(SMALL.shape[1:], bool))], ids=["thumbnails", "masks"])
-def test_tiff_thumbnails_and_masks_between_the_slices_are_left_out(tmp_path, subfiletype, between):
+_THUMB, _MASK = (1, np.zeros((2, 3), np.uint8)), (4, np.ones(SMALL.shape[1:], bool))
+
+
+@pytest.mark.parametrize("subfiletype, between, described", [
+    (*_THUMB, ""), (*_MASK, ""), (*_THUMB, "slices"), (*_THUMB, "all"), (*_MASK, "all"),
+], ids=["thumbnails", "masks", "thumbnails after described slices", "described thumbnails", "described masks"])
+def test_tiff_thumbnails_and_masks_between_the_slices_are_left_out(tmp_path, subfiletype, between, described):
     # NewSubfileType 1: a reduced-size copy of the page before it; 4: a page that masks it, of
-    # its full size. Neither is a slice.
+    # its full size. Neither is a slice, whether tifffile's own description (each page stating
+    # its own shape) is on no page, on the slices as tifffile writes them between thumbnails
+    # another writer added (the first alone: one series of the slices, the thumbnails its
+    # reduced level), or on every page.
     tifffile = pytest.importorskip("tifffile")
     p = tmp_path / "s.tif"
     with tifffile.TiffWriter(p) as w:
         for k in range(4):
-            w.write(SMALL[k], photometric="minisblack", metadata=None)
-            w.write(between, photometric="minisblack", metadata=None, subfiletype=subfiletype)
-    np.testing.assert_array_equal(load_volume(p).data, SMALL)
-
-
-def test_tiff_thumbnails_between_slices_each_with_its_own_description_are_left_out(tmp_path):
-    # tifffile describes each slice it writes (its shape alone), and not the thumbnails another
-    # writer added: one series of the slices, the thumbnails its reduced level.
-    tifffile = pytest.importorskip("tifffile")
-    p = tmp_path / "s.tif"
-    with tifffile.TiffWriter(p) as w:
-        for k in range(4):
-            w.write(SMALL[k], photometric="minisblack")
-            w.write(SMALL[k, ::2, ::2], photometric="minisblack", metadata=None, subfiletype=1)
-    np.testing.assert_array_equal(load_volume(p).data, SMALL)
-
-
-@pytest.mark.parametrize("subfiletype, between", [(1, np.zeros((2, 3), np.uint8)),
-                                                   (4, np.ones(SMALL.shape[1:], bool))], ids=["thumbnails", "masks"])
-def test_tiff_thumbnails_and_masks_tifffile_describes_between_the_slices_are_left_out(tmp_path, subfiletype,
-                                                                                      between):
-    # Written with tifffile's own description, as the slices are: each page states its own shape,
-    # and is still no slice.
-    tifffile = pytest.importorskip("tifffile")
-    p = tmp_path / "s.tif"
-    with tifffile.TiffWriter(p) as w:
-        for k in range(4):
-            w.write(SMALL[k], photometric="minisblack")
-            w.write(between, photometric="minisblack", subfiletype=subfiletype)
+            w.write(SMALL[k], photometric="minisblack", **({} if described else {"metadata": None}))
+            w.write(between, photometric="minisblack", subfiletype=subfiletype,
+                    **({} if described == "all" else {"metadata": None}))
     with tifffile.TiffFile(p) as tif:
-        assert all(page.description.startswith('{"shape": [') for page in tif.pages)
+        stated = [bool(page.description) for page in tif.pages]
+    assert stated[0] == bool(described) and all(stated) == (described == "all")
     np.testing.assert_array_equal(load_volume(p).data, SMALL)
