@@ -11,11 +11,16 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from parc.bench.charts import (PALETTE, _data_axis, axis_mapping, fmt_number, line_chart, scatter_chart,
-                               stack_segments, stacked_bar_chart)
+from parc.bench.charts import (_GRID, _INK, _MUTED, PALETTE, _data_axis, axis_mapping, fmt_number, line_chart,
+                               scatter_chart, stack_segments, stacked_bar_chart)
 from parc.bench.heatmaps import _viridis_lut, heat_maps
 
 KW = dict(title="t", x_label="x", y_label="y")
+
+
+def _rgb_of(path):
+    with Image.open(path) as im:
+        return np.asarray(im.convert("RGB"))
 
 
 def load(path, size=(720, 480)):
@@ -252,3 +257,133 @@ def test_heat_maps_degenerate_input_renders(tmp_path, maps, colour):
 def test_heat_maps_need_a_map(tmp_path):
     with pytest.raises(ValueError):
         heat_maps(tmp_path / "h.png", {}, title="t", label="cells")
+
+
+def _frame(img):
+    """The plot's frame ``(left, top, right, bottom)``: the rows and columns long runs of ink make."""
+    ink = np.all(img == np.array(_INK, np.uint8), axis=2)
+    cols, rows = np.flatnonzero(ink.sum(axis=0) > 100), np.flatnonzero(ink.sum(axis=1) > 100)
+    return cols[0], rows[0], cols[-1], rows[-1]
+
+
+def test_stacked_bars_stack_bottom_up_and_the_legend_reads_top_down(tmp_path):
+    img = load(stacked_bar_chart(tmp_path / "st.png", [("one", {"raster": 1.0, "cast": 3.0})], title="t"))
+    raster, cast = blobs(img, PALETTE[0]), blobs(img, PALETTE[1])
+    assert raster[0][2] > cast[0][2]                  # the first part at the bottom, on the axis's 0
+    _, _, _, bottom = _frame(img)
+    mask = np.all(img == np.array(PALETTE[0], np.uint8), axis=2)
+    assert bottom - np.flatnonzero(mask[:, raster[0][0] + 5]).max() <= 2
+    assert cast[-1][2] < raster[-1][2]                # the top part's swatch first
+
+
+def test_markers_at_tick_values_sit_on_their_grid_lines(tmp_path):
+    # Integer data get integer ticks, so each marker's centre is on a tick of both axes.
+    pts = [(1, 1), (2, 3), (3, 2), (4, 4)]
+    img = load(scatter_chart(tmp_path / "g.png", [{"x": x, "y": y} for x, y in pts], **KW))
+    grid = np.all(img == np.array(_GRID, np.uint8), axis=2)
+    grid_cols, grid_rows = np.flatnonzero(grid.sum(axis=0) > 50), np.flatnonzero(grid.sum(axis=1) > 50)
+    assert len(grid_cols) == len(grid_rows) == 4
+    mask = np.all(img == np.array(PALETTE[0], np.uint8), axis=2)
+    for x, y in pts:
+        col, row = grid_cols[x - 1], grid_rows[::-1][y - 1]           # y grows upward
+        rows, cols = np.nonzero(mask[row - 8:row + 9, col - 8:col + 9])
+        assert rows.size and abs(rows.mean() - 8) <= 0.5 and abs(cols.mean() - 8) <= 0.5, (x, y)
+
+
+def test_markers_keep_off_the_frame(tmp_path):
+    pts = [{"x": 1, "y": 1, "label": ""}, {"x": 3, "y": 2, "label": ""}]
+    img = load(scatter_chart(tmp_path / "f.png", pts, **KW))
+    l, t, r, b = _frame(img)
+    cols = np.flatnonzero(np.all(img == np.array(PALETTE[0], np.uint8), axis=2).any(axis=0))
+    rows = np.flatnonzero(np.all(img == np.array(PALETTE[0], np.uint8), axis=2).any(axis=1))
+    assert l < cols.min() - 2 and cols.max() + 2 < r and t < rows.min() - 2 and rows.max() + 2 < b
+
+
+def test_a_label_near_the_right_edge_stays_inside_the_plot(tmp_path):
+    pts = [{"x": 1, "y": 1, "label": ""}, {"x": 3, "y": 2, "label": "a rather long label"}]
+    img = load(scatter_chart(tmp_path / "lab.png", pts, **KW))
+    l, t, r, b = _frame(img)
+    ink = np.any(img[t:b, r + 1:] != 255, axis=2)
+    assert not ink.any()
+
+
+@pytest.mark.parametrize("pts, noted", [([{"x": 1, "y": 1}, {"x": 2, "y": math.nan}], True),
+                                        ([{"x": 1, "y": 1}, {"x": 2, "y": 2}], False)])
+def test_points_left_out_are_counted_in_a_note(tmp_path, pts, noted):
+    img = load(scatter_chart(tmp_path / "n.png", pts, **KW))
+    assert np.all(img == np.array(_MUTED, np.uint8), axis=2).any() == noted
+
+
+def test_log_axes_tick_every_decade_up_to_six():
+    assert _data_axis([1e-6, 1.0], True).ticks == tuple(10.0 ** e for e in range(-6, 1))
+    assert len(_data_axis([1e-12, 1.0], True).ticks) <= 7
+
+
+def _heat_layout(img, panel, n):
+    """Top row of the panels (below their frame) and the colour bar's left column."""
+    top = int(np.argmax(img[:, 15].sum(axis=1) < 200)) + 1
+    return top, 16 + n * (panel + 16) + 8
+
+
+def test_heat_map_panels_keep_the_maps_shape_cell_for_cell(tmp_path):
+    a = np.arange(1, 9).reshape(2, 4)
+    img = _rgb_of(heat_maps(tmp_path / "h.png", {"m": a}, title="t", label="cells", panel=100))
+    top, _ = _heat_layout(img, 100, 1)
+    lut = _viridis_lut()
+    want = np.repeat(np.repeat(lut[np.rint(255 * np.log1p(a) / np.log1p(8)).astype(int)], 25, axis=0), 25, axis=1)
+    assert (img[top:top + 50, 16:116] == want).all()
+    assert (img[top + 50, 16:116] == _INK).all()                    # the frame: the panel is 50 rows tall
+
+
+def test_heat_map_colour_bar_runs_up_the_log_scale_with_its_ticks(tmp_path):
+    img = _rgb_of(heat_maps(tmp_path / "h.png", {"m": np.array([[0, 50], [3, 7]])}, title="t", label="cells",
+                            panel=100))
+    top, bar_x = _heat_layout(img, 100, 1)
+    ph, lut = 100, _viridis_lut()
+    column = img[top:top + ph, bar_x + 9]
+    for y in range(ph - 6):
+        assert tuple(column[y]) == tuple(lut[round(255 * (1 - y / (ph - 1)))]), y
+    assert (column[ph - 6:] == 255).all()                             # 0: white, as in the maps
+    ticks = np.flatnonzero(np.all(img[:, bar_x + 20] == np.array(_INK, np.uint8), axis=1))
+    want = [top + ph - 3] + [top + (ph - 1) * (1 - math.log1p(v) / math.log1p(50)) for v in (1, 10, 50)]
+    assert len(ticks) == 4 and np.abs(np.sort(ticks) - np.sort(want)).max() <= 1
+
+
+def test_heat_map_panels_are_titled_with_the_mean_count(tmp_path, monkeypatch):
+    import parc.bench.heatmaps as hm
+    said = []
+    put = hm._put
+    monkeypatch.setattr(hm, "_put", lambda d, x, y, s, *a, **kw: said.append(s) or put(d, x, y, s, *a, **kw))
+    heat_maps(tmp_path / "h.png", {"brute": np.array([[10, 20], [30, 45]]), "parc": np.array([[0, 2], [0, 0]])},
+              title="t", label="cells")
+    assert "brute: 26.2 a pixel" in said and "parc: 0.5 a pixel" in said
+
+
+def test_tick_labels_are_centred_on_their_grid_lines(tmp_path, monkeypatch):
+    import parc.bench.charts as ch
+    said = []
+    put = ch._put
+
+    def spy(d, x, y, s, font, ha=0.5, va=0.5, fill=_INK):
+        said.append((x, y, s, ha, va))
+        put(d, x, y, s, font, ha, va, fill)
+    monkeypatch.setattr(ch, "_put", spy)
+    img = load(line_chart(tmp_path / "t.png", {"s": [(1, 1), (2, 3), (3, 2), (4, 4)]}, title="", x_label="",
+                          y_label=""))
+    grid = np.all(img == np.array(_GRID, np.uint8), axis=2)
+    rows, cols = np.flatnonzero(grid.sum(axis=1) > 50), np.flatnonzero(grid.sum(axis=0) > 50)
+    y_ticks = sorted((float(s), y) for x, y, s, ha, va in said if ha == 1)
+    x_ticks = sorted((float(s), x) for x, y, s, ha, va in said if va == 0)
+    assert [v for v, _ in y_ticks] == [v for v, _ in x_ticks] == [1.0, 2.0, 3.0, 4.0]
+    assert np.abs(np.array([y for _, y in y_ticks]) - rows[::-1]).max() <= 1
+    assert np.abs(np.array([x for _, x in x_ticks]) - cols).max() <= 1
+
+
+def test_heat_maps_scale_every_panel_by_the_largest_count_of_all(tmp_path):
+    out = heat_maps(tmp_path / "h.png", {"brute": np.array([[100]]), "parc": np.array([[10]])}, title="t",
+                    label="cells", panel=100)
+    img = _rgb_of(out)
+    lut = _viridis_lut()
+    assert _cell_colours(img, 16, 1, 100)[0][0] == tuple(lut[255])
+    assert _cell_colours(img, 16 + 116, 1, 100)[0][0] == tuple(lut[round(255 * math.log(11) / math.log(101))])
+    assert np.all(img[-30:] == np.array(_MUTED, np.uint8), axis=2).any()         # the colour bar's label
