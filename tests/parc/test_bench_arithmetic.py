@@ -1,6 +1,7 @@
 """The bench sections' arithmetic on hand-made `parc.compare` rows: each figure the report prints is
 recomputed here by hand (no rendering, no timing), where the tiny suite's own numbers, all
 consistent, would not show a swapped ratio or a dropped phase."""
+from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -233,3 +234,36 @@ def test_thread_table_says_what_each_ratio_is_against(tmp_path):
 def test_a_slow_methods_ratio_keeps_two_significant_digits():
     # 0.004 at two decimals reads 0.00×, as if the method never finished.
     assert [report._x(v) for v in (0.004, 0.0123, 3.456)] == ["0.004×", "0.01×", "3.46×"]
+
+
+def _head_top(vol):
+    """The z end where the head's top lies, -1 or +1: the end slice with less soft tissue (above 600);
+    the other end holds the neck."""
+    tissue = [(vol.data[k] > 600).sum() for k in (0, -1)]
+    return -1.0 if tissue[0] < tissue[1] else 1.0
+
+
+@pytest.mark.parametrize("scene", ["ct_iso", "ct_translucent"])
+def test_the_ct_scenes_show_the_head_upright_whichever_volume_stands_in(scene):
+    # The phantom that stands in for CThead is built head up, CThead head down: the scene's view
+    # must turn with the volume, so that the head's top is up in the picture, seen from where
+    # CThead is (its view mirrored in z: both have their faces to -y).
+    from data_tools import Volume
+    from parc.bench import scenes
+    make = getattr(scenes, scene)
+    args = (32, 600.0) if scene == "ct_iso" else (32,)
+    built, _ = make(*args, None, True)
+    vol = built.volumes[0].volume
+    assert vol.meta.get("synthetic") == "ct_phantom" and _head_top(vol) == 1.0
+    u = built.camera.basis()[2]
+    assert u[2] > 0.9
+    ct = scenes._ct_camera(Volume(np.zeros((3, 3, 3), np.int16), spacing=(127.5, 127.5, 112.0)))
+    # Eye offsets in units of each box's half diagonal: the same framing of boxes of two sizes.
+    want = np.subtract(ct.eye, ct.look_at) * [1.0, 1.0, -1.0] / (0.5 * np.linalg.norm([255.0, 255.0, 224.0]))
+    got = np.subtract(built.camera.eye, built.camera.look_at) / (0.5 * np.linalg.norm(np.subtract(*vol.bounds[::-1])))
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)
+    assert ct.basis()[2][2] < -0.9                   # CThead's top, at -z, is up in its picture
+    head = Path(__file__).parents[2].parent / "shared" / "data" / "CThead.nrrd"
+    if head.is_file():
+        real, _ = make(*args, head.parent, False)
+        assert _head_top(real.volumes[0].volume) == -1.0 and real.camera == ct

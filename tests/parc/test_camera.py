@@ -299,3 +299,17 @@ def test_a_cameras_settings_make_the_same_camera_again(view):
     again = Camera(**settings)
     assert again == cam and again.parallel == cam.parallel
     np.testing.assert_array_equal(again.as_array(), cam.as_array())
+
+
+def test_a_parallel_framing_looks_from_the_documented_angles_from_three_radii_back():
+    # As the perspective framing above, by hand for the cube [0, 10]^3: the eye lies along
+    # (cos 25 sin 35, -cos 25 cos 35, sin 25) from the centre, three bounding radii (5 sqrt 3)
+    # back, well outside the box, at every zoom (a parallel view's zoom only magnifies); depths
+    # are measured from the view plane through it.
+    centre, radius = np.array([5.0, 5.0, 5.0]), 5.0 * math.sqrt(3.0)
+    el, az = math.radians(25.0), math.radians(35.0)
+    back = np.array([math.cos(el) * math.sin(az), -math.cos(el) * math.cos(az), math.sin(el)])
+    for zoom in (1.0, 2.0, 4.0):
+        par = Camera.framing((0, 0, 0), (10, 10, 10), parallel=True, zoom=zoom)
+        np.testing.assert_allclose(par.eye, centre + back * 3.0 * radius, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(par.look_at, centre, rtol=0, atol=1e-12)

@@ -115,3 +115,26 @@ def test_a_volume_described_for_the_stats_has_a_threshold_only_where_rays_stop_e
     other = describe_volume(parc.Translucent(VOL, "greyscale", mode=mode))
     assert other["mode"] == mode and "threshold" not in other
     assert describe_volume(parc.Isosurface(VOL, ISO))["isovalue"] == ISO
+
+
+def test_a_scene_without_a_size_is_512_by_512_as_on_the_command_line():
+    # `parc render --help`: "image size in pixels (default 512 512)"; a scene file's default too.
+    from parc.scenefile import DEFAULT_SIZE
+    scene = parc.Scene(camera=CAM, volumes=[parc.Isosurface(VOL, ISO)])
+    assert scene.size == (512, 512) == tuple(DEFAULT_SIZE)
+    assert parc.render(scene, method="brute").image.shape == (512, 512, 4)
+
+
+def test_a_surface_of_default_colour_and_material_shades_as_computed_by_hand():
+    # A plane 3x + 4z = 20 (the interpolant of a linear field is that field) seen from above in a
+    # parallel view: normal (0.6, 0, 0.8), the headlight along the view, so n.l = n.h = 0.8. The
+    # default warm off-white (0.93, 0.86, 0.74) with ambient 0.12, diffuse 0.78, specular 0.25,
+    # shininess 40 gives c (0.12 + 0.78 * 0.8) + 0.25 * 0.8^40 in every pixel.
+    k, _, i = np.mgrid[0:8, 0:4, 0:8]
+    vol = parc.Volume((3.0 * i + 4.0 * k).astype(np.float32))
+    cam = parc.Camera(eye=(3.5, 1.5, 50.0), look_at=(3.5, 1.5, 0.0), up=(0.0, 1.0, 0.0), parallel_scale=1.0)
+    image = parc.render(parc.Scene(camera=cam, size=(4, 4), volumes=[parc.Isosurface(vol, 20.0)]),
+                        method="brute").image
+    want = np.array([0.93, 0.86, 0.74]) * (0.12 + 0.78 * 0.8) + 0.25 * 0.8 ** 40
+    np.testing.assert_allclose(image[..., :3], np.broadcast_to(want, (4, 4, 3)), rtol=0, atol=1e-6)
+    np.testing.assert_array_equal(image[..., 3], 1.0)

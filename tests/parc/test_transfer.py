@@ -922,3 +922,55 @@ def test_a_paraview_list_uses_its_first_map(tmp_path):
     tf = load_transfer_function(str(path))
     assert tf.name == "first"
     np.testing.assert_array_equal(tf.lookup(5.0), [1.0, 0.0, 0.0, 0.5])
+
+
+# (value, r, g, b, alpha) worked out by hand from each CT preset's points: opacity (400, 0),
+# (600, 0.08), (850, 0.08), (1000, 0) for the skin, (1200, 0), (1500, 0.4), (2000, 0.7) for the
+# bone, the skin's times 0.3 in ct_skin_bone; colours (400, .70 .40 .30), (700, .93 .68 .55),
+# (1000, 1 .82 .70) and (1200, .90 .80 .65), (1600, 1 .96 .88), (2500, white); constant outside.
+CT_BY_HAND = {
+    "ct_skin": [(300.0, 0.70, 0.40, 0.30, 0.0), (550.0, 0.815, 0.54, 0.425, 0.06),
+                (700.0, 0.93, 0.68, 0.55, 0.08), (925.0, 0.9825, 0.785, 0.6625, 0.04),
+                (1000.0, 1.0, 0.82, 0.70, 0.0), (1100.0, 1.0, 0.82, 0.70, 0.0)],
+    "ct_bone": [(1100.0, 0.90, 0.80, 0.65, 0.0), (1350.0, 0.9375, 0.86, 0.73625, 0.2),
+                (1500.0, 0.975, 0.92, 0.8225, 0.4), (1825.0, 1.0, 0.97, 0.91, 0.595),
+                (2000.0, 1.0, 0.96 + 0.04 * 4 / 9, 0.88 + 0.12 * 4 / 9, 0.7),
+                (2050.0, 1.0, 0.98, 0.94, 0.7), (3000.0, 1.0, 1.0, 1.0, 0.7)],
+    "ct_skin_bone": [(300.0, 0.70, 0.40, 0.30, 0.0), (550.0, 0.815, 0.54, 0.425, 0.018),
+                     (925.0, 0.9825, 0.785, 0.6625, 0.012), (1100.0, 0.95, 0.81, 0.675, 0.0),
+                     (1350.0, 0.9375, 0.86, 0.73625, 0.2), (1825.0, 1.0, 0.97, 0.91, 0.595),
+                     (3000.0, 1.0, 1.0, 1.0, 0.7)],
+}
+
+
+@pytest.mark.parametrize("name", sorted(CT_BY_HAND))
+def test_ct_presets_look_up_what_their_points_give_by_hand(name):
+    table = np.array(CT_BY_HAND[name])
+    np.testing.assert_allclose(preset(name).lookup(table[:, 0]), table[:, 1:], rtol=0, atol=1e-12)
+
+
+def test_the_viridis_knots_are_32_samples_spread_evenly_over_its_256():
+    # Even spacing keeps the linear interpolation between them within 0.0065 of the full table.
+    assert [k[0] for k in T.VIRIDIS] == [round(n * 255 / 31) for n in range(32)]
+
+
+@pytest.mark.parametrize("name", sorted(PRESETS))
+def test_a_data_range_whose_span_overflows_is_refused_as_such(name):
+    # Each end is finite, their difference is not: mapping onto it gave NaN points, and the CT
+    # presets, which do not use the range, took it.
+    with pytest.raises(InputError, match=f"{name}: data range must be finite"):
+        preset(name, (-1e308, 1e308))
+
+
+def test_a_point_with_a_number_too_many_is_refused():
+    # [value, alpha, extra] is no opacity point: the extra number would be dropped unsaid.
+    for kwargs, part in ((dict(opacity=[[0, 0.5, 0.7]]), "opacity point 1: expected [value, alpha]"),
+                         (dict(opacity=[[0, 0.5]], color=[[0, 1, 1, 1, 1]]), "color point 1: expected [value, r, g, b]")):
+        with pytest.raises(InputError, match=re.escape(part)):
+            TransferFunction(**kwargs)
+
+
+@pytest.mark.parametrize("name", ["", "CT_SKIN", "ct_skin "])
+def test_a_preset_name_that_is_none_of_them_is_refused_with_the_list(name):
+    with pytest.raises(InputError, match="unknown transfer function preset .*known: ct_skin, ct_bone"):
+        preset(name)
