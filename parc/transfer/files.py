@@ -226,10 +226,12 @@ def _from_paraview(doc, where, source, data_range, mode):
                      where, label=lambda i, j: f"Points number {4 * i + j + 1} (point {i + 1})")
     else:
         x0, x1 = col[0, 0], col[-1, 0]
-        span = x1 - x0 if x1 > x0 else 1.0
+        # One colour point: the ramp a preset makes over a one-value range, whose span float64
+        # holds at any x0 (one unit added to 1e17 is lost, and three ramp points fall on one value).
+        top = x1 if x1 > x0 else data_range_of((x0, x0), where)[1]
         op = np.array(ramp_opacity(mode))
-        op[:, 0] = x0 + op[:, 0] * span
-        op[-1, 0] = x1 if x1 > x0 else x0 + span      # x0 + span may round past x1
+        op[:, 0] = x0 + op[:, 0] * (top - x0)
+        op[-1, 0] = top      # x0 + (top - x0) may round past top
     tf = TransferFunction(op, col, name=name, source=source)
     x0, x1 = col[0, 0], col[-1, 0]
     normalized = x1 > x0 and abs(x1 - 1.0) <= 1e-6 and (abs(x0) <= 1e-6 or abs(x0 + 1.0) <= 1e-6)

@@ -100,6 +100,19 @@ def test_a_png_keeps_the_colour_of_faint_pixels(tmp_path):
     assert np.array_equal(png[1:, :3], np.rint(colour[1:] * 255)) and not png[0, :3].any()
 
 
+def test_json_is_strict_and_takes_numpy_numbers():
+    # RFC 8259 has no NaN or Infinity: each becomes null, however deep and whatever its type,
+    # and numpy's numbers are numbers, not an error in the middle of writing the stats.
+    from parc.outputs import to_json
+    text = to_json({"psnr": np.float64(np.inf), 2: (np.float32(0.5), np.nan, -np.inf), "n": np.int64(7),
+                    "hit": np.bool_(True), "file": Path("a/b.png"), "rows": [{"d": float("nan"), "e": 1e308}]})
+
+    def refuse(token):
+        raise AssertionError(f"{token} is not JSON")
+    assert json.loads(text, parse_constant=refuse) == {
+        "psnr": None, "2": [0.5, None, None], "n": 7, "hit": True, "file": "a/b.png", "rows": [{"d": None, "e": 1e308}]}
+
+
 @pytest.mark.parametrize("method", ["brute", "parc"])
 @pytest.mark.parametrize("look, count", [(["--iso", 4.0], "cells_visited"), (["--tf", "greyscale"], "samples")])
 def test_render_writes_the_work_per_pixel(vol_file, tmp_path, capsys, method, look, count, gl):
@@ -218,6 +231,19 @@ def test_stats_are_not_written_over_a_npy_volumes_sidecar(vol_file, tmp_path, ca
     # Unless the run writes over the volume itself: its sidecar is stale then, the stats welcome.
     rc, _, err = _run(["render", vol_file, "--iso", 3.5, "--size", 8, 8, "-o", vol, "--stats", side], capsys)
     assert rc == 0 and '"method"' in side.read_text() and np.load(vol).shape == (8, 8, 4), err
+
+
+def test_stats_are_not_written_over_the_sidecar_of_a_volume_named_in_capitals(vol_file, tmp_path, capsys):
+    # V.NPY reads its spacing and origin from V.NPY.json as v.npy does from v.npy.json.
+    vol, side = tmp_path / "V.NPY", tmp_path / "V.NPY.json"
+    rc, _, err = _run(["convert", vol_file, "-o", vol, "--spacing", "2,2,2"], capsys)
+    assert rc == 0 and side.is_file() and load_volume(vol).spacing == (2.0, 2.0, 2.0), err
+    before = side.read_bytes()
+    rc, _, err = _run(["render", vol_file, "--iso", 3.5, "--size", 8, 8, "-o", tmp_path / "a.png",
+                       "--stats", side], capsys)
+    assert rc == 2 and err.count("\n") == 1 and "spacing and origin of the volume V.NPY" in err, err
+    assert side.read_bytes() == before and not (tmp_path / "a.png").exists()
+    assert load_volume(vol).spacing == (2.0, 2.0, 2.0)
 
 
 def test_render_without_iso_suggests_one(vol_file, tmp_path, capsys):
@@ -2068,6 +2094,45 @@ def test_progress_ended_within_its_delay_says_nothing_later(capsys):
     outputs.end_progress_line()          # as an error line does
     time.sleep(0.3)
     assert capsys.readouterr().err == "" and quick.last < 0 and failed.last < 0
+
+
+@pytest.mark.parametrize("target", ["file", "folder"])
+def test_a_read_only_output_or_folder_is_refused_before_the_render(vol_file, tmp_path, capsys, monkeypatch, target):
+    # As an ordinary user's permissions have it (root may write anywhere): the rename would
+    # replace a read-only file all the same, so the output is refused by its mode.
+    real_access = os.access
+
+    def access(path, mode, **kwargs):
+        try:
+            read_only = not os.stat(path).st_mode & stat.S_IWUSR
+        except OSError:
+            read_only = False
+        return not (mode & os.W_OK and read_only) and real_access(path, mode, **kwargs)
+    monkeypatch.setattr(os, "access", access)
+    folder = tmp_path / "out"
+    folder.mkdir()
+    out = folder / "p.png"
+    out.write_bytes(b"old")
+    (out if target == "file" else folder).chmod(0o555)
+    try:
+        rc, _, err = _run(["render", vol_file, "--iso", 4, "--size", 8, 8, "-o", out], capsys)
+    finally:
+        folder.chmod(0o755)
+    assert rc == 2 and err.count("\n") == 1 and f"{out}: not writable" in err, err
+    assert out.read_bytes() == b"old" and sorted(os.listdir(folder)) == ["p.png"]
+
+
+def test_progress_never_shows_more_than_the_work_done(monkeypatch, capsys):
+    # 24.9% done is not yet 25%: a line off a terminal says so only once the quarter is reached.
+    from parc import outputs
+    now = [100.0]
+    monkeypatch.setattr(outputs.time, "perf_counter", lambda: now[0])
+    work = outputs.Progress("work")
+    work.pending.cancel()
+    now[0] += 5.0
+    for fraction in (0.249, 0.2499, 0.25, 0.7499):
+        work(fraction)
+    assert capsys.readouterr().err.splitlines() == ["parc: work: 24%", "parc: work: 25%", "parc: work: 74%"]
 
 
 @pytest.mark.parametrize("umask, mode", [(0o002, 0o664), (0o077, 0o600)])

@@ -105,6 +105,11 @@ def test_public_api_and_defaults(folder):
     assert scene.camera == parc.Camera.framing(*vol.bounds)   # the command line's default view
 
 
+def test_a_background_may_give_its_opacity(folder):
+    path = write(folder, "background = [0.1, 0.2, 0.3, 0.5]\n" + textwrap.dedent(VOLUME))
+    assert load_scene(path).background == (0.1, 0.2, 0.3, 0.5)
+
+
 def test_default_camera_frames_all_volumes(folder):
     path = write(folder, """\
         [camera]
@@ -124,6 +129,22 @@ def test_default_camera_frames_all_volumes(folder):
     # The same file with the same placement is one Volume; a new placement shares its samples.
     a, b = (v.volume for v in scene.volumes)
     assert a is not b and a.data is b.data and b.origin == (0.0, 30.0, 0.0)
+
+
+def test_default_look_at_is_the_centre_of_boxes_below_the_origin(folder):
+    # The second box reaches to y = -30: the union is x, z 0..15, y -30..15, its centre by hand.
+    path = write(folder, """\
+        [camera]
+        eye = [100, 0, 7.5]
+        [[volume]]
+        file = "data/ball.nrrd"
+        iso = 0
+        [[volume]]
+        file = "data/ball.nrrd"
+        iso = 1
+        origin = [0, -30, 0]
+    """)
+    assert load_scene(path).camera.look_at == (7.5, -7.5, 7.5)
 
 
 def test_same_data_and_placement_share_one_volume(folder):
@@ -217,6 +238,14 @@ def test_view_and_size_given_by_the_caller_win(folder):
     assert scene.camera == parc.Camera(eye=(0, -80, 8), look_at=(12, 8, 8), up=(0, 0, 1), parallel_scale=20)
 
 
+@pytest.mark.parametrize("size", [(), 0, []])
+def test_an_empty_or_zero_size_given_by_the_caller_is_refused(folder, size):
+    # None alone keeps the file's size: an empty or zero one is a mistake, not the default.
+    with pytest.raises(InputError, match=re.escape(f"size (given to load_scene): image size must be two positive "
+                                                   f"integers, got {size!r}")):
+        load_scene(write(folder, TWO_VOLUMES), size=size)
+
+
 def test_raw_file_options(folder):
     data = np.arange(4 * 3 * 2, dtype=np.uint16).reshape(2, 3, 4)
     (folder / "data" / "small.raw").write_bytes(b"\0" * 8 + data.astype(">u2").tobytes())
@@ -229,6 +258,15 @@ def test_raw_file_options(folder):
         offset = 8
         iso = 10
     """)
+    np.testing.assert_array_equal(load_scene(path).volumes[0].volume.data, data)
+
+
+def test_a_raw_files_offset_may_be_zero(folder):
+    # Zero bytes before the samples is a headerless file's usual layout, written out or not.
+    data = np.arange(24, dtype="<u2").reshape(2, 3, 4)
+    (folder / "data" / "plain.raw").write_bytes(data.tobytes())
+    path = write(folder, "[[volume]]\nfile = 'data/plain.raw'\nshape = [4, 3, 2]\ndtype = 'uint16'\n"
+                         "byte_order = 'little'\noffset = 0\niso = 10\n")
     np.testing.assert_array_equal(load_scene(path).volumes[0].volume.data, data)
 
 
@@ -357,6 +395,7 @@ BAD = [
      "at least 2"),
     ("[[volume]]\nfile = 'data/ball.nrrd'\ntf = 'greyscale'\nmode = ''", "volume[1].mode", "a non-empty string"),
     ("background = [-0.1, 0, 0]\n{V}", "background", "[0, 1]"),
+    ("background = [0, 1.01, 0]\n{V}", "background", "[0, 1]"),
     ("[camera]\nzoom = 0\n{V}", "camera.zoom", "positive"),
     ("[[volume]]\nfile = 'data/ball.nrrd'\niso = 0\niso_value_of_the_surface = 1",
      "volume[1].iso_value_of_the_surface", "unknown key; did you mean iso?"),
@@ -382,6 +421,16 @@ def test_missing_file_shows_the_resolved_path(folder, tmp_path_factory, monkeypa
     with pytest.raises(InputError, match="volume\\[1\\].file: .*") as info:
         load_scene(path)
     assert str(folder / "data" / "missing.nrrd") in str(info.value)
+
+
+def test_a_missing_transfer_function_path_without_a_suffix_shows_the_resolved_path(folder, tmp_path_factory,
+                                                                                 monkeypatch):
+    # A name with a folder in it is a file, relative to the scene, not an unknown preset.
+    path = write(folder, "[[volume]]\nfile = 'data/blobs.nrrd'\ntf = 'data/cold'\n", name="s.toml")
+    monkeypatch.chdir(tmp_path_factory.mktemp("elsewhere"))
+    with pytest.raises(InputError, match=r"volume\[1\]\.tf: transfer function file not found: ") as info:
+        load_scene(path)
+    assert str(folder / "data" / "cold") in str(info.value)
 
 
 def test_unreadable_scene_files(tmp_path):
@@ -428,7 +477,9 @@ def test_the_files_values_are_checked_where_the_command_line_replaces_them(folde
 
 @pytest.mark.parametrize("view, words", [({"fov": "x"}, "view: fov must be a number, got 'x'"),
                                          ({"zoom": True}, "view: zoom must be a number"),
-                                         ({"eye": (1, 2)}, "view: eye must be three finite numbers")])
+                                         ({"eye": (1, 2)}, "view: eye must be three finite numbers"),
+                                         ({"look_at": (0, math.inf, 0)}, "view: look_at must be three finite numbers"),
+                                         ({"fvo": 20}, "view takes camera settings keyed eye, look_at")])
 def test_a_view_of_the_wrong_type_is_named(folder, view, words):
     with pytest.raises(InputError, match=re.escape(words)):
         load_scene(write(folder, TWO_VOLUMES), view=view)

@@ -481,6 +481,21 @@ def test_our_format_by_hand(tmp_path):
     assert tf.opacity(200) == 0.2
 
 
+def test_a_byte_order_mark_before_a_transfer_function_file_is_read_past(tmp_path):
+    # Editors on Windows write one before TOML and JSON alike; it is no content.
+    bom = b"\xef\xbb\xbf"
+    (tmp_path / "bom.toml").write_bytes(bom + b"opacity = [[0, 0.0], [10, 0.5]]\n"
+                                              b"color = [[0, 1, 0, 0], [10, 0, 0, 1]]\n")
+    (tmp_path / "bom.json").write_bytes(bom + json.dumps({"opacity": [[0, 0.0], [10, 0.5]],
+                                                          "color": [[0, 1, 0, 0], [10, 0, 0, 1]]}).encode())
+    (tmp_path / "pv.json").write_bytes(bom + json.dumps([{"RGBPoints": [0, 1, 0, 0, 10, 0, 0, 1],
+                                                          "Points": [0, 0.0, 0.5, 0, 10, 0.5, 0.5, 0]}]).encode())
+    for name in ("bom.toml", "bom.json", "pv.json"):
+        tf = load_transfer_function(tmp_path / name)
+        np.testing.assert_array_equal(tf.opacity_points, [[0, 0.0], [10, 0.5]])
+        np.testing.assert_array_equal(tf.lookup(5.0), [0.5, 0.0, 0.5, 0.25])
+
+
 PARAVIEW = [{
     "ColorSpace": "Diverging", "Name": "Cool to Warm", "NanColor": [1, 1, 0],
     "RGBPoints": [0.0, 0.23, 0.299, 0.754, 0.5, 0.865, 0.865, 0.865, 1.0, 0.706, 0.016, 0.15],
@@ -599,6 +614,8 @@ BAD_FILES = [
     ("normneg.toml", 'space = "normalized"\nopacity = [[-0.5, 0], [1, 1]]', ["normneg.toml", "opacity point 1", "outside [0, 1]"]),
     ("pv_indexed.json", '[{"Name": "x", "IndexedColors": [1, 0, 0]}]', ["pv_indexed.json", "indexed/categorical"]),
     ("nullcolor.json", '{"opacity": [[0, 0]], "color": null}', ["nullcolor.json", "color:", "null"]),
+    ("pv_points_len.json", '[{"RGBPoints": [0, 0, 0, 0, 1, 1, 1, 1], "Points": [0, 0, 0.5, 0, 1, 1]}]',
+     ["pv_points_len.json", "Points: 6 numbers is not a multiple of 4"]),
 ]
 
 
@@ -831,6 +848,16 @@ def test_a_saved_file_keeps_its_mode(tmp_path):
     assert load_transfer_function(target) == TransferFunction([[0, 0], [1, 1]])
 
 
+def test_a_file_type_in_capitals_is_saved_and_read_back(tmp_path):
+    # The reader takes .TOML and .JSON as their lower-case selves: so must the writer.
+    tf = TransferFunction([[0, 0], [2, 0.5]], [[0, 1, 0, 0], [2, 0, 0, 1]], name="caps")
+    for name, first in (("Caps.TOML", b'name = "caps"'), ("Caps.JSON", b"{")):
+        save_transfer_function(tf, tmp_path / name)
+        assert (tmp_path / name).read_bytes().startswith(first)
+        assert load_transfer_function(tmp_path / name) == tf
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["Caps.JSON", "Caps.TOML"]
+
+
 def test_a_save_that_fails_midway_leaves_the_old_file_whole(tmp_path, monkeypatch):
     import errno
     import pathlib
@@ -912,6 +939,20 @@ def test_a_ramp_over_a_one_value_range_keeps_its_ramp(value):
     x = tf.opacity_points[:, 0]
     assert x[0] == value and x[-1] > value and len(np.unique(x)) == 3
     assert tf.opacity(value) == 0.0 and tf.opacity(x[-1]) == 0.1
+
+
+@pytest.mark.parametrize("value", [5.0, 1e17, -3e20, 0.0])
+@pytest.mark.parametrize("mode", ["composite", "mip"])
+def test_a_paraview_map_of_one_colour_point_ramps_as_a_preset_over_one_value(tmp_path, value, mode):
+    # No Points: the ramp over a one-value span, by hand: value + (0, 0.1, 1) * max(1, 1e-9 |value|).
+    path = tmp_path / "one.json"
+    path.write_text(json.dumps({"RGBPoints": [value, 1, 0, 0]}))
+    tf = load_transfer_function(path, mode=mode)
+    width = max(1.0, 1e-9 * abs(value))
+    top = T.RAMP_OPACITY if mode == "composite" else 1.0
+    np.testing.assert_allclose(tf.opacity_points, [[value, 0.0], [value + 0.1 * width, 0.0], [value + width, top]],
+                               rtol=1e-15, atol=0)
+    assert tf.opacity_points.tolist() == preset("greyscale", (value, value), mode).opacity_points.tolist()
 
 
 def test_a_paraview_list_uses_its_first_map(tmp_path):
