@@ -178,6 +178,12 @@ def _multi_otsu(counts: np.ndarray, centers: np.ndarray, k: int) -> list:
     return sorted(cuts)
 
 
+def default_isovalue(levels):
+    """The level a render without ``--iso`` takes from :func:`suggest_isovalues`' ``levels``, and
+    ``parc make`` names for a volume made for none: the middle one; None where there is none."""
+    return levels[len(levels) // 2] if levels else None
+
+
 def suggest_isovalues(vol: Volume, k: int = 3, *, bins: int = 256) -> list:
     """Isovalues likely to show distinct surfaces, from the value histogram.
 

@@ -202,8 +202,10 @@ def cmd_make(args):
     making = making_note(args.name, args.size)
     if making:
         note(making)
+    # Below the size said at once, a neuron still takes seconds (3.5 s at 256 a side).
     try:
-        vol = make_synthetic(args.name, args.size, **kwargs)
+        with contextlib.nullcontext() if making else slow_note(f"making {args.name}", note):
+            vol = make_synthetic(args.name, args.size, **kwargs)
     except TypeError:
         raise InputError(f"{args.name} takes no --seed") from None
     _refuse_overwriting_input(out, [])
@@ -217,8 +219,8 @@ def cmd_make(args):
     levels = [v for v in made_for if lo <= v <= hi]
     what = f"isovalue{'s' if len(levels) > 1 else ''} {' and '.join(exact_text(v) for v in levels)}"
     if not levels:
-        from data_tools.info import suggest_isovalues
-        levels = suggest_isovalues(vol)[:1]
+        from data_tools.info import default_isovalue, suggest_isovalues
+        levels = [v for v in [default_isovalue(suggest_isovalues(vol))] if v is not None]   # render's own
         missed = f"level{'s' if len(made_for) > 1 else ''} {' and '.join(exact_text(v) for v in made_for)}"
         why = (f" (at this size the samples, {lo:.6g} to {hi:.6g}, miss the {missed} {args.name} is made for)"
                if made_for else "")

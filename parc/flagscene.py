@@ -111,6 +111,10 @@ def _add_flag_lights(scene, args, say):
     return scene
 
 
+# Below this peak opacity a maximum-intensity image is said to be faint.
+FAINT_MIP = 0.5
+
+
 def _volume_scene(args, say):
     """The volume, isovalue and camera the flags describe, as a Scene."""
     import parc
@@ -156,18 +160,23 @@ def _volume_scene(args, say):
         vis = parc.Translucent(vol, args.tf, mode=args.mode or "composite", step=args.step,
                                threshold=DEFAULT_THRESHOLD if args.threshold is None else args.threshold,
                                shade=args.shade)
+        peak = float(vis.tf.opacity_points[:, 1].max())
+        if vis.mode == "mip" and 0.0 < peak < FAINT_MIP:
+            # A MIP pixel is one value at its own opacity: a table made for compositing stays faint.
+            say(f"{vis.tf.title} is at most {peak:g} opaque: --mode mip shows each ray's largest visible value "
+                "at its own opacity, so the image is faint (greyscale and viridis end opaque for mip)")
         return parc.Scene(camera=_camera(args, vol, (w, h)), size=(w, h), volumes=[vis],
                           background=getattr(args, "background", None))
     for flag in ("mode", "step", "threshold", "shade"):
         if _given(getattr(args, flag)):
             raise InputError(f"--{flag} applies to translucent volumes (--tf)")
     if iso is None:
-        from data_tools.info import suggest_isovalues
+        from data_tools.info import default_isovalue, suggest_isovalues
         levels = suggest_isovalues(vol)
         if not levels:
             lo, hi = vol.value_range()
             raise InputError(f"{vol.name}: every sample is {lo:g}; there is no isosurface to show")
-        iso = levels[len(levels) // 2]
+        iso = default_isovalue(levels)
         say(f"no --iso given; using {exact_text(iso)}, suggested from the histogram "
             f"(others: {', '.join(exact_text(v) for v in levels if v != iso) or 'none'})")
     return parc.Scene(camera=_camera(args, vol, (w, h)), size=(w, h), volumes=[parc.Isosurface(vol, iso)],

@@ -385,10 +385,15 @@ def test_make_says_how_to_render_what_it_wrote(tmp_path, capsys, monkeypatch, na
     lines = said.splitlines()
     argv = shlex.split(lines[1].partition(": ")[2])
     if not ISOVALUES[name]:
-        # Made for no level (a random trilinear field): one from the histogram, inside the samples.
+        # Made for no level (a random trilinear field): one from the histogram, inside the samples,
+        # the one a render without --iso takes (its note names it).
         from data_tools.info import suggest_isovalues
-        level = suggest_isovalues(make_synthetic(name, 12))[0]
+        levels = suggest_isovalues(make_synthetic(name, 12))
+        level = levels[len(levels) // 2]
         assert lines[1].startswith(f"isovalue {level:g}, from the histogram: ") and f"--iso {level:g}" in lines[1]
+        without = argv[1:argv.index("--iso")] + argv[argv.index("--iso") + 2:]
+        rc, _, err = _run(without + ["--size", 16, 16], capsys)
+        assert rc == 0 and f"no --iso given; using {level:g}," in err, err
     else:
         lo, hi = make_synthetic(name, 12).value_range()
         levels = [v for v in ISOVALUES[name] if lo <= v <= hi]         # ct_phantom's bone needs more samples
@@ -2022,6 +2027,27 @@ def test_a_large_make_says_it_takes_time(tmp_path, capsys, monkeypatch):
     assert rc == 0 and err == "", err
 
 
+def test_a_slow_make_below_the_large_size_is_said_before_and_after(tmp_path, monkeypatch, capsys):
+    # A neuron is made slowly for its samples: at 256 a side, below the size said at once, it
+    # took 3.5 s in silence.
+    import parc.outputs
+    monkeypatch.setattr(parc.outputs, "SLOW_NOTE_DELAY", 0.0)
+    rc = main(["make", "neuron", "--size", "12", "-o", str(tmp_path / "n.nrrd")])
+    lines = capsys.readouterr().err.splitlines()
+    assert rc == 0 and lines[0] == "parc: making neuron ...", lines
+    assert re.fullmatch(r"parc: making neuron: done in [\d.]+ s", lines[1]), lines
+    # Said once where the size is said at once; a refused --seed has its error line alone.
+    import data_tools.synthetic
+    monkeypatch.setattr(data_tools.synthetic, "LARGE_SYNTHETIC_SAMPLES", 10 ** 3)
+    rc = main(["make", "sphere", "--size", "10", "-o", str(tmp_path / "s.nrrd")])
+    lines = capsys.readouterr().err.splitlines()
+    assert rc == 0 and [line for line in lines if "making" in line] == [
+        "parc: making sphere 10x10x10 (1,000 samples) ..."], lines
+    rc = main(["make", "sphere", "--size", "4", "--seed", "1", "-o", str(tmp_path / "t.nrrd")])
+    lines = capsys.readouterr().err.splitlines()
+    assert rc == 2 and lines[-1] == "parc: error: sphere takes no --seed" and "done in" not in "".join(lines), lines
+
+
 def test_a_raw_output_whose_name_gives_two_types_names_the_one_written(tmp_path, capsys):
     # "int16_uint16": both fit the file's size, and a reader by name takes int16 first; the message
     # must give --dtype uint16, or values past 32767 read back negative. Truth: the array written.
@@ -2248,6 +2274,22 @@ def test_average_mode_on_a_transparent_background_says_how_to_see_it(vol_file, t
     assert rc == 0 and "--background" not in err
     rc, _, err = _run(render + [tmp_path / "c.png", "--quiet"], capsys)
     assert rc == 0 and err == ""
+
+
+def test_a_mip_through_a_faint_table_says_the_image_is_faint(vol_file, tmp_path, capsys):
+    """A MIP pixel is one value at its own opacity: a table peaking at 0.2 gives at most 0.2 alpha,
+    which the note says; a composite of it, or the ramp presets made opaque for MIP, get no note."""
+    tf = tmp_path / "faint.toml"
+    tf.write_text("opacity = [[0, 0], [5, 0.2], [10, 0]]\ncolor = [[0, 1, 1, 1], [10, 1, 1, 1]]\n")
+    render = ["render", vol_file, "--size", 12, 12, "--tf"]
+    rc, _, err = _run(render + [tf, "--mode", "mip", "-o", tmp_path / "a.png"], capsys)
+    assert rc == 0 and "faint.toml is at most 0.2 opaque: --mode mip" in err, err
+    with Image.open(tmp_path / "a.png") as im:
+        alpha = np.asarray(im)[..., 3]
+    assert 0 < alpha.max() <= round(0.2 * 255)
+    for flags in ([tf, "-o", tmp_path / "b.png"], ["greyscale", "--mode", "mip", "-o", tmp_path / "c.png"]):
+        rc, _, err = _run(render + flags, capsys)
+        assert rc == 0 and "opaque" not in err, err
 
 
 def test_average_mode_in_compare_gets_no_note_about_an_image(capsys):
