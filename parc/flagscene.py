@@ -179,7 +179,14 @@ def _volume_scene(args, say):
         iso = default_isovalue(levels)
         say(f"no --iso given; using {exact_text(iso)}, suggested from the histogram "
             f"(others: {', '.join(exact_text(v) for v in levels if v != iso) or 'none'})")
-    return parc.Scene(camera=_camera(args, vol, (w, h)), size=(w, h), volumes=[parc.Isosurface(vol, iso)],
+    surface = parc.Isosurface(vol, iso)         # its checks first: no note before an error
+    lo, hi = vol.value_range()
+    if iso in (lo, hi):
+        # The walk takes a cell flat at the isovalue for surface: its whole extent is hit.
+        end, past = ("smallest", "above") if iso == lo else ("largest", "below")
+        say(f"--iso {exact_text(iso)} is the data's {end} value: cells whose samples all equal it are "
+            f"surface throughout and show as solid; a level just {past} it shows the shapes they bound")
+    return parc.Scene(camera=_camera(args, vol, (w, h)), size=(w, h), volumes=[surface],
                       background=getattr(args, "background", None))
 
 

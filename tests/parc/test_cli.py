@@ -2292,6 +2292,21 @@ def test_a_mip_through_a_faint_table_says_the_image_is_faint(vol_file, tmp_path,
         assert rc == 0 and "opaque" not in err, err
 
 
+@pytest.mark.parametrize("level, said", [(0.0, "smallest value"), (4.0, "largest value"), (2.0, None)])
+def test_an_isovalue_at_an_end_of_the_data_says_its_flat_cells_show_solid(tmp_path, capsys, level, said):
+    """Samples clipped to [0, 4] around a ball: at either end, cells flat at the level are surface
+    throughout, and the note says so; a level between the ends gets none."""
+    k, j, i = np.mgrid[0:12, 0:12, 0:12]
+    r = ((i - 5.5) ** 2 + (j - 5.5) ** 2 + (k - 5.5) ** 2) ** 0.5
+    vol = save_volume(Volume(np.clip(r - 2.0, 0.0, 4.0).astype(np.float32)), tmp_path / "clipped.nrrd")
+    rc, _, err = _run(["render", vol, "--iso", level, "--size", 16, 16, "-o", tmp_path / "a.png"], capsys)
+    assert rc == 0, err
+    if said is None:
+        assert "surface throughout" not in err, err
+    else:
+        assert f"--iso {level:g} is the data's {said}: cells whose samples all equal it are surface throughout" in err
+
+
 def test_average_mode_in_compare_gets_no_note_about_an_image(capsys):
     """parc compare writes no image: the render's note on the average mode's background is no help there."""
     rc, out, err = _run(["compare", "--tf", "greyscale", "--mode", "average", "--size", 8, 8, "--repeats", 1,
