@@ -52,7 +52,8 @@ The caster (`raycast.composite.clear_planes`) maps the span of index
 coordinates ``pos`` a ray covers in a cell to the planes ``floor(pos / m_a)``
 it meets, and where an end of the span lies within its tolerance of a
 boundary (``PLANE_TOL`` planes plus the rounding of ``pos`` itself,
-``POS_ROUNDING`` of its terms: large when the eye is far away) it tests
+``POS_ROUNDING`` of its terms: large when the eye is far away; plus the
+grid's snapping, ``BOUNDARY_SNAP`` cells: large against planes of 1e-4 cells) it tests
 the bit of the plane across as well. For that caster
 the strict bits suffice (``halo=False``, the default): exactly the planes
 whose PC boxes the ray meets (closed boxes, ``t >= 0``), plus the float32

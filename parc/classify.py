@@ -41,14 +41,14 @@ import numpy as np
 
 from data_tools import InputError
 from data_tools.volume import text_or_flag
-from raycast.composite import INTERP_ROUNDING
+from raycast.composite import BOUNDARY_SNAP, INTERP_ROUNDING
 from raycast.iso import OCTANTS
 
 from .skip import ISO_JUMP_MIN, SKIP_CAP, TF_JUMP_MIN, octant_radius, skip_radius
 
 #: Supercell boundaries this close to an integer (in cells) are snapped to
 #: it, so that e.g. ``10 * 0.1`` does not leave a 2e-16-cell sliver.
-SNAP = 1e-9
+SNAP = BOUNDARY_SNAP
 
 #: Refined values per chunk when ranges are computed slab by slab: bounds
 #: the temporaries (float64 where interpolated) to ~32 MB per array.

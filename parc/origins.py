@@ -230,10 +230,15 @@ def parallel_inside(camera, width, height, proxy):
             idx.append((left, right))
         (x0, x1), (y0_, y1_), (z0, z1) = idx
         hit = np.zeros(len(cand), dtype=bool)
-        for zz in (z0, z1):
-            for yy in (y0_, y1_):
-                for xx in (x0, x1):
-                    hit |= proxy.pc[zz, yy, xx]
+        # Every box from the first to the last, not these two alone: supercells thinner than
+        # the slab (a thousandth of a cell in a volume 2^32 cells from 0) lie between them,
+        # the one holding the origin among them.
+        for dz in range(int((z1 - z0).max()) + 1):
+            zz = np.minimum(z0 + dz, z1)
+            for dy in range(int((y1_ - y0_).max()) + 1):
+                yy = np.minimum(y0_ + dy, y1_)
+                for dx in range(int((x1 - x0).max()) + 1):
+                    hit |= proxy.pc[zz, yy, np.minimum(x0 + dx, x1)]
         flat = inside[y0:y0 + band].reshape(-1)
         flat[cand] = hit
     return inside

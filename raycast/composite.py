@@ -122,6 +122,13 @@ PLANE_TOL = 1e-6
 #: 1/8-cell plane, past PLANE_TOL; brute took samples PARC skipped).
 POS_ROUNDING = 2.0 ** -48
 
+#: ... and this many cells: the grid's plane boundaries are ``q m`` snapped to an integer
+#: this close, and a last plane this much short of the grid's end is merged into the one
+#: before (`parc.classify.SNAP` is this). Below a thousandth of a cell, PLANE_TOL planes
+#: are less than that: with planes of 1e-4 cells, a ray along the last 5e-10 cells of the
+#: grid would lie past the last plane for the caster, which would never test its bit.
+BOUNDARY_SNAP = 1e-9
+
 
 @kernel(inline="always")
 def _bit(bits, py, px, q, params):
@@ -141,14 +148,14 @@ def clear_planes(bits, py, px, params, Aa, Da, Ua, ta, c0, c1):
     the ray in a plane whose bit is set, so that a cell meeting it is taken
     without a test. The ray's position along the plane axis is
     ``Aa + t Da`` (anchored at ``t = ta`` from an origin ``Ua``: its
-    rounding, `POS_ROUNDING`); positions within `PLANE_TOL` planes of a
-    boundary test both planes.
+    rounding, `POS_ROUNDING`); positions within `PLANE_TOL` planes (and
+    `BOUNDARY_SNAP` cells) of a boundary test both planes.
     """
     m = params[P_PLANE_SIZE]
     p0 = Aa + c0 * Da
     p1 = Aa + c1 * Da
     err = POS_ROUNDING * (abs(Ua) + max(abs((ta + c0) * Da), abs((ta + c1) * Da)))
-    tol = PLANE_TOL + err / m
+    tol = PLANE_TOL + (err + BOUNDARY_SNAP) / m
     # Only planes first .. last have bits; the others are clear. Clamped to one plane either
     # side of them while still floats (math.floor gives an int64 in kernels): along a plane axis
     # of tiny spacing an origin far off makes ``tol`` huge (spacing 1e-21, eye 14 away: ~5e7

@@ -34,7 +34,7 @@ from parc.camera import Camera
 from parc.classify import VolumeIndex, supercell_grid
 from parc.proxy import build_plane_proxy, build_proxy
 from parc_reference import band_classes, caster_rays, ray_box_batches, smooth_volume
-from raycast.composite import PLANE_TOL, POS_ROUNDING
+from raycast.composite import BOUNDARY_SNAP, PLANE_TOL, POS_ROUNDING
 from raycast.iso import NO_SKIP
 
 SIZES = [1, 2, 1.5, 3, (2, 3, 1.5), 0.5]
@@ -242,7 +242,7 @@ def caster_required(camera, width, height, vol, grid, pc, axis, step):
                 need |= pc[zz, yy, xx]
     m = grid.size[axis]
     err = POS_ROUNDING * (np.abs(O[ys[rows], xs[rows], axis]) + np.abs(t * D[ys[rows], xs[rows], axis]))
-    return ys[rows][need], xs[rows][need], pos[need, axis] / m, PLANE_TOL + err[need] / m
+    return ys[rows][need], xs[rows][need], pos[need, axis] / m, PLANE_TOL + (err[need] + BOUNDARY_SNAP) / m
 
 
 # --------------------------------------------------------------------------
@@ -684,6 +684,38 @@ def test_bit_planes_of_a_tiny_spacing_seen_from_far_along_it_equal_brute(gl):
         assert want[..., 3].max() > 0.1
         for buffers in ("bits", "depth,bits"):
             np.testing.assert_array_equal(render(scene, "parc", supercell=1, buffers=buffers).image, want)
+
+
+@pytest.mark.parametrize("where", ["interior", "last"])
+def test_bit_planes_of_a_ten_thousandth_of_a_cell_reach_their_snapped_boundaries(gl, where):
+    # Planes of about 1e-4 cells along z: the caster's tolerance of 1e-6 planes is 1e-10 cells,
+    # less than the grid's snapping (1e-9 cells). "interior": boundary 10,000 lies at 1 - 5e-10,
+    # snapped to 1, and plane 10,000 above it is clear (the transfer function ends just below
+    # its values); "last": the 20,000 planes end 5e-10 cells short of the grid's 2, and that
+    # sliver is merged into the last plane. The top row's rays run level through the sliver
+    # (tan(fov/2) sy cancels the view's 60-degree tilt) from an eye 3e-10 cells below its top.
+    from parc import Scene, Translucent, TransferFunction, render
+    if where == "interior":
+        m, top = (1 - 5e-10) / 10000, 1.0
+        data = np.array([-1.0, 1.0, 1.0], np.float32)[:, None, None] * np.ones((3, 6, 6), np.float32)
+        tf = TransferFunction(opacity=[[-1, 0.5], [1 - 5e-10, 0.5], [1 - 5e-10, 0.0], [1, 0.0]],
+                              color=[[-1, 1, 0, 0], [1, 0, 0, 1]])
+    else:
+        m, top = (2 - 5e-10) / 20000, 2.0
+        data = np.full((3, 6, 6), 100.0, np.float32)
+        tf = TransferFunction(opacity=[[0, 0.5], [200, 0.5]], color=[[0, 1, 0, 0], [200, 0, 0, 1]])
+    vol = Volume(data)
+    tilt = math.radians(60.0)
+    fov = 2.0 * math.degrees(math.atan(math.tan(tilt) * 1.5))
+    eye = np.array([0.5, 2.5, top - 3e-10])
+    cam = Camera(eye=tuple(eye), look_at=tuple(eye + [math.cos(tilt), 0.0, -math.sin(tilt)]), up=(0, 0, 1), fov=fov)
+    assert major_axis(cam, vol.bounds) == 2
+    for mode in ("composite", "mip"):
+        scene = Scene(camera=cam, size=(3, 3), volumes=[Translucent(vol, tf, mode=mode)])
+        want = render(scene, "brute").image
+        assert want[0, :, 3].min() > 0.4
+        for buffers in ("bits", "depth,bits"):
+            np.testing.assert_array_equal(render(scene, "parc", supercell=(4, 4, m), buffers=buffers).image, want)
 
 
 def test_major_axis_from_inside_the_box_is_the_view_directions():

@@ -156,6 +156,22 @@ def test_parallel_origins_a_rounding_outside_a_face(supercell, gl):
     _same_hits(Scene(camera=cam, size=(14, 44), volumes=[Isosurface(vol, 128.0)]), supercell)
 
 
+@pytest.mark.parametrize("supercell", [(1e-3, 100, 100), (1e-3, 1, 1)])
+def test_parallel_origins_in_supercells_thinner_than_their_rounding(supercell, gl):
+    """A volume 2^32 - 16 cells from 0 along x: a parallel view's ray origins count as inside
+    the PC boxes within 2^-40 of the scene's scale (0.004 cells) of them, a reach spanning
+    several supercells a thousandth of a cell thick. The rays start inside the one holding the
+    surface x = 5.0005 and run nearly along its faces (1e-5 cells of x a unit of y), so they
+    entered it behind the view plane farther than the pass clips (4 units): PARC must take
+    them as starting inside."""
+    x0 = 2.0 ** 32 - 16
+    data = np.broadcast_to(np.arange(11, dtype=np.float32), (11, 41, 11)).copy()
+    vol = Volume(data, origin=(x0, 0.0, 0.0))
+    eye = (x0 + 5.00045, 20.0, 5.0)
+    cam = Camera(eye=eye, look_at=(eye[0] + 1e-5, 21.0, 5.0), up=(0, 0, 1), parallel_scale=1e-4)
+    _same_hits(Scene(camera=cam, size=(9, 3), volumes=[Isosurface(vol, 5.0005)]), supercell)
+
+
 @pytest.mark.parametrize("buffers", ["depth", "bits"])
 @pytest.mark.parametrize("supercell", [1, 2, 0.5])
 @pytest.mark.parametrize("look", [(1.45, 0.45, 0.9), (0.45, 0.45, 2.0)])
