@@ -670,6 +670,25 @@ def test_planes_tested_are_those_that_exist_whatever_the_tolerance(origin):
     assert not clear and sorted((t0, t1)) == pytest.approx([2.0, 4.0])
 
 
+def test_a_span_within_the_rounding_of_a_far_origin_tests_the_set_plane():
+    # An origin 1e12 cells off along the plane axis rounds the ray's positions by some 4e-3 cells
+    # (`POS_ROUNDING`): a span ending 1e-3 cells short of the set plane 2 ([4, 6)) may have reached
+    # it. From an origin at 0 the same span is clear.
+    from raycast.composite import clear_planes
+    bits, params = _one_set_bit(2)
+    assert not clear_planes(bits, 0, 0, params, 0.0, 1.0, 1e12, 0.0, 1.0, 4.0 - 1e-3)[0]
+    assert clear_planes(bits, 0, 0, params, 0.0, 1.0, 0.0, 0.0, 1.0, 4.0 - 1e-3)[0]
+
+
+def test_a_plane_past_the_last_with_bits_is_clear_whatever_its_word_holds():
+    # Planes 0 .. 3 have bits; plane 4 ([8, 10)) is past them, clear, though its place in the
+    # word is set: a span reaching into it is clear, and the walk may skip to its far side.
+    from raycast.composite import clear_planes
+    bits, params = _one_set_bit(4, count=4)
+    clear, t, _, _ = clear_planes(bits, 0, 0, params, 0.0, 1.0, 0.0, 0.0, 0.5, 9.5)
+    assert clear and t == pytest.approx(10.0)
+
+
 def test_bit_planes_of_a_tiny_spacing_seen_from_far_along_it_equal_brute(gl):
     # Planes along x, 1e-30 units apart: from 3,000 or 1e5 units away the eye lies some 1e33
     # planes off, and the caster's tolerance at plane boundaries with it.

@@ -327,3 +327,30 @@ def test_a_surface_and_a_layer_over_half_the_picture_act_there_only():
             else:
                 want = _over([0.3, 0.0, 0.0, 0.3], [fog19] * 4, surf[y, x])
             np.testing.assert_allclose(img[y, x], want, atol=1e-5, rtol=0)
+
+
+@pytest.mark.parametrize("method", ["brute", "parc"])
+def test_a_layer_met_at_one_point_goes_where_the_ray_meets_it(gl, method):
+    # Parallel rays along (1, -1, 0) through the edge x = y = 0 (the middle column) meet the box
+    # at one point, where the layer (listed first) and the fog each have their one sample: the
+    # layer goes first there, as on every other ray, not behind the fog.
+    a = 0.1
+    red = Translucent(_const(name="red"), TransferFunction([[0, 0.3], [200, 0.3]], [[0, 1.0, 0.0, 0.0]]), mode="mip")
+    fog = Translucent(_const(name="fog"), TransferFunction([[0, a], [200, a]], [[0, 0.0, 1.0, 0.0]]), threshold=1.0)
+    cam = Camera(eye=(-4.0, 4.0, 4.0), look_at=(4.0, -4.0, 4.0), up=(0, 0, 1), parallel_scale=3.0)
+    img = render(Scene(camera=cam, size=(5, 5), volumes=[red, fog]), method).image.astype(np.float64)
+    want = _over([0.3, 0.0, 0.0, 0.3], [0.0, a, 0.0, a])
+    np.testing.assert_allclose(img[:, 2], np.broadcast_to(want, (5, 4)), atol=1e-6, rtol=0)
+
+
+@pytest.mark.parametrize("method", ["brute", "parc"])
+def test_a_mip_layer_takes_the_colour_of_its_largest_sample_away_from_zero(gl, method):
+    # A ramp v = 1000 + 10 z seen along z: the largest sample is 1080, on the exit face, and the
+    # pixel is the transfer function there (opacity 0.56, colour (0.9, 0.45, 0.1)), whatever the
+    # data's minimum.
+    ramp = _ramp_z(10.0)
+    tf = TransferFunction([[900, 0.2], [1100, 0.6]], [[900, 0.0, 0.0, 1.0], [1100, 1.0, 0.5, 0.0]])
+    layer = Translucent(Volume(ramp.data + 1000.0, name="ramp"), tf, mode="mip")
+    img = render(Scene(camera=CAM, size=(4, 4), volumes=[layer]), method).image.astype(np.float64)
+    want = [0.9 * 0.56, 0.45 * 0.56, 0.1 * 0.56, 0.56]
+    np.testing.assert_allclose(img, np.broadcast_to(want, img.shape), atol=1e-6, rtol=0)

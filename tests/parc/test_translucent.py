@@ -489,6 +489,29 @@ def test_average_is_the_visible_samples_height_above_the_minimum(offset):
     assert img[0, 8, 3] == 0.0                  # a ray that meets only the transparent shell
 
 
+@pytest.mark.parametrize("method", ["brute", "parc"])
+def test_average_of_a_constant_volume_is_black(method, request):
+    """Every sample lies at the data's minimum, over an empty range: grey 0, not 0 / 0."""
+    if method == "parc":
+        request.getfixturevalue("gl")
+    tf = TransferFunction(opacity=[[0, 0.5], [10, 0.5]])
+    vis = Translucent(Volume(np.full((5, 5, 5), 7.0, np.float32)), tf, mode="average")
+    cam = Camera(eye=(2.0, 2.0, -20.0), look_at=(2.0, 2.0, 2.0), up=(0, 1, 0), parallel_scale=1.5)
+    img = render(Scene(camera=cam, size=(4, 4), volumes=[vis]), method).image
+    assert (img == 0.0).all(), img
+
+
+def test_an_average_rounded_past_the_range_stays_within_it():
+    # Samples at the minimum may interpolate an ulp below it (`INTERP_ROUNDING`), and at the
+    # maximum an ulp above: the grey level stays in [0, 1] all the same.
+    from raycast.composite import N_PARAMS, P_HI, P_LO, average_grey
+    params = np.zeros(N_PARAMS)
+    params[P_LO], params[P_HI] = 2.0, 6.0
+    assert average_grey(8.0, 4, params) == 0.5
+    assert average_grey(-1e-15, 4, params) == 0.0
+    assert average_grey(16.0 + 1e-14, 4, params) == 1.0
+
+
 def test_shaded_samples_keep_colour_within_opacity():
     """Specular light passes 1: clamped per sample, a shaded composite stays premultiplied in [0, 1]."""
     data = np.broadcast_to(np.arange(9, dtype=np.float32)[:, None, None] * 10, (9, 9, 9)).copy()

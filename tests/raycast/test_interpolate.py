@@ -54,6 +54,20 @@ def test_float32_corners_are_read_in_float64():
     assert np.isfinite(val)
 
 
+def test_a_cell_away_from_the_origin_interpolates_from_its_own_corners():
+    # F = 0.3 x - 1.1 y + 2 z + 0.05 x y z is trilinear, so its samples give it back exactly
+    # anywhere, with local coordinates measured from the cell's own corner.
+    z, y, x = np.mgrid[0:4, 0:5, 0:6].astype(np.float64)
+    data = 0.3 * x - 1.1 * y + 2.0 * z + 0.05 * x * y * z
+    rng = np.random.default_rng(3)
+    for _ in range(50):
+        i, j, k = int(rng.integers(5)), int(rng.integers(4)), int(rng.integers(3))
+        px, py, pz = i + rng.random(), j + rng.random(), k + rng.random()
+        val, u, v, w = interpolate(data, px, py, pz, i, j, k)
+        assert (u, v, w) == (px - i, py - j, pz - k)
+        assert abs(val - (0.3 * px - 1.1 * py + 2.0 * pz + 0.05 * px * py * pz)) <= 1e-12
+
+
 def test_gradient_is_the_world_gradient_of_a_trilinear_field_on_an_anisotropic_grid():
     # F(X, Y, Z) = 0.3 X - 1.1 Y + 2 Z + 0.05 X Y Z is trilinear in world coordinates, hence in
     # each cell's local ones: the interpolant is F itself, and its gradient F's, whatever the spacing.
