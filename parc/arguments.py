@@ -270,7 +270,7 @@ def build_parser():
                        description="Render one scene with each method (after a warm-up), report the median "
                                    "time, speedup against brute, and the image error against brute's image: "
                                    "hit-mask mismatches, max |depth difference| in cells, max |colour "
-                                   "difference|, PSNR (and RMSE with --json); with cells visited, cubic solves, "
+                                   "difference|, RMSE and PSNR; with cells visited, cubic solves, "
                                    "polygons and seconds per phase.",
                        epilog=EPILOG, formatter_class=_Formatter)
     c.add_argument("volume", nargs="?", metavar="VOLUME|SCENE.toml",

@@ -268,7 +268,7 @@ PHASE_NOTES = {
 def format_table(rows):
     """A readable terminal table of `compare` rows."""
     head = ("method", "time s", "speedup", "rounds", "OpenGL", "cells/px", "cubics/px", "samples/px", "hits/px",
-            "polygons", "hit≠", "max Δdepth", "max Δcolour", "PSNR")
+            "polygons", "hit≠", "max Δdepth", "max Δcolour", "RMSE", "PSNR")
     lines = []
     for r in rows:
         px = max(r["pixels"], 1)
@@ -279,7 +279,7 @@ def format_table(rows):
                       f"{r['cells_visited'] / px:.1f}", f"{r['cubic_solves'] / px:.2f}",
                       f"{r.get('samples', 0) / px:.1f}",
                       f"{r['hits'] / px:.3f}", f"{r['polygons']:,}", str(r["hit_mismatches"]),
-                      f"{r['max_depth_cells']:.2e}", f"{r['max_color']:.2e}",
+                      f"{r['max_depth_cells']:.2e}", f"{r['max_color']:.2e}", f"{r['rmse']:.2e}",
                       "inf" if r["psnr"] == float("inf") else f"{r['psnr']:.1f}"))
     widths = [max(len(h), *(len(l[i]) for l in lines)) for i, h in enumerate(head)]
     fmt = "  ".join(("{:<%d}" if i == 0 else "{:>%d}") % w for i, w in enumerate(widths))

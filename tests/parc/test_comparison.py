@@ -156,17 +156,40 @@ def test_format_table_puts_each_figure_under_its_heading():
     row = {"method": "parc", "seconds": 0.5, "speedup": 6.0, "speedup_low": 4.0, "speedup_high": 8.0,
            "opengl_share": 0.25, "cells_visited": 300, "cubic_solves": 30, "samples": 0, "hits": 50,
            "pixels": 100, "polygons": 1234, "hit_mismatches": 7, "max_depth_cells": 0.125,
-           "max_color": 0.5, "psnr": 18.0618, "phases": {"total": 0.5}}
+           "max_color": 0.5, "rmse": 0.125, "psnr": 18.0618, "phases": {"total": 0.5}}
     head, _, line = format_table([row]).splitlines()[:3]
     names = ["method", "time s", "speedup", "rounds", "OpenGL", "cells/px", "cubics/px", "samples/px",
-             "hits/px", "polygons", "hit≠", "max Δdepth", "max Δcolour", "PSNR"]
+             "hits/px", "polygons", "hit≠", "max Δdepth", "max Δcolour", "RMSE", "PSNR"]
     cells = line.split()
     assert len(cells) == len(names) and all(n in head for n in names)
     got = dict(zip(names, cells))
     assert got == {"method": "parc", "time s": "0.5000", "speedup": "6.00x", "rounds": "4.00-8.00x",
                    "OpenGL": "25%", "cells/px": "3.0", "cubics/px": "0.30", "samples/px": "0.0",
                    "hits/px": "0.500", "polygons": "1,234", "hit≠": "7", "max Δdepth": "1.25e-01",
-                   "max Δcolour": "5.00e-01", "PSNR": "18.1"}
+                   "max Δcolour": "5.00e-01", "RMSE": "1.25e-01", "PSNR": "18.1"}
+
+
+def test_the_terminal_table_shows_the_rmse_against_brute(monkeypatch):
+    # The table is what `parc compare` prints: every error figure of a row is in it, RMSE too.
+    # parc's image is 0.5 off brute's in one channel of sixteen: RMSE sqrt(0.25 / 16) = 0.125.
+    from data_tools.synthetic import blobs
+    from parc import Camera, Isosurface, Scene
+
+    def image_of(method):
+        img = np.zeros((2, 2, 4), np.float32)
+        if method == "parc":
+            img[1, 0, 1] = 0.5
+        return img
+
+    comparison = _scripted(monkeypatch, {"brute": [1.0], "parc": [1.0]}, lambda w: {"total": w},
+                           image_of=image_of)
+    vol = blobs(6, seed=1)
+    scene = Scene(camera=Camera.framing(*vol.bounds), size=(2, 2), volumes=[Isosurface(vol, 100.5)])
+    rows = comparison.compare(scene, repeats=1, warmup=0)
+    head, _, brute, parc_line = comparison.format_table(rows).splitlines()[:4]
+    # The last two columns, RMSE and PSNR (headings with spaces split into several words).
+    assert head.split()[-2:] == ["RMSE", "PSNR"]
+    assert brute.split()[-2:] == ["0.00e+00", "inf"] and parc_line.split()[-2:] == ["1.25e-01", "18.1"]
 
 
 def test_step_sweep_speedup_and_error_by_hand(monkeypatch):
@@ -276,7 +299,7 @@ def test_format_table_gives_each_row_its_own_samples_share_and_phases():
     from parc.comparison import format_table
     base = {"seconds": 1.0, "speedup": 1.0, "speedup_low": 1.0, "speedup_high": 1.0, "cells_visited": 0,
             "cubic_solves": 0, "hits": 0, "pixels": 100, "polygons": 0, "hit_mismatches": 0,
-            "max_depth_cells": 0.0, "max_color": 0.0, "psnr": math.inf}
+            "max_depth_cells": 0.0, "max_color": 0.0, "rmse": 0.0, "psnr": math.inf}
     rows = [dict(base, method="brute", opengl_share=0.0, samples=250, phases={"total": 1.0, "cast": 0.75}),
             dict(base, method="parc", opengl_share=0.5, samples=40, phases={"total": 0.5, "raster": 0.25})]
     lines = format_table(rows).splitlines()
