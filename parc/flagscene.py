@@ -48,12 +48,13 @@ def scene_from_flags(args, say):
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ShowsNothingWarning)
         scene = _file_scene(args) if _is_scene_file(args) else _volume_scene(args, say)
+        scene = _add_flag_lights(scene, args, say)
     for w in caught:
         if issubclass(w.category, ShowsNothingWarning):
             say(str(w.message))
         else:
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
-    return _add_flag_lights(scene, args, say)
+    return scene
 
 
 def scene_and_notes(args):
@@ -105,7 +106,7 @@ def _add_flag_lights(scene, args, say):
         except InputError as exc:
             flag = "light" if args.light else "sun" if args.sun else "shadows"
             raise InputError(f"--{flag}: {exc}") from None
-    if scene.shadows and not scene.lights:
+    if scene.shadows and not scene.lights and any(isinstance(v, parc.Isosurface) for v in scene.volumes):
         say("shadows with only the headlight show nothing (the light sits at the eye); add --light or --sun"
             + (", or a [[light]] table to the scene file" if _is_scene_file(args) else ""))
     return scene

@@ -65,8 +65,9 @@ class Isosurface:
 
 
 class ShowsNothingWarning(UserWarning):
-    """A translucent volume's transfer function is transparent over all of the volume's data:
-    the volume adds nothing to the image (`parc render` says so in a note)."""
+    """Part of a scene adds nothing to the image: a translucent volume whose transfer function is
+    transparent over all of its data, or lights and shadows in a scene without an isosurface
+    (`parc render` says so in a note)."""
 
 
 MODES = ("composite", "mip", "average")
@@ -267,7 +268,8 @@ class Scene:
         At least one (required, though it has a default); kept as a tuple.
     lights : list of PointLight or DirectionalLight
         Kept as a tuple.
-        Light sources for isosurfaces (refused for a scene without one);
+        Light sources for isosurfaces (in a scene without one they change nothing, which
+        warns `ShowsNothingWarning`, as ``shadows`` does);
         empty means a headlight at the eye, shining along each pixel's ray (in a parallel
         view, along the view direction, as `DirectionalLight` would, not `PointLight(eye)`).
     background : (r, g, b), (r, g, b, a) or None
@@ -317,15 +319,14 @@ class Scene:
             if not isinstance(light, LIGHTS):
                 raise InputError(f"a light must be a PointLight or a DirectionalLight, got {type(light).__name__}")
         self.shadows = _flag(self.shadows, "shadows")
-        # Lights shine on isosurface hits only; a scene without one would take them and
-        # draw the same image, slower.
+        # Lights shine on isosurface hits only: a scene without one draws the image its
+        # headlight does. Legal (the contract's scenes give lights to either kind of volume), but said.
         if not any(isinstance(v, Isosurface) for v in self.volumes):
-            if self.lights:
-                raise InputError("lights shine on isosurfaces and this scene has none; "
-                                 "translucent volumes are shaded by a headlight at the eye")
-            if self.shadows:
-                raise InputError("shadows fall on isosurfaces and this scene has none; "
-                                 "translucent volumes are shaded by a headlight at the eye")
+            said = [("lights shine", self.lights), ("shadows fall", self.shadows)]
+            for what in (what for what, given in said if given):
+                warnings.warn(f"{what} on isosurfaces and this scene has none: translucent volumes are shaded "
+                              "by a headlight at the eye, and the image is the same without them",
+                              ShowsNothingWarning, stacklevel=_callers_level())
 
     @property
     def width(self):

@@ -160,13 +160,6 @@ def load_scene(path, *, view=None, size=None, progress=None, replaced_by="given 
     if background is not None and not all(0.0 <= c <= 1.0 for c in background):
         raise where.error("background", f"must be numbers in [0, 1], got {list(background)}")
     shadows = top.boolean("shadows", default=False)
-    if not any(isinstance(v, Isosurface) for v in volumes):
-        # The Scene refuses the same, but could not name the table or key asking for them.
-        headlight = "translucent volumes are shaded by a headlight at the eye"
-        if lights:
-            raise where.error("light[1]", f"lights shine on isosurfaces and this scene has none; {headlight}")
-        if shadows:
-            raise where.error("shadows", f"shadows fall on isosurfaces and this scene has none; {headlight}")
     with where.key(None):
         return Scene(camera=camera, size=image_size, volumes=volumes, lights=lights,
                      background=background, shadows=shadows)

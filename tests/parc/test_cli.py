@@ -858,15 +858,20 @@ def test_translucent_flags_that_cannot_apply_are_refused(extra, words, vol_file,
 
 @pytest.mark.parametrize("command", ["render", "compare"])
 @pytest.mark.parametrize("light", [["--light", "1,2,3"], ["--sun", "0,0,-1", "--shadows"], ["--shadows"]])
-def test_lights_on_a_translucent_volume_are_refused(command, light, vol_file, tmp_path, capsys):
-    # They would shine on no isosurface and leave the image as the headlight draws it; --shadows
-    # alone had a note advising --light or --sun, which were then refused.
-    out = tmp_path / "o.png"
-    argv = [command, vol_file, "--tf", "greyscale", "--shade", "--size", 8, 8, *light]
-    rc, _, err = _run(argv + (["-o", out] if command == "render" else []), capsys)
-    words = "shadows fall on isosurfaces" if light == ["--shadows"] else "lights shine on isosurfaces"
-    assert rc == 2 and err.count("\n") == 1 and f"{light[0]}: {words}" in err, err
-    assert not out.exists()
+def test_lights_on_a_translucent_volume_are_said_to_change_nothing(command, light, vol_file, tmp_path, capsys):
+    # They shine on no isosurface: the image is the headlight's, as without them, and a note says
+    # so (--shadows alone gets no advice to add --light or --sun, which would change nothing).
+    argv = [command, vol_file, "--tf", "greyscale", "--shade", "--size", 8, 8]
+    out = [["-o", tmp_path / "lit.npy"], ["-o", tmp_path / "unlit.npy"]] if command == "render" else [[], []]
+    rc, _, err = _run(argv + light + out[0], capsys)
+    said = [w for w, flag in (("lights shine", "--light" in light or "--sun" in light),
+                              ("shadows fall", "--shadows" in light)) if flag]
+    assert rc == 0 and all(f"parc: {w} on isosurfaces and this scene has none" in err for w in said), err
+    assert "add --light" not in err and err.count("on isosurfaces") == len(said)
+    if command == "render":
+        rc, _, err = _run(argv + out[1], capsys)
+        assert rc == 0 and "on isosurfaces" not in err
+        assert (np.load(tmp_path / "lit.npy") == np.load(tmp_path / "unlit.npy")).all()
 
 
 def test_an_output_on_the_input_is_refused(tmp_path, capsys):

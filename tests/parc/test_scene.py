@@ -55,9 +55,20 @@ def test_a_scene_without_volumes_is_refused():
         _scene(volumes=[])
 
 
-def test_shadows_without_an_isosurface_are_refused():
-    with pytest.raises(InputError, match="shadows fall on isosurfaces"):
-        _scene(volumes=[parc.Translucent(VOL, "greyscale")], shadows=True)
+@pytest.mark.parametrize("given, said", [
+    ({"shadows": True}, ["shadows fall"]),
+    ({"lights": [parc.PointLight((1, 2, 3))]}, ["lights shine"]),
+    ({"lights": [parc.DirectionalLight((0, 0, -1))], "shadows": True}, ["lights shine", "shadows fall"])])
+def test_lights_and_shadows_without_an_isosurface_are_taken_and_said_to_change_nothing(given, said):
+    # The contract's scene gives lights to an isosurface or a translucent volume alike.
+    volumes = [parc.Translucent(VOL, "greyscale", shade=True)]
+    with pytest.warns(parc.ShowsNothingWarning) as caught:
+        scene = _scene(volumes=volumes, **given)
+    assert [str(w.message).partition(" on isosurfaces and this scene has none")[0] for w in caught] == said
+    assert all(w.filename == __file__ for w in caught)
+    plain = _scene(volumes=volumes)
+    for method in ("brute", "parc"):
+        assert (parc.render(scene, method=method).image == parc.render(plain, method=method).image).all()
 
 
 @pytest.mark.parametrize("make", [

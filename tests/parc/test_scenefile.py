@@ -110,6 +110,17 @@ def test_a_background_may_give_its_opacity(folder):
     assert load_scene(path).background == (0.1, 0.2, 0.3, 0.5)
 
 
+def test_lights_and_shadows_of_a_translucent_scene_are_taken_with_a_warning(folder):
+    # The Scene's own warning, said where load_scene was called (the CLI turns it into a note).
+    path = write(folder, "shadows = true\n[[volume]]\nfile = 'data/ball.nrrd'\ntf = 'greyscale'\n"
+                         "[[light]]\nposition = [0, 0, 0]\n")
+    with pytest.warns(parc.ShowsNothingWarning) as caught:
+        scene = load_scene(path)
+    assert scene.shadows and len(scene.lights) == 1
+    assert sorted(str(w.message).split(" on isosurfaces")[0] for w in caught) == ["lights shine", "shadows fall"]
+    assert all(w.filename == __file__ for w in caught)
+
+
 def test_default_camera_frames_all_volumes(folder):
     path = write(folder, """\
         [camera]
@@ -373,10 +384,6 @@ BAD = [
     ("[[volume]]\nfile = 'data/ball.nrrd'\ndtype = 'float128'\niso = 0", "volume[1].dtype",
      "only to headerless raw files"),
     ("[camera]\neye = [0, 0, 50]\nlook_at = [0, 0, 0]\nup = [0, 0, 0]\n{V}", "camera.up", "is zero"),
-    ("[[volume]]\nfile = 'data/ball.nrrd'\ntf = 'greyscale'\n[[light]]\nposition = [0, 0, 0]", "light[1]",
-     "lights shine on isosurfaces and this scene has none"),
-    ("shadows = true\n[[volume]]\nfile = 'data/ball.nrrd'\ntf = 'greyscale'", "shadows",
-     "shadows fall on isosurfaces and this scene has none"),
     # One check each: a row fails where its check is dropped or loosened.
     ("[[volume]]\nfile = 'data/ball.nrrd'\niso = true", "volume[1].iso", "must be a finite number, got a boolean true"),
     ("size = [true, 16]\n{V}", "size", "an array of 2 integers"),
