@@ -7,28 +7,13 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from bench_rows import compare_row, table_cells
 from parc.bench import parker, report, sweeps, tables
 
 
-def _row(method, seconds, phases=None, **kw):
-    """A `parc.compare` row as the bench sections read it."""
-    row = {"method": method, "seconds": seconds, "phases": phases or {}, "cells_visited": 0, "cubic_solves": 0,
-           "samples": 0, "pixels": 64, "polygons": 0, "supercell": None, "hits": 0, "speedup": 1.0,
-           "hit_mismatches": 0, "max_depth_cells": 0.0, "max_color": 0.0, "psnr": float("inf")}
-    return {**row, **kw}
-
-
-def _table_cells(md, heading):
-    """The first table after ``heading`` in ``md`` (a list of report lines), as dicts of its cells."""
-    after = md[next(i for i, part in enumerate(md) if part.startswith(heading)):]
-    lines = next(part for part in after if part.startswith("| ")).splitlines()
-    head = [c.strip() for c in lines[0].strip("|").split("|")]
-    return [dict(zip(head, (c.strip() for c in line.strip("|").split("|")))) for line in lines[2:]]
-
-
 def test_supercell_sweep_divides_cells_by_pixels_and_sums_the_proxy_phases(monkeypatch):
-    rows = [_row("brute", 0.8, {"cast": 0.7}, cells_visited=6400, pixels=64),
-            _row("parc", 0.2, {"classify": 0.01, "proxy": 0.02, "raster": 0.04, "cast": 0.1}, cells_visited=320,
+    rows = [compare_row("brute", 0.8, {"cast": 0.7}, cells_visited=6400, pixels=64),
+            compare_row("parc", 0.2, {"classify": 0.01, "proxy": 0.02, "raster": 0.04, "cast": 0.1}, cells_visited=320,
                  pixels=64, supercell=[4.0, 4.0, 4.0], polygons=12, speedup=4.0)]
     monkeypatch.setattr(sweeps.scenes, "ct_iso", lambda *a: (None, "stand-in"))
     monkeypatch.setattr(sweeps, "compare", lambda *a, **kw: rows)
@@ -48,8 +33,8 @@ def test_thread_scaling_is_frames_per_second_over_one_threads(monkeypatch):
     monkeypatch.setattr(parker.numba, "get_num_threads", lambda: 1)
     monkeypatch.setattr(parker.numba, "set_num_threads", lambda k: now.update(k=k))
     monkeypatch.setattr(parker.scenes, "ct_iso", lambda *a: (None, "stand-in"))
-    monkeypatch.setattr(parker, "compare", lambda *a, **kw: [_row("brute", seconds[now["k"]][0]),
-                                                            _row("parc", seconds[now["k"]][1])])
+    monkeypatch.setattr(parker, "compare", lambda *a, **kw: [compare_row("brute", seconds[now["k"]][0]),
+                                                            compare_row("parc", seconds[now["k"]][1])])
     suite = SimpleNamespace(parker_size=8, repeats=1, data_dir=None, small_volumes=True)
     got = parker.thread_scaling(suite, lambda m: None)["rows"]
     assert [r["threads"] for r in got] == [1, 2, 4]
@@ -66,8 +51,8 @@ def test_time_shares_split_the_cast_into_traversal_intersection_and_shading(monk
     monkeypatch.setattr(parker, "_solve_seconds", lambda r: 0.2)
     monkeypatch.setattr(parker, "_shade_seconds", lambda *a: 0.1)
     monkeypatch.setattr(parker, "compare", lambda *a, **kw: [
-        _row("brute", 1.0, {"cast": 0.9}, cubic_solves=10),
-        _row("parc", 0.6, {"classify": 0.05, "proxy": 0.05, "raster": 0.1, "cast": 0.35}, cubic_solves=10)])
+        compare_row("brute", 1.0, {"cast": 0.9}, cubic_solves=10),
+        compare_row("parc", 0.6, {"classify": 0.05, "proxy": 0.05, "raster": 0.1, "cast": 0.35}, cubic_solves=10)])
     suite = SimpleNamespace(parker_size=8, repeats=1, data_dir=None, small_volumes=True)
     got = parker.time_shares(suite, lambda m: None)["rows"][:2]
     brute, parc = ({k: pytest.approx(v) for k, v in r["parts_seconds"].items()} for r in got)
@@ -78,10 +63,10 @@ def test_time_shares_split_the_cast_into_traversal_intersection_and_shading(monk
 
 
 def test_table1_casting_includes_each_raster_pass_and_the_ideal_is_its_scenes(monkeypatch):
-    runs = [_row("brute", 1.0, {"cast": 0.9}, samples=1000),
-            _row("parc:segments", 0.5, {"cast": 0.3, "raster": 0.1}, samples=600, speedup=2.0),
-            _row("parc", 0.4, {"cast": 0.2, "raster": 0.1}, samples=300, speedup=2.5),
-            _row("parc:bits", 0.4, {"cast": 0.15, "raster": 0.1, "raster_bits": 0.05}, samples=300, speedup=2.5)]
+    runs = [compare_row("brute", 1.0, {"cast": 0.9}, samples=1000),
+            compare_row("parc:segments", 0.5, {"cast": 0.3, "raster": 0.1}, samples=600, speedup=2.0),
+            compare_row("parc", 0.4, {"cast": 0.2, "raster": 0.1}, samples=300, speedup=2.5),
+            compare_row("parc:bits", 0.4, {"cast": 0.15, "raster": 0.1, "raster_bits": 0.05}, samples=300, speedup=2.5)]
     monkeypatch.setattr(tables.scenes, "ct_translucent",
                         lambda size, *a: (SimpleNamespace(size=size, volumes=[None]), "stand-in"))
     monkeypatch.setattr(tables, "work_maps", lambda *a: None)
@@ -115,7 +100,7 @@ def test_visible_woman_table_is_per_pixel_of_the_image(tmp_path):
           "surfaces": [surface], "iso_change": {"isovalue": 1200.5, "reclassify_proxy_seconds": 0.1,
                                                 "first_frame_seconds": 0.2}}
     md = report.scale({"visible_woman": vw}, tmp_path)
-    row = _table_cells(md, "## 4. Visible Woman scale")[0]
+    row = table_cells(md, "## 4. Visible Woman scale")[0]
     assert (row["cells/px brute"], row["cells/px parc"], row["ideal cells/px"]) == ("100.0", "5.0", "1.50")
     assert (row["speedup"], row["parc FPS"]) == ("10.00×", "20.0")
 
@@ -126,7 +111,7 @@ def test_time_shares_never_give_shading_more_than_the_cast_leaves(monkeypatch):
     monkeypatch.setattr(parker, "recorded_walk", lambda scene: (None, None, None, np.zeros((4, 5))))
     monkeypatch.setattr(parker, "_solve_seconds", lambda r: 0.2)
     monkeypatch.setattr(parker, "_shade_seconds", lambda *a: 0.5)
-    monkeypatch.setattr(parker, "compare", lambda *a, **kw: [_row("brute", 1.0, {"cast": 0.6}, cubic_solves=4)])
+    monkeypatch.setattr(parker, "compare", lambda *a, **kw: [compare_row("brute", 1.0, {"cast": 0.6}, cubic_solves=4)])
     suite = SimpleNamespace(parker_size=8, repeats=1, data_dir=None, small_volumes=True)
     parts = parker.time_shares(suite, lambda m: None)["rows"][0]["parts_seconds"]
     assert {k: pytest.approx(v) for k, v in parts.items()} == {"traversal": 0.0, "intersection": 0.2,
@@ -138,8 +123,8 @@ def test_table2_ideal_is_brutes_cubics_and_samples_stopped_at_brutes_surface(mon
     monkeypatch.setattr(tables, "render", lambda scene, method: SimpleNamespace(depth=depth))
     # 5 samples when stopped at brute's depth, 9 without a stop.
     monkeypatch.setattr(tables, "ideal_samples", lambda scene, vis, stop=None: 5 if stop is depth else 9)
-    monkeypatch.setattr(tables, "_rows", lambda *a: [_row("brute", 1.0, {"cast": 0.9}, cubic_solves=40),
-                                                     _row("parc", 0.5, {"cast": 0.4}, cubic_solves=39)])
+    monkeypatch.setattr(tables, "_rows", lambda *a: [compare_row("brute", 1.0, {"cast": 0.9}, cubic_solves=40),
+                                                     compare_row("parc", 0.5, {"cast": 0.4}, cubic_solves=39)])
     suite = SimpleNamespace(sizes=(4,), data_dir=None, small_volumes=True, repeats=1)
     got = tables.table2(suite, lambda m: None, {})["rows"]
     assert [(r["ideal_cells"], r["ideal_samples"]) for r in got] == [(40, 5), (40, 5)]
@@ -153,8 +138,8 @@ def test_precision_errors_are_each_storage_against_float64_and_parc_against_brut
     monkeypatch.setattr(sweeps, "render", render)
     monkeypatch.setattr(sweeps, "image_error", lambda run, ref, cell: {
         "hit_mismatches": 0, "max_depth_cells": 0.0, "max_color": abs(order[run.dtype] - order[ref.dtype])})
-    monkeypatch.setattr(sweeps, "compare", lambda *a, **kw: [_row("brute", 1.0, max_color=0.0),
-                                                             _row("parc", 0.5, max_color=0.25)])
+    monkeypatch.setattr(sweeps, "compare", lambda *a, **kw: [compare_row("brute", 1.0, max_color=0.0),
+                                                             compare_row("parc", 0.5, max_color=0.25)])
     suite = SimpleNamespace(parker_size=4, data_dir=None, small_volumes=True, repeats=1)
     got = sweeps.precision(suite, lambda m: None)["rows"]
     assert [(r["dtype"], r["max_color"]) for r in got] == [("int16", 2.0), ("float64", 0.0), ("float32", 1.0),
@@ -170,10 +155,10 @@ def test_the_paper_tables_show_each_rows_own_counts(tmp_path):
            "cast_seconds": 0.25, "total_seconds": 0.5, "speedup": 2.0, "hit_mismatches": 0, "max_color": 0.0}]
     md = report.paper_tables({"table1": {"rows": t1, "source": "-", "work_size": 8},
                               "table2": {"rows": t2, "source": "-"}, "table3": {"rows": [], "source": "-"}}, tmp_path)
-    one = _table_cells(md, "### Table 1")[0]
+    one = table_cells(md, "### Table 1")[0]
     assert (one["samples (×10³)"], one["ideal samples (×10³)"], one["casting (s)"], one["total (s)"]) == \
         ("12.0", "3.0", "0.250", "0.500")
-    two = _table_cells(md, "### Table 2")[0]
+    two = table_cells(md, "### Table 2")[0]
     assert (two["cells (×10³)"], two["ideal cells (×10³)"], two["samples (×10³)"], two["ideal samples (×10³)"]) == \
         ("7.0", "2.0", "5.0", "4.0")
 
@@ -188,8 +173,8 @@ def test_visible_woman_ideal_is_brutes_cubics(monkeypatch, tmp_path):
     ct_phantom_to_disk(str(path), (16, 16, 24))
     monkeypatch.setattr(parc.renderer, "render", lambda scene, method: SimpleNamespace(stats={"seconds": {}}))
     monkeypatch.setattr(parc.comparison, "compare", lambda *a, **kw: [
-        _row("brute", 1.0, cells_visited=900, cubic_solves=40),
-        _row("parc", 0.5, {"raster": 0.1}, cells_visited=60, cubic_solves=38, speedup=2.0)])
+        compare_row("brute", 1.0, cells_visited=900, cubic_solves=40),
+        compare_row("parc", 0.5, {"raster": 0.1}, cells_visited=60, cubic_solves=38, speedup=2.0)])
     got = scale.measure(str(path), 4, 1, lambda m: None)["surfaces"]
     assert [(s["brute_cells"], s["parc_cells"], s["ideal_cells"], s["speedup"]) for s in got] == [(900, 60, 40, 2.0)] * 2
 
@@ -226,7 +211,7 @@ def test_thread_table_says_what_each_ratio_is_against(tmp_path):
     th = {"size": 8, "cores": 2, "rows": [
         {"threads": 1, "brute_fps": 1.0, "parc_fps": 4.0, "brute_speedup": 1.0, "parc_speedup": 1.0},
         {"threads": 2, "brute_fps": 2.0, "parc_fps": 5.0, "brute_speedup": 2.0, "parc_speedup": 1.25}]}
-    rows = _table_cells(report.parker({"time_shares": sh, "threads": th}, tmp_path), "### Thread scaling")
+    rows = table_cells(report.parker({"time_shares": sh, "threads": th}, tmp_path), "### Thread scaling")
     assert [(r["brute vs 1 thread"], r["parc vs 1 thread"], r["speedup (parc over brute)"]) for r in rows] == \
         [("1.00×", "1.00×", "4.00×"), ("2.00×", "1.25×", "2.50×")]
 

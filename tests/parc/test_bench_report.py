@@ -9,24 +9,9 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from bench_rows import compare_row, table_cells
 from parc.bench import _checks_md, charts, parker, report, scenes, sweeps, tables
 from parc.bench.charts import PALETTE
-
-
-def _row(method, seconds, phases=None, **kw):
-    """A `parc.compare` row as the bench sections read it."""
-    row = {"method": method, "seconds": seconds, "phases": phases or {}, "cells_visited": 0, "cubic_solves": 0,
-           "samples": 0, "pixels": 64, "polygons": 0, "supercell": None, "hits": 0, "speedup": 1.0,
-           "hit_mismatches": 0, "max_depth_cells": 0.0, "max_color": 0.0, "psnr": float("inf")}
-    return {**row, **kw}
-
-
-def _table_cells(md, heading):
-    """The first table after ``heading`` in ``md`` (a list of report lines), as dicts of its cells."""
-    after = md[next(i for i, part in enumerate(md) if part.startswith(heading)):]
-    lines = next(part for part in after if part.startswith("| ")).splitlines()
-    head = [c.strip() for c in lines[0].strip("|").split("|")]
-    return [dict(zip(head, (c.strip() for c in line.strip("|").split("|")))) for line in lines[2:]]
 
 
 def _rgb(path):
@@ -48,7 +33,7 @@ def test_table1_compares_the_papers_methods_with_their_own_buffers(monkeypatch):
 
     def compare(scene, methods, options, **kw):
         seen.append((list(methods), copy.deepcopy(options)))
-        return [_row(m, 1.0, samples=10) for m in methods]
+        return [compare_row(m, 1.0, samples=10) for m in methods]
     monkeypatch.setattr(tables, "compare", compare)
     monkeypatch.setattr(tables.scenes, "ct_translucent",
                         lambda size, *a: (SimpleNamespace(size=(size, size), volumes=[None]), "stand-in"))
@@ -68,7 +53,7 @@ def test_table1_work_maps_are_of_the_size_the_report_names(monkeypatch):
     drawn = []
     monkeypatch.setattr(tables.scenes, "ct_translucent",
                         lambda size, *a: (SimpleNamespace(size=(size, size), volumes=[None]), "stand-in"))
-    monkeypatch.setattr(tables, "_rows", lambda *a: [_row("brute", 1.0, samples=10)])
+    monkeypatch.setattr(tables, "_rows", lambda *a: [compare_row("brute", 1.0, samples=10)])
     monkeypatch.setattr(tables, "ideal_samples", lambda *a, **kw: 5)
     monkeypatch.setattr(tables, "work_maps", lambda scene, count: drawn.append(scene.size) or {"checks": {}})
     suite = SimpleNamespace(sizes=(8, 16), data_dir=None, small_volumes=True, repeats=1)
@@ -89,7 +74,7 @@ def test_supercell_sweep_runs_brute_the_cost_models_choice_and_every_size_asked(
 
     def compare(scene, methods, options, **kw):
         seen.update(methods=list(methods), options=options)
-        return [_row(m, 1.0, supercell=options.get(m, {}).get("supercell") and [options[m]["supercell"]] * 3)
+        return [compare_row(m, 1.0, supercell=options.get(m, {}).get("supercell") and [options[m]["supercell"]] * 3)
                 for m in methods]
     monkeypatch.setattr(sweeps.scenes, "ct_iso", lambda *a: (None, "stand-in"))
     monkeypatch.setattr(sweeps, "compare", compare)
@@ -119,7 +104,7 @@ def test_precision_rows_count_each_stored_volumes_bytes_and_errors_in_smallest_s
 
     def compare(scene, methods, **kw):
         iso.append(scene.volumes[0].value)
-        return [_row("brute", 1.0), _row("parc", 0.5)]
+        return [compare_row("brute", 1.0), compare_row("parc", 0.5)]
     monkeypatch.setattr(sweeps, "render", lambda scene, method: None)
     monkeypatch.setattr(sweeps, "image_error", image_error)
     monkeypatch.setattr(sweeps, "compare", compare)
@@ -144,7 +129,7 @@ def test_thread_scaling_runs_one_thread_the_powers_of_two_and_every_thread(monke
 
     def compare(*a, **kw):
         ran.append(now["k"])
-        return [_row("brute", 1.0 / now["k"]), _row("parc", 0.5 / now["k"])]
+        return [compare_row("brute", 1.0 / now["k"]), compare_row("parc", 0.5 / now["k"])]
     monkeypatch.setattr(parker, "compare", compare)
     suite = SimpleNamespace(parker_size=8, repeats=1, data_dir=None, small_volumes=True)
     got = parker.thread_scaling(suite, lambda m: None)
@@ -163,7 +148,7 @@ def test_time_shares_are_measured_on_one_thread_and_give_the_threads_back(monkey
     monkeypatch.setattr(parker, "_solve_seconds", lambda r: ran.append(("solve", now["k"])) or 0.1)
     monkeypatch.setattr(parker, "_shade_seconds", lambda *a: ran.append(("shade", now["k"])) or 0.1)
     monkeypatch.setattr(parker, "compare", lambda *a, **kw: ran.append(("frame", now["k"])) or [
-        _row("brute", 1.0, {"cast": 0.9}, cubic_solves=4)])
+        compare_row("brute", 1.0, {"cast": 0.9}, cubic_solves=4)])
     parker.time_shares(SimpleNamespace(parker_size=8, repeats=1, data_dir=None, small_volumes=True), lambda m: None)
     assert ran == [("solve", 1), ("shade", 1), ("frame", 1)] * 2
     assert now["k"] == 2
@@ -237,7 +222,7 @@ def _parker_results(th_rows=()):
 
 
 def test_time_share_columns_are_each_parts_own(tmp_path):
-    rows = _table_cells(report.parker(_parker_results(), tmp_path), "### Share of time")
+    rows = table_cells(report.parker(_parker_results(), tmp_path), "### Share of time")
     assert [(r["traversal"], r["intersection"], r["shading"], r["OpenGL"], r["other"]) for r in rows] == [
         ("10%", "20%", "30%", "40%", "0%"), ("25%", "25%", "0%", "–", "50%")]
 
@@ -285,15 +270,15 @@ def _sweep_results(sc_rows=None, st_rows=None):
 
 def test_sweep_tables_show_each_rows_own_numbers(tmp_path):
     md = report.sweeps(_sweep_results(), tmp_path)
-    sc = _table_cells(md, "### Supercell size")[1]
+    sc = table_cells(md, "### Supercell size")[1]
     assert (sc["polygons"], sc["classify+proxy+raster (s)"], sc["cells/pixel"], sc["total (s)"], sc["speedup"]) == \
         ("1,234", "0.0500", "3.0", "0.200", "4.00×")
-    st = _table_cells(md, "### Sample step")
+    st = table_cells(md, "### Sample step")
     assert [(r["brute samples (×10³)"], r["parc samples (×10³)"], r["PSNR (dB)"]) for r in st] == [
         ("9.0", "4.0", "40.0"), ("18.0", "8.0", "inf")]
-    roots = _table_cells(md, "### Cubic root finders")[0]
+    roots = table_cells(md, "### Cubic root finders")[0]
     assert (roots["ns/solve"], roots["max error"], roots["median error"]) == ("50.0", "2.0e-10", "1.0e-12")
-    assert _table_cells(md, "### Storage precision")[0]["MB"] == "2.5"
+    assert table_cells(md, "### Storage precision")[0]["MB"] == "2.5"
 
 
 @pytest.mark.parametrize("error, words", [(0.0, "every image equal to brute's"), (1e-3, "errors in the table")])
@@ -399,8 +384,8 @@ def test_visible_woman_proxy_time_is_classification_and_proxy_and_raster_is_parc
     first = {"classify": 0.25, "proxy": 0.5, "raster": 0.125, "cast": 1.0}
     monkeypatch.setattr(parc.renderer, "render", lambda scene, method: SimpleNamespace(stats={"seconds": first}))
     monkeypatch.setattr(parc.comparison, "compare", lambda *a, **kw: [
-        _row("brute", 1.0, {"cast": 0.9}, cells_visited=900, cubic_solves=40),
-        _row("parc", 0.5, {"raster": 0.0625, "cast": 0.3}, cells_visited=60, cubic_solves=38, speedup=2.0)])
+        compare_row("brute", 1.0, {"cast": 0.9}, cells_visited=900, cubic_solves=40),
+        compare_row("parc", 0.5, {"raster": 0.0625, "cast": 0.3}, cells_visited=60, cubic_solves=38, speedup=2.0)])
     got = scale.measure(str(path), 4, 1, lambda m: None)
     assert [(s["proxy_build_seconds"], s["raster_seconds"]) for s in got["surfaces"]] == [(0.75, 0.0625)] * 2
     assert got["iso_change"]["reclassify_proxy_seconds"] == 0.75

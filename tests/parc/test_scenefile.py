@@ -121,8 +121,9 @@ def test_lights_and_shadows_of_a_translucent_scene_are_taken_with_a_warning(fold
     assert all(w.filename == __file__ for w in caught)
 
 
-def test_default_camera_frames_all_volumes(folder):
-    path = write(folder, """\
+@pytest.mark.parametrize("y, centre", [(30, 22.5), (-30, -7.5)])
+def test_default_camera_frames_all_volumes(folder, y, centre):
+    path = write(folder, f"""\
         [camera]
         eye = [100, 7.5, 7.5]
         [[volume]]
@@ -131,31 +132,15 @@ def test_default_camera_frames_all_volumes(folder):
         [[volume]]
         file = "data/ball.nrrd"
         iso = 1
-        origin = [0, 30, 0]
+        origin = [0, {y}, 0]
     """)
     scene = load_scene(path)
-    # look_at defaults to the centre of the union of the boxes: x, z 0..15, y 0..45.
-    assert scene.camera.look_at == (7.5, 22.5, 7.5) and scene.camera.eye == (100.0, 7.5, 7.5)
+    # look_at defaults to the centre of the union of the boxes: x, z 0..15, y from 0 or y to 15 or y + 15.
+    assert scene.camera.look_at == (7.5, centre, 7.5) and scene.camera.eye == (100.0, 7.5, 7.5)
     assert scene.camera.up == (0.0, 0.0, 1.0) and scene.camera.fov == 30.0
     # The same file with the same placement is one Volume; a new placement shares its samples.
     a, b = (v.volume for v in scene.volumes)
-    assert a is not b and a.data is b.data and b.origin == (0.0, 30.0, 0.0)
-
-
-def test_default_look_at_is_the_centre_of_boxes_below_the_origin(folder):
-    # The second box reaches to y = -30: the union is x, z 0..15, y -30..15, its centre by hand.
-    path = write(folder, """\
-        [camera]
-        eye = [100, 0, 7.5]
-        [[volume]]
-        file = "data/ball.nrrd"
-        iso = 0
-        [[volume]]
-        file = "data/ball.nrrd"
-        iso = 1
-        origin = [0, -30, 0]
-    """)
-    assert load_scene(path).camera.look_at == (7.5, -7.5, 7.5)
+    assert a is not b and a.data is b.data and b.origin == (0.0, float(y), 0.0)
 
 
 def test_same_data_and_placement_share_one_volume(folder):
