@@ -106,8 +106,6 @@ CASES = {
                                                "this one has an isosurface"),
     "depth and bit planes for an isosurface, brute": (lambda: parc.render(_scene(), buffers=("depth", "bits")),
                                                       "this one has an isosurface"),
-    "lights on a translucent volume": (lambda: _scene(volumes=[parc.Translucent(VOL, "greyscale")],
-                                                      lights=[parc.PointLight((1, 2, 3))]), "shine on isosurfaces"),
     "bit planes for two volumes": (lambda: parc.render(_scene(volumes=[parc.Translucent(VOL, "greyscale")] * 2),
                                                        method="parc", buffers="bits"), "has 2 volumes"),
     "supercell as text for brute": (lambda: parc.render(_scene(), supercell="a"), "supercell"),
