@@ -72,7 +72,21 @@ class _Parser(argparse.ArgumentParser):
                     action.required = True
             if unknown:
                 message = f"unrecognized arguments: {' '.join(unknown)}"
+        if message.startswith("unrecognized arguments: "):
+            # "--light x,y,z ..." reads as one flag taking several lights.
+            given = getattr(self, "_given", [])
+            flag = next((f for f in ("--light", "--sun") if f in given), None)
+            if flag and any(TRIPLE.fullmatch(w) for w in message.partition(": ")[2].split()):
+                message += one_flag_a_light(flag)
         raise InputError(message)
+
+
+def one_flag_a_light(flag):
+    return f"; give {flag} once for each light: {flag} x,y,z {flag} x,y,z"
+
+
+#: Three comma-separated values: a light's position or direction.
+TRIPLE = re.compile(r"[^,\s]+,[^,\s]+,[^,\s]+")
 
 
 class _OneSurface(argparse.Action):

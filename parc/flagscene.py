@@ -8,6 +8,7 @@ are refused in one line, not ignored.
 """
 from __future__ import annotations
 
+import os
 import warnings
 
 import numpy as np
@@ -23,6 +24,12 @@ from .scene import DEFAULT_THRESHOLD, ShowsNothingWarning, check_eye_resolves, c
 def load_volume_flags(args):
     """The volume file the flags name, read with the raw-format flags (`parc info`, `parc convert`)."""
     from data_tools.io import load_volume
+
+    from .arguments import TRIPLE, one_flag_a_light
+    flag = next((f"--{f}" for f in ("light", "sun") if getattr(args, f, None)), None)
+    if flag and args.volume and TRIPLE.fullmatch(args.volume) and not os.path.exists(args.volume):
+        # "--light x,y,z x,y,z" with no volume before it: argparse took the second light for one.
+        raise InputError(f"{args.volume}: no such file{one_flag_a_light(flag)}")
     if _is_scene_file(args):
         raise InputError(f"{args.volume}: a scene file; parc {args.command} reads one volume file "
                          "(parc render and parc compare read scenes)")

@@ -241,3 +241,23 @@ def test_parcs_flags_without_parc_are_refused_before_any_note_of_compiling(vol_f
     monkeypatch.setattr(parc.cli, "compile_notice", lambda say, kernels: say("compiling the ray casters"))
     rc, _, err = _run(["compare", vol_file, "--iso", 3, "--size", 8, 8, "--methods", "brute", "--no-blocks"], capsys)
     assert rc == 2 and err == "parc: error: --no-blocks applies to parc, which --methods leaves out\n", err
+
+
+@pytest.mark.parametrize("flag", ["--light", "--sun"])
+@pytest.mark.parametrize("with_volume", [True, False])
+def test_two_lights_after_one_flag_are_refused_with_the_flag_once_a_light(flag, with_volume, vol_file, tmp_path,
+                                                                          capsys):
+    # argparse reads the second light as an unknown argument, or as the volume where none came first.
+    volume = [vol_file] if with_volume else []
+    out = tmp_path / "o.png"
+    for second in ("1,0,-1", "-1,0,-1"):
+        taken = f"{second}: no such file" if not volume and second[0] != "-" else f"unrecognized arguments: {second}"
+        _refused(["render", *volume, flag, "0,0,-1", second, "-o", out],
+                 f"{taken}; give {flag} once for each light: {flag} x,y,z {flag} x,y,z", capsys)
+        assert not out.exists()
+
+
+def test_an_unknown_argument_without_lights_gets_no_advice_on_them(vol_file, tmp_path, capsys):
+    _refused(["render", vol_file, "1,2,3", "-o", tmp_path / "o.png"], "unrecognized arguments: 1,2,3", capsys)
+    rc, _, err = _run(["render", "--light", "1,2,3", "nosuch.nrrd", "-o", tmp_path / "o.png"], capsys)
+    assert rc == 2 and "no such file" in err and "once for each light" not in err
