@@ -190,3 +190,27 @@ def test_a_highlight_without_a_diffuse_term_is_lit_and_shadowed(gl, method):
     h = np.array([1.0, 0.0, 1.0 + ROOT2]) / np.linalg.norm([1.0, 0.0, 1.0 + ROOT2])     # (l + v) / |l + v|
     for occluders, want in (([], 0.2 + 0.5 * h[2] ** 4), ([_wall(25.0, 27.0)], 0.2)):
         np.testing.assert_allclose(_render(occluders, [SUN], method, floor), want, atol=2e-6, rtol=0)
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_a_lamp_standing_on_the_floor_adds_nothing_even_at_the_point_it_stands_on(gl, method):
+    # The lamp lies in the floor's plane, so every other floor point sees it at n.l = 0; at the
+    # pixel whose hit is the lamp's position, exactly, the direction to it is undefined and the
+    # lamp gives neither diffuse light nor a highlight (the limit of its neighbours), while the
+    # sun from +x still lights that pixel as every other: 0.2 + 0.8 n.l + 0.2 (n.h)^4 throughout.
+    lamp = PointLight((10.5, 5.5, FLOOR_Z))
+    p = _floor_points()
+    at = np.argwhere((p == lamp.position).all(-1))
+    assert len(at) == 1
+    floor = _floor((0.2, 0.8, 0.2, 4.0))
+    h = np.array([1.0, 0.0, 1.0 + ROOT2]) / np.linalg.norm([1.0, 0.0, 1.0 + ROOT2])
+    want = 0.2 + 0.8 / ROOT2 + 0.2 * h[2] ** 4
+    o, d = CAM.rays(*SIZE)
+    (y, x), = at
+    name, _, pixels = method.partition(":")
+    for lights in ([lamp, SUN], [SUN, lamp]):
+        scene = Scene(camera=CAM, size=SIZE, volumes=[floor], lights=lights, shadows=True)
+        res = render(scene, name, light_buffer=int(pixels) if pixels else None)
+        np.testing.assert_array_equal(o[y, x] + res.depth[y, x] * d[y, x], lamp.position)
+        np.testing.assert_allclose(res.image[..., :3], want, atol=2e-6, rtol=0)
+    np.testing.assert_allclose(_render([], [lamp], method, floor), 0.2, atol=2e-6, rtol=0)
