@@ -110,6 +110,15 @@ def _histogram_lines(hist, sampled):
     return lines
 
 
+def _size_text(nbytes) -> str:
+    """Bytes in the largest unit (up to MiB) that leaves a small volume's size above 0.0."""
+    if nbytes < 1024:
+        return f"{nbytes} bytes"
+    if nbytes < 2**20:
+        return f"{nbytes / 1024:.1f} KiB"
+    return f"{nbytes / 2**20:.1f} MiB"
+
+
 def format_info(info: dict) -> str:
     """Human-readable multi-line text of a :func:`volume_info` dict."""
     nx, ny, nz = info["dims"]
@@ -117,7 +126,7 @@ def format_info(info: dict) -> str:
     lines = [
         f"volume:      {info['name']}" + (f" ({info['format']})" if "format" in info else ""),
         f"dimensions:  {nx} x {ny} x {nz} (x, y, z), {nx * ny * nz} samples",
-        f"type:        {info['dtype']}, {info['nbytes'] / 2**20:.1f} MiB",
+        f"type:        {info['dtype']}, {_size_text(info['nbytes'])}",
         f"spacing:     {triple(info['spacing'])}",
         f"origin:      {triple(info['origin'])}",
         f"extent:      {triple(info['extent'])}",

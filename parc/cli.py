@@ -514,8 +514,14 @@ def cmd_compare(args):
         _out(to_json(rows))
     else:
         _out(_heading(args, scene))
-        _out(format_table(rows))
+        sweep = [SUPERCELL_SWEEP_NOTE] if args.sweep_supercell is not None else []
+        _out(format_table(rows, notes=sweep))
     return 0
+
+
+#: Under a supercell sweep's table: what its rows' labels mean.
+SUPERCELL_SWEEP_NOTE = ("parc:S: parc with supercells of S cells a side (SxTxU: S by T by U cells); "
+                        "the images never depend on S, its times and counts do.")
 
 
 def _heading(args, scene, sweeping_step=False):

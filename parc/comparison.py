@@ -265,8 +265,22 @@ PHASE_NOTES = {
 }
 
 
-def format_table(rows):
-    """A readable terminal table of `compare` rows."""
+#: The rest of `format_table`'s columns, for the legend under it: units and what each counts or compares.
+COLUMN_NOTES = {
+    "time s": "the median wall time of one render call, in seconds.",
+    "cells/px, samples/px, hits/px": "cells visited (isosurfaces), samples taken (translucent volumes) and "
+                                     "pixels where a surface is hit, over the image's pixels; polygons: the "
+                                     "proxy faces rasterized.",
+    "hit≠, max Δdepth, max Δcolour, RMSE, PSNR": "the image against brute's: pixels hit in one and not the "
+                                                 "other; the largest depth difference where both hit, in cells "
+                                                 "of the first volume's smallest spacing; the largest difference "
+                                                 "and the root mean square over RGBA channels (0 to 1); PSNR in "
+                                                 "dB, inf where the images are identical.",
+}
+
+
+def format_table(rows, notes=()):
+    """A readable terminal table of `compare` rows; ``notes``, lines of text, join its legend."""
     head = ("method", "time s", "speedup", "rounds", "OpenGL", "cells/px", "cubics/px", "samples/px", "hits/px",
             "polygons", "hit≠", "max Δdepth", "max Δcolour", "RMSE", "PSNR")
     lines = []
@@ -290,6 +304,8 @@ def format_table(rows):
     out.append("OpenGL: the share of the frame spent in OpenGL passes (phases " + ", ".join(OPENGL_PHASES) + ").")
     out.append("cubics/px: cells whose range holds the isovalue, up to the hit: the fewest cells per pixel "
                "a caster that bounds whole cells can visit (sub-cell supercells can visit fewer).")
+    out += [f"{k}: {v}" for k, v in COLUMN_NOTES.items()]
+    out += list(notes)
     phases = sorted({k for r in rows for k in r["phases"]})
     out.append("")
     out.append("seconds per phase (the median run): " + ", ".join(phases))
@@ -433,4 +449,6 @@ def format_step_table(rows):
         fine = min(r["step"] for r in rows) / 4
         out.append(f"max Δ vs fine, PSNR: brute's image against brute's at step {exact_text(fine)} (a quarter of the "
                    "finest), the reference; parc≠brute: max |Δcolour| between the methods at one step.")
+        out.append("step: world distance between samples; brute s, parc s: median seconds of a render; "
+                   "max Δ and parc≠brute over RGBA channels (0 to 1); PSNR in dB, inf where identical.")
     return "\n".join(out)

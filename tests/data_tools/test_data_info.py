@@ -285,6 +285,18 @@ def test_size_and_subsample_lines_by_hand():
     assert "  3.9375 .. 7.875 " in text
 
 
+@pytest.mark.parametrize("shape, dtype, nbytes, size", [((32, 32, 32), np.uint8, 32768, "32.0 KiB"),
+                                                         ((66, 66, 66), np.uint8, 287496, "280.8 KiB"),
+                                                         ((4, 4, 4), np.int16, 128, "128 bytes"),
+                                                         ((64, 64, 128), np.uint16, 2 ** 20, "1.0 MiB")])
+def test_a_small_volume_has_a_size_above_zero(shape, dtype, nbytes, size):
+    # 32^3 uint8 (the bucky ball) is 32,768 bytes: "0.0 MiB" read as an empty file.
+    data = np.zeros(shape, dtype)
+    data.flat[0] = 1
+    assert data.nbytes == nbytes
+    assert f"type:        {np.dtype(dtype).name}, {size}" in format_info(volume_info(Volume(data)))
+
+
 def test_the_subsample_takes_the_smallest_stride_that_fits():
     # 160 x 256 x 256 samples are 5 times SAMPLE_LIMIT: every second sample along each axis
     # (a stride of 3 would leave about a fifth as many).

@@ -1063,6 +1063,20 @@ def test_compare_quiet_keeps_stderr_empty(vol_file, capsys):
         assert rc == 0 and err == "" and "speedup" in out
 
 
+def test_a_supercell_sweep_says_what_its_labels_mean(vol_file, capsys):
+    rc, out, err = _run(["compare", vol_file, "--iso", 4, "--size", 8, 8, "--repeats", 1, "--quiet",
+                         "--sweep-supercell", "1;2,2,4"], capsys)
+    lines = out.splitlines()
+    assert rc == 0, err
+    assert [line.split()[0] for line in lines[3:6]] == ["brute", "parc:1", "parc:2x2x4"]
+    notes = [line for line in lines if line.startswith("parc:S: ")]
+    assert len(notes) == 1 and "supercells of S cells a side (SxTxU: S by T by U cells)" in notes[0]
+    # Below the rows and their legend, above the seconds per phase.
+    assert lines.index(notes[0]) < lines.index("")
+    rc, out, _ = _run(["compare", vol_file, "--iso", 4, "--size", 8, 8, "--repeats", 1, "--quiet"], capsys)
+    assert rc == 0 and "parc:S: " not in out
+
+
 def test_every_phase_a_render_reports_is_explained_under_the_table():
     from data_tools.synthetic import blobs
     from parc import Camera, Isosurface, PointLight, Scene, Translucent, compare

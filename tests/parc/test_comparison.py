@@ -4,6 +4,7 @@ Truth: the definitions in the function's docstring, evaluated here on
 2x2 renders whose differences are chosen to give round numbers.
 """
 import math
+import re
 
 import numpy as np
 import pytest
@@ -167,6 +168,26 @@ def test_format_table_puts_each_figure_under_its_heading():
                    "OpenGL": "25%", "cells/px": "3.0", "cubics/px": "0.30", "samples/px": "0.0",
                    "hits/px": "0.500", "polygons": "1,234", "hit≠": "7", "max Δdepth": "1.25e-01",
                    "max Δcolour": "5.00e-01", "RMSE": "1.25e-01", "PSNR": "18.1"}
+
+
+def test_every_column_of_the_table_is_explained_under_it_with_its_unit():
+    # A reader of the table alone cannot tell cells from world units, or dB from a ratio: the legend
+    # names each heading (alone or in a list before a colon) and the units of those that have one.
+    from parc.comparison import format_table
+    row = {"method": "parc", "seconds": 0.5, "speedup": 6.0, "speedup_low": 4.0, "speedup_high": 8.0,
+           "opengl_share": 0.25, "cells_visited": 300, "cubic_solves": 30, "samples": 0, "hits": 50,
+           "pixels": 100, "polygons": 1234, "hit_mismatches": 7, "max_depth_cells": 0.125,
+           "max_color": 0.5, "rmse": 0.125, "psnr": 18.0618, "phases": {"total": 0.5}}
+    lines = format_table([row]).splitlines()
+    headings = [h for h in re.split(r"\s{2,}", lines[0].strip()) if h != "method"]
+    legend = lines[3:lines.index("")]
+    text = "\n".join(legend)
+    # Each heading opens a legend line, or is listed there before a colon: "hit≠, max Δdepth, ...: ...".
+    named = [h for h in headings if re.search(rf"(^|, |; ){re.escape(h)}(: |, )", text, re.M)]
+    assert named == headings
+    assert re.search(r"time s: [^\n]*seconds", text)
+    assert re.search(r"max Δdepth[^\n]*in cells of the first volume's smallest spacing", text)
+    assert re.search(r"PSNR[^\n]*PSNR in dB", text)
 
 
 def test_the_terminal_table_shows_the_rmse_against_brute(monkeypatch):
@@ -335,6 +356,14 @@ def test_step_sweep_takes_each_methods_median_and_samples_and_brutes_image_again
     assert (row["brute_seconds"], row["parc_seconds"], row["speedup"]) == (3.0, 1.0, 3.0)
     assert (row["brute_samples"], row["parc_samples"]) == (5, 4)
     assert row["max_color"] == 0.5 and row["parc_vs_brute"] == 0.75
+
+
+def test_format_step_table_gives_the_units_of_its_step_and_psnr():
+    from parc.comparison import format_step_table
+    row = dict(step=0.5, brute_seconds=2.0, parc_seconds=0.5, speedup=4.0, brute_samples=1000,
+               parc_samples=400, max_color=0.25, psnr=30.0, parc_vs_brute=0.5)
+    legend = "\n".join(format_step_table([row]).splitlines()[2:])
+    assert "step: world distance between samples" in legend and "PSNR in dB" in legend
 
 
 def test_format_step_table_puts_each_error_under_its_heading():
