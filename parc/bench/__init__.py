@@ -303,11 +303,13 @@ def _report(res, out, report):
     md = ["# PARC benchmark report", "",
           f"Suite `{s['name']}`, run {m['date']} in {res['seconds'] / 60:.1f} min"
           + (f" with `{res['command']}`" if res.get("command") else "") + ".", "",
-          f"PARC {m.get('parc', 'unknown')}. Machine: {m['cpu']}, {m['cores']} cores ({m['numba_threads']} Numba "
-          f"threads); OpenGL: {m['opengl']}; Python {m['python']}, NumPy {m['numpy']}, Numba {m['numba']}, "
+          f"PARC {m.get('parc', 'unknown')}. Machine: {m['cpu']}, {report.counted(m['cores'], 'core')} "
+          f"({report.counted(m['numba_threads'], 'Numba thread')}); OpenGL: {m['opengl']}; "
+          f"Python {m['python']}, NumPy {m['numpy']}, Numba {m['numba']}, "
           f"moderngl {m['moderngl']}; {m['os']}.", "",
           "Every speedup is a ratio of two times measured in this run on this machine: each the median of "
-          f"{s['repeats']} renders after a warm-up, the methods timed in turn round by round; in brackets "
+          f"{report.counted(s['repeats'], 'render')} after a warm-up, the methods timed in turn round by round; "
+          "in brackets "
           "after a speedup, the lowest and highest of the rounds' own ratios. `brute` is the unaccelerated "
           "caster; `parc` casts the same rays over OpenGL-rasterized segments with the same traversal and "
           "intersection code.", ""]

@@ -14,6 +14,11 @@ def _scatter(path, points, **kw):
     return charts.scatter_chart(path, points, x_log=any(p["x"] > 0 for p in points), **kw)
 
 
+def counted(n, word):
+    """``n word`` or ``n words``: the tiny suite's one render, core or thread read as such."""
+    return f"{n} {word}" if n == 1 else f"{n} {word}s"
+
+
 def _s(v):
     return f"{v:.3f}" if v >= 0.1 else f"{v:.4f}"
 
@@ -128,7 +133,7 @@ def parker(res, out):
                                    "1 thread")
     md += ["", "![time shares](time_shares.png)", "",
            f"### Thread scaling (their Table 2), bone isosurface at {th['size']}²", "",
-           f"{th['cores']} cores available to Numba.", ""]
+           f"{counted(th['cores'], 'core')} available to Numba.", ""]
     # Scaling is each method against itself on 1 thread; the speedup, as everywhere, parc against brute.
     md.append(_table(("threads", "brute FPS", "brute vs 1 thread", "parc FPS", "parc vs 1 thread",
                       "speedup (parc over brute)"),
@@ -228,7 +233,8 @@ def scale(res, out):
            if vw.get("generate_seconds") is not None else "reused from an earlier run")
     md = ["## 4. Visible Woman scale", "",
           f"A {nx}×{ny}×{nz} {vw['dtype']} CT-like phantom ({vw['bytes'] / 1e6:,.0f} MB), {gen}, memory-mapped "
-          f"read-only (`{Path(vw['path']).name}` in the cache folder); {vw['size']}² images, {vw['threads']} threads. Cell min/max once per "
+          f"read-only (`{Path(vw['path']).name}` in the cache folder); {vw['size']}² images, "
+          f"{counted(vw['threads'], 'thread')}. Cell min/max once per "
           f"volume: {_s(vw['minmax_seconds'])} s ({vw['minmax_bytes'] / 1e6:,.0f} MB). Peak resident memory of "
           f"the section's process: {vw['peak_rss_bytes'] / 1e6:,.0f} MB.", ""]
     md.append(_table(("surface", "brute s/frame", "parc s/frame", "speedup", "parc FPS", "proxy build (s)",
@@ -244,7 +250,7 @@ def scale(res, out):
                f"{_s(ch['reclassify_proxy_seconds'])} s, first frame {_s(ch['first_frame_seconds'])} s.", "",
            f"Parker et al. reached about 10 frames per second at 512² on 64 processors, over the real body "
            f"and their views. Here `parc` gives {best:.1f} frames per second at {vw['size']}² on "
-           f"{vw['threads']} threads, on one view of a phantom simpler than the real body"
+           f"{counted(vw['threads'], 'thread')}, on one view of a phantom simpler than the real body"
            + (f" ({best / 10:.0%} of their rate; a like-for-like comparison would need the real data)"
               if vw["size"] == 512 else " (a reduced size: not comparable)")
            + ". Frames are timed round by round, `brute` and `parc` in turn.", ""]

@@ -735,3 +735,13 @@ def test_cli_reads_real_volumes_from_the_folder_given(tmp_path, monkeypatch):
     monkeypatch.setattr(parc.bench, "_kernels_used", lambda: [])
     assert main(["bench", "--quick", "--data", str(tmp_path), "--out", str(tmp_path / "r")]) == 0
     assert seen[0].data_dir == tmp_path and seen[0].name == "quick"
+
+
+def test_the_reports_counts_of_one_read_in_the_singular(bench):
+    # The tiny suite renders once a round: "the median of 1 renders" read as a slip.
+    out, _, res, _ = bench
+    md = (out / "report.md").read_text()
+    repeats, cores = res["suite"]["repeats"], res["machine"]["cores"]
+    assert f"the median of {repeats} render{'' if repeats == 1 else 's'} after a warm-up" in md
+    assert f", {cores} core{'' if cores == 1 else 's'} (" in md
+    assert "1 renders" not in md and "1 cores" not in md and "1 threads" not in md and "1 Numba threads" not in md
