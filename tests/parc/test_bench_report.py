@@ -315,9 +315,9 @@ def _vw(seconds=(0.05, 0.1), size=512):
                                                  "first_frame_seconds": 0.2}}
 
 
-@pytest.mark.parametrize("size, words", [(512, "20.0 frames per second at 512² on 1 threads, on one view of a phantom "
+@pytest.mark.parametrize("size, words", [(512, "20.0 frames per second at 512² on 1 thread, on one view of a phantom "
                                                 "simpler than the real body (200% of their rate"),
-                                         (256, "20.0 frames per second at 256² on 1 threads, on one view of a phantom "
+                                         (256, "20.0 frames per second at 256² on 1 thread, on one view of a phantom "
                                                "simpler than the real body (a reduced size: not comparable)")])
 def test_visible_woman_text_gives_the_fastest_surfaces_rate(tmp_path, size, words):
     # 0.05 s and 0.1 s a frame: 20 and 10 FPS; the text names the best, against Parker et al.'s 10.
