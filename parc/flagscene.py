@@ -28,7 +28,7 @@ def load_volume_flags(args):
     from .arguments import TRIPLE, one_flag_a_light
     flag = next((f"--{f}" for f in ("light", "sun") if getattr(args, f, None)), None)
     if flag and args.volume and TRIPLE.fullmatch(args.volume) and not os.path.exists(args.volume):
-        # "--light x,y,z x,y,z" with no volume before it: argparse took the second light for one.
+        # "--light x,y,z x,y,z" with no volume before it: argparse takes the second light for one.
         raise InputError(f"{args.volume}: no such file{one_flag_a_light(flag)}")
     if _is_scene_file(args):
         raise InputError(f"{args.volume}: a scene file; parc {args.command} reads one volume file "
@@ -56,9 +56,13 @@ def scene_from_flags(args, say):
         warnings.simplefilter("always", ShowsNothingWarning)
         scene = _file_scene(args) if _is_scene_file(args) else _volume_scene(args, say)
         scene = _add_flag_lights(scene, args, say)
+    said = set()
     for w in caught:
         if issubclass(w.category, ShowsNothingWarning):
-            say(str(w.message))
+            # Each dataclasses.replace of the scene (--background, --light) checks it again.
+            if str(w.message) not in said:
+                said.add(str(w.message))
+                say(str(w.message))
         else:
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     return scene
@@ -168,7 +172,11 @@ def _volume_scene(args, say):
         vis = parc.Translucent(vol, args.tf, mode=args.mode or "composite", step=args.step,
                                threshold=DEFAULT_THRESHOLD if args.threshold is None else args.threshold,
                                shade=args.shade)
-        peak = float(vis.tf.opacity_points[:, 1].max())
+        # The table's peak over the data alone: one past the largest value never shows.
+        lo, hi = vol.value_range()
+        points = vis.tf.opacity_points
+        reached = points[(points[:, 0] >= lo) & (points[:, 0] <= hi), 1]
+        peak = float(max(vis.tf.opacity(np.array([lo, hi])).max(), reached.max(initial=0.0)))
         if vis.mode == "mip" and 0.0 < peak < FAINT_MIP:
             # A MIP pixel is one value at its own opacity: a table made for compositing stays faint.
             say(f"{vis.tf.title} is at most {peak:g} opaque: --mode mip shows each ray's largest visible value "

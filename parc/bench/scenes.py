@@ -60,8 +60,8 @@ def ct_volume(data_dir, tiny):
 
 def _ct_camera(vol):
     # CThead's slices run from the top of the head down: look with -z up. The phantom standing in
-    # for it is built head up, its face to -y as CThead's: seen so, it stood on its head. Its view
-    # is CThead's mirrored in z.
+    # for it is built head up, its face to -y as CThead's: seen so, it would stand on its head.
+    # Its view is CThead's mirrored in z.
     if vol.meta.get("synthetic") == "ct_phantom":
         return Camera.framing(*vol.bounds, up=(0.0, 0.0, 1.0), azimuth=160.0, elevation=-20.0, zoom=1.15)
     return Camera.framing(*vol.bounds, up=(0.0, 0.0, -1.0), azimuth=200.0, elevation=-20.0, zoom=1.15)

@@ -2048,14 +2048,14 @@ def test_a_large_make_says_it_takes_time(tmp_path, capsys, monkeypatch):
 
 def test_a_slow_make_below_the_large_size_is_said_before_and_after(tmp_path, monkeypatch, capsys):
     # A neuron is made slowly for its samples: at 256 a side, below the size said at once, it
-    # took 3.5 s in silence.
+    # takes 3.5 s, too long for silence.
     import parc.outputs
     monkeypatch.setattr(parc.outputs, "SLOW_NOTE_DELAY", 0.0)
     rc = main(["make", "neuron", "--size", "12", "-o", str(tmp_path / "n.nrrd")])
     lines = capsys.readouterr().err.splitlines()
     assert rc == 0 and lines[0] == "parc: making neuron ...", lines
     assert re.fullmatch(r"parc: making neuron: done in [\d.]+ s", lines[1]), lines
-    # Said once where the size is said at once; a refused --seed has its error line alone.
+    # Said once where the size is said at once; a refused --seed ends on its error line, with no time.
     import data_tools.synthetic
     monkeypatch.setattr(data_tools.synthetic, "LARGE_SYNTHETIC_SAMPLES", 10 ** 3)
     rc = main(["make", "sphere", "--size", "10", "-o", str(tmp_path / "s.nrrd")])
@@ -2309,6 +2309,20 @@ def test_a_mip_through_a_faint_table_says_the_image_is_faint(vol_file, tmp_path,
     for flags in ([tf, "-o", tmp_path / "b.png"], ["greyscale", "--mode", "mip", "-o", tmp_path / "c.png"]):
         rc, _, err = _run(render + flags, capsys)
         assert rc == 0 and "opaque" not in err, err
+
+
+def test_a_mip_through_a_table_faint_over_the_data_says_so_whatever_it_reaches_past_them(vol_file, tmp_path,
+                                                                                          capsys):
+    """The table ends opaque at 1000, far past the ball's largest value (about 9.5): over the data
+    it stays below 0.11, and so does the image."""
+    tf = tmp_path / "far.toml"
+    tf.write_text("opacity = [[0, 0.1], [1000, 1]]\ncolor = [[0, 1, 1, 1], [1000, 1, 1, 1]]\n")
+    rc, _, err = _run(["render", vol_file, "--size", 12, 12, "--tf", tf, "--mode", "mip", "-o", tmp_path / "a.png"],
+                      capsys)
+    assert rc == 0 and "far.toml is at most 0.10" in err and "--mode mip" in err, err
+    with Image.open(tmp_path / "a.png") as im:
+        alpha = np.asarray(im)[..., 3]
+    assert 0 < alpha.max() <= round(0.11 * 255)
 
 
 @pytest.mark.parametrize("level, said", [(0.0, "smallest value"), (4.0, "largest value"), (2.0, None)])

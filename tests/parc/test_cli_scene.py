@@ -100,6 +100,16 @@ def test_shadows_with_only_the_headlight_get_a_note(scene_file):
     assert any("headlight" in n for n in notes)
 
 
+@pytest.mark.parametrize("flags", [["--background", "0,0,0"], ["--light", "0,0,50"], ["--shadows"]])
+def test_lights_of_a_translucent_scene_file_are_noted_once(scene_file, flags):
+    """The scene file's light shines on no isosurface: one note says so, however many flags
+    rebuild the scene after it is read."""
+    path = scene_file.parent / "glow.toml"
+    path.write_text("[[volume]]\nfile = 'data/ball.nrrd'\ntf = 'greyscale'\n[[light]]\nposition = [0, 0, 0]\n")
+    _, notes = _scene_of(["render", path, "-o", "x.png", *flags])
+    assert sum(n.startswith("lights shine on isosurfaces") for n in notes) == 1, notes
+
+
 def test_multi_volume_scene_file_loads(tmp_path):
     save_volume(make_synthetic("sphere", 16), tmp_path / "a.nrrd")
     path = tmp_path / "two.toml"

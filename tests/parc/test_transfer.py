@@ -997,8 +997,8 @@ def test_the_viridis_knots_are_32_samples_spread_evenly_over_its_256():
 
 @pytest.mark.parametrize("name", sorted(PRESETS))
 def test_a_data_range_whose_span_overflows_is_refused_as_such(name):
-    # Each end is finite, their difference is not: mapping onto it gave NaN points, and the CT
-    # presets, which do not use the range, took it.
+    # Each end is finite, their difference is not: mapping onto it would give NaN points, and the
+    # CT presets, which do not use the range, would take it.
     with pytest.raises(InputError, match=f"{name}: data range must be finite"):
         preset(name, (-1e308, 1e308))
 
