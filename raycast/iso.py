@@ -356,7 +356,7 @@ def _walk_iso(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, seg0, seg1, skip, jump_min, anc
                     rounded = False
                     # The landing cell is the cube's last cell on the ray,
                     # never past it: `advance` stops in the cell it leaves
-                    # at or after tb, the cube's exit. The step below leaves.
+                    # at or after tb, the cube's exit. The step below leaves it.
                     sign = _cell_sign(skip[k, j, i])
         if sign != 0:
             prev = float(sign)
