@@ -65,6 +65,7 @@ def scene_from_flags(args, say):
                 say(str(w.message))
         else:
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    _say_what_shows_faintly(scene, say)
     return scene
 
 
@@ -172,15 +173,6 @@ def _volume_scene(args, say):
         vis = parc.Translucent(vol, args.tf, mode=args.mode or "composite", step=args.step,
                                threshold=DEFAULT_THRESHOLD if args.threshold is None else args.threshold,
                                shade=args.shade)
-        # The table's peak over the data alone: one past the largest value never shows.
-        lo, hi = vol.value_range()
-        points = vis.tf.opacity_points
-        reached = points[(points[:, 0] >= lo) & (points[:, 0] <= hi), 1]
-        peak = float(max(vis.tf.opacity(np.array([lo, hi])).max(), reached.max(initial=0.0)))
-        if vis.mode == "mip" and 0.0 < peak < FAINT_MIP:
-            # A MIP pixel is one value at its own opacity: a table made for compositing stays faint.
-            say(f"{vis.tf.title} is at most {peak:g} opaque: --mode mip shows each ray's largest visible value "
-                "at its own opacity, so the image is faint (greyscale and viridis end opaque for mip)")
         return parc.Scene(camera=_camera(args, vol, (w, h)), size=(w, h), volumes=[vis],
                           background=getattr(args, "background", None))
     for flag in ("mode", "step", "threshold", "shade"):
@@ -195,15 +187,33 @@ def _volume_scene(args, say):
         iso = default_isovalue(levels)
         say(f"no --iso given; using {exact_text(iso)}, suggested from the histogram "
             f"(others: {', '.join(exact_text(v) for v in levels if v != iso) or 'none'})")
-    surface = parc.Isosurface(vol, iso)         # its checks first: no note before an error
-    lo, hi = vol.value_range()
-    if iso in (lo, hi):
-        # The walk takes a cell flat at the isovalue for surface: its whole extent is hit.
-        end, past = ("smallest", "above") if iso == lo else ("largest", "below")
-        say(f"--iso {exact_text(iso)} is the data's {end} value: cells whose samples all equal it are "
-            f"surface throughout and show as solid; a level just {past} it shows the shapes they bound")
-    return parc.Scene(camera=_camera(args, vol, (w, h)), size=(w, h), volumes=[surface],
+    return parc.Scene(camera=_camera(args, vol, (w, h)), size=(w, h), volumes=[parc.Isosurface(vol, iso)],
                       background=getattr(args, "background", None))
+
+
+def _say_what_shows_faintly(scene, say):
+    """Notes on volumes that show other than a user may expect: an isosurface at an end of its
+    data, a maximum-intensity projection through a table that stays faint over the data."""
+    import parc
+    for k, vis in enumerate(scene.volumes, 1):
+        lo, hi = vis.volume.value_range()
+        # A scene file's volumes by their tables, as its errors name them.
+        whose = "the data" if len(scene.volumes) == 1 else f"volume[{k}]"
+        if isinstance(vis, parc.Isosurface) and vis.value in (lo, hi):
+            # The walk takes a cell flat at the isovalue for surface: its whole extent is hit.
+            end, past = ("smallest", "above") if vis.value == lo else ("largest", "below")
+            say(f"isovalue {exact_text(vis.value)} is {whose}'s {end} value: cells whose samples all equal it "
+                f"are surface throughout and show as solid; a level just {past} it shows the shapes they bound")
+        elif isinstance(vis, parc.Translucent) and vis.mode == "mip":
+            # The table's peak over the data alone: one past the largest value never shows.
+            points = vis.tf.opacity_points
+            reached = points[(points[:, 0] >= lo) & (points[:, 0] <= hi), 1]
+            peak = float(max(vis.tf.opacity(np.array([lo, hi])).max(), reached.max(initial=0.0)))
+            if 0.0 < peak < FAINT_MIP:
+                # A MIP pixel is one value at its own opacity: a table made for compositing stays faint.
+                say(f"{vis.tf.title} is at most {peak:g} opaque over {whose}'s values: a MIP shows "
+                    "each ray's largest visible value at its own opacity, so the image is faint "
+                    "(greyscale and viridis end opaque for mip)")
 
 
 def _camera(args, vol, size):

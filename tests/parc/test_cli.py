@@ -2302,7 +2302,7 @@ def test_a_mip_through_a_faint_table_says_the_image_is_faint(vol_file, tmp_path,
     tf.write_text("opacity = [[0, 0], [5, 0.2], [10, 0]]\ncolor = [[0, 1, 1, 1], [10, 1, 1, 1]]\n")
     render = ["render", vol_file, "--size", 12, 12, "--tf"]
     rc, _, err = _run(render + [tf, "--mode", "mip", "-o", tmp_path / "a.png"], capsys)
-    assert rc == 0 and "faint.toml is at most 0.2 opaque: --mode mip" in err, err
+    assert rc == 0 and "faint.toml is at most 0.2 opaque over the data's values: a MIP shows" in err, err
     with Image.open(tmp_path / "a.png") as im:
         alpha = np.asarray(im)[..., 3]
     assert 0 < alpha.max() <= round(0.2 * 255)
@@ -2319,7 +2319,7 @@ def test_a_mip_through_a_table_faint_over_the_data_says_so_whatever_it_reaches_p
     tf.write_text("opacity = [[0, 0.1], [1000, 1]]\ncolor = [[0, 1, 1, 1], [1000, 1, 1, 1]]\n")
     rc, _, err = _run(["render", vol_file, "--size", 12, 12, "--tf", tf, "--mode", "mip", "-o", tmp_path / "a.png"],
                       capsys)
-    assert rc == 0 and "far.toml is at most 0.10" in err and "--mode mip" in err, err
+    assert rc == 0 and "far.toml is at most 0.10" in err and "a MIP shows" in err, err
     with Image.open(tmp_path / "a.png") as im:
         alpha = np.asarray(im)[..., 3]
     assert 0 < alpha.max() <= round(0.11 * 255)
@@ -2337,7 +2337,8 @@ def test_an_isovalue_at_an_end_of_the_data_says_its_flat_cells_show_solid(tmp_pa
     if said is None:
         assert "surface throughout" not in err, err
     else:
-        assert f"--iso {level:g} is the data's {said}: cells whose samples all equal it are surface throughout" in err
+        assert (f"isovalue {level:g} is the data's {said}: cells whose samples all equal it are surface "
+                "throughout") in err, err
 
 
 def test_average_mode_in_compare_gets_no_note_about_an_image(capsys):

@@ -295,3 +295,22 @@ def test_shadows_without_a_light_say_how_to_add_one_where_it_can_go(scene_file):
     ball = scene_file.parent / "data" / "ball.nrrd"
     _, notes = _scene_of(["render", ball, "--iso", 0.5, "--shadows", "-o", "x.png"])
     assert any(n.endswith("add --light or --sun") for n in notes), notes
+
+
+def test_a_scene_files_volumes_get_the_notes_of_the_flags_naming_their_tables(scene_file):
+    """An isosurface at its data's largest value and a MIP through a table at most 0.2 opaque
+    over the sphere's values: each note names the volume's table. The level between and the
+    greyscale MIP, which ends opaque, get none."""
+    from data_tools import load_volume
+    hi = load_volume(scene_file.parent / "data" / "ball.nrrd").value_range()[1]
+    (scene_file.parent / "faint.toml").write_text("opacity = [[-5, 0], [0, 0.2], [8, 0]]\n")
+    path = scene_file.parent / "four.toml"
+    path.write_text("[[volume]]\nfile = 'data/ball.nrrd'\niso = 0.5\n"
+                    f"[[volume]]\nfile = 'data/ball.nrrd'\niso = {hi!r}\n"
+                    "[[volume]]\nfile = 'data/ball.nrrd'\ntf = 'greyscale'\nmode = 'mip'\n"
+                    "[[volume]]\nfile = 'data/ball.nrrd'\ntf = 'faint.toml'\nmode = 'mip'\n")
+    _, notes = _scene_of(["render", path, "-o", "x.png"])
+    said = [n for n in notes if "shows the shapes" in n or "a MIP shows" in n]
+    assert len(said) == 2, notes
+    assert said[0].startswith(f"isovalue {hi!r} is volume[2]'s largest value: cells whose samples all equal it")
+    assert "faint.toml is at most 0.2 opaque over volume[4]'s values: a MIP shows" in said[1]
