@@ -220,7 +220,8 @@ def cmd_make(args):
     what = f"isovalue{'s' if len(levels) > 1 else ''} {' and '.join(exact_text(v) for v in levels)}"
     if not levels:
         from data_tools.info import default_isovalue, suggest_isovalues
-        levels = [v for v in [default_isovalue(suggest_isovalues(vol))] if v is not None]   # render's own
+        level = default_isovalue(suggest_isovalues(vol))        # the one render takes without --iso
+        levels = [] if level is None else [level]
         missed = f"level{'s' if len(made_for) > 1 else ''} {' and '.join(exact_text(v) for v in made_for)}"
         why = (f" (at this size the samples, {lo:.6g} to {hi:.6g}, miss the {missed} {args.name} is made for)"
                if made_for else "")
@@ -436,7 +437,7 @@ def _describe(vis):
 
 
 def cmd_compare(args):
-    from .comparison import method_names, compare, format_table
+    from .comparison import SUPERCELL_SWEEP_NOTE, compare, format_table, method_names
     from .renderer import kernel_samples
 
     say = (lambda *a: None) if args.quiet else note
@@ -514,14 +515,8 @@ def cmd_compare(args):
         _out(to_json(rows))
     else:
         _out(_heading(args, scene))
-        sweep = [SUPERCELL_SWEEP_NOTE] if args.sweep_supercell is not None else []
-        _out(format_table(rows, notes=sweep))
+        _out(format_table(rows, notes=[SUPERCELL_SWEEP_NOTE] if args.sweep_supercell is not None else []))
     return 0
-
-
-#: Under a supercell sweep's table: what its rows' labels mean.
-SUPERCELL_SWEEP_NOTE = ("parc:S: parc with supercells of S cells a side (SxTxU: S by T by U cells); "
-                        "the images never depend on S, its times and counts do.")
 
 
 def _heading(args, scene, sweeping_step=False):

@@ -279,6 +279,11 @@ COLUMN_NOTES = {
 }
 
 
+#: Under a supercell sweep's table: what its rows' labels mean.
+SUPERCELL_SWEEP_NOTE = ("parc:S: parc with supercells of S cells a side (SxTxU: S by T by U cells); "
+                        "the images never depend on S, its times and counts do.")
+
+
 def format_table(rows, notes=()):
     """A readable terminal table of `compare` rows; ``notes``, lines of text, join its legend."""
     head = ("method", "time s", "speedup", "rounds", "OpenGL", "cells/px", "cubics/px", "samples/px", "hits/px",

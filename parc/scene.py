@@ -322,11 +322,11 @@ class Scene:
         # Lights shine on isosurface hits only: a scene without one draws the image its
         # headlight does. Legal (the contract's scenes give lights to either kind of volume), but said.
         if not any(isinstance(v, Isosurface) for v in self.volumes):
-            said = [("lights shine", self.lights), ("shadows fall", self.shadows)]
-            for what in (what for what, given in said if given):
-                warnings.warn(f"{what} on isosurfaces and this scene has none: translucent volumes are shaded "
-                              "by a headlight at the eye, and the image is the same without them",
-                              ShowsNothingWarning, stacklevel=_callers_level())
+            for what, given in (("lights shine", self.lights), ("shadows fall", self.shadows)):
+                if given:
+                    warnings.warn(f"{what} on isosurfaces and this scene has none: translucent volumes are "
+                                  "shaded by a headlight at the eye, and the image is the same without them",
+                                  ShowsNothingWarning, stacklevel=_callers_level())
 
     @property
     def width(self):

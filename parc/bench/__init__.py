@@ -309,8 +309,7 @@ def _report(res, out, report):
           f"moderngl {m['moderngl']}; {m['os']}.", "",
           "Every speedup is a ratio of two times measured in this run on this machine: each the median of "
           f"{report.counted(s['repeats'], 'render')} after a warm-up, the methods timed in turn round by round; "
-          "in brackets "
-          "after a speedup, the lowest and highest of the rounds' own ratios. `brute` is the unaccelerated "
+          "in brackets after a speedup, the lowest and highest of the rounds' own ratios. `brute` is the unaccelerated "
           "caster; `parc` casts the same rays over OpenGL-rasterized segments with the same traversal and "
           "intersection code.", ""]
     md += report.paper_tables(res, out)
