@@ -179,7 +179,9 @@ def _add_look_options(p):
                         "at least 1e-4 of it, and at most 1e8 samples across the volume's diagonal)")
     g.add_argument("--threshold", type=float, metavar="A",
                    help="with --tf, composite: stop a ray once its opacity reaches A (default 0.99)")
-    g.add_argument("--shade", action="store_true", help="with --tf, composite: shade samples with the gradient")
+    g.add_argument("--shade", action="store_true",
+                   help="with --tf, composite: shade samples with the gradient, lit by the headlight or by "
+                        "--light and --sun (without shadows)")
     g.add_argument("--buffers", metavar="LIST",
                    help="with --tf, for parc: PARC's buffers: depth (near/far, default), bits "
                         "(planes of supercells), or depth,bits")
@@ -207,8 +209,9 @@ def _add_view_options(p):
 
 def _add_light_options(p):
     g = p.add_argument_group(
-        "lights and shadows", "Default: one white headlight at the eye; lights given here are added "
-        "to a scene file's [[light]] tables; colours and intensities: use a scene file.")
+        "lights and shadows", "Default: one white headlight at the eye. Lights shine on isosurfaces and on "
+        "translucent samples shaded with --shade; those given here are added to a scene file's [[light]] "
+        "tables; colours and intensities: use a scene file.")
     g.add_argument("--light", type=_floats(3), action="append", metavar="X,Y,Z",
                    help="a white point light at X,Y,Z (world coordinates, may be inside the volume); "
                         "repeat for several lights")
@@ -217,7 +220,8 @@ def _add_light_options(p):
                         "DX,DY,DZ (0,0,-1: straight down); repeat for several")
     g.add_argument("--shadows", action="store_true",
                    help="cast shadow rays from every isosurface hit to every light: isosurfaces "
-                        "block them, translucent volumes dim them (the headlight casts no visible shadows)")
+                        "block them, translucent volumes dim them (the headlight casts no visible shadows; "
+                        "translucent samples are lit unshadowed)")
 
 
 def _add_common_options(p):
@@ -270,7 +274,7 @@ def build_parser():
     r.add_argument("--work", metavar="W.png|W.npy",
                    help="also write the work per pixel: cells visited (isosurface) or samples taken "
                         "(translucent), as a heat map (.png, log scale, white where none) or an int64 array "
-                        "(.npy); scenes of one volume without lights")
+                        "(.npy); scenes of one volume (an isosurface without lights)")
     r.add_argument("--method", default="brute", choices=("brute", "parc"),
                    help="brute: unaccelerated casting (default); parc: walk only the ray segments "
                         "OpenGL finds from a polygon proxy of the possibly contributing supercells "

@@ -76,7 +76,8 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
         ``speedup_high`` (the lowest and highest of the rounds' own ratios,
         each round timing every method once), ``parameters`` (what was rendered, as `render`'s
         stats give it: size and camera, and the volume's own fields for a scene of one volume
-        without lights, else ``volumes``, ``lights`` and ``shadows``) and ``repeats``.
+        (with ``lights`` and ``shadows`` where a translucent one has them), else ``volumes``,
+        ``lights`` and ``shadows``) and ``repeats``.
     """
     _check_runs("compare", scene, repeats, warmup)
     names = method_names(methods)

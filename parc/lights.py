@@ -43,8 +43,8 @@ import numpy as np
 
 import data_tools.memory
 from data_tools.memory import check_memory
-from raycast.shadow import (KIND_DIRECTIONAL, KIND_POINT, N_VIEW, V_EYE, V_FWD, V_KIND, V_RIGHT, V_SCALE,
-                             V_UP)
+from raycast.shade import KIND_DIRECTIONAL, KIND_POINT
+from raycast.shadow import N_VIEW, V_EYE, V_FWD, V_KIND, V_RIGHT, V_SCALE, V_UP
 
 from .camera import Camera, unit_vector
 from .scene import DirectionalLight, PointLight

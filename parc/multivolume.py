@@ -32,11 +32,11 @@ import weakref
 
 import numpy as np
 
-from raycast.composite import N_PARAMS, box_entry_image, cast_accumulate_image
+from raycast.composite import box_entry_image, cast_accumulate_image
 from raycast.merged import cast_merged_image
 from raycast.iso import NO_SHADING, cast_iso_image, keep_nearest
-from raycast.shadow import (KIND_HEADLIGHT, combine_lights, light_terms, shadow_accumulate, shadow_iso,
-                            surface_frames)
+from raycast.shade import KIND_HEADLIGHT
+from raycast.shadow import combine_lights, light_terms, shadow_accumulate, shadow_iso, surface_frames
 
 from .lights import (LIGHT_BUFFER_CACHE_SIZE, LIGHT_BUFFER_SIZE, buffer_bytes, light_array, light_buffers,
                      light_cache_bytes, light_views, no_views)
@@ -180,7 +180,7 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
             box_entry_image(vol.data, np.array(vol.origin), np.array(vol.spacing), cam, w, h, layer_t[j])
         front = np.zeros((h, w, 4), np.float32)
         if comp:
-            datas, orgs, spcs, params, tables, tf_len = _packed(comp, accumulation_params)
+            datas, orgs, spcs, params, tables, tf_len = _packed(comp, lambda v: accumulation_params(v, scene.lights))
             seg = (np.stack([segs[n] for n, _ in comp]) if parc else np.empty((1, 1, 1, 2)))
             skips = [skip_table(v, parc and blocks) for _, v in comp]
             cnt = np.empty(npx, np.int64)
@@ -324,15 +324,15 @@ def _read_only(a):
     return a
 
 
-def _packed(comp, accumulation_params):
-    """The merged walk's inputs: data of one dtype, placements, params and padded transfer tables."""
+def _packed(comp, params_of):
+    """The merged walk's inputs: data of one dtype, placements, params (``params_of(volume)``, each
+    of one length: the scene's lights are every volume's) and padded transfer tables."""
     dtype = np.result_type(*(v.volume.data.dtype for _, v in comp))
     datas = tuple(v.volume.data if v.volume.data.dtype == dtype else _read_only(v.volume.data.astype(dtype))
                   for _, v in comp)
     orgs = np.array([v.volume.origin for _, v in comp], dtype=np.float64)
     spcs = np.array([v.volume.spacing for _, v in comp], dtype=np.float64)
-    params = np.stack([accumulation_params(v) for _, v in comp])
-    assert params.shape[1] == N_PARAMS
+    params = np.stack([params_of(v) for _, v in comp])
     arrs = [v.tf.arrays() for _, v in comp]
     no = max(len(a[0]) for a in arrs)
     nc = max(len(a[2]) for a in arrs)

@@ -4,8 +4,8 @@ One driver per kind of volume: `_render_iso` (opaque isosurface: first hit,
 shaded as soon as it is found) and `_render_translucent` (accumulation). Both get their
 ray segments from `parc.segments` when the method is ``"parc"`` (a translucent
 volume drawn with bit planes alone takes only the proxy, `cached_proxy`); the
-casting kernels are the same for both methods. Scenes of several volumes or
-with lights go to `_render_general` (`parc.multivolume`).
+casting kernels are the same for both methods. Scenes of several volumes, or
+of an isosurface with lights, go to `_render_general` (`parc.multivolume`).
 
 Also here, shared with `parc.multivolume` and the benchmarks: the kernels'
 arguments (`accumulation_params`, `iso_work`); the skip tables are `parc.skip`'s.
@@ -19,11 +19,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from data_tools import InputError
-from raycast.composite import (MODE_AVERAGE, MODE_COMPOSITE, MODE_MIP, N_PARAMS, P_AMBIENT, P_HI, P_LO, P_MODE,
-                               P_RATIO, P_SHADE, P_STEP, P_THRESHOLD, cast_accumulate_image, over_background)
+from raycast.composite import (MODE_AVERAGE, MODE_COMPOSITE, MODE_MIP, N_PARAMS, P_AMBIENT, P_HI, P_LIGHT_COUNT,
+                               P_LIGHTS, P_LO, P_MODE, P_ORIGIN, P_RATIO, P_SHADE, P_STEP, P_THRESHOLD,
+                               cast_accumulate_image, over_background)
 from raycast.iso import cast_iso_image
 
 from .gl import release_context
+from .lights import light_array
 from .scene import Isosurface, Scene, Translucent, describe_volume
 from .segments import cached_proxy, parc_segments
 from .skip import octant_skip_tables, skip_table
@@ -136,7 +138,7 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
         segments alone.
     work : bool, default False
         Also return each pixel's work (`RenderResult.work`), for scenes of
-        one volume without lights. Copied out after the frame is timed.
+        one volume (an isosurface without lights). Copied out after the frame is timed.
 
     Returns
     -------
@@ -190,9 +192,10 @@ def check_request(scene, buffers, work, names=("buffers", "work")):
     # for an isosurface would otherwise leave them out without a word.
     if "bits" in buffers and (why := bits_refused(scene)):
         raise InputError(f"{names[0]} {','.join(buffers)}: {why}")
-    if len(scene.volumes) != 1 or scene.lights:
+    if not _casts_alone(scene):
         if work:
-            raise InputError(f"{names[1]}: per-pixel work is counted for scenes of one volume without lights")
+            raise InputError(f"{names[1]}: per-pixel work is counted for scenes of one volume "
+                             "(an isosurface without lights)")
     return buffers
 
 
@@ -221,7 +224,7 @@ def _render(scene, method, supercell, buffers, progress, light_buffer, blocks, w
                                             light_buffer=light_buffer, blocks=blocks, work=work)
     skip_blocks = method == "parc" and bool(blocks)
     check_scene_memory(scene)
-    if len(scene.volumes) != 1 or scene.lights:
+    if not _casts_alone(scene):
         return _render_general(scene, method, supercell, progress, light_buffer, skip_blocks)
     vis = scene.volumes[0]
     timings = {}
@@ -270,6 +273,8 @@ def _render(scene, method, supercell, buffers, progress, light_buffer, blocks, w
         "polygons": 0,              # brute draws none; parc's count comes with `extra`
         "parameters": {"size": [w, h], "camera": scene.camera.settings(), **describe_volume(vis)},
     }
+    if scene.lights or scene.shadows:
+        stats["parameters"].update(lights=len(scene.lights), shadows=scene.shadows)
     stats.update(extra)
     stats["polygons"] = extra.get("polygons", 0) + extra.get("plane_polygons", 0)
     per_pixel = counts["per_pixel"].reshape(h, w).copy() if work else None
@@ -421,6 +426,13 @@ def _premultiplied(background):
     return np.array([r * a, g * a, b * a, a], np.float32)
 
 
+def _casts_alone(scene):
+    """Whether `render` casts the scene's one volume with its own driver: all but several
+    volumes and an isosurface with lights (`_render_general`). A translucent volume lights its
+    samples in its own walk; shadows, falling on isosurfaces alone, change nothing there."""
+    return len(scene.volumes) == 1 and not (scene.lights and isinstance(scene.volumes[0], Isosurface))
+
+
 def bits_refused(scene):
     """Why ``scene`` cannot use bit planes, or None: they are drawn for a scene of one translucent
     volume (`_render_general` bounds each volume's rays by its depth buffers)."""
@@ -451,10 +463,11 @@ def iso_work(n, slot=0):
             work_array(("iso_counts", slot), (n, 2), np.int64))
 
 
-def accumulation_params(vis):
-    """The ``params`` array of `raycast.composite` for a Translucent volume."""
+def accumulation_params(vis, lights=()):
+    """The ``params`` array of `raycast.composite` for a Translucent volume, its shaded samples
+    lit by ``lights`` (a scene's; none: a headlight)."""
     from .transfer import reference_step
-    p = np.zeros(N_PARAMS)
+    p = np.zeros(N_PARAMS + 7 * len(lights))
     p[P_STEP] = vis.step
     p[P_MODE] = _MODES[vis.mode]
     p[P_THRESHOLD] = vis.threshold
@@ -462,6 +475,9 @@ def accumulation_params(vis):
     p[P_SHADE] = 1.0 if vis.shade else 0.0
     p[P_LO], p[P_HI] = vis.volume.value_range()
     p[P_AMBIENT:P_AMBIENT + 4] = vis.material
+    p[P_ORIGIN:P_ORIGIN + 3] = vis.volume.origin
+    p[P_LIGHT_COUNT] = len(lights)
+    p[P_LIGHTS:] = light_array(lights).ravel()
     return p
 
 
@@ -472,7 +488,7 @@ def _render_translucent(scene, vis, seg, use_seg, skip_blocks, timings, progress
     cam = scene.camera.as_array()
     org = np.array(vol.origin)
     spc = np.array(vol.spacing)
-    params = accumulation_params(vis)
+    params = accumulation_params(vis, scene.lights)
     op_x, op_y, col_x, col_rgb = vis.tf.arrays()
     image = np.empty((h, w, 4), np.float32)
     counts = work_array("samples", (w * h,), np.int64)

@@ -66,8 +66,8 @@ class Isosurface:
 
 class ShowsNothingWarning(UserWarning):
     """Part of a scene adds nothing to the image: a translucent volume whose transfer function is
-    transparent over all of its data, or lights and shadows in a scene without an isosurface
-    (`parc render` says so in a note)."""
+    transparent over all of its data, lights in a scene with no isosurface or shaded
+    translucent volume, or shadows in one with no isosurface (`parc render` says so in a note)."""
 
 
 MODES = ("composite", "mip", "average")
@@ -104,8 +104,10 @@ class Translucent:
         composite only (another value is refused with mip and average,
         which take every sample).
     shade : bool, default False
-        Shade composite samples with the gradient (headlight, Blinn-Phong);
-        refused with mip and average, which do not shade.
+        Shade composite samples with the gradient (Blinn-Phong, as an
+        isosurface hit is: lit by the scene's lights, without shadows, or by
+        a headlight where it has none); refused with mip and average, which
+        do not shade.
     material : (ambient, diffuse, specular, shininess)
 
     Raises
@@ -268,8 +270,8 @@ class Scene:
         At least one (required, though it has a default); kept as a tuple.
     lights : list of PointLight or DirectionalLight
         Kept as a tuple.
-        Light sources for isosurfaces (in a scene without one they change nothing, which
-        warns `ShowsNothingWarning`, as ``shadows`` does);
+        Light sources for isosurfaces and shaded translucent samples (in a scene with
+        neither they change nothing, which warns `ShowsNothingWarning`);
         empty means a headlight at the eye, shining along each pixel's ray (in a parallel
         view, along the view direction, as `DirectionalLight` would, not `PointLight(eye)`).
     background : (r, g, b), (r, g, b, a) or None
@@ -279,7 +281,9 @@ class Scene:
         None leaves it transparent.
     shadows : bool, default False
         Cast shadow rays from every isosurface hit to every light: blocked
-        by any isosurface, attenuated by translucent volumes on the way.
+        by any isosurface, attenuated by translucent volumes on the way
+        (translucent samples are lit without shadows; in a scene without
+        an isosurface this changes nothing, which warns `ShowsNothingWarning`).
     """
 
     camera: Camera
@@ -319,14 +323,18 @@ class Scene:
             if not isinstance(light, LIGHTS):
                 raise InputError(f"a light must be a PointLight or a DirectionalLight, got {type(light).__name__}")
         self.shadows = _flag(self.shadows, "shadows")
-        # Lights shine on isosurface hits only: a scene without one draws the image its
-        # headlight does. Legal (the contract's scenes give lights to either kind of volume), but said.
-        if not any(isinstance(v, Isosurface) for v in self.volumes):
-            for what, given in (("lights shine", self.lights), ("shadows fall", self.shadows)):
-                if given:
-                    warnings.warn(f"{what} on isosurfaces and this scene has none: translucent volumes are "
-                                  "shaded by a headlight at the eye, and the image is the same without them",
-                                  ShowsNothingWarning, stacklevel=_callers_level())
+        # Lights shine on isosurface hits and shaded translucent samples; shadows fall on the
+        # hits alone. Given where they change nothing, they are legal (the contract's scenes
+        # give lights to either kind of volume) but said.
+        surfaces = any(isinstance(v, Isosurface) for v in self.volumes)
+        if self.lights and not surfaces and not any(isinstance(v, Translucent) and v.shade for v in self.volumes):
+            warnings.warn("lights shine on isosurfaces and shaded translucent volumes (shade=True, --shade), and "
+                          "this scene has neither: the image is the same without them",
+                          ShowsNothingWarning, stacklevel=_callers_level())
+        if self.shadows and not surfaces:
+            warnings.warn("shadows fall on isosurfaces and this scene has none (translucent samples are lit "
+                          "unshadowed): the image is the same without them",
+                          ShowsNothingWarning, stacklevel=_callers_level())
 
     @property
     def width(self):

@@ -42,7 +42,7 @@ one of ``file`` and ``synthetic``, and one of ``iso`` and ``tf``::
     threshold = 0.99                # early ray termination opacity (composite)
     shade = false                   # gradient shading of composite samples
 
-    [[light]]                       # none: a headlight at the eye; lights need an isosurface
+    [[light]]                       # none: a headlight at the eye; lights shine on isosurfaces and shaded samples
     position = [0, -200, 150]       # a point light; or
     # direction = [-1, 1, -1]       #   a directional light travelling along this vector
     color = [1, 1, 1]

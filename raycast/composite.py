@@ -22,8 +22,9 @@ touching its samples.
 
 - *composite*: front-to-back ``C += (1 - A) a c``, ``A += (1 - A) a`` with
   the opacity corrected for the step (`raycast.transfer.correct_opacity`)
-  and, optionally, the colour shaded with the gradient (headlight,
-  Blinn-Phong); the ray stops once ``A`` reaches the threshold.
+  and, optionally, the colour shaded with the gradient (Blinn-Phong: lit
+  by the scene's lights, unshadowed, or by a headlight where it has none);
+  the ray stops once ``A`` reaches the threshold.
 - *mip*: the largest value among samples with non-zero opacity; the pixel
   takes the transfer function's colour and opacity there.
 - *average*: the sum over samples with non-zero opacity of their height
@@ -48,7 +49,7 @@ from numba import prange
 
 from .config import TILE_H, TILE_W, kernel, named_for
 from .rays import camera_ray, dealt_tile, tile_count
-from .shade import blinn_phong, trilinear_gradient, unit_normal
+from .shade import blinn_phong, to_light, trilinear_gradient, unit_normal
 from .transfer import correct_opacity, tf_color, tf_lookup, tf_opacity
 from .traverse import (advance, cell_corners, clip_box, cube_exit, entry_anchor, grid_shape, step_cell, to_index_space,
                        walk_from)
@@ -70,7 +71,10 @@ P_PLANE_AXIS = 11   # bit planes: the major viewing axis (0, 1, 2)
 P_PLANE_SIZE = 12   # supercell size along it, in cells
 P_PLANE_FIRST = 13  # plane index of bit 0
 P_PLANE_COUNT = 14  # number of planes (bits)
-N_PARAMS = 15
+P_ORIGIN = 15       # the volume's origin (3 values): where its shaded samples are, for the lights
+P_LIGHT_COUNT = 18  # 0: a headlight along each ray; else that many light rows follow
+P_LIGHTS = 19       # rows of 7, as `raycast.shade` lays lights out
+N_PARAMS = 19       # with no lights
 
 
 @kernel
@@ -255,7 +259,9 @@ def visit_cell(A, s, inv, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1, c0, c1, t_end,
 @kernel
 def shade_color(data, spc, i, j, k, u, vv, w, dx, dy, dz, params, cr, cg, cb):
     """The colour ``(cr, cg, cb)`` of a composite sample in cell ``(i, j, k)`` at local
-    ``(u, vv, w)``, lit by a headlight along the world ray direction ``d``.
+    ``(u, vv, w)``, seen along the world ray direction ``d``: lit by the lights of ``params``
+    as an isosurface hit is (`raycast.shadow.combine_lights`, nothing in the way), or by a
+    headlight along ``d`` where there are none.
 
     Kept apart from the sampling loops, which call it only when shading is
     on: inlined, it made every contributing sample of an unshaded ray cost
@@ -265,9 +271,30 @@ def shade_color(data, spc, i, j, k, u, vv, w, dx, dy, dz, params, cr, cg, cb):
     # does (`raycast.shade.headlight_pixel`), highlight included.
     gx, gy, gz = trilinear_gradient(data, i, j, k, u, vv, w, spc)
     gx, gy, gz = unit_normal(gx, gy, gz, dx, dy, dz)
-    diff, spec = blinn_phong(gx, gy, gz, -dx, -dy, -dz, -dx, -dy, -dz, params[P_AMBIENT:P_AMBIENT + 4])
-    f = params[P_AMBIENT] + diff
-    return cr * f + spec, cg * f + spec, cb * f + spec
+    material = params[P_AMBIENT:P_AMBIENT + 4]
+    n_lights = int(params[P_LIGHT_COUNT])
+    if n_lights == 0:
+        diff, spec = blinn_phong(gx, gy, gz, -dx, -dy, -dz, -dx, -dy, -dz, material)
+        f = material[0] + diff
+        return cr * f + spec, cg * f + spec, cb * f + spec
+    px = params[P_ORIGIN] + spc[0] * (i + u)
+    py = params[P_ORIGIN + 1] + spc[1] * (j + vv)
+    pz = params[P_ORIGIN + 2] + spc[2] * (k + w)
+    fr = fg = fb = material[0]
+    sr = sg = sb = 0.0
+    for n in range(n_lights):
+        light = params[P_LIGHTS + 7 * n:P_LIGHTS + 7 * n + 7]
+        lx, ly, lz, dist = to_light(light, px, py, pz)
+        if dist == 0.0:
+            continue            # a light at the sample: no direction to it
+        diff, spec = blinn_phong(gx, gy, gz, -dx, -dy, -dz, lx, ly, lz, material)
+        fr += diff * light[4]
+        fg += diff * light[5]
+        fb += diff * light[6]
+        sr += spec * light[4]
+        sg += spec * light[5]
+        sb += spec * light[6]
+    return cr * fr + sr, cg * fg + sg, cb * fb + sb
 
 
 @kernel(inline="always")

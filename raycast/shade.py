@@ -1,4 +1,9 @@
-"""Shading of isosurface hits: analytic trilinear gradient normals, two-sided Blinn-Phong."""
+"""Shading: analytic trilinear gradient normals, two-sided Blinn-Phong, and the lights.
+
+Lights are rows ``[kind, x, y, z, r, g, b]`` (`parc.lights.light_array`):
+``x, y, z`` a point light's position or the direction a directional
+light's rays travel in, ``r, g, b`` its colour times intensity.
+"""
 import math
 
 from numba import prange
@@ -6,6 +11,12 @@ from numba import prange
 from .config import kernel
 from .rays import camera_ray, spread_run, spread_runs
 from .traverse import cell_corners
+
+#: A light row's kind (its first value).
+KIND_POINT = 0
+KIND_DIRECTIONAL = 1
+#: A light at the eye (the default with no lights): its direction is the view direction.
+KIND_HEADLIGHT = 2
 
 
 @kernel
@@ -46,6 +57,20 @@ def unit_normal(gx, gy, gz, dx, dy, dz):
         g2 = gx * gx + gy * gy + gz * gz
     gl = math.sqrt(g2)
     return gx / gl, gy / gl, gz / gl
+
+
+@kernel(inline="always")
+def to_light(light, px, py, pz):
+    """Unit direction from ``P`` to the light and the distance (``inf`` for directional)."""
+    if light[0] == KIND_POINT:
+        lx = light[1] - px
+        ly = light[2] - py
+        lz = light[3] - pz
+        d = math.sqrt(lx * lx + ly * ly + lz * lz)
+        if d == 0.0:
+            return 0.0, 0.0, 0.0, 0.0
+        return lx / d, ly / d, lz / d, d
+    return -light[1], -light[2], -light[3], math.inf
 
 
 @kernel

@@ -20,9 +20,9 @@ shadow ray's crossing of each view, and the shadow ray walks only
 ``[D - far, D - near]`` (point light) or ``[s_P - far, s_P - near]``
 (directional; ``s_P`` the point's distance from the view plane).
 
-Lights are rows ``[kind, x, y, z, r, g, b]`` (`parc.lights.light_array`);
-views rows of `N_VIEW` values (`parc.lights.view_array`). Both layouts are
-defined here, where the kernels read them.
+Lights are rows ``[kind, x, y, z, r, g, b]`` (`parc.lights.light_array`;
+the layout is `raycast.shade`'s, where every lit kernel reads it); views
+rows of `N_VIEW` values (`parc.lights.view_array`), defined here.
 """
 import math
 
@@ -33,14 +33,8 @@ from .composite import accumulate_ray
 from .config import kernel
 from .iso import cast_iso_ray
 from .rays import camera_ray, spread_run, spread_runs
-from .shade import blinn_phong, trilinear_gradient, unit_normal
+from .shade import KIND_HEADLIGHT, KIND_POINT, blinn_phong, to_light, trilinear_gradient, unit_normal
 from .traverse import to_index_space
-
-#: A light row's kind (its first value).
-KIND_POINT = 0
-KIND_DIRECTIONAL = 1
-#: A light at the eye (the default with no lights): its direction is the view direction.
-KIND_HEADLIGHT = 2
 
 #: Layout of a light buffer's view row.
 V_KIND = 0          # 0 perspective, 1 parallel
@@ -53,20 +47,6 @@ N_VIEW = 14
 #: Relative widening of the light buffers' segments: their float32 bounds
 #: are already rounded outwards; this covers the float64 ``D - s``.
 SEGMENT_SLACK = 4e-7
-
-
-@kernel(inline="always")
-def to_light(light, px, py, pz):
-    """Unit direction from ``P`` to the light and the distance (``inf`` for directional)."""
-    if light[0] == KIND_POINT:
-        lx = light[1] - px
-        ly = light[2] - py
-        lz = light[3] - pz
-        d = math.sqrt(lx * lx + ly * ly + lz * lz)
-        if d == 0.0:
-            return 0.0, 0.0, 0.0, 0.0
-        return lx / d, ly / d, lz / d, d
-    return -light[1], -light[2], -light[3], math.inf
 
 
 @kernel(inline="always")

@@ -135,7 +135,7 @@ def test_work_of_a_lit_scene_is_refused_and_nothing_written(vol_file, tmp_path, 
     rc, _, err = _run(["render", vol_file, "--iso", 4.0, "--size", 8, 8, "--light", "30,30,30",
                        "-o", out, "--work", work], capsys)
     assert rc == 2 and err.count("\n") == 1, err
-    assert "--work: per-pixel work is counted for scenes of one volume without lights" in err
+    assert "--work: per-pixel work is counted for scenes of one volume (an isosurface without lights)" in err
     assert not out.exists() and not work.exists()
 
 
@@ -857,21 +857,25 @@ def test_translucent_flags_that_cannot_apply_are_refused(extra, words, vol_file,
 
 
 @pytest.mark.parametrize("command", ["render", "compare"])
+@pytest.mark.parametrize("shade", [[], ["--shade"]])
 @pytest.mark.parametrize("light", [["--light", "1,2,3"], ["--sun", "0,0,-1", "--shadows"], ["--shadows"]])
-def test_lights_on_a_translucent_volume_are_said_to_change_nothing(command, light, vol_file, tmp_path, capsys):
-    # They shine on no isosurface: the image is the headlight's, as without them, and a note says
-    # so (--shadows alone gets no advice to add --light or --sun, which would change nothing).
-    argv = [command, vol_file, "--tf", "greyscale", "--shade", "--size", 8, 8]
+def test_lights_on_a_translucent_volume_light_shaded_samples_and_nothing_else(command, shade, light, vol_file,
+                                                                            tmp_path, capsys):
+    # Lights light shaded samples (--shade) and are said to change nothing without them; shadows
+    # fall on isosurfaces alone, so they are said to change nothing here (and --shadows alone
+    # gets no advice to add --light or --sun, which would not make them show).
+    argv = [command, vol_file, "--tf", "greyscale", *shade, "--size", 8, 8]
     out = [["-o", tmp_path / "lit.npy"], ["-o", tmp_path / "unlit.npy"]] if command == "render" else [[], []]
     rc, _, err = _run(argv + light + out[0], capsys)
-    said = [w for w, flag in (("lights shine", "--light" in light or "--sun" in light),
-                              ("shadows fall", "--shadows" in light)) if flag]
-    assert rc == 0 and all(f"parc: {w} on isosurfaces and this scene has none" in err for w in said), err
+    lit = ("--light" in light or "--sun" in light)
+    said = [w for w, flag in (("lights shine", lit and not shade), ("shadows fall", "--shadows" in light)) if flag]
+    assert rc == 0 and all(f"parc: {w} on isosurfaces" in err for w in said), err
     assert "add --light" not in err and err.count("on isosurfaces") == len(said)
     if command == "render":
         rc, _, err = _run(argv + out[1], capsys)
         assert rc == 0 and "on isosurfaces" not in err
-        assert (np.load(tmp_path / "lit.npy") == np.load(tmp_path / "unlit.npy")).all()
+        same = (np.load(tmp_path / "lit.npy") == np.load(tmp_path / "unlit.npy")).all()
+        assert same == (not (lit and shade))
 
 
 def test_an_output_on_the_input_is_refused(tmp_path, capsys):

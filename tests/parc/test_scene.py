@@ -6,6 +6,8 @@ sizes, ``radiance = colour * intensity``) and the data range computed with NumPy
 """
 import math
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -55,20 +57,31 @@ def test_a_scene_without_volumes_is_refused():
         _scene(volumes=[])
 
 
-@pytest.mark.parametrize("given, said", [
-    ({"shadows": True}, ["shadows fall"]),
-    ({"lights": [parc.PointLight((1, 2, 3))]}, ["lights shine"]),
-    ({"lights": [parc.DirectionalLight((0, 0, -1))], "shadows": True}, ["lights shine", "shadows fall"])])
-def test_lights_and_shadows_without_an_isosurface_are_taken_and_said_to_change_nothing(given, said):
-    # The contract's scene gives lights to an isosurface or a translucent volume alike.
-    volumes = [parc.Translucent(VOL, "greyscale", shade=True)]
+@pytest.mark.parametrize("shade, given, said", [
+    (True, {"shadows": True}, ["shadows fall"]),
+    (False, {"lights": [parc.PointLight((1, 2, 3))]}, ["lights shine"]),
+    (False, {"lights": [parc.DirectionalLight((0, 0, -1))], "shadows": True}, ["lights shine", "shadows fall"]),
+    (True, {"lights": [parc.DirectionalLight((0, 0, -1))], "shadows": True}, ["shadows fall"])])
+def test_lights_and_shadows_that_fall_on_nothing_are_taken_and_said_to_change_nothing(shade, given, said):
+    # The contract's scene gives lights to an isosurface or a translucent volume alike. They light
+    # shaded translucent samples (unshadowed) and nothing else there.
+    volumes = [parc.Translucent(VOL, "greyscale", shade=shade)]
     with pytest.warns(parc.ShowsNothingWarning) as caught:
         scene = _scene(volumes=volumes, **given)
-    assert [str(w.message).partition(" on isosurfaces and this scene has none")[0] for w in caught] == said
+    assert [" ".join(str(w.message).split()[:2]) for w in caught] == said
+    assert all("the image is the same without them" in str(w.message) for w in caught)
     assert all(w.filename == __file__ for w in caught)
-    plain = _scene(volumes=volumes)
+    plain = _scene(volumes=volumes, lights=scene.lights if shade else [])
     for method in ("brute", "parc"):
         assert (parc.render(scene, method=method).image == parc.render(plain, method=method).image).all()
+
+
+@pytest.mark.parametrize("volume", [parc.Translucent(VOL, "greyscale", shade=True), parc.Isosurface(VOL, ISO)])
+def test_lights_on_what_they_light_are_taken_without_a_word(volume):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", parc.ShowsNothingWarning)
+        scene = _scene(volumes=[volume], lights=[parc.PointLight((1, 2, 3))])
+    assert (parc.render(scene).image != parc.render(_scene(volumes=[volume])).image).any()
 
 
 @pytest.mark.parametrize("make", [

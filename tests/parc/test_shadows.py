@@ -105,7 +105,8 @@ def _shadow_scene(rng, seed):
         other = _volume(rng, "blobs")
         other = Volume(other.data, spacing=other.spacing, origin=tuple(np.array(vol.center) - 3.0), name="blobs")
         if rng.random() < 0.5:
-            vols.append(Translucent(other, tf="greyscale"))
+            # Shaded now and then: its samples lit, unshadowed, by the same lights.
+            vols.append(Translucent(other, tf="greyscale", shade=seed % 2 == 0))
         else:
             vols.append(_iso(rng, other))
     lo, hi = _union([v.volume for v in vols])
@@ -225,9 +226,12 @@ def test_multi_volume_parc_equals_brute(gl, case, seed):
     else:
         vols = [_iso(rng, a), Translucent(b, tf=ramp, mode="average")]
     lo, hi = _union([v.volume for v in vols])
-    lit = seed % 2 == 0 and any(isinstance(v, Isosurface) for v in vols)
+    surfaces = any(isinstance(v, Isosurface) for v in vols)
+    shaded = any(isinstance(v, Translucent) and v.shade for v in vols)
+    lit = (seed % 2 == 0 and surfaces) or shaded
     lights = [_light(rng, LIGHT_PLACES[seed % 5], lo, hi)] if lit else []
-    scene = Scene(camera=_camera(rng, lo, hi), size=SIZE, volumes=vols, lights=lights, shadows=bool(lights))
+    scene = Scene(camera=_camera(rng, lo, hi), size=SIZE, volumes=vols, lights=lights,
+                  shadows=bool(lights) and surfaces)
     _assert_same(scene, supercell=(1, 2, 3, 0.5)[seed])
 
 

@@ -14,7 +14,8 @@ import pytest
 
 from data_tools import InputError, Volume
 from data_tools.synthetic import blobs, ct_phantom, trilinear_field
-from parc import Camera, Scene, ShowsNothingWarning, TransferFunction, Translucent, load_transfer_function, render
+from parc import (Camera, DirectionalLight, PointLight, Scene, ShowsNothingWarning, TransferFunction, Translucent,
+                  load_transfer_function, render)
 
 MODES = ("composite", "mip", "average")
 SUPERCELLS = (0.5, 1, 2, 3, 4.5, 8, (2, 3, 1.5))
@@ -81,6 +82,30 @@ def _camera(rng, vol, seed):
                   parallel_scale=0.4 * float(np.linalg.norm(hi - lo)))
 
 
+def _random_lights(rng, vol):
+    """One or two lights of random colours: point lights outside, inside or on the volume's
+    box, or directional."""
+    lo, hi = (np.asarray(b) for b in vol.bounds)
+    lights = []
+    for _ in range(int(rng.integers(1, 3))):
+        color = tuple(rng.uniform(0.4, 1.0, 3))
+        place = rng.integers(4)
+        if place == 0:
+            d = rng.normal(size=3)
+            p = (lo + hi) / 2 + d / np.linalg.norm(d) * np.linalg.norm(hi - lo) * rng.uniform(0.8, 3.0)
+            lights.append(PointLight(tuple(p), color=color))
+        elif place == 1:
+            lights.append(PointLight(tuple(rng.uniform(lo, hi)), color=color))
+        elif place == 2:
+            p = rng.uniform(lo, hi)
+            a = rng.integers(3)
+            p[a] = lo[a] if rng.random() < 0.5 else hi[a]
+            lights.append(PointLight(tuple(p), color=color, intensity=float(rng.uniform(0.5, 1.5))))
+        else:
+            lights.append(DirectionalLight(tuple(rng.normal(size=3)), color=color))
+    return lights
+
+
 @pytest.mark.random_scenes(210)
 def test_parc_equals_brute_translucent(seed, gl):
     rng = np.random.default_rng(1000 + seed)
@@ -92,9 +117,12 @@ def test_parc_equals_brute_translucent(seed, gl):
     step = 0.37 if rng.random() < 0.25 else None
     # A scene that shows nothing cannot show a skipped sample: another transfer function and
     # view are drawn until brute's image shows something.
+    # Half the shaded scenes are lit by lights of their own, drawn apart so that the
+    # volume, transfer function and view stay the seed's.
+    lights = _random_lights(np.random.default_rng(5000 + seed), vol) if shade and seed % 4 < 2 else []
     for _ in range(MAX_DRAWS):
         vis = Translucent(vol, _random_tf(rng, lo, hi), mode=mode, shade=shade, step=step)
-        scene = Scene(camera=_camera(rng, vol, seed), size=SIZE, volumes=[vis])
+        scene = Scene(camera=_camera(rng, vol, seed), size=SIZE, volumes=[vis], lights=lights)
         ref = render(scene, method="brute", work=True)
         if (ref.image[..., 3] > VISIBLE_ALPHA).sum() >= MIN_VISIBLE:
             break
@@ -102,7 +130,7 @@ def test_parc_equals_brute_translucent(seed, gl):
     supercell = SUPERCELLS[seed % len(SUPERCELLS)]
     buffers = BUFFERS[(seed // 3) % len(BUFFERS)]
     res = render(scene, method="parc", supercell=supercell, buffers=buffers, work=True)
-    where = f"{mode} supercell={supercell} buffers={buffers} seed={seed}"
+    where = f"{mode} supercell={supercell} buffers={buffers} lights={len(lights)} seed={seed}"
     assert np.abs(res.image - ref.image).max() <= 1e-6, where
     # PARC takes a subset of each ray's lattice points: never more samples at any pixel.
     assert res.work.sum() == res.stats["samples"] and ref.work.sum() == ref.stats["samples"], where
@@ -625,3 +653,98 @@ def test_a_ct_preset_on_8_bit_data_says_which_presets_fit():
     with pytest.warns(ShowsNothingWarning) as caught:
         Translucent(vol, TransferFunction(opacity=[[300, 0], [400, 1]]))
     assert "viridis" not in str(caught[0].message)
+
+
+def _linear_field(n=13):
+    """Samples of the linear field 0.48 i + 0.36 j + 0.8 k: one gradient everywhere, so every
+    shaded sample under a light with one direction has one colour."""
+    k, j, i = np.mgrid[0:n, 0:n, 0:n].astype(np.float64)
+    return 0.48 * i + 0.36 * j + 0.8 * k
+
+
+def _blinn_phong_colour(c, g, v, lights, material):
+    """The README's shading of a point with gradient ``g`` seen from ``v`` (unit, towards the
+    eye), its colour ``c``, under ``(l, radiance)`` pairs (``l`` unit, towards the light)."""
+    ka, kd, ks, s = material
+    n = np.asarray(g) / np.linalg.norm(g)
+    n = n if n @ v >= 0 else -n                     # two-sided: turned to face the eye
+    out = np.asarray(c) * ka
+    for l, radiance in lights:
+        if n @ l > 0:
+            h = (l + v) / np.linalg.norm(l + v)
+            out = out + np.asarray(radiance) * (np.asarray(c) * kd * (n @ l) + ks * max(n @ h, 0.0) ** s)
+    return np.minimum(out, 1.0)
+
+
+@pytest.mark.parametrize("method", ["brute", "parc"])
+def test_a_shaded_linear_field_has_the_analytic_colour_under_coloured_lights(gl, method):
+    # Two directional lights, coloured, one on each side of the field's gradient: only the one
+    # the samples face lights them, each channel by its own colour, with no headlight.
+    c = np.array([0.9, 0.6, 0.3])
+    tf = TransferFunction(opacity=[[-100.0, 0.05], [100.0, 0.05]], color=[[0.0, *c]])
+    material = (0.2, 0.5, 0.3, 8.0)
+    d = np.array([-0.3, -0.2, -1.0]) / np.linalg.norm([-0.3, -0.2, -1.0])
+    cam = Camera(eye=tuple(np.array([6.0, 6.0, 6.0]) - 50.0 * d), look_at=(6.0, 6.0, 6.0), up=(0, 1, 0),
+                 parallel_scale=2.0)
+    front, back = np.array([0.5, -0.4, -1.0]), np.array([-0.2, 0.9, 1.0])
+    lights = [DirectionalLight(tuple(front), color=(1.0, 0.5, 0.25), intensity=0.8),
+              DirectionalLight(tuple(back), color=(0.3, 1.0, 1.0))]
+    vis = Translucent(Volume(_linear_field()), tf, shade=True, material=material)
+    img = render(Scene(camera=cam, size=(6, 6), volumes=[vis], lights=lights), method).image.astype(np.float64)
+    g = np.array([0.48, 0.36, 0.8])
+    pairs = [(-f / np.linalg.norm(f), np.array(light.radiance)) for f, light in zip((front, back), lights)]
+    want = _blinn_phong_colour(c, g, -d, pairs, material)
+    alpha = img[..., 3]
+    assert (alpha > 0.3).all()
+    np.testing.assert_allclose(img[..., :3], want * alpha[..., None], atol=1e-5, rtol=0)
+    # The two lights light differently from the headlight, or the check shows nothing.
+    head = _blinn_phong_colour(c, g, -d, [(-d, np.ones(3))], material)
+    assert np.abs(want - head).min() > 0.05
+
+
+@pytest.mark.parametrize("method", ["brute", "parc"])
+@pytest.mark.parametrize("view", ["perspective", "parallel"])
+def test_a_light_where_the_headlight_shines_from_lights_as_the_headlight(gl, method, view):
+    # The headlight shines along each pixel's ray: from a point light at the eye in a
+    # perspective view, from a directional light along the view direction in a parallel one.
+    vol = blobs(14, seed=5)
+    lo, hi = vol.value_range()
+    tf = TransferFunction(opacity=[[lo, 0.0], [hi, 0.7]], color=[[lo, 1.0, 0.5, 0.2], [hi, 0.2, 0.6, 1.0]])
+    eye, look = (40.0, -25.0, 30.0), (7.0, 6.0, 7.5)
+    if view == "perspective":
+        cam = Camera(eye=eye, look_at=look, up=(0, 0, 1), fov=25.0)
+        light = PointLight(eye)
+    else:
+        cam = Camera(eye=eye, look_at=look, up=(0, 0, 1), parallel_scale=9.0)
+        light = DirectionalLight(tuple(np.subtract(look, eye)))
+    vis = Translucent(vol, tf, shade=True)
+    head = render(Scene(camera=cam, size=(20, 16), volumes=[vis]), method).image
+    lit = render(Scene(camera=cam, size=(20, 16), volumes=[vis], lights=[light]), method).image
+    assert (head[..., 3] > 0.1).sum() > 50
+    assert np.abs(lit - head).max() <= 1e-6
+    # Another light lights them otherwise.
+    aside = render(Scene(camera=cam, size=(20, 16), volumes=[vis], lights=[PointLight((7.0, 40.0, 7.5))]),
+                   method).image
+    assert np.abs(aside - head).max() > 0.05
+
+
+@pytest.mark.parametrize("method", ["brute", "parc"])
+def test_each_channel_of_a_sample_is_lit_by_that_channel_of_the_light(gl, method):
+    # A red light leaves green and blue as no light would: the ambient term alone, which is the
+    # headlight with no diffuse or specular term; red as a white light gives it.
+    vol = blobs(14, seed=9)
+    lo, hi = vol.value_range()
+    tf = TransferFunction(opacity=[[lo, 0.0], [hi, 0.7]], color=[[lo, 0.9, 0.8, 0.7], [hi, 0.6, 0.9, 1.0]])
+    cam = Camera(eye=(40.0, -25.0, 30.0), look_at=(7.0, 6.0, 7.5), up=(0, 0, 1), fov=25.0)
+    at = (-10.0, 30.0, 20.0)
+
+    def image(color=None, material=(0.3, 0.6, 0.4, 10.0)):
+        lights = [] if color is None else [PointLight(at, color=color)]
+        vis = Translucent(vol, tf, shade=True, material=material)
+        return render(Scene(camera=cam, size=(20, 16), volumes=[vis], lights=lights), method).image
+
+    red, white, ambient = image((1.0, 0.0, 0.0)), image((1.0, 1.0, 1.0)), image(None, (0.3, 0.0, 0.0, 10.0))
+    assert (red[..., 3] > 0.1).sum() > 50
+    np.testing.assert_allclose(red[..., 1:], ambient[..., 1:], atol=1e-6, rtol=0)
+    np.testing.assert_allclose(red[..., 0], white[..., 0], atol=1e-6, rtol=0)
+    assert np.abs(white[..., 1:] - ambient[..., 1:]).max() > 0.05
