@@ -346,7 +346,11 @@ def _check_data_file(path):
     except Exception:  # noqa: BLE001 - reported by the read itself
         return None
     name = header.get("data file") or header.get("datafile")
-    if not isinstance(name, str) or name.startswith("LIST"):
+    if not isinstance(name, str):
+        return None
+    words = name.split()
+    if words and words[0].upper() == "LIST" and len(words) <= 2:
+        # A list of files, as `several_data_files` takes one: LISTING.raw is a file's name.
         return None
     data = Path(name) if Path(name).is_absolute() else path.parent / name
     if " " in name.strip() and not data.exists():

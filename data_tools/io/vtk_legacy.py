@@ -385,6 +385,12 @@ def read_vtk(path, *, spacing=None, origin=None) -> Volume:
                 data = _read_ascii_colors(f, dims, path, rest)
             elif encoding == "ASCII":
                 data = _read_ascii(f, dims, dtype, path, rest)
+            if field is None and rest and rest[0].decode("ascii", "replace").upper() not in _SECTIONS:
+                # As after binary samples (`check_tail`): values left over mean the header states
+                # fewer samples than were written, and every row was read shifted.
+                raise InputError(f"{path}: {len(rest)} words after the ASCII VTK samples the header states, "
+                                 "and they do not begin a further section: the header does not match the data "
+                                 "(corrupt?)")
             if field is None and rest:
                 # The words after the samples, read with them: a SCALARS word is no number.
                 others = [rest[n + 1].decode("ascii", "replace") for n in range(len(rest) - 1)
@@ -441,10 +447,15 @@ def _read_ascii(f, dims, dtype, path, rest=None):
     except OverflowError:
         raise InputError(f"{path}: ASCII VTK data holds integers of 2**63 or more; samples must fit in 32 bits") from None
     info = np.iinfo(dt) if dt.kind in "iu" else np.finfo(dt)
+    if dt == np.float32:
+        # Text past float32's largest value by less than half a step (its shortest form,
+        # 3.4028235e+38) rounds to it, as strtof rounds it; only what rounds to infinity is out.
+        single = float32_from_text(tokens[:count], values)
+        if (np.isinf(single) & (np.abs(values) > info.max)).any():
+            raise InputError(f"{path}: ASCII VTK values outside the {dt.name} range")
+        return single.reshape(dims[2], dims[1], dims[0])
     if values.min() < info.min or values.max() > info.max:
         raise InputError(f"{path}: ASCII VTK values outside the {dt.name} range")
-    if dt == np.float32:
-        values = float32_from_text(tokens[:count], values)
     return values.astype(dt).reshape(dims[2], dims[1], dims[0])
 
 

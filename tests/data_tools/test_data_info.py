@@ -223,6 +223,16 @@ def test_mean_percentiles_and_their_text_by_hand():
     assert "1%: 1.99, 5%: 9.95, 25%: 49.75, 50%: 99.5, 75%: 149.25, 95%: 189.05, 99%: 197.01" in text
 
 
+def test_mean_of_float32_samples_is_summed_in_double():
+    # 2^24 and 255 ones: (2^24 + 255) / 256 = 65536.99609375 exactly. Summed in float32, each
+    # one added to 2^24 is lost, and the mean printed 65536.9.
+    data = np.ones((4, 8, 8), np.float32)
+    data[0, 0, 0] = 2.0 ** 24
+    info = volume_info(Volume(data))
+    assert info["mean"] == 65536.99609375
+    assert "mean 65537" in format_info(info)
+
+
 def test_zero_fraction_counts_every_sample_of_a_subsampled_volume():
     # 130^3 samples is past SAMPLE_LIMIT (2^21): the other statistics use every other sample,
     # which here are all zeros. Zeros are counted over the whole volume: exactly half.

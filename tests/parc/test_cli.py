@@ -354,6 +354,18 @@ def test_convert_refuses_to_write_over_a_data_file_whose_name_has_a_space(tmp_pa
     assert {f.name: f.read_bytes() for f in tmp_path.iterdir()} == before
 
 
+def test_convert_refuses_to_write_over_a_data_file_whose_name_begins_with_list(tmp_path, capsys):
+    # Only the word LIST names a list of data files: LISTING.raw is the header's one data file.
+    data = np.arange(8, dtype=">i2") * 100
+    (tmp_path / "LISTING.raw").write_bytes(data.tobytes())
+    (tmp_path / "x.nhdr").write_text("NRRD0004\ntype: short\ndimension: 3\nsizes: 2 2 2\nendian: big\n"
+                                     "encoding: raw\ndata file: LISTING.raw\n")
+    before = {f.name: f.read_bytes() for f in tmp_path.iterdir()}
+    rc, _, err = _run(["convert", tmp_path / "x.nhdr", "-o", tmp_path / "LISTING.raw"], capsys)
+    assert rc == 2 and "is read by this run" in err, err
+    assert {f.name: f.read_bytes() for f in tmp_path.iterdir()} == before
+
+
 @pytest.mark.parametrize("command", ["make", "convert"])
 def test_a_header_never_writes_over_a_data_file_not_its_own(vol_file, tmp_path, command, capsys):
     # scan.mhd's samples go to scan.raw: an unrelated scan.raw stays; an earlier scan.mhd's is rewritten.
