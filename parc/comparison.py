@@ -388,8 +388,10 @@ def step_sweep(scene, steps, *, repeats=3, warmup=1, progress=None, options=None
     check_scene_memory(scene, kept_images=3)
 
     def at(step):
+        # The lights shine on shaded samples alone; given to another volume they would be said
+        # to change nothing again at every step.
         return Scene(camera=scene.camera, size=scene.size, background=scene.background,
-                     volumes=[replace(vis, step=step, tf=vis.tf)])
+                     volumes=[replace(vis, step=step, tf=vis.tf)], lights=scene.lights if vis.shade else ())
 
     # Refuse a step the volume cannot take before any work, the reference's too.
     for step in steps:

@@ -49,7 +49,7 @@ SHADOW_EPS = 1e-5
 
 
 def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=LIGHT_BUFFER_SIZE, blocks=True):
-    """Render any scene (`parc.render` calls this for several volumes or lights).
+    """Render any scene (`parc.render` calls this for several volumes, or an isosurface with lights).
 
     Returns ``(image, depth, counts, timings, extra)``: the float32 RGBA
     image (without background), the ``(H, W)`` depth, the counters

@@ -138,7 +138,8 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
         segments alone.
     work : bool, default False
         Also return each pixel's work (`RenderResult.work`), for scenes of
-        one volume (an isosurface without lights). Copied out after the frame is timed.
+        one volume, and of an isosurface only without lights. Copied out
+        after the frame is timed.
 
     Returns
     -------
@@ -194,8 +195,8 @@ def check_request(scene, buffers, work, names=("buffers", "work")):
         raise InputError(f"{names[0]} {','.join(buffers)}: {why}")
     if not _casts_alone(scene):
         if work:
-            raise InputError(f"{names[1]}: per-pixel work is counted for scenes of one volume "
-                             "(an isosurface without lights)")
+            raise InputError(f"{names[1]}: per-pixel work is counted for scenes of one volume, "
+                             "and of an isosurface only without lights")
     return buffers
 
 
@@ -397,7 +398,7 @@ def _casters_for(scene, methods, buffers):
     bits = "parc" in methods and "bits" in parse_buffers(buffers)
     trans = [v for v in scene.volumes if isinstance(v, Translucent)]
     isos = [v for v in scene.volumes if not isinstance(v, Translucent)]
-    if len(scene.volumes) == 1 and not scene.lights:
+    if _casts_alone(scene):
         if not trans:
             return [(iso.cast_iso_image, of(isos))]
         return [(composite._IMAGE_CASTERS[bool(trans[0].shade), bits], of(trans))]
@@ -405,7 +406,7 @@ def _casters_for(scene, methods, buffers):
     # volume's samples, a surface out of sight said it compiled on every run. The casters,
     # which run for every volume, are asked for its samples.
     kernels = [(iso.cast_iso_image, of(isos)), (shadow.surface_frames, ())] if isos else []
-    if scene.shadows and scene.lights:
+    if isos and scene.shadows and scene.lights:
         kernels += [(shadow.shadow_iso, ())] + ([(shadow.shadow_accumulate, ())] if trans else [])
     layers = [v for v in trans if v.mode != "composite"]
     if layers:

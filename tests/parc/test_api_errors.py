@@ -86,7 +86,7 @@ CASES = {
     "progress not callable": (lambda: parc.render(_scene(), progress=5), "progress"),
     "work as text": (lambda: parc.render(_scene(), work="yes"), "work"),
     "work for a lit scene": (lambda: parc.render(_scene(lights=[parc.PointLight((1, 2, 3))]), work=True),
-                             "work: per-pixel work is counted for scenes of one volume (an isosurface without lights)"),
+                             "work: per-pixel work is counted for scenes of one volume, and of an isosurface only without lights"),
     "supercell 1e-9": (lambda: parc.render(_scene(), method="parc", supercell=1e-9), "choose a larger size"),
     # Short, not a 300-digit count (nor a float too large for the count's format).
     "supercell 1e-300": (lambda: parc.render(_scene(), method="parc", supercell=1e-300), "gives about 1e9"),

@@ -135,7 +135,7 @@ def test_work_of_a_lit_scene_is_refused_and_nothing_written(vol_file, tmp_path, 
     rc, _, err = _run(["render", vol_file, "--iso", 4.0, "--size", 8, 8, "--light", "30,30,30",
                        "-o", out, "--work", work], capsys)
     assert rc == 2 and err.count("\n") == 1, err
-    assert "--work: per-pixel work is counted for scenes of one volume (an isosurface without lights)" in err
+    assert "--work: per-pixel work is counted for scenes of one volume, and of an isosurface only without lights" in err
     assert not out.exists() and not work.exists()
 
 
@@ -1534,6 +1534,44 @@ def test_the_casters_a_render_is_said_to_compile_are_those_it_runs(gl):
             assert set(samples) <= compiled, (k.py_func.__qualname__, samples, compiled)
         if method == "parc":
             assert set(named) - {k for k, _ in kernel_samples(scene, ("brute",), buffers)}
+
+
+def test_one_lit_translucent_volume_is_said_to_compile_the_caster_it_runs(gl):
+    """One translucent volume with lights is cast by its own driver, as without them: the notice
+    asked for the merged walk of several volumes instead, which such a render never runs, and
+    said it compiled on every run (and nothing on the first, which compiled)."""
+    import parc
+    from data_tools.synthetic import blobs
+    from parc.renderer import kernel_samples
+    vol = blobs(10, seed=1)
+    cam = parc.Camera.framing(*vol.bounds)
+    vis = parc.Translucent(vol, "greyscale", shade=True)
+    lit = parc.Scene(camera=cam, size=(8, 8), volumes=[vis], lights=[parc.PointLight((30.0, -20.0, 25.0))])
+    for method, buffers in (("brute", "depth"), ("parc", "depth,bits")):
+        parc.render(lit, method, **({"buffers": buffers} if method == "parc" else {}))
+        pairs = kernel_samples(lit, (method,), buffers)
+        for k, samples in pairs:
+            assert set(samples) <= {sig[0] for sig in k.signatures}, k.py_func.__qualname__
+        assert pairs == kernel_samples(parc.Scene(camera=cam, size=(8, 8), volumes=[vis]), (method,), buffers)
+
+
+def test_shadows_with_no_surface_to_fall_on_are_not_said_to_compile_shadow_rays(gl):
+    """Shadow rays leave isosurface hits alone: in a scene of translucent volumes they are never
+    cast, and the notice, asking for their kernels, said it compiled on every run until some
+    other scene had compiled them."""
+    import parc
+    from data_tools.synthetic import blobs
+    from parc.renderer import kernel_samples
+    vol = blobs(10, seed=1)
+    volumes = [parc.Translucent(vol, "greyscale", shade=True), parc.Translucent(vol, "viridis", shade=True)]
+    lights = [parc.PointLight((30.0, -20.0, 25.0))]
+    cam = parc.Camera.framing(*vol.bounds)
+    with pytest.warns(parc.ShowsNothingWarning):
+        shadowed = parc.Scene(camera=cam, size=(8, 8), volumes=volumes, lights=lights, shadows=True)
+    plain = parc.Scene(camera=cam, size=(8, 8), volumes=volumes, lights=lights)
+    for method in ("brute", "parc"):
+        assert (parc.render(shadowed, method).image == parc.render(plain, method).image).all()
+        assert kernel_samples(shadowed, (method,)) == kernel_samples(plain, (method,))
 
 
 def _readme_command_lines():

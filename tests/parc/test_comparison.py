@@ -238,6 +238,27 @@ def test_step_sweep_speedup_and_error_by_hand(monkeypatch):
     assert row["parc_vs_brute"] == 0.0
 
 
+def test_a_step_sweep_renders_a_shaded_volume_under_the_scene_s_lights(gl):
+    # brute's error at the step against its reference is that of the lit scene's own renders
+    # at the step and at a quarter of it: the sweep's scenes keep the lights.
+    from data_tools.synthetic import blobs
+    from parc import Camera, PointLight, Scene, TransferFunction, Translucent, render
+    from parc.comparison import step_sweep
+    vol = blobs(8, seed=3)
+    lo, hi = vol.value_range()
+    tf = TransferFunction(opacity=[[lo, 0.0], [hi, 0.6]], color=[[lo, 1.0, 0.5, 0.2], [hi, 0.2, 0.6, 1.0]])
+    cam = Camera.framing(*vol.bounds)
+
+    def lit(step):
+        return Scene(camera=cam, size=(8, 8), volumes=[Translucent(vol, tf, shade=True, step=step)],
+                     lights=[PointLight((-20.0, 30.0, 5.0), color=(1.0, 0.2, 0.2))])
+
+    (row,) = step_sweep(lit(0.5), [0.5], repeats=1, warmup=0)
+    want = image_error(render(lit(0.5)), render(lit(0.125)), float(min(vol.spacing)))
+    assert (row["max_color"], row["rmse"]) == (want["max_color"], want["rmse"])
+    assert row["parc_vs_brute"] == 0.0 and row["parameters"]["lights"] == 1
+
+
 def test_max_colour_and_rmse_count_the_alpha_channel():
     # Coverage is a channel of the image as much as colour is: 0.5 off in one alpha of sixteen channels.
     ref = _result([[1.0, 1.0], [1.0, 1.0]], np.zeros((2, 2, 4)))

@@ -748,3 +748,46 @@ def test_each_channel_of_a_sample_is_lit_by_that_channel_of_the_light(gl, method
     np.testing.assert_allclose(red[..., 1:], ambient[..., 1:], atol=1e-6, rtol=0)
     np.testing.assert_allclose(red[..., 0], white[..., 0], atol=1e-6, rtol=0)
     assert np.abs(white[..., 1:] - ambient[..., 1:]).max() > 0.05
+
+
+@pytest.mark.parametrize("method", ["brute", "parc"])
+def test_a_point_light_lights_each_sample_from_the_sample_s_own_world_point(gl, method):
+    # A linear field placed off the origin with unequal spacings: every sample has one gradient,
+    # but the direction to a point light inside the box (and to one on a face) changes from
+    # sample to sample. Samples lie every step from where each ray enters the box, at world
+    # points found here from the ray alone, and are composited front to back.
+    from parc.transfer import reference_step
+    org, spc, n = np.array([-3.2, 5.1, 2.4]), np.array([0.7, 1.3, 0.9]), np.array([6, 5, 7])
+    g = np.array([0.8, -0.5, 1.1])
+    k, j, i = np.mgrid[0:n[2], 0:n[1], 0:n[0]].astype(np.float64)
+    data = g[0] * (org[0] + i * spc[0]) + g[1] * (org[1] + j * spc[1]) + g[2] * (org[2] + k * spc[2])
+    lo, hi = org, org + spc * (n - 1)
+    mid = (lo + hi) / 2
+    c, alpha, step, material = np.array([0.9, 0.6, 0.3]), 0.12, 0.37, (0.15, 0.55, 0.4, 12.0)
+    tf = TransferFunction(opacity=[[-100.0, alpha], [100.0, alpha]], color=[[0.0, *c]])
+    vis = Translucent(Volume(data, spacing=tuple(spc), origin=tuple(org)), tf, shade=True, material=material,
+                      step=step, threshold=1.0)
+    lights = [PointLight(tuple(mid + [0.4, -0.3, 0.2]), color=(1.0, 0.5, 0.2)),
+              PointLight((lo[0], mid[1], mid[2]), color=(0.3, 1.0, 0.6), intensity=0.7)]
+    cam = Camera(eye=tuple(mid + 25.0 * np.array([-0.2, 0.5, 0.8])), look_at=tuple(mid), up=(0, 1, 0), fov=15.0)
+    img = render(Scene(camera=cam, size=(7, 6), volumes=[vis], lights=lights), method).image.astype(np.float64)
+
+    a = 1.0 - (1.0 - alpha) ** (step / reference_step(spc))
+    want = np.zeros_like(img)
+    ambient = np.zeros_like(img)
+    origins, directions = cam.rays(7, 6)
+    for y, x in np.ndindex(6, 7):
+        o, d = origins[y, x], directions[y, x]
+        with np.errstate(divide="ignore"):
+            t0, t1 = (lo - o) / d, (hi - o) / d
+        t_in, t_out = max(0.0, np.minimum(t0, t1).max()), np.maximum(t0, t1).min()
+        for out, lit in ((want, True), (ambient, False)):
+            for m in range(int(np.floor((t_out - t_in) / step)) + 1 if t_in <= t_out else 0):
+                p = o + (t_in + m * step) * d
+                pairs = [((np.array(light.position) - p) / np.linalg.norm(np.array(light.position) - p),
+                          np.array(light.radiance)) for light in lights] if lit else []
+                out[y, x, :3] += (1.0 - out[y, x, 3]) * a * _blinn_phong_colour(c, g, -d, pairs, material)
+                out[y, x, 3] += (1.0 - out[y, x, 3]) * a
+    assert (want[..., 3] > 0.5).sum() >= 10
+    np.testing.assert_allclose(img, want, atol=1e-6, rtol=0)
+    assert np.abs(want - ambient).max() > 0.3
