@@ -343,25 +343,16 @@ def test_convert_refuses_to_write_samples_over_the_input(tmp_path, source, out_n
     assert {f.name: f.read_bytes() for f in tmp_path.iterdir()} == before
 
 
-def test_convert_refuses_to_write_over_a_data_file_whose_name_has_a_space(tmp_path, capsys):
+@pytest.mark.parametrize("name", ["my data.raw", "LISTING.raw"])
+def test_convert_refuses_to_write_over_a_data_file_named_like_a_list(tmp_path, capsys, name):
+    # Only the word LIST, alone or with one more, names a list of data files: a name with a
+    # space, or LISTING.raw, is the header's one data file.
     data = np.arange(8, dtype=">i2") * 100
-    (tmp_path / "my data.raw").write_bytes(data.tobytes())
+    (tmp_path / name).write_bytes(data.tobytes())
     (tmp_path / "x.nhdr").write_text("NRRD0004\ntype: short\ndimension: 3\nsizes: 2 2 2\nendian: big\n"
-                                     "encoding: raw\ndata file: my data.raw\n")
+                                     f"encoding: raw\ndata file: {name}\n")
     before = {f.name: f.read_bytes() for f in tmp_path.iterdir()}
-    rc, _, err = _run(["convert", tmp_path / "x.nhdr", "-o", tmp_path / "my data.raw"], capsys)
-    assert rc == 2 and "is read by this run" in err, err
-    assert {f.name: f.read_bytes() for f in tmp_path.iterdir()} == before
-
-
-def test_convert_refuses_to_write_over_a_data_file_whose_name_begins_with_list(tmp_path, capsys):
-    # Only the word LIST names a list of data files: LISTING.raw is the header's one data file.
-    data = np.arange(8, dtype=">i2") * 100
-    (tmp_path / "LISTING.raw").write_bytes(data.tobytes())
-    (tmp_path / "x.nhdr").write_text("NRRD0004\ntype: short\ndimension: 3\nsizes: 2 2 2\nendian: big\n"
-                                     "encoding: raw\ndata file: LISTING.raw\n")
-    before = {f.name: f.read_bytes() for f in tmp_path.iterdir()}
-    rc, _, err = _run(["convert", tmp_path / "x.nhdr", "-o", tmp_path / "LISTING.raw"], capsys)
+    rc, _, err = _run(["convert", tmp_path / "x.nhdr", "-o", tmp_path / name], capsys)
     assert rc == 2 and "is read by this run" in err, err
     assert {f.name: f.read_bytes() for f in tmp_path.iterdir()} == before
 

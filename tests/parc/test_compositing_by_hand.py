@@ -80,42 +80,44 @@ def test_merged_volumes_are_shaded_each_by_its_own_setting():
     assert np.abs(a[..., :3] / a[..., 3:] - b[..., :3] / b[..., 3:]).max() > 0.05
 
 
-def test_merged_volumes_are_shaded_each_with_its_own_spacing():
-    # Both shaded, one field, spacings 1 and 2 along z: a linear field has one gradient, (0.48,
-    # 0.36, 0.8) over the spacing, so each volume has one shaded colour, set by its own spacing.
+def _shaded_pair():
+    """Both shaded, one linear field, spacings 1 and 2 along z: the field has one gradient,
+    (0.48, 0.36, 0.8) over the spacing, so each volume has one shaded colour under a light
+    of one direction, set by its own spacing."""
     k, j, i = np.mgrid[0:N, 0:N, 0:N].astype(np.float32)
     data = 0.48 * i + 0.36 * j + 0.8 * k
     tf = TransferFunction([[-100, 0.05], [100, 0.05]], [[0, 0.9, 0.6, 0.3]])
     near = Translucent(Volume(data, name="near"), tf, shade=True, threshold=1.0)
     far = Translucent(Volume(data, spacing=(1.0, 1.0, 2.0), origin=(0, 0, 20), name="far"), tf, shade=True,
                       threshold=1.0)
-    a, b = (render(Scene(camera=CAM, size=(4, 4), volumes=[v])).image.astype(np.float64) for v in (near, far))
-    for vols in ([near, far], [far, near]):
-        both = render(Scene(camera=CAM, size=(4, 4), volumes=vols)).image
-        np.testing.assert_allclose(both, a + (1.0 - a[..., 3:4]) * b, atol=1e-5, rtol=0)
-    assert np.abs(a[..., :3] / a[..., 3:] - b[..., :3] / b[..., 3:]).max() > 0.05
+    return near, far
+
+
+#: A point light and a coloured sun.
+LIGHTS = [PointLight((30.0, -10.0, -5.0)), DirectionalLight((0.3, 0.2, 1.0), color=(1.0, 0.4, 0.2))]
 
 
 @pytest.mark.parametrize("method", ["brute", "parc"])
-def test_merged_volumes_are_lit_by_the_scene_s_lights_as_each_is_alone(gl, method):
-    # Both shaded under a point light and a coloured sun: together, each looks as it does
-    # alone under them (one volume lights its samples in its own walk, several in the merged
-    # one), and differs from the headlight's picture.
-    k, j, i = np.mgrid[0:N, 0:N, 0:N].astype(np.float32)
-    data = 0.48 * i + 0.36 * j + 0.8 * k
-    tf = TransferFunction([[-100, 0.05], [100, 0.05]], [[0, 0.9, 0.6, 0.3]])
-    near = Translucent(Volume(data, name="near"), tf, shade=True, threshold=1.0)
-    far = Translucent(Volume(data, spacing=(1.0, 1.0, 2.0), origin=(0, 0, 20), name="far"), tf, shade=True,
-                      threshold=1.0)
-    lights = [PointLight((30.0, -10.0, -5.0)), DirectionalLight((0.3, 0.2, 1.0), color=(1.0, 0.4, 0.2))]
+@pytest.mark.parametrize("lights", [[], LIGHTS], ids=["headlight", "lights"])
+def test_merged_volumes_are_shaded_each_with_its_own_spacing_as_each_is_alone(gl, method, lights):
+    # Together, each looks as it does alone: one volume lights its samples in its own walk,
+    # several in the merged one.
+    near, far = _shaded_pair()
 
-    def image(vols, lights):
+    def image(vols):
         return render(Scene(camera=CAM, size=(4, 4), volumes=vols, lights=lights), method).image.astype(np.float64)
 
-    a, b = image([near], lights), image([far], lights)
+    a, b = image([near]), image([far])
     for vols in ([near, far], [far, near]):
-        np.testing.assert_allclose(image(vols, lights), a + (1.0 - a[..., 3:4]) * b, atol=1e-5, rtol=0)
-    assert np.abs(image([near, far], []) - image([near, far], lights)).max() > 0.05
+        np.testing.assert_allclose(image(vols), a + (1.0 - a[..., 3:4]) * b, atol=1e-5, rtol=0)
+    assert np.abs(a[..., :3] / a[..., 3:] - b[..., :3] / b[..., 3:]).max() > 0.05
+
+
+def test_the_scene_s_lights_change_merged_shaded_volumes():
+    near, far = _shaded_pair()
+    head, lit = (render(Scene(camera=CAM, size=(4, 4), volumes=[near, far], lights=lights)).image
+                 for lights in ([], LIGHTS))
+    assert np.abs(head - lit).max() > 0.05
 
 
 @pytest.mark.parametrize("order", [0, 1])
