@@ -97,5 +97,9 @@ def check_frame_memory(width, height, layers=1, kept_images=0, lights=0):
 
 
 def check_scene_memory(scene, kept_images=0):
-    """`check_frame_memory` for a scene's image size, volumes and lights."""
-    check_frame_memory(*scene.size, layers=len(scene.volumes), kept_images=kept_images, lights=len(scene.lights))
+    """`check_frame_memory` for a scene's image size, volumes and lights: the lights' shading
+    terms are kept for isosurface hits only (translucent samples are lit as they are taken)."""
+    from .scene import Isosurface
+    lit = any(isinstance(v, Isosurface) for v in scene.volumes)
+    check_frame_memory(*scene.size, layers=len(scene.volumes), kept_images=kept_images,
+                       lights=len(scene.lights) if lit else 0)

@@ -340,3 +340,16 @@ def test_memory_for_a_frame_but_not_its_lights_shading_terms_is_refused(monkeypa
     for method in ("brute", "parc"):
         with pytest.raises(InputError, match="64x48 image needs about .* available"):
             render(scene, method=method)
+
+
+def test_lights_of_a_translucent_frame_ask_for_no_shading_terms(monkeypatch):
+    # Shaded samples are lit as they are taken: 64 lights need no per-pixel terms, and the frame
+    # renders in the memory the frame alone is checked against.
+    vol = blobs(12, seed=1)
+    lights = [PointLight((np.cos(k), np.sin(k), 30.0), intensity=0.01) for k in range(64)]
+    scene = Scene(camera=Camera.framing(*vol.bounds), size=(64, 48),
+                  volumes=[Translucent(vol, "greyscale", shade=True)], lights=lights)
+    monkeypatch.setattr(memory, "available_memory",
+                        lambda: 64 * 48 * workspace.FRAME_BYTES_PER_PIXEL)
+    for method, options in (("brute", {}), ("parc", {"buffers": "depth,bits"})):
+        assert render(scene, method=method, **options).image[..., 3].max() > 0
