@@ -286,3 +286,26 @@ def test_brute_renders_where_there_is_no_opengl(monkeypatch):
         with pytest.raises(parc.OpenGLUnavailable):
             parc.render(scene, "parc")
     assert [r["method"] for r in parc.compare(scene, methods=("brute",), repeats=1, warmup=0)] == ["brute"]
+
+
+@pytest.mark.parametrize("over", ["width", "height"])
+def test_an_image_past_the_viewport_limit_on_either_side_is_refused(gl, over):
+    # Truth: the driver's own GL_MAX_VIEWPORT_DIMS; a side one past it is refused in one line, by the
+    # check `compare` makes before any render and by the pass itself.
+    import numpy as np
+
+    from data_tools import Volume
+    from parc.camera import Camera
+    from parc.classify import supercell_grid
+    from parc.proxy import build_proxy
+    from parc.raster import raster_segments
+    max_w, max_h = gl.info["GL_MAX_VIEWPORT_DIMS"]
+    size = (max_w + 1, 2) if over == "width" else (2, max_h + 1)
+    with pytest.raises(InputError, match="exceeds this OpenGL's limit") as err:
+        glmod.check_viewport(*size)
+    assert "\n" not in str(err.value)
+    grid = supercell_grid((3, 3, 3), 2)
+    proxy = build_proxy(grid, np.ones((1, 1, 1), bool), grid.world_edges(Volume(np.zeros((3, 3, 3), np.float32))))
+    with pytest.raises(InputError, match="exceeds this OpenGL's limit"):
+        raster_segments(Camera.framing(*proxy.bounds), *size, proxy)
+    assert max(size) > 1000

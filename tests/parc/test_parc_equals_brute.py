@@ -192,6 +192,25 @@ def test_perspective_eye_a_rounding_outside_a_face(look, supercell, buffers, gl)
     assert np.array_equal(render(scene, method="parc", supercell=supercell, buffers=buffers).image, ref.image)
 
 
+@pytest.mark.parametrize("supercell", [1, 2, 0.5])
+@pytest.mark.parametrize("what", ["iso", "translucent"])
+def test_parallel_origins_a_rounding_past_the_face_the_rays_leave_by(what, supercell, gl):
+    """The parallel case of the one above, looking away: every origin lies an ulp above the top
+    face (0.9), on it in index space, and ``brute``'s rays take its level or samples at t = 0
+    as they leave. No face lies ahead of them: PARC must still give them a segment from 0."""
+    data = np.full((4, 4, 4), 100, np.uint8)
+    data[0, 0, 0] = 0
+    vol = Volume(data, spacing=(0.3, 0.3, 0.3))
+    cam = Camera(eye=(0.45, 0.45, 0.9), look_at=(0.45, 0.45, 2.0), up=(0, 1, 0), parallel_scale=0.5)
+    shown = Isosurface(vol, 100.0) if what == "iso" else Translucent(vol, TransferFunction([[0, 0.5], [255, 0.5]]))
+    scene = Scene(camera=cam, size=(16, 16), volumes=[shown])
+    ref = render(scene, method="brute")
+    assert (ref.image[..., 3] > 0).sum() > 100
+    res = render(scene, method="parc", supercell=supercell)
+    assert np.array_equal(np.isfinite(res.depth), np.isfinite(ref.depth))
+    assert np.abs(res.image - ref.image).max() <= 1e-6
+
+
 @pytest.mark.parametrize("supercell", [0.5, 0.25, 0.125])
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_distant_parallel_eye_and_a_steep_field(seed, supercell, gl):

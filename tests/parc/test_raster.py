@@ -576,3 +576,117 @@ def test_generic_views_are_tight_to_a_hundredth_of_a_cell(gl, size, seed, parall
     cell = 0.8
     assert (near_ref[meet] - seg.near[meet]).max() <= 0.01 * cell
     assert (seg.far[meet] - far_ref[meet]).max() <= 0.01 * cell
+
+
+def _rays_through_squares(camera, width, height, jx, jy):
+    """The caster's ray formula through point ``(x + jx, y + jy)`` of every pixel's square instead of
+    its centre ``(x + 0.5, y + 0.5)``: origins, directions (H, W, 3)."""
+    f, r, u = camera.basis()
+    sx = (2.0 * (np.arange(width) + jx) / width - 1.0) * (width / height)
+    sy = 1.0 - 2.0 * (np.arange(height) + jy) / height
+    sx, sy = np.meshgrid(sx, sy)
+    side = sx[..., None] * np.asarray(r) + sy[..., None] * np.asarray(u)
+    if camera.parallel:
+        o = np.asarray(camera.eye) + camera.parallel_scale * side
+        d = np.broadcast_to(np.asarray(f, dtype=np.float64), o.shape)
+    else:
+        d = np.asarray(f) + np.tan(np.radians(camera.fov) / 2.0) * side
+        d = d / np.linalg.norm(d, axis=-1, keepdims=True)
+        o = np.broadcast_to(np.asarray(camera.eye, dtype=np.float64), d.shape)
+    return o, d
+
+
+@pytest.mark.parametrize("parallel", [False, True], ids=["persp", "parallel"])
+@pytest.mark.parametrize("seed", [0, 1])
+def test_face_ranges_bound_every_ray_through_the_pixel(gl, parallel, seed):
+    """The light buffers' mode (``face_range``, a pad over half a pixel): a pixel's segment holds the
+    entry and exit of every ray through its square, not only of its centre ray. Truth: rays through
+    the square's corners, its centre and random points, each against every PC box by the slab test."""
+    from parc.lights import LIGHT_PAD_PX
+    from parc_reference import pc_boxes, ray_box_batches
+    vol = smooth_volume(20 + seed, dims=(10, 9, 8), spacing=(1.0, 0.8, 1.3))
+    grid, pc = band_classes(vol, 1)
+    proxy = build_proxy(grid, pc, grid.world_edges(vol), merge=False)
+    rng = np.random.default_rng(seed)
+    cam = Camera.framing(*vol.bounds, azimuth=rng.uniform(0, 360), elevation=rng.uniform(-60, 60),
+                         parallel=parallel, zoom=1.2, fov=40.0)
+    w, h = 24, 20
+    seg = raster_segments(cam, w, h, proxy, pad_px=LIGHT_PAD_PX, face_range=True)
+    lo, hi = pc_boxes(proxy)
+    points = [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0), (0.5, 0.5), *rng.uniform(0, 1, (6, 2))]
+    met = 0
+    for jx, jy in points:
+        o, d = _rays_through_squares(cam, w, h, jx, jy)
+        near = np.full(w * h, np.inf)
+        far = np.full(w * h, -np.inf)
+        for _, enter, leave, meet in ray_box_batches(o, d, lo, hi, 1e-12 * seg.info["scale"]):
+            near = np.minimum(near, np.where(meet, enter, np.inf).min(axis=1))
+            far = np.maximum(far, np.where(meet, np.maximum(leave, enter), -np.inf).max(axis=1))
+        near, far = near.reshape(h, w), far.reshape(h, w)
+        meet = np.isfinite(near)
+        met += meet.sum()
+        bad = meet & ~((seg.near <= near) & (seg.far >= far))
+        assert not bad.any(), (f"ray through ({jx:.2f}, {jy:.2f}) of pixels {np.argwhere(bad)[:4].tolist()}: "
+                               f"[{near[bad][:4]}, {far[bad][:4]}] not in [{seg.near[bad][:4]}, {seg.far[bad][:4]}]")
+    assert met > 100 * len(points)
+
+
+def test_eye_inside_with_a_tall_image_raises_far_by_the_vertical_field_of_view(gl, looseness):
+    """The widest ray of a tall, narrow image leans far up or down, not sideways: the raise past the
+    clipped sliver must take the vertical extent into ``cos_max``. Here the top rows leave through
+    the top face 6 ``clip_near`` away, at a forward distance below ``clip_near`` (no fragment), and
+    a cosine from the horizontal extent alone would raise far to only ~3.5 ``clip_near``.
+    Truth: the reference's exit through the face."""
+    from parc.raster import INSIDE_CLIP_REL, scene_scale
+    proxy = _one_box_proxy()
+    eye = np.array([0.5, 2.0, 4.0])
+    width, height = 4, 64
+
+    def camera(at):
+        return Camera(eye=tuple(at), look_at=tuple(at + np.array([1.0, 0.0, 0.0])), up=(0, 0, 1), fov=170.0)
+
+    gap = 6.0 * INSIDE_CLIP_REL * scene_scale(camera(eye), *proxy.bounds, width / height)
+    eye[2] -= gap
+    seg, near_ref, far_ref = _check(camera(eye), proxy, width, height, "eye a hair below a face, tall image",
+                                    looseness)
+    clip = seg.info["clip_near"]
+    assert seg.info["eye_inside"] and 5.9 < gap / clip < 6.1
+    sliver = (far_ref > 4.0 * clip) & (far_ref < 8.0 * clip)
+    assert sliver.sum() >= 4 * width
+    assert (seg.far[sliver] >= far_ref[sliver]).all()
+
+
+@pytest.mark.parametrize("view", AXES, ids=lambda v: "f=" + ",".join(map(str, v[0])))
+def test_a_wide_short_image_keeps_rays_on_grid_edges_along_its_rows(gl, looseness, view):
+    """The coverage pad is a fraction of a pixel on each axis: an image 256 times wider than high has
+    pixels as tall as wide, so its vertical pad must come from the height, not the width. Half the
+    rows of this parallel view run along grid lines (as `test_axis_aligned_parallel_rays_on_grid_edges`)."""
+    vol = smooth_volume(7, dims=(9, 9, 9))
+    proxy = _proxy(vol, 1, frac=0.5)
+    f, up = np.array(view[0], float), view[1]
+    eye = np.full(3, 4.25) - 20.0 * f
+    w, h = 2048, 8
+    # Pixels 0.5 wide: origins step by 0.5 from 4.25, every other row and column on integer lines.
+    cam = Camera(eye=tuple(eye), look_at=tuple(eye + f), up=up, parallel_scale=2.0)
+    o = _origins(cam, w, h)
+    across = np.abs(o - np.round(o)) * (f == 0) == 0
+    assert across.all(axis=-1).sum() >= 30
+    _check(cam, proxy, w, h, f"wide short par f={view[0]}", looseness)
+
+
+def test_parallel_view_plane_closer_to_a_face_than_its_bound_gives_near_0(gl, looseness):
+    """A face ahead of the view plane by less than the bound's own width (``t - e < 0``, though
+    ``t > 0`` and no ray starts on the box): near is 0, never before the ray's start."""
+    from parc.raster import ABS_TOL, scene_scale
+    proxy = _one_box_proxy()
+    width, height = 20, 16
+
+    def camera(x):
+        return Camera(eye=(x, 2.0, 2.0), look_at=(x + 1.0, 2.0, 2.0), up=(0, 0, 1), parallel_scale=3.0)
+
+    gap = 0.5 * ABS_TOL * scene_scale(camera(0.0), *proxy.bounds, width / height)
+    seg, near_ref, _ = _check(camera(-gap), proxy, width, height, "parallel plane within the bound of a face",
+                              looseness)
+    face = np.isfinite(near_ref)
+    assert not seg.info["eye_inside"] and face.sum() > width and (near_ref[face] > 0).all()
+    assert (seg.near[face] == 0).all()
