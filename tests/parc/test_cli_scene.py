@@ -102,12 +102,28 @@ def test_shadows_with_only_the_headlight_get_a_note(scene_file):
 
 @pytest.mark.parametrize("flags", [["--background", "0,0,0"], ["--light", "0,0,50"], ["--shadows"]])
 def test_lights_of_a_translucent_scene_file_are_noted_once(scene_file, flags):
-    """The scene file's light shines on no isosurface: one note says so, however many flags
-    rebuild the scene after it is read."""
+    """The scene file's light shines on no isosurface and no shaded volume: one note says so,
+    however many flags rebuild the scene after it is read."""
     path = scene_file.parent / "glow.toml"
     path.write_text("[[volume]]\nfile = 'data/ball.nrrd'\ntf = 'greyscale'\n[[light]]\nposition = [0, 0, 0]\n")
     _, notes = _scene_of(["render", path, "-o", "x.png", *flags])
     assert sum(n.startswith("lights shine on isosurfaces") for n in notes) == 1, notes
+
+
+def test_a_scene_file_s_light_lights_its_shaded_translucent_volume(scene_file, capsys):
+    """With ``shade = true`` the file's [[light]] lights the samples: no note, and another image
+    than the same file's without the light."""
+    images = []
+    for light in ("[[light]]\nposition = [40, 0, 0]\n", ""):
+        path = scene_file.parent / "glow.toml"
+        path.write_text(f"size = [24, 20]\n[[volume]]\nfile = 'data/ball.nrrd'\ntf = 'greyscale'\nshade = true\n"
+                        f"{light}")
+        out = scene_file.parent / "glow.npy"
+        assert main(["render", str(path), "-o", str(out)]) == 0
+        assert "shine" not in capsys.readouterr().err
+        images.append(np.load(out))
+    assert images[0][..., 3].max() > 0.1
+    assert np.abs(images[0] - images[1]).max() > 0.05
 
 
 def test_multi_volume_scene_file_loads(tmp_path):
