@@ -240,17 +240,19 @@ def test_merged_volumes_of_other_sample_types_and_tables_keep_their_values(near_
 def test_a_merged_volume_adds_nothing_once_the_opacity_reaches_its_own_threshold():
     # Two overlapping volumes, the first stopping at 0.5, the second (from z = 0.3) at 1: the
     # first's sample at z = 0 takes the opacity to exactly 0.5, so its next one, at z = 0.25 and
-    # before any of the second's, adds nothing, as alone; the second takes all 33 of its samples.
+    # before any of the second's, adds nothing, as alone; the second takes all 33 of its samples,
+    # in either order (the rays end at the largest threshold, whichever volume has it).
     red = Translucent(_const(name="red"), TransferFunction([[0, 0.5], [200, 0.5]], [[0, 1.0, 0.0, 0.0]]),
                       threshold=0.5, shade=False)
     blue = Translucent(_const(origin=(0.0, 0.0, 0.3), name="blue"),
                        TransferFunction([[0, 0.1], [200, 0.1]], [[0, 0.0, 0.0, 1.0]]), threshold=1.0, shade=False)
     alone = render(Scene(camera=CAM, size=(4, 4), volumes=[red])).image.astype(np.float64)
     np.testing.assert_allclose(alone, np.broadcast_to([0.5, 0.0, 0.0, 0.5], alone.shape), atol=1e-6, rtol=0)
-    img = render(Scene(camera=CAM, size=(4, 4), volumes=[red, blue])).image.astype(np.float64)
     blue_alpha = 1.0 - (1.0 - 0.1) ** 33
     want = _over([0.5, 0.0, 0.0, 0.5], [0.0, 0.0, blue_alpha, blue_alpha])
-    np.testing.assert_allclose(img, np.broadcast_to(want, img.shape), atol=1e-5, rtol=0)
+    for vols in ([red, blue], [blue, red]):
+        img = render(Scene(camera=CAM, size=(4, 4), volumes=vols)).image.astype(np.float64)
+        np.testing.assert_allclose(img, np.broadcast_to(want, img.shape), atol=1e-5, rtol=0)
 
 
 def test_layers_behind_the_point_where_the_samples_reach_the_threshold_still_show():
@@ -378,3 +380,41 @@ def test_a_mip_layer_takes_the_colour_of_its_largest_sample_away_from_zero(gl, m
     img = render(Scene(camera=CAM, size=(4, 4), volumes=[layer]), method).image.astype(np.float64)
     want = [0.9 * 0.56, 0.45 * 0.56, 0.1 * 0.56, 0.56]
     np.testing.assert_allclose(img, np.broadcast_to(want, img.shape), atol=1e-6, rtol=0)
+
+
+@pytest.mark.parametrize("method", ["brute", "parc"])
+@pytest.mark.parametrize("lights", [[], LIGHTS], ids=["headlight", "lights"])
+def test_surfaces_side_by_side_are_each_lit_in_their_own_colour_and_material(gl, method, lights):
+    # A wall at z = 4.6 over x in [0, 8] and one at z = 3.6 over x in [4, 12], nearer where both
+    # are: the two left columns (the camera's right is -x) show the second, the right ones the
+    # first, each as it looks alone, whichever is listed first.
+    first = Isosurface(_ramp_z(name="first"), 4.6, color=(1.0, 0.2, 0.1), material=(0.3, 0.6, 0.0, 1.0))
+    second = Isosurface(_ramp_z(origin=(4.0, 0.0, 0.0), name="second"), 3.6, color=(0.1, 0.4, 1.0),
+                        material=(0.1, 0.4, 0.5, 8.0))
+
+    def image(vols):
+        return render(Scene(camera=CAM, size=(4, 4), volumes=vols, lights=lights), method).image.astype(np.float64)
+
+    a, b = image([first]), image([second])
+    assert (a[..., 3] == 1.0).all() and (b[:, :2, 3] == 1.0).all() and not b[:, 2:].any()
+    for vols in ([first, second], [second, first]):
+        both = image(vols)
+        np.testing.assert_allclose(both[:, :2], b[:, :2], atol=1e-6, rtol=0)
+        np.testing.assert_allclose(both[:, 2:], a[:, 2:], atol=1e-6, rtol=0)
+    assert np.abs(a[:, :2, :3] - b[:, :2, :3]).min() > 0.05
+
+
+@pytest.mark.parametrize("mode", ["mip", "average"])
+@pytest.mark.parametrize("method", ["brute", "parc"])
+def test_a_layer_beside_a_surface_counts_the_samples_it_takes_alone(gl, method, mode):
+    # A surface no ray meets sends the layer through the scene's caster: its samples still count,
+    # 33 a ray for brute (z = 0 .. 8 every 0.25), as many as alone for PARC.
+    tf = TransferFunction([[-1, 0.5], [100, 0.5]], [[0, 1.0, 1.0, 1.0]])
+    layer = Translucent(_ramp_z(10.0), tf, mode=mode)
+    aside = Isosurface(_ramp_z(origin=(100.0, 0.0, 0.0), name="aside"), 4.6)
+    alone = render(Scene(camera=CAM, size=(4, 4), volumes=[layer]), method)
+    both = render(Scene(camera=CAM, size=(4, 4), volumes=[layer, aside]), method)
+    np.testing.assert_allclose(both.image, alone.image, atol=1e-6, rtol=0)
+    assert both.stats["samples"] == alone.stats["samples"] > 0
+    if method == "brute":
+        assert both.stats["samples"] == 16 * 33

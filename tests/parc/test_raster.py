@@ -503,27 +503,39 @@ def _one_box_proxy():
     return build_proxy(grid, np.ones((1, 1, 1), bool), grid.world_edges(vol))
 
 
-def test_eye_inside_a_hair_below_a_face_raises_far_past_the_clipped_sliver(gl, looseness):
+def _inside_below_the_top_face(width, height, fov, clips):
+    """`_one_box_proxy`, and a camera inside it looking along +x with the top face ``clips``
+    times ``clip_near`` above the eye, and that gap."""
+    from parc.raster import INSIDE_CLIP_REL, scene_scale
+    proxy = _one_box_proxy()
+    eye = np.array([0.5, 2.0, 4.0])
+
+    def camera(at):
+        return Camera(eye=tuple(at), look_at=tuple(at + np.array([1.0, 0.0, 0.0])), up=(0, 0, 1), fov=fov)
+
+    gap = clips * INSIDE_CLIP_REL * scene_scale(camera(eye), *proxy.bounds, width / height)
+    eye[2] -= gap
+    return proxy, camera(eye), gap
+
+
+@pytest.mark.parametrize("width, height, fov, clips, band", [(16, 40, 160.0, 3.0, (2.5, 3.5)),
+                                                             (4, 64, 170.0, 6.0, (4.0, 8.0))], ids=["wide", "tall"])
+def test_eye_inside_a_hair_below_a_face_raises_far_past_the_clipped_sliver(gl, looseness, width, height, fov, clips,
+                                                                         band):
     """An eye inside the PC region clips faces at ``clip_near`` ahead of it: a wide-angle ray
     that leaves through a face a few ``clip_near`` away, at a forward distance below it, has
     no fragment, and its far must come from the CPU's raise to ``2 clip_near / cos_max``
     (``cos_max`` the widest ray's cosine), not ``2 clip_near``: here such rays leave at about
-    ``3 clip_near``. Truth: the reference's exit through the face."""
-    from parc.raster import INSIDE_CLIP_REL, scene_scale
-    proxy = _one_box_proxy()
-    eye = np.array([0.5, 2.0, 4.0])
-    width, height = 16, 40
-
-    def camera(at):
-        return Camera(eye=tuple(at), look_at=tuple(at + np.array([1.0, 0.0, 0.0])), up=(0, 0, 1), fov=160.0)
-
-    gap = 3.0 * INSIDE_CLIP_REL * scene_scale(camera(eye), *proxy.bounds, width / height)
-    eye[2] -= gap                  # inside, the top face 3 clip_near above the eye
-    seg, near_ref, far_ref = _check(camera(eye), proxy, width, height, "eye a hair below a face", looseness)
+    ``clips`` times ``clip_near``. In a tall, narrow image the widest ray leans far up or
+    down, not sideways: a cosine from the horizontal extent alone would raise far to only
+    ~3.5 ``clip_near`` there. Truth: the reference's exit through the face."""
+    proxy, camera, gap = _inside_below_the_top_face(width, height, fov, clips)
+    seg, near_ref, far_ref = _check(camera, proxy, width, height, f"eye a hair below a face, {width}x{height}",
+                                    looseness)
     clip = seg.info["clip_near"]
-    assert seg.info["eye_inside"] and 2.9 < gap / clip < 3.1
+    assert seg.info["eye_inside"] and clips - 0.1 < gap / clip < clips + 0.1
     # Rays that leave through the top face before the clip plane, but after 2 clip_near:
-    sliver = (far_ref > 2.5 * clip) & (far_ref < 3.5 * clip)
+    sliver = (far_ref > band[0] * clip) & (far_ref < band[1] * clip)
     assert sliver.sum() >= width
     assert (seg.near[sliver] == 0).all() and (seg.far[sliver] >= far_ref[sliver]).all()
     assert seg.info["pixels"] == np.count_nonzero(seg.near <= seg.far) == width * height
@@ -629,31 +641,6 @@ def test_face_ranges_bound_every_ray_through_the_pixel(gl, parallel, seed):
         assert not bad.any(), (f"ray through ({jx:.2f}, {jy:.2f}) of pixels {np.argwhere(bad)[:4].tolist()}: "
                                f"[{near[bad][:4]}, {far[bad][:4]}] not in [{seg.near[bad][:4]}, {seg.far[bad][:4]}]")
     assert met > 100 * len(points)
-
-
-def test_eye_inside_with_a_tall_image_raises_far_by_the_vertical_field_of_view(gl, looseness):
-    """The widest ray of a tall, narrow image leans far up or down, not sideways: the raise past the
-    clipped sliver must take the vertical extent into ``cos_max``. Here the top rows leave through
-    the top face 6 ``clip_near`` away, at a forward distance below ``clip_near`` (no fragment), and
-    a cosine from the horizontal extent alone would raise far to only ~3.5 ``clip_near``.
-    Truth: the reference's exit through the face."""
-    from parc.raster import INSIDE_CLIP_REL, scene_scale
-    proxy = _one_box_proxy()
-    eye = np.array([0.5, 2.0, 4.0])
-    width, height = 4, 64
-
-    def camera(at):
-        return Camera(eye=tuple(at), look_at=tuple(at + np.array([1.0, 0.0, 0.0])), up=(0, 0, 1), fov=170.0)
-
-    gap = 6.0 * INSIDE_CLIP_REL * scene_scale(camera(eye), *proxy.bounds, width / height)
-    eye[2] -= gap
-    seg, near_ref, far_ref = _check(camera(eye), proxy, width, height, "eye a hair below a face, tall image",
-                                    looseness)
-    clip = seg.info["clip_near"]
-    assert seg.info["eye_inside"] and 5.9 < gap / clip < 6.1
-    sliver = (far_ref > 4.0 * clip) & (far_ref < 8.0 * clip)
-    assert sliver.sum() >= 4 * width
-    assert (seg.far[sliver] >= far_ref[sliver]).all()
 
 
 @pytest.mark.parametrize("view", AXES, ids=lambda v: "f=" + ",".join(map(str, v[0])))

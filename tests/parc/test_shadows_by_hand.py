@@ -214,3 +214,19 @@ def test_a_lamp_standing_on_the_floor_adds_nothing_even_at_the_point_it_stands_o
         np.testing.assert_array_equal(o[y, x] + res.depth[y, x] * d[y, x], lamp.position)
         np.testing.assert_allclose(res.image[..., :3], want, atol=2e-6, rtol=0)
     np.testing.assert_allclose(_render([], [lamp], method, floor), 0.2, atol=2e-6, rtol=0)
+
+
+@pytest.mark.parametrize("method", ["brute", "parc"])
+def test_shadow_rays_count_the_lights_facing_each_hit_and_the_cells_they_cross(gl, method):
+    # A sun overhead and one from below: only the one overhead faces the floor, so one shadow ray a
+    # pixel. Each rises from z = 5.5 through the floor's cells k = 5 .. 9 and solves a cubic in
+    # the first only, the one the floor lies in; PARC's walk visits no more cells than that.
+    for lights in ([DirectionalLight((0.0, 0.0, -1.0))], [DirectionalLight((0.0, 0.0, 1.0)),
+                                                          DirectionalLight((0.0, 0.0, -1.0))]):
+        stats = render(Scene(camera=CAM, size=SIZE, volumes=[_floor()], lights=lights, shadows=True), method).stats
+        pixels = SIZE[0] * SIZE[1]
+        assert stats["shadow_rays"] == pixels and stats["shadow_solves"] == pixels
+        if method == "brute":
+            assert stats["shadow_cells"] == 5 * pixels
+        else:
+            assert pixels <= stats["shadow_cells"] <= 5 * pixels
