@@ -43,7 +43,7 @@ import numpy as np
 
 import data_tools.memory
 from data_tools.memory import check_memory
-from raycast.shade import KIND_DIRECTIONAL, KIND_POINT
+from raycast.shade import KIND_DIRECTIONAL, KIND_HEADLIGHT, KIND_POINT
 from raycast.shadow import N_VIEW, V_EYE, V_FWD, V_KIND, V_RIGHT, V_SCALE, V_UP
 
 from .camera import Camera, unit_vector
@@ -118,7 +118,11 @@ def light_array(lights):
 
     ``x, y, z`` is the position of a point light, or the direction a
     directional light travels in; ``r, g, b`` its colour times intensity.
+    No lights give one row: the white headlight (`KIND_HEADLIGHT`), which
+    shines along each ray.
     """
+    if not lights:
+        return np.array([[KIND_HEADLIGHT, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0]])
     out = np.zeros((len(lights), 7))
     for n, light in enumerate(lights):
         if isinstance(light, PointLight):

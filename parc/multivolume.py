@@ -35,7 +35,6 @@ import numpy as np
 from raycast.composite import box_entry_image, cast_accumulate_image
 from raycast.merged import cast_merged_image
 from raycast.iso import NO_SHADING, cast_iso_image, keep_nearest
-from raycast.shade import KIND_HEADLIGHT
 from raycast.shadow import combine_lights, light_terms, shadow_accumulate, shadow_iso, surface_frames
 
 from .lights import (LIGHT_BUFFER_CACHE_SIZE, LIGHT_BUFFER_SIZE, buffer_bytes, light_array, light_buffers,
@@ -143,7 +142,7 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
                            points[a:b], normals[a:b], views[a:b])
             colors[a:b] = iso.color
             materials[a:b] = iso.material
-        lights = light_array(scene.lights) if scene.lights else np.array([[KIND_HEADLIGHT, 0, 0, 0, 1, 1, 1.0]])
+        lights = light_array(scene.lights)
         diffuse = np.empty((len(lights), nh))
         specular = np.empty((len(lights), nh))
         light_terms(points, normals, views, materials, lights, diffuse, specular)

@@ -466,9 +466,10 @@ def iso_work(n, slot=0):
 
 def accumulation_params(vis, lights=()):
     """The ``params`` array of `raycast.composite` for a Translucent volume, its shaded samples
-    lit by ``lights`` (a scene's; none: a headlight)."""
+    lit by ``lights`` (a scene's; none: the headlight, `parc.lights.light_array`)."""
     from .transfer import reference_step
-    p = np.zeros(N_PARAMS + 7 * len(lights))
+    rows = light_array(lights)
+    p = np.zeros(N_PARAMS + rows.size)
     p[P_STEP] = vis.step
     p[P_MODE] = _MODES[vis.mode]
     p[P_THRESHOLD] = vis.threshold
@@ -477,8 +478,8 @@ def accumulation_params(vis, lights=()):
     p[P_LO], p[P_HI] = vis.volume.value_range()
     p[P_AMBIENT:P_AMBIENT + 4] = vis.material
     p[P_ORIGIN:P_ORIGIN + 3] = vis.volume.origin
-    p[P_LIGHT_COUNT] = len(lights)
-    p[P_LIGHTS:] = light_array(lights).ravel()
+    p[P_LIGHT_COUNT] = len(rows)
+    p[P_LIGHTS:] = rows.ravel()
     return p
 
 

@@ -49,7 +49,7 @@ from numba import prange
 
 from .config import TILE_H, TILE_W, kernel, named_for
 from .rays import camera_ray, dealt_tile, tile_count
-from .shade import blinn_phong, to_light, trilinear_gradient, unit_normal
+from .shade import KIND_HEADLIGHT, blinn_phong, to_light, trilinear_gradient, unit_normal
 from .transfer import correct_opacity, tf_color, tf_lookup, tf_opacity
 from .traverse import (advance, cell_corners, clip_box, cube_exit, entry_anchor, grid_shape, step_cell, to_index_space,
                        walk_from)
@@ -72,9 +72,9 @@ P_PLANE_SIZE = 12   # supercell size along it, in cells
 P_PLANE_FIRST = 13  # plane index of bit 0
 P_PLANE_COUNT = 14  # number of planes (bits)
 P_ORIGIN = 15       # the volume's origin (3 values): where its shaded samples are, for the lights
-P_LIGHT_COUNT = 18  # 0: a headlight along each ray; else that many light rows follow
+P_LIGHT_COUNT = 18  # light rows that follow (the headlight's one where a scene has no lights)
 P_LIGHTS = 19       # rows of 7, as `raycast.shade` lays lights out
-N_PARAMS = 19       # with no lights
+N_PARAMS = 19       # without the rows
 
 
 @kernel
@@ -260,8 +260,8 @@ def visit_cell(A, s, inv, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1, c0, c1, t_end,
 def shade_color(data, spc, i, j, k, u, vv, w, dx, dy, dz, params, cr, cg, cb):
     """The colour ``(cr, cg, cb)`` of a composite sample in cell ``(i, j, k)`` at local
     ``(u, vv, w)``, seen along the world ray direction ``d``: lit by the lights of ``params``
-    as an isosurface hit is (`raycast.shadow.combine_lights`, nothing in the way), or by a
-    headlight along ``d`` where there are none.
+    as an isosurface hit is (`raycast.shadow.combine_lights`, nothing in the way); a
+    `KIND_HEADLIGHT` row shines along ``d``.
 
     Kept apart from the sampling loops, which call it only when shading is
     on: inlined, it made every contributing sample of an unshaded ray cost
@@ -272,21 +272,19 @@ def shade_color(data, spc, i, j, k, u, vv, w, dx, dy, dz, params, cr, cg, cb):
     gx, gy, gz = trilinear_gradient(data, i, j, k, u, vv, w, spc)
     gx, gy, gz = unit_normal(gx, gy, gz, dx, dy, dz)
     material = params[P_AMBIENT:P_AMBIENT + 4]
-    n_lights = int(params[P_LIGHT_COUNT])
-    if n_lights == 0:
-        diff, spec = blinn_phong(gx, gy, gz, -dx, -dy, -dz, -dx, -dy, -dz, material)
-        f = material[0] + diff
-        return cr * f + spec, cg * f + spec, cb * f + spec
-    px = params[P_ORIGIN] + spc[0] * (i + u)
-    py = params[P_ORIGIN + 1] + spc[1] * (j + vv)
-    pz = params[P_ORIGIN + 2] + spc[2] * (k + w)
     fr = fg = fb = material[0]
     sr = sg = sb = 0.0
-    for n in range(n_lights):
+    for n in range(int(params[P_LIGHT_COUNT])):
         light = params[P_LIGHTS + 7 * n:P_LIGHTS + 7 * n + 7]
-        lx, ly, lz, dist = to_light(light, px, py, pz)
-        if dist == 0.0:
-            continue            # a light at the sample: no direction to it
+        if light[0] == KIND_HEADLIGHT:
+            lx, ly, lz = -dx, -dy, -dz
+        else:
+            # The sample's world point, found only for the lights that need it.
+            lx, ly, lz, dist = to_light(light, params[P_ORIGIN] + spc[0] * (i + u),
+                                        params[P_ORIGIN + 1] + spc[1] * (j + vv),
+                                        params[P_ORIGIN + 2] + spc[2] * (k + w))
+            if dist == 0.0:
+                continue            # a light at the sample: no direction to it
         diff, spec = blinn_phong(gx, gy, gz, -dx, -dy, -dz, lx, ly, lz, material)
         fr += diff * light[4]
         fg += diff * light[5]
