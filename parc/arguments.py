@@ -181,7 +181,7 @@ def _add_look_options(p):
                    help="with --tf, composite: stop a ray once its opacity reaches A (default 0.99)")
     g.add_argument("--shade", action="store_true",
                    help="with --tf, composite: shade samples with the gradient, lit by the headlight or by "
-                        "--light and --sun (without shadows)")
+                        "--light and --sun (shadowed with --shadows)")
     g.add_argument("--buffers", metavar="LIST",
                    help="with --tf, for parc: PARC's buffers: depth (near/far, default), bits "
                         "(planes of supercells), or depth,bits")
@@ -219,9 +219,10 @@ def _add_light_options(p):
                    help="a white directional light, infinitely far away, whose rays travel along "
                         "DX,DY,DZ (0,0,-1: straight down); repeat for several")
     g.add_argument("--shadows", action="store_true",
-                   help="cast shadow rays from every isosurface hit to every light: isosurfaces "
-                        "block them, translucent volumes dim them (the headlight casts no visible shadows; "
-                        "translucent samples are lit unshadowed)")
+                   help="cast shadow rays from every isosurface hit, and every translucent sample shaded "
+                        "with --shade, to every light: isosurfaces block them, translucent volumes dim them "
+                        "(the headlight casts no visible shadows). A shaded translucent volume then casts "
+                        "one shadow ray per sample that adds colour and light: many times a frame's rays")
 
 
 def _add_common_options(p):

@@ -118,7 +118,8 @@ def _add_flag_lights(scene, args, say):
         except InputError as exc:
             flag = "light" if args.light else "sun" if args.sun else "shadows"
             raise InputError(f"--{flag}: {exc}") from None
-    if scene.shadows and not scene.lights and any(isinstance(v, parc.Isosurface) for v in scene.volumes):
+    lit = any(isinstance(v, parc.Isosurface) or (v.shade and v.mode == "composite") for v in scene.volumes)
+    if scene.shadows and not scene.lights and lit:
         say("shadows with only the headlight show nothing (the light sits at the eye); add --light or --sun"
             + (", or a [[light]] table to the scene file" if _is_scene_file(args) else ""))
     return scene

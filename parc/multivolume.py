@@ -33,9 +33,10 @@ import weakref
 import numpy as np
 
 from raycast.composite import box_entry_image, cast_accumulate_image
-from raycast.merged import cast_merged_image
+from raycast.merged import SampleRecord, cast_merged_image
 from raycast.iso import NO_SHADING, cast_iso_image, keep_nearest
-from raycast.shadow import combine_lights, light_terms, shadow_accumulate, shadow_iso, surface_frames
+from raycast.shadow import (combine_lights, combine_samples, light_terms, shadow_accumulate, shadow_iso,
+                            surface_frames)
 
 from .lights import (LIGHT_BUFFER_CACHE_SIZE, LIGHT_BUFFER_SIZE, buffer_bytes, light_array, light_buffers,
                      light_cache_bytes, light_views, no_views)
@@ -73,7 +74,9 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
     bands = row_bands(h, w, progress)
     isos = [(n, v) for n, v in enumerate(scene.volumes) if isinstance(v, Isosurface)]
     trans = [(n, v) for n, v in enumerate(scene.volumes) if not isinstance(v, Isosurface)]
-    report = _Report(progress, len(isos), len(trans), scene.shadows and bool(scene.lights))
+    shadows = scene.shadows and bool(scene.lights)
+    report = _Report(progress, len(isos), len(trans), shadows,
+                     shadows and any(v.shade and v.mode == "composite" for _, v in trans))
 
     # PARC buffers from the camera, one volume at a time.
     segs = {}
@@ -183,18 +186,30 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
             seg = (np.stack([segs[n] for n, _ in comp]) if parc else np.empty((1, 1, 1, 2)))
             skips = [skip_table(v, parc and blocks) for _, v in comp]
             cnt = np.empty(npx, np.int64)
-            for b, (y0, y1) in enumerate(bands):
+            # With shadows, the shaded samples are counted here, recorded and lit below.
+            record = SampleRecord(0, npx) if report.sample_shadows else None
+
+            def merged(y0, y1, record):
                 cast_merged_image(datas, orgs, spcs, cam, w, h, params, *tables, tf_len, seg, parc,
                                   tuple(c for c, _ in skips), np.array([m for _, m in skips], np.int64), stop,
                                   np.array([n for n, _ in comp], np.int64), layer_t,
-                                  np.array([n for n, _ in layers], np.int64), layer_rgba, front, cnt, y0, y1)
+                                  np.array([n for n, _ in layers], np.int64), layer_rgba, front, cnt, y0, y1,
+                                  record)
+
+            for b, (y0, y1) in enumerate(bands):
+                merged(y0, y1, record)
                 report.part("translucent", (len(layers) + len(comp) * (b + 1) / len(bands)) / len(trans))
             counts["samples"] += int(cnt.sum())
+            if record is not None:
+                timings["cast"] += time.perf_counter() - t0
+                _light_samples(scene, method, comp, record.counts, merged, front.reshape(npx, 4), sizes,
+                               light_buffer, blocks, timings, counts, report)
+                t0 = time.perf_counter()
         else:
             _composite_layers(layer_t, layer_rgba, front)
         image = front + (1.0 - front[..., 3:4]) * image
         timings["cast"] += time.perf_counter() - t0
-    report.done("translucent")
+    report.done("sample shadows")          # the last phase: its end is 1
     return image, depth.reshape(h, w), counts, timings, extra
 
 
@@ -202,10 +217,13 @@ class _Report:
     """`render_scene`'s progress: each phase a share of the bar by its expected work (a
     translucent volume's samples take longer than a surface's cells), filled as its bands finish."""
 
-    def __init__(self, progress, n_iso, n_trans, shadows):
+    def __init__(self, progress, n_iso, n_trans, shadows, sample_shadows=False):
         self.progress = progress
+        self.sample_shadows = sample_shadows
+        # Shadow rays from a translucent volume's samples outnumber its samples that add colour.
         weights = {"buffers": 0.3 * (n_iso + n_trans), "surfaces": n_iso,
-                   "lighting": (0.2 + (n_iso if shadows else 0.0)) if n_iso else 0.0, "translucent": 3.0 * n_trans}
+                   "lighting": (0.2 + (n_iso if shadows else 0.0)) if n_iso else 0.0, "translucent": 3.0 * n_trans,
+                   "sample shadows": 12.0 * n_trans if sample_shadows else 0.0}
         total = sum(weights.values())
         # Spans from running sums over the total: the last ends at exactly 1 (summed
         # shares ended a render at 0.9999999999999999).
@@ -223,12 +241,15 @@ class _Report:
         self.part(phase, 1.0)
 
 
-def _shadows(scene, method, lights, points, groups, vis, sizes, light_buffer, blocks, timings, counts):
+def _shadows(scene, method, lights, points, groups, vis, sizes, light_buffer, blocks, timings, counts,
+             samples=False):
     """Shadow rays from every hit to every light, volume by volume; ``vis`` scaled in place.
 
     ``groups``: ``(first, end, volume)``, the hits ``points[first:end]`` on each volume's
     surface. A shadow ray starts and ends `SHADOW_EPS` of its own surface's smallest spacing
     off (the smallest in the scene let a tiny volume anywhere make surfaces shadow themselves).
+    With ``samples`` the points are translucent samples, in their volumes' groups: a translucent
+    volume's lattice on their shadow rays starts one step along (`raycast.shadow.shadow_accumulate`).
     """
     from .renderer import accumulation_params
     from .segments import cached_proxy
@@ -266,13 +287,84 @@ def _shadows(scene, method, lights, points, groups, vis, sizes, light_buffer, bl
                     op_x, op_y, col_x, col_rgb = v.tf.arrays()
                     shadow_accumulate(vol.data, org, spc, accumulation_params(v), op_x, op_y, col_x, col_rgb,
                                       points[a:b], row, eps, views, near, far, method == "parc", skip, jump_min,
-                                      v_l[a:b], cnt[a:b])
+                                      v_l[a:b], cnt[a:b], v.step if samples else 0.0)
             timings["shadow"] += time.perf_counter() - t0
     from .renderer import column_totals
     cells, solves, samples = column_totals(cnt)[:3]
     counts["shadow_cells"] += cells
     counts["shadow_solves"] += solves
     counts["shadow_samples"] += samples
+
+
+#: Most translucent samples lit at once (`_light_samples`): their records take about 110
+#: bytes each, and their light terms and shadows 24 a light.
+SAMPLES_AT_ONCE = 1 << 19
+
+
+def _light_samples(scene, method, comp, per_pixel, merged, front, sizes, light_buffer, blocks, timings, counts,
+                   report):
+    """Light the shaded samples of the composite volumes ``comp`` with shadows, and add them to ``front``.
+
+    ``per_pixel``: the samples each pixel records (`raycast.merged`'s counting walk); ``merged(y0, y1,
+    record)`` walks rows ``y0 <= y < y1`` again, recording them. Bands of whole rows holding at most
+    `SAMPLES_AT_ONCE` samples (one row, whatever it holds) are recorded, their samples' shadow rays
+    cast (`_shadows`) and their lit colours added (`raycast.shadow.combine_samples`) one at a time.
+    """
+    w, h = scene.size
+    lights = light_array(scene.lights)
+    materials_of = np.array([v.material for _, v in comp], np.float64)
+    per_row = per_pixel.reshape(h, w).sum(axis=1)
+    bands = _sample_bands(per_row, SAMPLES_AT_ONCE)
+    done = 0
+    for y0, y1 in bands:
+        t0 = time.perf_counter()
+        n = int(per_row[y0:y1].sum())
+        record = SampleRecord(n, w * h)
+        record.slots[y0 * w:y1 * w] = np.cumsum(per_pixel[y0 * w:y1 * w]) - per_pixel[y0 * w:y1 * w]
+        merged(y0, y1, record)
+        timings["cast"] += time.perf_counter() - t0
+        t0 = time.perf_counter()
+        materials = materials_of[record.volumes]
+        diffuse = np.empty((len(lights), n))
+        specular = np.empty((len(lights), n))
+        light_terms(record.points, record.normals, record.views, materials, lights, diffuse, specular)
+        vis = ((diffuse > 0.0) | (specular > 0.0)).astype(np.float64)
+        timings["shade"] += time.perf_counter() - t0
+        # Grouped by volume for their shadow rays' offsets, then put back in pixel order.
+        order = np.argsort(record.volumes, kind="stable")
+        owner = record.volumes[order]
+        groups = []
+        for q, (_, v) in enumerate(comp):
+            a, b = np.searchsorted(owner, q, "left"), np.searchsorted(owner, q, "right")
+            if a < b:
+                groups.append((a, b, v.volume))
+        grouped = np.ascontiguousarray(vis[:, order])
+        _shadows(scene, method, lights, record.points[order], groups, grouped, sizes, light_buffer, blocks, timings,
+                 counts, samples=True)
+        vis[:, order] = grouped
+        t0 = time.perf_counter()
+        combine_samples(record.slots, record.counts, record.colors, record.weights, materials, lights, diffuse,
+                        specular, vis, y0 * w, y1 * w, front)
+        timings["shade"] += time.perf_counter() - t0
+        done += y1 - y0
+        report.part("sample shadows", done / h)
+
+
+def _sample_bands(per_row, most):
+    """Row ranges ``(y0, y1)`` covering every row, each holding at most ``most`` of ``per_row``'s
+    counts where a single row does not hold more."""
+    bands = []
+    y0 = 0
+    total = 0
+    for y, n in enumerate(per_row):
+        if y > y0 and total + n > most:
+            bands.append((y0, y))
+            y0 = y
+            total = 0
+        total += int(n)
+    if y0 < len(per_row):
+        bands.append((y0, len(per_row)))
+    return bands
 
 
 def _cached_light_buffers(light, vis, proxy, size, n):

@@ -29,7 +29,7 @@ from .lights import light_array
 from .scene import Isosurface, Scene, Translucent, describe_volume
 from .segments import cached_proxy, parc_segments
 from .skip import octant_skip_tables, skip_table
-from .workspace import check_scene_memory, work_array
+from .workspace import check_scene_memory, shadowed_samples, work_array
 
 METHODS = ("brute", "parc")
 #: Held by every render. Re-entrant, so that a render asked for inside a render's
@@ -408,6 +408,10 @@ def _casters_for(scene, methods, buffers):
     kernels = [(iso.cast_iso_image, of(isos)), (shadow.surface_frames, ())] if isos else []
     if isos and scene.shadows and scene.lights:
         kernels += [(shadow.shadow_iso, ())] + ([(shadow.shadow_accumulate, ())] if trans else [])
+    sample_shadows = shadowed_samples(scene)
+    if sample_shadows:
+        kernels += [(shadow.combine_samples, ()), (shadow.shadow_accumulate, ())]
+        kernels += [(shadow.shadow_iso, ())] if isos else []
     layers = [v for v in trans if v.mode != "composite"]
     if layers:
         kernels.append((composite._IMAGE_CASTERS[False, False], of(layers)))
@@ -416,9 +420,10 @@ def _casters_for(scene, methods, buffers):
         # One tuple of the volumes' samples, converted to one type (`parc.multivolume`).
         one = np.empty((1, 1, 1), np.result_type(*(v.volume.data.dtype for v in comp)))
         one.flags.writeable = False
-        kernels.append((merged._MERGED_CASTERS[any(v.shade for v in trans)],
+        shaded = any(v.shade for v in trans) and not sample_shadows
+        kernels.append((merged._MERGED_CASTERS[shaded, sample_shadows],
                         (types.UniTuple(numba.typeof(one), len(comp)),)))
-    return kernels
+    return list(dict.fromkeys(kernels))
 
 
 def _premultiplied(background):
@@ -429,9 +434,10 @@ def _premultiplied(background):
 
 def _casts_alone(scene):
     """Whether `render` casts the scene's one volume with its own driver: all but several
-    volumes and an isosurface with lights (`_render_general`). A translucent volume lights its
-    samples in its own walk; shadows, falling on isosurfaces alone, change nothing there."""
-    return len(scene.volumes) == 1 and not (scene.lights and isinstance(scene.volumes[0], Isosurface))
+    volumes, an isosurface with lights, and shaded samples with shadows (`_render_general`). A
+    translucent volume lights its samples in its own walk where they cast no shadow rays."""
+    return (len(scene.volumes) == 1 and not (scene.lights and isinstance(scene.volumes[0], Isosurface))
+            and not shadowed_samples(scene))
 
 
 def bits_refused(scene):
@@ -439,6 +445,9 @@ def bits_refused(scene):
     volume (`_render_general` bounds each volume's rays by its depth buffers)."""
     n = len(scene.volumes)
     if n == 1 and isinstance(scene.volumes[0], Translucent):
+        if shadowed_samples(scene):
+            return ("bit planes are drawn for a translucent volume whose samples cast no shadow rays, and this "
+                    "one's shaded samples do (--shadows); use depth")
         return None
     what = f"{n} volumes" if n != 1 else "an isosurface"
     return f"bit planes are drawn for a scene of one translucent volume, and this one has {what}; use depth"

@@ -67,7 +67,7 @@ class Isosurface:
 class ShowsNothingWarning(UserWarning):
     """Part of a scene adds nothing to the image: a translucent volume whose transfer function is
     transparent over all of its data, lights in a scene with no isosurface or shaded
-    translucent volume, or shadows in one with no isosurface (`parc render` says so in a note)."""
+    translucent volume, or shadows in one with neither (`parc render` says so in a note)."""
 
 
 MODES = ("composite", "mip", "average")
@@ -105,9 +105,9 @@ class Translucent:
         which take every sample).
     shade : bool, default False
         Shade composite samples with the gradient (Blinn-Phong, as an
-        isosurface hit is: lit by the scene's lights, without shadows, or by
-        a headlight where it has none); refused with mip and average, which
-        do not shade.
+        isosurface hit is: lit by the scene's lights, shadowed when the
+        scene has shadows, or by a headlight where it has none); refused
+        with mip and average, which do not shade.
     material : (ambient, diffuse, specular, shininess)
 
     Raises
@@ -280,10 +280,11 @@ class Scene:
         (the image's premultiplied pixels hold ``(a r, a g, a b, a)``).
         None leaves it transparent.
     shadows : bool, default False
-        Cast shadow rays from every isosurface hit to every light: blocked
-        by any isosurface, attenuated by translucent volumes on the way
-        (translucent samples are lit without shadows; in a scene without
-        an isosurface this changes nothing, which warns `ShowsNothingWarning`).
+        Cast shadow rays from every isosurface hit and every shaded
+        translucent sample (``shade=True``) to every light: blocked by any
+        isosurface, attenuated by translucent volumes on the way. In a
+        scene with neither this changes nothing, which warns
+        `ShowsNothingWarning`.
     """
 
     camera: Camera
@@ -323,17 +324,17 @@ class Scene:
             if not isinstance(light, LIGHTS):
                 raise InputError(f"a light must be a PointLight or a DirectionalLight, got {type(light).__name__}")
         self.shadows = _flag(self.shadows, "shadows")
-        # Lights shine on isosurface hits and shaded translucent samples; shadows fall on the
-        # hits alone. Given where they change nothing, they are legal (the contract's scenes
-        # give lights to either kind of volume) but said.
-        surfaces = any(isinstance(v, Isosurface) for v in self.volumes)
-        if self.lights and not surfaces and not any(isinstance(v, Translucent) and v.shade for v in self.volumes):
+        # Lights shine on, and shadows fall on, isosurface hits and shaded translucent samples.
+        # Given where they change nothing, they are legal (the contract's scenes give lights to
+        # either kind of volume) but said.
+        lit = any(isinstance(v, Isosurface) or (v.shade and v.mode == "composite") for v in self.volumes)
+        if self.lights and not lit:
             warnings.warn("lights shine on isosurfaces and shaded translucent volumes (shade=True, --shade), and "
                           "this scene has neither: the image is the same without them",
                           ShowsNothingWarning, stacklevel=_callers_level())
-        if self.shadows and not surfaces:
-            warnings.warn("shadows fall on isosurfaces and this scene has none (translucent samples are lit "
-                          "unshadowed): the image is the same without them",
+        if self.shadows and not lit:
+            warnings.warn("shadows fall on isosurfaces and shaded translucent volumes (shade=True, --shade), and "
+                          "this scene has neither: the image is the same without them",
                           ShowsNothingWarning, stacklevel=_callers_level())
 
     @property

@@ -72,14 +72,20 @@ KEPT_IMAGE_BYTES_PER_PIXEL = 32
 #: every lit pixel (float64 each, `parc.multivolume`), with room.
 LIGHT_BYTES_PER_PIXEL = 32
 
+#: Memory of a recorded translucent sample (`raycast.merged.SampleRecord`, its material and the
+#: copies its shadow rays take), with room; and of its terms per light, as for a pixel.
+SAMPLE_BYTES = 192
 
-def check_frame_memory(width, height, layers=1, kept_images=0, lights=0):
+
+def check_frame_memory(width, height, layers=1, kept_images=0, lights=0, samples=0, sample_lights=0):
     """Refuse, with one line, a frame whose per-pixel arrays would not fit in memory.
 
     ``layers`` counts the per-pixel array sets alive at once (several
     volumes); ``lights`` the scene's light sources, whose shading terms take
     `LIGHT_BYTES_PER_PIXEL` each; ``kept_images`` the finished images held
-    meanwhile (a comparison keeps one per method). Without the check a huge
+    meanwhile (a comparison keeps one per method); ``samples`` the
+    translucent samples recorded at once, each `SAMPLE_BYTES` and
+    `LIGHT_BYTES_PER_PIXEL` per light of ``sample_lights``. Without the check a huge
     image stops on NumPy's allocation error, or the system kills the process
     once the pages are touched.
 
@@ -93,13 +99,26 @@ def check_frame_memory(width, height, layers=1, kept_images=0, lights=0):
     need = int(width) * int(height) * (FRAME_BYTES_PER_PIXEL * max(1, int(layers))
                                        + LIGHT_BYTES_PER_PIXEL * int(lights)
                                        + KEPT_IMAGE_BYTES_PER_PIXEL * int(kept_images))
+    need += int(samples) * (SAMPLE_BYTES + LIGHT_BYTES_PER_PIXEL * int(sample_lights))
     check_memory(need, f"a {width}x{height} image", ": render a smaller image (--size, or size in a scene file)")
 
 
 def check_scene_memory(scene, kept_images=0):
     """`check_frame_memory` for a scene's image size, volumes and lights: the lights' shading
-    terms are kept for isosurface hits only (translucent samples are lit as they are taken)."""
+    terms are kept for isosurface hits, and for the translucent samples lit at once
+    (`parc.multivolume.SAMPLES_AT_ONCE`) when they are shadowed; without shadows translucent
+    samples are lit as they are taken."""
+    from .multivolume import SAMPLES_AT_ONCE
     from .scene import Isosurface
     lit = any(isinstance(v, Isosurface) for v in scene.volumes)
     check_frame_memory(*scene.size, layers=len(scene.volumes), kept_images=kept_images,
-                       lights=len(scene.lights) if lit else 0)
+                       lights=len(scene.lights) if lit else 0,
+                       samples=SAMPLES_AT_ONCE if shadowed_samples(scene) else 0, sample_lights=len(scene.lights))
+
+
+def shadowed_samples(scene):
+    """Whether ``scene``'s translucent samples cast shadow rays: shaded composite samples under
+    the scene's lights, with shadows on."""
+    from .scene import Translucent
+    return bool(scene.shadows and scene.lights and any(
+        isinstance(v, Translucent) and v.shade and v.mode == "composite" for v in scene.volumes))

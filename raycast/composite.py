@@ -23,7 +23,8 @@ touching its samples.
 - *composite*: front-to-back ``C += (1 - A) a c``, ``A += (1 - A) a`` with
   the opacity corrected for the step (`raycast.transfer.correct_opacity`)
   and, optionally, the colour shaded with the gradient (Blinn-Phong: lit
-  by the scene's lights, unshadowed, or by a headlight where it has none);
+  by the scene's lights, unshadowed, or by a headlight where it has none;
+  with shadows `raycast.merged` records the samples to light them later);
   the ray stops once ``A`` reaches the threshold.
 - *mip*: the largest value among samples with non-zero opacity; the pixel
   takes the transfer function's colour and opacity there.

@@ -4,17 +4,26 @@ Each volume keeps the walk and sample lattice it has alone (`raycast.composite`:
 the same `ray_span`, `walk_from`, `visit_cell`, `cell_lattice`, `trilinear`
 and `composite_sample`), held between samples in a row of floats per volume;
 the next sample is always the nearest of the volumes' next ones.
+
+With shadows, the shaded samples are not lit in the walk: a shadow ray from
+each, towards each light, must first find what the other volumes let
+through. The walk then records them instead (`cast_merged_image`'s
+``record``): each one's weight in the pixel, ``(1 - A) a``, depends on
+opacities alone, so the pixel's colour is the walk's unshaded sum plus the
+recorded samples' weights times their lit colours, added once their
+shadow rays are cast (`raycast.shadow.combine_samples`).
 """
 import math
 
 import numpy as np
 from numba import prange
 
-from .composite import (END, MOVED, P_SHADE, P_STEP, P_THRESHOLD, PASS, cell_lattice, composite_sample, local_coords,
-                        ray_span, trilinear, visit_cell)
+from .composite import (END, MOVED, P_ORIGIN, P_RATIO, P_SHADE, P_STEP, P_THRESHOLD, PASS, cell_lattice,
+                        composite_sample, local_coords, ray_span, trilinear, visit_cell)
 from .config import TILE_H, TILE_W, kernel, named_for
 from .rays import camera_ray, dealt_tile, tile_count
-from .transfer import tf_opacity
+from .shade import trilinear_gradient, unit_normal
+from .transfer import correct_opacity, tf_color, tf_opacity
 from .traverse import cell_corners, grid_shape, step_cell, to_index_space, walk_from
 
 
@@ -135,13 +144,14 @@ def _merged_start(st, q, data, Ox, Oy, Oz, Dx, Dy, Dz, seg0, seg1, t_stop, skip,
     _merged_advance(st, q, data, skip, jump_min, step, params, nobits, True)
 
 
-def _merged_caster(shaded):
+def _merged_caster(shaded, record):
     """`cast_merged_image`'s kernel, with gradient shading compiled in (``shaded``) or out,
-    as `raycast.composite` does for one volume."""
+    as `raycast.composite` does for one volume, or the shaded samples recorded (``record``)."""
     @kernel(parallel=True)
-    @named_for(shaded=shaded)
+    @named_for(shaded=shaded, record=record)
     def cast(datas, orgs, spcs, cam, width, height, params, op_x, op_y, col_x, col_rgb, tf_len,
-             seg, use_seg, skip, jump_mins, stop, ranks, layer_t, layer_ranks, layer_rgba, image, counts, row0, row1):
+             seg, use_seg, skip, jump_mins, stop, ranks, layer_t, layer_ranks, layer_rgba, image, counts, row0, row1,
+             rec_points, rec_normals, rec_views, rec_colors, rec_weights, rec_volumes, slots, rec_counts):
         nvol = len(datas)
         thr = 0.0
         for q in range(nvol):
@@ -171,6 +181,7 @@ def _merged_caster(shaded):
                     b = 0.0
                     acc = 0.0
                     samples = 0
+                    kept = 0
                     while True:
                         best = -1
                         bt = t_stop
@@ -217,6 +228,19 @@ def _merged_caster(shaded):
                         a = tf_opacity(op_x[best, :no], op_y[best, :no], v)
                         if not a > 0.0:
                             continue
+                        if record and params[best, P_SHADE] != 0.0:
+                            a = correct_opacity(a, params[best, P_RATIO])
+                            wgt = (1.0 - acc) * a
+                            acc += wgt
+                            if rec_weights.shape[0] > 0:
+                                m = slots[y * width + x] + kept
+                                _record(rec_points, rec_normals, rec_views, rec_colors, m, datas[best], spcs[best],
+                                        params[best], i, j, k, u, vv, w, dx, dy, dz, col_x[best, :nc],
+                                        col_rgb[best, :nc], v)
+                                rec_weights[m] = wgt
+                                rec_volumes[m] = best
+                            kept += 1
+                            continue
                         a, cr, cg, cb = composite_sample(datas[best], spcs[best], v, i, j, k, u, vv, w, a, dx, dy, dz,
                                                          params[best], col_x[best, :nc], col_rgb[best, :nc],
                                                          shaded and params[best, P_SHADE] != 0.0)
@@ -230,15 +254,54 @@ def _merged_caster(shaded):
                     image[y, x, 2] = min(b, 1.0)
                     image[y, x, 3] = min(acc, 1.0)
                     counts[y * width + x] = samples
+                    if record:
+                        rec_counts[y * width + x] = kept
     return cast
 
 
-_MERGED_CASTERS = {shaded: _merged_caster(shaded) for shaded in (False, True)}
+@kernel(inline="always")
+def _record(points, normals, views, colors, m, data, spc, params, i, j, k, u, vv, w, dx, dy, dz, col_x, col_rgb, v):
+    """Row ``m`` of a recorded sample: its world point and unit normal as `raycast.composite.shade_color`
+    finds them, the direction to the eye, and its transfer-function colour."""
+    points[m, 0] = params[P_ORIGIN] + spc[0] * (i + u)
+    points[m, 1] = params[P_ORIGIN + 1] + spc[1] * (j + vv)
+    points[m, 2] = params[P_ORIGIN + 2] + spc[2] * (k + w)
+    gx, gy, gz = trilinear_gradient(data, i, j, k, u, vv, w, spc)
+    normals[m, 0], normals[m, 1], normals[m, 2] = unit_normal(gx, gy, gz, dx, dy, dz)
+    views[m, 0], views[m, 1], views[m, 2] = -dx, -dy, -dz
+    colors[m, 0], colors[m, 1], colors[m, 2] = tf_color(col_x, col_rgb, v)
+
+
+_MERGED_CASTERS = {(shaded, record): _merged_caster(shaded, record)
+                   for shaded, record in ((False, False), (True, False), (False, True))}
+
+
+class SampleRecord:
+    """The shaded samples `cast_merged_image` records for a band of rows, in pixel order:
+    ``slots[p]`` is pixel ``p``'s first row (pixels of the band only), ``counts[p]`` how many
+    it has; ``points``, ``normals`` (unit, facing the eye), ``views`` (unit, to the eye) and
+    ``colors`` (the transfer function's) are ``(n, 3)``, ``weights`` the samples' weights in
+    their pixels and ``volumes`` the index, among the merged volumes, of each one's volume.
+    With ``n = 0`` the walk only counts them, into ``counts``."""
+
+    def __init__(self, n, pixels):
+        self.points = np.empty((n, 3))
+        self.normals = np.empty((n, 3))
+        self.views = np.empty((n, 3))
+        self.colors = np.empty((n, 3))
+        self.weights = np.empty(n)
+        self.volumes = np.empty(n, np.int64)
+        self.slots = np.zeros(pixels, np.int64)
+        self.counts = np.zeros(pixels, np.int64)
+
+    def arrays(self):
+        return (self.points, self.normals, self.views, self.colors, self.weights, self.volumes, self.slots,
+                self.counts)
 
 
 def cast_merged_image(datas, orgs, spcs, cam, width, height, params, op_x, op_y, col_x, col_rgb, tf_len,
                       seg, use_seg, skip, jump_mins, stop, ranks, layer_t, layer_ranks, layer_rgba, image, counts,
-                      row0=0, row1=None):
+                      row0=0, row1=None, record=None):
     """Composite several overlapping volumes along each pixel's ray, samples merged in depth order.
 
     ``datas`` is a tuple of K volumes of one dtype, each with its own
@@ -260,8 +323,20 @@ def cast_merged_image(datas, orgs, spcs, cam, width, height, params, op_x, op_y,
     takes it (`raycast.iso.NO_SKIP` and -1 for none); a skipped sample
     adds nothing, so the layers and the other volumes' samples keep their
     order. Only rows ``row0 <= y < row1`` (default all) are cast.
+
+    With a `SampleRecord` as ``record``, the shaded volumes' samples are
+    not shaded but recorded there (module docstring): ``image`` then holds
+    the other samples' colour and every sample's opacity.
     """
-    cast = _MERGED_CASTERS[bool((params[:, P_SHADE] != 0.0).any())]
+    shaded = bool((params[:, P_SHADE] != 0.0).any())
+    if record is None:
+        record = _NO_RECORD
+    else:
+        shaded = False
+    cast = _MERGED_CASTERS[shaded, record is not _NO_RECORD]
     cast(datas, orgs, spcs, cam, width, height, params, op_x, op_y, col_x, col_rgb, tf_len, seg, use_seg, skip,
          jump_mins, stop, ranks, layer_t, layer_ranks, layer_rgba, image, counts, row0,
-         height if row1 is None else row1)
+         height if row1 is None else row1, *record.arrays())
+
+
+_NO_RECORD = SampleRecord(0, 0)

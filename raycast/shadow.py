@@ -1,6 +1,7 @@
-"""Shadow rays and lighting of isosurface hits.
+"""Shadow rays and lighting of isosurface hits and of translucent samples.
 
-A shadow ray leaves a hit point ``P`` towards a light: towards a point
+A shadow ray leaves a hit point ``P`` (or a shaded translucent sample's
+point, `raycast.merged`'s record) towards a light: towards a point
 light's position (its length is the distance ``D``), or against a
 directional light's direction (unbounded). It starts ``eps`` along its
 way (``P' = P + eps l``, ``t = 0`` there), so the surface it leaves is not
@@ -114,25 +115,28 @@ def shadow_span(light, views, near, far, use_seg, px, py, pz, eps, dist):
 
 
 @kernel(inline="always")
-def shadow_ray(points, n, light, eps, views, near, far, use_seg, org, spc):
+def shadow_ray(points, n, light, eps, views, near, far, use_seg, org, spc, lead):
     """Shadow ray of ``points[n]`` in a volume's index space, and the span it walks.
 
     Returns ``(s0, s1, Ox, Oy, Oz, Dx, Dy, Dz, lx, ly, lz, dist)``: the span,
     the index-space ray ``O + s D``, the world unit direction ``l`` to the
     light and its distance; ``s0 > s1`` when nothing needs walking (the
     point at the light, or no PC supercell on the way; ``O`` and ``D`` are
-    then zero).
+    then zero). The ray starts ``lead`` further along than ``P'``, and its
+    span counts from there.
     """
     px, py, pz = points[n, 0], points[n, 1], points[n, 2]
     lx, ly, lz, dist = to_light(light, px, py, pz)
     s0, s1 = 1.0, 0.0
     if dist > eps:
         s0, s1 = shadow_span(light, views, near, far, use_seg, px, py, pz, eps, dist)
+        s0, s1 = max(s0 - lead, 0.0), s1 - lead
     if not s0 <= s1:
         # Most of PARC's shadow rays end here (no PC supercell on the way):
         # spare them the division into index space.
         return s0, s1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, lx, ly, lz, dist
-    Ox, Oy, Oz, Dx, Dy, Dz = to_index_space(px + eps * lx, py + eps * ly, pz + eps * lz, lx, ly, lz, org, spc)
+    e = eps + lead
+    Ox, Oy, Oz, Dx, Dy, Dz = to_index_space(px + e * lx, py + e * ly, pz + e * lz, lx, ly, lz, org, spc)
     return s0, s1, Ox, Oy, Oz, Dx, Dy, Dz, lx, ly, lz, dist
 
 
@@ -152,7 +156,7 @@ def shadow_iso(data, org, spc, iso, points, light, eps, views, near, far, use_se
             if vis[n] == 0.0:
                 continue
             s0, s1, Ox, Oy, Oz, Dx, Dy, Dz, lx, ly, lz, dist = shadow_ray(points, n, light, eps, views, near,
-                                                                           far, use_seg, org, spc)
+                                                                           far, use_seg, org, spc, 0.0)
             if not s0 <= s1:
                 continue
             res = cast_iso_ray(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, s0, s1, skip, jump_min)
@@ -164,12 +168,17 @@ def shadow_iso(data, org, spc, iso, points, light, eps, views, near, far, use_se
 
 @kernel(parallel=True)
 def shadow_accumulate(data, org, spc, params, op_x, op_y, col_x, col_rgb, points, light, eps,
-                      views, near, far, use_seg, skip, jump_min, vis, counts):
+                      views, near, far, use_seg, skip, jump_min, vis, counts, lead):
     """Scale ``vis[n]`` by the light a translucent volume lets through along the shadow ray.
 
     ``1 - a`` with ``a`` the opacity the volume's mode accumulates over the
-    ray from ``P'`` to the light (`accumulate_ray`; ``skip``/``jump_min``
-    as there). ``counts[n, 2]`` gains the samples taken.
+    ray from ``lead`` beyond ``P'`` to the light (`accumulate_ray`;
+    ``skip``/``jump_min`` as there): ``lead`` is 0 for a surface's hit, and
+    the volume's step for a translucent sample, whose ray, starting inside
+    the volume, takes its lattice from its start: without the lead its
+    first point lies next to the sample itself, which then shadowed itself
+    (an opaque sample was lit by the ambient term alone).
+    ``counts[n, 2]`` gains the samples taken.
     """
     nobits = np.zeros((1, 1, 1), np.uint32)
     rays = points.shape[0]
@@ -180,11 +189,11 @@ def shadow_accumulate(data, org, spc, params, op_x, op_y, col_x, col_rgb, points
             if vis[n] == 0.0:
                 continue
             s0, s1, Ox, Oy, Oz, Dx, Dy, Dz, lx, ly, lz, dist = shadow_ray(points, n, light, eps, views, near,
-                                                                           far, use_seg, org, spc)
+                                                                           far, use_seg, org, spc, lead)
             if not s0 <= s1:
                 continue
             r, g, b, a, samples = accumulate_ray(data, spc, Ox, Oy, Oz, Dx, Dy, Dz, lx, ly, lz, s0, s1,
-                                                 dist - 2.0 * eps, params, op_x, op_y, col_x, col_rgb,
+                                                 dist - 2.0 * eps - lead, params, op_x, op_y, col_x, col_rgb,
                                                  nobits, 0, 0, skip, jump_min)
             counts[n, 2] += samples
             vis[n] *= 1.0 - a
@@ -255,3 +264,21 @@ def combine_lights(colors, materials, lights, diffuse, specular, vis, pix, image
                 acc += w * (colors[m, c] * diffuse[k, m] + specular[k, m])
             image[n, c] = min(1.0, acc)
         image[n, 3] = 1.0
+
+
+@kernel(parallel=True)
+def combine_samples(slots, counts, colors, weights, materials, lights, diffuse, specular, vis, p0, p1, image):
+    """Add to pixels ``p0 <= n < p1`` of the flat ``(H*W, 4)`` float32 ``image`` their recorded samples
+    (`raycast.merged.SampleRecord`), each lit as `combine_lights` lights a hit, clamped to 1 as a
+    shaded sample is (`raycast.composite.composite_sample`), times its weight; the pixel clamped to 1."""
+    for n in prange(p0, p1):
+        first = slots[n]
+        for c in range(3):
+            add = 0.0
+            for m in range(first, first + counts[n]):
+                acc = colors[m, c] * materials[m, 0]
+                for k in range(lights.shape[0]):
+                    w = vis[k, m] * lights[k, 4 + c]
+                    acc += w * (colors[m, c] * diffuse[k, m] + specular[k, m])
+                add += weights[m] * min(1.0, acc)
+            image[n, c] = min(1.0, image[n, c] + add)

@@ -864,16 +864,18 @@ def test_translucent_flags_that_cannot_apply_are_refused(extra, words, vol_file,
 @pytest.mark.parametrize("light", [["--light", "1,2,3"], ["--sun", "0,0,-1", "--shadows"], ["--shadows"]])
 def test_lights_on_a_translucent_volume_light_shaded_samples_and_nothing_else(command, shade, light, vol_file,
                                                                             tmp_path, capsys):
-    # Lights light shaded samples (--shade) and are said to change nothing without them; shadows
-    # fall on isosurfaces alone, so they are said to change nothing here (and --shadows alone
-    # gets no advice to add --light or --sun, which would not make them show).
+    # Lights and shadows light and shadow shaded samples (--shade) and are said to change nothing
+    # without them (and --shadows alone then gets no advice to add --light or --sun, which would
+    # not make them show; with --shade it does).
     argv = [command, vol_file, "--tf", "greyscale", *shade, "--size", 8, 8]
     out = [["-o", tmp_path / "lit.npy"], ["-o", tmp_path / "unlit.npy"]] if command == "render" else [[], []]
     rc, _, err = _run(argv + light + out[0], capsys)
     lit = ("--light" in light or "--sun" in light)
-    said = [w for w, flag in (("lights shine", lit and not shade), ("shadows fall", "--shadows" in light)) if flag]
+    said = [w for w, flag in (("lights shine", lit and not shade), ("shadows fall", "--shadows" in light and not shade))
+            if flag]
     assert rc == 0 and all(f"parc: {w} on isosurfaces" in err for w in said), err
-    assert "add --light" not in err and err.count("on isosurfaces") == len(said)
+    assert ("add --light" in err) == (light == ["--shadows"] and bool(shade))
+    assert err.count("on isosurfaces") == len(said)
     if command == "render":
         rc, _, err = _run(argv + out[1], capsys)
         assert rc == 0 and "on isosurfaces" not in err
@@ -1513,6 +1515,8 @@ def test_the_casters_a_render_is_said_to_compile_are_those_it_runs(gl):
         ([parc.Translucent(vol, "greyscale")], [], "parc", "depth,bits"),
         ([iso, parc.Translucent(vol, "greyscale", mode="mip"), parc.Translucent(vol, "viridis", shade=True)],
          [parc.PointLight(far)], "parc", "depth"),
+        ([parc.Translucent(vol, "greyscale", shade=True)], [parc.PointLight(far)], "brute", "depth"),
+        ([parc.Translucent(vol, "greyscale", shade=True)], [parc.PointLight(far)], "parc", "depth"),
     ]
     for volumes, lights, method, buffers in kinds:
         scene = parc.Scene(camera=cam, size=(8, 8), volumes=volumes, lights=lights, shadows=bool(lights))
@@ -1547,19 +1551,20 @@ def test_one_lit_translucent_volume_is_said_to_compile_the_caster_it_runs(gl):
 
 
 def test_shadows_with_no_surface_to_fall_on_are_not_said_to_compile_shadow_rays(gl):
-    """Shadow rays leave isosurface hits alone: in a scene of translucent volumes they are never
-    cast, and the notice, asking for their kernels, said it compiled on every run until some
-    other scene had compiled them."""
+    """Shadow rays leave isosurface hits and shaded samples alone: in a scene of unshaded
+    translucent volumes they are never cast, and the notice, asking for their kernels, said it
+    compiled on every run until some other scene had compiled them."""
     import parc
     from data_tools.synthetic import blobs
     from parc.renderer import kernel_samples
     vol = blobs(10, seed=1)
-    volumes = [parc.Translucent(vol, "greyscale", shade=True), parc.Translucent(vol, "viridis", shade=True)]
+    volumes = [parc.Translucent(vol, "greyscale"), parc.Translucent(vol, "viridis")]
     lights = [parc.PointLight((30.0, -20.0, 25.0))]
     cam = parc.Camera.framing(*vol.bounds)
     with pytest.warns(parc.ShowsNothingWarning):
         shadowed = parc.Scene(camera=cam, size=(8, 8), volumes=volumes, lights=lights, shadows=True)
-    plain = parc.Scene(camera=cam, size=(8, 8), volumes=volumes, lights=lights)
+    with pytest.warns(parc.ShowsNothingWarning):
+        plain = parc.Scene(camera=cam, size=(8, 8), volumes=volumes, lights=lights)
     for method in ("brute", "parc"):
         assert (parc.render(shadowed, method).image == parc.render(plain, method).image).all()
         assert kernel_samples(shadowed, (method,)) == kernel_samples(plain, (method,))

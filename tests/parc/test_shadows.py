@@ -105,7 +105,7 @@ def _shadow_scene(rng, seed):
         other = _volume(rng, "blobs")
         other = Volume(other.data, spacing=other.spacing, origin=tuple(np.array(vol.center) - 3.0), name="blobs")
         if rng.random() < 0.5:
-            # Shaded now and then: its samples lit, unshadowed, by the same lights.
+            # Shaded now and then: its samples lit by the same lights, and shadowed.
             vols.append(Translucent(other, tf="greyscale", shade=seed % 2 == 0))
         else:
             vols.append(_iso(rng, other))
@@ -379,7 +379,7 @@ def _shadow_kernel_args(kernel, views, near, far, use_seg):
     if kernel == "shadow_iso":
         return (data, org, spc, float(vol.meta["iso"])) + tail
     clear = Translucent(vol, TransferFunction([[-1e9, 0.2], [1e9, 0.2]]))
-    return (data, org, spc, accumulation_params(clear), *clear.tf.arrays()) + tail
+    return (data, org, spc, accumulation_params(clear), *clear.tf.arrays()) + tail + (0.0,)
 
 
 @pytest.mark.parametrize("kernel", ["shadow_iso", "shadow_accumulate"])

@@ -137,6 +137,33 @@ def test_parc_equals_brute_translucent(seed, gl):
     assert (res.work <= ref.work).all(), where
 
 
+@pytest.mark.random_scenes(60)
+def test_parc_equals_brute_with_shadows_on_shaded_samples(seed, gl):
+    # Each sample that adds colour casts a shadow ray to each light: through the volume itself,
+    # whole for brute, within the light buffers' segments for PARC.
+    rng = np.random.default_rng(7000 + seed)
+    vol = _volume(rng, seed)
+    lo, hi = vol.value_range()
+    step = 0.37 if rng.random() < 0.25 else None
+    lights = _random_lights(np.random.default_rng(9000 + seed), vol)
+    for _ in range(MAX_DRAWS):
+        vis = Translucent(vol, _random_tf(rng, lo, hi), shade=True, step=step)
+        scene = Scene(camera=_camera(rng, vol, seed), size=SIZE, volumes=[vis], lights=lights, shadows=True)
+        ref = render(scene, method="brute")
+        if (ref.image[..., 3] > VISIBLE_ALPHA).sum() >= MIN_VISIBLE:
+            break
+    unshadowed = render(Scene(camera=scene.camera, size=SIZE, volumes=[vis], lights=lights), method="brute")
+    assert np.array_equal(ref.image[..., 3], unshadowed.image[..., 3])
+    assert (ref.image[..., :3] <= unshadowed.image[..., :3] + 1e-6).all()
+    supercell = SUPERCELLS[seed % len(SUPERCELLS)]
+    light_buffer = (4, 16, 64, 256)[int(rng.integers(4))]
+    res = render(scene, method="parc", supercell=supercell, light_buffer=light_buffer)
+    where = f"supercell={supercell} light_buffer={light_buffer} lights={len(lights)} seed={seed}"
+    assert np.abs(res.image - ref.image).max() <= 1e-6, where
+    assert res.stats["shadow_rays"] == ref.stats["shadow_rays"], where
+    assert res.stats["shadow_samples"] <= ref.stats["shadow_samples"], where
+
+
 def _slow_lattice(vol, o, d, step):
     """The trilinear values at the sample lattice ``t_in + n step`` of one ray through the
     volume's box, in plain Python."""

@@ -1,0 +1,104 @@
+"""Shadows on translucent samples against answers worked out by hand.
+
+A slab of constant value fills z in [10, 20] of a 21 x 21 x 40 grid and is seen straight down
+(parallel) over x, y in [7, 13]. Its transfer function is a jump to opacity ``A`` at 99.5 (the
+slab's value is 100, 0 outside it) in one colour ``C``, sampled every 0.4 from the top face
+(z = 39), so a camera ray takes 25 samples in the slab, at z = 19.8, 19.4, ... 10.2, none within
+0.2 of its faces. Inside the slab the data are flat, so each sample's normal faces the eye (+z).
+
+A sample's shadow ray starts at the sample and takes its lattice points a step along (0.4, 0.8,
+...), so under a sun straight overhead sample ``s`` (counted from the top) has exactly ``s`` slab
+samples between it and the light: its light is ``T_s = (1 - a) ** s``, ``a`` the opacity corrected
+for the step. Lit as a surface is (ambient ``ka``, diffuse ``kd``, specular ``ks``, n.l = n.h = 1),
+its colour is ``min(1, C (ka + T_s kd) + T_s ks)``, composited with weight ``(1 - a) ** s a``.
+"""
+import numpy as np
+import pytest
+
+from data_tools import Volume
+from parc import Camera, DirectionalLight, Isosurface, Scene, TransferFunction, Translucent, render
+
+SIZE = (6, 6)
+A = 0.05
+STEP = 0.4
+C = np.array([0.9, 0.6, 0.3])
+MATERIAL = (0.2, 0.6, 0.3, 8.0)
+CAM = Camera(eye=(10.0, 10.0, 100.0), look_at=(10.0, 10.0, 0.0), up=(0, 1, 0), parallel_scale=3.0)
+SAMPLES = 25                    # z = 19.8 - 0.4 s, s = 0 .. 24
+METHODS = ["brute", "parc", "parc:4"]
+
+
+def _slab():
+    data = np.zeros((40, 21, 21), np.uint8)
+    data[10:21] = 100
+    tf = TransferFunction([[99.5, 0.0], [99.5, A]], [[0.0, *C]])
+    return Translucent(Volume(data, name="slab"), tf, step=STEP, shade=True, material=MATERIAL)
+
+
+def _wall():
+    """An opaque wall across x = 29.5 (isovalue 0.5 between a plane of zeros and ones), far out of
+    the camera's view, standing in the way of every shadow ray towards a sun up and to the right."""
+    data = np.zeros((81, 31, 6), np.float32)
+    data[:, :, 1:5] = 1.0
+    return Isosurface(Volume(data, origin=(29.0, -5.0, -20.0), name="wall"), 0.5)
+
+
+def _render(volumes, lights, method, shadows=True, **kw):
+    method, _, pixels = method.partition(":")
+    scene = Scene(camera=CAM, size=SIZE, volumes=volumes, lights=lights, shadows=shadows)
+    return render(scene, method, light_buffer=int(pixels) if pixels else None, **kw)
+
+
+def _a():
+    """The opacity of one sample: ``A`` at the reference step (a quarter of the spacing), for ``STEP``."""
+    return 1.0 - (1.0 - A) ** (STEP / 0.25)
+
+
+def _expected(light_of):
+    """Premultiplied RGBA of a pixel whose sample ``s`` gets ``light_of(s)`` of the sun."""
+    a = _a()
+    rgb = np.zeros(3)
+    ka, kd, ks, _ = MATERIAL
+    for s in range(SAMPLES):
+        t = light_of(s)
+        rgb += (1.0 - a) ** s * a * np.minimum(1.0, C * (ka + t * kd) + t * ks)
+    return np.append(rgb, 1.0 - (1.0 - a) ** SAMPLES)
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_a_slab_under_a_sun_overhead_shadows_each_sample_by_the_samples_above_it(gl, method):
+    res = _render([_slab()], [DirectionalLight((0.0, 0.0, -1.0))], method)
+    want = _expected(lambda s: (1.0 - _a()) ** s)
+    assert np.abs(res.image - want).max() <= 1e-6
+    unshadowed = _render([_slab()], [DirectionalLight((0.0, 0.0, -1.0))], method, shadows=False).image
+    assert np.abs(unshadowed - _expected(lambda s: 1.0)).max() <= 1e-6
+    # One shadow ray for each sample that adds colour, towards the one light, which faces them all.
+    assert res.stats["shadow_rays"] == SIZE[0] * SIZE[1] * SAMPLES
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_a_wall_between_the_sun_and_the_slab_leaves_its_samples_the_ambient_light(gl, method):
+    sun = [DirectionalLight((-1.0, 0.0, -1.0))]
+    walled = _render([_slab(), _wall()], sun, method).image
+    assert np.abs(walled - _expected(lambda s: 0.0)).max() <= 1e-6
+    # Without the wall the sun reaches the top samples at least (n.l = 0.71).
+    assert (_render([_slab()], sun, method).image[..., :3] > walled[..., :3] + 0.01).all()
+
+
+@pytest.mark.parametrize("method", ["brute", "parc"])
+def test_samples_lit_a_few_rows_at_a_time_are_those_lit_at_once(gl, method, monkeypatch):
+    import parc.multivolume as mv
+    sun = [DirectionalLight((-1.0, 0.3, -1.0))]
+    whole = _render([_slab(), _wall()], sun, method).image
+    monkeypatch.setattr(mv, "SAMPLES_AT_ONCE", 2 * SIZE[0] * SAMPLES)      # two rows a band
+    seen = []
+    parts = _render([_slab(), _wall()], sun, method, progress=seen.append).image
+    assert np.array_equal(whole, parts)
+    assert seen == sorted(seen) and seen[-1] == 1.0
+
+
+def test_sample_bands_hold_at_most_so_many_samples_unless_one_row_holds_more():
+    from parc.multivolume import _sample_bands
+    assert _sample_bands(np.array([3, 3, 3, 3]), 6) == [(0, 2), (2, 4)]
+    assert _sample_bands(np.array([3, 9, 0, 2, 5]), 6) == [(0, 1), (1, 2), (2, 4), (4, 5)]
+    assert _sample_bands(np.array([0, 0, 0]), 6) == [(0, 3)]
