@@ -196,7 +196,7 @@ def check_request(scene, buffers, work, names=("buffers", "work")):
     if not _casts_alone(scene):
         if work:
             raise InputError(f"{names[1]}: per-pixel work is counted for scenes of one volume, "
-                             "and of an isosurface only without lights")
+                             "and of an isosurface only without lights (of shaded samples, without shadows)")
     return buffers
 
 

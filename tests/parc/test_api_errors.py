@@ -106,6 +106,14 @@ CASES = {
                                                "this one has an isosurface"),
     "depth and bit planes for an isosurface, brute": (lambda: parc.render(_scene(), buffers=("depth", "bits")),
                                                       "this one has an isosurface"),
+    "work for shadowed samples": (
+        lambda: parc.render(_scene(volumes=[parc.Translucent(VOL, "greyscale", shade=True)], shadows=True,
+                                   lights=[parc.PointLight((1, 2, 3))]), work=True),
+        "of shaded samples, without shadows"),
+    "bit planes for shadowed samples": (
+        lambda: parc.render(_scene(volumes=[parc.Translucent(VOL, "greyscale", shade=True)], shadows=True,
+                                   lights=[parc.PointLight((1, 2, 3))]), method="parc", buffers="depth,bits"),
+        "this one's shaded samples do"),
     "bit planes for two volumes": (lambda: parc.render(_scene(volumes=[parc.Translucent(VOL, "greyscale")] * 2),
                                                        method="parc", buffers="bits"), "has 2 volumes"),
     "supercell as text for brute": (lambda: parc.render(_scene(), supercell="a"), "supercell"),
