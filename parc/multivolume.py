@@ -20,6 +20,11 @@ How a pixel is made
    volume is a finished layer placed where the ray enters its box (before
    samples there of volumes listed after it, behind those of volumes
    listed before). The result goes over the lit surface.
+4. With shadows, the shaded samples of composite volumes are lit last: the
+   walk records them (their weights in the pixel depend on opacities
+   alone), a shadow ray from each towards each light finds its visibility
+   as a hit's does, and their lit colours are added to their pixels
+   (`_light_samples`).
 
 Both methods run exactly this code; ``"parc"`` only narrows the segments
 (primary rays from the camera's buffers, shadow rays from the lights'),
@@ -242,13 +247,13 @@ class _Report:
 
 
 def _shadows(scene, method, lights, points, groups, vis, sizes, light_buffer, blocks, timings, counts,
-             samples=False):
+             of_samples=False):
     """Shadow rays from every hit to every light, volume by volume; ``vis`` scaled in place.
 
     ``groups``: ``(first, end, volume)``, the hits ``points[first:end]`` on each volume's
     surface. A shadow ray starts and ends `SHADOW_EPS` of its own surface's smallest spacing
     off (the smallest in the scene let a tiny volume anywhere make surfaces shadow themselves).
-    With ``samples`` the points are translucent samples, in their volumes' groups: a translucent
+    With ``of_samples`` the points are translucent samples, in their volumes' groups: a translucent
     volume's lattice on their shadow rays starts one step along (`raycast.shadow.shadow_accumulate`).
     """
     from .renderer import accumulation_params
@@ -287,7 +292,7 @@ def _shadows(scene, method, lights, points, groups, vis, sizes, light_buffer, bl
                     op_x, op_y, col_x, col_rgb = v.tf.arrays()
                     shadow_accumulate(vol.data, org, spc, accumulation_params(v), op_x, op_y, col_x, col_rgb,
                                       points[a:b], row, eps, views, near, far, method == "parc", skip, jump_min,
-                                      v_l[a:b], cnt[a:b], v.step if samples else 0.0)
+                                      v_l[a:b], cnt[a:b], v.step if of_samples else 0.0)
             timings["shadow"] += time.perf_counter() - t0
     from .renderer import column_totals
     cells, solves, samples = column_totals(cnt)[:3]
@@ -296,8 +301,8 @@ def _shadows(scene, method, lights, points, groups, vis, sizes, light_buffer, bl
     counts["shadow_samples"] += samples
 
 
-#: Most translucent samples lit at once (`_light_samples`): their records take about 110
-#: bytes each, and their light terms and shadows 24 a light.
+#: Most translucent samples lit at once (`_light_samples`), each taking `parc.workspace.SAMPLE_BYTES`
+#: and `parc.workspace.LIGHT_BYTES_PER_PIXEL` a light.
 SAMPLES_AT_ONCE = 1 << 19
 
 
@@ -340,7 +345,7 @@ def _light_samples(scene, method, comp, per_pixel, merged, front, sizes, light_b
                 groups.append((a, b, v.volume))
         grouped = np.ascontiguousarray(vis[:, order])
         _shadows(scene, method, lights, record.points[order], groups, grouped, sizes, light_buffer, blocks, timings,
-                 counts, samples=True)
+                 counts, of_samples=True)
         vis[:, order] = grouped
         t0 = time.perf_counter()
         combine_samples(record.slots, record.counts, record.colors, record.weights, materials, lights, diffuse,

@@ -63,7 +63,8 @@ class RenderResult:
         this frame, ``light_polygons``) and the parameters used. Cells and cubics count
         isosurfaces' work, samples translucent volumes'; a process's first ``seconds["total"]``
         also holds loading the casters and making OpenGL's context, beyond the phases listed.
-        A scene of several volumes or with lights also gives ``shadow_rays``, ``shadow_cells``,
+        A scene of several volumes, of an isosurface with lights or of shaded samples with
+        shadows also gives ``shadow_rays``, ``shadow_cells``,
         ``shadow_solves`` and ``shadow_samples``, and each volume's ``polygons``,
         ``segment_pixels`` and ``supercell`` under ``volumes`` (with PARC), not at the top.
     work : ndarray (H, W) int64 or None
@@ -119,8 +120,9 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
         ``--buffers`` does: ``"depth"``, ``"bits"``, ``"depth,bits"``;
         ``+`` joins them too): near/far ray distances
         (depth-buffer PARC, §3) and planes of supercells the ray meets
-        (color-buffer PARC, §4). Isosurfaces and scenes of several volumes
-        use the depth buffers only: asking them for bit planes is an error.
+        (color-buffer PARC, §4). Isosurfaces, scenes of several volumes
+        and shaded samples with shadows use the depth buffers only: asking
+        them for bit planes is an error.
     progress : callable(done_fraction) or None
         Called as bands of image rows finish, for long renders.
     light_buffer : int, optional
@@ -138,8 +140,8 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
         segments alone.
     work : bool, default False
         Also return each pixel's work (`RenderResult.work`), for scenes of
-        one volume, and of an isosurface only without lights. Copied out
-        after the frame is timed.
+        one volume, and of an isosurface only without lights (of shaded
+        samples, without shadows). Copied out after the frame is timed.
 
     Returns
     -------
