@@ -260,7 +260,7 @@ PHASE_NOTES = {
     "raster_bits": "OpenGL bit-plane pass and read-back",
     "raster_lights": "OpenGL light buffers for shadow rays",
     "setup": "camera, work arrays, skip tables (built once, then kept with the volume)",
-    "shade": "shading the hits of several surfaces",
+    "shade": "lighting the hits of several surfaces, and translucent samples with shadows",
     "shadow": "shadow rays",
     "total": "the whole frame",
 }

@@ -37,6 +37,7 @@ import weakref
 
 import numpy as np
 
+from data_tools.memory import check_memory
 from raycast.composite import box_entry_image, cast_accumulate_image
 from raycast.merged import SampleRecord, cast_merged_image
 from raycast.iso import NO_SHADING, cast_iso_image, keep_nearest
@@ -46,7 +47,7 @@ from raycast.shadow import (combine_lights, combine_samples, light_terms, shadow
 from .lights import (LIGHT_BUFFER_CACHE_SIZE, LIGHT_BUFFER_SIZE, buffer_bytes, light_array, light_buffers,
                      light_cache_bytes, light_views, no_views)
 from .scene import DirectionalLight, Isosurface
-from .workspace import work_array
+from .workspace import LIGHT_BYTES_PER_PIXEL, SAMPLE_BYTES, work_array
 
 #: Shadow rays start this far (times the smallest spacing of the surface they leave) from their hit point.
 SHADOW_EPS = 1e-5
@@ -140,12 +141,12 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
         colors = np.empty((nh, 3))
         materials = np.empty((nh, 4))
         owner = winner[hit]
-        groups = []                 # (first, end, volume) of each surface's hits
+        groups = []                 # (first, end, volume, n) of each surface's hits
         for n, iso in isos:
             a, b = np.searchsorted(owner, n, "left"), np.searchsorted(owner, n, "right")
             if a == b:
                 continue
-            groups.append((a, b, iso.volume))
+            groups.append((a, b, iso.volume, n))
             surface_frames(iso.volume.data, np.array(iso.volume.spacing), cam, w, h, hit[a:b], depth, cell, uvw,
                            points[a:b], normals[a:b], views[a:b])
             colors[a:b] = iso.color
@@ -246,15 +247,15 @@ class _Report:
         self.part(phase, 1.0)
 
 
-def _shadows(scene, method, lights, points, groups, vis, sizes, light_buffer, blocks, timings, counts,
-             of_samples=False):
+def _shadows(scene, method, lights, points, groups, vis, sizes, light_buffer, blocks, timings, counts):
     """Shadow rays from every hit to every light, volume by volume; ``vis`` scaled in place.
 
-    ``groups``: ``(first, end, volume)``, the hits ``points[first:end]`` on each volume's
-    surface. A shadow ray starts and ends `SHADOW_EPS` of its own surface's smallest spacing
-    off (the smallest in the scene let a tiny volume anywhere make surfaces shadow themselves).
-    With ``of_samples`` the points are translucent samples, in their volumes' groups: a translucent
-    volume's lattice on their shadow rays starts one step along (`raycast.shadow.shadow_accumulate`).
+    ``groups``: ``(first, end, volume, n)``, the hits ``points[first:end]`` on the surface of
+    ``volume`` (the scene's volume ``n``), or its translucent samples. A shadow ray starts and
+    ends `SHADOW_EPS` of its own surface's smallest spacing off (the smallest in the scene let a
+    tiny volume anywhere make surfaces shadow themselves).
+    A translucent sample's shadow ray takes its own volume's lattice from one step along
+    (`raycast.shadow.shadow_accumulate`); other volumes it crosses, it samples as a hit's does.
     """
     from .renderer import accumulation_params
     from .segments import cached_proxy
@@ -283,7 +284,7 @@ def _shadows(scene, method, lights, points, groups, vis, sizes, light_buffer, bl
             org = np.array(vol.origin)
             spc = np.array(vol.spacing)
             skip, jump_min = skip_table(v, method == "parc" and blocks)
-            for a, b, surface in groups:
+            for a, b, surface, owner in groups:
                 eps = SHADOW_EPS * min(surface.spacing)
                 if isinstance(v, Isosurface):
                     shadow_iso(vol.data, org, spc, v.value, points[a:b], row, eps, views, near, far,
@@ -292,7 +293,7 @@ def _shadows(scene, method, lights, points, groups, vis, sizes, light_buffer, bl
                     op_x, op_y, col_x, col_rgb = v.tf.arrays()
                     shadow_accumulate(vol.data, org, spc, accumulation_params(v), op_x, op_y, col_x, col_rgb,
                                       points[a:b], row, eps, views, near, far, method == "parc", skip, jump_min,
-                                      v_l[a:b], cnt[a:b], v.step if of_samples else 0.0)
+                                      v_l[a:b], cnt[a:b], v.step if owner == n else 0.0)
             timings["shadow"] += time.perf_counter() - t0
     from .renderer import column_totals
     cells, solves, samples = column_totals(cnt)[:3]
@@ -312,8 +313,9 @@ def _light_samples(scene, method, comp, per_pixel, merged, front, sizes, light_b
 
     ``per_pixel``: the samples each pixel records (`raycast.merged`'s counting walk); ``merged(y0, y1,
     record)`` walks rows ``y0 <= y < y1`` again, recording them. Bands of whole rows holding at most
-    `SAMPLES_AT_ONCE` samples (one row, whatever it holds) are recorded, their samples' shadow rays
-    cast (`_shadows`) and their lit colours added (`raycast.shadow.combine_samples`) one at a time.
+    `SAMPLES_AT_ONCE` samples (one row, whatever it holds, where memory holds it) are recorded, their
+    samples' shadow rays cast (`_shadows`) and their lit colours added
+    (`raycast.shadow.combine_samples`) one at a time.
     """
     w, h = scene.size
     lights = light_array(scene.lights)
@@ -324,6 +326,11 @@ def _light_samples(scene, method, comp, per_pixel, merged, front, sizes, light_b
     for y0, y1 in bands:
         t0 = time.perf_counter()
         n = int(per_row[y0:y1].sum())
+        if n > SAMPLES_AT_ONCE:
+            # One row holding more than the check before the frame counted on.
+            check_memory(n * (SAMPLE_BYTES + LIGHT_BYTES_PER_PIXEL * len(lights)),
+                         f"row {y0} of the image, its {n:,} shaded samples lit with shadows,",
+                         ": use a larger step, or a narrower image")
         record = SampleRecord(n, w * h)
         record.slots[y0 * w:y1 * w] = np.cumsum(per_pixel[y0 * w:y1 * w]) - per_pixel[y0 * w:y1 * w]
         merged(y0, y1, record)
@@ -339,13 +346,13 @@ def _light_samples(scene, method, comp, per_pixel, merged, front, sizes, light_b
         order = np.argsort(record.volumes, kind="stable")
         owner = record.volumes[order]
         groups = []
-        for q, (_, v) in enumerate(comp):
+        for q, (m, v) in enumerate(comp):
             a, b = np.searchsorted(owner, q, "left"), np.searchsorted(owner, q, "right")
             if a < b:
-                groups.append((a, b, v.volume))
+                groups.append((a, b, v.volume, m))
         grouped = np.ascontiguousarray(vis[:, order])
         _shadows(scene, method, lights, record.points[order], groups, grouped, sizes, light_buffer, blocks, timings,
-                 counts, of_samples=True)
+                 counts)
         vis[:, order] = grouped
         t0 = time.perf_counter()
         combine_samples(record.slots, record.counts, record.colors, record.weights, materials, lights, diffuse,

@@ -106,8 +106,8 @@ def check_frame_memory(width, height, layers=1, kept_images=0, lights=0, samples
 def check_scene_memory(scene, kept_images=0):
     """`check_frame_memory` for a scene's image size, volumes and lights: the lights' shading
     terms are kept for isosurface hits, and for the translucent samples lit at once
-    (`parc.multivolume.SAMPLES_AT_ONCE`) when they are shadowed; without shadows translucent
-    samples are lit as they are taken."""
+    (`parc.multivolume.SAMPLES_AT_ONCE`) when they are shadowed (a row holding more is checked
+    once its samples are counted); without shadows translucent samples are lit as they are taken."""
     from .multivolume import SAMPLES_AT_ONCE
     from .scene import Isosurface
     lit = any(isinstance(v, Isosurface) for v in scene.volumes)

@@ -173,11 +173,11 @@ def shadow_accumulate(data, org, spc, params, op_x, op_y, col_x, col_rgb, points
 
     ``1 - a`` with ``a`` the opacity the volume's mode accumulates over the
     ray from ``lead`` beyond ``P'`` to the light (`accumulate_ray`;
-    ``skip``/``jump_min`` as there): ``lead`` is 0 for a surface's hit, and
-    the volume's step for a translucent sample, whose ray, starting inside
-    the volume, takes its lattice from its start: without the lead its
-    first point lies next to the sample itself, which then shadowed itself
-    (an opaque sample was lit by the ambient term alone).
+    ``skip``/``jump_min`` as there): ``lead`` is the volume's step for a
+    sample of this volume, whose ray, starting inside it, takes its lattice
+    from its start: without the lead its first point lies next to the
+    sample itself, which then shadowed itself (an opaque sample was lit by
+    the ambient term alone); 0 for a surface's hit or another volume's sample.
     ``counts[n, 2]`` gains the samples taken.
     """
     nobits = np.zeros((1, 1, 1), np.uint32)

@@ -85,6 +85,28 @@ def test_a_wall_between_the_sun_and_the_slab_leaves_its_samples_the_ambient_ligh
     assert (_render([_slab()], sun, method).image[..., :3] > walled[..., :3] + 0.01).all()
 
 
+def _fog(step, opacity):
+    """A layer of uniform black fog over z in [20.5, 21.5], wider than the view, just above the slab."""
+    data = np.full((2, 31, 31), 50, np.uint8)
+    tf = TransferFunction([[0.0, opacity], [255.0, opacity]], [[0.0, 0.0, 0.0, 0.0]])
+    return Translucent(Volume(data, origin=(-5.0, -5.0, 20.5), name="fog"), tf, step=step)
+
+
+@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("fog_step", [0.25, 2.0])
+def test_a_fog_layer_above_the_slab_dims_the_sun_on_every_sample_alike(gl, method, fog_step):
+    # The whole layer lies between the sun overhead and every sample, so each gets its ``T_s``
+    # times the layer's ``T_f``: ``n`` lattice points from where a ray enters the layer, as the
+    # camera's ray takes them too. A step longer than the gap above the top samples must not
+    # carry their shadow rays past the layer (the step skipped is the sample's own volume's).
+    n = int(1.0 / fog_step) + 1
+    t_f = (1.0 - 0.05) ** (fog_step / 0.25 * n)
+    res = _render([_slab(), _fog(fog_step, 0.05)], [DirectionalLight((0.0, 0.0, -1.0))], method)
+    want = _expected(lambda s: (1.0 - _a()) ** s * t_f)
+    want = np.append(t_f * want[:3], 1.0 - t_f * (1.0 - want[3]))
+    assert np.abs(res.image - want).max() <= 1e-6
+
+
 @pytest.mark.parametrize("method", ["brute", "parc"])
 def test_samples_lit_a_few_rows_at_a_time_are_those_lit_at_once(gl, method, monkeypatch):
     import parc.multivolume as mv

@@ -353,3 +353,27 @@ def test_lights_of_a_translucent_frame_ask_for_no_shading_terms(monkeypatch):
                         lambda: 64 * 48 * workspace.FRAME_BYTES_PER_PIXEL)
     for method, options in (("brute", {}), ("parc", {"buffers": "depth,bits"})):
         assert render(scene, method=method, **options).image[..., 3].max() > 0
+
+
+def test_a_row_of_more_shadowed_samples_than_memory_holds_is_refused(monkeypatch):
+    # Samples are recorded for their shadow rays in bands of whole rows, and a row holding more
+    # than `SAMPLES_AT_ONCE` (a fine step through a deep, faint volume) is one band however
+    # many it holds: the check before casting counts only `SAMPLES_AT_ONCE`.
+    import parc.multivolume as mv
+    from parc import DirectionalLight, TransferFunction
+    data = np.full((12, 8, 8), 100, np.uint8)
+    tf = TransferFunction([[0.0, 1e-4], [255.0, 1e-4]], [[0.0, 1.0, 1.0, 1.0]])
+    vis = Translucent(Volume(data), tf, step=0.5, shade=True)
+    cam = Camera(eye=(3.5, 3.5, 50.0), look_at=(3.5, 3.5, 0.0), up=(0, 1, 0), parallel_scale=2.0)
+    scene = Scene(camera=cam, size=(8, 8), volumes=[vis], lights=[DirectionalLight((0, 0, -1))], shadows=True)
+    per_row = 8 * 23                # 8 pixels a row, each 23 samples down the 11 cells at step 0.5
+    assert render(scene).stats["samples"] == 8 * per_row
+    monkeypatch.setattr(mv, "SAMPLES_AT_ONCE", 10)
+    sample = workspace.SAMPLE_BYTES + workspace.LIGHT_BYTES_PER_PIXEL
+    # Enough for the frame and `SAMPLES_AT_ONCE` samples, not for a row's.
+    monkeypatch.setattr(memory, "available_memory", lambda: 8 * 8 * workspace.FRAME_BYTES_PER_PIXEL + 10 * sample)
+    for method in ("brute", "parc"):
+        with pytest.raises(InputError, match=f"{per_row} shaded samples .* needs about .* available"):
+            render(scene, method=method)
+    monkeypatch.setattr(memory, "available_memory", lambda: per_row * sample)
+    assert render(scene).stats["samples"] == 8 * per_row
