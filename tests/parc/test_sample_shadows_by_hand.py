@@ -12,11 +12,13 @@ samples between it and the light: its light is ``T_s = (1 - a) ** s``, ``a`` the
 for the step. Lit as a surface is (ambient ``ka``, diffuse ``kd``, specular ``ks``, n.l = n.h = 1),
 its colour is ``min(1, C (ka + T_s kd) + T_s ks)``, composited with weight ``(1 - a) ** s a``.
 """
+import dataclasses
+
 import numpy as np
 import pytest
 
 from data_tools import Volume
-from parc import Camera, DirectionalLight, Isosurface, Scene, TransferFunction, Translucent, render
+from parc import Camera, DirectionalLight, Isosurface, PointLight, Scene, TransferFunction, Translucent, render
 
 SIZE = (6, 6)
 A = 0.05
@@ -111,12 +113,15 @@ def test_a_fog_layer_above_the_slab_dims_the_sun_on_every_sample_alike(gl, metho
 def test_samples_lit_a_few_rows_at_a_time_are_those_lit_at_once(gl, method, monkeypatch):
     import parc.multivolume as mv
     sun = [DirectionalLight((-1.0, 0.3, -1.0))]
-    whole = _render([_slab(), _wall()], sun, method).image
+    at_once = []
+    whole = _render([_slab(), _wall()], sun, method, progress=at_once.append).image
     monkeypatch.setattr(mv, "SAMPLES_AT_ONCE", 2 * SIZE[0] * SAMPLES)      # two rows a band
     seen = []
     parts = _render([_slab(), _wall()], sun, method, progress=seen.append).image
     assert np.array_equal(whole, parts)
     assert seen == sorted(seen) and seen[-1] == 1.0
+    # The bar moves on as each of the three bands is lit, not only once all are.
+    assert len(set(seen)) == len(set(at_once)) + 2
 
 
 def test_sample_bands_hold_at_most_so_many_samples_unless_one_row_holds_more():
@@ -124,3 +129,85 @@ def test_sample_bands_hold_at_most_so_many_samples_unless_one_row_holds_more():
     assert _sample_bands(np.array([3, 3, 3, 3]), 6) == [(0, 2), (2, 4)]
     assert _sample_bands(np.array([3, 9, 0, 2, 5]), 6) == [(0, 1), (1, 2), (2, 4), (4, 5)]
     assert _sample_bands(np.array([0, 0, 0]), 6) == [(0, 3)]
+    assert _sample_bands(np.array([9, 1]), 6) == [(0, 1), (1, 2)]
+
+
+def _expected_lit(volumes, light):
+    """Premultiplied RGBA of a pixel whose ray meets the slabs ``volumes`` (samples, colour,
+    material), one below the other, under a sun of colour ``light`` overhead: each sample is
+    shadowed by every sample above it, its own slab's and those of the slabs above."""
+    a = _a()
+    rgb = np.zeros(3)
+    s = 0
+    for samples, color, (ka, kd, ks, _) in volumes:
+        for _ in range(samples):
+            t = (1.0 - a) ** s
+            rgb += (1.0 - a) ** s * a * np.minimum(1.0, color * ka + t * np.asarray(light) * (color * kd + ks))
+            s += 1
+    return np.append(rgb, 1.0 - (1.0 - a) ** s)
+
+
+def _lower(color, material, shade=True):
+    """A second volume on the slab's grid holding a thinner slab below it, z in [2, 8]: 15 samples
+    (z = 7.8 ... 2.2), whose shadow rays take all 25 of the slab's on their way up."""
+    data = np.zeros((40, 21, 21), np.uint8)
+    data[2:9] = 100
+    tf = TransferFunction([[99.5, 0.0], [99.5, A]], [[0.0, *color]])
+    return Translucent(Volume(data, name="lower"), tf, step=STEP, shade=shade, material=material)
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_two_slabs_one_over_the_other_each_lit_in_its_own_colour_and_material_by_a_coloured_sun(gl, method):
+    # Recorded pixel by pixel, the samples come from one volume, then the other, and again: each
+    # must keep its own volume's colour and material.
+    color, material = np.array([0.2, 0.5, 0.8]), (0.1, 0.5, 0.6, 20.0)
+    light = (1.0, 0.5, 0.25)
+    res = _render([_slab(), _lower(color, material)], [DirectionalLight((0.0, 0.0, -1.0), color=light)], method)
+    want = _expected_lit([(SAMPLES, C, MATERIAL), (15, color, material)], light)
+    assert np.abs(res.image - want).max() <= 1e-6
+    assert res.stats["shadow_rays"] == SIZE[0] * SIZE[1] * (SAMPLES + 15)
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_an_unshaded_slab_below_a_shaded_one_keeps_its_own_colour_unlit(gl, method):
+    color = np.array([0.2, 0.5, 0.8])
+    res = _render([_slab(), _lower(color, MATERIAL, shade=False)], [DirectionalLight((0.0, 0.0, -1.0))], method)
+    a = _a()
+    want = _expected_lit([(SAMPLES, C, MATERIAL)], (1.0, 1.0, 1.0))
+    want[:3] += sum((1.0 - a) ** (SAMPLES + r) * a for r in range(15)) * color
+    want[3] = 1.0 - (1.0 - a) ** (SAMPLES + 15)
+    assert np.abs(res.image - want).max() <= 1e-6
+    assert res.stats["shadow_rays"] == SIZE[0] * SIZE[1] * SAMPLES
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_a_sun_behind_the_samples_leaves_them_the_ambient_light_and_casts_no_shadow_ray(gl, method):
+    # Their normals face the eye (+z), away from a sun shining up from below.
+    res = _render([_slab()], [DirectionalLight((0.0, 0.0, 1.0))], method)
+    assert np.abs(res.image - _expected(lambda s: 0.0)).max() <= 1e-6
+    assert res.stats["shadow_rays"] == 0
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_a_lamp_inside_the_slab_shadows_each_sample_by_the_lattice_points_short_of_it(gl, method):
+    # A sample's shadow ray takes the points a step, two steps ... along it, all in the slab, up to
+    # the lamp and none beyond: ceil(d / step) - 1 of them at a distance d. The samples above the
+    # lamp face away from it. No specular term: n.h needs no working out.
+    lamp = np.array([10.0, 10.0, 15.1])
+    material = (0.2, 0.6, 0.0, 8.0)
+    res = _render([dataclasses.replace(_slab(), material=material)], [PointLight(tuple(lamp))], method)
+    a = _a()
+    ka, kd, _, _ = material
+    offsets = np.arange(SIZE[0]) + 0.5 - SIZE[0] / 2       # pixel centres about the lamp, either way
+    want = np.zeros(SIZE + (4,))
+    for r, dy in enumerate(offsets):
+        for c, dx in enumerate(offsets):
+            for s in range(SAMPLES):
+                up = lamp[2] - (19.8 - STEP * s)
+                lit = 0.0
+                if up > 0.0:
+                    d = np.sqrt(dx * dx + dy * dy + up * up)
+                    lit = (1.0 - a) ** (np.ceil(d / STEP) - 1) * kd * up / d
+                want[r, c, :3] += (1.0 - a) ** s * a * np.minimum(1.0, C * (ka + lit))
+    want[..., 3] = 1.0 - (1.0 - a) ** SAMPLES
+    assert np.abs(res.image - want).max() <= 1e-6

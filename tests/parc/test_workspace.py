@@ -4,6 +4,7 @@ Truth: object identity for the reuse itself, and for renders a fresh
 render of the same scene after others have run in between (a work array
 leaking into a result would be overwritten by them).
 """
+import dataclasses
 import os
 
 import numpy as np
@@ -12,7 +13,7 @@ import pytest
 import parc.workspace as workspace
 from data_tools import InputError, Volume, memory
 from data_tools.synthetic import blobs
-from parc import Camera, Isosurface, PointLight, Scene, Translucent, render
+from parc import Camera, Isosurface, PointLight, Scene, ShowsNothingWarning, Translucent, render
 from parc.gl import OpenGLUnavailable
 from parc.workspace import release, work_array
 
@@ -377,3 +378,26 @@ def test_a_row_of_more_shadowed_samples_than_memory_holds_is_refused(monkeypatch
             render(scene, method=method)
     monkeypatch.setattr(memory, "available_memory", lambda: per_row * sample)
     assert render(scene).stats["samples"] == 8 * per_row
+
+
+def test_shadowed_samples_are_checked_for_their_records_and_a_lights_terms_each(monkeypatch):
+    # With shadows, the shaded samples of as many rows as SAMPLES_AT_ONCE holds are recorded at once,
+    # each SAMPLE_BYTES and, for each light, LIGHT_BYTES_PER_PIXEL of terms, beyond the frame's
+    # per-pixel arrays. Without shadows, lights or shading the samples are lit as they are taken.
+    from parc.multivolume import SAMPLES_AT_ONCE
+    vol = blobs(12, seed=1)
+    lights = [PointLight((np.cos(k), np.sin(k), 30.0)) for k in range(3)]
+    scene = Scene(camera=Camera.framing(*vol.bounds), size=(64, 48),
+                  volumes=[Translucent(vol, "greyscale", shade=True)], lights=lights, shadows=True)
+    frame = 64 * 48 * workspace.FRAME_BYTES_PER_PIXEL
+    need = frame + SAMPLES_AT_ONCE * (workspace.SAMPLE_BYTES + len(lights) * workspace.LIGHT_BYTES_PER_PIXEL)
+    monkeypatch.setattr(memory, "available_memory", lambda: need - 1)
+    with pytest.raises(InputError, match="64x48 image needs about"):
+        workspace.check_scene_memory(scene)
+    monkeypatch.setattr(memory, "available_memory", lambda: need)
+    workspace.check_scene_memory(scene)
+    with pytest.warns(ShowsNothingWarning):
+        unshaded = dataclasses.replace(scene, volumes=[Translucent(vol, "greyscale")])
+    monkeypatch.setattr(memory, "available_memory", lambda: frame)
+    for unshadowed in (dataclasses.replace(scene, shadows=False), dataclasses.replace(scene, lights=[]), unshaded):
+        workspace.check_scene_memory(unshadowed)
