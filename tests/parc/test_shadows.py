@@ -207,7 +207,7 @@ def test_sphere_shadow_on_floor_matches_geometry(gl):
 
 
 @pytest.mark.parametrize("case", ["iso_in_translucent", "two_translucent", "two_isosurfaces",
-                                  "mip_and_composite", "iso_and_average"])
+                                  "mip_and_composite", "iso_and_average", "shaded_about_a_surface"])
 @pytest.mark.parametrize("seed", range(4))
 def test_multi_volume_parc_equals_brute(gl, case, seed):
     rng = np.random.default_rng(50 + seed)
@@ -223,6 +223,9 @@ def test_multi_volume_parc_equals_brute(gl, case, seed):
         vols = [_iso(rng, a), _iso(rng, b)]
     elif case == "mip_and_composite":
         vols = [Translucent(a, tf="viridis", mode="mip"), Translucent(b, tf=ramp)]
+    elif case == "shaded_about_a_surface":
+        # Shaded samples of two volumes shadowing each other, and shadowed by a surface inside one.
+        vols = [Translucent(a, tf="viridis", shade=True), _iso(rng, b), Translucent(b, tf=ramp, shade=seed < 2)]
     else:
         vols = [_iso(rng, a), Translucent(b, tf=ramp, mode="average")]
     lo, hi = _union([v.volume for v in vols])
@@ -230,9 +233,10 @@ def test_multi_volume_parc_equals_brute(gl, case, seed):
     shaded = any(isinstance(v, Translucent) and v.shade for v in vols)
     lit = (seed % 2 == 0 and surfaces) or shaded
     lights = [_light(rng, LIGHT_PLACES[seed % 5], lo, hi)] if lit else []
-    scene = Scene(camera=_camera(rng, lo, hi), size=SIZE, volumes=vols, lights=lights,
-                  shadows=bool(lights) and surfaces)
-    _assert_same(scene, supercell=(1, 2, 3, 0.5)[seed])
+    scene = Scene(camera=_camera(rng, lo, hi), size=SIZE, volumes=vols, lights=lights, shadows=bool(lights))
+    b, _ = _assert_same(scene, supercell=(1, 2, 3, 0.5)[seed])
+    if shaded:
+        assert b.stats["shadow_rays"] > 0
 
 
 def test_merged_translucent_volumes_skip_transparent_cells(gl):
