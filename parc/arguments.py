@@ -221,8 +221,8 @@ def _add_light_options(p):
     g.add_argument("--shadows", action="store_true",
                    help="cast shadow rays from every isosurface hit, and every translucent sample shaded "
                         "with --shade, to every light: isosurfaces block them, translucent volumes dim them "
-                        "(the headlight casts no visible shadows). A shaded translucent volume then casts "
-                        "one shadow ray per sample that adds colour and light: many times a frame's rays")
+                        "(the headlight casts no visible shadows). A shaded translucent volume casts one for each "
+                        "of its samples that adds colour, towards each light: many times as many as the pixels")
 
 
 def _add_common_options(p):

@@ -47,7 +47,7 @@ from raycast.shadow import (combine_lights, combine_samples, light_terms, shadow
 from .lights import (LIGHT_BUFFER_CACHE_SIZE, LIGHT_BUFFER_SIZE, buffer_bytes, light_array, light_buffers,
                      light_cache_bytes, light_views, no_views)
 from .scene import DirectionalLight, Isosurface
-from .workspace import LIGHT_BYTES_PER_PIXEL, SAMPLE_BYTES, work_array
+from .workspace import LIGHT_BYTES_PER_PIXEL, SAMPLE_BYTES, shadowed_samples, work_array
 
 #: Shadow rays start this far (times the smallest spacing of the surface they leave) from their hit point.
 SHADOW_EPS = 1e-5
@@ -80,9 +80,8 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
     bands = row_bands(h, w, progress)
     isos = [(n, v) for n, v in enumerate(scene.volumes) if isinstance(v, Isosurface)]
     trans = [(n, v) for n, v in enumerate(scene.volumes) if not isinstance(v, Isosurface)]
-    shadows = scene.shadows and bool(scene.lights)
-    report = _Report(progress, len(isos), len(trans), shadows,
-                     shadows and any(v.shade and v.mode == "composite" for _, v in trans))
+    report = _Report(progress, len(isos), len(trans), scene.shadows and bool(scene.lights),
+                     shadowed_samples(scene))
 
     # PARC buffers from the camera, one volume at a time.
     segs = {}
