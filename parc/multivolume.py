@@ -151,10 +151,7 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
             colors[a:b] = iso.color
             materials[a:b] = iso.material
         lights = light_array(scene.lights)
-        diffuse = np.empty((len(lights), nh))
-        specular = np.empty((len(lights), nh))
-        light_terms(points, normals, views, materials, lights, diffuse, specular)
-        vis = ((diffuse > 0.0) | (specular > 0.0)).astype(np.float64)   # lit: a highlight with no diffuse term too
+        diffuse, specular, vis = _light_terms(points, normals, views, materials, lights)
         timings["shade"] = time.perf_counter() - t0
         if scene.shadows and scene.lights:
             _shadows(scene, method, lights, points, groups, vis, sizes, light_buffer, blocks, timings,
@@ -244,6 +241,16 @@ class _Report:
 
     def done(self, phase):
         self.part(phase, 1.0)
+
+
+def _light_terms(points, normals, views, materials, lights):
+    """Each light's unshadowed diffuse and specular terms at each point (`raycast.shadow.light_terms`),
+    and its visibility to be found by shadow rays: 1 where it lights the point (a highlight with
+    no diffuse term too), else 0."""
+    diffuse = np.empty((len(lights), len(points)))
+    specular = np.empty((len(lights), len(points)))
+    light_terms(points, normals, views, materials, lights, diffuse, specular)
+    return diffuse, specular, ((diffuse > 0.0) | (specular > 0.0)).astype(np.float64)
 
 
 def _shadows(scene, method, lights, points, groups, vis, sizes, light_buffer, blocks, timings, counts):
@@ -336,10 +343,7 @@ def _light_samples(scene, method, comp, per_pixel, merged, front, sizes, light_b
         timings["cast"] += time.perf_counter() - t0
         t0 = time.perf_counter()
         materials = materials_of[record.volumes]
-        diffuse = np.empty((len(lights), n))
-        specular = np.empty((len(lights), n))
-        light_terms(record.points, record.normals, record.views, materials, lights, diffuse, specular)
-        vis = ((diffuse > 0.0) | (specular > 0.0)).astype(np.float64)
+        diffuse, specular, vis = _light_terms(record.points, record.normals, record.views, materials, lights)
         timings["shade"] += time.perf_counter() - t0
         # Grouped by volume for their shadow rays' offsets, then put back in pixel order.
         order = np.argsort(record.volumes, kind="stable")

@@ -251,34 +251,36 @@ def light_terms(points, normals, views, materials, lights, diffuse, specular):
             specular[k, m] = s
 
 
+@kernel(inline="always")
+def lit_channel(colors, materials, lights, diffuse, specular, vis, m, c):
+    """Channel ``c`` of point ``m`` lit: ``colour (ambient + sum_l vis d_l c_l) + sum_l vis s_l c_l``,
+    clamped to 1."""
+    acc = colors[m, c] * materials[m, 0]
+    for k in range(lights.shape[0]):
+        w = vis[k, m] * lights[k, 4 + c]
+        acc += w * (colors[m, c] * diffuse[k, m] + specular[k, m])
+    return min(1.0, acc)
+
+
 @kernel(parallel=True)
 def combine_lights(colors, materials, lights, diffuse, specular, vis, pix, image):
-    """Colour each hit pixel ``pix[m]`` of the flat ``(H*W, 4)`` float32 ``image``, opaque:
-    ``colour (ambient + sum_l vis d_l c_l) + sum_l vis s_l c_l``, clamped to 1."""
+    """Colour each hit pixel ``pix[m]`` of the flat ``(H*W, 4)`` float32 ``image``, opaque (`lit_channel`)."""
     for m in prange(colors.shape[0]):
         n = pix[m]
         for c in range(3):
-            acc = colors[m, c] * materials[m, 0]
-            for k in range(lights.shape[0]):
-                w = vis[k, m] * lights[k, 4 + c]
-                acc += w * (colors[m, c] * diffuse[k, m] + specular[k, m])
-            image[n, c] = min(1.0, acc)
+            image[n, c] = lit_channel(colors, materials, lights, diffuse, specular, vis, m, c)
         image[n, 3] = 1.0
 
 
 @kernel(parallel=True)
 def combine_samples(slots, counts, colors, weights, materials, lights, diffuse, specular, vis, p0, p1, image):
     """Add to pixels ``p0 <= n < p1`` of the flat ``(H*W, 4)`` float32 ``image`` their recorded samples
-    (`raycast.merged.SampleRecord`), each lit as `combine_lights` lights a hit, clamped to 1 as a
-    shaded sample is (`raycast.composite.composite_sample`), times its weight; the pixel clamped to 1."""
+    (`raycast.merged.SampleRecord`), each lit as a hit is (`lit_channel`, clamped to 1 as a shaded
+    sample is in `raycast.composite.composite_sample`), times its weight; the pixel clamped to 1."""
     for n in prange(p0, p1):
         first = slots[n]
         for c in range(3):
             add = 0.0
             for m in range(first, first + counts[n]):
-                acc = colors[m, c] * materials[m, 0]
-                for k in range(lights.shape[0]):
-                    w = vis[k, m] * lights[k, 4 + c]
-                    acc += w * (colors[m, c] * diffuse[k, m] + specular[k, m])
-                add += weights[m] * min(1.0, acc)
+                add += weights[m] * lit_channel(colors, materials, lights, diffuse, specular, vis, m, c)
             image[n, c] = min(1.0, image[n, c] + add)
