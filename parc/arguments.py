@@ -275,7 +275,8 @@ def build_parser():
     r.add_argument("--work", metavar="W.png|W.npy",
                    help="also write the work per pixel: cells visited (isosurface) or samples taken "
                         "(translucent), as a heat map (.png, log scale, white where none) or an int64 array "
-                        "(.npy); scenes of one volume, and of an isosurface only without lights")
+                        "(.npy); camera rays only, several volumes' work added; not for a scene with both "
+                        "isosurfaces and translucent volumes")
     r.add_argument("--method", default="brute", choices=("brute", "parc"),
                    help="brute: unaccelerated casting (default); parc: walk only the ray segments "
                         "OpenGL finds from a polygon proxy of the possibly contributing supercells "

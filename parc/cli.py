@@ -414,7 +414,7 @@ def _files_read(scene):
 
 
 def _write_work(result, scene, method, path):
-    """The work per pixel of a one-volume render: an int64 array (.npy) or a heat map (.png)."""
+    """The work per pixel of a render: an int64 array (.npy) or a heat map (.png)."""
     if path.suffix.lower() == ".npy":
         save_array(path, result.work)
         return

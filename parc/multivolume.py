@@ -54,7 +54,8 @@ SHADOW_EPS = 1e-5
 
 
 
-def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=LIGHT_BUFFER_SIZE, blocks=True):
+def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=LIGHT_BUFFER_SIZE, blocks=True,
+                 work=False):
     """Render any scene (`parc.render` calls this for several volumes, or an isosurface with lights).
 
     Returns ``(image, depth, counts, timings, extra)``: the float32 RGBA
@@ -63,7 +64,10 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
     shadow_rays, and light_polygons: the faces of the light buffers drawn
     this frame), seconds per phase and per-volume PARC details. ``blocks``:
     PARC's walks and shadow rays skip the volumes' empty cells
-    (`parc.renderer.render`).
+    (`parc.renderer.render`). With ``work``, ``counts["per_pixel"]`` holds
+    each pixel's camera-ray work, every volume's added: the cells its
+    isosurfaces' walks visited and the samples its translucent volumes'
+    walks took (shadow rays' work is in the totals only).
     """
     from .renderer import accumulation_params, iso_work, row_bands
     from .segments import parc_segments
@@ -76,6 +80,8 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
     counts = dict.fromkeys(("cells", "solves", "samples", "shadow_cells", "shadow_solves",
                             "shadow_samples", "shadow_rays", "light_polygons"), 0)
     extra = {"volumes": []}
+    per_pixel = np.zeros(npx, np.int64) if work else None
+    counts["per_pixel"] = per_pixel
     parc = method == "parc"
     bands = row_bands(h, w, progress)
     isos = [(n, v) for n, v in enumerate(scene.volumes) if isinstance(v, Isosurface)]
@@ -118,6 +124,8 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
             counts["cells"] += int(cells)
             counts["solves"] += int(solves)
             report.part("surfaces", (q + (b + 1) / len(bands)) / len(isos))
+        if work:
+            per_pixel += cnt[:, 0]
         keep_nearest(t, c, uv, n, depth, cell, uvw, winner)
     timings["cast"] = time.perf_counter() - t0
     report.done("surfaces")
@@ -181,6 +189,8 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
                                       *skip_table(v, parc and blocks), layer_rgba[j], cnt, y0, y1)
                 report.part("translucent", (j + (b + 1) / len(bands)) / len(trans))
             counts["samples"] += int(cnt.sum())
+            if work:
+                per_pixel += cnt
             box_entry_image(vol.data, np.array(vol.origin), np.array(vol.spacing), cam, w, h, layer_t[j])
         front = np.zeros((h, w, 4), np.float32)
         if comp:
@@ -202,6 +212,8 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
                 merged(y0, y1, record)
                 report.part("translucent", (len(layers) + len(comp) * (b + 1) / len(bands)) / len(trans))
             counts["samples"] += int(cnt.sum())
+            if work:
+                per_pixel += cnt
             if record is not None:
                 timings["cast"] += time.perf_counter() - t0
                 _light_samples(scene, method, comp, record.counts, merged, front.reshape(npx, 4), sizes,

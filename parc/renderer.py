@@ -69,8 +69,9 @@ class RenderResult:
         ``segment_pixels`` and ``supercell`` under ``volumes`` (with PARC), not at the top.
     work : ndarray (H, W) int64 or None
         With ``render(..., work=True)``: per pixel, the cells its ray visited
-        (an isosurface) or the samples it took (a translucent volume), so
-        that the methods' work can be compared where it is spent. Sums to
+        (isosurfaces) or the samples it took (translucent volumes), so
+        that the methods' work can be compared where it is spent. Several
+        volumes' work is added; shadow rays' is left out. Sums to
         ``stats["cells_visited"]`` or ``stats["samples"]``.
     """
 
@@ -139,9 +140,11 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
         The image is the same either way; False measures the OpenGL
         segments alone.
     work : bool, default False
-        Also return each pixel's work (`RenderResult.work`), for scenes of
-        one volume, and of an isosurface only without lights (of shaded
-        samples, without shadows). Copied out after the frame is timed.
+        Also return each pixel's work (`RenderResult.work`), for scenes
+        whose volumes are all isosurfaces (cells) or all translucent
+        (samples). Copied out after the frame is timed; a scene of several
+        volumes, or lit, adds each volume's within the frame (an
+        addition over the pixels, per volume).
 
     Returns
     -------
@@ -195,10 +198,10 @@ def check_request(scene, buffers, work, names=("buffers", "work")):
     # for an isosurface would otherwise leave them out without a word.
     if "bits" in buffers and (why := bits_refused(scene)):
         raise InputError(f"{names[0]} {','.join(buffers)}: {why}")
-    if not _casts_alone(scene):
-        if work:
-            raise InputError(f"{names[1]}: per-pixel work is counted for scenes of one volume, "
-                             "and of an isosurface only without lights (of shaded samples, without shadows)")
+    if work and len({isinstance(v, Isosurface) for v in scene.volumes}) > 1:
+        # Cells and samples cost unlike amounts: a sum of the two would map neither.
+        raise InputError(f"{names[1]}: per-pixel work counts cells visited for isosurfaces and samples taken "
+                         "for translucent volumes, and this scene has both; render them apart")
     return buffers
 
 
@@ -228,7 +231,7 @@ def _render(scene, method, supercell, buffers, progress, light_buffer, blocks, w
     skip_blocks = method == "parc" and bool(blocks)
     check_scene_memory(scene)
     if not _casts_alone(scene):
-        return _render_general(scene, method, supercell, progress, light_buffer, skip_blocks)
+        return _render_general(scene, method, supercell, progress, light_buffer, skip_blocks, work)
     vis = scene.volumes[0]
     timings = {}
     t0 = time.perf_counter()
@@ -284,7 +287,7 @@ def _render(scene, method, supercell, buffers, progress, light_buffer, blocks, w
     return RenderResult(image=image, depth=depth, stats=stats, work=per_pixel)
 
 
-def _render_general(scene, method, supercell, progress, light_buffer, skip_blocks):
+def _render_general(scene, method, supercell, progress, light_buffer, skip_blocks, work):
     """Several volumes, or lights: `parc.multivolume.render_scene`, with the same stats."""
     from .lights import LIGHT_BUFFER_SIZE
     from .multivolume import render_scene
@@ -292,7 +295,7 @@ def _render_general(scene, method, supercell, progress, light_buffer, skip_block
     n = LIGHT_BUFFER_SIZE if light_buffer is None else light_buffer
     t0 = time.perf_counter()
     image, depth, counts, timings, extra = render_scene(scene, method, supercell=supercell, progress=progress,
-                                                        light_buffer=n, blocks=skip_blocks)
+                                                        light_buffer=n, blocks=skip_blocks, work=work)
     if scene.background is not None:
         over_background(image, _premultiplied(scene.background))
     timings["total"] = time.perf_counter() - t0
@@ -318,7 +321,8 @@ def _render_general(scene, method, supercell, progress, light_buffer, skip_block
     stats["polygons"] = (sum(v.get("polygons", 0) for v in extra["volumes"]) + counts["light_polygons"]
                          if method == "parc" else 0)
     stats.update(extra)
-    return RenderResult(image=image, depth=depth, stats=stats)
+    per_pixel = counts["per_pixel"].reshape(h, w) if work else None
+    return RenderResult(image=image, depth=depth, stats=stats, work=per_pixel)
 
 
 def _render_iso(scene, iso, seg, use_seg, skip_blocks, timings, progress):

@@ -85,8 +85,10 @@ CASES = {
     "blocks as an array": (lambda: parc.render(_scene(), blocks=np.array([1, 1])), "blocks"),
     "progress not callable": (lambda: parc.render(_scene(), progress=5), "progress"),
     "work as text": (lambda: parc.render(_scene(), work="yes"), "work"),
-    "work for a lit scene": (lambda: parc.render(_scene(lights=[parc.PointLight((1, 2, 3))]), work=True),
-                             "work: per-pixel work is counted for scenes of one volume, and of an isosurface only without lights"),
+    "work for surfaces and translucent volumes": (
+        lambda: parc.render(_scene(volumes=[parc.Isosurface(VOL, ISO), parc.Translucent(VOL, "greyscale")]),
+                            work=True),
+        "work: per-pixel work counts cells visited for isosurfaces and samples taken for translucent volumes"),
     "supercell 1e-9": (lambda: parc.render(_scene(), method="parc", supercell=1e-9), "choose a larger size"),
     # Short, not a 300-digit count (nor a float too large for the count's format).
     "supercell 1e-300": (lambda: parc.render(_scene(), method="parc", supercell=1e-300), "gives about 1e9"),
@@ -106,10 +108,6 @@ CASES = {
                                                "this one has an isosurface"),
     "depth and bit planes for an isosurface, brute": (lambda: parc.render(_scene(), buffers=("depth", "bits")),
                                                       "this one has an isosurface"),
-    "work for shadowed samples": (
-        lambda: parc.render(_scene(volumes=[parc.Translucent(VOL, "greyscale", shade=True)], shadows=True,
-                                   lights=[parc.PointLight((1, 2, 3))]), work=True),
-        "of shaded samples, without shadows"),
     "bit planes for shadowed samples": (
         lambda: parc.render(_scene(volumes=[parc.Translucent(VOL, "greyscale", shade=True)], shadows=True,
                                    lights=[parc.PointLight((1, 2, 3))]), method="parc", buffers="depth,bits"),

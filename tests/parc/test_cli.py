@@ -130,12 +130,29 @@ def test_render_writes_the_work_per_pixel(vol_file, tmp_path, capsys, method, lo
         assert im.format == "PNG"
 
 
-def test_work_of_a_lit_scene_is_refused_and_nothing_written(vol_file, tmp_path, capsys):
+@pytest.mark.parametrize("method", ["brute", "parc"])
+def test_work_of_a_lit_shadowed_surface_is_its_camera_rays(vol_file, tmp_path, capsys, method, gl):
+    # Lights send the render through the several-volume driver; the camera rays' cells are
+    # the unlit render's, which the one-volume driver counts on its own.
+    look = ["render", vol_file, "--iso", 4.0, "--size", 24, 20, "--method", method]
+    maps = []
+    for extra in ([], ["--light", "30,30,30", "--sun", "0,1,0", "--shadows"]):
+        out, work = tmp_path / f"a{len(maps)}.png", tmp_path / f"w{len(maps)}.npy"
+        rc, _, err = _run(look + extra + ["-o", out, "--work", work], capsys)
+        assert rc == 0, err
+        maps.append(np.load(work))
+    assert maps[0].sum() > 0 and np.array_equal(maps[0], maps[1])
+
+
+def test_work_of_a_scene_of_surfaces_and_translucent_volumes_is_refused(vol_file, tmp_path, capsys):
+    scene = tmp_path / "scene.toml"
+    scene.write_text(f"size = [8, 8]\n[[volume]]\nfile = '{vol_file.name}'\niso = 4.0\n"
+                     f"[[volume]]\nfile = '{vol_file.name}'\ntf = 'greyscale'\n")
     out, work = tmp_path / "a.png", tmp_path / "w.npy"
-    rc, _, err = _run(["render", vol_file, "--iso", 4.0, "--size", 8, 8, "--light", "30,30,30",
-                       "-o", out, "--work", work], capsys)
+    rc, _, err = _run(["render", scene, "-o", out, "--work", work], capsys)
     assert rc == 2 and err.count("\n") == 1, err
-    assert "--work: per-pixel work is counted for scenes of one volume, and of an isosurface only without lights" in err
+    assert ("--work: per-pixel work counts cells visited for isosurfaces and samples taken for translucent "
+            "volumes, and this scene has both") in err
     assert not out.exists() and not work.exists()
 
 

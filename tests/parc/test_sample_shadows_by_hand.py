@@ -79,6 +79,19 @@ def test_a_slab_under_a_sun_overhead_shadows_each_sample_by_the_samples_above_it
 
 
 @pytest.mark.parametrize("method", METHODS)
+def test_the_work_map_of_shadowed_samples_counts_the_camera_rays_samples(gl, method):
+    # A camera ray crosses z = 39 .. 0: lattice points z = 39 - 0.4 n, n = 0 .. 97, all taken
+    # by brute (the slab's 25 samples leave the opacity below the stopping threshold); PARC
+    # takes the slab's at least.
+    res = _render([_slab()], [DirectionalLight((0.0, 0.0, -1.0))], method, work=True)
+    assert res.work.shape == SIZE[::-1] and res.work.sum() == res.stats["samples"]
+    if method == "brute":
+        assert (res.work == 98).all(), res.work
+    else:
+        assert ((res.work >= SAMPLES) & (res.work < 98)).all(), res.work
+
+
+@pytest.mark.parametrize("method", METHODS)
 def test_a_wall_between_the_sun_and_the_slab_leaves_its_samples_the_ambient_light(gl, method):
     sun = [DirectionalLight((-1.0, 0.0, -1.0))]
     walled = _render([_slab(), _wall()], sun, method).image

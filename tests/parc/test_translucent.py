@@ -149,17 +149,21 @@ def test_parc_equals_brute_with_shadows_on_shaded_samples(seed, gl):
     for _ in range(MAX_DRAWS):
         vis = Translucent(vol, _random_tf(rng, lo, hi), shade=True, step=step)
         scene = Scene(camera=_camera(rng, vol, seed), size=SIZE, volumes=[vis], lights=lights, shadows=True)
-        ref = render(scene, method="brute")
+        ref = render(scene, method="brute", work=True)
         if (ref.image[..., 3] > VISIBLE_ALPHA).sum() >= MIN_VISIBLE:
             break
-    unshadowed = render(Scene(camera=scene.camera, size=SIZE, volumes=[vis], lights=lights), method="brute")
+    unshadowed = render(Scene(camera=scene.camera, size=SIZE, volumes=[vis], lights=lights), method="brute",
+                        work=True)
     assert np.array_equal(ref.image[..., 3], unshadowed.image[..., 3])
     assert (ref.image[..., :3] <= unshadowed.image[..., :3] + 1e-6).all()
+    # The camera rays take the same samples, recorded for their shadow rays or lit at once.
+    assert np.array_equal(ref.work, unshadowed.work)
     supercell = SUPERCELLS[seed % len(SUPERCELLS)]
     light_buffer = (4, 16, 64, 256)[int(rng.integers(4))]
-    res = render(scene, method="parc", supercell=supercell, light_buffer=light_buffer)
+    res = render(scene, method="parc", supercell=supercell, light_buffer=light_buffer, work=True)
     where = f"supercell={supercell} light_buffer={light_buffer} lights={len(lights)} seed={seed}"
     assert np.abs(res.image - ref.image).max() <= 1e-6, where
+    assert res.work.sum() == res.stats["samples"] and (res.work <= ref.work).all(), where
     assert res.stats["shadow_rays"] == ref.stats["shadow_rays"], where
     assert res.stats["shadow_samples"] <= ref.stats["shadow_samples"], where
 

@@ -1,0 +1,93 @@
+"""Per-pixel work (`render(..., work=True)`) of lit scenes and of several volumes.
+
+Such scenes go through the several-volume driver (`parc.multivolume`); a
+scene of one volume without lights goes through the one-volume driver,
+which counts its own. The camera rays are the same either way, so the
+driver's map must be the sum of each volume's map rendered alone and
+unlit, wherever the volumes cannot cut each other's rays short.
+"""
+import numpy as np
+import pytest
+
+from data_tools import Volume
+from data_tools.synthetic import blobs
+from parc import Camera, DirectionalLight, Isosurface, PointLight, Scene, TransferFunction, Translucent, render
+
+SIZE = (26, 22)
+CAM = Camera(eye=(40.0, 31.0, -25.0), look_at=(8.0, 7.0, 9.0), up=(0, 1, 0), fov=35.0)
+LIGHTS = [PointLight((30.0, 30.0, 30.0)), DirectionalLight((0.3, 1.0, -0.2))]
+METHODS = ["brute", "parc"]
+
+
+def _volumes():
+    a = blobs((14, 13, 15), seed=11)
+    b = blobs((12, 15, 13), seed=12)
+    return a, Volume(b.data, spacing=(0.9, 1.1, 1.0), origin=(3.0, -1.0, 4.0), name="b")
+
+
+def _alone(vis, method, **kw):
+    return render(Scene(camera=CAM, size=SIZE, volumes=[vis]), method, work=True, **kw).work
+
+
+def _mid(vol, f=0.5):
+    lo, hi = vol.value_range()
+    return lo + f * (hi - lo)
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_two_shadowed_surfaces_map_their_camera_rays_cells(method, request):
+    if method == "parc":
+        request.getfixturevalue("gl")
+    a, b = _volumes()
+    isos = [Isosurface(a, _mid(a)), Isosurface(b, _mid(b, 0.4))]
+    res = render(Scene(camera=CAM, size=SIZE, volumes=isos, lights=LIGHTS, shadows=True), method, supercell=2,
+                 work=True)
+    assert res.stats["shadow_rays"] > 0
+    assert res.work.shape == SIZE[::-1] and res.work.dtype == np.int64
+    # Each surface's rays run whole through its volume (the nearest hit is chosen afterwards).
+    expected = sum(_alone(v, method, supercell=2) for v in isos)
+    assert expected.sum() > 0 and np.array_equal(res.work, expected)
+    assert res.work.sum() == res.stats["cells_visited"]
+
+
+def test_parc_maps_no_more_work_than_brute_in_a_lit_scene(gl):
+    a, b = _volumes()
+    scene = Scene(camera=CAM, size=SIZE, volumes=[Isosurface(a, _mid(a)), Isosurface(b, _mid(b, 0.4))],
+                  lights=LIGHTS, shadows=True)
+    p, q = render(scene, "parc", work=True), render(scene, "brute", work=True)
+    assert (p.work <= q.work).all() and p.work.sum() < q.work.sum()
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_faint_translucent_volumes_map_the_samples_of_each(method, request):
+    # Faint enough that no ray reaches the stopping opacity: each volume's walk then takes
+    # the samples it takes alone, whatever the other holds in front of it.
+    if method == "parc":
+        request.getfixturevalue("gl")
+    a, b = _volumes()
+    faint = TransferFunction([[_mid(a, 0.3), 0.0], [_mid(a, 0.9), 0.004]], [[0.0, 1.0, 0.5, 0.2]])
+    vols = [Translucent(a, faint), Translucent(b, "greyscale", mode="mip"),
+            Translucent(b, faint, shade=True, step=0.7)]
+    scene = Scene(camera=CAM, size=SIZE, volumes=vols, lights=LIGHTS)
+    res = render(scene, method, work=True)
+    assert res.image[..., 3].max() < 0.99
+    expected = sum(_alone(v, method) for v in vols)
+    assert expected.sum() > 0 and np.array_equal(res.work, expected)
+    assert res.work.sum() == res.stats["samples"]
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_shadows_on_shaded_samples_leave_the_camera_rays_work_as_it_is(method, request):
+    # Shadowed samples are walked by the several-volume driver, twice over (counted, then
+    # recorded); unshadowed, by the one-volume driver.
+    if method == "parc":
+        request.getfixturevalue("gl")
+    a, _ = _volumes()
+    tf = TransferFunction([[_mid(a, 0.3), 0.0], [_mid(a, 0.7), 0.3]], [[0.0, 0.9, 0.7, 0.6]])
+    vis = Translucent(a, tf, shade=True)
+    shadowed = render(Scene(camera=CAM, size=SIZE, volumes=[vis], lights=LIGHTS, shadows=True), method,
+                      work=True)
+    unshadowed = render(Scene(camera=CAM, size=SIZE, volumes=[vis], lights=LIGHTS), method, work=True)
+    assert shadowed.stats["shadow_rays"] > 0
+    assert unshadowed.work.sum() > 0 and np.array_equal(shadowed.work, unshadowed.work)
+    assert shadowed.work.sum() == shadowed.stats["samples"]
