@@ -370,38 +370,38 @@ def _closed_reduce(a, q, axis, op):
 
 
 def _reduce_cells(cell_ranges, grid):
-    """Whole-cell supercell ranges from cell ranges: min/max over each block of cells."""
-    out = []
-    for arr, op in zip(cell_ranges, (np.minimum, np.maximum)):
-        for axis, e in ((0, grid.edges[2]), (1, grid.edges[1]), (2, grid.edges[0])):
-            starts = e[:-1].astype(np.int64)
-            m = int(starts[1]) if len(starts) > 1 else arr.shape[axis]
-            if np.array_equal(starts, np.arange(len(starts)) * m):
-                arr = _block_reduce(arr, m, axis, op)
-            else:  # pragma: no cover - integral edges are multiples of one block size
-                arr = op.reduceat(arr, starts, axis=axis)
-        out.append(arr)
-    return out[0], out[1]
+    """Whole-cell supercell ranges from cell ranges: min/max over each block of cells, in one
+    parallel pass (`_block_ranges`, which `VolumeIndex` also reduces coarser ranges with)."""
+    mn, mx = cell_ranges
+    out_mn = np.empty(grid.shape, mn.dtype)
+    out_mx = np.empty(grid.shape, mx.dtype)
+    ex, ey, ez = (e.astype(np.int64) for e in grid.edges)
+    _block_ranges(mn, mx, ex, ey, ez, out_mn, out_mx)
+    return out_mn, out_mx
 
 
-def _block_reduce(arr, m, axis, op):
-    """Reduce ``arr`` along ``axis`` over consecutive blocks of ``m`` (the last may be short).
-
-    Strided slices, one ``op`` pass each: far faster than ``op.reduceat``
-    along inner axes (CT head cells, 2-cell blocks: 10 ms against 380 ms).
-    """
-    if m == 1:
-        return arr
-
-    def cut(s):
-        return tuple(s if d == axis else slice(None) for d in range(arr.ndim))
-
-    out = arr[cut(slice(0, None, m))].copy()
-    for j in range(1, m):
-        part = arr[cut(slice(j, None, m))]
-        k = part.shape[axis]
-        op(out[cut(slice(0, k))], part, out=out[cut(slice(0, k))])
-    return out
+@kernel(parallel=True)
+def _block_ranges(mn, mx, ex, ey, ez, out_mn, out_mx):
+    """Min of ``mn`` and max of ``mx`` over the cells ``[ez[c], ez[c+1]) x [ey[b], ey[b+1]) x
+    [ex[a], ex[a+1])`` of each block ``(c, b, a)``."""
+    cz, cy, cx = out_mn.shape
+    for c in prange(cz):
+        for b in range(cy):
+            for a in range(cx):
+                out_mn[c, b, a] = mn[ez[c], ey[b], ex[a]]
+                out_mx[c, b, a] = mx[ez[c], ey[b], ex[a]]
+        # Cell rows in memory order, each reduced into its row of blocks.
+        for k in range(ez[c], ez[c + 1]):
+            for b in range(cy):
+                for j in range(ey[b], ey[b + 1]):
+                    for a in range(cx):
+                        lo = out_mn[c, b, a]
+                        hi = out_mx[c, b, a]
+                        for i in range(ex[a], ex[a + 1]):
+                            lo = min(lo, mn[k, j, i])
+                            hi = max(hi, mx[k, j, i])
+                        out_mn[c, b, a] = lo
+                        out_mx[c, b, a] = hi
 
 
 # --------------------------------------------------------------------------
@@ -453,6 +453,10 @@ def tf_key(tf):
     return ("tf", op_x.tobytes(), op_y.tobytes())
 
 
+#: Boxes a thread of `_sign_iso` takes at a time.
+SIGN_CHUNK = 1 << 16
+
+
 def sign_iso(mn, mx, iso):
     """Which side of an isovalue each box lies on: int8 +1 (all above), -1 (all below), 0 (neither).
 
@@ -460,12 +464,26 @@ def sign_iso(mn, mx, iso):
     `classify_iso` is inclusive, so the two never disagree: a box is signed
     exactly when it is not possibly contributing, and the sign is that of
     ``float(sample) - iso`` at each of its samples, as the caster computes it.
+    One parallel pass (`_sign_iso`): a 512x512x1734 volume's cells in 0.21 s,
+    against 1.9 s for NumPy's two comparisons through float64.
     """
-    iso = np.float64(iso)
-    sig = (np.float64, np.float64, np.bool_)
-    out = np.greater(mn, iso, signature=sig).view(np.int8)
-    out -= np.less(mx, iso, signature=sig).view(np.int8)
+    mn = np.ascontiguousarray(mn)
+    mx = np.ascontiguousarray(mx)
+    out = np.empty(mn.shape, np.int8)
+    if out.size:
+        _sign_iso(mn.reshape(-1), mx.reshape(-1), np.float64(iso), out.reshape(-1))
     return out
+
+
+@kernel(parallel=True)
+def _sign_iso(mn, mx, iso, out):
+    n = out.shape[0]
+    chunks = (n + SIGN_CHUNK - 1) // SIGN_CHUNK
+    for c in prange(chunks):
+        for m in range(c * SIGN_CHUNK, min(n, (c + 1) * SIGN_CHUNK)):
+            # In float64, as the caster compares: a float32 isovalue would misplace ranges ending
+            # between the two roundings.
+            out[m] = (1 if np.float64(mn[m]) > iso else 0) - (1 if np.float64(mx[m]) < iso else 0)
 
 
 # --------------------------------------------------------------------------
@@ -524,10 +542,32 @@ class VolumeIndex:
             grid = self.grid(key)
             if key == (1.0, 1.0, 1.0):
                 self._ranges[key] = self.cell_minmax()
+            elif grid.integral:
+                self._ranges[key] = self._from_blocks(grid)
             else:
-                cells = self.cell_minmax() if grid.integral else None
-                self._ranges[key] = supercell_ranges(self.volume.data, grid, cell_ranges=cells)
+                self._ranges[key] = supercell_ranges(self.volume.data, grid)
         return self._ranges[key]
+
+    def _from_blocks(self, grid):
+        """Whole-cell ranges of ``grid`` reduced from the coarsest ranges kept whose blocks tile
+        its supercells (cells at worst): the cost model asks for 2, 3, 4, 6, 8 and 12 in turn,
+        and only 2 and 3 then read every cell. A 512x512x1734 volume's six sizes took 0.66 s so,
+        1.48 s each from the cells, 1.2 s in NumPy's strided passes over the cells."""
+        self._ranges.setdefault((1.0, 1.0, 1.0), self.cell_minmax())
+        cells = [n - 1 for n in grid.dims]
+
+        def tiles(d):
+            return all(b.is_integer() and all(e % b == 0 or e == c for e in edges)
+                       for b, edges, c in zip(d, grid.edges, cells))
+
+        d = min((d for d in self._ranges if tiles(d)), key=lambda d: self._ranges[d][0].size)
+        mn, mx = self._ranges[d]
+        # Each supercell's cells, counted in blocks of d: its last block may end early with it.
+        edges = [np.ceil(e / b).astype(np.int64) for e, b in zip(grid.edges, d)]
+        out_mn = np.empty(grid.shape, mn.dtype)
+        out_mx = np.empty(grid.shape, mx.dtype)
+        _block_ranges(mn, mx, *edges, out_mn, out_mx)
+        return out_mn, out_mx
 
     def classify(self, iso, size):
         """Possibly contributing supercells of ``size`` for isovalue ``iso``: bool ``grid.shape``."""

@@ -129,6 +129,22 @@ def test_whole_cell_ranges_exact(size, dtype):
                 assert mx[c, b, a] == block.max() == mx2[c, b, a]
 
 
+@pytest.mark.parametrize("sizes", [(2, 4, 8), (3, 6, 12), (2, 3, 6, 12), ((2, 3, 1), (4, 6, 3), (6, 3, 2)),
+                                   (2.5, 5, 10, 20), (4, 2, 40), (3, 7)])
+def test_ranges_reduced_from_coarser_ones_are_those_of_the_samples(sizes):
+    # The index reduces a whole-cell size from ranges it already keeps whose blocks tile it:
+    # after 2, a size 4 from the 2s, whose last block along an axis of 8 cells (9 samples)
+    # holds a lone cell; fractional sizes (2.5) are never the source.
+    data = _random((11, 10, 9), "int16", seed=9)
+    index = VolumeIndex(Volume(data))
+    for size in sizes:
+        grid = supercell_grid((9, 10, 11), size)
+        got = index.ranges(size)
+        want = supercell_ranges(data, grid)
+        for g, w in zip(got, want):
+            assert g.dtype == w.dtype and np.array_equal(g, w), size
+
+
 @pytest.mark.parametrize("size", [0.5, 1.5, 4.5, 0.3, 2.25, (2, 3, 1.5), (0.5, 1, 2.5), (1.5, 1.5, 1)])
 @pytest.mark.parametrize("dtype", ["uint8", "float64", "negative"])
 def test_fractional_ranges_against_exact_reference(size, dtype):
