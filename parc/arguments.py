@@ -281,7 +281,8 @@ def build_parser():
                    help="brute: unaccelerated casting (default); parc: walk only the ray segments "
                         "OpenGL finds from a polygon proxy of the possibly contributing supercells "
                         "(the same image, faster frame for frame; but the first frame of a volume also pays "
-                        "for its cell ranges, skip tables and the OpenGL context, so for a single picture "
+                        "for its cell ranges and the OpenGL context, and an isovalue's second frame for its "
+                        "skip tables, so for a single picture "
                         "brute is often quicker: parc pays over many frames, as in parc compare or the "
                         "Python API)")
     _add_common_options(r)

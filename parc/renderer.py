@@ -136,7 +136,9 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
         isovalue, or all transparent) and steps over single such cells
         without reading their samples (a skip table with one entry per
         cell, `parc.skip`: by ray octant for an isosurface's camera rays),
-        computed once per isovalue or transfer function.
+        built once per transfer function, and per isovalue from its second
+        frame on (one frame does not repay the tables by octant; `parc.compare`
+        builds them from its first, `parc.skip.expect_frames`).
         The image is the same either way; False measures the OpenGL
         segments alone.
     work : bool, default False

@@ -12,7 +12,8 @@ come from the cell ranges of `parc.classify` (`VolumeIndex.iso_skip`,
 `VolumeIndex.tf_skip`); the radii from `skip_radius`. For the camera
 rays of an isosurface, a table per ray octant holds the side of the box
 ahead of each cell instead (`octant_radius`, `VolumeIndex.iso_octant_skip`).
-A frame takes its tables through `skip_table` and `octant_skip_tables`.
+A frame takes its tables through `skip_table` and `octant_skip_tables`; the
+tables by octant wait for an isovalue's second frame (`expect_frames`).
 """
 import numpy as np
 from numba import prange
@@ -245,6 +246,16 @@ def octant_skip_tables(iso, use, camera, width, height):
     if not use:
         return NO_SKIP_OCTANTS, -1
     return VolumeIndex.of(iso.volume).iso_octant_skip(iso.value, ray_octants(camera, width, height))
+
+
+def expect_frames(scene):
+    """Say that ``scene`` will be rendered again, as `parc.compare` does: its isosurfaces' skip
+    tables by octant, which a single frame is not worth (`parc.classify.VolumeIndex.iso_octant_skip`),
+    are then built from its first frame on."""
+    from .classify import VolumeIndex
+    for vis in scene.volumes:
+        if isinstance(vis, Isosurface):
+            VolumeIndex.of(vis.volume).expect_frames(vis.value)
 
 
 def ray_octants(camera, width, height):

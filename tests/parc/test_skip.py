@@ -330,6 +330,7 @@ def test_volume_index_octant_tables_follow_the_isovalue():
     vol = blobs((24, 26, 28), count=3, seed=4)
     index = VolumeIndex.of(vol)
     for iso in (3.5, 90.5):
+        index.expect_frames(iso)
         tables, jump_min = index.iso_octant_skip(iso, [2, 5])
         assert jump_min >= 0 and tables.shape == (OCTANTS,) + tuple(n - 1 for n in vol.data.shape)
         want = octant_tables(vol.data, iso)
@@ -430,3 +431,36 @@ def test_a_jump_passes_over_its_whole_cube(axis, step):
     table = np.full([n - 1 for n in shape], 3, np.int8)
     t, _, _, counts = cast(sc, eye[None], d[None], 0.0, skip=(table, 2))
     assert np.isinf(t[0]) and counts[0, 0] == 3, counts
+
+
+def _octant_tables_kept(vis):
+    return ("iso octants", float(vis.value)) in VolumeIndex.of(vis.volume).kept("skip tables")
+
+
+def test_an_isovalue_s_first_frame_walks_without_octant_tables_and_finds_the_same_hits(gl):
+    from parc import Camera, Isosurface, Scene, render
+    vol = blobs((30, 28, 26), count=4, seed=21)
+    vis = Isosurface(vol, 90.5)
+    scene = Scene(camera=Camera.framing(*vol.bounds, azimuth=35.0, elevation=20.0), size=(48, 40), volumes=[vis])
+    first = render(scene, "parc")
+    assert not _octant_tables_kept(vis)
+    second = render(scene, "parc")
+    assert _octant_tables_kept(vis)
+    brute = render(scene, "brute")
+    for run in (first, second):
+        assert np.array_equal(run.image, brute.image) and np.array_equal(run.depth, brute.depth)
+    # The tables let the second frame step over cells the first read.
+    assert second.stats["cells_visited"] < first.stats["cells_visited"]
+    # Another isovalue is a first frame again.
+    assert not _octant_tables_kept(Isosurface(vol, 120.5))
+
+
+@pytest.mark.parametrize("warmup", [0, 1])
+def test_compare_times_frames_with_the_octant_tables_from_its_first(gl, warmup):
+    from parc import Camera, Isosurface, Scene, compare, render
+    vol = blobs((30, 28, 26), count=4, seed=22)
+    scene = Scene(camera=Camera.framing(*vol.bounds, azimuth=35.0, elevation=20.0), size=(48, 40),
+                  volumes=[Isosurface(vol, 90.5)])
+    row = compare(scene, repeats=1, warmup=warmup)[1]
+    later = render(scene, "parc")
+    assert row["method"] == "parc" and row["cells_visited"] == later.stats["cells_visited"]

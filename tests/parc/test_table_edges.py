@@ -64,6 +64,7 @@ def test_skip_tables_for_isovalues_an_ulp_apart_are_kept_apart():
     for iso, col in ((2.0, [-1, 0, 0, 1]), (up, [-2, -1, 0, 1]), (2.0, [-1, 0, 0, 1])):
         table, _ = index.iso_skip(iso)
         np.testing.assert_array_equal(table[0, 0], col, err_msg=repr(iso))
+        index.expect_frames(iso)
         tables, _ = index.iso_octant_skip(iso, [0])
         np.testing.assert_array_equal(np.sign(tables[0][0, 0]), np.sign(col), err_msg=repr(iso))
 

@@ -12,6 +12,7 @@ import pytest
 from data_tools import Volume
 from data_tools.synthetic import blobs
 from parc import Camera, DirectionalLight, Isosurface, PointLight, Scene, TransferFunction, Translucent, render
+from parc.skip import expect_frames
 
 SIZE = (26, 22)
 CAM = Camera(eye=(40.0, 31.0, -25.0), look_at=(8.0, 7.0, 9.0), up=(0, 1, 0), fov=35.0)
@@ -40,8 +41,9 @@ def test_two_shadowed_surfaces_map_their_camera_rays_cells(method, request):
         request.getfixturevalue("gl")
     a, b = _volumes()
     isos = [Isosurface(a, _mid(a)), Isosurface(b, _mid(b, 0.4))]
-    res = render(Scene(camera=CAM, size=SIZE, volumes=isos, lights=LIGHTS, shadows=True), method, supercell=2,
-                 work=True)
+    scene = Scene(camera=CAM, size=SIZE, volumes=isos, lights=LIGHTS, shadows=True)
+    expect_frames(scene)            # every frame with the skip tables, so their cells agree
+    res = render(scene, method, supercell=2, work=True)
     assert res.stats["shadow_rays"] > 0
     assert res.work.shape == SIZE[::-1] and res.work.dtype == np.int64
     # Each surface's rays run whole through its volume (the nearest hit is chosen afterwards).
