@@ -45,12 +45,13 @@ def frame(vis, size):
     and the skip tables the renderer gives these rays (by ray octant for an isosurface)."""
     from parc import Camera, Isosurface, Scene
     from parc.segments import parc_segments
-    from parc.skip import octant_skip_tables, skip_table
+    from parc.skip import expect_frames, octant_skip_tables, skip_table
 
     vol = vis.volume
     scene = Scene(Camera.framing(*vol.bounds), (size, size), [vis])
     seg, extra, _ = parc_segments(scene, vis, None, {})
     if isinstance(vis, Isosurface):
+        expect_frames(scene)        # the tables of a frame after the first, which every timed one is
         skip, jump_min = octant_skip_tables(vis, True, scene.camera, size, size)
     else:
         skip, jump_min = skip_table(vis, True)
