@@ -130,11 +130,12 @@ def test_whole_cell_ranges_exact(size, dtype):
 
 
 @pytest.mark.parametrize("sizes", [(2, 4, 8), (3, 6, 12), (2, 3, 6, 12), ((2, 3, 1), (4, 6, 3), (6, 3, 2)),
-                                   (2.5, 5, 10, 20), (4, 2, 40), (3, 7)])
+                                   (2.5, 5, 10, 20), (4, 2, 40), (3, 7), ((1, 1, 5), (1, 1, 8))])
 def test_ranges_reduced_from_coarser_ones_are_those_of_the_samples(sizes):
     # The index reduces a whole-cell size from ranges it already keeps whose blocks tile it:
     # after 2, a size 4 from the 2s, whose last block along an axis of 8 cells (9 samples)
-    # holds a lone cell; fractional sizes (2.5) are never the source.
+    # holds a lone cell; fractional sizes (2.5) are never the source. Blocks of 5 along z's
+    # 10 cells do not tile 8s there, though 8 is the last boundary along x.
     data = _random((11, 10, 9), "int16", seed=9)
     index = VolumeIndex(Volume(data))
     for size in sizes:

@@ -464,3 +464,63 @@ def test_compare_times_frames_with_the_octant_tables_from_its_first(gl, warmup):
     row = compare(scene, repeats=1, warmup=warmup)[1]
     later = render(scene, "parc")
     assert row["method"] == "parc" and row["cells_visited"] == later.stats["cells_visited"]
+
+
+def test_sign_iso_over_several_chunks_of_boxes():
+    # Counts either side of whole chunks of boxes, which threads take one at a time.
+    from parc.classify import SIGN_CHUNK
+    rng = np.random.default_rng(3)
+    for n in (SIGN_CHUNK - 1, SIGN_CHUNK, SIGN_CHUNK + 1, 3 * SIGN_CHUNK + 7):
+        mn = rng.integers(-100, 100, n).astype(np.int16)
+        mx = mn + rng.integers(0, 50, n).astype(np.int16)
+        for iso in (0.0, 0.5, float(mn[-1]), float(mx[-1]) + 0.5, float(mn[0]) - 0.5):
+            want = (mn.astype(np.float64) > iso).astype(np.int8) - (mx.astype(np.float64) < iso).astype(np.int8)
+            assert np.array_equal(sign_iso(mn, mx, iso), want), (n, iso)
+
+
+def test_octant_tables_wait_for_an_isovalue_asked_again_among_the_last_kept():
+    from parc.classify import ASKS_KEPT
+    from raycast.iso import NO_SKIP_OCTANTS
+    vol = blobs((10, 9, 8), count=2, seed=6)
+
+    def built(index, iso):
+        return index.iso_octant_skip(iso, [3])[0] is not NO_SKIP_OCTANTS
+
+    # An ask ASKS_KEPT - 1 others ago is remembered: the second frame builds the tables.
+    index = VolumeIndex(vol)
+    assert not built(index, 50.5)
+    for k in range(ASKS_KEPT - 1):
+        index.expect_frames(1000.0 + k)
+    assert built(index, 50.5)
+    # ASKS_KEPT others ago, forgotten: a first frame again.
+    index = VolumeIndex(vol)
+    assert not built(index, 50.5)
+    for k in range(ASKS_KEPT):
+        index.expect_frames(1000.0 + k)
+    assert not built(index, 50.5)
+    # An ask again counts as the latest: the oldest other is forgotten first.
+    index = VolumeIndex(vol)
+    index.expect_frames(50.5)
+    for k in range(ASKS_KEPT - 1):
+        index.expect_frames(1000.0 + k)
+    index.expect_frames(50.5)
+    index.expect_frames(999.0)
+    assert built(index, 50.5) and not built(index, 1000.0)
+    # Tables kept serve every later frame, however many other isovalues were asked since.
+    for k in range(ASKS_KEPT + 1):
+        index.expect_frames(2000.0 + k)
+    assert built(index, 50.5)
+
+
+def test_expect_frames_announces_every_isosurface_of_a_scene():
+    from parc import Camera, Isosurface, Scene, Translucent
+    from parc.skip import expect_frames
+    from raycast.iso import NO_SKIP_OCTANTS
+    a = blobs((10, 9, 8), count=2, seed=7)
+    b = blobs((9, 8, 10), count=2, seed=8)
+    isos = [Isosurface(a, 50.5), Isosurface(b, 60.5), Isosurface(a, 70.5)]
+    scene = Scene(camera=Camera.framing(*a.bounds), size=(8, 8), volumes=[Translucent(b, "greyscale")] + isos)
+    expect_frames(scene)
+    for vis in isos:
+        tables, _ = VolumeIndex.of(vis.volume).iso_octant_skip(vis.value, [0])
+        assert tables is not NO_SKIP_OCTANTS, vis.value

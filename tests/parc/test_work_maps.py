@@ -93,3 +93,27 @@ def test_shadows_on_shaded_samples_leave_the_camera_rays_work_as_it_is(method, r
     assert shadowed.stats["shadow_rays"] > 0
     assert unshadowed.work.sum() > 0 and np.array_equal(shadowed.work, unshadowed.work)
     assert shadowed.work.sum() == shadowed.stats["samples"]
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_maps_cast_and_lit_in_bands_count_each_band_once(method, request, monkeypatch):
+    # A progress callback casts the rows in bands, and shadowed samples are recorded and lit
+    # in bands of at most SAMPLES_AT_ONCE: the map must not depend on either.
+    import parc.multivolume as multivolume
+    if method == "parc":
+        request.getfixturevalue("gl")
+    a, b = _volumes()
+    tf = TransferFunction([[_mid(a, 0.3), 0.0], [_mid(a, 0.7), 0.3]], [[0.0, 0.9, 0.7, 0.6]])
+    surfaces = Scene(camera=CAM, size=SIZE, volumes=[Isosurface(a, _mid(a)), Isosurface(b, _mid(b, 0.4))],
+                     lights=LIGHTS, shadows=True)
+    translucent = Scene(camera=CAM, size=SIZE, lights=LIGHTS, shadows=True,
+                        volumes=[Translucent(a, tf, shade=True), Translucent(b, "greyscale", mode="mip"),
+                                 Translucent(b, "greyscale", mode="average", step=0.8)])
+    for scene, total in ((surfaces, "cells_visited"), (translucent, "samples")):
+        expect_frames(scene)
+        whole = render(scene, method, supercell=2, work=True)
+        monkeypatch.setattr(multivolume, "SAMPLES_AT_ONCE", 7)
+        banded = render(scene, method, supercell=2, work=True, progress=lambda f: None)
+        monkeypatch.undo()
+        assert whole.work.sum() == whole.stats[total] > 0
+        assert np.array_equal(banded.work, whole.work) and banded.work.sum() == banded.stats[total]
