@@ -26,6 +26,14 @@ def _volumes():
     return a, Volume(b.data, spacing=(0.9, 1.1, 1.0), origin=(3.0, -1.0, 4.0), name="b")
 
 
+@pytest.fixture(params=METHODS)
+def method(request):
+    """Each method in turn; PARC with the OpenGL context."""
+    if request.param == "parc":
+        request.getfixturevalue("gl")
+    return request.param
+
+
 def _alone(vis, method, **kw):
     return render(Scene(camera=CAM, size=SIZE, volumes=[vis]), method, work=True, **kw).work
 
@@ -35,10 +43,7 @@ def _mid(vol, f=0.5):
     return lo + f * (hi - lo)
 
 
-@pytest.mark.parametrize("method", METHODS)
-def test_two_shadowed_surfaces_map_their_camera_rays_cells(method, request):
-    if method == "parc":
-        request.getfixturevalue("gl")
+def test_two_shadowed_surfaces_map_their_camera_rays_cells(method):
     a, b = _volumes()
     isos = [Isosurface(a, _mid(a)), Isosurface(b, _mid(b, 0.4))]
     scene = Scene(camera=CAM, size=SIZE, volumes=isos, lights=LIGHTS, shadows=True)
@@ -60,12 +65,9 @@ def test_parc_maps_no_more_work_than_brute_in_a_lit_scene(gl):
     assert (p.work <= q.work).all() and p.work.sum() < q.work.sum()
 
 
-@pytest.mark.parametrize("method", METHODS)
-def test_faint_translucent_volumes_map_the_samples_of_each(method, request):
+def test_faint_translucent_volumes_map_the_samples_of_each(method):
     # Faint enough that no ray reaches the stopping opacity: each volume's walk then takes
     # the samples it takes alone, whatever the other holds in front of it.
-    if method == "parc":
-        request.getfixturevalue("gl")
     a, b = _volumes()
     faint = TransferFunction([[_mid(a, 0.3), 0.0], [_mid(a, 0.9), 0.004]], [[0.0, 1.0, 0.5, 0.2]])
     vols = [Translucent(a, faint), Translucent(b, "greyscale", mode="mip"),
@@ -78,12 +80,9 @@ def test_faint_translucent_volumes_map_the_samples_of_each(method, request):
     assert res.work.sum() == res.stats["samples"]
 
 
-@pytest.mark.parametrize("method", METHODS)
-def test_shadows_on_shaded_samples_leave_the_camera_rays_work_as_it_is(method, request):
+def test_shadows_on_shaded_samples_leave_the_camera_rays_work_as_it_is(method):
     # Shadowed samples are walked by the several-volume driver, twice over (counted, then
     # recorded); unshadowed, by the one-volume driver.
-    if method == "parc":
-        request.getfixturevalue("gl")
     a, _ = _volumes()
     tf = TransferFunction([[_mid(a, 0.3), 0.0], [_mid(a, 0.7), 0.3]], [[0.0, 0.9, 0.7, 0.6]])
     vis = Translucent(a, tf, shade=True)
@@ -95,13 +94,10 @@ def test_shadows_on_shaded_samples_leave_the_camera_rays_work_as_it_is(method, r
     assert shadowed.work.sum() == shadowed.stats["samples"]
 
 
-@pytest.mark.parametrize("method", METHODS)
-def test_maps_cast_and_lit_in_bands_count_each_band_once(method, request, monkeypatch):
+def test_maps_cast_and_lit_in_bands_count_each_band_once(method, monkeypatch):
     # A progress callback casts the rows in bands, and shadowed samples are recorded and lit
     # in bands of at most SAMPLES_AT_ONCE: the map must not depend on either.
     import parc.multivolume as multivolume
-    if method == "parc":
-        request.getfixturevalue("gl")
     a, b = _volumes()
     tf = TransferFunction([[_mid(a, 0.3), 0.0], [_mid(a, 0.7), 0.3]], [[0.0, 0.9, 0.7, 0.6]])
     surfaces = Scene(camera=CAM, size=SIZE, volumes=[Isosurface(a, _mid(a)), Isosurface(b, _mid(b, 0.4))],
