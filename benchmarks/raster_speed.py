@@ -126,7 +126,7 @@ def main():
 
 def stages(idx, vol, iso, cam, w, h, args):
     """Per-stage raster times (best and median of --repeats frames after a first one)."""
-    from parc.classify import supercell_size
+    from parc.ranges import supercell_size
     from parc.costmodel import choose_supercell
     size = args.supercell if args.supercell is not None else choose_supercell(idx, iso, pixels=w * h)[0]
     size = supercell_size(size)

@@ -59,7 +59,7 @@ the strict bits suffice (``halo=False``, the default): exactly the planes
 whose PC boxes the ray meets (closed boxes, ``t >= 0``), plus the float32
 margins. Halo mode (``halo=True``) serves a caster that tests only
 ``floor(pos / m_a)``, and is kept, tested, for one. The grid's boundaries
-are ``s m_a`` snapped to integers within `parc.classify.SNAP`, and the
+are ``s m_a`` snapped to integers within `parc.ranges.SNAP`, and the
 division rounds, so a sample *strictly inside* a PC box of plane ``p`` but
 within ``delta`` (about 1e-9 cells) of its boundary with plane ``p + 1``
 may be mapped to ``p + 1`` (and likewise to ``p - 1``); the sample can
@@ -123,7 +123,7 @@ from .segments import PROXY_CACHE_SIZE
 
 #: Width of the boundary band (halo mode), in cells along the plane axis:
 #: far above the caster's mismatch between ``floor(pos / m)`` and the
-#: grid's boundaries (`parc.classify.SNAP` = 1e-9 cells, plus roundings),
+#: grid's boundaries (`parc.ranges.SNAP` = 1e-9 cells, plus roundings),
 #: far below a sample step.
 BAND_CELLS = 1e-7
 

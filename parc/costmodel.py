@@ -36,7 +36,7 @@ from numba import prange
 from data_tools import InputError
 from raycast.config import kernel
 
-from .classify import supercell_size
+from .ranges import supercell_size
 
 #: Cost model constants, measured on this project's development machine
 #: (2 x86 cores, Mesa llvmpipe 22.3 / LLVM 15) with the skip tables on:
@@ -231,7 +231,7 @@ def choose_supercell(index, iso=None, *, pixels=512 * 512, rays=None, cores=None
     -------
     size : float
         The candidate with the least estimated time, among those that give
-        at most `parc.classify.MAX_SUPERCELLS` supercells for this volume.
+        at most `parc.ranges.MAX_SUPERCELLS` supercells for this volume.
     table : list of dict
         Per candidate: ``size``, ``supercells``, ``pc_supercells``,
         ``faces`` (outer faces before merging), ``strips``, ``share``

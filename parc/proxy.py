@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .classify import SupercellGrid
+from .ranges import SupercellGrid
 
 
 @dataclass(eq=False)

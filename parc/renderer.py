@@ -222,7 +222,7 @@ def check_arguments(scene, method="brute", *, supercell=None, buffers=DEFAULT_BU
     if progress is not None and not callable(progress):
         raise InputError(f"progress must be a function of the fraction done, got {progress!r}")
     if supercell is not None:
-        from .classify import supercell_size
+        from .ranges import supercell_size
         supercell_size(supercell)
     return check_request(scene, buffers, work), _light_buffer_size(light_buffer)
 

@@ -52,7 +52,8 @@ def cached_proxy(vis, supercell, size_px, timings, *, merge=True):
 
     ``merge=False`` keeps one face per supercell face (the light buffers' proxy, `parc.lights`).
     """
-    from .classify import VolumeIndex, supercell_size
+    from .classify import VolumeIndex
+    from .ranges import supercell_size
     from .costmodel import choose_supercell
     from .proxy import build_proxy
 

@@ -129,7 +129,7 @@ POS_ROUNDING = 2.0 ** -48
 
 #: ... and this many cells: the grid's plane boundaries are ``q m`` snapped to an integer
 #: this close, and a last plane this much short of the grid's end is merged into the one
-#: before (`parc.classify.SNAP` is this). Below a thousandth of a cell, PLANE_TOL planes
+#: before (`parc.ranges.SNAP` is this). Below a thousandth of a cell, PLANE_TOL planes
 #: are less than that: with planes of 1e-4 cells, a ray along the last 5e-10 cells of the
 #: grid would lie past the last plane for the caster, which would never test its bit.
 BOUNDARY_SNAP = 1e-9

@@ -8,7 +8,7 @@ accumulation (composite, maximum and average intensity) a *contributing
 cell* is one whose value range, the min/max of its eight corners (the
 exact range of its trilinear interpolant), meets the transfer function's
 non-zero opacity somewhere (`parc.transfer.TransferFunction.nonzero_in`
-on `parc.classify.cell_minmax` gives exactly this classification,
+on `parc.ranges.cell_minmax` gives exactly this classification,
 ``contrib[k, j, i]``).
 
 For each pixel `ideal_ray_samples` walks exactly the unaccelerated

@@ -85,7 +85,7 @@ def anchor(Ox, Oy, Oz, Dx, Dy, Dz, t):
 #: rounding of positions measured from the eye is the larger error.
 FAR_ORIGIN = 16.0
 #: ... and any origin farther than this many cells: the sub-cell ranges PARC classifies by are
-#: padded for positions rounded at most this far out (`parc.classify.RANGE_PAD`), and a grid
+#: padded for positions rounded at most this far out (`parc.ranges.RANGE_PAD`), and a grid
 #: of 200,000 samples kept origins 3 million cells away unanchored.
 FAR_ORIGIN_CELLS = 32768.0
 

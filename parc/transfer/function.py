@@ -203,7 +203,7 @@ class TransferFunction:
         ----------
         mn, mx : array_like
             Range bounds, any real dtype (compared in float64, as the kernels
-            read samples), broadcast together; e.g. `parc.classify.cell_minmax`.
+            read samples), broadcast together; e.g. `parc.ranges.cell_minmax`.
         rounding : float, default 0
             Widen each range by this fraction of its largest magnitude (for
             8- and 16-bit integers, of the type's): the casters' samples

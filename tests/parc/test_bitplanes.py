@@ -31,7 +31,8 @@ import pytest
 from data_tools import Volume
 from parc.bitplanes import PlaneBits, major_axis, plane_buffers, plane_range, raster_bits
 from parc.camera import Camera
-from parc.classify import VolumeIndex, supercell_grid
+from parc.classify import VolumeIndex
+from parc.ranges import supercell_grid
 from parc.proxy import build_plane_proxy, build_proxy
 from parc_reference import band_classes, caster_rays, ray_box_batches, smooth_volume
 from raycast.composite import BOUNDARY_SNAP, PLANE_TOL, POS_ROUNDING

@@ -15,7 +15,8 @@ import pytest
 
 from data_tools import InputError, Volume
 from data_tools.volume import SUPPORTED_DTYPES
-from parc.classify import RANGE_PAD, VolumeIndex, cell_minmax, classify_iso, supercell_grid, supercell_ranges
+from parc.classify import VolumeIndex, classify_iso
+from parc.ranges import RANGE_PAD, cell_minmax, supercell_grid, supercell_ranges
 from parc_reference import box_range, cell_minmax_loop
 
 DTYPES = ["uint8", "int16", "uint16", "float32", "float64"]
@@ -168,7 +169,7 @@ def test_fractional_ranges_against_exact_reference(size, dtype):
 
 
 def test_fractional_ranges_in_slabs(monkeypatch):
-    import parc.classify as cl
+    import parc.ranges as cl
     data = _random((9, 6, 7), "int16", seed=2)
     grid = supercell_grid((7, 6, 9), (1.5, 0.5, 2.5))
     whole = supercell_ranges(data, grid)

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from parc import costmodel
-from parc.classify import VolumeIndex, supercell_grid
+from parc.classify import VolumeIndex
+from parc.ranges import supercell_grid
 from parc.costmodel import choose_supercell, count_face_strips, count_outer_faces, face_counts, projected_share
 from parc.proxy import build_proxy
 
@@ -166,12 +167,12 @@ def test_flat_surfaces_pay_for_merged_polygons_not_faces():
 
 
 def test_cost_model_skips_sizes_too_fine_for_the_volume(monkeypatch):
-    import parc.classify
+    import parc.ranges
     import parc.costmodel as costmodel
     from data_tools.synthetic import blobs
     index = VolumeIndex(blobs(17))
     # 16^3 cells: size 1 gives 4096 supercells, size 2 gives 512, size 4 gives 64.
-    monkeypatch.setattr(parc.classify, "MAX_SUPERCELLS", 600)
+    monkeypatch.setattr(parc.ranges, "MAX_SUPERCELLS", 600)
     size, table = costmodel.choose_supercell(index, 0.5, candidates=(1, 2, 4))
     assert [r["size"] for r in table] == [2.0, 4.0]
     assert size in (2.0, 4.0)

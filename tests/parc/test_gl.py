@@ -296,7 +296,7 @@ def test_an_image_past_the_viewport_limit_on_either_side_is_refused(gl, over):
 
     from data_tools import Volume
     from parc.camera import Camera
-    from parc.classify import supercell_grid
+    from parc.ranges import supercell_grid
     from parc.proxy import build_proxy
     from parc.raster import raster_segments
     max_w, max_h = gl.info["GL_MAX_VIEWPORT_DIMS"]

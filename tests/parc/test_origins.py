@@ -14,7 +14,7 @@ import pytest
 from data_tools import Volume
 from parc import origins
 from parc.camera import Camera
-from parc.classify import supercell_grid
+from parc.ranges import supercell_grid
 from parc.proxy import build_proxy
 from parc_reference import caster_rays, reached
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from data_tools import Volume
-from parc.classify import supercell_grid
+from parc.ranges import supercell_grid
 from parc.proxy import build_proxy, proxy_for_iso
 
 

@@ -497,7 +497,7 @@ def test_parallel_inside_in_bands(gl, monkeypatch):
 
 def _one_box_proxy():
     """A proxy of one PC supercell, the box [0, 4]^3."""
-    from parc.classify import supercell_grid
+    from parc.ranges import supercell_grid
     vol = Volume(np.zeros((5, 5, 5), np.float32))
     grid = supercell_grid((5, 5, 5), 4)
     return build_proxy(grid, np.ones((1, 1, 1), bool), grid.world_edges(vol))

@@ -19,7 +19,8 @@ import numpy as np
 import pytest
 
 from data_tools.synthetic import blobs
-from parc.classify import VolumeIndex, cell_minmax, sign_iso
+from parc.classify import VolumeIndex, sign_iso
+from parc.ranges import cell_minmax
 from parc.skip import SKIP_CAP, octant_radius, octant_steps, skip_radius
 from raycast.hardcases import CATEGORIES, cast, hard_batches
 from raycast.hardrays import random_dirs
@@ -263,7 +264,7 @@ def test_sign_iso_matches_block_samples(shift):
             if b == 1:
                 got = sign_iso(mn, mx, iso)
             else:
-                from parc.classify import supercell_grid, supercell_ranges
+                from parc.ranges import supercell_grid, supercell_ranges
                 grid = supercell_grid(data.shape[::-1], (b, b, b))
                 got = sign_iso(*supercell_ranges(data, grid, cell_ranges=(mn, mx)), iso)
             assert np.array_equal(got, block_table(data, iso, shift))

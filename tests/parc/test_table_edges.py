@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from data_tools import InputError, Volume
-from parc.classify import (MAX_SUPERCELLS, VolumeIndex, classify_iso, classify_tf, sign_iso,
-                           supercell_grid)
+from parc.classify import VolumeIndex, classify_iso, classify_tf, sign_iso
 from parc.proxy import build_plane_proxy, build_proxy
+from parc.ranges import MAX_SUPERCELLS, supercell_grid
 from parc.transfer import TransferFunction
 
 
@@ -127,8 +127,8 @@ def test_merging_a_grid_too_long_for_a_packed_key(plane_axis):
 def test_ranges_in_slabs_of_several_slices(monkeypatch, slices):
     """Slabs of 2, 3 and 5 z-slices (a large volume's case: 64 slices for 256 x 256 samples), a
     last one short: every cell and supercell gets its range (the loop's, and one slab's)."""
-    import parc.classify as cl
-    from parc.classify import cell_minmax, supercell_ranges
+    import parc.ranges as cl
+    from parc.ranges import cell_minmax, supercell_ranges
     from parc_reference import cell_minmax_loop
     rng = np.random.default_rng(slices)
     data = rng.integers(-3000, 3000, (12, 7, 8)).astype(np.int16)

@@ -338,7 +338,7 @@ def test_nonzero_in_dtypes_shapes_and_chunks(monkeypatch):
 
 def test_nonzero_in_on_cell_ranges_matches_sampling():
     """Cells classified empty really get opacity 0 at every sample of their interpolant."""
-    from parc.classify import cell_minmax
+    from parc.ranges import cell_minmax
     rng = np.random.default_rng(7)
     k, j, i = np.mgrid[0:6, 0:7, 0:8]
     data = (40 * i + 30 * j + 20 * k + rng.integers(-15, 16, i.shape)).astype(np.int16)
