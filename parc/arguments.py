@@ -183,8 +183,8 @@ def _add_look_options(p):
                    help="with --tf, composite: shade samples with the gradient, lit by the headlight or by "
                         "--light and --sun (shadowed with --shadows)")
     g.add_argument("--buffers", metavar="LIST",
-                   help="with --tf, for parc: PARC's buffers: depth (near/far, default), bits "
-                        "(planes of supercells), or depth,bits")
+                   help="with --tf or a scene's translucent volumes, for parc: their buffers: depth (near/far, "
+                        "default), bits (planes of supercells), or depth,bits; isosurfaces use depth")
 
 
 def _add_view_options(p):

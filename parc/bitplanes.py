@@ -280,6 +280,20 @@ def plane_buffers(camera, width, height, volume, pc, grid, *, axis=None, halo=Fa
                      polygons=info["polygons"], seconds=seconds, info={**info, "halo": bool(halo)})
 
 
+def frame_planes(scene, vis, proxy, timings, extra):
+    """`plane_buffers` for one translucent volume of ``scene``, its proxy's supercells given
+    (`parc.segments.cached_proxy`): the plane proxy's time (built once per classification) is
+    added to ``timings["proxy"]``, the pass's to ``timings["raster_bits"]``, and the planes'
+    count, axis and polygons are written into ``extra``."""
+    planes = plane_buffers(scene.camera, *scene.size, vis.volume, proxy.pc, proxy.grid)
+    proxy_seconds = planes.seconds.get("proxy", 0.0)
+    timings["proxy"] = timings.get("proxy", 0.0) + proxy_seconds
+    timings["raster_bits"] = (timings.get("raster_bits", 0.0)
+                              + planes.seconds.get("total", sum(planes.seconds.values())) - proxy_seconds)
+    extra.update({"planes": planes.count, "plane_axis": "xyz"[planes.axis], "plane_polygons": planes.polygons})
+    return planes
+
+
 def raster_bits(camera, width, height, plane_proxy, *, first, count, halo=False, spacing=None,
                 pad_px=COVERAGE_PAD_PX):
     """OR every plane bit of every pixel in one OpenGL pass.
@@ -526,4 +540,4 @@ def _sized(ctx, width, height, nwords):
     return _FBOS[fkey], _BUFFERS[key]
 
 
-__all__ = ["BAND_CELLS", "PlaneBits", "major_axis", "plane_buffers", "plane_range", "raster_bits"]
+__all__ = ["BAND_CELLS", "PlaneBits", "frame_planes", "major_axis", "plane_buffers", "plane_range", "raster_bits"]

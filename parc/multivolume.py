@@ -55,7 +55,7 @@ SHADOW_EPS = 1e-5
 
 
 def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=LIGHT_BUFFER_SIZE, blocks=True,
-                 work=False):
+                 work=False, buffers=("depth",)):
     """Render any scene (`parc.render` calls this for several volumes, or an isosurface with lights).
 
     Returns ``(image, depth, counts, timings, extra)``: the float32 RGBA
@@ -67,10 +67,12 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
     (`parc.renderer.render`). With ``work``, ``counts["per_pixel"]`` holds
     each pixel's camera-ray work, every volume's added: the cells its
     isosurfaces' walks visited and the samples its translucent volumes'
-    walks took (shadow rays' work is in the totals only).
+    walks took (shadow rays' work is in the totals only). ``buffers``: PARC's buffers for the
+    translucent volumes, as `parc.renderer.render` takes them (parsed); isosurfaces use their
+    depth buffers.
     """
     from .renderer import accumulation_params, iso_work, row_bands
-    from .segments import parc_segments
+    from .segments import cached_proxy, parc_segments
     from .skip import octant_skip_tables, skip_table
 
     w, h = scene.size
@@ -89,19 +91,33 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
     report = _Report(progress, len(isos), len(trans), scene.shadows and bool(scene.lights),
                      shadowed_samples(scene))
 
-    # PARC buffers from the camera, one volume at a time.
+    # PARC buffers from the camera, one volume at a time: depth buffers, and for translucent
+    # volumes bit planes too, or instead (segments then spanning every ray).
     segs = {}
     sizes = {}
+    planes = {}
     for n, vis in enumerate(scene.volumes):
         if parc:
             phase = {}
-            seg, info, _ = parc_segments(scene, vis, supercell, phase, slot=n)
-            for key in ("raster", "classify", "proxy"):
-                timings[key] += phase.get(key, 0.0)
+            translucent = not isinstance(vis, Isosurface)
+            if "depth" in buffers or not translucent:
+                seg, info, proxy = parc_segments(scene, vis, supercell, phase, slot=n)
+            else:
+                proxy, info = cached_proxy(vis, supercell, scene.size, phase)
+                seg = work_array(("seg", n), (h, w, 2))
+                seg[..., 0] = -np.inf
+                seg[..., 1] = np.inf
+            shown = {k: info[k] for k in ("supercell", "polygons", "pc_supercells", "segment_pixels") if k in info}
+            if translucent and "bits" in buffers:
+                from .bitplanes import frame_planes
+                planes[n] = frame_planes(scene, vis, proxy, phase, shown)
+                shown["polygons"] = shown.get("polygons", 0) + shown["plane_polygons"]
+            for key in ("raster", "classify", "proxy", "raster_bits"):
+                if key in phase:
+                    timings[key] = timings.get(key, 0.0) + phase[key]
             segs[n] = seg
             sizes[n] = info["supercell"]
-            extra["volumes"].append({k: info[k] for k in ("supercell", "polygons", "pc_supercells",
-                                                           "segment_pixels") if k in info})
+            extra["volumes"].append(shown)
     report.done("buffers")
 
     # Isosurfaces: nearest hit.
@@ -182,10 +198,14 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
             vol = v.volume
             op_x, op_y, col_x, col_rgb = v.tf.arrays()
             cnt = np.empty(npx, np.int64)
+            params = accumulation_params(v)
+            if n in planes:
+                planes[n].set_params(params)
             for b, (y0, y1) in enumerate(bands):
                 cast_accumulate_image(vol.data, np.array(vol.origin), np.array(vol.spacing), cam, w, h,
-                                      accumulation_params(v), op_x, op_y, col_x, col_rgb,
-                                      segs.get(n, np.empty((1, 1, 2))), parc, stop, True, nobits, False,
+                                      params, op_x, op_y, col_x, col_rgb,
+                                      segs.get(n, np.empty((1, 1, 2))), parc, stop, True,
+                                      planes[n].bits if n in planes else nobits, n in planes,
                                       *skip_table(v, parc and blocks), layer_rgba[j], cnt, y0, y1)
                 report.part("translucent", (j + (b + 1) / len(bands)) / len(trans))
             counts["samples"] += int(cnt.sum())
@@ -196,6 +216,10 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
         if comp:
             datas, orgs, spcs, params, tables, tf_len = _packed(comp, lambda v: accumulation_params(v, scene.lights))
             seg = (np.stack([segs[n] for n, _ in comp]) if parc else np.empty((1, 1, 1, 2)))
+            for k, (n, _) in enumerate(comp):
+                if n in planes:
+                    planes[n].set_params(params[k])
+            bits = [planes[n].bits if n in planes else None for n, _ in comp]
             skips = [skip_table(v, parc and blocks) for _, v in comp]
             cnt = np.empty(npx, np.int64)
             # With shadows, the shaded samples are counted here, recorded and lit below.
@@ -206,7 +230,7 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
                                   tuple(c for c, _ in skips), np.array([m for _, m in skips], np.int64), stop,
                                   np.array([n for n, _ in comp], np.int64), layer_t,
                                   np.array([n for n, _ in layers], np.int64), layer_rgba, front, cnt, y0, y1,
-                                  record)
+                                  record, bits)
 
             for b, (y0, y1) in enumerate(bands):
                 merged(y0, y1, record)

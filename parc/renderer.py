@@ -121,9 +121,10 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
         ``--buffers`` does: ``"depth"``, ``"bits"``, ``"depth,bits"``;
         ``+`` joins them too): near/far ray distances
         (depth-buffer PARC, §3) and planes of supercells the ray meets
-        (color-buffer PARC, §4). Isosurfaces, scenes of several volumes
-        and shaded samples with shadows use the depth buffers only: asking
-        them for bit planes is an error.
+        (color-buffer PARC, §4). Bit planes are drawn for translucent
+        volumes; isosurfaces use the depth buffers (a scene of
+        isosurfaces alone asked for bit planes, or one with isosurfaces
+        asked for ``"bits"`` without ``"depth"``, is an error).
     progress : callable(done_fraction) or None
         Called as bands of image rows finish, for long renders.
     light_buffer : int, optional
@@ -193,11 +194,10 @@ def check_request(scene, buffers, work, names=("buffers", "work")):
     the command line asks before its compile notice, so that a refusal is its only line, and
     names them by its flags (``names``)."""
     buffers = parse_buffers(buffers)
-    if "depth" not in buffers and not any(isinstance(v, Translucent) for v in scene.volumes):
+    if "depth" not in buffers and any(isinstance(v, Isosurface) for v in scene.volumes):
         raise InputError(f"{names[0]} {','.join(buffers)} leave out the depth buffers isosurfaces use; "
                          "bit planes apply to translucent volumes")
-    # A lone isosurface too: bit planes are drawn for one translucent volume, and "depth,bits"
-    # for an isosurface would otherwise leave them out without a word.
+    # "depth,bits" for isosurfaces alone would otherwise leave the planes out without a word.
     if "bits" in buffers and (why := bits_refused(scene)):
         raise InputError(f"{names[0]} {','.join(buffers)}: {why}")
     if work and len({isinstance(v, Isosurface) for v in scene.volumes}) > 1:
@@ -233,7 +233,7 @@ def _render(scene, method, supercell, buffers, progress, light_buffer, blocks, w
     skip_blocks = method == "parc" and bool(blocks)
     check_scene_memory(scene)
     if not _casts_alone(scene):
-        return _render_general(scene, method, supercell, progress, light_buffer, skip_blocks, work)
+        return _render_general(scene, method, supercell, buffers, progress, light_buffer, skip_blocks, work)
     vis = scene.volumes[0]
     timings = {}
     t0 = time.perf_counter()
@@ -248,14 +248,8 @@ def _render(scene, method, supercell, buffers, progress, light_buffer, blocks, w
             use_seg = False
             proxy, extra = cached_proxy(vis, supercell, scene.size, timings)
         if isinstance(vis, Translucent) and "bits" in buffers:
-            from .bitplanes import plane_buffers
-            planes = plane_buffers(scene.camera, *scene.size, vis.volume, proxy.pc, proxy.grid)
-            # The planes' own proxy (built once per classification) counts as proxy time.
-            bits_proxy = planes.seconds.get("proxy", 0.0)
-            timings["proxy"] = timings.get("proxy", 0.0) + bits_proxy
-            timings["raster_bits"] = planes.seconds.get("total", sum(planes.seconds.values())) - bits_proxy
-            extra.update({"planes": planes.count, "plane_axis": "xyz"[planes.axis],
-                          "plane_polygons": planes.polygons})
+            from .bitplanes import frame_planes
+            planes = frame_planes(scene, vis, proxy, timings, extra)
         extra["buffers"] = list(buffers) if isinstance(vis, Translucent) else ["depth"]
         extra["blocks"] = skip_blocks
     if isinstance(vis, Isosurface):
@@ -289,7 +283,7 @@ def _render(scene, method, supercell, buffers, progress, light_buffer, blocks, w
     return RenderResult(image=image, depth=depth, stats=stats, work=per_pixel)
 
 
-def _render_general(scene, method, supercell, progress, light_buffer, skip_blocks, work):
+def _render_general(scene, method, supercell, buffers, progress, light_buffer, skip_blocks, work):
     """Several volumes, or lights: `parc.multivolume.render_scene`, with the same stats."""
     from .lights import LIGHT_BUFFER_SIZE
     from .multivolume import render_scene
@@ -297,7 +291,8 @@ def _render_general(scene, method, supercell, progress, light_buffer, skip_block
     n = LIGHT_BUFFER_SIZE if light_buffer is None else light_buffer
     t0 = time.perf_counter()
     image, depth, counts, timings, extra = render_scene(scene, method, supercell=supercell, progress=progress,
-                                                        light_buffer=n, blocks=skip_blocks, work=work)
+                                                        light_buffer=n, blocks=skip_blocks, work=work,
+                                                        buffers=buffers)
     if scene.background is not None:
         over_background(image, _premultiplied(scene.background))
     timings["total"] = time.perf_counter() - t0
@@ -422,14 +417,14 @@ def _casters_for(scene, methods, buffers):
         kernels += [(shadow.shadow_iso, ())] if isos else []
     layers = [v for v in trans if v.mode != "composite"]
     if layers:
-        kernels.append((composite._IMAGE_CASTERS[False, False], of(layers)))
+        kernels.append((composite._IMAGE_CASTERS[False, bits], of(layers)))
     comp = [v for v in trans if v.mode == "composite"]
     if comp:
         # One tuple of the volumes' samples, converted to one type (`parc.multivolume`).
         one = np.empty((1, 1, 1), np.result_type(*(v.volume.data.dtype for v in comp)))
         one.flags.writeable = False
         shaded = any(v.shade for v in trans) and not sample_shadows
-        kernels.append((merged._MERGED_CASTERS[shaded, sample_shadows],
+        kernels.append((merged._MERGED_CASTERS[shaded, sample_shadows, bits],
                         (types.UniTuple(numba.typeof(one), len(comp)),)))
     return list(dict.fromkeys(kernels))
 
@@ -449,16 +444,12 @@ def _casts_alone(scene):
 
 
 def bits_refused(scene):
-    """Why ``scene`` cannot use bit planes, or None: they are drawn for a scene of one translucent
-    volume (`_render_general` bounds each volume's rays by its depth buffers)."""
-    n = len(scene.volumes)
-    if n == 1 and isinstance(scene.volumes[0], Translucent):
-        if shadowed_samples(scene):
-            return ("bit planes are drawn for a translucent volume whose samples cast no shadow rays, and this "
-                    "one's shaded samples do (--shadows); use depth")
+    """Why ``scene`` cannot use bit planes, or None: they are drawn for translucent volumes, and
+    a scene's isosurfaces keep their depth buffers."""
+    if any(isinstance(v, Translucent) for v in scene.volumes):
         return None
-    what = f"{n} volumes" if n != 1 else "an isosurface"
-    return f"bit planes are drawn for a scene of one translucent volume, and this one has {what}; use depth"
+    what = "an isosurface" if len(scene.volumes) == 1 else "isosurfaces alone"
+    return f"bit planes are drawn for translucent volumes, and this scene has {what}; use depth"
 
 
 def parse_buffers(buffers):

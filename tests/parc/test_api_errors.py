@@ -102,18 +102,18 @@ CASES = {
     "load_scene of None": (lambda: parc.load_scene(None), "path of a scene file"),
     "load_scene view with a typo": (lambda: parc.load_scene("scene.toml", view={"fvo": 50}), "view takes camera"),
     "bit planes for an isosurface": (lambda: parc.render(_scene(), method="parc", buffers="bits"), "bit planes"),
-    # As the render docstring says ("asking them for bit planes is an error") and `parc render
+    # As the render docstring says (a scene of isosurfaces alone refuses bits) and `parc render
     # --buffers` refuses, rather than left out without a word; brute checks them too.
     "depth and bit planes for an isosurface": (lambda: parc.render(_scene(), method="parc", buffers="depth,bits"),
-                                               "this one has an isosurface"),
+                                               "this scene has an isosurface; use depth"),
     "depth and bit planes for an isosurface, brute": (lambda: parc.render(_scene(), buffers=("depth", "bits")),
-                                                      "this one has an isosurface"),
-    "bit planes for shadowed samples": (
-        lambda: parc.render(_scene(volumes=[parc.Translucent(VOL, "greyscale", shade=True)], shadows=True,
-                                   lights=[parc.PointLight((1, 2, 3))]), method="parc", buffers="depth,bits"),
-        "this one's shaded samples do"),
-    "bit planes for two volumes": (lambda: parc.render(_scene(volumes=[parc.Translucent(VOL, "greyscale")] * 2),
-                                                       method="parc", buffers="bits"), "has 2 volumes"),
+                                                      "this scene has an isosurface; use depth"),
+    "depth and bit planes for isosurfaces": (
+        lambda: parc.render(_scene(volumes=[parc.Isosurface(VOL, ISO)] * 2), method="parc", buffers="depth,bits"),
+        "this scene has isosurfaces alone"),
+    "bit planes alone beside an isosurface": (
+        lambda: parc.render(_scene(volumes=[parc.Isosurface(VOL, ISO), parc.Translucent(VOL, "greyscale")]),
+                            method="parc", buffers="bits"), "leave out the depth buffers isosurfaces use"),
     "supercell as text for brute": (lambda: parc.render(_scene(), supercell="a"), "supercell"),
     "shade with mip": (lambda: parc.Translucent(VOL, "greyscale", mode="mip", shade=True), "mode composite"),
     # Refused as the command line and scene files refuse it, not taken and ignored.
@@ -226,7 +226,7 @@ def test_methods_may_be_named_in_one_string_each_once():
     ({"parc": {"buffers": "bogus"}}, "PARC buffers must be depth, bits or both"),
     ({"parc": {"blocks": "yes"}}, "blocks must be True or False, got 'yes'"),
     ({"parc:a": {"light_buffer": 1}}, "light buffers take a whole number of pixels from 2"),
-    ({"brute": {"buffers": "depth,bits"}}, "this one has an isosurface"),
+    ({"brute": {"buffers": "depth,bits"}}, "this scene has an isosurface"),
 ])
 def test_a_comparisons_options_are_refused_before_brute_renders(options, words):
     # Refused by the method's own first render, they would come after brute's warm-up

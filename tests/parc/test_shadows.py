@@ -245,6 +245,62 @@ def test_multi_volume_parc_equals_brute(gl, case, seed):
         assert b.stats["shadow_rays"] > 0
 
 
+@pytest.mark.random_scenes(40)
+def test_bit_planes_among_several_volumes_equal_brute(gl, seed):
+    # Bit planes for every translucent volume of the scene (composite ones merged in one walk,
+    # maximum and average ones apart), beside surfaces that keep their depth buffers, lit and
+    # shadowed or not; without depth buffers where no surface needs them. Two composite volumes
+    # of uint8 samples in every scene: each count and type compiles a merged walk of its own.
+    rng = np.random.default_rng(60_000 + seed)
+    a = _volume(rng, "blobs")
+    b = _volume(rng, "blobs")
+    b = Volume(b.data, spacing=b.spacing, origin=tuple(np.array(a.center) - rng.uniform(1, 4, 3)), name=b.name)
+    vols = [Translucent(a, tf="viridis", shade=bool(rng.random() < 0.5)), Translucent(b, tf="greyscale")]
+    third = ("none", "mip", "average", "surface")[seed % 4]
+    if third == "surface":
+        vols.append(_iso(rng, a))
+    elif third != "none":
+        vols.append(Translucent(b, tf="viridis", mode=third))
+    lo, hi = _union([v.volume for v in vols])
+    surfaces = any(isinstance(v, Isosurface) for v in vols)
+    lit = (surfaces or vols[0].shade) and rng.random() < 0.6
+    lights = [_light(rng, LIGHT_PLACES[seed % 5], lo, hi)] if lit else []
+    scene = Scene(camera=_camera(rng, lo, hi), size=SIZE, volumes=vols, lights=lights,
+                  shadows=lit and rng.random() < 0.7)
+    buffers = "depth,bits" if surfaces or seed % 3 else "bits"
+    supercell = (1, 2, 3, 0.5, 1.5)[seed % 5]
+    b = render(scene, "brute")
+    p = render(scene, "parc", buffers=buffers, supercell=supercell, work=not surfaces)
+    where = f"buffers={buffers} supercell={supercell} third={third} seed={seed}"
+    assert np.array_equal(np.isfinite(b.depth), np.isfinite(p.depth)), where
+    assert np.abs(b.image.astype(np.float64) - p.image).max() <= 1e-6, where
+    assert p.stats["samples"] <= b.stats["samples"], where
+    assert all("planes" in v for v, vis in zip(p.stats["volumes"], vols) if isinstance(vis, Translucent)), where
+    if not surfaces:
+        assert p.work.sum() == p.stats["samples"], where
+
+
+@pytest.mark.parametrize("shadows", [False, True])
+def test_bit_planes_alone_pass_over_the_merged_volumes_transparent_cells(gl, shadows):
+    # Neither depth buffers nor skip tables: what the walks pass over, the planes alone clear.
+    rng = np.random.default_rng(8)
+    a = _volume(rng, "blobs", dims=(14, 12, 13))
+    b = _volume(rng, "blobs", dims=(12, 14, 12))
+    b = Volume(b.data, spacing=b.spacing, origin=tuple(np.array(a.center) - 2.0), name="b")
+    fog = TransferFunction(opacity=[(0.0, 0.0), (120.0, 0.0), (200.0, 0.6), (255.0, 0.6)],
+                           color=[(0.0, 1.0, 0.5, 0.2), (255.0, 0.2, 0.6, 1.0)])
+    vols = [Translucent(a, tf=fog, shade=shadows), Translucent(b, tf=fog)]
+    lo, hi = _union([v.volume for v in vols])
+    lights = [_light(rng, "outside", lo, hi)] if shadows else []
+    scene = Scene(camera=_camera(rng, lo, hi), size=SIZE, volumes=vols, lights=lights, shadows=shadows)
+    b = render(scene, "brute")
+    p = render(scene, "parc", buffers="bits", supercell=2, blocks=False)
+    assert np.abs(b.image.astype(np.float64) - p.image).max() <= 1e-6
+    assert (b.image[..., 3] > 0.05).sum() > 20
+    assert p.stats["samples"] < 0.8 * b.stats["samples"], (p.stats["samples"], b.stats["samples"])
+    assert p.stats["polygons"] == sum(v["plane_polygons"] for v in p.stats["volumes"]) + p.stats["light_polygons"]
+
+
 def test_merged_translucent_volumes_skip_transparent_cells(gl):
     """Overlapping composite volumes (the merged walk) with an isosurface inside: the
     skip tables change no pixel and take fewer samples."""
