@@ -174,7 +174,7 @@ def test_parc_equals_brute_with_shadows_on_shaded_samples(seed, gl):
                     work=True)
     assert np.abs(planes.image - ref.image).max() <= 1e-6, f"{where} buffers={buffers}"
     assert planes.work.sum() == planes.stats["samples"] and (planes.work <= ref.work).all(), where
-    assert planes.stats["volumes"][0]["planes"] >= 0 and planes.stats["shadow_rays"] == ref.stats["shadow_rays"]
+    assert "planes" in planes.stats["volumes"][0] and planes.stats["shadow_rays"] == ref.stats["shadow_rays"], where
 
 
 def _slow_lattice(vol, o, d, step):
