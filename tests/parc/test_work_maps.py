@@ -80,6 +80,29 @@ def test_faint_translucent_volumes_map_the_samples_of_each(method):
     assert res.work.sum() == res.stats["samples"]
 
 
+@pytest.mark.parametrize("buffers, supercell", [("bits", 3), ("depth,bits", 2)])
+def test_faint_volumes_bounded_by_bit_planes_take_the_samples_each_takes_alone(gl, buffers, supercell):
+    # The merged walk's plane test is the one-volume walk's: with the planes (and no skip
+    # tables, so that they decide), each volume takes the samples it takes alone. At this
+    # size a walk that kept the last pixel's stretch in a set plane took more.
+    a, b = _volumes()
+    faint = TransferFunction([[_mid(a, 0.3), 0.0], [_mid(a, 0.9), 0.004]], [[0.0, 1.0, 0.5, 0.2]])
+    vols = [Translucent(a, faint), Translucent(b, "greyscale", mode="mip"),
+            Translucent(b, faint, shade=True, step=0.7)]
+    size = (64, 56)
+    scene = Scene(camera=CAM, size=size, volumes=vols, lights=LIGHTS)
+    kw = dict(buffers=buffers, blocks=False, supercell=supercell, work=True)
+    res = render(scene, "parc", **kw)
+    assert res.image[..., 3].max() < 0.99
+    alone = [render(Scene(camera=CAM, size=size, volumes=[v]), "parc", **kw).work for v in vols]
+    assert np.array_equal(res.work, sum(alone))
+    # The planes cut samples: fewer than whole rays take, and with the depth buffers no more
+    # than those take alone.
+    assert res.stats["samples"] < render(scene, "brute").stats["samples"]
+    if "depth" in buffers:
+        assert res.stats["samples"] <= render(scene, "parc", blocks=False, supercell=supercell).stats["samples"]
+
+
 def test_shadows_on_shaded_samples_leave_the_camera_rays_work_as_it_is(method):
     # Shadowed samples are walked by the several-volume driver, twice over (counted, then
     # recorded); unshadowed, by the one-volume driver.
