@@ -246,7 +246,7 @@ def test_multi_volume_parc_equals_brute(gl, case, seed):
 
 
 @pytest.mark.random_scenes(40)
-def test_bit_planes_among_several_volumes_equal_brute(gl, seed):
+def test_parc_with_bit_planes_among_several_volumes_equals_brute(gl, seed):
     # Bit planes for every translucent volume of the scene (composite ones merged in one walk,
     # maximum and average ones apart), beside surfaces that keep their depth buffers, lit and
     # shadowed or not; without depth buffers where no surface needs them. Two composite volumes
