@@ -536,17 +536,15 @@ def cmd_bench(args):
 
 
 def _buffers(args, scene):
-    """PARC's buffers from --buffers (parsed, refused where no volume of ``scene`` is translucent)."""
-    from .renderer import DEFAULT_BUFFERS, bits_refused, parse_buffers
+    """PARC's buffers from --buffers (parsed, refused where no volume of ``scene`` is translucent;
+    the rest of what a scene refuses, `parc.renderer.check_request` says)."""
+    from .renderer import DEFAULT_BUFFERS, parse_buffers
     from .scene import Translucent
     if args.buffers is None:
         return DEFAULT_BUFFERS
     buffers = parse_buffers(args.buffers)
     if not any(isinstance(v, Translucent) for v in scene.volumes):
         raise InputError("--buffers applies to translucent volumes (--tf); isosurfaces use the depth buffers")
-    refused = bits_refused(scene) if "bits" in buffers else None
-    if refused:
-        raise InputError(f"--buffers {args.buffers}: {refused}")
     return buffers
 
 
