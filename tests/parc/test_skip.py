@@ -286,7 +286,8 @@ def test_volume_index_skip_tables_follow_the_isovalue():
 @pytest.mark.parametrize("cap", [1, 2, 5, 16, 127])
 def test_skip_radius_matches_repeated_erosion(cap):
     rng = np.random.default_rng(cap)
-    for shape, p_zero in (((9, 11, 13), 0.05), ((20, 7, 31), 0.002), ((1, 1, 40), 0.1), ((6, 30, 2), 0.0)):
+    for shape, p_zero in (((9, 11, 13), 0.05), ((20, 7, 31), 0.002), ((1, 1, 40), 0.1), ((6, 30, 2), 0.0),
+                          ((3, 4, 205), 0.01)):       # rows of whole vectors and a remainder
         classes = rng.choice(np.array([-1, 1], np.int8), size=shape)
         # Runs and slabs of one class, so that radii grow past a few cells.
         classes[:, :shape[1] // 2] = 1
@@ -302,7 +303,8 @@ def test_skip_radius_matches_repeated_erosion(cap):
 @pytest.mark.parametrize("cap", [1, 2, 5, 16, 127])
 def test_octant_radius_matches_directional_erosion(cap):
     rng = np.random.default_rng(100 + cap)
-    for shape, p_zero in (((9, 11, 13), 0.05), ((20, 7, 31), 0.002), ((1, 1, 40), 0.1), ((6, 30, 2), 0.0)):
+    for shape, p_zero in (((9, 11, 13), 0.05), ((20, 7, 31), 0.002), ((1, 1, 40), 0.1), ((6, 30, 2), 0.0),
+                          ((3, 4, 205), 0.01)):       # rows of whole vectors and a remainder
         classes = rng.choice(np.array([-1, 1], np.int8), size=shape)
         classes[:, :shape[1] // 2] = 1
         classes[rng.random(shape) < p_zero] = 0
