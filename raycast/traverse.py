@@ -291,10 +291,19 @@ def _linear_corners(data, i, j, k):
     # the differences of corners (interpolation, gradients) would round in
     # float32 -- past the corners' range, or to inf from +-3e38 -- where the
     # classification, in float64, rules the values out.
-    return (np.float64(data[k, j, i]), np.float64(data[k, j, i + 1]),
-            np.float64(data[k, j + 1, i]), np.float64(data[k, j + 1, i + 1]),
-            np.float64(data[k + 1, j, i]), np.float64(data[k + 1, j, i + 1]),
-            np.float64(data[k + 1, j + 1, i]), np.float64(data[k + 1, j + 1, i + 1]))
+    # Unsigned indices (a cell's are never negative): Numba adds the length to a negative
+    # signed index, a test and a select per index of every read, and without them `brute`'s
+    # CT head walks took 5-7% less time.
+    i = np.uint64(i)
+    j = np.uint64(j)
+    k = np.uint64(k)
+    i1 = i + np.uint64(1)
+    j1 = j + np.uint64(1)
+    k1 = k + np.uint64(1)
+    return (np.float64(data[k, j, i]), np.float64(data[k, j, i1]),
+            np.float64(data[k, j1, i]), np.float64(data[k, j1, i1]),
+            np.float64(data[k1, j, i]), np.float64(data[k1, j, i1]),
+            np.float64(data[k1, j1, i]), np.float64(data[k1, j1, i1]))
 
 
 @overload(cell_corners, jit_options=OVERLOAD_JIT)
