@@ -52,8 +52,8 @@ from .config import TILE_H, TILE_W, kernel, named_for
 from .rays import camera_ray, dealt_tile, tile_count
 from .shade import KIND_HEADLIGHT, blinn_phong, to_light, trilinear_gradient, unit_normal
 from .transfer import correct_opacity, tf_color, tf_lookup, tf_opacity
-from .traverse import (advance, cell_corners, clip_box, cube_exit, entry_anchor, grid_shape, step_cell, to_index_space,
-                       walk_from)
+from .traverse import (advance, cell_corners, cell_entry, clip_box, cube_exit, entry_anchor, grid_shape, step_cell,
+                       to_index_space, walk_from)
 
 MODE_COMPOSITE = 0
 MODE_MIP = 1
@@ -232,7 +232,7 @@ def visit_cell(A, s, inv, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1, c0, c1, t_end,
     (Tuples: Numba inlines no function of more than about 30 arguments.)
     """
     tq0, tq1 = plane[4], plane[5]
-    e = skip[k, j, i] if jump_min >= 0 else MAY_CONTRIBUTE
+    e = cell_entry(skip, i, j, k) if jump_min >= 0 else MAY_CONTRIBUTE
     if e == MAY_CONTRIBUTE:
         if not use_bits:
             return TAKE, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1, tq0, tq1

@@ -47,7 +47,7 @@ from .config import OVERLOAD_JIT, TILE_H, TILE_W, kernel
 from .cubic import cubic_along_ray, eval_cubic, first_root, trilinear_coefficients
 from .rays import camera_ray, dealt_tile, spread_run, spread_runs, tile_count
 from .shade import headlight_pixel
-from .traverse import (TINY_DIRECTION, advance, axis_state, cell_corners, clip_box, cube_exit, entry_anchor,
+from .traverse import (TINY_DIRECTION, advance, axis_state, cell_corners, cell_entry, clip_box, cube_exit, entry_anchor,
                        grid_shape, step_cell, to_index_space, walk_from)
 
 #: Octants of ray directions, numbered by `octant`.
@@ -186,7 +186,7 @@ def _entry_sign(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, i, j, k, sx, sy, sz,
         pi = i - sx
         _, _, px0, px1 = axis_state(Ox, Dx, pi)
     if jump_min >= 0:
-        sign = _cell_sign(skip[pk, pj, pi])
+        sign = _cell_sign(cell_entry(skip, pi, pj, pk))
         if sign != 0:
             return float(sign)
     return exit_sign(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, pi, pj, pk,
@@ -334,7 +334,7 @@ def _walk_iso(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, seg0, seg1, skip, jump_min, anc
         c1 = min(t_out, min(tx1, min(ty1, tz1)))
         sign = 0
         if jump_min >= 0:
-            entry = skip[k, j, i]
+            entry = cell_entry(skip, i, j, k)
             sign = _cell_sign(entry)
             if rounded and prev * sign < 0.0:
                 return _signed_entry(Ox, Oy, Oz, Dx, Dy, Dz, i, j, k, c0, cells, solves)
@@ -357,7 +357,7 @@ def _walk_iso(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, seg0, seg1, skip, jump_min, anc
                     # The landing cell is the cube's last cell on the ray,
                     # never past it: `advance` stops in the cell it leaves
                     # at or after tb, the cube's exit. The step below leaves it.
-                    sign = _cell_sign(skip[k, j, i])
+                    sign = _cell_sign(cell_entry(skip, i, j, k))
         if sign != 0:
             prev = float(sign)
             rounded = False

@@ -286,6 +286,12 @@ def _grid_shape(data):
     return None
 
 
+@kernel(inline="always")
+def cell_entry(table, i, j, k):
+    """``table[k, j, i]``, read with unsigned indices as `cell_corners` reads samples."""
+    return table[np.uint64(k), np.uint64(j), np.uint64(i)]
+
+
 def _linear_corners(data, i, j, k):
     # np.float64, not float(): in Numba float() of a float32 stays float32, and
     # the differences of corners (interpolation, gradients) would round in
