@@ -47,8 +47,8 @@ from .config import OVERLOAD_JIT, TILE_H, TILE_W, kernel
 from .cubic import cubic_along_ray, eval_cubic, first_root, trilinear_coefficients
 from .rays import camera_ray, dealt_tile, spread_run, spread_runs, tile_count
 from .shade import headlight_pixel
-from .traverse import (TINY_DIRECTION, advance, axis_state, cell_corners, cell_entry, clip_box, cube_exit, entry_anchor,
-                       grid_shape, step_cell, to_index_space, walk_from)
+from .traverse import (TINY_DIRECTION, advance, axis_state, cell_corners, cell_entry, clip_box, cube_exit,
+                       entry_anchor, grid_shape, step_cell, to_index_space, walk_from)
 
 #: Octants of ray directions, numbered by `octant`.
 OCTANTS = 8

@@ -297,9 +297,9 @@ def _linear_corners(data, i, j, k):
     # the differences of corners (interpolation, gradients) would round in
     # float32 -- past the corners' range, or to inf from +-3e38 -- where the
     # classification, in float64, rules the values out.
-    # Unsigned indices (a cell's are never negative): Numba adds the length to a negative
-    # signed index, a test and a select per index of every read, and without them `brute`'s
-    # CT head walks took 5-7% less time.
+    # Unsigned indices (a cell's are never negative): Numba tests each signed index for being
+    # negative, to add the axis's length, a compare and a select per index of every read;
+    # without those, `brute`'s CT head walks took 5-7% less time.
     i = np.uint64(i)
     j = np.uint64(j)
     k = np.uint64(k)
