@@ -63,13 +63,18 @@ def classify_iso(mn, mx, iso):
     ends, so a surface that only touches a box (isovalue equal to a corner)
     keeps it.
     """
+    return _over_boxes(_classify_iso, mn, mx, iso, np.bool_)
+
+
+def _over_boxes(kernel, mn, mx, iso, dtype):
+    """``kernel(mn, mx, iso, out)`` over the ranges flattened, into a new ``dtype`` array of their shape."""
     mn = np.ascontiguousarray(mn)
     mx = np.ascontiguousarray(mx)
     if mn.shape != mx.shape:
-        raise ValueError(f"classify_iso: ranges of shapes {mn.shape} and {mx.shape}")
-    out = np.empty(mn.shape, np.bool_)
+        raise ValueError(f"ranges of shapes {mn.shape} and {mx.shape}")
+    out = np.empty(mn.shape, dtype)
     if out.size:
-        _classify_iso(mn.reshape(-1), mx.reshape(-1), np.float64(iso), out.reshape(-1))
+        kernel(mn.reshape(-1), mx.reshape(-1), np.float64(iso), out.reshape(-1))
     return out
 
 
@@ -114,12 +119,7 @@ def sign_iso(mn, mx, iso):
     One parallel pass (`_sign_iso`): a 512x512x1734 volume's cells in 0.21 s,
     against 1.9 s for NumPy's two comparisons through float64.
     """
-    mn = np.ascontiguousarray(mn)
-    mx = np.ascontiguousarray(mx)
-    out = np.empty(mn.shape, np.int8)
-    if out.size:
-        _sign_iso(mn.reshape(-1), mx.reshape(-1), np.float64(iso), out.reshape(-1))
-    return out
+    return _over_boxes(_sign_iso, mn, mx, iso, np.int8)
 
 
 @kernel(parallel=True)
