@@ -130,6 +130,45 @@ def _cache_is_only_a_shortcut():
 _cache_is_only_a_shortcut()
 
 
+def _quicker_copy_propagation():
+    """Copy Numba's sets of copies and aliases without ``copy.deepcopy``, to the same result.
+
+    Numba's copy propagation and alias analysis (`numba.core.ir_utils`) copy a
+    ``{label or name: set of names or (name, name)}`` with ``copy.deepcopy`` at each step of
+    their fixed points: in a parallel loop's inlined body, a quarter of its compile (the merged
+    walk's `cast_plain`: 7 s of 28 under ``cProfile``). ``deepcopy`` returns strings, and tuples
+    of them, as they are, and rebuilds each set from a list of its members; so does this, and
+    the copies iterate in the same order (``set(v)`` would not, after removals). The merged
+    walk's variants compile in 9.7 s against 11.2 (`cast_plain`, one uint8 volume) and 11.4
+    against 13.2 (`cast_record`), their machine code the same instruction for instruction.
+    Anything else goes to ``copy.deepcopy``, and a Numba whose ``ir_utils`` does not use the
+    ``copy`` module is left as it is.
+    """
+    import copy
+    import types
+
+    from numba.core import ir_utils
+
+    def names(x):
+        return type(x) is str or (type(x) is tuple and all(type(s) is str for s in x))
+
+    def deepcopy(x, memo=None):
+        if (type(x) is dict and memo is None
+                and all(type(k) in (int, str) and type(v) is set and all(names(e) for e in v)
+                        for k, v in x.items())):
+            return {k: set(list(v)) for k, v in x.items()}
+        return copy.deepcopy(x, memo)
+
+    if getattr(ir_utils, "copy", None) is copy:
+        shim = types.ModuleType("copy")
+        shim.__dict__.update(copy.__dict__)
+        shim.deepcopy = deepcopy
+        ir_utils.copy = shim
+
+
+_quicker_copy_propagation()
+
+
 class _CompilerLockWatch(numba.core.event.Listener):
     """How deep Numba's compiler lock is held (compiling, or loading a kernel from the cache),
     and what is to be done once it is let go.

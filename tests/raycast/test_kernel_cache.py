@@ -312,3 +312,29 @@ def test_a_damaged_data_file_under_a_whole_index_is_compiled_again(tmp_path):
             f.write_bytes(f.read_bytes()[:cut])
         assert run() == ["2.0", "0"]                       # compiled again, and written over
         assert run() == ["2.0", "1"]
+
+
+def test_numba_copies_its_sets_of_names_as_deepcopy_would(monkeypatch):
+    # `raycast.config._quicker_copy_propagation`: the same copies, iterating in the same order,
+    # so that Numba's fixed points (and the code it compiles) cannot change.
+    import copy
+
+    from numba.core import ir_utils
+
+    import raycast.config  # noqa: F401 - installs the copies, as every kernel's module does
+    assert ir_utils.copy is not copy and ir_utils.copy.copy is copy.copy
+    removed = {("v%d" % i, "w%d" % i) for i in range(200)}
+    for i in range(0, 200, 3):
+        removed.discard(("v%d" % i, "w%d" % i))     # set(removed) would iterate in another order
+    aliases = {"a": {"b", "c"}, "b": {"a"}, "c": set()}
+    for sets in ({3: removed, 7: set(), 9: {("x", "y")}}, aliases):
+        meant = copy.deepcopy(sets)
+        with monkeypatch.context() as m:
+            m.setattr(copy, "deepcopy", None)   # the point: these are copied without it
+            made = ir_utils.copy.deepcopy(sets)
+        assert made == meant and list(made) == list(meant)
+        assert all(list(made[k]) == list(meant[k]) and made[k] is not sets[k] for k in sets)
+    # Anything else is deep-copied by copy.deepcopy: lists inside are copies, not the same lists.
+    nested = {1: [["a"]], 2: set()}
+    made = ir_utils.copy.deepcopy(nested)
+    assert made == nested and made[1][0] is not nested[1][0]
