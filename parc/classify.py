@@ -20,8 +20,9 @@ import numpy as np
 from numba import prange
 
 from raycast.composite import INTERP_ROUNDING
-from raycast.config import kernel
+from raycast.config import RANGE_CHUNK, kernel
 from raycast.iso import NO_SKIP_OCTANTS, OCTANTS
+from raycast.rays import chunk_count
 
 from .ranges import block_ranges, cell_minmax, supercell_grid, supercell_ranges, supercell_size
 from .skip import ISO_JUMP_MIN, SKIP_CAP, TF_JUMP_MIN, octant_radius, skip_radius
@@ -37,10 +38,6 @@ ASKS_KEPT = 64
 # --------------------------------------------------------------------------
 # Classification
 # --------------------------------------------------------------------------
-
-#: Boxes a thread of `_classify_iso` and `_sign_iso` takes at a time.
-BOX_CHUNK = 1 << 16
-
 
 def classify_iso(mn, mx, iso):
     """Possibly contributing boxes for an isosurface: ``mn <= iso <= mx``.
@@ -84,9 +81,8 @@ def _classify_iso(mn, mx, iso, out):
     which the cost model classifies for every new isovalue) in 0.026 s, against 0.047 s for
     NumPy's two comparisons through float64 and their ``&``."""
     n = out.shape[0]
-    chunks = (n + BOX_CHUNK - 1) // BOX_CHUNK
-    for c in prange(chunks):
-        for m in range(c * BOX_CHUNK, min(n, (c + 1) * BOX_CHUNK)):
+    for c in prange(chunk_count(n, RANGE_CHUNK)):
+        for m in range(c * RANGE_CHUNK, min(n, (c + 1) * RANGE_CHUNK)):
             out[m] = (np.float64(mn[m]) <= iso) & (np.float64(mx[m]) >= iso)
 
 
@@ -125,9 +121,8 @@ def sign_iso(mn, mx, iso):
 @kernel(parallel=True)
 def _sign_iso(mn, mx, iso, out):
     n = out.shape[0]
-    chunks = (n + BOX_CHUNK - 1) // BOX_CHUNK
-    for c in prange(chunks):
-        for m in range(c * BOX_CHUNK, min(n, (c + 1) * BOX_CHUNK)):
+    for c in prange(chunk_count(n, RANGE_CHUNK)):
+        for m in range(c * RANGE_CHUNK, min(n, (c + 1) * RANGE_CHUNK)):
             # In float64, as the caster compares: a float32 isovalue would misplace ranges ending
             # between the two roundings.
             out[m] = (1 if np.float64(mn[m]) > iso else 0) - (1 if np.float64(mx[m]) < iso else 0)

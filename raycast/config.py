@@ -266,6 +266,10 @@ TILE_H = 4
 #: shading it balanced (an integer division per pixel).
 SPREAD_CHUNK = 64
 
+#: Parallel passes over volume-sized arrays of value ranges (`parc.classify`'s isovalue tests,
+#: `parc.transfer`'s range query) give each thread runs of this many, one after another.
+RANGE_CHUNK = 1 << 16
+
 #: Root finder: bisection/Newton stops when the bracket is this small
 #: relative to the cell's t-interval (well below the 1e-9-of-a-cell target).
 ROOT_REL_TOL = 1e-15

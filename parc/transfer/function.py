@@ -59,14 +59,12 @@ from numba import prange
 
 from data_tools import InputError
 from data_tools.volume import is_number
-from raycast.config import kernel
+from raycast.config import RANGE_CHUNK, kernel
+from raycast.rays import chunk_count
 
 
 #: Opacities are per reference step: this fraction of the smallest spacing.
 REFERENCE_STEP_FRACTION = 0.25
-
-#: Ranges a thread of `TransferFunction.nonzero_in` tests at a time.
-_CHUNK = 1 << 16
 
 def reference_step(spacing):
     """The step opacities refer to: `REFERENCE_STEP_FRACTION` of the smallest spacing."""
@@ -440,8 +438,8 @@ def _jumps_kept(points):
 def _nonzero_by_table(a, a_bits, b, need, out):
     """``need[a] <= b`` and ``a <= b`` for each range (`TransferFunction._small_int_table`)."""
     n = out.shape[0]
-    for c in prange((n + _CHUNK - 1) // _CHUNK):
-        for m in range(c * _CHUNK, min(n, (c + 1) * _CHUNK)):
+    for c in prange(chunk_count(n, RANGE_CHUNK)):
+        for m in range(c * RANGE_CHUNK, min(n, (c + 1) * RANGE_CHUNK)):
             out[m] = (need[a_bits[m]] <= b[m]) & (a[m] <= b[m])
 
 
@@ -452,8 +450,8 @@ def _nonzero_by_search(a, b, lo, hi, rounding, out):
     float64; a NaN end is an unknown range, met; ``a > b`` before widening, none."""
     n = out.shape[0]
     k_end = hi.shape[0]
-    for c in prange((n + _CHUNK - 1) // _CHUNK):
-        for m in range(c * _CHUNK, min(n, (c + 1) * _CHUNK)):
+    for c in prange(chunk_count(n, RANGE_CHUNK)):
+        for m in range(c * RANGE_CHUNK, min(n, (c + 1) * RANGE_CHUNK)):
             x = np.float64(a[m])
             y = np.float64(b[m])
             if np.isnan(x) or np.isnan(y):

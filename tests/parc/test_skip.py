@@ -471,9 +471,10 @@ def test_compare_times_frames_with_the_octant_tables_from_its_first(gl, warmup):
 
 def test_sign_iso_and_classify_iso_over_several_chunks_of_boxes():
     # Counts either side of whole chunks of boxes, which threads take one at a time.
-    from parc.classify import BOX_CHUNK, classify_iso
+    from parc.classify import classify_iso
+    from raycast.config import RANGE_CHUNK
     rng = np.random.default_rng(3)
-    for n in (BOX_CHUNK - 1, BOX_CHUNK, BOX_CHUNK + 1, 3 * BOX_CHUNK + 7):
+    for n in (RANGE_CHUNK - 1, RANGE_CHUNK, RANGE_CHUNK + 1, 3 * RANGE_CHUNK + 7):
         mn = rng.integers(-100, 100, n).astype(np.int16)
         mx = mn + rng.integers(0, 50, n).astype(np.int16)
         for iso in (0.0, 0.5, float(mn[-1]), float(mx[-1]) + 0.5, float(mn[0]) - 0.5):

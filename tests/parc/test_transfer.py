@@ -21,6 +21,7 @@ from parc import transfer as T
 from parc.transfer import (PRESET_DESCRIPTIONS, PRESETS, TransferFunction, correct_opacity,
                            load_transfer_function, preset, save_transfer_function, tf_lookup,
                            tf_opacity)
+from raycast.config import RANGE_CHUNK
 
 
 # --------------------------------------------------------------------------
@@ -330,7 +331,7 @@ def test_nonzero_in_dtypes_shapes_and_chunks():
     # Over several of the chunks threads take: NumPy's search of the support, and the int16
     # ranges' table lookups against the same ranges in float64.
     rng = np.random.default_rng(6)
-    a = rng.uniform(300, 900, 3 * T.function._CHUNK + 7)
+    a = rng.uniform(300, 900, 3 * RANGE_CHUNK + 7)
     b = a + rng.uniform(0, 50, a.size)
     lo, hi = tf.support().T
     k = np.searchsorted(hi, a, side="left")
