@@ -86,7 +86,11 @@ result, never break it.
 - A face whose bound is not tighter than its own range of t (seen nearly
   edge-on, or face-on in a parallel view) writes that range, computed in
   float64 and rounded outwards; a perspective face whose plane passes so
-  close to the eye that ``q > 1/4`` writes its range and discards nothing.
+  close to the eye that ``q > 1/4`` writes its range and discards nothing,
+  and so does every face of a view whose bound on t is off by more than a
+  quarter of t (a field of view within about 1e-4 degree of 180, where the
+  float32 directions across the image round by more than the central
+  ray's length).
 
 Speed
 -----

@@ -141,6 +141,10 @@ void face_constants(int a, int u, int v, double c, dvec4 rect, double tlo, doubl
         double rel_s = (q + 2.0 * EPS + DIV) / (1.0 - q);
         double nu = length(err_d) + DIV * (1.0 + length(err_d));
         double rel_t = (1.0 + rel_s) * (1.0 + nu) * (1.0 + EPS) - 1.0;
+        // |d|'s own rounding can pass |d| (a field of view within ~1e-4 degree of 180: the
+        // direction's components across the image reach 1e6, and their float32 roundings
+        // pass 1); then t -+ e bounds nothing, and below rel_t = 1 its formula changes sign.
+        valid = valid && rel_t <= 0.25;
         e_abs = abs_tol;
         e_rel = 2.0 * rel_t / (1.0 - rel_t) + 4.0 * EPS;
         ep_u = 2.0 * thi * (rel_s * (1.0 + err_d[u]) + err_d[u] + EPS * (1.0 + rel_s) * (1.0 + err_d[u]))

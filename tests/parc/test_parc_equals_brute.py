@@ -5,6 +5,8 @@ the segment its OpenGL pass found; the traversal and the cubic are the same
 code, so every pixel must agree: identical hit masks, depths within 1e-9
 of a cell, colours within 1e-6 (DESIGN.md, "Correctness").
 """
+import math
+
 import numpy as np
 import pytest
 
@@ -311,6 +313,31 @@ def test_an_eye_on_a_faces_plane_far_from_0_whose_entry_face_reaches_behind_it(g
     assert ref.image[..., 3].all()
     assert np.array_equal(np.isfinite(res.depth), np.isfinite(ref.depth))
     assert np.abs(res.image - ref.image).max() <= 1e-6
+
+
+@pytest.mark.parametrize("what", ["iso", "depth", "depth,bits"])
+def test_a_field_of_view_a_millionth_of_a_degree_short_of_180(gl, what):
+    # tan(fov / 2) is 4e7: across the image the ray direction's components reach 4e7, and their
+    # float32 rounding (about 10) passes the length of the central ray's direction (1). The
+    # top face's bound on that ray's t came out negative, the face was discarded, and the ray
+    # started at a side face's nearest distance, below the surface and the samples under the top.
+    nz = 6
+    data = np.broadcast_to(np.arange(nz, dtype=np.float32)[:, None, None], (nz, 7, 9)).copy()
+    vol = Volume(data, spacing=(1.0, 1.5, 0.5))
+    lo, hi = vol.bounds
+    cx, cy = (lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2
+    cam = Camera(eye=(cx, cy, hi[2] + 4.0), look_at=(cx, cy, hi[2] + 3.0), up=(0.0, 1.0, 0.0), fov=180.0 - 3e-6)
+    assert math.tan(math.radians(cam.fov) / 2) > 1e7                 # the case
+    vis, kwargs = _shown(vol, what, nz - 1.5, [[0.0, 0.3], [nz - 1.0, 0.3]])
+    scene = Scene(camera=cam, size=(21, 21), volumes=[vis])
+    ref = render(scene, method="brute")
+    assert ref.image[10, 10, 3] > 0.0                                # the central ray shows it
+    for supercell in (1, 2):
+        res = render(scene, method="parc", supercell=supercell, **kwargs)
+        assert np.array_equal(np.isfinite(res.depth), np.isfinite(ref.depth))
+        hit = np.isfinite(ref.depth)
+        assert np.abs(res.depth[hit] - ref.depth[hit]).max(initial=0.0) <= 1e-9 * 0.5
+        assert np.abs(res.image - ref.image).max() <= 1e-6
 
 
 def test_a_grid_millions_of_samples_long_pads_its_sub_cell_ranges_for_its_length(gl):
