@@ -127,6 +127,56 @@ def test_parc_equals_brute(seed, gl):
     assert not more, f"parc visits more cells than brute at {more}: {where}"
 
 
+def _wide_camera(rng, vol):
+    """A perspective view 120 degrees wide to a ten-millionth of a degree short of 180, from
+    outside the volume (along an axis half the time: the central ray meets a face head-on) or
+    inside it. Across the image the directions reach tan(fov / 2), up to 1e9 times the
+    central one, and their float32 roundings in the OpenGL pass can pass its length."""
+    lo, hi = vol.bounds
+    ext = float(np.linalg.norm(hi - lo))
+    fov = float(rng.uniform(120, 179)) if rng.random() < 0.3 else 180.0 - 10.0 ** rng.uniform(-7, -4)
+    look = vol.center + rng.normal(size=3) * 0.05 * (hi - lo)
+    if rng.random() < 0.2:
+        return Camera(eye=tuple(lo + rng.uniform(0.1, 0.9, 3) * (hi - lo)), look_at=tuple(look),
+                      up=(0.3, 0.2, 1.0), fov=fov)
+    if rng.random() < 0.5:
+        axis = rng.integers(3)
+        d = np.zeros(3)
+        d[axis] = rng.choice([-1.0, 1.0])
+        eye = look - d * ((hi - lo)[axis] / 2 + ext * rng.uniform(0.02, 0.5))
+    else:
+        d = rng.normal(size=3)
+        eye = look - d / np.linalg.norm(d) * ext * rng.uniform(0.55, 1.0)
+    return Camera(eye=tuple(eye), look_at=tuple(look), up=(0.3, 0.2, 1.0), fov=fov)
+
+
+@pytest.mark.random_scenes(30)
+def test_parc_equals_brute_in_wide_views(seed, gl):
+    rng = np.random.default_rng(seed)
+    kind = KINDS[seed % len(KINDS)]
+    what = ("iso", "depth", "bits", "depth,bits")[seed % 4]
+    supercell = SUPERCELLS[seed % len(SUPERCELLS)]
+    vol = _volume(rng, kind)
+    lo, hi = vol.value_range()
+    for _ in range(MAX_DRAWS):
+        level = _isovalue(rng, vol)
+        # Translucent: faint below the level, a jump there (a bright shell), fading above.
+        ramp = [[lo, 0.05], [level, 0.05], [level, 0.6], [hi, 0.2]] if lo < level < hi else [[lo, 0.3], [hi, 0.3]]
+        vis, kwargs = _shown(vol, what, level, ramp)
+        scene = Scene(camera=_wide_camera(rng, vol), size=(25, 19), volumes=[vis])
+        ref = render(scene, method="brute")
+        if ref.image[..., 3].any():
+            break
+    res = render(scene, method="parc", supercell=supercell, **kwargs)
+
+    where = f"{kind} {what} supercell={supercell} fov={scene.camera.fov!r} level={level:g}"
+    assert ref.image[..., 3].any(), f"no scene of {MAX_DRAWS} drawn shows the volume: {where}"
+    hit_ref, hit = np.isfinite(ref.depth), np.isfinite(res.depth)
+    assert (hit == hit_ref).all(), f"hit masks differ at {np.argwhere(hit != hit_ref)[:5].tolist()}: {where}"
+    assert np.abs(res.depth[hit] - ref.depth[hit]).max(initial=0) <= 1e-9 * min(vol.spacing), where
+    assert np.abs(res.image - ref.image).max() <= 1e-6, where
+
+
 def _same_hits(scene, supercell):
     """``parc`` hits exactly ``brute``'s pixels, at exactly its depths (and ``brute`` hits some)."""
     ref = render(scene, method="brute")
