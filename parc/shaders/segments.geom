@@ -142,8 +142,9 @@ void face_constants(int a, int u, int v, double c, dvec4 rect, double tlo, doubl
         double nu = length(err_d) + DIV * (1.0 + length(err_d));
         double rel_t = (1.0 + rel_s) * (1.0 + nu) * (1.0 + EPS) - 1.0;
         // |d|'s own rounding can pass |d| (a field of view within ~1e-4 degree of 180: the
-        // direction's components across the image reach 1e6, and their float32 roundings
-        // pass 1); then t -+ e bounds nothing, and below rel_t = 1 its formula changes sign.
+        // direction's components across the image reach 1e6, and the bound on their float32
+        // roundings passes 1); then t -+ e bounds nothing, and past rel_t = 1 e_rel turns
+        // negative.
         valid = valid && rel_t <= 0.25;
         e_abs = abs_tol;
         e_rel = 2.0 * rel_t / (1.0 - rel_t) + 4.0 * EPS;
