@@ -22,7 +22,7 @@ from numba import prange
 from raycast.composite import INTERP_ROUNDING
 from raycast.config import RANGE_CHUNK, kernel
 from raycast.iso import NO_SKIP_OCTANTS, OCTANTS
-from raycast.rays import chunk_count
+from raycast.rays import chunk_count, chunk_run
 
 from .ranges import block_ranges, cell_minmax, supercell_grid, supercell_ranges, supercell_size
 from .skip import ISO_JUMP_MIN, SKIP_CAP, TF_JUMP_MIN, octant_radius, skip_radius
@@ -82,7 +82,8 @@ def _classify_iso(mn, mx, iso, out):
     NumPy's two comparisons through float64 and their ``&``."""
     n = out.shape[0]
     for c in prange(chunk_count(n, RANGE_CHUNK)):
-        for m in range(c * RANGE_CHUNK, min(n, (c + 1) * RANGE_CHUNK)):
+        m0, m1 = chunk_run(c, RANGE_CHUNK, n)
+        for m in range(m0, m1):
             out[m] = (np.float64(mn[m]) <= iso) & (np.float64(mx[m]) >= iso)
 
 
@@ -122,7 +123,8 @@ def sign_iso(mn, mx, iso):
 def _sign_iso(mn, mx, iso, out):
     n = out.shape[0]
     for c in prange(chunk_count(n, RANGE_CHUNK)):
-        for m in range(c * RANGE_CHUNK, min(n, (c + 1) * RANGE_CHUNK)):
+        m0, m1 = chunk_run(c, RANGE_CHUNK, n)
+        for m in range(m0, m1):
             # In float64, as the caster compares: a float32 isovalue would misplace ranges ending
             # between the two roundings.
             out[m] = (1 if np.float64(mn[m]) > iso else 0) - (1 if np.float64(mx[m]) < iso else 0)

@@ -73,6 +73,13 @@ def chunk_count(n, size):
 
 
 @kernel
+def chunk_run(c, size, n):
+    """Items ``lo <= m < hi`` of run ``c`` of `chunk_count(n, size)` runs."""
+    lo = c * size
+    return lo, min(n, lo + size)
+
+
+@kernel
 def spread_runs(n):
     """Runs of `SPREAD_CHUNK` items covering ``n`` single rays or pixels."""
     return chunk_count(n, SPREAD_CHUNK)

@@ -60,7 +60,7 @@ from numba import prange
 from data_tools import InputError
 from data_tools.volume import is_number
 from raycast.config import RANGE_CHUNK, kernel
-from raycast.rays import chunk_count
+from raycast.rays import chunk_count, chunk_run
 
 
 #: Opacities are per reference step: this fraction of the smallest spacing.
@@ -439,7 +439,8 @@ def _nonzero_by_table(a, a_bits, b, need, out):
     """``need[a] <= b`` and ``a <= b`` for each range (`TransferFunction._small_int_table`)."""
     n = out.shape[0]
     for c in prange(chunk_count(n, RANGE_CHUNK)):
-        for m in range(c * RANGE_CHUNK, min(n, (c + 1) * RANGE_CHUNK)):
+        m0, m1 = chunk_run(c, RANGE_CHUNK, n)
+        for m in range(m0, m1):
             out[m] = (need[a_bits[m]] <= b[m]) & (a[m] <= b[m])
 
 
@@ -451,7 +452,8 @@ def _nonzero_by_search(a, b, lo, hi, rounding, out):
     n = out.shape[0]
     k_end = hi.shape[0]
     for c in prange(chunk_count(n, RANGE_CHUNK)):
-        for m in range(c * RANGE_CHUNK, min(n, (c + 1) * RANGE_CHUNK)):
+        m0, m1 = chunk_run(c, RANGE_CHUNK, n)
+        for m in range(m0, m1):
             x = np.float64(a[m])
             y = np.float64(b[m])
             if np.isnan(x) or np.isnan(y):

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from raycast.config import SPREAD_CHUNK, TILE_H, TILE_W
-from raycast.rays import chunk_count, dealt_tile, spread, spread_run, spread_runs, tile_count, tile_rect
+from raycast.rays import chunk_count, chunk_run, dealt_tile, spread, spread_run, spread_runs, tile_count, tile_rect
 
 
 @pytest.mark.parametrize("ways", [1, 2, 3, 4, 16])
@@ -49,6 +49,10 @@ def test_one_way_is_the_natural_order():
 
 def test_chunks_and_tiles_cover_the_items():
     assert chunk_count(0, 64) == 0 and chunk_count(64, 64) == 1 and chunk_count(65, 64) == 2
+    for n in (0, 1, 63, 64, 65, 200):
+        runs = [chunk_run(c, 64, n) for c in range(chunk_count(n, 64))]
+        assert [m for lo, hi in runs for m in range(lo, hi)] == list(range(n))   # each item once, in order
+        assert all(0 < hi - lo <= 64 for lo, hi in runs)
     width, row0, row1 = 70, 3, 18
     # A margin past the image: a tile's rectangle running beyond it (pixels the casters
     # would read and write out of bounds) counts there instead of being cut off by the slice.
