@@ -71,8 +71,11 @@ class Where:
         return parse_text(tomllib.loads, text, self.path, "TOML")
 
     def resolve(self, name):
-        """A path from the file, relative to the file's folder."""
-        return self.folder / Path(name).expanduser()
+        """A path from the file, relative to the file's folder; ``~`` and ``~user`` are home folders."""
+        try:
+            return self.folder / Path(name).expanduser()
+        except RuntimeError:                # ~user of no user known here
+            raise InputError(f"{name}: no home folder is known for {name.split('/')[0]}") from None
 
 
 def kind(value):

@@ -390,7 +390,11 @@ BAD = [
     ("background = [0, 1.01, 0]\n{V}", "background", "[0, 1]"),
     ("[camera]\nzoom = 0\n{V}", "camera.zoom", "positive"),
     ("[[volume]]\nfile = 'data/ball.nrrd'\niso = 0\niso_value_of_the_surface = 1",
-     "volume[1].iso_value_of_the_surface", "unknown key; did you mean iso?"),
+     "volume[1].iso_value_of_the_surface", "unknown key; did you mean iso?"),    # ~user is a home folder; one of no known user is refused, not a traceback from pathlib.
+    ("[[volume]]\nfile = '~no-such-user-here/ball.nrrd'\niso = 0", "volume[1].file",
+     "no home folder is known for ~no-such-user-here"),
+    ("[[volume]]\nfile = 'data/ball.nrrd'\ntf = '~no-such-user-here/cold.toml'", "volume[1].tf",
+     "no home folder is known for ~no-such-user-here"),
 ]
 
 
