@@ -306,7 +306,7 @@ def build_parser():
                    help="with --tf: run brute and parc once per sample step, e.g. 1,0.5,0.25, against a "
                         "reference at the finest step / 4: speed against error")
     c.add_argument("--repeats", type=int, default=3,
-                   help="timed renders per method, after one to warm up; the median is reported (default 3)")
+                   help="timed renders per method (1 to 10000), after one to warm up; the median is reported (default 3)")
     c.add_argument("--json", action="store_true",
                    help="print the rows as JSON instead of a table (strict JSON: psnr null means identical images)")
     _add_common_options(c)

@@ -437,7 +437,7 @@ def _describe(vis):
 
 
 def cmd_compare(args):
-    from .comparison import SUPERCELL_SWEEP_NOTE, compare, format_table, method_names
+    from .comparison import MAX_REPEATS, SUPERCELL_SWEEP_NOTE, compare, format_table, method_names
     from .renderer import kernel_samples
 
     say = (lambda *a: None) if args.quiet else note
@@ -454,8 +454,8 @@ def cmd_compare(args):
     if not any(m.split(":")[0] == "parc" for m in methods):
         # Before the scene and the note on compiling the casters: a run refused has its error line alone.
         _refuse_parc_flags(args, "applies to parc, which --methods leaves out")
-    if args.repeats < 1:
-        raise InputError(f"--repeats must be at least 1, got {args.repeats}")
+    if not 1 <= args.repeats <= MAX_REPEATS:
+        raise InputError(f"--repeats must be from 1 to {MAX_REPEATS}, got {args.repeats}")
     _check_sweep_flags(args)
     steps = None
     if args.sweep_step is not None:

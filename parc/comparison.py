@@ -15,6 +15,10 @@ from .renderer import render
 from .skip import expect_frames
 from .workspace import check_scene_memory
 
+#: The most timed renders (and warm-ups) a comparison takes: a median of more measures nothing
+#: new, and a count past it is more likely a slip of the keyboard than a plan to wait for days.
+MAX_REPEATS = 10_000
+
 
 def image_error(result, reference, cell_size):
     """Error of one render against the reference render of the same scene.
@@ -48,7 +52,7 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
     methods : sequence of str
         Methods to run; ``"brute"`` is always run (first) as the reference.
     repeats : int, default 3
-        Timed renders per method, taken in rounds of one render per method
+        Timed renders per method (at most `MAX_REPEATS`), taken in rounds of one render per method
         (so that a drift in the machine's speed reaches every method
         alike); the median wall time of a whole `render` call is reported.
     warmup : int, default 1
@@ -336,6 +340,8 @@ def _check_runs(what, scene, repeats, warmup):
     for name, value, least in (("repeats", repeats, 1), ("warmup", warmup, 0)):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < least:
             raise InputError(f"{name} must be a whole number >= {least}, got {value!r}")
+        if value > MAX_REPEATS:
+            raise InputError(f"{name} must be at most {MAX_REPEATS}, got {value}")
 
 
 def _check_progress(progress, of):

@@ -193,6 +193,8 @@ CASES = {
     "light buffer of 1": (lambda: parc.render(_scene(lights=[parc.PointLight((1, 2, 3))]), light_buffer=1),
                           "light buffers take a whole number of pixels from 2"),
     "repeats True": (lambda: parc.compare(_scene(), repeats=True), "repeats must be a whole number"),
+    "repeats 10001": (lambda: parc.compare(_scene(), repeats=10_001), "repeats must be at most 10000, got 10001"),
+    "warmup 10**20": (lambda: step_sweep(_fog(), [0.5], warmup=10**20), "warmup must be at most 10000"),
     "options for a method not run": (lambda: parc.compare(_scene(), methods=("brute",), options={"parc": {}}),
                                      "not among the methods"),
 }

@@ -216,7 +216,9 @@ def test_translucent_flags_on_an_isosurface_are_refused(extra, flag, vol_file, t
 
 
 @pytest.mark.parametrize("extra, words", [
-    (["--repeats", "0"], "--repeats must be at least 1, got 0"),
+    (["--repeats", "0"], "--repeats must be from 1 to 10000, got 0"),
+    (["--repeats", "10001"], "--repeats must be from 1 to 10000, got 10001"),
+    (["--repeats", "99999999999999999999"], "--repeats must be from 1 to 10000, got 99999999999999999999"),
     (["--sweep-step", "0,1"], "--sweep-step must be comma-separated positive numbers, got '0,1'"),
     (["--sweep-step", "-1,1"], "--sweep-step must be comma-separated positive numbers, got '-1,1'"),
     (["--sweep-step", "1,0.5", "--step", "0.25"], "--step does not combine with --sweep-step (it varies the step)"),
