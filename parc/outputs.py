@@ -43,6 +43,9 @@ def check_output(path, allowed):
     """Refuse an output path before any work: wrong extension, missing or unwritable folder."""
     if str(path) == "":
         raise InputError(f"the output path is empty; give a file ending in {' or '.join(allowed)}")
+    if str(path).endswith(("/", os.sep)):
+        # Path() drops the slash: "out.png/" would write the file out.png, where the user named a folder.
+        raise InputError(f"{path}: ends in a slash, as a folder's name does; give a file ending in {' or '.join(allowed)}")
     path = Path(path)
     if path.suffix.lower() not in allowed:
         raise InputError(f"{path}: output must end in {' or '.join(allowed)}")

@@ -2168,6 +2168,17 @@ def test_a_supercell_sweep_is_read_before_the_volume(value, words, tmp_path, cap
     assert rc == 2 and err.count("\n") == 1 and words in err, err
 
 
+@pytest.mark.parametrize("flag", ["-o", "--stats", "--depth"])
+def test_an_output_named_with_a_trailing_slash_is_refused(flag, vol_file, tmp_path, capsys):
+    # pathlib drops the slash: "o.png/" was written as the file o.png, where the name says a folder.
+    name = {"-o": "o.png", "--stats": "s.json", "--depth": "d.npy"}[flag]
+    outputs = {"-o": tmp_path / "o.png", flag: f"{tmp_path / name}/"}
+    argv = ["render", vol_file, "--iso", 4, "--size", 8, 8, *[x for kv in outputs.items() for x in kv]]
+    rc, _, err = _run(argv, capsys)
+    assert rc == 2 and err.count("\n") == 1 and f"{name}/: ends in a slash" in err, err
+    assert not (tmp_path / "o.png").exists() and not (tmp_path / name).exists()
+
+
 @pytest.mark.parametrize("kind", ["folder", "pipe", "stats on a pipe"])
 def test_an_output_that_cannot_be_a_file_is_refused_before_the_render(kind, vol_file, tmp_path, capsys, monkeypatch):
     # Refused only after the render, the same line would come once the wait was over.
