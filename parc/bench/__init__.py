@@ -425,6 +425,10 @@ def main(args):
             # The tiny suite's volumes are synthetic by design: real ones would make it neither tiny nor quick.
             raise InputError("--data does not combine with --tiny (the tiny suite uses tiny synthetic volumes)")
         suite = replace(suite, data_dir=Path(args.data))
+    elif not args.tiny and os.environ.get("PARC_DATA_DIR") and not Path(os.environ["PARC_DATA_DIR"]).is_dir():
+        # Named, as --data is, so a slip in it is refused as --data's is, not run on stand-ins.
+        env = os.environ["PARC_DATA_DIR"]
+        raise InputError(f"PARC_DATA_DIR={env}: " + ("not a folder" if Path(env).exists() else "no such folder"))
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise InputError(f"{out}: exists and is not a folder")

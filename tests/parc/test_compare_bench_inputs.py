@@ -90,3 +90,20 @@ def test_a_long_step_label_widens_its_column():
     assert lines[1].startswith("0.30000000000000004  ")
     # Every column ends where the heading's does.
     assert len({line.index("1.0000") + 6 for line in lines[1:3]} | {lines[0].index("brute s") + 7}) == 1
+
+
+@pytest.mark.parametrize("kind", ["missing", "file"])
+def test_a_data_folder_named_by_the_environment_must_be_one(kind, tmp_path, monkeypatch):
+    # As --data's is: a slip in PARC_DATA_DIR ran the suite on synthetic stand-ins, exit 0.
+    import parc.bench as bench
+    from types import SimpleNamespace
+    monkeypatch.setattr(bench, "run_bench", lambda *a, **k: pytest.fail("the suite ran"))
+    place = tmp_path / "data"
+    if kind == "file":
+        place.write_text("x")
+    monkeypatch.setenv("PARC_DATA_DIR", str(place))
+    args = SimpleNamespace(tiny=False, quick=True, out=str(tmp_path / "out"), data=None, argv=[])
+    words = "not a folder" if kind == "file" else "no such folder"
+    with pytest.raises(InputError, match=f"^PARC_DATA_DIR={place}: {words}$"):
+        bench.main(args)
+    assert not (tmp_path / "out").exists()
