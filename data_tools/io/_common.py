@@ -238,6 +238,15 @@ def parse_numbers(words, count: int, cast, path, what: str):
         raise InputError(f"{path}: {what} is not {wanted}: {' '.join(words)!r}") from None
 
 
+def no_extra_values(words, count: int, path, what: str, tail: str = ""):
+    """Refuse more than ``count`` ``words`` for ``what`` (``tail`` ends the message; by default
+    "for N axes"). The formats' own readers read ``count`` numbers and leave the rest (MetaIO
+    drops them, VTK takes the next for a keyword): ``12 12 12 7`` was read as 12 12 12, from a
+    header that states another shape than its writer meant."""
+    if len(words) > count:
+        raise InputError(f"{path}: {what} gives {len(words)} values {tail or f'for {count} axes'}")
+
+
 def parse_dims(words, path, what: str):
     """Three positive integer sample counts ``(nx, ny, nz)``."""
     dims = parse_numbers(words, 3, int, path, what)

@@ -8,8 +8,8 @@ import numpy as np
 
 from ..errors import InputError
 from ..volume import Volume
-from ._common import (check_inflatable, file_volume, data_file_block, decompress, parse_dims, parse_numbers,
-                      read_samples, reading, several_data_files, text_values, to_native)
+from ._common import (check_inflatable, file_volume, data_file_block, decompress, no_extra_values, parse_dims,
+                      parse_numbers, read_samples, reading, several_data_files, text_values, to_native)
 
 EXTENSIONS = (".mhd", ".mha")
 
@@ -19,6 +19,15 @@ ELEMENT_TYPES = {
 }
 #: Headers are read up to this many bytes (as NRRD's), comments and all.
 _MAX_HEADER = 1 << 26
+
+#: The keys this reader reads. One given twice is refused: MetaIO keeps the last without a word,
+#: and a header with two DimSize lines states two shapes. Keys are case-sensitive, as MetaIO
+#: compares them (``dimsize`` is no DimSize to either). Others (Comment, a writer's own
+#: metadata) may repeat: they change nothing read.
+_KEYS_READ = frozenset((
+    "NDims", "DimSize", "ElementType", "ElementNumberOfChannels", "ElementSpacing", "ElementSize", "Origin",
+    "Offset", "Position", "BinaryDataByteOrderMSB", "ElementByteOrderMSB", "CompressedData", "HeaderSize",
+    "TransformMatrix", "Rotation", "Orientation", "BinaryData", "ElementDataFile"))
 
 
 def _first(fields, keys):
@@ -42,12 +51,15 @@ def _flag(path, fields, keys, default: bool) -> bool:
     raise InputError(f"{path}: {key} must be True or False, got {value!r}")
 
 
-def _numbers(path, fields, keys, default):
-    """Three numbers from the first of ``keys`` present (an error names that one), else ``default``."""
+def _numbers(path, fields, keys, default, axes):
+    """Three numbers from the first of ``keys`` present (an error names that one), else ``default``;
+    more than the header's ``axes`` refused (`no_extra_values`)."""
     key = _first(fields, keys)
     if key is None:
         return default
-    return parse_numbers(fields[key].split(), 3, float, path, key)
+    words = fields[key].split()
+    no_extra_values(words, axes, path, key)
+    return parse_numbers(words, 3, float, path, key)
 
 
 def _parse_header(path: Path):
@@ -71,16 +83,19 @@ def _parse_header(path: Path):
             except UnicodeDecodeError:
                 raise InputError(f"{path}: not a MetaImage header (binary bytes before ElementDataFile)") from None
             if line and not line.startswith("#"):
-                key, eq, value = line.partition("=")
+                key, eq, value = (part.strip() for part in line.partition("="))
                 if not eq:
                     raise InputError(f"{path}: not a MetaImage header: expected 'Key = Value', got {line[:60]!r}")
-                fields[key.strip()] = value.strip()
+                if key in fields and key in _KEYS_READ:
+                    raise InputError(f"{path}: MetaImage key {key} is given twice "
+                                     f"({fields[key][:40]!r}, then {value[:40]!r})")
+                fields[key] = value
                 # The data file entry ends the header; binary data may follow (LOCAL).
-                if key.strip() == "ElementDataFile":
+                if key == "ElementDataFile":
                     return fields, pos
-                if key.strip().lower() == "elementdatafile":
+                if key.lower() == "elementdatafile":
                     # Read on, the data that follows it was taken for header lines.
-                    raise InputError(f"{path}: MetaImage keys are case-sensitive: write {key.strip()!r} "
+                    raise InputError(f"{path}: MetaImage keys are case-sensitive: write {key!r} "
                                      "as 'ElementDataFile'")
 
 
@@ -121,15 +136,19 @@ def _build(path, fields, data_start, given):
         raise InputError(f"{path}: MetaImage header lacks NDims, DimSize or ElementType")
     # A fourth axis of length 1 (one time step, as ITK writes a series of one) is the volume itself.
     # Integers as MetaIO reads them: "03" is 3; "1_0" (which Python would take for 10) is refused.
+    no_extra_values(ndims.split(), 1, path, "NDims", "where one is expected")
     ndims = parse_numbers(ndims.split(), 1, int, path, "NDims")[0]
     sizes = get("DimSize").split()
     if ndims == 4 and len(sizes) == 4 and parse_numbers(sizes[3:], 1, int, path, "DimSize")[0] == 1:
         ndims = 3
-        square = 4                                      # TransformMatrix is 4x4: its top left is ours
+        axes = 4                                        # the file's: TransformMatrix is 4x4, its top left ours
     else:
-        square = 3
+        axes = 3
     if ndims != 3:
         raise InputError(f"{path}: MetaImage has NDims = {ndims}, expected a 3-D volume")
+    # Per-axis keys hold a value an axis of the file (four with a fourth axis of one); fewer than
+    # three are refused as they are parsed.
+    no_extra_values(sizes, axes, path, "DimSize")
     dims = parse_dims(sizes, path, "DimSize")
     etype = get("ElementType").upper()
     if etype not in ELEMENT_TYPES:
@@ -138,21 +157,24 @@ def _build(path, fields, data_start, given):
     channels = get("ElementNumberOfChannels")
     if channels is not None and channels.strip() != "1":
         raise InputError(f"{path}: {channels} channels per sample; only scalar volumes are supported")
-    spacing = _numbers(path, fields, ("ElementSpacing", "ElementSize"), (1.0, 1.0, 1.0))
+    spacing = _numbers(path, fields, ("ElementSpacing", "ElementSize"), (1.0, 1.0, 1.0), axes)
     # MetaIO sets the origin from Position, then Offset, then Origin, each overwriting the one
     # before, wherever they stand in the header.
-    origin = _numbers(path, fields, ("Origin", "Offset", "Position"), (0.0, 0.0, 0.0))
+    origin = _numbers(path, fields, ("Origin", "Offset", "Position"), (0.0, 0.0, 0.0), axes)
     big = _flag(path, fields, ("BinaryDataByteOrderMSB", "ElementByteOrderMSB"), False)
     compressed = _flag(path, fields, ("CompressedData",), False)
     header_size = (get("HeaderSize") or "").split()           # given empty, as absent: 0
+    no_extra_values(header_size, 1, path, "HeaderSize", "where one is expected")
     header_size = parse_numbers(header_size, 1, int, path, "HeaderSize")[0] if header_size else 0
     if header_size < -1:
         raise InputError(f"{path}: HeaderSize must be -1 (data at the end) or a byte count, got {header_size}")
     meta = {"format": "metaimage", "byte_order": "big" if big else "little"}
     matrix = get("TransformMatrix", "Rotation", "Orientation")
     if matrix:
-        m = np.asarray(parse_numbers(matrix.split(), square * square, float, path, "TransformMatrix"))
-        m = m.reshape(square, square)[:3, :3]
+        key = _first(fields, ("TransformMatrix", "Rotation", "Orientation"))
+        no_extra_values(matrix.split(), axes * axes, path, key, f"for a {axes}x{axes} matrix")
+        m = np.asarray(parse_numbers(matrix.split(), axes * axes, float, path, "TransformMatrix"))
+        m = m.reshape(axes, axes)[:3, :3]
         if np.abs(m - np.eye(3)).max() > 1e-6:
             meta["note"] = "non-identity TransformMatrix ignored: the volume is read on an axis-aligned grid"
             meta["reoriented"] = True

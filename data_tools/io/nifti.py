@@ -62,6 +62,13 @@ def _read(nib, path, given):
     if not isinstance(img, (nib.Nifti1Image, nib.Nifti2Image)):
         raise InputError(f"{path}: not a NIfTI image ({type(img).__name__})")
     header = img.header
+    slope = _stored_slope(img, path)
+    if math.isinf(slope):
+        # nibabel reads an infinite slope as no scaling, as it reads 0 and NaN; the standard has
+        # scaling off only at 0 (NaN is how nibabel writes "none"), and scaled by it, every sample
+        # is infinite or NaN. A finite slope with a non-finite scl_inter nibabel refuses itself.
+        raise InputError(f"{path}: scl_slope is {slope:g}, not a finite number; the samples cannot be scaled by it "
+                         "(0 or NaN: unscaled)")
     start = getattr(img.dataobj, "offset", None)        # where the samples are read from
     if (bytes(header["magic"]).rstrip(b"\0") in (b"n+1", b"n+2") and start is not None
             and start < header.single_vox_offset):
@@ -109,6 +116,17 @@ def _read(nib, path, given):
     if reoriented:
         meta["reoriented"] = True           # a file written from it is no longer in the same place
     return file_volume(data, spacing, origin, path, meta, given)
+
+
+def _stored_slope(img, path) -> float:
+    """The header's scl_slope as the file stores it: the image's own header has it set to NaN
+    once nibabel has taken the scaling into its array proxy (which holds 1 for a slope it
+    reads as none)."""
+    try:
+        with img.file_map["image"].get_prepare_fileobj(mode="rb") as f:
+            return float(img.header_class.from_fileobj(f)["scl_slope"])
+    except Exception as exc:  # noqa: BLE001 - as in _read: nibabel raises many kinds
+        raise InputError(f"{path}: cannot read NIfTI file: {one_line(exc) or type(exc).__name__}") from None
 
 
 def _check_length(img, path, start):

@@ -57,6 +57,7 @@ def read_nrrd(path, *, spacing=None, origin=None) -> Volume:
         raise InputError(f"{path}: not enough memory to load this NRRD volume") from None
     except Exception as exc:  # noqa: BLE001 - pynrrd raises many kinds (even StopIteration) on bad files
         raise InputError(f"{path}: cannot read NRRD file: {explain(exc)}") from None
+    _check_counts(header, path)
     data, header = _one_volume(data, header)
     if data.ndim != 3:
         raise InputError(f"{path}: NRRD has {data.ndim} axes, expected a 3-D scalar volume")
@@ -308,6 +309,43 @@ def _decode(blob, encoding, path, limit):
 #: Per-axis header fields: an axis dropped takes its entry in each.
 _PER_AXIS = ("sizes", "kinds", "centers", "centerings", "labels", "units", "spacings", "thicknesses",
              "axis mins", "axismins", "axis maxs", "axismaxs", "space directions")
+
+
+#: Per-axis fields the reader reads besides the sizes (`_check_counts`), as `nrrd_header` names
+#: them (``centerings`` and ``axismins`` are read as ``centers`` and ``axis mins``).
+_READ_PER_AXIS = ("kinds", "centers", "spacings", "axis mins", "axis maxs")
+
+
+#: The dimension each named space has (NRRD's ``space``, in either spelling), which its
+#: directions' vectors give.
+_SPACE_DIMENSIONS = {name.lower(): 3 for name in (
+    "RAS", "LAS", "LPS", "right-anterior-superior", "left-anterior-superior", "left-posterior-superior",
+    "scanner-xyz", "3D-right-handed", "3D-left-handed")}
+_SPACE_DIMENSIONS.update({name.lower(): 4 for name in (
+    "RAST", "LAST", "LPST", "right-anterior-superior-time", "left-anterior-superior-time",
+    "left-posterior-superior-time", "scanner-xyz-time", "3D-right-handed-time", "3D-left-handed-time")})
+
+
+def _check_counts(header, path):
+    """Refuse a per-axis field read here that does not give one value an axis, and space
+    directions whose vectors do not have the space dimension's length; pynrrd takes any count.
+    ``kinds: domain`` for three axes was read as the kind of x alone, and ``space dimension: 2``
+    beside 3-vectors as a 3-D space."""
+    axes = int(header.get("dimension", 0))
+    for key in _READ_PER_AXIS:
+        values = _per_axis(header.get(key))
+        if values is not None and len(values) != axes:
+            raise InputError(f"{path}: {key} gives {len(values)} value{'s' * (len(values) != 1)} for {axes} axes")
+    stated = header.get("space dimension")
+    by = f"the space dimension is {stated}"
+    if stated is None and str(header.get("space", "")).lower() in _SPACE_DIMENSIONS:
+        stated = _SPACE_DIMENSIONS[str(header["space"]).lower()]
+        by = f"space {header['space']} is {stated}-D"
+    dirs = header.get("space directions")
+    if stated is not None and dirs is not None:
+        dirs = np.asarray(dirs)
+        if dirs.ndim == 2 and dirs.shape[1] != int(stated):
+            raise InputError(f"{path}: space directions gives vectors of {dirs.shape[1]} values where {by}")
 
 
 def _one_volume(data, header):

@@ -43,7 +43,9 @@ def read_header(fh, path):
     taken = []
     for line in header_lines(fh, path):
         taken.append(line)
-        text = line.decode("ascii", "ignore").strip()
+        # Non-ASCII bytes kept (as U+FFFD): dropped, "data file: LIST\xff" was a list and its line
+        # never checked (`_check_line`).
+        text = line.decode("ascii", "replace").strip()
         m = re.fullmatch(r"(?i:data ?file)\s*:\s*(LIST.*)", text)
         if m and len(taken) > 1:
             header = parse_header(taken[:-1], path)
@@ -119,7 +121,8 @@ def _as_pynrrd(line):
     head, colon, value = line.partition(b":")
     if not colon or line.startswith(b"#") or b":=" in line:
         return line
-    field = head.decode("ascii", "ignore").strip().lower()
+    # A name with non-ASCII bytes is no field's ("ty\xffpe" was type, the bytes dropped).
+    field = head.decode("ascii", "replace").strip().lower()
     field = _SPELLED_APART.get(field, field)
     if field not in _FIELDS:
         return line
@@ -127,6 +130,10 @@ def _as_pynrrd(line):
         value = value.lower()
     return field.encode() + colon + value
 
+
+#: Fields of free text, which the reader does not parse: their non-ASCII bytes (a content
+#: or units in UTF-8 or Latin-1) are dropped by pynrrd, harmlessly.
+_FREE_TEXT = frozenset(("content", "sample units", "space units", "labels", "units"))
 
 #: Fields of whole numbers, which pynrrd reads through float ("1e3" was 1000, "1e400" a
 #: negative size) or reports in Python's words ("invalid literal for int() with base 10").
@@ -137,7 +144,8 @@ _WHOLE_FIELDS = frozenset(("dimension", "sizes", "byte skip", "byteskip", "line 
 def _check_line(line, path):
     """Refuse, in words that name them, a header line that is no field, a field NRRD does not
     have (as teem's reader refuses it: a misspelt ``spacngs`` was ignored, and the spacing
-    with it), and a whole-number field holding anything else."""
+    with it), a whole-number field holding anything else, and non-ASCII bytes in a field the
+    reader parses."""
     text = line.decode("ascii", "replace").strip()
     # A key/value pair's key may hold colons (ITK writes "ITK_like:colon:=x"), not ":=".
     if not text or text.startswith("#") or ":=" in text:
@@ -151,6 +159,12 @@ def _check_line(line, path):
     if field not in _FIELDS:
         raise InputError(f"{path}: unknown field {field!r} (NRRD has no such field; a free-form key/value "
                          "pair is written key:=value)")
+    if not line.isascii() and field not in _FREE_TEXT:
+        # pynrrd reads the line as ASCII, dropping the rest: "type: uint8\xff" was uint8, and a
+        # data file's name in UTF-8 another name. Comments and key/value pairs may hold any text.
+        shown = line.partition(b":")[2].decode("ascii", "backslashreplace").strip()[:40]
+        raise InputError(f"{path}: field {field!r}: non-ASCII bytes in '{shown}' (NRRD's fields are ASCII; "
+                         "only comments, key:=value pairs and free-text fields may hold other text)")
     if field in _WHOLE_FIELDS:
         for word in value.split():
             if not re.fullmatch(r"[-+]?\d+", word):

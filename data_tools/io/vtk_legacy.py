@@ -8,8 +8,8 @@ import numpy as np
 
 from ..errors import InputError
 from ..volume import Volume
-from ._common import (file_volume, float32_from_text, no_digit_separators, parse_dims, parse_numbers, read_samples,
-                      reading)
+from ._common import (file_volume, float32_from_text, no_digit_separators, no_extra_values, parse_dims, parse_numbers,
+                      read_samples, reading)
 
 EXTENSIONS = (".vtk",)
 
@@ -295,9 +295,19 @@ def read_vtk(path, *, spacing=None, origin=None) -> Volume:
                 raise InputError(f"{path}: VTK dataset {words[1]} is not supported; only STRUCTURED_POINTS volumes")
             dims = spacing = None
             origin = (0.0, 0.0, 0.0)
+            given_as = {}           # each geometry line as first written: a second is refused
             for _ in range(_MAX_HEADER_LINES):
                 words = lines.next("POINT_DATA").split()
                 key = words[0].upper()
+                if key in ("DIMENSIONS", "SPACING", "ASPECT_RATIO", "ORIGIN"):
+                    # VTK's reader keeps the last of two such lines, and reads a fourth number as the
+                    # next keyword: such a header states two grids, or a fourth axis, for one volume.
+                    same = "SPACING" if key == "ASPECT_RATIO" else key
+                    if same in given_as:
+                        twice = f"{key} twice" if given_as[same] == key else f"both {given_as[same]} and {key}"
+                        raise InputError(f"{path}: VTK header gives {twice} (the second: {' '.join(words)[:60]!r})")
+                    given_as[same] = key
+                    no_extra_values(words[1:], 3, path, key)
                 if key == "DIMENSIONS":
                     dims = parse_dims(words[1:], path, "DIMENSIONS")
                 elif key in ("SPACING", "ASPECT_RATIO"):

@@ -187,6 +187,15 @@ def test_npy_bad_sidecar(tmp_path, text, match):
     np.testing.assert_array_equal(vol.data, SMALL)
 
 
+@pytest.mark.parametrize("text, key", [('{"spacing": [1, 1, 1], "spacing": [4, 4, 4]}', "spacing"),
+                                       ('{"origin": [0, 0, 0], "spacing": [2, 2, 2], "origin": [9, 9, 9]}', "origin")])
+def test_npy_sidecar_key_given_twice_is_refused(tmp_path, text, key):
+    # JSON keeps the last without a word: the first was read at 4, whatever the writer meant.
+    np.save(tmp_path / "s.npy", SMALL)
+    (tmp_path / "s.npy.json").write_text(text)
+    fails(tmp_path / "s.npy", f"s.npy.json: key '{key}' is given twice in the sidecar")
+
+
 # --- NRRD ------------------------------------------------------------------
 
 def test_nrrd_truncated_gzip(tmp_path):
@@ -266,6 +275,54 @@ def test_nrrd_spacings_for_another_number_of_axes_are_refused(tmp_path, spacings
     p = _nrrd_text(tmp_path / "s.nrrd", {"type": "uchar", "dimension": 3, "sizes": "2 2 2", "encoding": "raw",
                                          "spacings": spacings}, bytes(8))
     fails(p, f"spacings gives {len(spacings.split())} values for 3 axes")
+
+
+@pytest.mark.parametrize("fields, match", [
+    ("kinds: domain", "kinds gives 1 value for 3 axes"),
+    ("kinds: domain domain domain domain", "kinds gives 4 values for 3 axes"),
+    ("centers: node", "centers gives 1 value for 3 axes"),
+    ("axismaxs: 1 1 1 1", "axis maxs gives 4 values for 3 axes"),
+    ("axis mins: 0 0\naxis maxs: 1 1", "axis mins gives 2 values for 3 axes"),
+    ("space dimension: 2\nspace directions: (1,0,0) (0,1,0) (0,0,1)",
+     "space directions gives vectors of 3 values where the space dimension is 2"),
+    ("space dimension: 3\nspace directions: (1,0) (0,1) (1,1)",
+     "space directions gives vectors of 2 values where the space dimension is 3"),
+    # A named space states its dimension as well.
+    ("space: RAS\nspace directions: (1,0) (0,1) (1,1)",
+     "space directions gives vectors of 2 values where space RAS is 3-D"),
+    ("space: left-posterior-superior-time\nspace directions: (1,0,0) (0,1,0) (0,0,1)",
+     "space directions gives vectors of 3 values where space left-posterior-superior-time is 4-D"),
+])
+def test_nrrd_per_axis_fields_and_space_vectors_of_another_count_are_refused(tmp_path, fields, match):
+    # pynrrd takes any count: "kinds: domain" was read as the kind of x alone, "centers: node"
+    # as x's centring, mins and maxs of two axes were dropped for (0, 0, 0), and the space
+    # dimension was never compared with the directions.
+    p = tmp_path / "c.nrrd"
+    p.write_bytes(f"NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 2 2\n{fields}\nencoding: raw\n\n".encode()
+                  + bytes(8))
+    fails(p, match)
+
+
+@pytest.mark.parametrize("head, match", [
+    (b"type: uchar\xff\n\n" + bytes(8), "field 'type': non-ASCII bytes in 'uchar\\xff'"),
+    (b"type: uchar\nspacings: 1 2 \xb53\n\n" + bytes(8), "field 'spacings': non-ASCII bytes in '1 2 \\xb53'"),
+    (b"ty\xffpe: uchar\n\n" + bytes(8), "unknown field 'ty\ufffdpe'"),
+    (b"type: uchar\ndata file: d\xe9.raw\n\n", "field 'data file': non-ASCII bytes in 'd\\xe9.raw'"),
+    (b"type: uchar\ndata file: LIST\xff\nd.raw\n", "field 'data file': non-ASCII bytes in 'LIST\\xff'"),
+])
+def test_nrrd_non_ascii_bytes_in_a_field_read_are_refused(tmp_path, head, match):
+    # pynrrd reads each line as ASCII, dropping other bytes: "uchar\xff" was uchar, "1 2 \xb53"
+    # 1 2 3, "d\xe9.raw" the data file d.raw, and "LIST\xff" a list of files.
+    (tmp_path / "d.raw").write_bytes(bytes(8))
+    p = tmp_path / "a.nrrd"
+    p.write_bytes(b"NRRD0004\ndimension: 3\nsizes: 2 2 2\nencoding: raw\n" + head)
+    fails(p, match)
+    # Comments, key/value pairs and free text may hold any text: they change nothing read.
+    ok = tmp_path / "ok.nrrd"
+    ok.write_bytes(b"NRRD0004\n# caf\xc3\xa9, caf\xe9\ntype: uchar\ndimension: 3\nsizes: 2 2 2\nencoding: raw\n"
+                   b"content: caf\xc3\xa9\nspace units: \"\xb5m\" \"\xb5m\" \"\xb5m\"\nnote:=caf\xe9\n\n"
+                   + bytes(range(8)))
+    np.testing.assert_array_equal(load_volume(ok).data.ravel(), np.arange(8))
 
 
 @pytest.mark.parametrize("field, match", [
@@ -591,6 +648,47 @@ def test_mhd_data_file_key_in_another_case_is_named(tmp_path):
     fails(p, "MetaImage keys are case-sensitive: write 'elementdatafile' as 'ElementDataFile'")
 
 
+def _mha(path, *lines, data=bytes(range(8))):
+    """A 2x2x2 MET_UCHAR .mha with ``lines`` after a base header, each key given replacing the base's."""
+    keys = {line.split("=")[0].strip() for line in lines}
+    base = [b for b in ("NDims = 3", "DimSize = 2 2 2", "ElementType = MET_UCHAR") if b.split(" =")[0] not in keys]
+    path.write_bytes(("\n".join(base + list(lines)) + "\nElementDataFile = LOCAL\n").encode() + data)
+    return path
+
+
+@pytest.mark.parametrize("lines", [("DimSize = 2 2 2", "DimSize = 1 2 4"),
+                                   ("ElementSpacing = 1 1 1", "ElementSpacing = 2 2 2"),
+                                   ("Offset = 0 0 0", "NDims = 3", "Offset = 5 5 5"),
+                                   ("BinaryDataByteOrderMSB = False", "BinaryDataByteOrderMSB = True")])
+def test_mhd_key_given_twice_is_refused(tmp_path, lines):
+    # MetaIO keeps the last without a word: a header edited by appending a line read as its last.
+    key = lines[-1].split(" =")[0]
+    fails(_mha(tmp_path / "t.mha", *lines), f"MetaImage key {key} is given twice ('")
+    # A repeated Comment changes nothing read; keys are case-sensitive (MetaIO compares them so):
+    # "dimsize" is no DimSize, to MetaIO or here.
+    vol = load_volume(_mha(tmp_path / "ok.mha", "Comment = a", "Comment = b", "dimsize = 1 2 4"))
+    assert vol.dims == (2, 2, 2)
+    np.testing.assert_array_equal(vol.data.ravel(), np.arange(8))
+
+
+@pytest.mark.parametrize("line, match", [
+    ("DimSize = 2 2 2 7", "DimSize gives 4 values for 3 axes"),
+    ("DimSize = 2 2 2 1", "DimSize gives 4 values for 3 axes"),        # NDims = 3: no fourth axis
+    ("ElementSpacing = 1 2 3 4", "ElementSpacing gives 4 values for 3 axes"),
+    ("ElementSize = 1 2 3 4", "ElementSize gives 4 values for 3 axes"),
+    ("Offset = 1 2 3 4", "Offset gives 4 values for 3 axes"),
+    ("Origin = 1 2 3 4 5", "Origin gives 5 values for 3 axes"),
+    ("Position = 1 2 3 4", "Position gives 4 values for 3 axes"),
+    ("TransformMatrix = 1 0 0 0 1 0 0 0 1 0", "TransformMatrix gives 10 values for a 3x3 matrix"),
+    ("Rotation = 1 0 0 0 1 0 0 0 1 0", "Rotation gives 10 values for a 3x3 matrix"),
+    ("HeaderSize = 0 5", "HeaderSize gives 2 values where one is expected"),
+    ("NDims = 3 3", "NDims gives 2 values where one is expected"),
+])
+def test_mhd_more_values_than_its_axes_are_refused(tmp_path, line, match):
+    # MetaIO reads NDims values and drops the rest of the line: "DimSize = 12 12 12 7" was 12^3.
+    fails(_mha(tmp_path / "v.mha", line), match)
+
+
 def test_mhd_missing_required(tmp_path):
     p = tmp_path / "n.mhd"
     p.write_text("NDims = 3\nElementDataFile = x.raw\n")
@@ -643,6 +741,24 @@ def test_vtk_unknown_type(tmp_path, writers):
 def test_vtk_dimension_one(tmp_path, writers):
     p = writers.vtk(tmp_path / "d.vtk", SMALL[:1])
     fails(p, "at least 2")
+
+
+@pytest.mark.parametrize("old, new, match", [
+    (b"DIMENSIONS 6 5 4\n", b"DIMENSIONS 6 5 4\nDIMENSIONS 3 10 4\n",
+     "VTK header gives DIMENSIONS twice (the second: 'DIMENSIONS 3 10 4')"),
+    (b"SPACING 1 1 1\n", b"SPACING 1 1 1\nSPACING 2 2 2\n", "VTK header gives SPACING twice"),
+    (b"SPACING 1 1 1\n", b"SPACING 1 1 1\nASPECT_RATIO 2 2 2\n", "VTK header gives both SPACING and ASPECT_RATIO"),
+    (b"ORIGIN 0 0 0\n", b"ORIGIN 0 0 0\norigin 5 5 5\n", "VTK header gives ORIGIN twice (the second: 'origin 5 5 5')"),
+    (b"DIMENSIONS 6 5 4\n", b"DIMENSIONS 6 5 4 9\n", "DIMENSIONS gives 4 values for 3 axes"),
+    (b"SPACING 1 1 1\n", b"SPACING 1 1 1 7\n", "SPACING gives 4 values for 3 axes"),
+    (b"ORIGIN 0 0 0\n", b"ORIGIN 0 0 0 7\n", "ORIGIN gives 4 values for 3 axes"),
+])
+def test_vtk_geometry_line_given_twice_or_with_more_values_is_refused(tmp_path, writers, old, new, match):
+    # The last of two was read (3x10x4 has the 120 points of 6x5x4), and a fourth number dropped.
+    p = writers.vtk(tmp_path / "g.vtk", SMALL)
+    assert old in p.read_bytes()
+    p.write_bytes(p.read_bytes().replace(old, new))
+    fails(p, match)
 
 
 # --- SLC -------------------------------------------------------------------

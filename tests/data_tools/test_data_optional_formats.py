@@ -5,6 +5,7 @@ missing library, get one InputError line naming the file.
 """
 from __future__ import annotations
 
+import gzip
 import json
 import lzma
 import struct
@@ -410,6 +411,26 @@ def test_nifti_intercept_without_slope_is_applied(tmp_path):
     np.testing.assert_allclose(vol.data, truth.transpose(2, 1, 0))
     assert vol.data.dtype == np.float32
     assert vol.meta["scaling"] == {"slope": 1.0, "inter": -1024.0}
+
+
+@pytest.mark.parametrize("name", ["s.nii", "s.nii.gz"])
+@pytest.mark.parametrize("slope", [np.inf, -np.inf])
+def test_nifti_infinite_scl_slope_is_refused(tmp_path, name, slope):
+    # nibabel reads it as no scaling, as it reads 0 and NaN: the samples came out unscaled, where a
+    # slope of 3e38 scales them past float32 and is refused. The standard turns scaling off at 0 only.
+    stored = np.arange(24, dtype=np.int16).reshape(4, 3, 2)
+    nib.save(nib.Nifti1Image(stored, np.eye(4)), tmp_path / "s.nii")
+    raw = bytearray((tmp_path / "s.nii").read_bytes())
+    raw[112:120] = struct.pack("<ff", slope, 0.0)                           # scl_slope, scl_inter
+    p = tmp_path / name
+    p.write_bytes(gzip.compress(bytes(raw)) if name.endswith(".gz") else bytes(raw))
+    fails(p, f"scl_slope is {slope:g}, not a finite number; the samples cannot be scaled by it")
+    # NaN is how nibabel writes "no scaling" (its default header): read unscaled, as nibabel reads it.
+    raw[112:120] = struct.pack("<ff", np.nan, np.nan)
+    p.write_bytes(gzip.compress(bytes(raw)) if name.endswith(".gz") else bytes(raw))
+    vol = load_volume(p)
+    assert vol.data.dtype == np.int16 and "scaling" not in vol.meta
+    np.testing.assert_array_equal(vol.data, stored.T)
 
 
 def _placed_files(tmp_path, arr, write_slc):
