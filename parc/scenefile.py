@@ -322,8 +322,9 @@ def _read_file(where, t, cache, spacing, origin):
     """The volume a file holds, placed as the file says; or, where the file's own spacing or
     origin is refused and the table replaces it, as the table says."""
     from data_tools.io import load_volume, raw
+    name = t.string("file")
     with where.key(t.key("file")):
-        path = where.resolve(t.string("file"))
+        path = where.resolve(name)
     options = {"shape": t.integers("shape", 3, minimum=2), "dtype": t.string("dtype"),
                "byte_order": t.string("byte_order"), "offset": None}
     if "offset" in t:

@@ -391,6 +391,7 @@ BAD = [
     ("[camera]\nzoom = 0\n{V}", "camera.zoom", "positive"),
     ("[[volume]]\nfile = 'data/ball.nrrd'\niso = 0\niso_value_of_the_surface = 1",
      "volume[1].iso_value_of_the_surface", "unknown key; did you mean iso?"),    # ~user is a home folder; one of no known user is refused, not a traceback from pathlib.
+    ("[[volume]]\nfile = 3\niso = 0", "volume[1].file", "must be a non-empty string, got a number 3"),
     ("[[volume]]\nfile = '~no-such-user-here/ball.nrrd'\niso = 0", "volume[1].file",
      "no home folder is known for ~no-such-user-here"),
     ("[[volume]]\nfile = 'data/ball.nrrd'\ntf = '~no-such-user-here/cold.toml'", "volume[1].tf",
@@ -406,7 +407,7 @@ def test_errors_name_the_file_and_the_key(text, key, words, folder):
     msg = str(info.value)
     assert "\n" not in msg
     prefix = f"{path}: {key}: " if key else f"{path}: "
-    assert msg.startswith(prefix), msg
+    assert msg.startswith(prefix) and msg.count(f"{path}: ") == 1, msg
     for w in words:
         assert w in msg, msg
 
