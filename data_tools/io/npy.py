@@ -11,6 +11,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..volume import Volume
+from ..jsontext import RepeatedKey, strict_json
 from ._common import file_volume, one_line, reading
 
 EXTENSIONS = (".npy",)
@@ -72,8 +73,8 @@ def read_npy(path, *, spacing=None, origin=None) -> Volume:
         raise InputError(f"{side}: the sidecar of {path.name} (its spacing and origin) is not a file")
     if side is not None and side.is_file():
         try:
-            info = json.loads(side.read_text(encoding="utf-8-sig"), object_pairs_hook=_unique_keys)
-        except _RepeatedKey as exc:
+            info = strict_json(side.read_text(encoding="utf-8-sig"))
+        except RepeatedKey as exc:
             raise InputError(f"{side}: key {exc.args[0]!r} is given twice in the sidecar") from None
         except RecursionError:
             raise InputError(f"{side}: bad sidecar (arrays or objects nested too deep); "
@@ -96,22 +97,6 @@ def read_npy(path, *, spacing=None, origin=None) -> Volume:
                 raise InputError(f"{side}: {key} must be an array of three numbers, got {json.dumps(value)}")
         meta["sidecar"] = str(side)
     return file_volume(data, spacing, origin, path, meta, given)
-
-
-class _RepeatedKey(ValueError):
-    """A JSON object of the sidecar gave this key twice (`_unique_keys`)."""
-
-
-def _unique_keys(pairs):
-    """A JSON object's pairs as a dict, refusing a key given twice: JSON keeps the last without a
-    word, so ``{"spacing": [1, 1, 1], "spacing": [4, 4, 4]}`` was read at 4 (as parc's
-    transfer-function files refuse it)."""
-    seen = set()
-    for key, _ in pairs:
-        if key in seen:
-            raise _RepeatedKey(key)
-        seen.add(key)
-    return dict(pairs)
 
 
 def is_sidecar(path) -> bool:

@@ -37,6 +37,7 @@ import numpy as np
 
 from data_tools import InputError
 from data_tools.errors import os_reason
+from data_tools.jsontext import RepeatedKey, strict_json
 from data_tools.volume import is_number
 
 from .function import TransferFunction, control_points, short_repr
@@ -52,30 +53,13 @@ def parse_text(loads, text, where, kind):
     except (tomllib.TOMLDecodeError, json.JSONDecodeError) as exc:
         # tomllib's and json's messages end with where: "(at line L, column C)", "line L column C".
         raise InputError(f"{where}: malformed {kind}: {exc}") from None
-    except _RepeatedKey as exc:
+    except RepeatedKey as exc:
         raise InputError(f"{where}: key {exc.args[0]!r} is given twice in one object") from None
     except ValueError:
         # The only other: an integer of thousands of digits, which Python will not convert.
         raise InputError(f"{where}: malformed {kind}: a number too long to read") from None
     except RecursionError:
         raise InputError(f"{where}: malformed {kind}: arrays or tables nested too deeply") from None
-
-
-class _RepeatedKey(ValueError):
-    """A JSON object gave this key twice (`_strict_json`)."""
-
-
-def _strict_json(text):
-    """`json.loads`, refusing an object that gives a key twice (JSON keeps the last, silently;
-    TOML refuses it, and a file should mean the same in either)."""
-    def unique(pairs):
-        seen = set()
-        for key, _ in pairs:
-            if key in seen:
-                raise _RepeatedKey(key)
-            seen.add(key)
-        return dict(pairs)
-    return json.loads(text, object_pairs_hook=unique)
 
 
 def load_transfer_function(spec, data_range=None, mode="composite"):
@@ -148,7 +132,7 @@ def load_transfer_function(spec, data_range=None, mode="composite"):
     if ext == ".toml":
         doc = parse_text(tomllib.loads, raw, where, "TOML")
     else:
-        doc = parse_text(_strict_json, raw, where, "JSON")
+        doc = parse_text(strict_json, raw, where, "JSON")
         if isinstance(doc, dict) and "RGBPoints" in doc and {"opacity", "color"} & set(doc):
             raise InputError(f"{where}: holds ParaView's RGBPoints and our opacity/color keys; "
                              "keep one kind (a file is read as one or the other)")
