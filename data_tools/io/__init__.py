@@ -85,6 +85,7 @@ def load_volume(path, **options) -> Volume:
     except TypeError:
         raise InputError(f"load_volume takes a file's path, got {type(path).__name__}") from None
     options = {k: v for k, v in options.items() if v is not None and not (k == "mmap" and not v)}
+    _check_nameable(path)
     if path.is_dir():
         reader, kind = tiff.read_tiff_folder, "TIFF"
     else:
@@ -170,6 +171,17 @@ def _check_write_options(ext, options):
             raise InputError(f"{name} must be {want}, got {value!r}")
 
 
+def _check_nameable(path):
+    """Refuse a path the system cannot name a file by: a NUL in it (Python raises ValueError) or
+    a name too long (OSError), where the readers and writers expect neither."""
+    if "\0" in str(path):
+        raise InputError(f"{path}: a file's path cannot hold a NUL character")
+    try:
+        path.exists()
+    except OSError as exc:
+        raise InputError(f"{path}: {os_reason(exc)}") from None
+
+
 def save_volume(volume: Volume, path, **options) -> Path:
     """Write ``volume`` to ``path`` in the format its extension names, all or nothing.
 
@@ -207,6 +219,7 @@ def save_volume(volume: Volume, path, **options) -> Path:
     if not isinstance(path, (str, os.PathLike)) or isinstance(os.fspath(path), bytes):
         raise InputError(f"save_volume takes a file's path, got {type(path).__name__}")
     path = Path(path)
+    _check_nameable(path)
     ext = path.suffix.lower()
     writers = {".nrrd": nrrd_format.write_nrrd, ".nhdr": nrrd_format.write_nrrd, ".npy": npy.write_npy,
                ".mhd": metaimage.write_metaimage, ".mha": metaimage.write_metaimage,

@@ -4,6 +4,7 @@ from __future__ import annotations
 import bz2
 import gzip
 import os
+import re
 import stat
 import struct
 import tracemalloc
@@ -1285,3 +1286,17 @@ def test_tiff_thumbnails_and_masks_between_the_slices_are_left_out(tmp_path, sub
         stated = [bool(page.description) for page in tif.pages]
     assert stated[0] == bool(described) and all(stated) == (described == "all")
     np.testing.assert_array_equal(load_volume(p).data, SMALL)
+
+
+@pytest.mark.parametrize("name, words", [("a" * 300 + ".nrrd", "File name too long"),
+                                         ("b" * 300 + "/v.npy", "File name too long"),
+                                         ("x\0y.nrrd", "a file's path cannot hold a NUL character"),
+                                         ("x\0y/v.npy", "a file's path cannot hold a NUL character")])
+def test_a_path_the_system_cannot_name_a_file_by_is_refused(tmp_path, name, words):
+    # The system's OSError (a name too long) and Python's ValueError (a NUL) came out raw.
+    path = tmp_path / name
+    for act in (lambda: load_volume(path), lambda: save_volume(Volume(SMALL), path)):
+        with pytest.raises(InputError, match=re.escape(words)) as info:
+            act()
+        assert str(info.value).isprintable()
+    assert list(tmp_path.iterdir()) == []
