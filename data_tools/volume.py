@@ -250,9 +250,11 @@ def is_number(value):
 
 
 def text_or_flag(value):
-    """Whether ``value`` is text or a boolean: `float` takes ``"5"`` and ``True``, and a number
-    argument must not."""
-    return isinstance(value, (str, bytes, bool, np.bool_))
+    """Whether ``value`` is something `float` takes that a number argument must not: text
+    (``"5"``), a boolean, a complex number (its imaginary part dropped with a warning), or a
+    NumPy date or duration (its count of units)."""
+    return isinstance(value, (str, bytes, bool, np.bool_, complex, np.complexfloating, np.datetime64,
+                              np.timedelta64))
 
 
 def three_numbers(value):

@@ -204,10 +204,10 @@ class Camera:
         only magnifies), below 1 a larger one.
         """
         try:
-            lo = np.asarray(lo, dtype=np.float64)
-            hi = np.asarray(hi, dtype=np.float64)
-            if any(isinstance(x, (str, bytes, bool, np.bool_)) for x in (zoom, azimuth, elevation, aspect)):
+            corners = three_numbers(lo), three_numbers(hi)
+            if None in corners or any(text_or_flag(x) for x in (zoom, azimuth, elevation, aspect)):
                 raise TypeError
+            lo, hi = (np.array(c, dtype=np.float64) for c in corners)
             zoom, azimuth, elevation = float(zoom), float(azimuth), float(elevation)
             aspect = float(aspect)
         except (TypeError, ValueError, OverflowError):
@@ -229,10 +229,8 @@ class Camera:
         if whole == 0.0:
             raise InputError(f"framing needs a box with some size; its corners are one point {tuple(lo.tolist())}")
         radius = whole / zoom
-        try:
-            u = unit_vector(up) if np.shape(up) == (3,) else None
-        except (TypeError, ValueError):
-            u = None      # Camera itself refuses it below
+        u = three_numbers(up)
+        u = unit_vector(u) if u is not None and len(u) == 3 else None     # else Camera refuses it below
         back = _view_from(azimuth, elevation, np.array([0.0, 0.0, 1.0]) if u is None else u)
         if u is not None and np.linalg.norm(np.cross(back, u)) < 1e-9:
             raise InputError(f"an elevation of {elevation:g} degrees looks along up {tuple(up)}: "

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from data_tools import InputError
-from data_tools.errors import os_reason
+from data_tools.errors import os_reason, printable
 from data_tools.io import written_path
 from data_tools.signals import signals_held
 
@@ -290,14 +290,6 @@ def slow_note(what, say, delay=None):
             spoke, said = bool(said), None
     if spoke:
         say(f"{what}: done in {time.perf_counter() - start:.1f} s")
-
-
-def printable(text):
-    """``text`` for one line of a terminal: characters that are not printable (a newline or
-    a carriage return, a terminal escape, a lone surrogate), which can come with a file name
-    or a key the user gave, shown as their escapes (``\\n``, ``\\x1b``)."""
-    return "".join(c if c.isprintable() else c.encode("unicode_escape", "backslashreplace").decode("ascii")
-                   for c in str(text))
 
 
 def note(text, who="parc"):

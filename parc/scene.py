@@ -19,6 +19,10 @@ from .camera import Camera, unit_vector
 DEFAULT_SURFACE = (0.93, 0.86, 0.74)
 #: ambient, diffuse, specular, shininess.
 DEFAULT_MATERIAL = (0.12, 0.78, 0.25, 40.0)
+#: The largest material weight, shininess and light intensity taken. A lit colour is clipped to 1
+#: long before; beyond, the shading's products overflow (weights and intensities of 1e200 made
+#: an infinite term, and times a colour channel of 0 a NaN pixel).
+MAX_SHADING_FACTOR = 1e6
 
 
 @settled
@@ -200,7 +204,7 @@ class PointLight:
         World position; may lie inside a volume, or on a surface (its shadow
         rays stop just short of it); coordinates up to 1e150.
     color : (r, g, b) in [0, 1]
-    intensity : float >= 0
+    intensity : float, 0 to `MAX_SHADING_FACTOR`
         Scales the colour.
     """
 
@@ -215,7 +219,7 @@ class PointLight:
             raise InputError(f"light position {self.position} is beyond {MAX_LIGHT_DISTANCE:g}; "
                              "a light that far is a DirectionalLight")
         self.color = _unit_triple(self.color, "light colour")
-        self.intensity = _non_negative(self.intensity, "light intensity")
+        self.intensity = _non_negative(self.intensity, "light intensity", MAX_SHADING_FACTOR)
 
     @property
     def radiance(self):
@@ -233,7 +237,7 @@ class DirectionalLight:
         The direction the light travels in (from the light into the scene);
         normalized here, must not be zero.
     color : (r, g, b) in [0, 1]
-    intensity : float >= 0
+    intensity : float, 0 to `MAX_SHADING_FACTOR`
     """
 
     direction: tuple
@@ -246,7 +250,7 @@ class DirectionalLight:
             raise InputError(f"light direction must not be zero, got {self.direction!r}")
         self.direction = tuple(float(c) for c in d)
         self.color = _unit_triple(self.color, "light colour")
-        self.intensity = _non_negative(self.intensity, "light intensity")
+        self.intensity = _non_negative(self.intensity, "light intensity", MAX_SHADING_FACTOR)
 
     @property
     def radiance(self):
@@ -298,9 +302,10 @@ class Scene:
         if not isinstance(self.camera, Camera):
             raise InputError(f"Scene needs a Camera, got {type(self.camera).__name__}")
         try:
+            # bytes iterate as integers: b"\x08\x08" is no size.
             w, h = (int(v) for v in self.size)
-            ok = (w, h) == tuple(self.size) and not any(text_or_flag(v) for v in self.size)
-        except (TypeError, ValueError, OverflowError):
+            ok = (w, h) == tuple(self.size) and not any(text_or_flag(v) for v in (self.size, *self.size))
+        except (TypeError, ValueError, OverflowError, np.ma.MAError):      # MAError: a masked value
             ok = False
         if not ok or w < 1 or h < 1:
             raise InputError(f"image size must be two positive integers, got {self.size!r}")
@@ -438,13 +443,15 @@ def _finite_triple(v, what):
     return t
 
 
-def _non_negative(v, what):
+def _non_negative(v, what, top=math.inf):
     try:
         x = math.nan if text_or_flag(v) else float(v)
     except (TypeError, ValueError, OverflowError):
         x = math.nan
     if not (math.isfinite(x) and x >= 0.0):
         raise InputError(f"{what} must be a finite number >= 0, got {v!r}")
+    if x > top:
+        raise InputError(f"{what} must be at most {top:g}, got {x:g}")
     return x
 
 
@@ -463,15 +470,14 @@ def _flag(v, what):
 
 
 def _material(v):
-    """``(ambient, diffuse, specular, shininess)``: finite, the weights >= 0, shininess > 0."""
-    try:
-        a = np.asarray(v, dtype=np.float64)
-    except (TypeError, ValueError, OverflowError):
-        a = np.zeros(0)
-    if a.shape != (4,) or not np.isfinite(a).all() or (a[:3] < 0).any() or not a[3] > 0:
-        raise InputError(f"material must be (ambient, diffuse, specular, shininess): finite, "
-                         f"the weights >= 0 and shininess > 0, got {v!r}")
-    return tuple(float(c) for c in a)
+    """``(ambient, diffuse, specular, shininess)``: the weights from 0 and shininess above 0, each
+    up to `MAX_SHADING_FACTOR`."""
+    a = three_numbers(v)
+    if (a is None or len(a) != 4 or not all(math.isfinite(c) and c <= MAX_SHADING_FACTOR for c in a)
+            or min(a[:3]) < 0 or not a[3] > 0):
+        raise InputError(f"material must be (ambient, diffuse, specular, shininess): numbers, the weights "
+                         f"from 0 and shininess above 0, each at most {MAX_SHADING_FACTOR:g}; got {v!r}")
+    return a
 
 
 def _sequence(v, what):

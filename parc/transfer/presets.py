@@ -4,6 +4,7 @@ from __future__ import annotations
 import math
 
 from data_tools import InputError
+from data_tools.volume import three_numbers
 
 from .function import TransferFunction, short_repr
 
@@ -96,10 +97,10 @@ def data_range_of(data_range, who):
     a span float64 holds at any ``lo``)."""
     if data_range is None:
         raise InputError(f"{who} spans the data range: give the data range (lo, hi)")
-    try:
-        lo, hi = (float(v) for v in data_range)
-    except (TypeError, ValueError, OverflowError):
-        raise InputError(f"{who}: data range must be two numbers, got {short_repr(data_range)}") from None
+    pair = three_numbers(data_range)
+    if pair is None or len(pair) != 2:
+        raise InputError(f"{who}: data range must be two numbers, got {short_repr(data_range)}")
+    lo, hi = pair
     if not (math.isfinite(lo) and math.isfinite(hi) and math.isfinite(hi - lo)):
         raise InputError(f"{who}: data range must be finite, got ({lo:g}, {hi:g})")
     if hi < lo:

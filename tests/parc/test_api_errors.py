@@ -272,6 +272,81 @@ def test_an_integer_beyond_float64_is_refused_not_overflowed(make, words):
         make()
 
 
+#: A value whose repr takes several lines.
+GRID = np.ones((2, 2))
+
+
+@pytest.mark.parametrize("make", [
+    lambda: parc.Camera(fov=GRID),
+    lambda: parc.Camera(eye=GRID),
+    lambda: Volume(VOL.data, spacing=GRID),
+    lambda: parc.Isosurface(VOL, GRID),
+    lambda: parc.PointLight(GRID),
+    lambda: _scene(size=GRID),
+    lambda: parc.render(_scene(), supercell=GRID),
+    lambda: parc.compare(_scene(), repeats=GRID),
+    lambda: parc.Isosurface(Volume(VOL.data, name="two\nlines"), 1e9),
+], ids=["fov", "eye", "spacing", "isovalue", "light", "size", "supercell", "repeats", "name"])
+def test_a_message_echoing_a_value_of_several_lines_is_one_line(make):
+    # NumPy writes a 2-D array's repr over lines, and a name may hold a newline; the command
+    # line prints every message as one line after "parc: error:".
+    with pytest.raises(InputError) as info:
+        make()
+    assert str(info.value).isprintable() and "  " not in str(info.value)
+    assert "[1., 1.], [1., 1.]" in str(info.value) or "two\\nlines" in str(info.value)
+
+
+def test_complex_numbers_dates_and_text_are_not_taken_for_numbers():
+    # float() takes each, dropping an imaginary part (with a warning) or counting days since 1970.
+    for value in (np.complex128(2.5 + 9j), np.datetime64("2020-01-01"), np.timedelta64(3, "D")):
+        with pytest.raises(InputError, match="isovalue must be a number"):
+            parc.Isosurface(VOL, value)
+    with pytest.raises(InputError, match="camera eye must be three finite numbers"):
+        parc.Camera(eye=np.array([20 + 5j, -15, 12]))
+    with pytest.raises(InputError, match="material must be"):
+        parc.Isosurface(VOL, ISO, material=("0.5", True, np.datetime64("2020-01-01"), 40))
+    with pytest.raises(InputError, match="framing needs two corners of three numbers"):
+        parc.Camera.framing(("1", b"2", True), VOL.bounds[1])
+    for pair in (("0", "6"), {6.0, 0.0}, (False, True), b"\x00\x06"):
+        with pytest.raises(InputError, match="data range must be two numbers"):
+            parc.load_transfer_function("viridis", data_range=pair)
+    for size in (b"\x08\x08", (np.ma.masked, 8)):
+        with pytest.raises(InputError, match="image size must be two positive integers"):
+            _scene(size=size)
+    with pytest.raises(InputError, match="camera up must be three finite numbers"):
+        parc.Camera.framing(*VOL.bounds, up=(BEYOND_FLOAT, 0, 1))
+
+
+@pytest.mark.parametrize("make, words", [
+    (lambda: parc.Isosurface(VOL, ISO, material=(0.1, 1e200, 0.2, 40)), "material must be"),
+    (lambda: parc.Translucent(VOL, "greyscale", shade=True, material=(1e308, 1e308, 0.25, 40)), "material must be"),
+    (lambda: parc.Isosurface(VOL, ISO, material=(0.1, 0.7, 0.2, 2e6)), "each at most 1e+06"),
+    (lambda: parc.PointLight((1, 2, 3), intensity=1e200), "light intensity must be at most 1e+06, got 1e+200"),
+    (lambda: parc.DirectionalLight((1, 2, 3), intensity=1.5e6), "light intensity must be at most 1e+06"),
+])
+def test_shading_factors_past_the_bound_are_refused(make, words):
+    # Taken, 1e200 times 1e200 was infinite, and times a colour channel of 0 a NaN pixel.
+    with pytest.raises(InputError, match=re.escape(words)):
+        make()
+
+
+@pytest.mark.parametrize("method", ["brute", "parc"])
+def test_the_largest_shading_factors_light_without_overflow(method):
+    # Every factor at its bound, two lights, and a transfer function with a colour channel of 0.
+    big = parc.scene.MAX_SHADING_FACTOR
+    tf = parc.TransferFunction([(VOL.value_range()[0], 0.0), (ISO, 0.8), (VOL.value_range()[1], 0.1)],
+                               [(VOL.value_range()[0], 1, 0, 0), (VOL.value_range()[1], 0, 0, 1)])
+    lights = [parc.PointLight(tuple(np.asarray(VOL.bounds[1]) * 2), intensity=big),
+              parc.DirectionalLight((-1, 0.5, -2), intensity=big)]
+    for vis in (parc.Isosurface(VOL, ISO, color=(1, 0, 0.5), material=(big,) * 4),
+                parc.Translucent(VOL, tf, shade=True, material=(big,) * 4)):
+        image = parc.render(_scene(volumes=[vis], lights=lights, size=(16, 16)), method=method).image
+        assert np.isfinite(image).all() and image.min() >= 0.0 and image.max() <= 1.0
+        # Lit, and clipped: a surface's brightest channel at 1, a translucent one's at its opacity.
+        rgb, alpha = image[..., :3].max(axis=-1), image[..., 3]
+        assert np.isclose(rgb, alpha, atol=1e-6)[alpha > 0.5].any()
+
+
 def test_a_step_may_put_up_to_the_bound_of_samples_across_the_box():
     from parc.scene import MAX_RAY_SAMPLES
     vol = Volume(np.arange(512.0).reshape(8, 8, 8), spacing=(1e-7, 1, 1))

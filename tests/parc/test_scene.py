@@ -104,7 +104,7 @@ def test_colour_components_below_zero_are_refused(make):
 
 
 def test_a_material_needs_a_positive_shininess_and_takes_zero_weights():
-    with pytest.raises(InputError, match="shininess > 0"):
+    with pytest.raises(InputError, match="shininess above 0"):
         parc.Isosurface(VOL, ISO, material=(0.1, 0.7, 0.2, 0.0))
     assert parc.Isosurface(VOL, ISO, material=(0, 0, 0, 1)).material == (0.0, 0.0, 0.0, 1.0)
 
