@@ -126,6 +126,8 @@ def load_scene(path, *, view=None, size=None, progress=None, replaced_by="given 
         raise InputError(f"replaced_by takes text, got {type(replaced_by).__name__}")
     if not isinstance(path, (str, os.PathLike)):
         raise InputError(f"load_scene takes the path of a scene file, got {type(path).__name__}")
+    if progress is not None and not callable(progress):
+        raise InputError(f"progress must be a function of a line of text, got {progress!r}")
     if view is not None and (not isinstance(view, dict) or set(view) - set(CAMERA_KEYS)):
         raise InputError(f"view takes camera settings keyed {', '.join(CAMERA_KEYS)}, got {view!r}")
     for key, value in (view or {}).items():

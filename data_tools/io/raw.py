@@ -184,6 +184,9 @@ def read_raw(path, *, shape=None, dtype=None, byte_order=None, offset=0,
         Shape or type unknown, or the file size is not ``offset`` plus
         ``nx*ny*nz*itemsize``.
     """
+    if not isinstance(mmap, (bool, np.bool_)):
+        # bool() would take "no" for True.
+        raise InputError(f"mmap must be True or False, got {mmap!r}")
     path = Path(path)
     guess = guess_from_name(path)
     shape = shape if shape is not None else guess.get("shape")

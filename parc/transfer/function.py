@@ -58,7 +58,7 @@ import numpy as np
 from numba import prange
 
 from data_tools import InputError
-from data_tools.volume import is_number
+from data_tools.volume import is_number, three_numbers
 from raycast.config import RANGE_CHUNK, kernel
 from raycast.rays import chunk_count, chunk_run
 
@@ -278,8 +278,14 @@ class TransferFunction:
 
         ``src = (0, 1)`` turns a normalized function into one over the data range.
         """
-        s0, s1 = float(src[0]), float(src[1])
-        lo, hi = float(lo), float(hi)
+        spans = three_numbers(src), three_numbers((lo, hi))
+        if any(p is None or len(p) != 2 or not all(math.isfinite(v) for v in p) for p in spans):
+            raise InputError(f"transfer function {self.name or self.source}: mapped takes finite numbers lo, hi "
+                             f"and a source span of two, got {short_repr((lo, hi))} and {short_repr(src)}")
+        (s0, s1), (lo, hi) = spans
+        if hi < lo or not math.isfinite(hi - lo):
+            raise InputError(f"transfer function {self.name or self.source}: cannot map onto [{lo:g}, {hi:g}]: "
+                             "reversed, or a span beyond float64's range")
         if not s1 > s0:
             raise InputError(f"transfer function {self.name or self.source}: cannot map from "
                              f"an empty value span [{s0:g}, {s1:g}]")

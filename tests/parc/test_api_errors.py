@@ -14,6 +14,7 @@ import pytest
 import parc
 from data_tools import InputError, Volume
 from data_tools.io import save_volume
+from data_tools.io.raw import read_raw
 from data_tools.synthetic import blobs
 from parc.comparison import step_sweep
 from parc.transfer import save_transfer_function
@@ -197,7 +198,20 @@ CASES = {
     "warmup 10**20": (lambda: step_sweep(_fog(), [0.5], warmup=10**20), "warmup must be at most 10000"),
     "options for a method not run": (lambda: parc.compare(_scene(), methods=("brute",), options={"parc": {}}),
                                      "not among the methods"),
+    # Taken before: load_scene kept a progress it could not call.
+    "scene progress of a number": (lambda: parc.load_scene("scene.toml", progress=1),
+                                   "progress must be a function of a line of text, got 1"),
 }
+
+
+def test_a_raw_files_mmap_is_a_flag(tmp_path):
+    # bool("no") is True: the file was mapped.
+    path = tmp_path / "v_2x2x2_uint8.raw"
+    path.write_bytes(bytes(8))
+    for value in ("no", 2, None):
+        with pytest.raises(InputError, match=re.escape(f"mmap must be True or False, got {value!r}")):
+            parc.load_volume(path, mmap=value) if value is not None else read_raw(path, mmap=value)
+    assert parc.load_volume(path, mmap=True).dims == (2, 2, 2)
 
 
 @pytest.mark.parametrize("name", list(CASES))

@@ -895,6 +895,20 @@ def test_mapping_from_a_span_of_one_value_is_refused_by_name():
             tf.mapped(0.0, 1.0, src=src)
 
 
+@pytest.mark.parametrize("lo, hi, src, words", [
+    (None, 1.0, (0.0, 1.0), "mapped takes finite numbers"),
+    ("0", 1.0, (0.0, 1.0), "mapped takes finite numbers"),
+    (0.0, math.inf, (0.0, 1.0), "mapped takes finite numbers"),
+    (0.0, 1.0, (0.0,), "mapped takes finite numbers"),
+    (1.0, 0.0, (0.0, 1.0), "cannot map onto [1, 0]: reversed"),
+    (-1e308, 1e308, (0.0, 1.0), "a span beyond float64's range"),
+])
+def test_mapping_onto_what_is_no_span_is_refused(lo, hi, src, words):
+    # Each came out as Python's TypeError, an IndexError, or a message about the points' order or a NaN.
+    with pytest.raises(InputError, match=re.escape(words)):
+        TransferFunction([(0.0, 0.5), (1.0, 1.0)]).mapped(lo, hi, src=src)
+
+
 def test_rounding_widens_a_range_by_its_largest_magnitude():
     # [0, 100] widened by 1e-6 of 100 reaches 100.0001, past the support's start at 100.00005;
     # by 1e-6 of its smaller end (0) it would not.
