@@ -228,7 +228,7 @@ def _check_size(size):
         # At most three taken: an endless iterator (itertools.count) or a range of 10**10 is refused, not drawn out.
         pair = () if text_or_flag(size) else tuple(itertools.islice(size, 3))
         ok = len(pair) == 2 and all(not text_or_flag(v) and int(v) == v and v >= 1 for v in pair)
-    except (TypeError, ValueError, OverflowError):
+    except (TypeError, ValueError, OverflowError, np.ma.MAError):      # MAError: a masked value
         ok = False
     if not ok:
         raise InputError(f"image size must be two positive integers, got {size!r}")

@@ -234,7 +234,7 @@ def test_view_and_size_given_by_the_caller_win(folder):
     assert scene.camera == parc.Camera(eye=(0, -80, 8), look_at=(12, 8, 8), up=(0, 0, 1), parallel_scale=20)
 
 
-@pytest.mark.parametrize("size", [(), 0, []])
+@pytest.mark.parametrize("size", [(), 0, [], (np.ma.masked, 10)])     # a masked value: NumPy's MaskError
 def test_an_empty_or_zero_size_given_by_the_caller_is_refused(folder, size):
     # None alone keeps the file's size: an empty or zero one is a mistake, not the default.
     with pytest.raises(InputError, match=re.escape(f"size (given to load_scene): image size must be two positive "
