@@ -70,6 +70,19 @@ def reference_step(spacing):
     """The step opacities refer to: `REFERENCE_STEP_FRACTION` of the smallest spacing."""
     return REFERENCE_STEP_FRACTION * float(min(spacing))
 
+def _real_values(values, who):
+    """``values`` as an array of real numbers (integers or floats, NaN and inf among them), or an
+    InputError naming ``who``: NumPy turns text into numbers, drops an imaginary part, and counts
+    a date's days."""
+    try:
+        a = np.asarray(values)
+    except ValueError:                              # ragged nesting
+        a = np.asarray(None)
+    if a.dtype.kind not in "iuf":
+        raise InputError(f"{who} takes real numbers (integers or floats), got {short_repr(values)}")
+    return a
+
+
 def _interp(x, y, v):
     """Piecewise-linear ``y`` (shape (n,) or (n, k)) at float64 ``v``, as the kernels compute it."""
     shape = v.shape + y.shape[1:]
@@ -173,15 +186,15 @@ class TransferFunction:
 
     def opacity(self, values):
         """Opacity at ``values`` (any shape, compared in float64), bit for bit as `tf_opacity`."""
-        return _interp(self._op_x, self._op_y, np.asarray(values, dtype=np.float64))
+        return _interp(self._op_x, self._op_y, _real_values(values, "opacity").astype(np.float64))
 
     def color(self, values):
         """Straight RGB at ``values``: shape ``values.shape + (3,)``, bit for bit as `tf_lookup`."""
-        return _interp(self._col_x, self._col_rgb, np.asarray(values, dtype=np.float64))
+        return _interp(self._col_x, self._col_rgb, _real_values(values, "color").astype(np.float64))
 
     def lookup(self, values):
         """Straight RGBA at ``values``: shape ``values.shape + (4,)``."""
-        v = np.asarray(values, dtype=np.float64)
+        v = _real_values(values, "lookup").astype(np.float64)
         return np.concatenate([self.color(v), self.opacity(v)[..., None]], axis=-1)
 
     # -- classification ---------------------------------------------------
@@ -227,9 +240,13 @@ class TransferFunction:
         once per possible value instead, and each range costs one table
         lookup (`_nonzero_by_table`).
         """
-        mn = np.asarray(mn)
-        mx = np.asarray(mx)
-        shape = np.broadcast_shapes(mn.shape, mx.shape)
+        mn, mx = _real_values(mn, "nonzero_in"), _real_values(mx, "nonzero_in")
+        if not is_number(rounding) or not 0.0 <= rounding < 1.0:
+            raise InputError(f"nonzero_in: rounding must be a fraction from 0 to below 1, got {rounding!r}")
+        try:
+            shape = np.broadcast_shapes(mn.shape, mx.shape)
+        except ValueError:
+            raise InputError(f"nonzero_in: range bounds of shapes {mn.shape} and {mx.shape} do not broadcast together") from None
         if mn.shape != shape or mx.shape != shape:
             mn, mx = np.broadcast_arrays(mn, mx)
         a_all = mn.reshape(-1)

@@ -909,6 +909,24 @@ def test_mapping_onto_what_is_no_span_is_refused(lo, hi, src, words):
         TransferFunction([(0.0, 0.5), (1.0, 1.0)]).mapped(lo, hi, src=src)
 
 
+@pytest.mark.parametrize("call, words", [
+    (lambda tf: tf.lookup("abc"), "lookup takes real numbers"),
+    (lambda tf: tf.opacity(["1", "2"]), "opacity takes real numbers"),
+    (lambda tf: tf.color(np.array([1 + 1j])), "color takes real numbers"),
+    (lambda tf: tf.lookup(np.array(["2020-01-01"], "M8[D]")), "lookup takes real numbers"),
+    (lambda tf: tf.opacity([True, False]), "opacity takes real numbers"),
+    (lambda tf: tf.nonzero_in("a", "b"), "nonzero_in takes real numbers"),
+    (lambda tf: tf.nonzero_in(np.ones(3), np.ones(4)), "of shapes (3,) and (4,) do not broadcast together"),
+    (lambda tf: tf.nonzero_in(0, 1, rounding="x"), "rounding must be a fraction from 0 to below 1, got 'x'"),
+    (lambda tf: tf.nonzero_in(0, 1, rounding=1.5), "rounding must be a fraction from 0 to below 1, got 1.5"),
+])
+def test_lookups_and_range_queries_take_real_numbers(call, words):
+    # NumPy read text as numbers or raised its own ValueError, dropped an imaginary part, and
+    # counted a date's days.
+    with pytest.raises(InputError, match=re.escape(words)):
+        call(TransferFunction([(0.0, 0.0), (3.0, 0.8), (6.0, 0.1)], [(0.0, 1, 0, 0), (6.0, 0, 0, 1)]))
+
+
 def test_rounding_widens_a_range_by_its_largest_magnitude():
     # [0, 100] widened by 1e-6 of 100 reaches 100.0001, past the support's start at 100.00005;
     # by 1e-6 of its smaller end (0) it would not.
