@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from data_tools import InputError
+from data_tools.memory import check_memory
 from data_tools.volume import text_or_flag, three_numbers
 
 
@@ -132,6 +133,8 @@ class Camera:
         width, height = _image_size(width, height)
         f, r, u = self.basis()
         y0, y1 = (0, height) if rows is None else rows
+        # Twelve float64 values a pixel at the peak: the grid, the offsets, origins and directions.
+        check_memory(12 * 8 * width * max(y1 - y0, 0), f"camera rays for {width}x{y1 - y0} pixels")
         x = np.arange(width) + 0.5
         y = np.arange(y0, y1) + 0.5
         sx = (2.0 * x / width - 1.0) * (width / height)

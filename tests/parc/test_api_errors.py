@@ -204,6 +204,17 @@ CASES = {
 }
 
 
+def test_camera_rays_beyond_memory_are_refused_before_they_are_made(monkeypatch):
+    # Allocated before: a MemoryError, or the process killed. (The memory is fixed here, so that
+    # the test asks the same of every machine.)
+    from data_tools import memory
+    monkeypatch.setattr(memory, "available_memory", lambda: 2**30)
+    with pytest.raises(InputError, match=r"camera rays for 100000x100000 pixels needs about .* 1\.0 GB is available"):
+        CAM.rays(10**5, 10**5)
+    origins, directions = CAM.rays(4, 3)
+    assert origins.shape == directions.shape == (3, 4, 3)
+
+
 def test_a_raw_files_mmap_is_a_flag(tmp_path):
     # bool("no") is True: the file was mapped.
     path = tmp_path / "v_2x2x2_uint8.raw"
