@@ -70,17 +70,18 @@ def reference_step(spacing):
     """The step opacities refer to: `REFERENCE_STEP_FRACTION` of the smallest spacing."""
     return REFERENCE_STEP_FRACTION * float(min(spacing))
 
-def _real_values(values, who):
-    """``values`` as an array of real numbers (integers or floats, NaN and inf among them), or an
-    InputError naming ``who``: NumPy turns text into numbers, drops an imaginary part, and counts
-    a date's days."""
+
+def _real_values(values, who, dtype=None):
+    """``values`` as an array of real numbers (integers or floats, NaN and inf among them; in
+    ``dtype`` where given, copied only to convert), or an InputError naming ``who``: NumPy turns
+    text into numbers, drops an imaginary part, and counts a date's days."""
     try:
         a = np.asarray(values)
     except ValueError:                              # ragged nesting
         a = np.asarray(None)
     if a.dtype.kind not in "iuf":
         raise InputError(f"{who} takes real numbers (integers or floats), got {short_repr(values)}")
-    return a
+    return a if dtype is None else a.astype(dtype, copy=False)
 
 
 def _interp(x, y, v):
@@ -186,16 +187,17 @@ class TransferFunction:
 
     def opacity(self, values):
         """Opacity at ``values`` (any shape, compared in float64), bit for bit as `tf_opacity`."""
-        return _interp(self._op_x, self._op_y, _real_values(values, "opacity").astype(np.float64))
+        return _interp(self._op_x, self._op_y, _real_values(values, "opacity", np.float64))
 
     def color(self, values):
         """Straight RGB at ``values``: shape ``values.shape + (3,)``, bit for bit as `tf_lookup`."""
-        return _interp(self._col_x, self._col_rgb, _real_values(values, "color").astype(np.float64))
+        return _interp(self._col_x, self._col_rgb, _real_values(values, "color", np.float64))
 
     def lookup(self, values):
         """Straight RGBA at ``values``: shape ``values.shape + (4,)``."""
-        v = _real_values(values, "lookup").astype(np.float64)
-        return np.concatenate([self.color(v), self.opacity(v)[..., None]], axis=-1)
+        v = _real_values(values, "lookup", np.float64)
+        return np.concatenate([_interp(self._col_x, self._col_rgb, v), _interp(self._op_x, self._op_y, v)[..., None]],
+                              axis=-1)
 
     # -- classification ---------------------------------------------------
 
