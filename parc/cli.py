@@ -493,7 +493,8 @@ def cmd_compare(args):
     if steps is not None and args.supercell is not None:
         common["supercell"] = args.supercell
     if warming is not None:
-        compile_notice(say, kernel_samples(scene, ["brute"] + [m.split(":")[0] for m in methods], common["buffers"]))
+        compile_notice(say, kernel_samples(scene, ["brute"] + [m.split(":")[0] for m in methods], common["buffers"],
+                                            repeated=True))
     if steps is not None:
         from .comparison import format_step_table, step_sweep
         rows = step_sweep(scene, steps, repeats=args.repeats, progress=warming, options=common)

@@ -366,11 +366,14 @@ def _light_buffer_size(light_buffer):
     return int(light_buffer)
 
 
-def kernel_samples(scene, methods=("brute",), buffers=DEFAULT_BUFFERS):
+def kernel_samples(scene, methods=("brute",), buffers=DEFAULT_BUFFERS, repeated=False):
     """The Numba kernels rendering ``scene`` with ``methods`` runs whose first compile takes
     seconds, for `parc.outputs.compile_notice`: the casters, and with PARC its own (the
     segments' unpacking, the skip tables), which compile for seconds even once `brute`'s are
     cached. Only kernels this scene compiles: one it never uses would announce a compile every run.
+    ``repeated``: the scene is rendered again, as `parc.compare` does (`parc.skip.expect_frames`),
+    so its isosurfaces' skip tables by octant are built; a single frame builds them only for an
+    isovalue of a volume that the scene shows twice.
 
     Each comes with the Numba types of the samples it is called with (its first argument),
     one per call it compiles for (none for a kernel that takes no samples): Numba compiles a
@@ -381,12 +384,20 @@ def kernel_samples(scene, methods=("brute",), buffers=DEFAULT_BUFFERS):
         kernels = []
         if len(scene.volumes) > 1 or "depth" in parse_buffers(buffers):
             kernels.append(raster.unpack_segments)
-        if any(not isinstance(v, Translucent) for v in scene.volumes):
+        if _octant_tables_built(scene, repeated):
             kernels += skip.OCTANT_KERNELS          # the camera rays' tables
         if any(isinstance(v, Translucent) for v in scene.volumes) or (scene.shadows and scene.lights):
             kernels += skip.CENTRED_KERNELS         # translucent volumes', shadow rays'
         pairs += [(k, ()) for k in kernels]
     return pairs
+
+
+def _octant_tables_built(scene, repeated):
+    """Whether rendering ``scene`` builds skip tables by octant: they wait for an isovalue's
+    second frame (`parc.classify.VolumeIndex.iso_octant_skip`), which one frame gives only to a
+    volume shown twice at the same isovalue."""
+    asks = [(id(v.volume), float(v.value)) for v in scene.volumes if isinstance(v, Isosurface)]
+    return bool(asks) and (repeated or len(set(asks)) < len(asks))
 
 
 def _casters_for(scene, methods, buffers):

@@ -403,7 +403,7 @@ def _kernels_used():
         scene = parc.Scene(camera=cam, size=(4, 4), volumes=volumes, lights=lights, shadows=bool(lights))
         # Its scenes of several volumes are drawn with depth buffers alone.
         for buffers in ("depth", "bits", "depth,bits") if len(volumes) == 1 else ("depth",):
-            kernels |= {k for k, _ in kernel_samples(scene, ("brute", "parc"), buffers)}
+            kernels |= {k for k, _ in kernel_samples(scene, ("brute", "parc"), buffers, repeated=True)}
     # Parker et al.'s section times the walk, the root finders and the shading apart.
     from raycast.shade import shade_headlight
 

@@ -1557,6 +1557,55 @@ def test_the_casters_a_render_is_said_to_compile_are_those_it_runs(gl):
             assert set(named) - {k for k, _ in kernel_samples(scene, ("brute",), buffers)}
 
 
+def test_parcs_own_kernels_said_to_compile_are_those_a_render_calls(gl, monkeypatch):
+    """PARC's kernels beside the casters (the segments' unpacking, the skip tables) named for a
+    render are those it calls. The skip tables by ray octant wait for an isovalue's second frame,
+    yet every isosurface was said to need them: `parc render --method parc` of a surface said it
+    compiled on every run, until a `parc compare` had built them."""
+    import parc
+    import parc.raster
+    import parc.skip
+    from data_tools.synthetic import blobs
+    from parc.renderer import kernel_samples
+    called, spied = set(), {}
+
+    def spy(module, name):
+        kernel = getattr(module, name)
+
+        def recorded(*args):
+            called.add(kernel)
+            return kernel(*args)
+        spied[recorded] = kernel          # as `kernel_samples` reads it from the module
+        monkeypatch.setattr(module, name, recorded)
+        return kernel
+
+    own = {spy(parc.raster, "unpack_segments")} | {
+        spy(parc.skip, k.py_func.__name__) for k in parc.skip.OCTANT_KERNELS + parc.skip.CENTRED_KERNELS}
+    lo, hi = blobs(10, seed=1).value_range()
+    far = tuple(2.0 * np.array(blobs(10, seed=1).bounds[1]))
+    kinds = [  # volumes (a function of one fresh volume), lights, buffers
+        (lambda v: [parc.Isosurface(v, (lo + hi) / 2)], [], "depth"),
+        (lambda v: [parc.Isosurface(v, (lo + hi) / 2)], [parc.PointLight(far)], "depth"),
+        (lambda v: [parc.Isosurface(v, (lo + hi) / 2), parc.Isosurface(v, (lo + hi) / 2)], [], "depth"),
+        (lambda v: [parc.Isosurface(v, (lo + hi) / 2), parc.Isosurface(v, lo + (hi - lo) / 4)], [], "depth"),
+        (lambda v: [parc.Translucent(v, "greyscale")], [], "bits"),
+        (lambda v: [parc.Translucent(v, "greyscale")], [], "depth,bits"),
+        (lambda v: [parc.Isosurface(v, (lo + hi) / 2), parc.Translucent(v, "greyscale", shade=True)],
+         [parc.PointLight(far)], "depth"),
+    ]
+    for volumes, lights, buffers in kinds:
+        for repeated in (False, True):
+            vol = blobs(10, seed=1)          # a fresh volume: no table built, no isovalue asked before
+            scene = parc.Scene(camera=parc.Camera.framing(*vol.bounds), size=(8, 8), volumes=volumes(vol),
+                               lights=lights, shadows=bool(lights))
+            if repeated:
+                parc.skip.expect_frames(scene)
+            called.clear()
+            parc.render(scene, "parc", buffers=buffers)
+            named = {spied.get(k, k) for k, _ in kernel_samples(scene, ("parc",), buffers, repeated=repeated)} & own
+            assert named == called, (buffers, repeated, sorted(k.py_func.__name__ for k in named ^ called))
+
+
 def test_one_lit_translucent_volume_is_said_to_compile_the_caster_it_runs(gl):
     """One translucent volume with lights is cast by its own driver, as without them: the notice
     asked for the merged walk of several volumes instead, which such a render never runs, and
