@@ -245,6 +245,17 @@ def test_parcs_flags_without_parc_are_refused_before_any_note_of_compiling(vol_f
     assert rc == 2 and err == "parc: error: --no-blocks applies to parc, which --methods leaves out\n", err
 
 
+def test_a_light_too_far_to_shade_is_told_to_be_a_sun(vol_file, tmp_path, capsys):
+    # PointLight's own refusal named a Python class, which the command line has no flag for.
+    out = tmp_path / "o.png"
+    _refused(["render", vol_file, "--iso", 3, "--light", "1e151,0,-2", "-o", out],
+             "--light 1e+151,0,-2 is beyond 1e+150; a light that far is a sun: give its direction with "
+             "--sun DX,DY,DZ", capsys)
+    assert not out.exists()
+    scene, _ = _scene("render", vol_file, "--iso", 3, "--light", "-1e149,0,-2", "-o", out)
+    assert scene.lights[0].position == (-1e149, 0.0, -2.0)
+
+
 @pytest.mark.parametrize("flag", ["--light", "--sun"])
 @pytest.mark.parametrize("with_volume", [True, False])
 def test_two_lights_after_one_flag_are_refused_with_the_flag_once_a_light(flag, with_volume, vol_file, tmp_path,
