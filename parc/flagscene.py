@@ -67,6 +67,12 @@ def scene_from_flags(args, say):
         else:
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     _say_what_shows_faintly(scene, say)
+    if (scene.background is None and getattr(args, "command", "render") == "render"
+            and any(getattr(v, "mode", None) == "average" for v in scene.volumes)):
+        # Its grey level is white at that opacity: over a white page or viewer, nothing shows.
+        # (Said where an image is written: parc compare writes none.)
+        say("average intensity draws white at the grey level's opacity; on the default transparent "
+            "background it reads as an X-ray over black: add --background 0,0,0 for an opaque image")
     return scene
 
 
@@ -171,12 +177,6 @@ def _volume_scene(args, say):
             check_step(args.step, vol, "--step")
         if args.threshold is not None:
             check_threshold(args.threshold, "--threshold")
-        if (args.mode == "average" and getattr(args, "background", None) is None
-                and getattr(args, "command", "render") == "render"):
-            # Its grey level is white at that opacity: over a white page or viewer, nothing shows.
-            # (Said where an image is written: parc compare writes none.)
-            say("--mode average draws white at the grey level's opacity; on the default transparent "
-                "background it reads as an X-ray over black: add --background 0,0,0 for an opaque image")
         vis = parc.Translucent(vol, args.tf, mode=args.mode or "composite", step=args.step,
                                threshold=DEFAULT_THRESHOLD if args.threshold is None else args.threshold,
                                shade=args.shade)

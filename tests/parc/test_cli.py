@@ -2429,6 +2429,18 @@ def test_average_mode_on_a_transparent_background_says_how_to_see_it(vol_file, t
     assert rc == 0 and "--background" not in err
     rc, _, err = _run(render + [tmp_path / "c.png", "--quiet"], capsys)
     assert rc == 0 and err == ""
+    # A scene file's average volume, among others, the same: only a scene file giving a
+    # background, or the flag, goes without the note; parc compare writes no image.
+    volumes = (f"[[volume]]\nfile = '{vol_file}'\niso = 3\n"
+               f"[[volume]]\nfile = '{vol_file}'\ntf = 'greyscale'\nmode = 'average'\n")
+    for n, (head, extra, noted) in enumerate([("", [], True), ("background = [0, 0, 0]\n", [], False),
+                                              ("", ["--background", "0,0,0"], False)]):
+        scene = tmp_path / f"s{n}.toml"
+        scene.write_text("size = [8, 8]\n" + head + volumes)
+        rc, _, err = _run(["render", scene, "-o", tmp_path / f"s{n}.png", *extra], capsys)
+        assert rc == 0 and ("--background 0,0,0" in err) == noted, err
+    rc, _, err = _run(["compare", tmp_path / "s0.toml", "--repeats", 1], capsys)
+    assert rc == 0 and "--background" not in err
 
 
 def test_a_mip_through_a_faint_table_says_the_image_is_faint(vol_file, tmp_path, capsys):
