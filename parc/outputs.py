@@ -341,6 +341,16 @@ def compile_notice(say, kernels=()):
             f"(kept in {folder})")
 
 
+@contextlib.contextmanager
+def compiling_seconds():
+    """A one-item list, filled when the block ends with the seconds Numba spent compiling in it:
+    a first run's render time is mostly that, and the line reporting it says so."""
+    from numba.core.event import install_timer
+    spent = [0.0]
+    with install_timer("numba:compile", lambda seconds: spent.__setitem__(0, seconds)):
+        yield spent
+
+
 def _cached(kernel, folder, samples):
     """Whether Numba's cache in ``folder`` holds ``kernel``, compiled for a first argument of
     each of the Numba types ``samples``.
