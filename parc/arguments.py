@@ -305,7 +305,7 @@ def build_parser():
     c.add_argument("--sweep-step", metavar="LIST",
                    help="with --tf: run brute and parc once per sample step, e.g. 1,0.5,0.25, against a "
                         "reference at the finest step / 4: speed against error")
-    c.add_argument("--repeats", type=int, default=3,
+    c.add_argument("--repeats", type=int, default=3, metavar="N",
                    help="timed renders per method (1 to 10000), after one to warm up; the median is reported (default 3)")
     c.add_argument("--json", action="store_true",
                    help="print the rows as JSON instead of a table (strict JSON: psnr null means identical images)")
@@ -360,7 +360,7 @@ def build_parser():
     m.add_argument("-o", "--output", required=True, metavar="OUT",
                    help="output file: .nrrd (gzip) .nhdr .npy .mhd .mha .vtk .raw")
     m.add_argument("--size", type=int, metavar="N", help="samples per axis (default depends on the volume)")
-    m.add_argument("--seed", type=int, help="random seed, for the random volumes")
+    m.add_argument("--seed", type=int, metavar="S", help="random seed, for the random volumes")
     return p
 
 
