@@ -56,7 +56,8 @@ SHADOW_EPS = 1e-5
 
 def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=LIGHT_BUFFER_SIZE, blocks=True,
                  work=False, buffers=("depth",)):
-    """Render any scene (`parc.render` calls this for several volumes, or an isosurface with lights).
+    """Render any scene (`parc.render` calls this for several volumes, an isosurface with lights, or
+    shaded samples with shadows: `parc.renderer._casts_alone`).
 
     Returns ``(image, depth, counts, timings, extra)``: the float32 RGBA
     image (without background), the ``(H, W)`` depth, the counters

@@ -61,7 +61,7 @@ result, never break it.
   not), division and square root within 2^-20 (GLSL allows 2.5 and about
   4.5 ulp), float64 to float32 conversion within one ulp. An affine form
   evaluated in float32 with rounded coefficients is off by at most
-  ``3 * 2^-24 * (|k0| + |kx| x + |ky| y)``; `AFFINE_ERR` doubles that.
+  ``3 * 2^-24 * (|k0| + |kx| x + |ky| y)``; `AFFINE_ERR` is 8/3 of that.
 - Perspective: the shader evaluates ``d_a, d_u, d_v`` (face axis a,
   spanning axes u, v), then ``r = w / d_a`` (``w`` = plane - eye), the
   crossing ``p = r (d_u, d_v)`` and ``t = r |d|``. A ray crossing the face
@@ -180,8 +180,9 @@ FLUSH_TOL = 2.0 ** -120
 
 #: Error factor of a float32 affine form ``k0 + kx x + ky y`` against its
 #: exact value: rounded coefficients and two roundings give at most
-#: ``3 * 2^-24 * (|k0| + |kx| x + |ky| y)``; this doubles it (with room for
-#: the float64 coefficients' own error, ~2^-52 of the same magnitudes).
+#: ``3 * 2^-24 * (|k0| + |kx| x + |ky| y)``; this is 8/3 of it, a power of two
+#: above it (with room for the float64 coefficients' own error, ~2^-52 of the
+#: same magnitudes).
 AFFINE_ERR = 8.0 * 2.0 ** -24
 
 #: Parallel views clip faces at ``-4 * TOL_REL * scale`` (a rounding behind
@@ -194,9 +195,9 @@ TOL_REL = 2.0 ** -32
 INSIDE_CLIP_REL = 2.0 ** -30
 
 
-#: The passes hold ray distances in float32: a view reaching further than this (times the
-#: scene's spacing-free scale, `scene_scale`) from the eye, 2^8 short of float32's largest,
-#: gets no pass: every ray's segment is whole, and the caster walks it as `brute` does.
+#: The passes hold ray distances in float32: a view reaching further than this many world
+#: units from the eye (`view_reach`), 2^8 short of float32's largest, gets no pass: every
+#: ray's segment is whole, and the caster walks it as `brute` does.
 FLOAT32_REACH = 2.0 ** 120
 #: The phases a pass times (`Segments.seconds`, `parc.bitplanes.raster_bits`'s info).
 PASS_PHASES = ("prepare", "upload", "draw", "readback", "post", "total")

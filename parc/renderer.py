@@ -4,8 +4,9 @@ One driver per kind of volume: `_render_iso` (opaque isosurface: first hit,
 shaded as soon as it is found) and `_render_translucent` (accumulation). Both get their
 ray segments from `parc.segments` when the method is ``"parc"`` (a translucent
 volume drawn with bit planes alone takes only the proxy, `cached_proxy`); the
-casting kernels are the same for both methods. Scenes of several volumes, or
-of an isosurface with lights, go to `_render_general` (`parc.multivolume`).
+casting kernels are the same for both methods. Scenes of several volumes, of
+an isosurface with lights, or of shaded samples with shadows go to
+`_render_general` (`parc.multivolume`; `_casts_alone` decides).
 
 Also here, shared with `parc.multivolume` and the benchmarks: the kernels'
 arguments (`accumulation_params`, `iso_work`); the skip tables are `parc.skip`'s.
@@ -137,9 +138,10 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
         isovalue, or all transparent) and steps over single such cells
         without reading their samples (a skip table with one entry per
         cell, `parc.skip`: by ray octant for an isosurface's camera rays),
-        built once per transfer function, and per isovalue from its second
-        frame on (one frame does not repay the tables by octant; `parc.compare`
-        builds them from its first, `parc.skip.expect_frames`).
+        built once per transfer function, and per isovalue for shadow rays;
+        the camera rays' tables by octant from an isovalue's second frame on
+        (one frame does not repay them; `parc.compare` builds them from its
+        first, `parc.skip.expect_frames`).
         The image is the same either way; False measures the OpenGL
         segments alone.
     work : bool, default False
@@ -284,7 +286,8 @@ def _render(scene, method, supercell, buffers, progress, light_buffer, blocks, w
 
 
 def _render_general(scene, method, supercell, buffers, progress, light_buffer, skip_blocks, work):
-    """Several volumes, or lights: `parc.multivolume.render_scene`, with the same stats."""
+    """Several volumes, an isosurface with lights, or shaded samples with shadows
+    (`_casts_alone`): `parc.multivolume.render_scene`, with the same stats."""
     from .lights import LIGHT_BUFFER_SIZE
     from .multivolume import render_scene
 

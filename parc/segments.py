@@ -13,8 +13,9 @@ import numba
 from .scene import Isosurface
 from .workspace import work_array
 
-#: Proxies kept per volume (classification, supercell size), least recently
-#: used dropped first, so that only a camera change re-rasterizes: enough for
+#: Proxies kept per volume (classification, supercell size, faces merged or
+#: not: the camera's and the light buffers'), least recently used dropped
+#: first, so that only a camera change re-rasterizes: enough for
 #: flipping between skin and bone, and for a supercell sweep, whose methods
 #: take turns repeat by repeat (with 4 entries, a sweep of five sizes would
 #: rebuild every proxy every frame, and time it).

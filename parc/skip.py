@@ -122,7 +122,8 @@ def _radius_columns(c, inner, axis, cap, out):
 
     Row by row along x, so that the loop over ``dm`` (up to the cap)
     runs over whole rows: a scan per cell that stopped once ``|dm|``
-    reached its best built a 454M-cell table in ~19 s, this in 4 s.
+    reached its best built a 454M-cell table in ~19 s (the whole table now
+    takes 0.59 s, `SKIP_CAP`).
     """
     nz, ny, nx = c.shape
     n = nz if axis == 0 else ny

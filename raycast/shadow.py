@@ -230,7 +230,7 @@ def light_terms(points, normals, views, materials, lights, diffuse, specular):
     """Unshadowed Blinn-Phong terms of every hit for every light: ``diffuse[l, m]``, ``specular[l, m]``.
 
     A row of kind `KIND_HEADLIGHT` is a light at the eye, as for one volume
-    without lights (`raycast.shade.shade_headlight`).
+    without lights (`raycast.shade.headlight_pixel`).
 
     A light on the far side of the surface (as seen from the eye) gives
     zero: it needs no shadow ray.
