@@ -126,9 +126,8 @@ class Camera:
     def rays(self, width, height, rows=None):
         """World rays through every pixel centre: origins, directions, each ``(H, W, 3)``.
 
-        Vectorized NumPy version of `raycast.rays.camera_ray`: the box entries of several
-        volumes (`parc.multivolume`), the parallel origins PARC tests (`parc.origins`), the
-        Parker bench, and tests. ``rows=(y0, y1)``: only those rows, ``(y1 - y0, W, 3)``.
+        Vectorized NumPy version of `raycast.rays.camera_ray`: the parallel origins PARC
+        tests (`parc.origins`), the Parker bench, and tests. ``rows=(y0, y1)``: only those rows, ``(y1 - y0, W, 3)``.
         """
         width, height = _image_size(width, height)
         f, r, u = self.basis()
@@ -246,8 +245,8 @@ class Camera:
         # The narrower of the vertical half-angle and the horizontal one (a tall image).
         half = math.sin(min(math.radians(fov) / 2.0, math.atan(aspect * math.tan(math.radians(fov) / 2.0))))
         if not half >= 2.0 ** -32:
-            # The eye would stand over 2^32 box sizes away: the box is then below
-            # float64's resolution at the eye, and rays through it are ill defined.
+            # The eye would stand over 2^32 box sizes away: float64's resolution at the eye
+            # is then over 2^-20 of the box size, and rays through it are ill defined.
             raise InputError(f"a field of view of {fov:g} degrees is too narrow to frame the volume "
                              f"(the eye would stand over 2^32 volume sizes away)")
         dist = radius / half * 1.02

@@ -11,7 +11,7 @@ took.
   eight corners) meets the transfer function's non-zero opacity, walked
   with the same stopping rules (``t >= stop``, early ray termination in
   composite mode), so the count is exactly a subset of ``brute``'s
-  ``samples`` and PARC, at any supercell size, never takes fewer. The
+  ``samples`` and PARC, with supercells of a cell or more, never takes fewer. The
   definition and the per-ray kernel are in `raycast.ideal`.
 - Isosurfaces: nothing new to count. The ideal caster
   solves the cubic in exactly the cells whose range holds the isovalue, up
@@ -35,7 +35,8 @@ _NO_STOP = np.empty((1, 1))
 
 
 def contributing_cells(vis: Translucent) -> np.ndarray:
-    """uint8 ``(nz-1, ny-1, nx-1)``: 1 where a cell's corner range meets ``vis``'s non-zero opacity."""
+    """uint8 ``(nz-1, ny-1, nx-1)``: 1 where a cell's corner range meets ``vis``'s non-zero opacity
+    (each range widened by `raycast.composite.INTERP_ROUNDING`, as `parc.classify.classify_tf` does)."""
     from .classify import VolumeIndex, classify_tf
     mn, mx = VolumeIndex.of(vis.volume).cell_minmax()
     return np.ascontiguousarray(classify_tf(mn, mx, vis.tf), dtype=np.uint8)
@@ -83,7 +84,7 @@ def ideal_samples(scene, vis: Translucent, stop=None) -> int:
         The number of the unaccelerated caster's samples that lie in
         contributing cells (see `raycast.ideal`): at most ``brute``'s
         ``stats["samples"]``, at least every sample of non-zero opacity, and
-        never more than ``parc``'s.
+        never more than ``parc``'s with supercells of a cell or more.
 
     Raises
     ------

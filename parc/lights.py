@@ -103,6 +103,8 @@ class LightBuffers:
         Faces of the proxy the views were drawn from.
     seconds : float
         Raster time when built (0 when reused).
+    info : dict
+        ``views``: the number of views drawn.
     """
 
     views: np.ndarray

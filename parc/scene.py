@@ -416,7 +416,7 @@ def check_threshold(threshold, what="opacity threshold"):
 
 
 #: How many times the volumes' size the eye's coordinates may reach: as `Camera.framing`'s
-#: narrowest field of view, the volumes stay above 2^-20 of float64's resolution at the eye.
+#: narrowest field of view, float64's resolution at the eye stays below 2^-20 of the volumes' size.
 EYE_RANGE = 2.0 ** 32
 
 

@@ -8,8 +8,9 @@ accumulation (composite, maximum and average intensity) a *contributing
 cell* is one whose value range, the min/max of its eight corners (the
 exact range of its trilinear interpolant), meets the transfer function's
 non-zero opacity somewhere (`parc.transfer.TransferFunction.nonzero_in`
-on `parc.ranges.cell_minmax` gives exactly this classification,
-``contrib[k, j, i]``).
+on `parc.ranges.cell_minmax`, each range widened by `raycast.composite.INTERP_ROUNDING`
+for the interpolation's rounding as `parc.classify.classify_tf` does, gives this
+classification, ``contrib[k, j, i]``).
 
 For each pixel `ideal_ray_samples` walks exactly the unaccelerated
 caster's cells and sample lattice: the same `ray_span` (no segment),

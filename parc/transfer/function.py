@@ -32,8 +32,9 @@ Opacity and colour are separate piecewise-linear functions, each given by
 control points with non-decreasing values; outside the first and last
 point each is constant. A value may appear twice in a row, which makes a
 jump; at the jump the function takes the second point's value (it is
-continuous from the right). The kernel `tf_lookup` finds the segment by
-binary search and interpolates ``y0 + t (y1 - y0)`` with
+continuous from the right). The kernel `tf_lookup` finds the segment (a
+forward scan up to `raycast.transfer.LINEAR_SEARCH_MAX` points, else binary
+search) and interpolates ``y0 + t (y1 - y0)`` with
 ``t = (v - x0) / (x1 - x0)``; the NumPy methods do the same operations in
 the same order, so they agree with it bit for bit. A NaN value is fully
 transparent and black.
