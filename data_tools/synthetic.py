@@ -299,7 +299,8 @@ def making_note(name, size):
 
 
 def make_synthetic(name, size=None, **kwargs) -> Volume:
-    """Build the registry volume ``name``; ``size=None`` keeps the function's default.
+    """Build the registry volume ``name``; ``size=None`` keeps the function's default (16 for
+    `trilinear_field`, which has none).
 
     Raises
     ------

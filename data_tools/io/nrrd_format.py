@@ -160,7 +160,7 @@ def _check_layout(header, path):
 def _joined(header, files, path, encoding, lines, skip):
     """The samples of several data files (`read_header`), read in order and joined, shaped
     as the header's. The line and byte skips apply to each file, as in teem's reader (for
-    compressed or hex data, to the decoded bytes)."""
+    compressed data, to the decompressed bytes; for hex and text data, to the file's)."""
     paths, subdim = files
     sizes = [int(n) for n in header["sizes"]]
     block = data_file_block(path, paths, subdim, sizes, "the header's")
@@ -436,9 +436,9 @@ def _from_extent(header, sizes):
 
 def _spacing(header, path):
     """``(spacing, note, reoriented)``: the spacing the header gives (None where ``axis
-    mins`` and ``axis maxs`` give it with the origin), a note on what was made of it (spacings
-    not given at all, NaN or infinite, are taken as 1 and said), and whether oblique or mirrored
-    axes were laid on the axis-aligned grid."""
+    mins`` and ``axis maxs`` give it with the origin), a note on what was made of it (NaN or
+    infinite spacings are taken as 1 and said; a header giving no spacing at all gets 1, unsaid),
+    and whether oblique or mirrored axes were laid on the axis-aligned grid."""
     dirs = header.get("space directions")
     if dirs is not None:
         try:

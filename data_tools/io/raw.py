@@ -76,7 +76,8 @@ def _type_words(stem):
 
 def _fitting_type(path, guess, shape, offset):
     """The type, among those the name gives, that the file's size fits: one named with its
-    width before a C word; the first named when none fits (the read then says why)."""
+    width before a C word; `guess_from_name`'s (the first named with its width, else the first
+    named) when none fits (the read then says why)."""
     try:
         count = int(np.prod(_parse_shape(shape, path), dtype=np.int64))
         size = path.stat().st_size - _whole(offset)
