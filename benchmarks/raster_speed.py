@@ -11,7 +11,7 @@ renderer's own model (`parc.costmodel`) counts face strips and was fitted to
 
 With --stages: only the raster pass, for the supercell size the renderer
 would choose (or --supercell), every stage's best and median over
---repeats frames (prepare, upload, draw, readback, post, total), and the
+--repeats frames (prepare, draw, readback, post, total; upload for the first frame only), and the
 faces drawn (faces bordering only cavities are skipped while no ray
 starts in one). The machine's load varies: compare runs made together.
 

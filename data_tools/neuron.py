@@ -223,7 +223,7 @@ def floor(size=128, *, height=None, thickness=None, tile=None, relief=None) -> V
     thickness : float, optional
         Slab thickness in voxels; default 35% of the z extent.
     tile : float, optional
-        Tile edge in voxels; default an eighth of the x extent.
+        Tile edge in voxels; default an eighth of the x extent, at least 2.
     relief : float, optional
         Height difference between neighbouring tiles in voxels; default
         ``min(1, 8% of the z extent)``. 0 makes the top flat.

@@ -7,8 +7,9 @@ faces, nearly axis-aligned rays, 16-bit magnitudes, far cells) come out
 right. Three finders with the same contract ``f(A, B, C, D, L) -> s`` in
 ``[0, L]`` or -1 are compared:
 
-* ``project``: `raycast.cubic.first_root`: isolation by the derivative's
-  roots (cancellation-free), then safeguarded Newton to 1e-15 of the interval.
+* ``project``: `raycast.cubic.first_root`: the Bernstein coefficients' sign
+  changes, else isolation by the derivative's roots (cancellation-free),
+  then safeguarded Newton to 1e-15 of the bracket.
 * ``closed-form``: `raycast.roots_alt.first_root_closed_form`: Cardano /
   trigonometric roots as Parker et al. 1998 used them (Schwarze's Graphics
   Gems code, quadratic/linear special cases, ``EQN_EPS = 1e-30``).
@@ -74,8 +75,8 @@ PROJECT, CLOSED_FORM, MARMITT = 0, 1, 2
 
 #: ``(name, code, description)`` of each finder, in table order.
 VARIANTS = (
-    ("project", PROJECT, "isolate by the derivative's roots, safeguarded Newton to 1e-15 "
-                         "(raycast.cubic.first_root)"),
+    ("project", PROJECT, "Bernstein sign test, else isolate by the derivative's roots; safeguarded "
+                         "Newton to 1e-15 (raycast.cubic.first_root)"),
     ("closed-form", CLOSED_FORM, "Cardano/trigonometric roots, quadratic/linear special cases, "
                                  "EQN_EPS 1e-30 (Parker et al. 1998, after Schwarze)"),
     ("marmitt", MARMITT, f"isolate by the derivative's roots, {MARMITT_ITER} regula falsi steps "

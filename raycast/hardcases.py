@@ -53,6 +53,7 @@ class Batch:
 def cast(scene, origins, dirs, iso, seg=None, skip=None):
     """Run the caster on world rays with one isovalue; returns (t, cell, uvw, counts).
 
+    ``seg``: per-ray ``(near, far)`` bounds, ``(n, 2)``, or None for whole rays.
     ``skip``: a skip table and the smallest radius worth a jump (``(int8
     array, jump_min)``, see `raycast.iso`), or None for none. Small groups run on one thread: a parallel launch on a busy machine costs
     milliseconds, and the per-ray kernel is the same either way.

@@ -112,7 +112,7 @@ def _critical_points(p):
     disc = b * b - 4 * a * c
     if disc < 0:
         return []
-    if disc == 0:           # one (double) point: listed twice, a triple root there would come out twice
+    if disc == 0:           # one (double) point, listed once: listed twice, a triple root there would come out twice
         return [-b / (2 * a)]
     q = -(b + MP.sqrt(disc)) / 2 if b >= 0 else -(b - MP.sqrt(disc)) / 2
     if q == 0:

@@ -24,9 +24,11 @@ About these techniques.
   piece whose ends differ in sign holds the first root, which is refined by
   a fixed number ``MARMITT_ITER`` of regula falsi steps (linear
   interpolation between the bracket ends, keeping the sign change), not
-  iterated to convergence. The project's finder isolates the same way (with
-  the cancellation-free quadratic formula) and then runs safeguarded Newton
-  to 1e-15 of the interval.
+  iterated to convergence. The project's finder first counts the sign
+  changes of the cubic's Bernstein coefficients (none: no root; one: a root
+  bracketed by the ends); otherwise it isolates the same way (with the
+  cancellation-free quadratic formula). Either way safeguarded Newton then
+  runs to 1e-15 of the bracket.
 """
 import math
 

@@ -159,8 +159,8 @@ def write_npy(volume: Volume, path, *, sidecar=None) -> Path:
 
     ``sidecar=None`` writes it only when they are not the defaults;
     ``True`` always (so an existing sidecar cannot go stale); ``False``
-    never (`save_volume` refuses it for a volume whose spacing or origin
-    is not the default).
+    none for a volume at the default spacing and origin, and one all the
+    same for any other (which `save_volume` refuses with ``False``).
     """
     path = Path(path)
     save_array(path, volume.data)

@@ -2,8 +2,8 @@
 
 Pillow only (no matplotlib), so the report can be built wherever the renderer
 runs. The charts are plain on purpose: white background, the Okabe-Ito
-colour-blind-friendly palette with a distinct marker shape per series, and
-every point or bar labelled. Two cases that generic plotting handles badly
+colour-blind-friendly palette with a marker shape per series (four, cycling),
+and every scatter point and bar labelled. Two cases that generic plotting handles badly
 are handled here because the report meets them all the time: an error of
 exactly 0 on a log axis (PARC's error against `brute` is usually 0), drawn at
 a marked "0" past an axis break below the smallest positive value instead of
