@@ -48,7 +48,7 @@ def test_make_synthetic_unknown_name_lists_names():
 
 @pytest.mark.parametrize("size", [1, (4, 4), "big", (4, 0, 4)])
 def test_bad_sizes(size):
-    with pytest.raises(InputError):
+    with pytest.raises(InputError, match="^size must (give at least 2 samples per axis|be an integer or three integers)"):
         sphere(size)
 
 

@@ -85,14 +85,24 @@ def test_paper_tables_have_brute_and_parc_at_each_size(bench, table):
                 assert r["hit_mismatches"] == 0 and r["max_color"] <= 1e-6
 
 
-def test_isosurface_ideal_is_brute_solves_and_parc_solves_the_same(bench):
-    _, _, res, _ = bench
-    for r in res["time_shares"]["rows"]:
-        assert r["cubics"] > 0 and r["cells"] >= r["cubics"]
-    rows = res["table3"]["rows"]
-    for r in rows:
-        assert 0 < r["ideal_primary_cells"] <= r["primary_cells"]
-        assert 0 < r["ideal_shadow_cells"] <= r["shadow_cells"]
+def test_isosurface_rows_share_one_ideal_below_each_methods_cells(bench):
+    """The ideal of an isosurface frame is the cubics it solves (`parc.ideal`), the same for both
+    methods; each method visits at least those cells, PARC fewer than `brute`."""
+    _, suite, res, _ = bench
+    shares = res["time_shares"]["rows"]
+    surfaces = {r["surface"] for r in shares}
+    assert len(surfaces) == 2
+    for surface in surfaces:
+        rows = {r["method"]: r for r in shares if r["surface"] == surface}
+        assert set(rows) == {"brute", "parc"}
+        assert rows["brute"]["cubics"] == rows["parc"]["cubics"] > 0
+        assert rows["brute"]["cells"] > rows["parc"]["cells"] >= rows["parc"]["cubics"]
+    for size in suite.sizes:
+        rows = [r for r in res["table3"]["rows"] if r["size"] == size]
+        assert [r["method"] for r in rows] == ["brute", "parc"]
+        for kind in ("primary", "shadow"):
+            ideal = {r[f"ideal_{kind}_cells"] for r in rows}
+            assert len(ideal) == 1 and 0 < min(ideal) <= min(r[f"{kind}_cells"] for r in rows)
 
 
 def test_the_papers_tables_show_each_speedups_spread_over_its_rounds(bench):
@@ -111,6 +121,7 @@ def test_the_papers_tables_show_each_speedups_spread_over_its_rounds(bench):
 
 def test_time_shares_add_up(bench):
     _, _, res, _ = bench
+    assert len(res["time_shares"]["rows"]) == 4          # skin and bone, by brute and parc
     for r in res["time_shares"]["rows"]:
         assert sum(r["shares"].values()) == pytest.approx(1.0)
         assert ("OpenGL" in r["shares"]) == (r["method"] != "brute")

@@ -143,8 +143,17 @@ def test_framing_keeps_the_whole_box_in_view(size, parallel, zoom):
 
 
 def test_a_parallel_camera_ignores_its_field_of_view():
-    cam = Camera(eye=(8, -40, 8), look_at=(8, 8, 8), up=(0, 0, 1), fov=None, parallel_scale=10)
-    assert cam.parallel and np.isfinite(cam.as_array()).all()
+    rays = []
+    for fov in (None, 10.0, 170.0):
+        cam = Camera(eye=(8, -40, 8), look_at=(8, 8, 8), up=(0, 0, 1), fov=fov, parallel_scale=10)
+        assert cam.parallel and np.isfinite(cam.as_array()).all()
+        rays.append(cam.rays(7, 5))
+    for o, d in rays[1:]:
+        np.testing.assert_array_equal(o, rays[0][0])
+        np.testing.assert_array_equal(d, rays[0][1])
+    # Half the view's height is the scale, whatever the field of view.
+    o, d = rays[0]
+    assert np.ptp(o[:, 0, 2]) == pytest.approx(2 * 10 * (1 - 1 / 5))
 
 
 def test_the_cached_basis_and_kernel_array_cannot_be_changed_through_a_caller():

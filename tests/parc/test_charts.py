@@ -255,7 +255,7 @@ def test_heat_maps_degenerate_input_renders(tmp_path, maps, colour):
 
 
 def test_heat_maps_need_a_map(tmp_path):
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="needs at least one map"):
         heat_maps(tmp_path / "h.png", {}, title="t", label="cells")
 
 

@@ -103,7 +103,7 @@ def test_near_integer_size_is_that_integer():
 
 @pytest.mark.parametrize("size", [0, -1, math.inf, math.nan, "x", (1, 2)])
 def test_grid_rejects_bad_sizes(size):
-    with pytest.raises(InputError):
+    with pytest.raises(InputError, match="^supercell size must be "):
         supercell_grid((5, 5, 5), size)
 
 

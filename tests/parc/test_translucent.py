@@ -242,9 +242,16 @@ def test_composite_matches_a_slow_reference():
     scene = Scene(camera=cam, size=(16, 12), volumes=[Translucent(vol, tf, step=0.3, threshold=0.95)])
     res = render(scene)
     o, d = cam.rays(16, 12)
-    for y, x in zip(rng.integers(0, 12, 25), rng.integers(0, 16, 25)):
+    seen = 0
+    # Random pixels, and as many among those the render shows, so that most compared are not background.
+    shown = np.argwhere(res.image[..., 3] > 0.05)
+    picks = [(int(y), int(x)) for y, x in zip(rng.integers(0, 12, 15), rng.integers(0, 16, 15))]
+    picks += [tuple(map(int, p)) for p in shown[rng.permutation(len(shown))[:15]]]
+    for y, x in picks:
         want = _slow_composite(vol, tf, o[y, x], d[y, x], 0.3, 0.95)
         np.testing.assert_allclose(res.image[y, x], want, atol=1e-6)
+        seen += want[3] > 0.05
+    assert seen >= 10           # most pixels compared show the volume, not empty background
 
 
 def test_a_composite_volume_replaced_into_another_mode_keeps_its_default_threshold():
