@@ -264,7 +264,7 @@ def _time_solves(rec, repeats=3):
     return {code: best[code] / (reps * len(rec)) for code in best}
 
 
-def root_study(quick=False, n=None, *, seed=0):
+def root_study(quick=False, n=None, *, seed=0, progress=None):
     """Speed, accuracy and failures of three cubic root finders on the hard-ray suite.
 
     Parameters
@@ -277,6 +277,9 @@ def root_study(quick=False, n=None, *, seed=0):
         Rays per category; overrides ``quick``.
     seed : int, default 0
         Suite seed (0 is the suite the tests check).
+    progress : callable(message) or None
+        Told as each stage starts (walking the suite, timing, the mpmath truth): a first run
+        compiles the finders' walks, and the truth takes tens of seconds.
 
     Returns
     -------
@@ -304,7 +307,9 @@ def root_study(quick=False, n=None, *, seed=0):
     from raycast.reference import judge_batches
 
     per_cat = n if n is not None else (QUICK_RAYS_PER_CATEGORY if quick else FULL_RAYS_PER_CATEGORY)
+    say = progress or (lambda message: None)
     batches = _suite(per_cat, seed)
+    say(f"walking {sum(len(b.origins) for b in batches):,} rays with each finder")
     answers, recs = [], []
     for b in batches:
         row = []
@@ -322,7 +327,9 @@ def root_study(quick=False, n=None, *, seed=0):
                                "raycast.iso.cast_iso_ray; update walk_iso_ray")
         answers.append(row)
     rec = np.ascontiguousarray(np.concatenate(recs))
+    say(f"timing {len(rec):,} cubics with each finder")
     ns = _time_solves(rec)
+    say("the mpmath truth of every ray")
 
     judged = judge_batches([(b.scene, b.origins, b.dirs, b.isos, row)
                             for b, row in zip(batches, answers)])

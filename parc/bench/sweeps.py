@@ -67,7 +67,7 @@ def step_size_sweep(suite, progress):
 def root_finders(suite, progress):
     """`parc.rootstudy` rows: ns per solve, max error to mpmath, failures, per finder."""
     progress("root finders: hard-ray suite and its mpmath truth")
-    rows = root_study(quick=suite.roots_quick, n=suite.roots_n)
+    rows = root_study(quick=suite.roots_quick, n=suite.roots_n, progress=lambda m: progress(f"root finders: {m}"))
     return {"rows": rows}
 
 
