@@ -428,7 +428,7 @@ def _load_lights(where, raw):
         keyed = [(kind, kind, t.numbers(kind, 3))]
         if kind == "position" and max(abs(c) for c in keyed[0][2]) > MAX_LIGHT_DISTANCE:
             raise t.error("position", f"is beyond {MAX_LIGHT_DISTANCE:g}; a light that far is "
-                              "directional: give its direction instead of a position")
+                                      "directional: give its direction instead of a position")
         if "color" in t:
             keyed.append(("color", "color", t.numbers("color", 3)))
         if "intensity" in t:
