@@ -18,8 +18,7 @@ from data_tools.info import exact_text
 
 from .camera import check_fov, check_parallel_scale, unit_vector
 from .outputs import note
-from .scene import (DEFAULT_THRESHOLD, MAX_LIGHT_DISTANCE, ShowsNothingWarning, check_eye_resolves, check_step,
-                    check_threshold)
+from .scene import DEFAULT_THRESHOLD, ShowsNothingWarning, check_eye_resolves, check_step, check_threshold
 
 
 def load_volume_flags(args):
@@ -115,10 +114,10 @@ def _add_flag_lights(scene, args, say):
     from dataclasses import replace
     lights = []
     for p in args.light or ():
-        if max(abs(c) for c in p) > MAX_LIGHT_DISTANCE:
-            raise InputError(f"--light {','.join(f'{c:g}' for c in p)} is beyond {MAX_LIGHT_DISTANCE:g}; "
-                             "a light that far is a sun: give its direction with --sun DX,DY,DZ")
-        lights.append(parc.PointLight(position=p))
+        try:
+            lights.append(parc.PointLight(position=p))
+        except InputError as exc:
+            raise InputError(f"--light: {exc}") from None
     for d in args.sun or ():
         try:
             lights.append(parc.DirectionalLight(direction=d))

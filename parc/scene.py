@@ -216,8 +216,10 @@ class PointLight:
         self.position = _finite_triple(self.position, "light position")
         if max(abs(c) for c in self.position) > MAX_LIGHT_DISTANCE:
             # Its direction's length would overflow in the shading; from there it is the sun.
-            raise InputError(f"light position {self.position} is beyond {MAX_LIGHT_DISTANCE:g}; "
-                             "a light that far is a DirectionalLight")
+            # Said in every caller's words: a DirectionalLight, --sun, a scene file's direction.
+            raise InputError(f"light position {self.position} is beyond {MAX_LIGHT_DISTANCE:g}; a light that "
+                             "far is directional: give its direction (DirectionalLight, --sun DX,DY,DZ, or a "
+                             "scene file's direction) instead of a position")
         self.color = _unit_triple(self.color, "light colour")
         self.intensity = _non_negative(self.intensity, "light intensity", MAX_SHADING_FACTOR)
 

@@ -69,8 +69,7 @@ from data_tools import InputError, Volume
 from data_tools.volume import text_or_flag
 
 from .camera import Camera, check_fov, check_parallel_scale, unit_vector
-from .scene import (MAX_LIGHT_DISTANCE, MODES, DirectionalLight, Isosurface, PointLight, Scene, Translucent,
-                    check_eye_resolves)
+from .scene import MODES, DirectionalLight, Isosurface, PointLight, Scene, Translucent, check_eye_resolves
 from .tomltables import Table, Where, array_tables, construct
 
 TOP_KEYS = ("size", "background", "shadows", "camera", "volume", "light")
@@ -426,9 +425,6 @@ def _load_lights(where, raw):
                               + (", not both" if "position" in t else ""))
         kind, cls = ("position", PointLight) if "position" in t else ("direction", DirectionalLight)
         keyed = [(kind, kind, t.numbers(kind, 3))]
-        if kind == "position" and max(abs(c) for c in keyed[0][2]) > MAX_LIGHT_DISTANCE:
-            raise t.error("position", f"is beyond {MAX_LIGHT_DISTANCE:g}; a light that far is "
-                                      "directional: give its direction instead of a position")
         if "color" in t:
             keyed.append(("color", "color", t.numbers("color", 3)))
         if "intensity" in t:

@@ -249,8 +249,9 @@ def test_a_light_too_far_to_shade_is_told_to_be_a_sun(vol_file, tmp_path, capsys
     # PointLight's own refusal named a Python class, which the command line has no flag for.
     out = tmp_path / "o.png"
     _refused(["render", vol_file, "--iso", 3, "--light", "1e151,0,-2", "-o", out],
-             "--light 1e+151,0,-2 is beyond 1e+150; a light that far is a sun: give its direction with "
-             "--sun DX,DY,DZ", capsys)
+             "--light: light position (1e+151, 0.0, -2.0) is beyond 1e+150; a light that far is directional: "
+             "give its direction (DirectionalLight, --sun DX,DY,DZ, or a scene file's direction) instead of a "
+             "position", capsys)
     assert not out.exists()
     scene, _ = _scene("render", vol_file, "--iso", 3, "--light", "-1e149,0,-2", "-o", out)
     assert scene.lights[0].position == (-1e149, 0.0, -2.0)

@@ -124,8 +124,10 @@ def test_lights_and_shadows_of_a_translucent_scene_are_taken_with_a_warning(fold
 def test_a_point_light_too_far_to_shade_is_told_to_be_directional(folder):
     # PointLight's own refusal named a Python class, which a scene file has no way to write.
     path = write(folder, "[[volume]]\nfile = 'data/ball.nrrd'\niso = 1\n[[light]]\nposition = [0, -1e151, 0]\n")
-    with pytest.raises(InputError, match=r"light\[1\]\.position: is beyond 1e\+150; a light that far is "
-                                         "directional: give its direction instead of a position$"):
+    with pytest.raises(InputError, match=r"light\[1\]\.position: light position \(0\.0, -1e\+151, 0\.0\) is beyond "
+                                         r"1e\+150; a light that far is directional: give its direction "
+                                         r"\(DirectionalLight, --sun DX,DY,DZ, or a scene file's direction\) "
+                                         "instead of a position$"):
         load_scene(path)
     write(folder, "[[volume]]\nfile = 'data/ball.nrrd'\niso = 1\n[[light]]\nposition = [0, -1e149, 0]\n")
     assert load_scene(path).lights[0].position == (0.0, -1e149, 0.0)

@@ -151,7 +151,7 @@ def test_a_very_far_point_light_shadows_as_brute_does(gl, distance):
     assert b.stats["shadow_rays"] == p.stats["shadow_rays"] > 0
     # Farther (from ~1e154) the shading's squared distance to the light would overflow
     # and the light reach nothing: PointLight refuses it (a DirectionalLight is that light).
-    with pytest.raises(InputError, match="a light that far is a DirectionalLight"):
+    with pytest.raises(InputError, match="a light that far is directional: give its direction \\(DirectionalLight"):
         PointLight(position=(2e150, 0.0, 0.0))
 
 
