@@ -169,11 +169,11 @@ def _build(path, fields, data_start, given):
     if header_size < -1:
         raise InputError(f"{path}: HeaderSize must be -1 (data at the end) or a byte count, got {header_size}")
     meta = {"format": "metaimage", "byte_order": "big" if big else "little"}
-    matrix = get("TransformMatrix", "Rotation", "Orientation")
-    if matrix:
-        key = _first(fields, ("TransformMatrix", "Rotation", "Orientation"))
-        no_extra_values(matrix.split(), axes * axes, path, key, f"for a {axes}x{axes} matrix")
-        m = np.asarray(parse_numbers(matrix.split(), axes * axes, float, path, "TransformMatrix"))
+    key = _first(fields, ("TransformMatrix", "Rotation", "Orientation"))
+    if key is not None and fields[key]:
+        words = fields[key].split()
+        no_extra_values(words, axes * axes, path, key, f"for a {axes}x{axes} matrix")
+        m = np.asarray(parse_numbers(words, axes * axes, float, path, key))
         m = m.reshape(axes, axes)[:3, :3]
         if np.abs(m - np.eye(3)).max() > 1e-6:
             meta["note"] = "non-identity TransformMatrix ignored: the volume is read on an axis-aligned grid"
