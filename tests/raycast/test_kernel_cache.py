@@ -314,6 +314,58 @@ def test_a_damaged_data_file_under_a_whole_index_is_compiled_again(tmp_path):
         assert run() == ["2.0", "1"]
 
 
+def test_numba_copies_a_scope_once_for_the_pieces_a_pass_copies_and_never_uses_the_original(monkeypatch):
+    # `raycast.config._scope_copied_once`: the statements a parallel loop's reductions keep, and the
+    # blocks of an inlined function, each share one copy of their function's scope, which is a copy:
+    # the inliner renames variables in it afterwards.
+    import numba
+    from numba.core import inline_closurecall
+    from numba.parfors import parfor
+
+    import raycast.config  # noqa: F401 - installs the copies, as every kernel's module does
+    reductions, inlined = [], []
+    reduce_nodes, inline_ir = parfor.get_reduce_nodes, inline_closurecall.InlineWorker.inline_ir
+
+    def spy_reductions(param, nodes, func_ir):
+        reductions.append(({id(n.target.scope) for n in nodes}, {id(b.scope) for b in func_ir.blocks.values()}))
+        return reduce_nodes(param, nodes, func_ir)
+
+    def spy_inlining(self, caller_ir, block, *args, **kwargs):
+        made = inline_ir(self, caller_ir, block, *args, **kwargs)
+        inlined.append(({id(b.scope) for b in made[0].blocks.values()}, len(made[0].blocks), id(block.scope)))
+        return made
+
+    monkeypatch.setattr(parfor, "get_reduce_nodes", spy_reductions)
+    monkeypatch.setattr(inline_closurecall.InlineWorker, "inline_ir", spy_inlining)
+
+    @numba.njit(inline="always")
+    def folded(x):
+        if x > 0.0:
+            y = 2.0 * x
+        else:
+            y = -x
+        return y + 1.0
+
+    @numba.njit(parallel=True)
+    def totals(a):
+        s = 0.0
+        m = 0.0
+        for i in numba.prange(a.shape[0]):
+            v = folded(a[i])
+            s += v
+            m = max(m, v)
+        return s, m
+
+    a = np.arange(-40.0, 57.0)
+    made = np.where(a > 0, 2 * a, -a) + 1
+    assert totals(a) == (made.sum(), made.max())
+    assert len(reductions) >= 2 and inlined     # two reductions, found by the parfor pass and again by lowering
+    for copies, own in reductions:
+        assert len(copies) == 1 and not copies & own
+    for copies, blocks, callers in inlined:
+        assert blocks > 1 and len(copies) == 1 and callers not in copies
+
+
 def test_numba_copies_its_sets_of_names_as_deepcopy_would(monkeypatch):
     # `raycast.config._quicker_copy_propagation`: the same copies, iterating in the same order,
     # so that Numba's fixed points (and the code it compiles) cannot change.
