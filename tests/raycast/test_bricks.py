@@ -11,7 +11,7 @@ from parc import Camera, Translucent, Volume
 from parc.renderer import accumulation_params
 from raycast.bricks import BrickedSamples, brick, brick_tables
 from raycast.composite import cast_accumulate_image
-from raycast.iso import NO_SKIP, cast_iso_image, empty_outputs
+from raycast.iso import NO_SKIP, NO_SKIP_OCTANTS, cast_iso_image, empty_outputs
 from raycast.traverse import cell_corners, grid_shape
 
 
@@ -93,8 +93,9 @@ def test_a_grid_too_small_is_refused(shape):
 
 
 def _noise(seed, shape=(14, 19, 11)):
+    # Read-only, as a Volume holds its samples: the casts are then the kernels a render compiles.
     rng = np.random.default_rng(seed)
-    return rng.integers(0, 1000, shape).astype(np.int16)
+    return Volume(rng.integers(0, 1000, shape).astype(np.int16)).data
 
 
 @pytest.mark.parametrize("seed", range(4))
@@ -114,7 +115,7 @@ def test_isosurface_cast_from_bricks_is_the_linear_cast(seed):
             t, cell, uvw, counts = empty_outputs(48 * 40)
             image = np.zeros((40, 48, 4), np.float32)
             cast_iso_image(samples, org, spc, cam.as_array(), 48, 40, iso, np.empty((1, 1, 2)), False,
-                           NO_SKIP, -1, t, cell, uvw, counts, 0, 40, True, np.ones(3),
+                           NO_SKIP_OCTANTS, -1, t, cell, uvw, counts, 0, 40, True, np.ones(3),
                            np.array([0.1, 0.7, 0.2, 20.0]), image)
             out.append((t, image, counts))
         assert np.isfinite(out[0][0]).sum() > 100
