@@ -198,9 +198,8 @@ def _scope_copied_once():
     from numba.core import inline_closurecall, ir
     from numba.parfors import parfor
 
-    shared = threading.local()      # {id(scope): (scope, its copy)} while a pass runs, else None
-
-    def copying_scopes_once(piece):
+    def copying_scopes_once(piece, shared):
+        # shared.scopes: {id(scope): (scope, its copy)} while the pass runs, else None.
         def deepcopy(x, memo=None):
             scopes = getattr(shared, "scopes", None)
             if memo is None and scopes is not None and isinstance(x, piece):
@@ -216,7 +215,7 @@ def _scope_copied_once():
         shim.deepcopy = deepcopy
         return shim
 
-    def sharing(run, per_call):
+    def sharing(run, shared, per_call):
         # The reductions pass calls itself for nested loops, under the outer call's copies;
         # each inlining gets its own, as the inliner renames variables in them afterwards.
         @functools.wraps(run)
@@ -233,11 +232,13 @@ def _scope_copied_once():
 
     worker = getattr(inline_closurecall, "InlineWorker", None)
     if getattr(parfor, "copy", None) is copy and callable(getattr(parfor, "get_parfor_reductions", None)):
-        parfor.copy = copying_scopes_once(ir.Assign)
-        parfor.get_parfor_reductions = sharing(parfor.get_parfor_reductions, per_call=False)
+        reducing = threading.local()
+        parfor.copy = copying_scopes_once(ir.Assign, reducing)
+        parfor.get_parfor_reductions = sharing(parfor.get_parfor_reductions, reducing, per_call=False)
     if getattr(inline_closurecall, "copy", None) is copy and callable(getattr(worker, "inline_ir", None)):
-        inline_closurecall.copy = copying_scopes_once(ir.Block)
-        worker.inline_ir = sharing(worker.inline_ir, per_call=True)
+        inlining = threading.local()
+        inline_closurecall.copy = copying_scopes_once(ir.Block, inlining)
+        worker.inline_ir = sharing(worker.inline_ir, inlining, per_call=True)
 
 
 _scope_copied_once()
