@@ -335,14 +335,11 @@ class Scene:
         # Given where they change nothing, they are legal (the contract's scenes give lights to
         # either kind of volume) but said.
         lit = any(isinstance(v, Isosurface) or (v.shade and v.mode == "composite") for v in self.volumes)
-        if self.lights and not lit:
-            warnings.warn("lights shine on isosurfaces and shaded translucent volumes (shade=True, --shade), and "
-                          "this scene has neither: the image is the same without them",
-                          ShowsNothingWarning, stacklevel=_callers_level())
-        if self.shadows and not lit:
-            warnings.warn("shadows fall on isosurfaces and shaded translucent volumes (shade=True, --shade), and "
-                          "this scene has neither: the image is the same without them",
-                          ShowsNothingWarning, stacklevel=_callers_level())
+        for given, what in ((self.lights, "lights shine on"), (self.shadows, "shadows fall on")):
+            if given and not lit:
+                warnings.warn(f"{what} isosurfaces and shaded translucent volumes (shade=True, --shade, a scene "
+                              "file's shade = true), and this scene has neither: the image is the same without them",
+                              ShowsNothingWarning, stacklevel=_callers_level())
 
     @property
     def width(self):

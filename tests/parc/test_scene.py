@@ -69,6 +69,8 @@ def test_lights_and_shadows_that_fall_on_nothing_are_taken_and_said_to_change_no
         scene = _scene(volumes=volumes, **given)
     assert [" ".join(str(w.message).split()[:2]) for w in caught] == said
     assert all("the image is the same without them" in str(w.message) for w in caught)
+    # How to shade, in each of the three places a scene is written:
+    assert all("shade=True, --shade, a scene file's shade = true" in str(w.message) for w in caught)
     assert all(w.filename == __file__ for w in caught)
     plain = _scene(volumes=volumes, lights=scene.lights if shade else [])
     for method in ("brute", "parc"):
