@@ -131,6 +131,17 @@ def _cache_is_only_a_shortcut():
 _cache_is_only_a_shortcut()
 
 
+def _copy_module(deepcopy):
+    """The `copy` module with ``deepcopy`` in place of its own, for one of Numba's modules to use."""
+    import copy
+    import types
+
+    shim = types.ModuleType("copy")
+    shim.__dict__.update(copy.__dict__)
+    shim.deepcopy = deepcopy
+    return shim
+
+
 def _quicker_copy_propagation():
     """Copy Numba's sets of copies and aliases without ``copy.deepcopy``, to the same result.
 
@@ -146,7 +157,6 @@ def _quicker_copy_propagation():
     ``copy`` module is left as it is.
     """
     import copy
-    import types
 
     from numba.core import ir_utils
 
@@ -161,10 +171,7 @@ def _quicker_copy_propagation():
         return copy.deepcopy(x, memo)
 
     if getattr(ir_utils, "copy", None) is copy:
-        shim = types.ModuleType("copy")
-        shim.__dict__.update(copy.__dict__)
-        shim.deepcopy = deepcopy
-        ir_utils.copy = shim
+        ir_utils.copy = _copy_module(deepcopy)
 
 
 _quicker_copy_propagation()
@@ -194,7 +201,6 @@ def _scope_copied_once():
     as it is.
     """
     import copy
-    import types
 
     from numba.core import inline_closurecall, ir
     from numba.parfors import parfor
@@ -211,10 +217,7 @@ def _scope_copied_once():
                         held = scopes[id(scope)] = (scope, copy.deepcopy(scope))
                     return copy.deepcopy(x, {id(scope): held[1]})
             return copy.deepcopy(x, memo)
-        shim = types.ModuleType("copy")
-        shim.__dict__.update(copy.__dict__)
-        shim.deepcopy = deepcopy
-        return shim
+        return _copy_module(deepcopy)
 
     def sharing(run, shared, per_call):
         # The reductions pass calls itself for nested loops, under the outer call's copies;
