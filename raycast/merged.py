@@ -313,9 +313,9 @@ class SampleRecord:
     """The shaded samples `cast_merged_image` records for a band of rows, in pixel order:
     ``slots[p]`` is pixel ``p``'s first row (pixels of the band only), ``counts[p]`` how many
     it has; ``points``, ``normals`` (the unit gradient, not yet turned to the eye: `blinn_phong`
-    turns it), ``views`` (unit, to the eye) and
-    ``colors`` (the transfer function's) are ``(n, 3)``, ``weights`` the samples' weights in
-    their pixels and ``volumes`` the index, among the merged volumes, of each one's volume.
+    turns it), ``views`` (unit, to the eye) and ``colors`` (the transfer function's) are
+    ``(n, 3)``, ``weights`` the samples' weights in their pixels and ``volumes`` the index,
+    among the merged volumes, of each one's volume.
     With ``n = 0`` the walk only counts them, into ``counts``."""
 
     def __init__(self, n, pixels):
