@@ -28,9 +28,6 @@ if [ ! -x "$venv/bin/python" ] || [ ! -f "$stamp" ] || [ "$root/pyproject.toml" 
     touch "$stamp"
 fi
 
-# Compiled Numba kernels are cached outside the package, shared by runs
-# (in a subfolder per version of the kernel sources; see raycast/config.py).
-export PARC_CACHE_DIR="${PARC_CACHE_DIR:-$root/.cache}"
 export PATH="$venv/bin:$PATH"
 
 if [ "${1:-}" = "test" ]; then

@@ -355,13 +355,16 @@ def _cached(kernel, folder, samples):
     """Whether Numba's cache in ``folder`` holds ``kernel``, compiled for a first argument of
     each of the Numba types ``samples``.
 
-    Checkouts of the same sources share the folder, each with an index in a subfolder named
-    after its path: the one that counts is the one Numba reads for this checkout.
+    The index that counts is the one Numba reads for this kernel, at its place in ``folder``
+    (`raycast.config` files each kernel under its package's name; Numba alone, under a hash of
+    its checkout's path).
     """
+    import numba.core.config
+
     try:
         own = Path(kernel._cache._cache_file._index_path)
-        paths = [folder / own.parent.name / own.name]
-    except AttributeError:                      # another Numba: any checkout's index
+        paths = [folder / own.relative_to(numba.core.config.CACHE_DIR)]
+    except (AttributeError, ValueError):        # another Numba: any index of this kernel
         paths = list(folder.rglob(_index_name(kernel)))[:1]
     if not paths or not paths[0].is_file():
         return False

@@ -1,11 +1,12 @@
 """Tunables and JIT flags for every kernel in `raycast`, in one place, and where the compiled
-kernels are cached (a folder per version of the sources, and a cache that treats a damaged
-entry as a miss); also quicker copies in Numba's compiler (`_quicker_copy_propagation`,
-`_scope_copied_once`)."""
+kernels are cached (a folder per version of the sources, shared by checkouts, and a cache that
+treats a damaged entry as a miss); also quicker copies in Numba's compiler
+(`_quicker_copy_propagation`, `_scope_copied_once`)."""
 import atexit
 import functools
 import hashlib
 import os
+import re
 import shutil
 import tempfile
 import threading
@@ -47,24 +48,32 @@ def at_exit(fn, *args, **kwargs):
     EXIT_CLEANUPS.append(functools.partial(fn, *args, **kwargs))
 
 
+def cache_base(environ):
+    """The folder PARC caches in, the kernels' folders among what it holds: ``PARC_CACHE_DIR``,
+    or ``parc`` in ``XDG_CACHE_HOME`` (``~/.cache``)."""
+    given = environ.get("PARC_CACHE_DIR")
+    if given:
+        return given
+    return os.path.join(environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache"), "parc")
+
+
 def choose_cache_folder(environ, name):
     """``(folder, refused)``: where the kernels named ``name`` are cached, and the folder that
     could not be written instead (None when it could).
 
-    The folder is ``name`` under ``NUMBA_CACHE_DIR`` (or ``PARC_CACHE_DIR``,
-    or ``~/.cache/parc``); a ``NUMBA_CACHE_DIR`` already ending in ``name``
-    is this one's, passed on to a child process. Where it cannot be written
-    the cache goes to a new temporary folder: Numba would otherwise fall
-    back to ``__pycache__`` beside the sources, whose entries it checks only
-    against the file that defines a kernel, and run stale code after an
-    edit to a function that kernel inlines.
+    The folder is ``name`` under ``NUMBA_CACHE_DIR`` (or `cache_base`); a
+    ``NUMBA_CACHE_DIR`` already ending in ``name`` is this one's, passed on
+    to a child process. Where it cannot be written the cache goes to a new
+    temporary folder: Numba would otherwise fall back to ``__pycache__``
+    beside the sources, whose entries it checks only against the file that
+    defines a kernel, and run stale code after an edit to a function that
+    kernel inlines.
     """
     given = environ.get("NUMBA_CACHE_DIR")
     if given and Path(given).name == name:
         folder = given
     else:
-        base = given or environ.get("PARC_CACHE_DIR") or os.path.join(os.path.expanduser("~"), ".cache", "parc")
-        folder = os.path.join(base, name)
+        folder = os.path.join(given or cache_base(environ), name)
     try:
         os.makedirs(folder, exist_ok=True)
         writable = os.access(folder, os.W_OK)
@@ -77,17 +86,78 @@ def choose_cache_folder(environ, name):
     return temporary, folder
 
 
+#: Versions of the kernels whose folders `forget_old_versions` keeps, the one in use among them:
+#: each takes 40-50 MB, and every edit to `raycast` makes a new version.
+KEPT_VERSIONS = 6
+
+_VERSION_FOLDER = re.compile(r"numba-[0-9a-f]{12}-[0-9]+t")
+
+
+def forget_old_versions(folder, keep=KEPT_VERSIONS):
+    """Mark the kernel folder ``folder`` used now, and remove its siblings (other versions of the
+    kernels, or thread counts) but the ``keep - 1`` used last.
+
+    A process still using a folder removed under it compiles what it lacks, and caches no more.
+    """
+    folder = Path(folder)
+    try:
+        os.utime(folder)
+        siblings = [(f.stat().st_mtime, f) for f in folder.parent.iterdir()
+                    if f != folder and _VERSION_FOLDER.fullmatch(f.name) and f.is_dir()]
+    except OSError:
+        return
+    for _, old in sorted(siblings, reverse=True)[max(keep - 1, 0):]:
+        shutil.rmtree(old, ignore_errors=True)
+
+
 # Compiled kernels are cached outside the package, in a folder named for
-# the kernels' sources and the thread count (`SPREAD_WAYS`): Numba
-# checks only the timestamp of the file that defines a kernel, so an edit
-# to a function it inlines from another module would otherwise leave a
-# stale compiled kernel in use. `dev.sh` puts the cache in the checkout.
+# the kernels' sources and the thread count (`SPREAD_WAYS`): Numba checks
+# only the file that defines a kernel, so an edit to a function it inlines
+# from another module would otherwise leave a stale compiled kernel in use.
 # Numba reads NUMBA_CACHE_DIR when it is first imported, and `parc` modules
 # may import it before this one, so it gets the folder directly as well.
 # Kernels pick their cache folder when they are decorated, after this line.
 _FOLDER, _REFUSED = choose_cache_folder(os.environ, f"numba-{_source_digest()}-{SPREAD_WAYS}t")
 os.environ["NUMBA_CACHE_DIR"] = _FOLDER
 numba.core.config.CACHE_DIR = _FOLDER
+if _REFUSED is None:
+    forget_old_versions(_FOLDER)
+
+
+def _cache_shared_by_checkouts():
+    """File each kernel of `raycast` and `parc` in the cache folder under its package's name.
+
+    Numba files a kernel under a hash of its folder's absolute path, so every
+    checkout, virtual environment or install of the same sources compiled
+    every kernel again (ten CPU-minutes for the test suite's). Numba still
+    checks each entry against the contents of the file that defines the
+    kernel, and the folder is named for the contents of all of `raycast`.
+    A Numba without the locators this extends files kernels its own way.
+    """
+    from numba.core import caching
+
+    # Older Numbas name them with a leading underscore.
+    base = getattr(caching, "UserProvidedCacheLocator", getattr(caching, "_UserProvidedCacheLocator", None))
+    impl = getattr(caching, "CacheImpl", getattr(caching, "_CacheImpl", None))
+    locators = getattr(impl, "_locator_classes", None)
+    if not (isinstance(base, type) and isinstance(locators, list)):
+        return
+
+    class PackageCacheLocator(base):
+        def __init__(self, py_func, py_file):
+            super().__init__(py_func, py_file)
+            self._cache_path = os.path.join(numba.core.config.CACHE_DIR, *py_func.__module__.split(".")[:-1])
+
+        @classmethod
+        def from_function(cls, py_func, py_file):
+            if py_func.__module__.partition(".")[0] not in ("raycast", "parc"):
+                return None
+            return super().from_function(py_func, py_file)
+
+    locators.insert(0, PackageCacheLocator)
+
+
+_cache_shared_by_checkouts()
 
 
 def _cache_is_only_a_shortcut():

@@ -43,9 +43,10 @@ from .scenes import default_data_dir
 
 
 def default_cache_dir():
-    """Where the Visible Woman phantom is kept between runs: ``$PARC_CACHE_DIR/bench`` or ``~/.cache/parc/bench``."""
-    base = os.environ.get("PARC_CACHE_DIR") or os.path.join(os.path.expanduser("~"), ".cache", "parc")
-    return Path(base) / "bench"
+    """Where the Visible Woman phantom is kept between runs: ``bench`` in `raycast.config.cache_base`."""
+    from raycast.config import cache_base
+
+    return Path(cache_base(os.environ)) / "bench"
 
 
 @dataclass(frozen=True)

@@ -594,6 +594,7 @@ def test_the_visible_woman_child_already_adopted_ends_at_once():
 def test_the_bench_says_it_compiles_while_any_kind_of_render_is_uncompiled(tmp_path, monkeypatch):
     # After a render had cached the isosurface casters, the suite's first translucent scene
     # compiled for half a minute unsaid: the notice looked for any kernel cached at all.
+    import numba.core.config
     import raycast.config
     from parc.bench import _kernels_used
     from parc.outputs import compile_notice
@@ -610,9 +611,9 @@ def test_the_bench_says_it_compiles_while_any_kind_of_render_is_uncompiled(tmp_p
         return bool(said) and "compiling the ray casters" in said[0]
 
     def cache(kernel):
-        own = Path(kernel._cache._cache_file._index_path)       # as Numba reads it, in the folder given
-        (tmp_path / own.parent.name).mkdir(exist_ok=True)
-        (tmp_path / own.parent.name / own.name).write_bytes(b"")
+        index = tmp_path / Path(kernel._cache._cache_file._index_path).relative_to(numba.core.config.CACHE_DIR)
+        index.parent.mkdir(parents=True, exist_ok=True)    # as Numba reads it, in the folder given
+        index.write_bytes(b"")
 
     cache(cast_iso_image)
     assert says()

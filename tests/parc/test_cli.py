@@ -1465,7 +1465,7 @@ def test_samples_of_a_type_not_yet_compiled_are_said_to_compile(tmp_path, monkey
     from raycast.iso import cast_iso_image
     monkeypatch.setattr(raycast.config, "cache_folder", lambda: tmp_path)
     own = Path(cast_iso_image._cache._cache_file._index_path)    # as Numba reads it, in the folder given
-    index = tmp_path / own.parent.name / own.name
+    index = tmp_path / own.relative_to(numba.core.config.CACHE_DIR)
     index.parent.mkdir()
 
     def samples(dtype, n=None):
@@ -1486,8 +1486,8 @@ def test_samples_of_a_type_not_yet_compiled_are_said_to_compile(tmp_path, monkey
     assert says((u8, i16), u8) and not says((u8, i16), i16, u8)
     assert not says((), u8)                                          # a kernel that takes no samples
     assert says((samples("uint8", 4),), samples("uint8", 3)) and not says((samples("uint8", 3),), samples("uint8", 3))
-    # Another checkout of the same sources sharing the folder keeps an index of its own, which
-    # this one's Numba does not read: the first found answered, and a run compiled unsaid.
+    # An index elsewhere in the folder (Numba alone files one under a hash of its checkout's
+    # path) is not the one this Numba reads: the first found answered, and a run compiled unsaid.
     other = tmp_path / "raycast_0123" / own.name
     other.parent.mkdir()
     other.write_bytes(pickle.dumps("0.68") + pickle.dumps(

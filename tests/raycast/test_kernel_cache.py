@@ -15,6 +15,7 @@ import importlib
 import json
 import os
 import pkgutil
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -258,6 +259,62 @@ def test_the_default_cache_is_in_the_user_s_cache_folder_not_the_package(tmp_pat
     name = "numba-0123abcd-2t"
     assert choose_cache_folder({}, name) == (str(tmp_path / "home" / ".cache" / "parc" / name), None)
     assert (tmp_path / "home" / ".cache" / "parc" / name).is_dir()
+    xdg = {"XDG_CACHE_HOME": str(tmp_path / "xdg")}
+    assert choose_cache_folder(xdg, name) == (str(tmp_path / "xdg" / "parc" / name), None)
+
+
+# Which checkout a process imported, and whether it compiled or loaded a kernel of each package.
+_CHECKOUT = """
+import json
+import numpy as np
+import parc.ranges, raycast.rays
+parc.ranges.cell_minmax(np.zeros((3, 3, 3), np.float32))
+raycast.rays.chunk_count(10, 3)
+compiled = [sum(k.stats.cache_misses.values()) for k in (parc.ranges._cell_minmax, raycast.rays.chunk_count)]
+print(json.dumps([raycast.__file__, compiled]))
+"""
+
+
+def test_checkouts_of_the_same_sources_share_their_compiled_kernels(tmp_path):
+    root = Path(raycast.__file__).parents[1]
+    env = dict(os.environ, PARC_CACHE_DIR=str(tmp_path / "cache"))
+    env.pop("NUMBA_CACHE_DIR", None)
+
+    def run_in(name, edit=None):
+        checkout = tmp_path / name
+        for package in ("raycast", "parc", "data_tools"):
+            shutil.copytree(root / package, checkout / package, ignore=shutil.ignore_patterns("__pycache__"))
+        if edit is not None:
+            with open(checkout / edit, "a") as f:
+                f.write("\n# an edit\n")
+        p = subprocess.run([sys.executable, "-c", _CHECKOUT], cwd=checkout, capture_output=True, text=True,
+                           timeout=600, env=dict(env, PYTHONPATH=str(checkout)))
+        assert p.returncode == 0, p.stderr[-2000:]
+        used, compiled = json.loads(p.stdout.splitlines()[-1])
+        assert Path(used) == checkout / "raycast" / "__init__.py"
+        return compiled
+
+    assert run_in("one") == [1, 1]
+    assert run_in("two") == [0, 0]
+    # Numba checks each entry against the file that defines its kernel, wherever that file is ...
+    assert run_in("three", edit="parc/ranges.py") == [1, 0]
+    # ... and an edit to `raycast` moves the whole cache to a new folder.
+    assert run_in("four", edit="raycast/config.py") == [1, 1]
+    assert len(list((tmp_path / "cache").glob("numba-*"))) == 2
+
+
+def test_the_cache_keeps_the_kernels_of_the_versions_used_last(tmp_path):
+    from raycast.config import forget_old_versions
+    names = [f"numba-{n:012x}-2t" for n in range(8)]
+    for age, name in enumerate(names):
+        (tmp_path / name / "raycast").mkdir(parents=True)
+        os.utime(tmp_path / name, (1e9 - age, 1e9 - age))
+    (tmp_path / "bench").mkdir()
+    (tmp_path / "numba-not-ours").mkdir()
+    forget_old_versions(tmp_path / names[-1], keep=3)
+    # The one in use, whatever its age, and the two used last; nothing that is not a version's folder.
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["bench", "numba-not-ours", *names[:2], names[-1]])
+    assert (tmp_path / names[-1]).stat().st_mtime > 1e9
 
 
 def test_the_folder_name_changes_with_any_kernel_source(tmp_path, monkeypatch):
