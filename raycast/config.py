@@ -14,10 +14,14 @@ from pathlib import Path
 
 
 def _source_digest():
-    """Digest of every kernel source file in this package."""
+    """Digest of every kernel source file: this package's modules, and those of `parc` that
+    define kernels (``@kernel``)."""
+    here = Path(__file__).parent
+    sources = sorted(here.glob("*.py")) + [
+        f for f in sorted((here.parent / "parc").rglob("*.py")) if b"@kernel" in f.read_bytes()]
     h = hashlib.sha1()
-    for f in sorted(Path(__file__).parent.glob("*.py")):
-        h.update(f.name.encode())
+    for f in sources:
+        h.update(f.relative_to(here.parent).as_posix().encode())
         h.update(f.read_bytes())
     return h.hexdigest()[:12]
 
@@ -87,7 +91,7 @@ def choose_cache_folder(environ, name):
 
 
 #: Versions of the kernels whose folders `forget_old_versions` keeps, the one in use among them:
-#: each takes 40-50 MB, and every edit to `raycast` makes a new version.
+#: each takes 40-50 MB, and every edit to a kernel source (`_source_digest`) makes a new one.
 KEPT_VERSIONS = 6
 
 _VERSION_FOLDER = re.compile(r"numba-[0-9a-f]{12}-[0-9]+t")
@@ -114,6 +118,10 @@ def forget_old_versions(folder, keep=KEPT_VERSIONS):
 # the kernels' sources and the thread count (`SPREAD_WAYS`): Numba checks
 # only the file that defines a kernel, so an edit to a function it inlines
 # from another module would otherwise leave a stale compiled kernel in use.
+# Checkouts of the same sources share the folder (`_cache_shared_by_checkouts`);
+# naming it for `parc`'s kernel modules too keeps two versions of a kernel
+# out of one folder, where a process could read one version's index and
+# the other's data, written at that moment by a process of another checkout.
 # Numba reads NUMBA_CACHE_DIR when it is first imported, and `parc` modules
 # may import it before this one, so it gets the folder directly as well.
 # Kernels pick their cache folder when they are decorated, after this line.
@@ -129,10 +137,10 @@ def _cache_shared_by_checkouts():
 
     Numba files a kernel under a hash of its folder's absolute path, so every
     checkout, virtual environment or install of the same sources compiled
-    every kernel again (ten CPU-minutes for the test suite's). Numba still
-    checks each entry against the contents of the file that defines the
-    kernel, and the folder is named for the contents of all of `raycast`.
-    A Numba without the locators this extends files kernels its own way.
+    every kernel again (ten CPU-minutes for the test suite's). The folder is
+    named for the contents of every kernel source, and Numba still checks
+    each entry against the file that defines its kernel. A Numba without
+    the locators this extends files kernels its own way.
     """
     from numba.core import caching
 

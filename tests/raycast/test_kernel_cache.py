@@ -296,11 +296,11 @@ def test_checkouts_of_the_same_sources_share_their_compiled_kernels(tmp_path):
 
     assert run_in("one") == [1, 1]
     assert run_in("two") == [0, 0]
-    # Numba checks each entry against the file that defines its kernel, wherever that file is ...
-    assert run_in("three", edit="parc/ranges.py") == [1, 0]
-    # ... and an edit to `raycast` moves the whole cache to a new folder.
-    assert run_in("four", edit="raycast/config.py") == [1, 1]
+    # An edit to a kernel's source moves the whole cache to a new folder, where the first
+    # checkout's kernels are not written over.
+    assert run_in("three", edit="parc/ranges.py") == [1, 1]
     assert len(list((tmp_path / "cache").glob("numba-*"))) == 2
+    assert run_in("four") == [0, 0]
 
 
 def test_the_cache_keeps_the_kernels_of_the_versions_used_last(tmp_path):
@@ -327,6 +327,15 @@ def test_the_folder_name_changes_with_any_kernel_source(tmp_path, monkeypatch):
     monkeypatch.setattr(config, "__file__", str(src / "config.py"))
     before = config._source_digest()
     (src / "cubic.py").write_text("def root():\n    return 2.0\n")
+    assert config._source_digest() != before
+    # `parc`'s modules count where they define kernels.
+    (tmp_path / "parc" / "transfer").mkdir(parents=True)
+    (tmp_path / "parc" / "cli.py").write_text("def main():\n    pass\n")
+    (tmp_path / "parc" / "transfer" / "function.py").write_text("@kernel\ndef lookup():\n    pass\n")
+    before = config._source_digest()
+    (tmp_path / "parc" / "cli.py").write_text("def main():\n    return 1\n")
+    assert config._source_digest() == before
+    (tmp_path / "parc" / "transfer" / "function.py").write_text("@kernel\ndef lookup():\n    return 1\n")
     assert config._source_digest() != before
 
 
