@@ -158,7 +158,8 @@ def _cache_shared_by_checkouts():
 
         @classmethod
         def from_function(cls, py_func, py_file):
-            if py_func.__module__.partition(".")[0] not in ("raycast", "parc"):
+            # A function made by exec() may have no module at all.
+            if (getattr(py_func, "__module__", None) or "").partition(".")[0] not in ("raycast", "parc"):
                 return None
             return super().from_function(py_func, py_file)
 

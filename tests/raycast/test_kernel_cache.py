@@ -303,6 +303,22 @@ def test_checkouts_of_the_same_sources_share_their_compiled_kernels(tmp_path):
     assert run_in("four") == [0, 0]
 
 
+def test_only_the_kernels_of_parc_and_raycast_are_filed_by_package():
+    import numba.core.config
+    from numba.core import caching
+
+    from parc.ranges import _cell_minmax
+    locator = caching.CacheImpl._locator_classes[0]
+    filed = locator.from_function(_cell_minmax.py_func, _cell_minmax.py_func.__code__.co_filename)
+    assert Path(filed.get_cache_path()) == Path(numba.core.config.CACHE_DIR) / "parc"
+
+    def plus_one(x):
+        return x + 1
+    assert locator.from_function(plus_one, __file__) is None
+    plus_one.__module__ = None              # as exec() may leave it
+    assert locator.from_function(plus_one, __file__) is None
+
+
 def test_the_cache_keeps_the_kernels_of_the_versions_used_last(tmp_path):
     from raycast.config import forget_old_versions
     names = [f"numba-{n:012x}-2t" for n in range(8)]
