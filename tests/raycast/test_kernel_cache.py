@@ -308,7 +308,7 @@ def test_only_the_kernels_of_parc_and_raycast_are_filed_by_package():
     from numba.core import caching
 
     from parc.ranges import _cell_minmax
-    locator = caching.CacheImpl._locator_classes[0]
+    locator = getattr(caching, "CacheImpl", getattr(caching, "_CacheImpl", None))._locator_classes[0]
     filed = locator.from_function(_cell_minmax.py_func, _cell_minmax.py_func.__code__.co_filename)
     assert Path(filed.get_cache_path()) == Path(numba.core.config.CACHE_DIR) / "parc"
 
