@@ -17,12 +17,12 @@ def _source_digest():
     """Digest of every kernel source file: this package's modules, and those of `parc` that
     define kernels (``@kernel``)."""
     here = Path(__file__).parent
-    sources = sorted(here.glob("*.py")) + [
-        f for f in sorted((here.parent / "parc").rglob("*.py")) if b"@kernel" in f.read_bytes()]
     h = hashlib.sha1()
-    for f in sources:
-        h.update(f.relative_to(here.parent).as_posix().encode())
-        h.update(f.read_bytes())
+    for f in sorted(here.glob("*.py")) + sorted((here.parent / "parc").rglob("*.py")):
+        text = f.read_bytes()
+        if f.parent == here or b"@kernel" in text:
+            h.update(f.relative_to(here.parent).as_posix().encode())
+            h.update(text)
     return h.hexdigest()[:12]
 
 
