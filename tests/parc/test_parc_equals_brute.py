@@ -150,6 +150,13 @@ def _wide_camera(rng, vol):
     return Camera(eye=tuple(eye), look_at=tuple(look), up=(0.3, 0.2, 1.0), fov=fov)
 
 
+#: Draws for a wide view. Nearly 180 degrees wide, every ray of the image but the central one
+#: runs almost sideways, so a small surface shows only where that one ray meets it. Of 500
+#: isosurface scenes in a soak (`--soak-start 4600000`), one of blobs took 23 draws and every
+#: other 8 or fewer.
+WIDE_DRAWS = 100
+
+
 @pytest.mark.random_scenes(30)
 def test_parc_equals_brute_in_wide_views(seed, gl):
     rng = np.random.default_rng(seed)
@@ -158,7 +165,7 @@ def test_parc_equals_brute_in_wide_views(seed, gl):
     supercell = SUPERCELLS[seed % len(SUPERCELLS)]
     vol = _volume(rng, kind)
     lo, hi = vol.value_range()
-    for _ in range(MAX_DRAWS):
+    for _ in range(WIDE_DRAWS):
         level = _isovalue(rng, vol)
         # Translucent: faint below the level, a jump there (a bright shell), fading above.
         ramp = [[lo, 0.05], [level, 0.05], [level, 0.6], [hi, 0.2]] if lo < level < hi else [[lo, 0.3], [hi, 0.3]]
@@ -170,7 +177,7 @@ def test_parc_equals_brute_in_wide_views(seed, gl):
     res = render(scene, method="parc", supercell=supercell, **kwargs)
 
     where = f"{kind} {what} supercell={supercell} fov={scene.camera.fov!r} level={level:g}"
-    assert ref.image[..., 3].any(), f"no scene of {MAX_DRAWS} drawn shows the volume: {where}"
+    assert ref.image[..., 3].any(), f"no scene of {WIDE_DRAWS} drawn shows the volume: {where}"
     hit_ref, hit = np.isfinite(ref.depth), np.isfinite(res.depth)
     assert (hit == hit_ref).all(), f"hit masks differ at {np.argwhere(hit != hit_ref)[:5].tolist()}: {where}"
     assert np.abs(res.depth[hit] - ref.depth[hit]).max(initial=0) <= 1e-9 * min(vol.spacing), where
