@@ -393,7 +393,9 @@ def cmd_render(args):
     out = ", ".join(str(path) for path, _ in writes)        # every file written, the image first
     took = f"{s['seconds']['total']:.3f} s"
     if compiling[0] >= COMPILE_SAID:
-        took += f" ({compiling[0]:.1f} s of it compiling the casters, once)"
+        # Not "once" where the cache folder was refused: then every run compiles them again.
+        from raycast.config import cache_refused
+        took += f" ({compiling[0]:.1f} s of it compiling the casters{'' if cache_refused() else ', once'})"
     if len(scene.volumes) > 1:
         say(f"wrote {out}: {len(scene.volumes)} volumes ({'; '.join(_describe(v) for v in scene.volumes)}); {took}")
     elif isinstance(vis, parc.Isosurface):

@@ -1451,6 +1451,12 @@ def test_a_render_that_compiles_says_how_much_of_its_time_compiling_took(vol_fil
         assert rc == 0 and bool(re.search(r" s, [0-9,]+ cells| s \([0-9.]+ s of it compiling the casters, once\), "
                                           r"[0-9,]+ cells", err)), err
         assert ("of it compiling" in err) == compiles, err
+    # Where the cache cannot be written, every run compiles again: not "once".
+    import raycast.config
+    monkeypatch.setattr(raycast.config, "_REFUSED", str(tmp_path / "a file" / "cache"))
+    fresh.clear()
+    rc, _, err = _run(render + [tmp_path / "2.png"], capsys)
+    assert rc == 0 and re.search(r" s \([0-9.]+ s of it compiling the casters\), [0-9,]+ cells", err), err
 
 
 def test_samples_of_a_type_not_yet_compiled_are_said_to_compile(tmp_path, monkeypatch):
