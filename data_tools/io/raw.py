@@ -44,17 +44,21 @@ def guess_from_name(path) -> dict:
         Any of ``shape`` ``(nx, ny, nz)``, ``dtype`` (numpy name: the first
         named with its width, else the first named) and ``byte_order`` found
         in the name; with more than one type named, ``dtypes``, all of them
-        in that order (`read_raw` takes the one the file's size fits).
+        in that order (`read_raw` takes the one the file's size fits). A
+        name giving two shapes or both byte orders also has ``shapes`` or
+        ``byte_orders``, in its order (`read_raw` then asks which).
         Empty when the name says nothing.
     """
     stem = Path(path).stem
     found = {}
-    m = _SHAPE_RE.search(stem)
-    if m:
-        found["shape"] = tuple(int(g) for g in m.groups())
-    for word in re.split(r"[^A-Za-z0-9]+", stem.lower()):
-        if word in _ENDIAN_WORDS:
-            found["byte_order"] = _ENDIAN_WORDS[word]
+    shapes = list(dict.fromkeys(tuple(int(g) for g in m.groups()) for m in _SHAPE_RE.finditer(stem)))
+    orders = list(dict.fromkeys(_ENDIAN_WORDS[word] for word in re.split(r"[^A-Za-z0-9]+", stem.lower())
+                                if word in _ENDIAN_WORDS))
+    for key, named in (("shape", shapes), ("byte_order", orders)):
+        if named:
+            found[key] = named[0]
+        if len(named) > 1:
+            found[key + "s"] = named
     sized, words = _type_words(stem)
     dtypes = list(dict.fromkeys(sized + words))
     if dtypes:
@@ -62,6 +66,10 @@ def guess_from_name(path) -> dict:
     if len(dtypes) > 1:
         found["dtypes"] = dtypes
     return found
+
+
+def _shape_text(shape):
+    return "x".join(map(str, shape))
 
 
 def _type_words(stem):
@@ -190,10 +198,14 @@ def read_raw(path, *, shape=None, dtype=None, byte_order=None, offset=0,
         raise InputError(f"mmap must be True or False, got {mmap!r}")
     path = Path(path)
     guess = guess_from_name(path)
+    if shape is None and "shapes" in guess:
+        raise InputError(f"{path}: the name gives the shapes {' and '.join(map(_shape_text, guess['shapes']))}; "
+                         "give --shape NX,NY,NZ (shape in Python and scene files)")
     shape = shape if shape is not None else guess.get("shape")
     if dtype is None and "dtypes" in guess and shape is not None:
         dtype = _fitting_type(path, guess, shape, offset)
     dtype = dtype if dtype is not None else guess.get("dtype")
+    order_named = byte_order is None and "byte_orders" in guess
     byte_order = byte_order if byte_order is not None else guess.get("byte_order", "little")
     missing = [name for name, v in (("shape", shape), ("dtype", dtype)) if v is None]
     if missing:
@@ -209,6 +221,10 @@ def read_raw(path, *, shape=None, dtype=None, byte_order=None, offset=0,
             f"{', '.join(missing)}, byte_order, offset, spacing), or name it like vol_64x64x64_uint8.raw")
     dims = _parse_shape(shape, path)
     dtype = parse_dtype(dtype, path)
+    if order_named and np.dtype(dtype).itemsize > 1:
+        # Single bytes read the same either way.
+        raise InputError(f"{path}: the name gives both byte orders; give --byte-order little or big "
+                         "(byte_order in Python and scene files)")
     if str(byte_order).lower() not in ("little", "big"):
         raise InputError(f"{path}: byte order must be 'little' or 'big', got {byte_order!r}")
     try:
@@ -243,8 +259,12 @@ def check_name(volume: Volume, path, byte_order: str | None = None) -> None:
     path = Path(path)
     guess = guess_from_name(path)
     said = []
-    if "shape" in guess and tuple(guess["shape"]) != tuple(volume.dims):
-        said.append("x".join(map(str, guess["shape"])))
+    # A name giving two shapes, or both byte orders for samples of several bytes, is read back
+    # only with the flag that settles it, so it is refused as one that states another.
+    if "shapes" in guess:
+        said.append(" and ".join(map(_shape_text, guess["shapes"])))
+    elif "shape" in guess and tuple(guess["shape"]) != tuple(volume.dims):
+        said.append(_shape_text(guess["shape"]))
     named = guess.get("dtypes") or ([guess["dtype"]] if "dtype" in guess else [])
     if named and not any(np.dtype(d) == volume.dtype for d in named):
         said.append(" or ".join(named))
@@ -258,7 +278,10 @@ def check_name(volume: Volume, path, byte_order: str | None = None) -> None:
                 said.append(f"{fits[0]} (the type of its width it names first)")
             if fits:
                 break
-    if byte_order is not None and guess.get("byte_order", byte_order) != byte_order:
+    if "byte_orders" in guess:
+        if volume.dtype.itemsize > 1:
+            said.append("both little- and big-endian")
+    elif byte_order is not None and guess.get("byte_order", byte_order) != byte_order:
         said.append(f"{guess['byte_order']}-endian")
     if said:
         raise InputError(f"{path}: the name says {', '.join(said)}, and the samples written would be "

@@ -94,6 +94,42 @@ def test_raw_name_can_state_byte_order(tmp_path, writers):
     check(load_volume(writers.raw(tmp_path / "x_5x4x3_int16_be.raw", arr, big=True)), arr)
 
 
+def test_raw_name_giving_both_byte_orders_is_refused_unless_one_is_given(tmp_path, writers):
+    # Read by the last word, "_le_be" took the samples big-endian and "_be_le" little, silently.
+    arr = make_array("int16")
+    for name in ("x_5x4x3_int16_le_be.raw", "x_5x4x3_int16_be_le.raw"):
+        p = writers.raw(tmp_path / name, arr)
+        assert guess_from_name(p)["byte_orders"] in (["little", "big"], ["big", "little"])
+        with pytest.raises(InputError, match="the name gives both byte orders; give --byte-order"):
+            load_volume(p)
+        check(load_volume(p, byte_order="little"), arr)
+    # Single bytes read the same in either order.
+    arr = make_array("uint8")
+    check(load_volume(writers.raw(tmp_path / "x_5x4x3_uint8_le_be.raw", arr)), arr)
+
+
+def test_raw_name_giving_two_shapes_is_refused_unless_one_is_given(tmp_path, writers):
+    arr = make_array("uint8")
+    p = writers.raw(tmp_path / "x_5x4x3_then_3x4x5_uint8.raw", arr)
+    assert guess_from_name(p)["shapes"] == [(5, 4, 3), (3, 4, 5)]
+    with pytest.raises(InputError, match="the name gives the shapes 5x4x3 and 3x4x5; give --shape"):
+        load_volume(p)
+    check(load_volume(p, shape=(5, 4, 3)), arr)
+    # The same shape twice says one thing.
+    assert "shapes" not in guess_from_name("x_5x4x3_5x4x3_uint8.raw")
+
+
+@pytest.mark.parametrize("name, said", [("ct_4x3x2_int16_le_be.raw", "both little- and big-endian"),
+                                        ("ct_4x3x2_or_2x3x4_int16.raw", "4x3x2 and 2x3x4")])
+def test_a_raw_name_read_back_only_with_a_flag_is_not_written(tmp_path, name, said):
+    arr = np.zeros((2, 3, 4), np.int16)
+    with pytest.raises(InputError, match=f"the name says {said}"):
+        save_volume(Volume(arr), tmp_path / name, byte_order="little")
+    assert not (tmp_path / name).exists()
+    # One byte a sample: either order reads it back.
+    save_volume(Volume(arr.astype(np.uint8)), tmp_path / "ct_4x3x2_uint8_le_be.raw")
+
+
 def test_raw_name_with_a_sized_type_word_beside_a_c_word(tmp_path, writers):
     # "double" here names the helix, not the samples: the word with a width wins.
     assert guess_from_name("double_helix_5x4x3_uint8.raw") == {
