@@ -90,10 +90,11 @@ def main(argv=None):
                 signal.signal(signum, handler)
 
 
-def _out(text):
+def _out(text, done=None):
     """Print ``text`` on standard output, a failure there named as such (``> /dev/full``
-    would otherwise end in "No space left on device" alone, after the files were written). The text a failed
-    flush leaves in the buffer would fail again at exit (a second complaint, status 120), so
+    would otherwise end in "No space left on device" alone, after the files were written), after
+    ``done``, what the run did before (the files it wrote, which stay: they are whole). The text a
+    failed flush leaves in the buffer would fail again at exit (a second complaint, status 120), so
     standard output is then pointed at the null device, as for a closed pipe."""
     try:
         print(text, flush=True)
@@ -101,7 +102,8 @@ def _out(text):
         raise
     except OSError as exc:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        raise InputError(f"cannot write to standard output: {os_reason(exc)}") from None
+        raise InputError(f"{f'{done}, but ' if done else ''}cannot write to standard output: "
+                         f"{os_reason(exc)}") from None
 
 
 def _working_folder_gone():
@@ -211,7 +213,8 @@ def cmd_make(args):
     _refuse_overwriting_input(out, [])
     with slow_note(f"writing {out}", note):    # a compressed 640^3 volume takes seconds
         save_volume(vol, out)  # all-or-nothing itself, and keeps sidecar names right
-    _out(f"wrote {_written(out)} ({'x'.join(map(str, vol.dims))} {vol.dtype}{_placement(vol, out)})")
+    _out(f"wrote {_written(out)} ({'x'.join(map(str, vol.dims))} {vol.dtype}{_placement(vol, out)})",
+         done=f"wrote {_written(out)}")
     made_for = ISOVALUES[args.name]
     # A small volume can miss the levels it is made for (a neuron of 3 samples a side), and a
     # random trilinear field is made for none: the command suggested must run all the same.
@@ -323,7 +326,8 @@ def cmd_convert(args):
     if vol.meta.get("reoriented"):
         note(f"{out} is written on an axis-aligned grid, without the orientation of {args.volume}: "
              "it does not overlay the input in world space")
-    _out(f"wrote {_written(out)} ({'x'.join(map(str, vol.dims))} {vol.dtype}{_placement(vol, out)})")
+    _out(f"wrote {_written(out)} ({'x'.join(map(str, vol.dims))} {vol.dtype}{_placement(vol, out)})",
+         done=f"wrote {_written(out)}")
     return 0
 
 
