@@ -62,7 +62,8 @@ def _read(nib, path, given):
     if not isinstance(img, (nib.Nifti1Image, nib.Nifti2Image)):
         raise InputError(f"{path}: not a NIfTI image ({type(img).__name__})")
     header = img.header
-    slope = _stored_slope(img, path)
+    stored = _stored_header(img, path)
+    slope = float(stored["scl_slope"])
     if math.isinf(slope):
         # nibabel reads an infinite slope as no scaling, as it reads 0 and NaN; the standard has
         # scaling off only at 0 (NaN is how nibabel writes "none"), and scaled by it, every sample
@@ -108,6 +109,11 @@ def _read(nib, path, given):
     # dimensions alone, from (0, 0, 0).
     has_form = int(img.header["qform_code"]) > 0 or int(img.header["sform_code"]) > 0
     spacing, origin, note, reoriented = _geometry(img.affine if has_form else None, zooms)
+    if int(img.header["sform_code"]) <= 0:
+        # Without an sform the voxel sizes are pixdim's, which nibabel repairs unsaid on loading
+        # (0 to 1, -2 to 2; NaN it keeps, and `_geometry` says so).
+        repaired = _pixdim_note(stored["pixdim"][1:4])
+        note = "; ".join(n for n in (repaired, note) if n) or None
     meta = {"format": "nifti", "version": 2 if isinstance(img, nib.Nifti2Image) else 1}
     if scaled:
         meta["scaling"] = {"slope": float(proxy.slope), "inter": float(proxy.inter)}
@@ -118,15 +124,22 @@ def _read(nib, path, given):
     return file_volume(data, spacing, origin, path, meta, given)
 
 
-def _stored_slope(img, path) -> float:
-    """The header's scl_slope as the file stores it: the image's own header has it set to NaN
-    once nibabel has taken the scaling into its array proxy (which holds 1 for a slope it
-    reads as none)."""
+def _stored_header(img, path):
+    """The header as the file stores it. The image's own has its scl_slope set to NaN once
+    nibabel has taken the scaling into its array proxy (which holds 1 for a slope it reads as
+    none), and its pixdim repaired."""
     try:
         with img.file_map["image"].get_prepare_fileobj(mode="rb") as f:
-            return float(img.header_class.from_fileobj(f)["scl_slope"])
+            return img.header_class.from_fileobj(f, check=False)
     except Exception as exc:  # noqa: BLE001 - as in _read: nibabel raises many kinds
         raise InputError(f"{path}: cannot read NIfTI file: {one_line(exc) or type(exc).__name__}") from None
+
+
+def _pixdim_note(pixdims):
+    """What was made of voxel sizes ``pixdim[1:4]`` that are 0 or negative, or None."""
+    said = [f"voxel size {size:g} along {axis} (pixdim); {abs(size) if size else 1:g} was used"
+            for axis, size in zip("xyz", (float(d) for d in pixdims)) if size <= 0]
+    return f"the header gives {'; '.join(said)}" if said else None
 
 
 def _check_length(img, path, start):

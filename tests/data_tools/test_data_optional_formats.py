@@ -381,9 +381,28 @@ def test_nibabel_writes_nothing_of_its_own_on_stderr(tmp_path, caplog):
     raw[80:92] = np.array([-2.0, 3.0, 4.0], "<f4").tobytes()          # pixdim[1:4]
     (tmp_path / "neg.nii").write_bytes(bytes(raw))
     (tmp_path / "cut.nii").write_bytes(bytes(raw[:-10]))
-    assert load_volume(tmp_path / "neg.nii").spacing == (2.0, 3.0, 4.0)
+    neg = load_volume(tmp_path / "neg.nii")
+    assert neg.spacing == (2.0, 3.0, 4.0)
+    assert neg.meta["note"] == "the header gives voxel size -2 along x (pixdim); 2 was used"
     fails(tmp_path / "cut.nii", "truncated: its header's 5x4x3 uint8 samples need 412 bytes, the file has 402")
     assert [r.getMessage() for r in caplog.records] == []
+
+
+@pytest.mark.parametrize("qform", [0, 1])
+def test_a_nifti_voxel_size_of_0_is_said_to_be_taken_as_1(tmp_path, qform):
+    # nibabel sets a pixdim of 0 to 1 as it loads the header, and says so only in its log; the
+    # qform's affine takes the sizes from pixdim too.
+    img = nib.Nifti1Image(np.zeros((5, 4, 3), np.uint8), None)
+    img.set_qform(np.eye(4) if qform else None, qform)
+    img.set_sform(None, 0)
+    nib.save(img, tmp_path / "zero.nii")
+    raw = bytearray((tmp_path / "zero.nii").read_bytes())
+    raw[80:92] = np.array([2.0, 0.0, 0.0], "<f4").tobytes()          # pixdim[1:4]
+    (tmp_path / "zero.nii").write_bytes(bytes(raw))
+    vol = load_volume(tmp_path / "zero.nii")
+    assert vol.spacing == (2.0, 1.0, 1.0)
+    assert vol.meta["note"] == ("the header gives voxel size 0 along y (pixdim); 1 was used; "
+                                "voxel size 0 along z (pixdim); 1 was used")
 
 
 def test_rotated_anisotropic_nifti_spacing_is_nibabels_zooms(tmp_path):
