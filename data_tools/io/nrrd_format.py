@@ -81,9 +81,14 @@ def read_nrrd(path, *, spacing=None, origin=None) -> Volume:
     # An origin given replaces the header's, which is then not read: it may be unreadable (NaN).
     origin = _origin(header, spacing, path) if given["origin"] is None else given["origin"]
     if spacing is None:
-        spacing, origin, reoriented = _from_extent(header, data.shape[::-1])
+        spacing, origin, reoriented, flat = _from_extent(header, data.shape[::-1])
+        notes = []
         if reoriented:
-            note = "axis mins above axis maxs (mirrored axes) were reduced to positive spacings"
+            notes.append("axis mins above axis maxs (mirrored axes) were reduced to positive spacings")
+        if flat:
+            notes.append(f"axis mins and axis maxs give {', '.join(flat)} no length: spacing 1 was used for it "
+                         "(give --spacing SX,SY,SZ)")
+        note = "; ".join(notes) or None
     if note:
         meta["spacing_note"] = note         # `file_volume` says it, or what holds with a spacing given
     if reoriented:
@@ -414,7 +419,8 @@ def _per_axis(value):
 
 
 def _from_extent(header, sizes):
-    """``(spacing, origin, mirrored)`` from ``axis mins`` and ``axis maxs`` (no spacings given).
+    """``(spacing, origin, mirrored, flat)`` from ``axis mins`` and ``axis maxs`` (no spacings
+    given); ``flat``: the names of the axes they give no length, spaced 1.
 
     With node centring the extremes are the first and last samples; with
     cell centring, NRRD's default, the outer edges of the first and last
@@ -424,14 +430,18 @@ def _from_extent(header, sizes):
     lo = np.asarray(header["axis mins"], dtype=np.float64)
     hi = np.asarray(header["axis maxs"], dtype=np.float64)
     centers = _per_axis(header.get("centers")) or ["cell"] * 3
-    spacing, origin = [], []
-    for n, a, b, c in zip(sizes, lo, hi, centers):
+    spacing, origin, flat = [], [], []
+    for axis, n, a, b, c in zip("xyz", sizes, lo, hi, centers):
         node = c.lower() == "node"
         step = abs(b - a) / (n - 1 if node else n)
-        step = step if np.isfinite(step) and step > 0 else 1.0
+        if not (np.isfinite(step) and step > 0):
+            # Min equal to max, or node-centred along an axis of one sample (0 / 0).
+            step = 1.0
+            if not (node and n == 1):
+                flat.append(axis)
         spacing.append(float(step))
         origin.append(float(min(a, b) + (0.0 if node else step / 2)))
-    return tuple(spacing), tuple(origin), bool((lo > hi).any())
+    return tuple(spacing), tuple(origin), bool((lo > hi).any()), flat
 
 
 def _spacing(header, path):
@@ -463,6 +473,10 @@ def _spacing(header, path):
                     f"(their lengths {tuple(round(float(n), 6) for n in norms)}); orientation is ignored")
         elif mirrored:
             note = "negative space directions (mirrored axes) were reduced to positive spacings"
+        if header.get("spacings") is not None:
+            # Teem refuses such a header; the spacings of another tool's reading would be a guess.
+            note = "; ".join(n for n in (note, "the header gives spacings beside space directions, which NRRD "
+                                         "does not allow: the space directions were used") if n)
         return tuple(float(n) for n in norms), note, oblique or mirrored
     spacings = header.get("spacings")
     if spacings is not None:

@@ -246,6 +246,19 @@ def test_nrrd_axis_of_no_extent_gets_spacing_1(tmp_path):
     p.write_bytes(_nrrd(NRRD_SHORT + [b"axis mins: 5 0 0", b"axis maxs: 5 6 12"], ARR16.astype(">i2").tobytes()))
     vol = load_volume(p)
     assert vol.spacing == (1.0, 2.0, 3.0)
+    assert vol.meta["note"] == ("axis mins and axis maxs give x no length: spacing 1 was used for it "
+                                "(give --spacing SX,SY,SZ)")
+
+
+def test_nrrd_spacings_beside_space_directions_are_said_to_be_unused(tmp_path):
+    # NRRD allows one or the other; teem refuses both.
+    p = tmp_path / "b.nrrd"
+    p.write_bytes(_nrrd(NRRD_SHORT + [b"space: LPS", b"space directions: (1,0,0) (0,2,0) (0,0,3)",
+                                      b"spacings: 7 7 7"], ARR16.astype(">i2").tobytes()))
+    vol = load_volume(p)
+    assert vol.spacing == (1.0, 2.0, 3.0)
+    assert vol.meta["note"] == ("the header gives spacings beside space directions, which NRRD does not allow: "
+                                "the space directions were used")
 
 
 def test_nrrd_detached_data_file_that_is_a_folder(tmp_path):
