@@ -53,6 +53,14 @@ class _Parser(argparse.ArgumentParser):
         self._given = list(sys.argv[1:] if args is None else args)
         return super().parse_known_args(args, namespace)
 
+    def _print_message(self, message, file=None):
+        if message and file is not None and file is sys.stdout:
+            # Help and version: argparse drops a failed write (`> /dev/full`) and exits with 0.
+            from .outputs import print_out
+            print_out(message, end="")
+        else:
+            super()._print_message(message, file)
+
     def error(self, message):
         # argparse checks required arguments before it looks for unknown ones: a misspelt
         # flag, the likelier mistake, was reported as a missing -o.

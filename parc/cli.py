@@ -28,7 +28,8 @@ from data_tools.signals import STOPS, end_at_once
 from .arguments import build_parser, join_signed_values, supercell_size
 from .flagscene import load_volume_flags, scene_and_notes
 from .outputs import (Progress, atomic_write_all, check_distinct, check_not_sidecar, check_output, compile_notice,
-                      compiling_seconds, end_progress_line, note, slow_note, stale_sidecars, to_json, write_png)
+                      compiling_seconds, end_progress_line, note, print_out, slow_note, stale_sidecars, to_json,
+                      write_png)
 from .scene import ShowsNothingWarning
 
 EXIT_USAGE = 2
@@ -88,22 +89,6 @@ def main(argv=None):
         for signum, handler in stops.items():
             if handler is not None:                 # None: set outside Python, not ours to restore
                 signal.signal(signum, handler)
-
-
-def _out(text, done=None):
-    """Print ``text`` on standard output, a failure there named as such (``> /dev/full``
-    would otherwise end in "No space left on device" alone, after the files were written), after
-    ``done``, what the run did before (the files it wrote, which stay: they are whole). The text a
-    failed flush leaves in the buffer would fail again at exit (a second complaint, status 120), so
-    standard output is then pointed at the null device, as for a closed pipe."""
-    try:
-        print(text, flush=True)
-    except BrokenPipeError:
-        raise
-    except OSError as exc:
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        raise InputError(f"{f'{done}, but ' if done else ''}cannot write to standard output: "
-                         f"{os_reason(exc)}") from None
 
 
 def _working_folder_gone():
@@ -186,7 +171,7 @@ def cmd_info(args):
     from data_tools.info import format_info, volume_info
     with _reading(args):
         info = volume_info(load_volume_flags(args))
-    _out(format_info(info))        # the reader's note among its lines
+    print_out(format_info(info))        # the reader's note among its lines
     return 0
 
 
@@ -213,7 +198,7 @@ def cmd_make(args):
     _refuse_overwriting_input(out, [])
     with slow_note(f"writing {out}", note):    # a compressed 640^3 volume takes seconds
         save_volume(vol, out)  # all-or-nothing itself, and keeps sidecar names right
-    _out(f"wrote {_written(out)} ({'x'.join(map(str, vol.dims))} {vol.dtype}{_placement(vol, out)})",
+    print_out(f"wrote {_written(out)} ({'x'.join(map(str, vol.dims))} {vol.dtype}{_placement(vol, out)})",
          done=f"wrote {_written(out)}")
     made_for = ISOVALUES[args.name]
     # A small volume can miss the levels it is made for (a neuron of 3 samples a side), and a
@@ -230,10 +215,10 @@ def cmd_make(args):
                if made_for else "")
         what = f"isovalue {exact_text(levels[0])}, from the histogram{why}" if levels else None
     if what is not None:
-        _out(f"{what}: " + " ".join(["parc render", shlex.quote(str(out)), *_raw_flags(vol, out),
+        print_out(f"{what}: " + " ".join(["parc render", shlex.quote(str(out)), *_raw_flags(vol, out),
                                      f"--iso {exact_text(levels[0])}", "-o", shlex.quote(out.stem + ".png")]))
     else:
-        _out(f"at this size every sample of the {args.name} is {exact_text(lo)}: it has no isosurface "
+        print_out(f"at this size every sample of the {args.name} is {exact_text(lo)}: it has no isosurface "
              "to render; give a larger --size")
     return 0
 
@@ -326,7 +311,7 @@ def cmd_convert(args):
     if vol.meta.get("reoriented"):
         note(f"{out} is written on an axis-aligned grid, without the orientation of {args.volume}: "
              "it does not overlay the input in world space")
-    _out(f"wrote {_written(out)} ({'x'.join(map(str, vol.dims))} {vol.dtype}{_placement(vol, out)})",
+    print_out(f"wrote {_written(out)} ({'x'.join(map(str, vol.dims))} {vol.dtype}{_placement(vol, out)})",
          done=f"wrote {_written(out)}")
     return 0
 
@@ -509,10 +494,10 @@ def cmd_compare(args):
         from .comparison import format_step_table, step_sweep
         rows = step_sweep(scene, steps, repeats=args.repeats, progress=warming, options=common)
         if args.json:
-            _out(to_json(rows))
+            print_out(to_json(rows))
         else:
-            _out(_heading(args, scene, sweeping_step=True))
-            _out(format_step_table(rows))
+            print_out(_heading(args, scene, sweeping_step=True))
+            print_out(format_step_table(rows))
         return 0
     # Every parc method gets the flags, labelled ones ("parc:x") too.
     options = {m: dict(common) for m in methods if m.split(":")[0] == "parc"}
@@ -523,10 +508,10 @@ def cmd_compare(args):
         options = {m: {"supercell": args.supercell, **opts} for m, opts in options.items()}
     rows = compare(scene, methods=methods, repeats=args.repeats, options=options, progress=warming)
     if args.json:
-        _out(to_json(rows))
+        print_out(to_json(rows))
     else:
-        _out(_heading(args, scene))
-        _out(format_table(rows, notes=[SUPERCELL_SWEEP_NOTE] if args.sweep_supercell is not None else []))
+        print_out(_heading(args, scene))
+        print_out(format_table(rows, notes=[SUPERCELL_SWEEP_NOTE] if args.sweep_supercell is not None else []))
     return 0
 
 

@@ -301,6 +301,22 @@ def note(text, who="parc"):
         pass
 
 
+def print_out(text, done=None, end="\n"):
+    """Print ``text`` on standard output, a failure there named as such (``> /dev/full``
+    would otherwise end in "No space left on device" alone, after the files were written), after
+    ``done``, what the run did before (the files it wrote, which stay: they are whole). The text a
+    failed flush leaves in the buffer would fail again at exit (a second complaint, status 120), so
+    standard output is then pointed at the null device, as for a closed pipe."""
+    try:
+        print(text, end=end, flush=True)
+    except BrokenPipeError:
+        raise
+    except OSError as exc:
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        raise InputError(f"{f'{done}, but ' if done else ''}cannot write to standard output: "
+                         f"{os_reason(exc)}") from None
+
+
 def end_progress_line():
     """End an unfinished progress line, so that what follows (an error) starts a line of its own."""
     if Progress.latest is not None:
