@@ -199,7 +199,7 @@ def cmd_make(args):
     with slow_note(f"writing {out}", note):    # a compressed 640^3 volume takes seconds
         save_volume(vol, out)  # all-or-nothing itself, and keeps sidecar names right
     print_out(f"wrote {_written(out)} ({'x'.join(map(str, vol.dims))} {vol.dtype}{_placement(vol, out)})",
-         done=f"wrote {_written(out)}")
+              done=f"wrote {_written(out)}")
     made_for = ISOVALUES[args.name]
     # A small volume can miss the levels it is made for (a neuron of 3 samples a side), and a
     # random trilinear field is made for none: the command suggested must run all the same.
@@ -216,10 +216,10 @@ def cmd_make(args):
         what = f"isovalue {exact_text(levels[0])}, from the histogram{why}" if levels else None
     if what is not None:
         print_out(f"{what}: " + " ".join(["parc render", shlex.quote(str(out)), *_raw_flags(vol, out),
-                                     f"--iso {exact_text(levels[0])}", "-o", shlex.quote(out.stem + ".png")]))
+                                          f"--iso {exact_text(levels[0])}", "-o", shlex.quote(out.stem + ".png")]))
     else:
         print_out(f"at this size every sample of the {args.name} is {exact_text(lo)}: it has no isosurface "
-             "to render; give a larger --size")
+                  "to render; give a larger --size")
     return 0
 
 
@@ -312,7 +312,7 @@ def cmd_convert(args):
         note(f"{out} is written on an axis-aligned grid, without the orientation of {args.volume}: "
              "it does not overlay the input in world space")
     print_out(f"wrote {_written(out)} ({'x'.join(map(str, vol.dims))} {vol.dtype}{_placement(vol, out)})",
-         done=f"wrote {_written(out)}")
+              done=f"wrote {_written(out)}")
     return 0
 
 
