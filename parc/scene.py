@@ -141,7 +141,7 @@ class Translucent:
             if not isinstance(self.tf, (str, os.PathLike)):
                 raise InputError(f"a transfer function must be a TransferFunction, a preset name or a file, "
                                  f"got {type(self.tf).__name__}")
-        if self.mode not in MODES:
+        if not isinstance(self.mode, str) or self.mode not in MODES:      # an array: NumPy's ambiguity
             raise InputError(f"unknown mode {self.mode!r}; choose one of {', '.join(MODES)}")
         made_from = self.tf.made_from if isinstance(self.tf, TransferFunction) else None
         if made_from is not None and made_from[1:] != (self.volume.value_range(), self.mode):

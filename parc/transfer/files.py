@@ -88,7 +88,7 @@ def load_transfer_function(spec, data_range=None, mode="composite"):
     InputError
         One line naming the file (or preset) and the offending key.
     """
-    if mode not in ("composite", "mip", "average"):      # the ramp presets end by the mode
+    if not isinstance(mode, str) or mode not in ("composite", "mip", "average"):   # the ramps end by it
         raise InputError(f"unknown mode {mode!r}; choose one of composite, mip, average")
     if isinstance(spec, TransferFunction):
         return spec

@@ -17,7 +17,7 @@ from data_tools.io import save_volume
 from data_tools.io.raw import read_raw
 from data_tools.synthetic import blobs
 from parc.comparison import step_sweep
-from parc.transfer import save_transfer_function
+from parc.transfer import preset, save_transfer_function
 
 VOL = blobs(12, seed=3)
 ISO = float(VOL.data.mean())
@@ -68,6 +68,15 @@ CASES = {
     "methods as bytes": (lambda: parc.compare(_scene(), methods=[b"brute"]), "methods must be names"),
     "transfer function of an unknown mode": (lambda: parc.load_transfer_function("greyscale", (0, 1), mode="bogus"),
                                              "unknown mode 'bogus'"),
+    # An array for a name: NumPy's "truth value ... ambiguous", or an unhashable key, from deep inside.
+    "translucent mode as an array": (lambda: parc.Translucent(VOL, "greyscale", mode=np.array(["mip", "average"])),
+                                     "unknown mode array"),
+    "translucent mode as an array of one": (lambda: parc.Translucent(VOL, "greyscale", mode=np.array(["mip"])),
+                                            "unknown mode array"),
+    "transfer function mode as an array": (lambda: parc.load_transfer_function("ct_skin", mode=np.array(["mip"])),
+                                           "unknown mode array"),
+    "preset as a list": (lambda: preset(["greyscale"]), "unknown transfer function preset"),
+    "preset mode as an array": (lambda: preset("greyscale", mode=np.array(["mip"])), "unknown mode array"),
     "save_transfer_function of None": (lambda: save_transfer_function(None, "x.toml"),
                                        "takes a TransferFunction, got NoneType"),
     "parallel eye past float64's resolution of the volume": (
