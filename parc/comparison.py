@@ -248,15 +248,11 @@ def check_opengl(scene, names):
 
 def check_options(scene, options):
     """Refuse what `render` would refuse about each method's options (``buffers``, ``blocks``,
-    ``light_buffer``), and a supercell size no volume of the scene can take, before any render
-    is timed: brute's warm-up (or a sweep's reference) may take minutes."""
-    from .classify import VolumeIndex
+    ``light_buffer``, a supercell size no volume of the scene can take), before any render is
+    timed: brute's warm-up (or a sweep's reference) may take minutes."""
     from .renderer import check_arguments
     for name, opts in options.items():
         check_arguments(scene, name.split(":")[0], **opts)
-        if opts.get("supercell") is not None:
-            for vis in scene.volumes:
-                VolumeIndex.of(vis.volume).grid(opts["supercell"])
 
 
 #: What each phase of a frame holds, for the legend under `format_table`.

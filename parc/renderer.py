@@ -224,8 +224,11 @@ def check_arguments(scene, method="brute", *, supercell=None, buffers=DEFAULT_BU
     if progress is not None and not callable(progress):
         raise InputError(f"progress must be a function of the fraction done, got {progress!r}")
     if supercell is not None:
-        from .ranges import supercell_size
-        supercell_size(supercell)
+        # Its grid over each volume too (too many supercells), for brute as well: one set of
+        # arguments serves both methods, and either refuses it alike.
+        from .classify import VolumeIndex
+        for vis in scene.volumes:
+            VolumeIndex.of(vis.volume).grid(supercell)
     return check_request(scene, buffers, work), _light_buffer_size(light_buffer)
 
 

@@ -62,6 +62,9 @@ CASES = {
     "framing zoom as text": (lambda: parc.Camera.framing(*VOL.bounds, zoom="3"), "numeric zoom"),
     "supercell of the smallest float": (lambda: parc.render(_scene(), "parc", supercell=5e-324),
                                         "gives over 1e300 supercells"),  # no integer holds the count
+    # Checked but not used by brute, which took what parc refused: one set of arguments serves both.
+    "supercell too small for the volume, for brute": (lambda: parc.render(_scene(), "brute", supercell=1e-9),
+                                                      "supercells (at most 268435456)"),
     "transfer function None": (lambda: parc.load_transfer_function(None), "got NoneType"),
     "transfer function path as bytes": (lambda: parc.load_transfer_function(b"x.toml"), "got bytes"),
     "save_volume to None": (lambda: save_volume(VOL, None), "takes a file's path, got NoneType"),
