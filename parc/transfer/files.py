@@ -275,5 +275,7 @@ def save_transfer_function(tf, path):
         # Through a file beside it, renamed once whole: a failure leaves no half-written file
         # (and an InputError naming the path).
         atomic_write_all([(path, lambda tmp: tmp.write_bytes(data))])
+    except InputError:                      # a ValueError too, already naming the path
+        raise
     except ValueError as exc:               # a NUL in the name
         raise InputError(f"transfer function {path}: cannot write: {exc}") from None

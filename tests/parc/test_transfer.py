@@ -812,8 +812,9 @@ def test_file_errors_name_the_file_and_the_fault(tmp_path):
     # Writing: a folder, or a folder that is not there, is an InputError naming the file.
     (tmp_path / "d.toml").mkdir()
     for target in (tmp_path / "d.toml", tmp_path / "no" / "x.json"):
-        with pytest.raises(InputError, match=f"{re.escape(str(target))}: cannot write"):
+        with pytest.raises(InputError, match=f"{re.escape(str(target))}: cannot write") as exc:
             save_transfer_function(TransferFunction([[0, 0]]), target)
+        assert str(exc.value).count("cannot write") == 1, exc.value       # once, not wrapped again
 
 
 def test_a_description_with_a_control_character_survives_a_toml_round_trip(tmp_path):
