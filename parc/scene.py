@@ -289,8 +289,8 @@ class Scene:
         Cast shadow rays from every isosurface hit and every shaded
         translucent sample (``shade=True``) to every light: blocked by any
         isosurface, attenuated by translucent volumes on the way. In a
-        scene with neither this changes nothing, which warns
-        `ShowsNothingWarning`.
+        scene with neither, or lit by the headlight alone, this changes
+        nothing, which warns `ShowsNothingWarning`.
     """
 
     camera: Camera
@@ -340,6 +340,9 @@ class Scene:
                 warnings.warn(f"{what} isosurfaces and shaded translucent volumes (shade=True, --shade, a scene "
                               "file's shade = true), and this scene has neither: the image is the same without them",
                               ShowsNothingWarning, stacklevel=_callers_level())
+        if self.shadows and not self.lights and lit:
+            warnings.warn("shadows with only the headlight show nothing (the light sits at the eye): give the "
+                          "scene lights", ShowsNothingWarning, stacklevel=_callers_level())
 
     @property
     def width(self):

@@ -95,6 +95,17 @@ def test_shadows_on_what_they_fall_on_are_taken_without_a_word(volume):
     assert (parc.render(scene).image != parc.render(_scene(volumes=[volume], lights=sun)).image).any()
 
 
+@pytest.mark.parametrize("volume", [parc.Translucent(VOL, "greyscale", shade=True), parc.Isosurface(VOL, ISO)])
+def test_shadows_under_the_headlight_alone_are_taken_and_said_to_change_nothing(volume):
+    # The headlight sits at the eye: nothing it lights is in shadow. The command line said so; Python did not.
+    with pytest.warns(parc.ShowsNothingWarning, match="shadows with only the headlight show nothing") as caught:
+        scene = _scene(volumes=[volume], shadows=True)
+    assert len(caught) == 1 and caught[0].filename == __file__
+    for method in ("brute", "parc"):
+        assert (parc.render(scene, method=method).image
+                == parc.render(_scene(volumes=[volume]), method=method).image).all()
+
+
 @pytest.mark.parametrize("make", [
     lambda c: parc.PointLight((1, 2, 3), color=c),
     lambda c: parc.DirectionalLight((1, 2, 3), color=c),
