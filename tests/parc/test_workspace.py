@@ -398,6 +398,8 @@ def test_shadowed_samples_are_checked_for_their_records_and_a_lights_terms_each(
     workspace.check_scene_memory(scene)
     with pytest.warns(ShowsNothingWarning):
         unshaded = dataclasses.replace(scene, volumes=[Translucent(vol, "greyscale")])
+    with pytest.warns(ShowsNothingWarning, match="only the headlight"):
+        headlit = dataclasses.replace(scene, lights=[])
     monkeypatch.setattr(memory, "available_memory", lambda: frame)
-    for unshadowed in (dataclasses.replace(scene, shadows=False), dataclasses.replace(scene, lights=[]), unshaded):
+    for unshadowed in (dataclasses.replace(scene, shadows=False), headlit, unshaded):
         workspace.check_scene_memory(unshadowed)
