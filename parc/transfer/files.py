@@ -41,7 +41,7 @@ from data_tools.jsontext import RepeatedKey, strict_json
 from data_tools.volume import is_number
 
 from .function import TransferFunction, control_points, short_repr
-from .presets import PRESETS, data_range_of, preset, ramp_opacity
+from .presets import PRESETS, check_mode, data_range_of, preset, ramp_opacity
 
 
 _OUR_KEYS = ("color", "description", "name", "opacity", "space")
@@ -88,8 +88,7 @@ def load_transfer_function(spec, data_range=None, mode="composite"):
     InputError
         One line naming the file (or preset) and the offending key.
     """
-    if not isinstance(mode, str) or mode not in ("composite", "mip", "average"):   # the ramps end by it
-        raise InputError(f"unknown mode {mode!r}; choose one of composite, mip, average")
+    check_mode(mode)
     if isinstance(spec, TransferFunction):
         return spec
     if not isinstance(spec, (str, os.PathLike)):

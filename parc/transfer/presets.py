@@ -129,13 +129,22 @@ PRESETS = {
     "viridis": _viridis,
 }
 
+#: Rendering modes a transfer function is made for (`parc.scene.MODES`): the ramps end by it.
+MODES = ("composite", "mip", "average")
+
+
+def check_mode(mode):
+    """Refuse a ``mode`` other than one of `MODES` (an array too, which NumPy cannot compare)."""
+    if not isinstance(mode, str) or mode not in MODES:
+        raise InputError(f"unknown mode {mode!r}; choose one of {', '.join(MODES)}")
+
+
 def preset(name, data_range=None, mode="composite"):
     """The preset ``name`` for data in ``data_range = (lo, hi)`` rendered in ``mode`` (the ramps
     end opaque for maximum and average intensity, `ramp_opacity`); see `PRESETS`."""
     if not isinstance(name, str) or name not in PRESETS:     # a list is no key
         raise InputError(f"unknown transfer function preset {name!r}; known: {', '.join(PRESETS)}")
-    if not isinstance(mode, str) or mode not in ("composite", "mip", "average"):
-        raise InputError(f"unknown mode {mode!r}; choose one of composite, mip, average")
+    check_mode(mode)
     if data_range is not None:
         # Checked for the CT presets too, which do not use it: a wrong range is a wrong call.
         data_range_of(data_range, name)
