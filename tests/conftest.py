@@ -3,12 +3,14 @@ nowhere else), `--soak`, more random scenes than the suite runs, and the end-of-
 loose the raster's segments are (fixture `looseness`).
 
 The random-scene tests (`parc` against `brute`) take their scene from a
-seed. The suite runs a fixed set of seeds, enough to cover every kind of
-volume, view and supercell; ``--soak N`` adds ``N`` more seeds to each such
-test, from ``--soak-start`` on, for a longer check before a release or
-after a change to the raster or the walk::
+seed, and the hard-ray categories their rays. The suite runs a fixed set of
+seeds, enough to cover every kind of volume, view and supercell; ``--soak N``
+adds ``N`` more seeds to each such test, from ``--soak-start`` on, for a
+longer check before a release or after a change to the raster, the walk or
+the cubic::
 
     ./dev.sh test tests/parc -k equals_brute --soak 2000
+    ./dev.sh test tests/raycast -k hard_category --soak 10
 
 A failure names its seed in the test id, so that scene runs alone again with::
 

@@ -44,9 +44,11 @@ def test_suite_size():
     assert total >= 100_000
 
 
+@pytest.mark.random_scenes(1)
 @pytest.mark.parametrize("category", list(CATEGORIES))
-def test_hard_category(category):
-    batches = hard_batches(category, RAYS_PER_CATEGORY)
+def test_hard_category(category, seed):
+    # Seed 0 in the suite; `--soak N` draws N more sets of rays per category (tests/conftest.py).
+    batches = hard_batches(category, RAYS_PER_CATEGORY, seed=seed)
     n = sum(len(b) for b in batches)
     assert n == RAYS_PER_CATEGORY
     stats, failures = run_batches(batches)
