@@ -74,7 +74,6 @@ class ShowsNothingWarning(UserWarning):
     translucent volume, or shadows in one with neither (`parc render` says so in a note)."""
 
 
-MODES = ("composite", "mip", "average")
 #: The composite mode's early-termination opacity, unless another is given.
 DEFAULT_THRESHOLD = 0.99
 
@@ -135,14 +134,14 @@ class Translucent:
 
     def __post_init__(self):
         from .transfer import TransferFunction, load_for_volume, reference_step
+        from .transfer.presets import check_mode
         if not isinstance(self.volume, Volume):
             raise InputError(f"Translucent needs a Volume, got {type(self.volume).__name__}")
         if not isinstance(self.tf, TransferFunction):
             if not isinstance(self.tf, (str, os.PathLike)):
                 raise InputError(f"a transfer function must be a TransferFunction, a preset name or a file, "
                                  f"got {type(self.tf).__name__}")
-        if not isinstance(self.mode, str) or self.mode not in MODES:      # an array: NumPy's ambiguity
-            raise InputError(f"unknown mode {self.mode!r}; choose one of {', '.join(MODES)}")
+        check_mode(self.mode)
         made_from = self.tf.made_from if isinstance(self.tf, TransferFunction) else None
         if made_from is not None and made_from[1:] != (self.volume.value_range(), self.mode):
             # Made from a name for another volume's range or another mode (`dataclasses.replace(tr,

@@ -69,7 +69,7 @@ from data_tools import InputError, Volume
 from data_tools.volume import text_or_flag
 
 from .camera import Camera, check_fov, check_parallel_scale, unit_vector
-from .scene import MODES, DirectionalLight, Isosurface, PointLight, Scene, Translucent, check_eye_resolves
+from .scene import DirectionalLight, Isosurface, PointLight, Scene, Translucent, check_eye_resolves
 from .tomltables import Table, Where, array_tables, construct
 
 TOP_KEYS = ("size", "background", "shadows", "camera", "volume", "light")
@@ -270,6 +270,7 @@ def _load_volume(where, t, cache):
         raise t.error("color", "applies to an isosurface (iso); a translucent volume's colours "
                                "come from its transfer function (tf)")
     from .transfer import PRESETS, load_for_volume
+    from .transfer.presets import MODES
     spec = t.string("tf")
     mode = t.string("mode")
     if mode is not None and mode not in MODES:

@@ -129,7 +129,7 @@ PRESETS = {
     "viridis": _viridis,
 }
 
-#: Rendering modes a transfer function is made for (`parc.scene.MODES`): the ramps end by it.
+#: The rendering modes of a translucent volume, which its transfer function is made for: the ramps end by it.
 MODES = ("composite", "mip", "average")
 
 
