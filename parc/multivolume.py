@@ -71,83 +71,137 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
     walks took (shadow rays' work is in the totals only). ``buffers``: PARC's buffers for the
     translucent volumes, as `parc.renderer.render` takes them (parsed); isosurfaces use their
     depth buffers.
+
+    The frame goes through the module docstring's steps, a function each:
+    the camera's buffers (`_camera_buffers`), the surfaces (`_cast_surfaces`),
+    their lighting (`_light_hits`), the translucent volumes in front of them
+    (`_cast_translucent`).
     """
-    from .renderer import accumulation_params, iso_work, row_bands
+    frame = _Frame(scene, method, supercell, progress, light_buffer, blocks, work)
+    h, w = frame.h, frame.w
+    segs, planes, extra = _camera_buffers(frame, buffers)
+    frame.report.done("buffers")
+    depth, hits = _cast_surfaces(frame, segs)
+    frame.report.done("surfaces")
+    image = _light_hits(frame, depth, *hits)
+    frame.report.done("lighting")
+    if frame.trans:
+        image = _cast_translucent(frame, segs, planes, depth.reshape(h, w), image)
+    frame.report.done("sample shadows")          # the last phase: its end is 1
+    return image, depth.reshape(h, w), frame.counts, frame.timings, extra
+
+
+class _Frame:
+    """What every step of one `render_scene` frame reads, and the counts and seconds they add to."""
+
+    def __init__(self, scene, method, supercell, progress, light_buffer, blocks, work):
+        from .renderer import row_bands
+
+        self.scene = scene
+        self.parc = method == "parc"
+        self.supercell = supercell
+        self.light_buffer = light_buffer
+        self.blocks = blocks
+        self.w, self.h = scene.size
+        self.npx = self.w * self.h
+        self.cam = scene.camera.as_array()
+        self.bands = row_bands(self.h, self.w, progress)
+        self.isos = [(n, v) for n, v in enumerate(scene.volumes) if isinstance(v, Isosurface)]
+        self.trans = [(n, v) for n, v in enumerate(scene.volumes) if not isinstance(v, Isosurface)]
+        self.timings = {"raster": 0.0, "classify": 0.0, "proxy": 0.0}
+        self.counts = dict.fromkeys(("cells", "solves", "samples", "shadow_cells", "shadow_solves",
+                                     "shadow_samples", "shadow_rays", "light_polygons"), 0)
+        self.per_pixel = np.zeros(self.npx, np.int64) if work else None
+        self.counts["per_pixel"] = self.per_pixel
+        self.sizes = {}             # each volume's supercell size, from its camera buffers
+        self.report = _Report(progress, len(self.isos), len(self.trans), scene.shadows and bool(scene.lights),
+                              shadowed_samples(scene))
+
+    def add_work(self, cnt):
+        if self.per_pixel is not None:
+            self.per_pixel += cnt
+
+
+def _camera_buffers(frame, buffers):
+    """PARC's buffers from the camera, one volume at a time: depth buffers, and for translucent
+    volumes bit planes too, or instead (segments then spanning every ray).
+
+    Returns ``(segs, planes, extra)``: the segments and the bit planes of each volume by its
+    index in the scene (none with ``method="brute"``), and the volumes' PARC details.
+    """
     from .segments import cached_proxy, parc_segments
-    from .skip import octant_skip_tables, skip_table
 
-    w, h = scene.size
-    npx = w * h
-    cam = scene.camera.as_array()
-    timings = {"raster": 0.0, "classify": 0.0, "proxy": 0.0}
-    counts = dict.fromkeys(("cells", "solves", "samples", "shadow_cells", "shadow_solves",
-                            "shadow_samples", "shadow_rays", "light_polygons"), 0)
-    extra = {"volumes": []}
-    per_pixel = np.zeros(npx, np.int64) if work else None
-    counts["per_pixel"] = per_pixel
-    parc = method == "parc"
-    bands = row_bands(h, w, progress)
-    isos = [(n, v) for n, v in enumerate(scene.volumes) if isinstance(v, Isosurface)]
-    trans = [(n, v) for n, v in enumerate(scene.volumes) if not isinstance(v, Isosurface)]
-    report = _Report(progress, len(isos), len(trans), scene.shadows and bool(scene.lights),
-                     shadowed_samples(scene))
-
-    # PARC buffers from the camera, one volume at a time: depth buffers, and for translucent
-    # volumes bit planes too, or instead (segments then spanning every ray).
+    h, w = frame.h, frame.w
     segs = {}
-    sizes = {}
     planes = {}
-    for n, vis in enumerate(scene.volumes):
-        if parc:
-            phase = {}
-            translucent = not isinstance(vis, Isosurface)
-            if "depth" in buffers or not translucent:
-                seg, info, proxy = parc_segments(scene, vis, supercell, phase, slot=n)
-            else:
-                proxy, info = cached_proxy(vis, supercell, scene.size, phase)
-                seg = work_array(("seg", n), (h, w, 2))
-                seg[..., 0] = -np.inf
-                seg[..., 1] = np.inf
-            shown = {k: info[k] for k in ("supercell", "polygons", "pc_supercells", "segment_pixels") if k in info}
-            if translucent and "bits" in buffers:
-                from .bitplanes import frame_planes
-                planes[n] = frame_planes(scene, vis, proxy, phase, shown)
-                shown["polygons"] = shown.get("polygons", 0) + shown["plane_polygons"]
-            for key in ("raster", "classify", "proxy", "raster_bits"):
-                if key in phase:
-                    timings[key] = timings.get(key, 0.0) + phase[key]
-            segs[n] = seg
-            sizes[n] = info["supercell"]
-            extra["volumes"].append(shown)
-    report.done("buffers")
+    extra = {"volumes": []}
+    if not frame.parc:
+        return segs, planes, extra
+    for n, vis in enumerate(frame.scene.volumes):
+        phase = {}
+        translucent = not isinstance(vis, Isosurface)
+        if "depth" in buffers or not translucent:
+            seg, info, proxy = parc_segments(frame.scene, vis, frame.supercell, phase, slot=n)
+        else:
+            proxy, info = cached_proxy(vis, frame.supercell, frame.scene.size, phase)
+            seg = work_array(("seg", n), (h, w, 2))
+            seg[..., 0] = -np.inf
+            seg[..., 1] = np.inf
+        shown = {k: info[k] for k in ("supercell", "polygons", "pc_supercells", "segment_pixels") if k in info}
+        if translucent and "bits" in buffers:
+            from .bitplanes import frame_planes
+            planes[n] = frame_planes(frame.scene, vis, proxy, phase, shown)
+            shown["polygons"] = shown.get("polygons", 0) + shown["plane_polygons"]
+        for key in ("raster", "classify", "proxy", "raster_bits"):
+            if key in phase:
+                frame.timings[key] = frame.timings.get(key, 0.0) + phase[key]
+        segs[n] = seg
+        frame.sizes[n] = info["supercell"]
+        extra["volumes"].append(shown)
+    return segs, planes, extra
 
-    # Isosurfaces: nearest hit.
+
+def _cast_surfaces(frame, segs):
+    """Every isosurface cast on its own; the nearest hit wins.
+
+    Returns the depth (flat, ``inf`` where nothing is hit) and ``(winner, cell, uvw)``: per pixel
+    the scene index of the volume hit (-1 for none), and the hit's cell and local coordinates,
+    read only where ``winner >= 0``.
+    """
+    from .renderer import iso_work
+    from .skip import octant_skip_tables
+
+    w, h, npx = frame.w, frame.h, frame.npx
     t0 = time.perf_counter()
     depth = np.full(npx, np.inf)
     winner = work_array("winner", (npx,), np.int64)
     winner.fill(-1)
-    # The nearest hit's cell and local coordinates, read only where winner >= 0.
     cell, uvw, _ = iso_work(npx, slot="nearest")
-    for q, (n, iso) in enumerate(isos):
+    bands = frame.bands
+    for q, (n, iso) in enumerate(frame.isos):
         vol = iso.volume
         t = work_array("iso_t", (npx,))
         c, uv, cnt = iso_work(npx)
         seg = segs.get(n, np.empty((1, 1, 2)))
-        skip, jump_min = octant_skip_tables(iso, parc and blocks, scene.camera, w, h)
+        skip, jump_min = octant_skip_tables(iso, frame.parc and frame.blocks, frame.scene.camera, w, h)
         for b, (y0, y1) in enumerate(bands):
-            _, cells, solves = cast_iso_image(vol.data, np.array(vol.origin), np.array(vol.spacing), cam, w, h,
-                                              iso.value, seg, parc, skip, jump_min, t, c, uv, cnt, y0, y1,
+            _, cells, solves = cast_iso_image(vol.data, np.array(vol.origin), np.array(vol.spacing), frame.cam, w, h,
+                                              iso.value, seg, frame.parc, skip, jump_min, t, c, uv, cnt, y0, y1,
                                               *NO_SHADING)
-            counts["cells"] += int(cells)
-            counts["solves"] += int(solves)
-            report.part("surfaces", (q + (b + 1) / len(bands)) / len(isos))
-        if work:
-            per_pixel += cnt[:, 0]
+            frame.counts["cells"] += int(cells)
+            frame.counts["solves"] += int(solves)
+            frame.report.part("surfaces", (q + (b + 1) / len(bands)) / len(frame.isos))
+        frame.add_work(cnt[:, 0])
         keep_nearest(t, c, uv, n, depth, cell, uvw, winner)
-    timings["cast"] = time.perf_counter() - t0
-    report.done("surfaces")
+    frame.timings["cast"] = time.perf_counter() - t0
+    return depth, (winner, cell, uvw)
 
-    # Lighting and shadows of the hits.
+
+def _light_hits(frame, depth, winner, cell, uvw):
+    """The surfaces' hits lit by every light, shadowed where the scene asks: the ``(H, W, 4)`` image
+    of the surfaces alone."""
+    w, h, npx = frame.w, frame.h, frame.npx
+    timings = frame.timings
     image = np.zeros((h, w, 4), np.float32)
     hit = np.flatnonzero(winner >= 0)
     # Hits grouped by volume (pixel order kept within each), so each volume's
@@ -156,100 +210,104 @@ def render_scene(scene, method, *, supercell=None, progress=None, light_buffer=L
     timings["shade"] = 0.0
     timings["shadow"] = 0.0
     timings["raster_lights"] = 0.0
-    if len(hit):
-        t0 = time.perf_counter()
-        nh = len(hit)
-        points = np.empty((nh, 3))
-        normals = np.empty((nh, 3))
-        views = np.empty((nh, 3))
-        colors = np.empty((nh, 3))
-        materials = np.empty((nh, 4))
-        owner = winner[hit]
-        groups = []                 # (first, end, volume, n) of each surface's hits
-        for n, iso in isos:
-            a, b = np.searchsorted(owner, n, "left"), np.searchsorted(owner, n, "right")
-            if a == b:
-                continue
-            groups.append((a, b, iso.volume, n))
-            surface_frames(iso.volume.data, np.array(iso.volume.spacing), cam, w, h, hit[a:b], depth, cell, uvw,
-                           points[a:b], normals[a:b], views[a:b])
-            colors[a:b] = iso.color
-            materials[a:b] = iso.material
-        lights = light_array(scene.lights)
-        diffuse, specular, vis = _light_terms(points, normals, views, materials, lights)
-        timings["shade"] = time.perf_counter() - t0
-        if scene.shadows and scene.lights:
-            _shadows(scene, method, lights, points, groups, vis, sizes, light_buffer, blocks, timings,
-                     counts)
-        t0 = time.perf_counter()
-        combine_lights(colors, materials, lights, diffuse, specular, vis, hit, image.reshape(npx, 4))
-        timings["shade"] += time.perf_counter() - t0
-    report.done("lighting")
+    if not len(hit):
+        return image
+    t0 = time.perf_counter()
+    nh = len(hit)
+    points = np.empty((nh, 3))
+    normals = np.empty((nh, 3))
+    views = np.empty((nh, 3))
+    colors = np.empty((nh, 3))
+    materials = np.empty((nh, 4))
+    owner = winner[hit]
+    groups = []                 # (first, end, volume, n) of each surface's hits
+    for n, iso in frame.isos:
+        a, b = np.searchsorted(owner, n, "left"), np.searchsorted(owner, n, "right")
+        if a == b:
+            continue
+        groups.append((a, b, iso.volume, n))
+        surface_frames(iso.volume.data, np.array(iso.volume.spacing), frame.cam, w, h, hit[a:b], depth, cell, uvw,
+                       points[a:b], normals[a:b], views[a:b])
+        colors[a:b] = iso.color
+        materials[a:b] = iso.material
+    lights = light_array(frame.scene.lights)
+    diffuse, specular, vis = _light_terms(points, normals, views, materials, lights)
+    timings["shade"] = time.perf_counter() - t0
+    if frame.scene.shadows and frame.scene.lights:
+        _shadows(frame, lights, points, groups, vis)
+    t0 = time.perf_counter()
+    combine_lights(colors, materials, lights, diffuse, specular, vis, hit, image.reshape(npx, 4))
+    timings["shade"] += time.perf_counter() - t0
+    return image
 
-    # Translucent volumes in front of the surfaces.
-    if trans:
-        t0 = time.perf_counter()
-        stop = depth.reshape(h, w)
-        comp = [(n, v) for n, v in trans if v.mode == "composite"]
-        layers = [(n, v) for n, v in trans if v.mode != "composite"]
-        layer_t = np.empty((len(layers), h, w))
-        layer_rgba = np.empty((len(layers), h, w, 4), np.float32)
-        nobits = np.zeros((1, 1, 1), np.uint32)
-        for j, (n, v) in enumerate(layers):
-            vol = v.volume
-            op_x, op_y, col_x, col_rgb = v.tf.arrays()
-            cnt = np.empty(npx, np.int64)
-            params = accumulation_params(v)
+
+def _cast_translucent(frame, segs, planes, stop, image):
+    """The translucent volumes sampled up to the surfaces' depth ``stop``, and put over ``image``:
+    maximum- and average-intensity volumes as layers, composite ones merged (and, with shadows,
+    their shaded samples lit: `_light_samples`)."""
+    from .renderer import accumulation_params
+    from .skip import skip_table
+
+    w, h, npx = frame.w, frame.h, frame.npx
+    cam, bands, parc, blocks, report = frame.cam, frame.bands, frame.parc, frame.blocks, frame.report
+    trans = frame.trans
+    t0 = time.perf_counter()
+    comp = [(n, v) for n, v in trans if v.mode == "composite"]
+    layers = [(n, v) for n, v in trans if v.mode != "composite"]
+    layer_t = np.empty((len(layers), h, w))
+    layer_rgba = np.empty((len(layers), h, w, 4), np.float32)
+    nobits = np.zeros((1, 1, 1), np.uint32)
+    for j, (n, v) in enumerate(layers):
+        vol = v.volume
+        op_x, op_y, col_x, col_rgb = v.tf.arrays()
+        cnt = np.empty(npx, np.int64)
+        params = accumulation_params(v)
+        if n in planes:
+            planes[n].set_params(params)
+        for b, (y0, y1) in enumerate(bands):
+            cast_accumulate_image(vol.data, np.array(vol.origin), np.array(vol.spacing), cam, w, h,
+                                  params, op_x, op_y, col_x, col_rgb,
+                                  segs.get(n, np.empty((1, 1, 2))), parc, stop, True,
+                                  planes[n].bits if n in planes else nobits, n in planes,
+                                  *skip_table(v, parc and blocks), layer_rgba[j], cnt, y0, y1)
+            report.part("translucent", (j + (b + 1) / len(bands)) / len(trans))
+        frame.counts["samples"] += int(cnt.sum())
+        frame.add_work(cnt)
+        box_entry_image(vol.data, np.array(vol.origin), np.array(vol.spacing), cam, w, h, layer_t[j])
+    front = np.zeros((h, w, 4), np.float32)
+    if comp:
+        datas, orgs, spcs, params, tables, tf_len = _packed(comp, lambda v: accumulation_params(v, frame.scene.lights))
+        seg = (np.stack([segs[n] for n, _ in comp]) if parc else np.empty((1, 1, 1, 2)))
+        for k, (n, _) in enumerate(comp):
             if n in planes:
-                planes[n].set_params(params)
-            for b, (y0, y1) in enumerate(bands):
-                cast_accumulate_image(vol.data, np.array(vol.origin), np.array(vol.spacing), cam, w, h,
-                                      params, op_x, op_y, col_x, col_rgb,
-                                      segs.get(n, np.empty((1, 1, 2))), parc, stop, True,
-                                      planes[n].bits if n in planes else nobits, n in planes,
-                                      *skip_table(v, parc and blocks), layer_rgba[j], cnt, y0, y1)
-                report.part("translucent", (j + (b + 1) / len(bands)) / len(trans))
-            counts["samples"] += int(cnt.sum())
-            if work:
-                per_pixel += cnt
-            box_entry_image(vol.data, np.array(vol.origin), np.array(vol.spacing), cam, w, h, layer_t[j])
-        front = np.zeros((h, w, 4), np.float32)
-        if comp:
-            datas, orgs, spcs, params, tables, tf_len = _packed(comp, lambda v: accumulation_params(v, scene.lights))
-            seg = (np.stack([segs[n] for n, _ in comp]) if parc else np.empty((1, 1, 1, 2)))
-            for k, (n, _) in enumerate(comp):
-                if n in planes:
-                    planes[n].set_params(params[k])
-            bits = [planes[n].bits if n in planes else None for n, _ in comp]
-            skips = [skip_table(v, parc and blocks) for _, v in comp]
-            cnt = np.empty(npx, np.int64)
-            # With shadows, the shaded samples are counted here, recorded and lit below.
-            record = SampleRecord(0, npx) if report.sample_shadows else None
+                planes[n].set_params(params[k])
+        bits = [planes[n].bits if n in planes else None for n, _ in comp]
+        skips = [skip_table(v, parc and blocks) for _, v in comp]
+        cnt = np.empty(npx, np.int64)
+        # With shadows, the shaded samples are counted here, recorded and lit below.
+        record = SampleRecord(0, npx) if report.sample_shadows else None
 
-            def merged(y0, y1, record):
-                cast_merged_image(datas, orgs, spcs, cam, w, h, params, *tables, tf_len, seg, parc,
-                                  tuple(c for c, _ in skips), np.array([m for _, m in skips], np.int64), stop,
-                                  np.array([n for n, _ in comp], np.int64), layer_t,
-                                  np.array([n for n, _ in layers], np.int64), layer_rgba, front, cnt, y0, y1,
-                                  record, bits)
+        def merged(y0, y1, record):
+            cast_merged_image(datas, orgs, spcs, cam, w, h, params, *tables, tf_len, seg, parc,
+                              tuple(c for c, _ in skips), np.array([m for _, m in skips], np.int64), stop,
+                              np.array([n for n, _ in comp], np.int64), layer_t,
+                              np.array([n for n, _ in layers], np.int64), layer_rgba, front, cnt, y0, y1,
+                              record, bits)
 
-            for b, (y0, y1) in enumerate(bands):
-                merged(y0, y1, record)
-                report.part("translucent", (len(layers) + len(comp) * (b + 1) / len(bands)) / len(trans))
-            counts["samples"] += int(cnt.sum())
-            if work:
-                per_pixel += cnt
-            if record is not None:
-                timings["cast"] += time.perf_counter() - t0
-                _light_samples(scene, method, comp, record.counts, merged, front.reshape(npx, 4), sizes,
-                               light_buffer, blocks, timings, counts, report)
-                t0 = time.perf_counter()
-        else:
-            _composite_layers(layer_t, layer_rgba, front)
-        image = front + (1.0 - front[..., 3:4]) * image
-        timings["cast"] += time.perf_counter() - t0
-    report.done("sample shadows")          # the last phase: its end is 1
-    return image, depth.reshape(h, w), counts, timings, extra
+        for b, (y0, y1) in enumerate(bands):
+            merged(y0, y1, record)
+            report.part("translucent", (len(layers) + len(comp) * (b + 1) / len(bands)) / len(trans))
+        frame.counts["samples"] += int(cnt.sum())
+        frame.add_work(cnt)
+        if record is not None:
+            frame.timings["cast"] += time.perf_counter() - t0
+            _light_samples(frame, comp, record.counts, merged, front.reshape(npx, 4))
+            t0 = time.perf_counter()
+    else:
+        _composite_layers(layer_t, layer_rgba, front)
+    image = front + (1.0 - front[..., 3:4]) * image
+    frame.timings["cast"] += time.perf_counter() - t0
+    return image
 
 
 class _Report:
@@ -290,7 +348,7 @@ def _light_terms(points, normals, views, materials, lights):
     return diffuse, specular, ((diffuse > 0.0) | (specular > 0.0)).astype(np.float64)
 
 
-def _shadows(scene, method, lights, points, groups, vis, sizes, light_buffer, blocks, timings, counts):
+def _shadows(frame, lights, points, groups, vis):
     """Shadow rays from every hit to every light, volume by volume; ``vis`` scaled in place.
 
     ``groups``: ``(first, end, volume, n)``, the hits ``points[first:end]`` on the surface of
@@ -304,6 +362,7 @@ def _shadows(scene, method, lights, points, groups, vis, sizes, light_buffer, bl
     from .segments import cached_proxy
     from .skip import skip_table
 
+    scene, sizes, timings, counts = frame.scene, frame.sizes, frame.timings, frame.counts
     nh = len(points)
     cnt = np.zeros((nh, 3), np.int64)
     for l, light in enumerate(scene.lights):
@@ -313,11 +372,11 @@ def _shadows(scene, method, lights, points, groups, vis, sizes, light_buffer, bl
         for n, v in enumerate(scene.volumes):
             vol = v.volume
             views, near, far = no_views()
-            if method == "parc":
+            if frame.parc:
                 phase = {}
                 proxy, _ = cached_proxy(v, sizes[n], scene.size, phase, merge=False)
                 buf = None          # the last light's buffers, if evicted, are freed before these are drawn
-                buf = _cached_light_buffers(light, v, proxy, sizes[n], light_buffer)
+                buf = _cached_light_buffers(light, v, proxy, sizes[n], frame.light_buffer)
                 if buf.seconds:         # drawn this frame (kept ones report no time, and no faces)
                     counts["light_polygons"] += buf.polygons * len(buf.views)
                 timings["raster_lights"] += buf.seconds
@@ -326,16 +385,16 @@ def _shadows(scene, method, lights, points, groups, vis, sizes, light_buffer, bl
             t0 = time.perf_counter()
             org = np.array(vol.origin)
             spc = np.array(vol.spacing)
-            skip, jump_min = skip_table(v, method == "parc" and blocks)
+            skip, jump_min = skip_table(v, frame.parc and frame.blocks)
             for a, b, surface, owner in groups:
                 eps = SHADOW_EPS * min(surface.spacing)
                 if isinstance(v, Isosurface):
                     shadow_iso(vol.data, org, spc, v.value, points[a:b], row, eps, views, near, far,
-                               method == "parc", skip, jump_min, v_l[a:b], cnt[a:b])
+                               frame.parc, skip, jump_min, v_l[a:b], cnt[a:b])
                 else:
                     op_x, op_y, col_x, col_rgb = v.tf.arrays()
                     shadow_accumulate(vol.data, org, spc, accumulation_params(v), op_x, op_y, col_x, col_rgb,
-                                      points[a:b], row, eps, views, near, far, method == "parc", skip, jump_min,
+                                      points[a:b], row, eps, views, near, far, frame.parc, skip, jump_min,
                                       v_l[a:b], cnt[a:b], v.step if owner == n else 0.0)
             timings["shadow"] += time.perf_counter() - t0
     from .renderer import column_totals
@@ -350,8 +409,7 @@ def _shadows(scene, method, lights, points, groups, vis, sizes, light_buffer, bl
 SAMPLES_AT_ONCE = 1 << 19
 
 
-def _light_samples(scene, method, comp, per_pixel, merged, front, sizes, light_buffer, blocks, timings, counts,
-                   report):
+def _light_samples(frame, comp, per_pixel, merged, front):
     """Light the shaded samples of the composite volumes ``comp`` with shadows, and add them to ``front``.
 
     ``per_pixel``: the samples each pixel records (`raycast.merged`'s counting walk); ``merged(y0, y1,
@@ -360,8 +418,9 @@ def _light_samples(scene, method, comp, per_pixel, merged, front, sizes, light_b
     samples' shadow rays cast (`_shadows`) and their lit colours added
     (`raycast.shadow.combine_samples`) one at a time.
     """
-    w, h = scene.size
-    lights = light_array(scene.lights)
+    w, h = frame.w, frame.h
+    timings = frame.timings
+    lights = light_array(frame.scene.lights)
     materials_of = np.array([v.material for _, v in comp], np.float64)
     per_row = per_pixel.reshape(h, w).sum(axis=1)
     bands = _sample_bands(per_row, SAMPLES_AT_ONCE)
@@ -391,15 +450,14 @@ def _light_samples(scene, method, comp, per_pixel, merged, front, sizes, light_b
             if a < b:
                 groups.append((a, b, v.volume, m))
         grouped = np.ascontiguousarray(vis[:, order])
-        _shadows(scene, method, lights, record.points[order], groups, grouped, sizes, light_buffer, blocks, timings,
-                 counts)
+        _shadows(frame, lights, record.points[order], groups, grouped)
         vis[:, order] = grouped
         t0 = time.perf_counter()
         combine_samples(record.slots, record.counts, record.colors, record.weights, materials, lights, diffuse,
                         specular, vis, y0 * w, y1 * w, front)
         timings["shade"] += time.perf_counter() - t0
         done += y1 - y0
-        report.part("sample shadows", done / h)
+        frame.report.part("sample shadows", done / h)
 
 
 def _sample_bands(per_row, most):
