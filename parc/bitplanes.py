@@ -113,9 +113,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from data_tools import InputError
-
-from .gl import get_context, moderngl_module, program, set_uniform
+from .gl import check_viewport, get_context, moderngl_module, program, set_uniform
 from .raster import (ABS_TOL, COVERAGE_PAD_PX, FLOAT32_REACH, GUARD_PX, PASS_PHASES, TOL_REL, perspective_clip,
                      scene_scale, set_view_uniforms, view_reach)
 # `plane_buffers` keeps as many proxies as the renderer, so that a supercell sweep keeps its planes' too.
@@ -345,10 +343,8 @@ def raster_bits(camera, width, height, plane_proxy, *, first, count, halo=False,
     width, height = int(width), int(height)
     first, count = int(first), int(count)
     nwords = max(1, -(-count // 32))
+    check_viewport(width, height)
     ctx = get_context()
-    max_w, max_h = ctx.info["GL_MAX_VIEWPORT_DIMS"]
-    if width > max_w or height > max_h:
-        raise InputError(f"image {width}x{height} exceeds this OpenGL's limit {max_w}x{max_h}")
     seconds = {}
     t0 = time.perf_counter()
     proxy = plane_proxy
