@@ -272,7 +272,8 @@ class Scene:
     size : (width, height)
         Image size in pixels, both at least 1.
     volumes : list of Isosurface or Translucent
-        At least one (required, though it has a default); kept as a tuple.
+        At least one (required, though it has a default); kept as a tuple. At most
+        `raycast.merged.MAX_MERGED` (32) of them translucent in composite mode.
     lights : list of PointLight or DirectionalLight
         Kept as a tuple.
         Light sources for isosurfaces and shaded translucent samples (in a scene with
@@ -324,6 +325,12 @@ class Scene:
         for v in self.volumes:
             if not isinstance(v, (Isosurface, Translucent)):
                 raise InputError(f"a scene shows Isosurface or Translucent volumes, got {type(v).__name__}")
+        merged = sum(isinstance(v, Translucent) and v.mode == "composite" for v in self.volumes)
+        if merged > 1:
+            from raycast.merged import MAX_MERGED
+            if merged > MAX_MERGED:
+                raise InputError(f"a scene composites at most {MAX_MERGED} translucent volumes together (their "
+                                 f"samples merge along each ray); this one has {merged} in composite mode")
         check_eye_resolves(self.camera, [v.volume for v in self.volumes])
         self.lights = _sequence(self.lights, "lights")
         for light in self.lights:

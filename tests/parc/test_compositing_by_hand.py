@@ -50,6 +50,23 @@ def test_a_layer_stops_at_a_surface_inside_it(gl, method, mode):
     np.testing.assert_allclose(both, rgba + (1.0 - rgba[3]) * surf, atol=1e-5, rtol=0)
 
 
+@pytest.mark.parametrize("method", ["brute", "parc"])
+def test_three_coincident_composite_volumes_take_tied_samples_in_the_scene_s_order(gl, method):
+    # Three volumes, walked as four (`raycast.merged.merged_length`): sample k of the m-th
+    # listed has (1 - a) to the power 3k + m in front of it.
+    from raycast.merged import merged_length
+    assert merged_length(3) == 4
+    a = 0.1
+    rgb = np.eye(3)
+    fogs = [Translucent(_const(name=f"fog{m}"), TransferFunction([[0, a], [200, a]], [[0, *rgb[m]]]), threshold=1.0)
+            for m in range(3)]
+    img = render(Scene(camera=CAM, size=(4, 4), volumes=fogs), method).image.astype(np.float64)
+    n = 33                                      # z = 0 .. 8 every 0.25
+    for m in range(3):
+        np.testing.assert_allclose(img[..., m], sum(a * (1 - a) ** (3 * k + m) for k in range(n)), atol=1e-5)
+    np.testing.assert_allclose(img[..., 3], 1 - (1 - a) ** (3 * n), atol=1e-5)
+
+
 def test_coincident_composite_volumes_take_tied_samples_in_the_scene_s_order():
     # Two volumes sharing one box and lattice: at every depth the first listed goes first.
     a = 0.1

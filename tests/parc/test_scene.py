@@ -57,6 +57,16 @@ def test_a_scene_without_volumes_is_refused():
         _scene(volumes=[])
 
 
+def test_more_composite_volumes_than_one_walk_merges_are_refused_and_other_modes_do_not_count():
+    from raycast.merged import MAX_MERGED
+    fog = parc.Translucent(VOL, "greyscale")
+    layers = [parc.Translucent(VOL, "greyscale", mode=m) for m in ("mip", "average")]
+    assert len(_scene(volumes=[fog] * MAX_MERGED + layers).volumes) == MAX_MERGED + 2
+    with pytest.raises(InputError, match=f"at most {MAX_MERGED} translucent volumes together.*has "
+                                         f"{MAX_MERGED + 1} in composite mode"):
+        _scene(volumes=[fog] * (MAX_MERGED + 1))
+
+
 @pytest.mark.parametrize("shade, given, said", [
     (False, {"shadows": True}, ["shadows fall"]),
     (False, {"lights": [parc.PointLight((1, 2, 3))]}, ["lights shine"]),
