@@ -386,7 +386,7 @@ def cmd_render(args):
         from raycast.config import cache_refused
         took += f" ({compiling[0]:.1f} s of it compiling the casters{'' if cache_refused() else ', once'})"
     if len(scene.volumes) > 1:
-        say(f"wrote {out}: {len(scene.volumes)} volumes ({'; '.join(_describe(v) for v in scene.volumes)}); {took}")
+        say(f"wrote {out}: {len(scene.volumes)} volumes ({_describe_all(scene.volumes)}); {took}")
     elif isinstance(vis, parc.Isosurface):
         say(f"wrote {out}: {s['hits']} of {s['pixels']} pixels hit the isosurface {exact_text(vis.value)}; "
             f"{took}, {s['cells_visited']:,} cells visited, {s['cubic_solves']:,} cubics")
@@ -429,6 +429,17 @@ def _shown(vis):
 def _describe(vis):
     """One volume of a scene in a few words, for notes and table headers."""
     return f"{vis.volume.name}, {_shown(vis)}"
+
+
+#: A scene's volumes named in a line, at most this many (a scene of 300 made a line of 11,000 characters).
+DESCRIBED_VOLUMES = 6
+
+
+def _describe_all(volumes):
+    """A scene's volumes in one line: each in a few words, the first few where there are many."""
+    shown = volumes if len(volumes) <= DESCRIBED_VOLUMES else volumes[:DESCRIBED_VOLUMES - 1]
+    rest = len(volumes) - len(shown)
+    return "; ".join([_describe(v) for v in shown] + ([f"and {rest} more"] if rest else []))
 
 
 def cmd_compare(args):
@@ -521,7 +532,7 @@ def _heading(args, scene, sweeping_step=False):
     vis = scene.volumes[0]
     runs = f"{w}x{h} pixels, median of {args.repeats} after a warm-up"
     if len(scene.volumes) > 1:
-        return f"{args.volume}: {len(scene.volumes)} volumes ({'; '.join(_describe(v) for v in scene.volumes)}), {runs}"
+        return f"{args.volume}: {len(scene.volumes)} volumes ({_describe_all(scene.volumes)}), {runs}"
     shown = f"{vis.mode} of {vis.tf.title}" if sweeping_step else _shown(vis)
     return f"{vis.volume.name}: {'x'.join(map(str, vis.volume.dims))} {vis.volume.dtype}, {shown}, {runs}"
 

@@ -137,6 +137,32 @@ def test_multi_volume_scene_file_loads(tmp_path):
     assert scene.camera.parallel_scale == 30.0 and scene.size == (512, 512)
 
 
+def _many_volumes(tmp_path, count, kind):
+    save_volume(make_synthetic("sphere", 8), tmp_path / "a.nrrd")
+    path = tmp_path / "many.toml"
+    path.write_text("size = [6, 4]\n" + "".join(f"[[volume]]\nfile = 'a.nrrd'\n{kind}\norigin = [{10 * k}, 0, 0]\n"
+                                               for k in range(count)))
+    return path
+
+
+def test_a_scene_of_many_volumes_is_named_in_a_line_of_its_first_few(tmp_path, capsys):
+    from parc.cli import DESCRIBED_VOLUMES
+    out = tmp_path / "o.png"
+    rc, _, err = _run(["render", _many_volumes(tmp_path, 40, "iso = 0"), "-o", out], capsys)
+    assert rc == 0, err
+    line, = [x for x in err.splitlines() if x.startswith(f"parc: wrote {out}")]
+    assert "40 volumes (" in line and f"; and {40 - DESCRIBED_VOLUMES + 1} more)" in line
+    assert line.count("isovalue 0") == DESCRIBED_VOLUMES - 1 and line.count(str(tmp_path)) == DESCRIBED_VOLUMES
+
+
+def test_a_scene_file_merging_too_many_composite_volumes_is_one_line(tmp_path, capsys):
+    from raycast.merged import MAX_MERGED
+    out = tmp_path / "o.png"
+    rc, _, err = _run(["render", _many_volumes(tmp_path, MAX_MERGED + 1, "tf = 'greyscale'"), "-o", out], capsys)
+    _assert_refused(rc, err, out, f"at most {MAX_MERGED} translucent volumes together",
+                    f"this one has {MAX_MERGED + 1} in composite mode")
+
+
 @pytest.mark.parametrize("extra, words", [
     (["--iso", "3"], ["--iso does not apply to a scene file", "[[volume]]"]),
     (["--iso", "0"], ["--iso does not apply to a scene file"]),        # 0 is a value, not "not given"
