@@ -172,7 +172,7 @@ def _merged_caster(shaded, record, planes):
     def cast(datas, orgs, spcs, cam, width, height, params, op_x, op_y, col_x, col_rgb, tf_len,
              seg, use_seg, skip, jump_mins, bits, bit_use, stop, ranks, layer_t, layer_ranks, layer_rgba, image, counts,
              row0, row1, rec_points, rec_normals, rec_views, rec_colors, rec_weights, rec_volumes, slots, rec_counts):
-        nvol = orgs.shape[0]            # the tuples may be longer (`cast_merged_image`)
+        nvol = len(datas)
         thr = 0.0
         for q in range(nvol):
             thr = max(thr, params[q, P_THRESHOLD])
@@ -334,17 +334,14 @@ class SampleRecord:
 
 
 #: The most composite volumes one merged walk takes. It takes their samples, skip tables and
-#: bit planes as tuples, and Numba compiles a kernel for each length of tuple, each argument of
-#: its parallel loop: a first render of one uint8 volume's 8x8 pixels, every kernel compiled,
+#: bit planes as tuples, and Numba compiles a kernel for each length of tuple, the length a
+#: constant in it. A first render of one uint8 volume's 8x8 pixels, every kernel compiled,
 #: took 18-22 s with 2, 4, 8 or 16 such volumes, 38 s with 32, and with 60 had not ended after
 #: 12 minutes; from 100 on, Numba refuses the tuples (`parc.scene.Scene` refuses such scenes).
+#: Tuples padded to a power of two, the count given apart, made fewer kernels but a slower
+#: walk: two CT heads at 300x300 (`parc compare`, three rounds alternated) took `brute`
+#: 0.615-0.650 s against 0.541-0.591.
 MAX_MERGED = 32
-
-
-def merged_length(count):
-    """The length of tuple the merged walk of ``count`` volumes compiles for: the next power of
-    two, so that scenes of 3 and 4 composite volumes share one kernel (5 to 8 another, ...)."""
-    return 1 << max(0, int(count) - 1).bit_length()
 
 
 def cast_merged_image(datas, orgs, spcs, cam, width, height, params, op_x, op_y, col_x, col_rgb, tf_len,
@@ -390,9 +387,6 @@ def cast_merged_image(datas, orgs, spcs, cam, width, height, params, op_x, op_y,
     bit_use = np.array([b is not None for b in bits])
     cast = _MERGED_CASTERS[shaded, record is not _NO_RECORD, bool(bit_use.any())]
     bits = tuple(_NO_BITS if b is None else b for b in bits)
-    # Entries past the volumes (``orgs``' rows) are never read: they only make up the length.
-    pad = merged_length(len(datas)) - len(datas)
-    datas, skip, bits = (tuple(a) + (a[0],) * pad for a in (datas, skip, bits))
     cast(datas, orgs, spcs, cam, width, height, params, op_x, op_y, col_x, col_rgb, tf_len, seg, use_seg, skip,
          jump_mins, bits, bit_use, stop, ranks, layer_t, layer_ranks, layer_rgba, image, counts, row0,
          height if row1 is None else row1, *record.arrays())
