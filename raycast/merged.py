@@ -336,8 +336,9 @@ class SampleRecord:
 #: The most composite volumes one merged walk takes. It takes their samples, skip tables and
 #: bit planes as tuples, and Numba compiles a kernel for each length of tuple, the length a
 #: constant in it. A first render of one uint8 volume's 8x8 pixels, every kernel compiled,
-#: took 18-22 s with 2, 4, 8 or 16 such volumes, 38 s with 32, and with 60 had not ended after
-#: 12 minutes; from 100 on, Numba refuses the tuples (`parc.scene.Scene` refuses such scenes).
+#: took 18-22 s with 2, 4, 8 or 16 such volumes and 38 s with 32; with 60 it was still
+#: compiling after two and a half minutes, with 100 after twelve, and past 100 Numba refuses
+#: the tuples (`parc.scene.Scene` refuses such scenes).
 #: Tuples padded to a power of two, the count given apart, made fewer kernels but a slower
 #: walk: two CT heads at 300x300 (`parc compare`, three rounds alternated) took `brute`
 #: 0.615-0.650 s against 0.541-0.591.
