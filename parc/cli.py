@@ -431,7 +431,8 @@ def _describe(vis):
     return f"{vis.volume.name}, {_shown(vis)}"
 
 
-#: A scene's volumes named in a line, at most this many (a scene of 300 made a line of 11,000 characters).
+#: A scene's volumes named in a line: all up to this many, else one fewer and how many more (a
+#: scene of 300 made a line of 11,000 characters).
 DESCRIBED_VOLUMES = 6
 
 
