@@ -10,7 +10,7 @@ import shutil
 import signal
 from pathlib import Path
 
-#: Ctrl-C and the signals that stop a run (`parc.cli`); SIGHUP is not on every system.
+#: Ctrl-C and the signals that stop a run (`parc.stops`); SIGHUP is not on every system.
 STOPS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
 
 
@@ -48,7 +48,7 @@ def building(path):
 
 def end_at_once(status, cleanups=()):
     """End the process now, without unwinding, for a signal given again while Numba compiles
-    (`parc.cli`), where an exception cannot be raised: first remove what `building` marks and
+    (`parc.stops`), where an exception cannot be raised: first remove what `building` marks and
     call ``cleanups``, what `atexit` would have done (`raycast.config.at_exit`)."""
     for path in _BUILDING:
         if path.is_dir() and not path.is_symlink():

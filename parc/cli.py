@@ -23,14 +23,13 @@ from data_tools import InputError
 from data_tools.errors import os_reason
 from data_tools.info import exact_text
 from data_tools.io.npy import save_array
-from data_tools.signals import STOPS, end_at_once
 
 from .arguments import build_parser, join_signed_values, supercell_size
 from .flagscene import load_volume_flags, scene_and_notes
 from .outputs import (Progress, atomic_write_all, check_distinct, check_not_sidecar, check_output, compile_notice,
-                      compiling_seconds, end_progress_line, note, print_out, slow_note, stale_sidecars, to_json,
-                      write_png)
+                      compiling_seconds, error_line, note, print_out, slow_note, stale_sidecars, to_json, write_png)
 from .scene import ShowsNothingWarning
+from .stops import Stopped, restore_handlers, stop_on_signals
 
 EXIT_USAGE = 2
 
@@ -45,7 +44,7 @@ def main(argv=None):
         if stream is not None and hasattr(stream, "reconfigure"):
             stream.reconfigure(errors="backslashreplace")
     argv = join_signed_values(list(sys.argv[1:] if argv is None else argv))
-    stops = _stop_on_signals()
+    stops = stop_on_signals()
     try:
         # Extreme but valid numbers (an eye at 1e200) may overflow on the way to
         # a clean error or a picture; NumPy's warnings would only add lines.
@@ -55,7 +54,7 @@ def main(argv=None):
             warnings.simplefilter("ignore", ShowsNothingWarning)
             return _main(argv)
     except InputError as exc:
-        _error(f"error: {exc}")
+        error_line(f"error: {exc}")
         return EXIT_USAGE
     except BrokenPipeError:
         # The reader went away (`parc compare ... | head`): stop quietly, as
@@ -69,7 +68,7 @@ def main(argv=None):
         where = f"{exc.filename}: " if exc.filename else ""
         if not where and _working_folder_gone():
             where = "the working folder no longer exists (give absolute paths, or cd to a folder): "
-        _error(f"error: {where}{os_reason(exc)}")
+        error_line(f"error: {where}{os_reason(exc)}")
         return EXIT_USAGE
     except MemoryError as exc:
         # NumPy says how much it could not allocate; the usual cause is a
@@ -77,18 +76,16 @@ def main(argv=None):
         detail = f": {exc}" if str(exc) else ""
         supercell = (" (or a larger --supercell)"
                      if any(str(a).startswith(("--supercell", "--sweep-supercell")) for a in argv) else "")
-        _error(f"error: out of memory{detail}; try a smaller --size{supercell}")
+        error_line(f"error: out of memory{detail}; try a smaller --size{supercell}")
         return 1
     except KeyboardInterrupt:
-        _error("interrupted")
+        error_line("interrupted")
         return 130
-    except _Stopped as exc:
-        _error(f"stopped by {signal.Signals(exc.signum).name}")
+    except Stopped as exc:
+        error_line(f"stopped by {signal.Signals(exc.signum).name}")
         return 128 + exc.signum
     finally:
-        for signum, handler in stops.items():
-            if handler is not None:                 # None: set outside Python, not ours to restore
-                signal.signal(signum, handler)
+        restore_handlers(stops)
 
 
 def _working_folder_gone():
@@ -97,51 +94,6 @@ def _working_folder_gone():
     except OSError:
         return True
     return False
-
-
-class _Stopped(BaseException):
-    """SIGTERM or SIGHUP, raised where the program is, so that the writes under way clean up
-    their temporary files (`atomic_write_all`, `save_volume`) as on Ctrl-C."""
-
-    def __init__(self, signum):
-        super().__init__(signum)
-        self.signum = signum
-
-
-def _stop_on_signals():
-    """Turn SIGTERM and SIGHUP into `_Stopped` and Ctrl-C into KeyboardInterrupt for the run,
-    held while Numba compiles (`raycast.config.after_compile`): raised inside its compile,
-    they were lost, crashed the process or broke the kernel. A second signal then stops the
-    run at once. The handlers they replace, to restore."""
-    def stop(signum, frame):
-        # Still importing, the module may not have defined these yet.
-        config = sys.modules.get("raycast.config")
-        compiling = getattr(config, "compiling", None)
-        if compiling is not None and compiling():
-            if config.after_compile(lambda: stop(signum, None)):
-                again = "Ctrl-C" if signum == signal.SIGINT else signal.Signals(signum).name
-                _error(f"stopping once the kernel under way is ready ({again} again to stop at once)")
-                return
-            # Outputs are written after the casts; what a run fills meanwhile is marked `building`.
-            _error("interrupted" if signum == signal.SIGINT else f"stopped by {signal.Signals(signum).name}")
-            end_at_once(128 + signum, config.EXIT_CLEANUPS)
-        if signum == signal.SIGINT:
-            raise KeyboardInterrupt
-        raise _Stopped(signum)
-    replaced = {}
-    for signum in STOPS:
-        # An ignored signal stays ignored: SIGHUP under nohup, Ctrl-C for a job a script started with &.
-        if signal.getsignal(signum) == signal.SIG_IGN:
-            continue
-        with contextlib.suppress(ValueError, OSError):     # not the main thread, or no such signal here
-            replaced[signum] = signal.signal(signum, stop)
-    return replaced
-
-
-def _error(text):
-    """``parc: text`` on stderr, on a line of its own after any unfinished progress."""
-    end_progress_line()
-    note(text)
 
 
 def _main(argv):
@@ -480,7 +432,7 @@ def cmd_compare(args):
         given = args.sweep_supercell.strip()
         # One size of M,N,P cells is swept alone as "2,2,4;" (a trailing ';').
         entries = given.removesuffix(";").split(";") if ";" in given else given.split(",")
-        sizes = [_supercell_or_error(v) for v in entries]
+        sizes = [_supercell_orerror_line(v) for v in entries]
         labels = [f"parc:{_size_label(s)}" for s in sizes]
         twice = sorted({label for label in labels if labels.count(label) > 1})
         if twice:
@@ -591,7 +543,7 @@ def _size_label(size):
     return "x".join(map(exact_text, size)) if isinstance(size, tuple) else exact_text(size)
 
 
-def _supercell_or_error(text):
+def _supercell_orerror_line(text):
     try:
         return supercell_size(text)
     except argparse.ArgumentTypeError as exc:

@@ -326,6 +326,12 @@ def end_progress_line():
         line._say("")
 
 
+def error_line(text):
+    """``parc: text`` on stderr, on a line of its own after any unfinished progress."""
+    end_progress_line()
+    note(text)
+
+
 def compile_notice(say, kernels=()):
     """Say that the casters compile now, when this machine has not every one of ``kernels``
     compiled for these sources, or, with none named, no kernel at all. ``kernels``:

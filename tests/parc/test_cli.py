@@ -1827,7 +1827,7 @@ class _SignalInCompile:
 @pytest.fixture
 def stop_signals_at_their_defaults():
     """Ctrl-C and SIGTERM as a run started at a terminal has them: a run started in the
-    background (a CI job under &) inherits Ctrl-C ignored, which `_stop_on_signals` keeps."""
+    background (a CI job under &) inherits Ctrl-C ignored, which `parc.stops.stop_on_signals` keeps."""
     was = {signal.SIGINT: signal.signal(signal.SIGINT, signal.default_int_handler),
            signal.SIGTERM: signal.signal(signal.SIGTERM, signal.SIG_DFL)}
     yield
@@ -1841,17 +1841,17 @@ def test_a_signal_while_a_kernel_compiles_is_raised_once_it_has_compiled(capsys,
     # Raised inside Numba's compile, a KeyboardInterrupt was swallowed (the run went on and
     # wrote its file), crashed the process, or broke the kernel ("no compiled object yet").
     import numba
-    from parc.cli import _Stopped, _stop_on_signals
+    from parc.stops import Stopped, stop_on_signals
     from raycast.config import compiling        # imported, it watches Numba's compiler lock
 
     @numba.njit
     def twice(x):
         return 2 * x
     assert not compiling()
-    replaced = _stop_on_signals()
+    replaced = stop_on_signals()
     try:
         with _SignalInCompile(getattr(signal, signum), 1), \
-                pytest.raises(KeyboardInterrupt if signum == "SIGINT" else _Stopped):
+                pytest.raises(KeyboardInterrupt if signum == "SIGINT" else Stopped):
             twice(3)
     finally:
         for number, handler in replaced.items():
@@ -1865,9 +1865,9 @@ def test_ctrl_c_while_the_kernel_module_is_still_importing_is_a_plain_interrupt(
                                                                               stop_signals_at_their_defaults):
     # A module half imported has no `compiling` yet: the handler raised AttributeError, a traceback.
     import types
-    from parc.cli import _stop_on_signals
+    from parc.stops import stop_on_signals
     monkeypatch.setitem(sys.modules, "raycast.config", types.ModuleType("raycast.config"))
-    replaced = _stop_on_signals()
+    replaced = stop_on_signals()
     try:
         with pytest.raises(KeyboardInterrupt):
             signal.raise_signal(signal.SIGINT)
@@ -1882,7 +1882,7 @@ from pathlib import Path
 import numba
 import raycast.config
 from data_tools.signals import building
-from parc.cli import _stop_on_signals
+from parc.stops import stop_on_signals
 
 class CtrlCTwice(numba.core.event.Listener):
     def on_start(self, event):
@@ -1896,7 +1896,7 @@ class CtrlCTwice(numba.core.event.Listener):
 def twice(x):
     return 2 * x
 signal.signal(signal.SIGINT, signal.default_int_handler)     # ignored where the tests run in the background
-_stop_on_signals()
+stop_on_signals()
 numba.core.event.register("numba:compile", CtrlCTwice())
 stage = Path(sys.argv[1]) / ".stage"
 stage.mkdir()
@@ -1969,8 +1969,7 @@ def test_an_error_after_live_progress_starts_a_line_of_its_own(vol_file, tmp_pat
     live = outputs.Progress("rendering 8x8", delay=60.0)
     live.start -= 60.0
     live(0.43)
-    cli_error = __import__("parc.cli", fromlist=["_error"])._error
-    cli_error("interrupted")
+    outputs.error_line("interrupted")
     assert capsys.readouterr().err == "\rparc: rendering 8x8:  43%\nparc: interrupted\n"
 
 
