@@ -190,6 +190,17 @@ def write_png(image, path):
     Image.fromarray(rgba, "RGBA").save(path, format="PNG")
 
 
+def time_left(seconds):
+    """``about 40 s left``, ``about 3 min left``, ``about 2 h 5 min left``: a progress line's
+    estimate, rounded as coarsely as an estimate of the rest of the work deserves."""
+    if seconds < 60:
+        return f"about {max(1, round(seconds / 5) * 5 if seconds >= 10 else round(seconds))} s left"
+    minutes = round(seconds / 60)
+    if minutes < 60:
+        return f"about {minutes} min left"
+    return f"about {minutes // 60} h {minutes % 60} min left"
+
+
 class Progress:
     """Progress on stderr: a live percentage on a terminal, a few lines otherwise.
 
@@ -211,6 +222,8 @@ class Progress:
         self.delay = delay
         self.last = -1
         self.mute = False
+        self.first = None           # (time, fraction) of the first report of work done
+        self.width = 0              # of the terminal line last written, to write it over whole
         self.lock = threading.Lock()        # the first report may come from the timer's thread
         # Work before the first report (cell ranges of a large volume, the OpenGL pass)
         # can take seconds: once the delay is over, 0% says the work has begun.
@@ -225,16 +238,34 @@ class Progress:
 
     def __call__(self, fraction):
         with self.lock:
-            self._report(int(100 * fraction))
+            now = time.perf_counter()
+            if self.first is None and fraction > 0:
+                self.first = (now, fraction)
+            self._report(int(100 * fraction), self._left(now, fraction))
 
-    def _report(self, pct):
+    def _left(self, now, fraction):
+        """Seconds the work has left at the pace since its first report, or None before two.
+        Not from the start: the first part pays for what the rest reuses (compiling the
+        casters, 10 to 60 s, the OpenGL pass), and an estimate from it would be far too long."""
+        if self.first is None or fraction >= 1.0:
+            return None
+        t0, f0 = self.first
+        if fraction <= f0 or now - t0 < self.delay:
+            return None
+        return (now - t0) / (fraction - f0) * (1.0 - fraction)
+
+    def _report(self, pct, left=None):
         if self.mute or time.perf_counter() - self.start < self.delay:
             return
+        # On a terminal the percentage keeps its width, and the line is padded over the last one.
+        text = (f"parc: {self.what}: {pct:{3 if self.tty else 0}d}%"
+                + (f", {time_left(left)}" if left is not None else ""))
         if self.tty:
-            self._say(f"\rparc: {self.what}: {pct:3d}%", end="")
+            self._say(f"\r{text:{self.width}}", end="")
+            self.width = len(text)
             Progress.open_line = self
         elif pct // 25 > self.last // 25 and pct < 100:
-            self._say(f"parc: {self.what}: {pct}%")
+            self._say(text)
         self.last = pct
 
     def done(self):
@@ -242,7 +273,8 @@ class Progress:
         if self.last >= 0:
             # Off a terminal too: the lines stopped at 75%, and the work looked cut short.
             over = "\r" if self.tty else ""       # a terminal's live line is written over
-            self._say(f"{over}parc: {self.what}: done in {time.perf_counter() - self.start:.1f} s")
+            text = f"parc: {self.what}: done in {time.perf_counter() - self.start:.1f} s"
+            self._say(f"{over}{text:{self.width if self.tty else 0}}")
             Progress.open_line = None
 
     def _say(self, text, end="\n"):

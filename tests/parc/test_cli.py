@@ -20,7 +20,7 @@ from parc.cli import build_parser, main
 from parc.scene import ShowsNothingWarning
 
 #: What `parc.outputs.Progress` writes for a render (a terminal gets it as one line rewritten).
-PROGRESS_LINE = re.compile(r"\r?parc: (rendering \d+x\d+: +(\d+%|done in [\d.]+ s)"
+PROGRESS_LINE = re.compile(r"\r?parc: (rendering \d+x\d+: +(\d+%(, about [\d hmins]+ left)?|done in [\d.]+ s) *"
                            r"|(reading .*|making the built-in volume)( \.\.\.|: done in [\d.]+ s))\r?\n?$")
 
 
@@ -79,8 +79,48 @@ def test_progress_shows_only_for_work_that_takes_a_while(monkeypatch, capsys):
         now[0] += 1.0
         slow(n / 16)
     slow.done()
-    assert capsys.readouterr().err.splitlines() == [f"parc: slow: {p}%" for p in (6, 25, 50, 75)] + [
-        "parc: slow: done in 16.0 s"]         # not left at 75%
+    # The time left is at the pace since the first report: the start may have been compiling.
+    assert capsys.readouterr().err.splitlines() == [
+        "parc: slow: 6%", "parc: slow: 25%, about 10 s left", "parc: slow: 50%, about 8 s left",
+        "parc: slow: 75%, about 4 s left", "parc: slow: done in 16.0 s"]         # not left at 75%
+
+
+def test_the_time_left_ignores_a_slow_start(monkeypatch, capsys):
+    # A first band that compiled the casters for 30 s, then 15 bands of a second each.
+    from parc import outputs
+    now = [100.0]
+    monkeypatch.setattr(outputs.time, "perf_counter", lambda: now[0])
+    work = outputs.Progress("work")
+    work.pending.cancel()
+    for n in range(1, 17):
+        now[0] += 30.0 if n == 1 else 1.0
+        work(n / 16)
+    assert capsys.readouterr().err.splitlines()[1:4] == [
+        "parc: work: 25%, about 10 s left", "parc: work: 50%, about 8 s left", "parc: work: 75%, about 4 s left"]
+
+
+@pytest.mark.parametrize("seconds, said", [(0.3, "about 1 s left"), (7.4, "about 7 s left"),
+                                           (42.0, "about 40 s left"), (185.0, "about 3 min left"),
+                                           (3599.0, "about 1 h 0 min left"), (7500.0, "about 2 h 5 min left")])
+def test_the_time_left_is_rounded_as_an_estimate(seconds, said):
+    from parc.outputs import time_left
+    assert time_left(seconds) == said
+
+
+def test_a_terminal_line_is_written_over_whole(monkeypatch, capsys):
+    from parc import outputs
+    now = [100.0]
+    monkeypatch.setattr(outputs.time, "perf_counter", lambda: now[0])
+    monkeypatch.setattr(outputs.sys.stderr, "isatty", lambda: True)
+    work = outputs.Progress("work")
+    work.pending.cancel()
+    for fraction in (0.1, 0.2):
+        now[0] += 100.0
+        work(fraction)
+    work.done()
+    err = capsys.readouterr().err
+    long = "parc: work:  20%, about 13 min left"
+    assert err == "\rparc: work:  10%" + "\r" + long + "\r" + "parc: work: done in 200.0 s".ljust(len(long)) + "\n"
 
 
 def test_a_png_keeps_the_colour_of_faint_pixels(tmp_path):
