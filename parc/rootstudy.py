@@ -131,15 +131,18 @@ def _walk_anchored(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, variant, rec, n0, anchored
     i, j, k, sx, sy, sz, ix, iy, iz, tx0, tx1, ty0, ty1, tz0, tz1 = walk_from(Ox, Oy, Oz, Dx, Dy, Dz, t_in,
                                                                              nx, ny, nz)
     prev = 0.0
+    rounded = False         # as in `raycast.iso._walk_iso`: prev is a cubic rounded at its exit
     record = rec.shape[0] > 0
     while True:
         c0 = max(t_in, max(tx0, max(ty0, tz0)))
         c1 = min(t_out, min(tx1, min(ty1, tz1)))
         v000, v100, v010, v110, v001, v101, v011, v111, lo, hi = corners(data, iso, i, j, k)
-        if lo > 0.0:
-            prev = 1.0
-        elif hi < 0.0:
-            prev = -1.0
+        if lo > 0.0 or hi < 0.0:
+            sign = 1.0 if lo > 0.0 else -1.0
+            if rounded and prev * sign < 0.0:
+                return c0, i, j, k, (Ox - i) + c0 * Dx, (Oy - j) + c0 * Dy, (Oz - k) + c0 * Dz, solves
+            prev = sign
+            rounded = False
         elif c0 <= c1:
             A, B, C, D, u0, v0, w0 = cell_cubic(v000, v100, v010, v110, v001, v101, v011, v111,
                                                 Ox, Oy, Oz, Dx, Dy, Dz, i, j, k, c0)
@@ -166,6 +169,7 @@ def _walk_anchored(data, Ox, Oy, Oz, Dx, Dy, Dz, iso, variant, rec, n0, anchored
                 return c1, i, j, k, u0 + L * Dx, v0 + L * Dy, w0 + L * Dz, solves
             f = eval_cubic(A, B, C, D, L)
             prev = 1.0 if f > 0.0 else (-1.0 if f < 0.0 else 0.0)
+            rounded = True
         if c1 >= t_out:
             break
         inside, i, j, k, tx0, tx1, ty0, ty1, tz0, tz1 = step_cell(Ox, Oy, Oz, sx, sy, sz, ix, iy, iz, i, j, k,
