@@ -351,7 +351,7 @@ def raster_bits(camera, width, height, plane_proxy, *, first, count, halo=False,
     axis = int(proxy.plane_axis)
     lo, hi = proxy.bounds
     eye = np.asarray(camera.eye, dtype=np.float64)
-    f, r, u = camera.basis()
+    f = camera.basis()[0]
     th = math.tan(math.radians(camera.fov) / 2.0)
     aspect = width / height
     scale = scene_scale(camera, lo, hi, aspect)

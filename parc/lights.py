@@ -47,6 +47,7 @@ from raycast.shade import KIND_DIRECTIONAL, KIND_HEADLIGHT, KIND_POINT
 from raycast.shadow import N_VIEW, V_EYE, V_FWD, V_KIND, V_RIGHT, V_SCALE, V_UP
 
 from .camera import Camera, unit_vector
+from .raster import box_corners
 from .scene import DirectionalLight, PointLight
 
 #: Light-buffer size in pixels (square). Finer buffers give tighter
@@ -137,10 +138,6 @@ def light_array(lights):
     return out
 
 
-def _corners(lo, hi):
-    return np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
-
-
 def _up_for(f):
     """An up vector well away from ``f``."""
     a = int(np.argmin(np.abs(f)))
@@ -160,7 +157,7 @@ def light_views(light, lo, hi):
     """
     lo = np.asarray(lo, dtype=np.float64)
     hi = np.asarray(hi, dtype=np.float64)
-    corners = _corners(lo, hi)
+    corners = box_corners(lo, hi)
     centre = 0.5 * (lo + hi)
     size = float(np.linalg.norm(hi - lo)) + 1e-12 * (1.0 + float(np.abs(corners).max()))
     if isinstance(light, DirectionalLight):

@@ -133,10 +133,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import prange
 
-from data_tools import InputError
 from raycast.config import kernel
 
-from .gl import get_context, moderngl_module, program, set_uniform
+from .gl import check_viewport, get_context, moderngl_module, program, set_uniform
 from .origins import distance_to_pc, in_cavity, open_faces, parallel_inside
 from .workspace import work_array
 
@@ -383,14 +382,11 @@ def raster_segments(camera, width, height, proxy, *, pad_px=COVERAGE_PAD_PX, fac
     Sobierajski & Avila 1995, §3 (depth-buffer PARC, eye inside a PC cell).
     """
     width, height = int(width), int(height)
+    check_viewport(width, height)
     ctx = get_context()
-    max_w, max_h = ctx.info["GL_MAX_VIEWPORT_DIMS"]
-    if width > max_w or height > max_h:
-        raise InputError(f"image {width}x{height} exceeds this OpenGL's limit {max_w}x{max_h}")
     seconds = {}
     lo, hi = proxy.bounds
     eye = np.asarray(camera.eye, dtype=np.float64)
-    f, r, u = camera.basis()
     th = math.tan(math.radians(camera.fov) / 2.0)
     aspect = width / height
     scale = scene_scale(camera, lo, hi, aspect)
@@ -557,7 +553,7 @@ def _pixel_affine(camera, f, r, u, th, width, height):
     return k0, kx, ky
 
 
-def _box_corners(lo, hi):
+def box_corners(lo, hi):
     """The eight corners of the box ``[lo, hi]``, (8, 3)."""
     return np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
 
@@ -566,7 +562,7 @@ def view_reach(camera, lo, hi, aspect):
     """How far from the eye the view of the box ``[lo, hi]`` reaches: its farthest corner, and
     in a parallel view the view plane's half diagonal."""
     eye = np.asarray(camera.eye, dtype=np.float64)
-    corners = _box_corners(lo, hi)
+    corners = box_corners(lo, hi)
     with np.errstate(over="ignore"):
         reach = float(np.linalg.norm((corners - eye) / 2.0 ** 512, axis=1).max()) * 2.0 ** 512
     if camera.parallel:
@@ -577,7 +573,7 @@ def view_reach(camera, lo, hi, aspect):
 def scene_scale(camera, lo, hi, aspect):
     """A bound on coordinates and distances in this view: sizes the margins."""
     eye = np.asarray(camera.eye, dtype=np.float64)
-    corners = _box_corners(lo, hi)
+    corners = box_corners(lo, hi)
     s = max(np.abs(eye).max(), np.abs(corners).max(), np.linalg.norm(corners - eye, axis=1).max())
     if camera.parallel:
         s += camera.parallel_scale * math.hypot(aspect, 1.0)
