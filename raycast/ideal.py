@@ -42,11 +42,11 @@ import math
 from numba import prange
 
 from .composite import (MODE_COMPOSITE, P_MODE, P_RATIO, P_STEP, P_THRESHOLD, cell_lattice, local_coords, ray_span,
-                        trilinear, walk_from)
+                        trilinear)
 from .config import TILE_H, TILE_W, kernel
 from .rays import camera_ray, dealt_tile, tile_count
 from .transfer import correct_opacity, tf_opacity
-from .traverse import cell_corners, step_cell, to_index_space
+from .traverse import cell_corners, step_cell, to_index_space, walk_from
 
 
 @kernel

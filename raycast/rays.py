@@ -1,4 +1,7 @@
-"""Primary rays from the camera, one pixel at a time.
+"""Primary rays from the camera, one pixel at a time, and how the parallel loops deal out their
+work: image tiles of `TILE_W` x `TILE_H` pixels (`tile_rect`, `dealt_tile`), spread over the
+threads so that each takes tiles from all over the image (`spread`), and runs of cells or values
+for the passes over a volume (`chunk_count`, `chunk_run`).
 
 The camera is unpacked at the boundary (`parc.camera.Camera.as_array`) into
 ``cam = [eye(3), f(3), r(3), u(3), tan(fov/2), parallel_scale, parallel]``

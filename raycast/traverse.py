@@ -276,7 +276,7 @@ def _layout(data):
     return None
 
 
-@overload(grid_shape)
+@overload(grid_shape, jit_options=OVERLOAD_JIT)
 def _grid_shape(data):
     layout = _layout(data)
     if layout == "linear":
