@@ -335,7 +335,7 @@ def cmd_render(args):
     took = f"{s['seconds']['total']:.3f} s"
     if compiling[0] >= COMPILE_SAID:
         # Not "once" where the cache folder was refused: then every run compiles them again.
-        from raycast.config import cache_refused
+        from raycast.kernel_cache import cache_refused
         took += f" ({compiling[0]:.1f} s of it compiling the casters{'' if cache_refused() else ', once'})"
     if len(scene.volumes) > 1:
         say(f"wrote {out}: {len(scene.volumes)} volumes ({_describe_all(scene.volumes)}); {took}")

@@ -371,14 +371,14 @@ def compile_notice(say, kernels=()):
     run needs, each kernel needed for every type.
 
     Numba compiles every kernel on its first use, for each type of samples it
-    is given, and caches it (`raycast.config` names the folder after the kernel
+    is given, and caches it (`raycast.kernel_cache` names the folder after the kernel
     sources), so the first render after a clone or an update spends several
     seconds, up to a minute for `parc bench`, before its progress starts, and
     so does the first render of another kind (translucent after isosurfaces,
     shadows...) or of other samples (the CT head's int16 after uint8: 5 s);
     without a word it looks hung.
     """
-    from raycast.config import cache_folder, cache_refused
+    from raycast.kernel_cache import cache_folder, cache_refused
 
     refused = cache_refused()
     if refused is not None:
@@ -410,7 +410,7 @@ def _cached(kernel, folder, samples):
     each of the Numba types ``samples``.
 
     The index that counts is the one Numba reads for this kernel, at its place in ``folder``
-    (`raycast.config` files each kernel under its package's name; Numba alone, under a hash of
+    (`raycast.kernel_cache` files each kernel under its package's name; Numba alone, under a hash of
     its checkout's path).
     """
     import numba.core.config

@@ -29,20 +29,20 @@ class Stopped(BaseException):
 
 def stop_on_signals():
     """Turn SIGTERM and SIGHUP into `Stopped` and Ctrl-C into KeyboardInterrupt for the run,
-    held while Numba compiles (`raycast.config.after_compile`). A second signal then stops the
+    held while Numba compiles (`raycast.compiler.after_compile`). A second signal then stops the
     run at once. Returns the handlers they replace, for `restore_handlers`."""
     def stop(signum, frame):
-        # Still importing, the module may not have defined these yet.
-        config = sys.modules.get("raycast.config")
-        compiling = getattr(config, "compiling", None)
+        # Still importing, the modules may not have defined these yet.
+        compiler, config = sys.modules.get("raycast.compiler"), sys.modules.get("raycast.config")
+        compiling = getattr(compiler, "compiling", None)
         if compiling is not None and compiling():
-            if config.after_compile(lambda: stop(signum, None)):
+            if compiler.after_compile(lambda: stop(signum, None)):
                 again = "Ctrl-C" if signum == signal.SIGINT else signal.Signals(signum).name
                 error_line(f"stopping once the kernel under way is ready ({again} again to stop at once)")
                 return
             # Outputs are written after the casts; what a run fills meanwhile is marked `building`.
             error_line("interrupted" if signum == signal.SIGINT else f"stopped by {signal.Signals(signum).name}")
-            end_at_once(128 + signum, config.EXIT_CLEANUPS)
+            end_at_once(128 + signum, getattr(config, "EXIT_CLEANUPS", ()))
         if signum == signal.SIGINT:
             raise KeyboardInterrupt
         raise Stopped(signum)

@@ -43,8 +43,8 @@ from .scenes import default_data_dir
 
 
 def default_cache_dir():
-    """Where the Visible Woman phantom is kept between runs: ``bench`` in `raycast.config.cache_base`."""
-    from raycast.config import cache_base
+    """Where the Visible Woman phantom is kept between runs: ``bench`` in `raycast.kernel_cache.cache_base`."""
+    from raycast.kernel_cache import cache_base
 
     return Path(cache_base(os.environ)) / "bench"
 

@@ -595,11 +595,11 @@ def test_the_bench_says_it_compiles_while_any_kind_of_render_is_uncompiled(tmp_p
     # After a render had cached the isosurface casters, the suite's first translucent scene
     # compiled for half a minute unsaid: the notice looked for any kernel cached at all.
     import numba.core.config
-    import raycast.config
+    import raycast.kernel_cache
     from parc.bench import _kernels_used
     from parc.outputs import compile_notice
     from raycast.iso import cast_iso_image
-    monkeypatch.setattr(raycast.config, "cache_folder", lambda: tmp_path)
+    monkeypatch.setattr(raycast.kernel_cache, "cache_folder", lambda: tmp_path)
     kernels = [k for k, _ in _kernels_used()]
     modules = {k.py_func.__module__ for k in kernels}
     assert cast_iso_image in kernels and {"raycast.composite", "raycast.merged", "raycast.shadow",

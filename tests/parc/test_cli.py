@@ -1510,11 +1510,11 @@ def test_samples_of_a_type_not_yet_compiled_are_said_to_compile(tmp_path, monkey
     import pickle
 
     import numba
-    import raycast.config
+    import raycast.kernel_cache
     from numba.core import types
     from parc.outputs import compile_notice
     from raycast.iso import cast_iso_image
-    monkeypatch.setattr(raycast.config, "cache_folder", lambda: tmp_path)
+    monkeypatch.setattr(raycast.kernel_cache, "cache_folder", lambda: tmp_path)
     own = Path(cast_iso_image._cache._cache_file._index_path)    # as Numba reads it, in the folder given
     index = tmp_path / own.relative_to(numba.core.config.CACHE_DIR)
     index.parent.mkdir()
@@ -1882,7 +1882,7 @@ def test_a_signal_while_a_kernel_compiles_is_raised_once_it_has_compiled(capsys,
     # wrote its file), crashed the process, or broke the kernel ("no compiled object yet").
     import numba
     from parc.stops import Stopped, stop_on_signals
-    from raycast.config import compiling        # imported, it watches Numba's compiler lock
+    from raycast.compiler import compiling        # imported, it watches Numba's compiler lock
 
     @numba.njit
     def twice(x):
@@ -1906,7 +1906,7 @@ def test_ctrl_c_while_the_kernel_module_is_still_importing_is_a_plain_interrupt(
     # A module half imported has no `compiling` yet: the handler raised AttributeError, a traceback.
     import types
     from parc.stops import stop_on_signals
-    monkeypatch.setitem(sys.modules, "raycast.config", types.ModuleType("raycast.config"))
+    monkeypatch.setitem(sys.modules, "raycast.compiler", types.ModuleType("raycast.compiler"))
     replaced = stop_on_signals()
     try:
         with pytest.raises(KeyboardInterrupt):

@@ -135,7 +135,7 @@ def test_a_new_process_loads_the_casters_from_the_cache():
 
 
 def test_the_cache_folder_is_named_for_the_sources_wherever_it_is(tmp_path):
-    from raycast.config import choose_cache_folder
+    from raycast.kernel_cache import choose_cache_folder
     name = "numba-0123abcd-2t"
     assert choose_cache_folder({"PARC_CACHE_DIR": str(tmp_path / "p")}, name) == (str(tmp_path / "p" / name), None)
     # A folder the user gives Numba gets the sources' name under it too, or an edit would go unseen...
@@ -146,7 +146,7 @@ def test_the_cache_folder_is_named_for_the_sources_wherever_it_is(tmp_path):
 
 def test_a_cache_folder_that_cannot_be_written_is_not_replaced_by_the_sources_own(tmp_path):
     # Numba's fallback, __pycache__ beside the sources, could hold stale kernels: a fresh folder instead.
-    from raycast.config import choose_cache_folder
+    from raycast.kernel_cache import choose_cache_folder
     (tmp_path / "a file").write_text("")
     refused = str(tmp_path / "a file" / "cache")
     folder, said = choose_cache_folder({"PARC_CACHE_DIR": refused}, "numba-0123abcd-2t")
@@ -217,7 +217,7 @@ def test_only_the_main_thread_compiling_counts_as_compiling():
 
     import numba
     import numba.core.event as ev
-    from raycast.config import compiling
+    from raycast.compiler import compiling
     seen = []
 
     class Look(ev.Listener):
@@ -247,14 +247,14 @@ def test_only_the_main_thread_compiling_counts_as_compiling():
 
 def test_numba_s_own_folder_wins_over_parc_s(tmp_path):
     # As the first-compile notice tells the user: NUMBA_CACHE_DIR "wins over it when set".
-    from raycast.config import choose_cache_folder
+    from raycast.kernel_cache import choose_cache_folder
     name = "numba-0123abcd-2t"
     env = {"NUMBA_CACHE_DIR": str(tmp_path / "n"), "PARC_CACHE_DIR": str(tmp_path / "p")}
     assert choose_cache_folder(env, name) == (str(tmp_path / "n" / name), None)
 
 
 def test_the_default_cache_is_in_the_user_s_cache_folder_not_the_package(tmp_path, monkeypatch):
-    from raycast.config import choose_cache_folder
+    from raycast.kernel_cache import choose_cache_folder
     monkeypatch.setenv("HOME", str(tmp_path / "home"))
     name = "numba-0123abcd-2t"
     assert choose_cache_folder({}, name) == (str(tmp_path / "home" / ".cache" / "parc" / name), None)
@@ -320,7 +320,7 @@ def test_only_the_kernels_of_parc_and_raycast_are_filed_by_package():
 
 
 def test_the_cache_keeps_the_kernels_of_the_versions_used_last(tmp_path):
-    from raycast.config import forget_old_versions
+    from raycast.kernel_cache import forget_old_versions
     names = [f"numba-{n:012x}-2t" for n in range(8)]
     for age, name in enumerate(names):
         (tmp_path / name / "raycast").mkdir(parents=True)
@@ -335,27 +335,27 @@ def test_the_cache_keeps_the_kernels_of_the_versions_used_last(tmp_path):
 
 def test_the_folder_name_changes_with_any_kernel_source(tmp_path, monkeypatch):
     # Numba checks only the file that defines a kernel: an edit to one it inlines must move the cache.
-    import raycast.config as config
+    import raycast.kernel_cache as kernel_cache
     src = tmp_path / "raycast"
     src.mkdir()
-    (src / "config.py").write_text("# config\n")
+    (src / "kernel_cache.py").write_text("# kernel_cache\n")
     (src / "cubic.py").write_text("def root():\n    return 1.0\n")
-    monkeypatch.setattr(config, "__file__", str(src / "config.py"))
-    before = config._source_digest()
+    monkeypatch.setattr(kernel_cache, "__file__", str(src / "kernel_cache.py"))
+    before = kernel_cache._source_digest()
     (src / "cubic.py").write_text("def root():\n    return 2.0\n")
-    assert config._source_digest() != before
+    assert kernel_cache._source_digest() != before
     # `parc`'s modules count where they define kernels.
     (tmp_path / "parc" / "transfer").mkdir(parents=True)
     (tmp_path / "parc" / "cli.py").write_text("def main():\n    pass\n")
     (tmp_path / "parc" / "transfer" / "function.py").write_text("@kernel\ndef lookup():\n    pass\n")
-    before = config._source_digest()
+    before = kernel_cache._source_digest()
     (tmp_path / "parc" / "cli.py").write_text("def main():\n    return 1\n")
-    assert config._source_digest() == before
+    assert kernel_cache._source_digest() == before
     (tmp_path / "parc" / "transfer" / "function.py").write_text("@kernel\ndef lookup():\n    return 1\n")
-    assert config._source_digest() != before
+    assert kernel_cache._source_digest() != before
 
 
-_FOLDER_OF = "from raycast.config import cache_folder, cache_refused; print(cache_folder()); print(cache_refused())"
+_FOLDER_OF = "from raycast.kernel_cache import cache_folder, cache_refused; print(cache_folder()); print(cache_refused())"
 
 
 def test_kernels_for_another_thread_count_are_cached_apart(tmp_path):
@@ -397,7 +397,7 @@ def test_a_damaged_data_file_under_a_whole_index_is_compiled_again(tmp_path):
 
 
 def test_numba_copies_a_scope_once_for_the_pieces_a_pass_copies_and_never_uses_the_original(monkeypatch):
-    # `raycast.config._scope_copied_once`: the statements a parallel loop's reductions keep, and the
+    # `raycast.compiler._scope_copied_once`: the statements a parallel loop's reductions keep, and the
     # blocks of an inlined function, each share one copy of their function's scope, which is a copy:
     # the inliner renames variables in it afterwards.
     import numba
@@ -449,7 +449,7 @@ def test_numba_copies_a_scope_once_for_the_pieces_a_pass_copies_and_never_uses_t
 
 
 def test_numba_copies_its_sets_of_names_as_deepcopy_would(monkeypatch):
-    # `raycast.config._quicker_copy_propagation`: the same copies, iterating in the same order,
+    # `raycast.compiler._quicker_copy_propagation`: the same copies, iterating in the same order,
     # so that Numba's fixed points (and the code it compiles) cannot change.
     import copy
 
