@@ -125,7 +125,9 @@ def _floats(n):
     return parse
 
 
-def supercell_size(text):
+def supercell_flag(text):
+    """``--supercell``'s ``M`` or ``M,N,P``: a number, or three (`parc.ranges.supercell_size`
+    checks either as a size)."""
     try:
         vals = tuple(float(v) for v in text.split(","))
     except ValueError:
@@ -235,7 +237,7 @@ def _add_light_options(p):
 
 def _add_common_options(p):
     """What render and compare both take: parc's settings, --quiet, and what, how and where to look."""
-    p.add_argument("--supercell", type=supercell_size, metavar="M[,N,P]",
+    p.add_argument("--supercell", type=supercell_flag, metavar="M[,N,P]",
                    help="parc: supercell size in cells, fractional allowed (default: chosen by a cost model)")
     p.add_argument("--no-blocks", action="store_true",
                    help="parc: walk the whole of each OpenGL segment, without skipping the empty "

@@ -24,7 +24,7 @@ from data_tools.errors import os_reason
 from data_tools.info import exact_text
 from data_tools.io.npy import save_array
 
-from .arguments import build_parser, join_signed_values, supercell_size
+from .arguments import build_parser, join_signed_values, supercell_flag
 from .flagscene import load_volume_flags, scene_and_notes
 from .outputs import (Progress, atomic_write_all, check_distinct, check_not_sidecar, check_output, compile_notice,
                       compiling_seconds, error_line, note, print_out, slow_note, stale_sidecars, to_json, write_png)
@@ -432,7 +432,7 @@ def cmd_compare(args):
         given = args.sweep_supercell.strip()
         # One size of M,N,P cells is swept alone as "2,2,4;" (a trailing ';').
         entries = given.removesuffix(";").split(";") if ";" in given else given.split(",")
-        sizes = [_supercell_orerror_line(v) for v in entries]
+        sizes = [_swept_supercell(v) for v in entries]
         labels = [f"parc:{_size_label(s)}" for s in sizes]
         twice = sorted({label for label in labels if labels.count(label) > 1})
         if twice:
@@ -543,9 +543,10 @@ def _size_label(size):
     return "x".join(map(exact_text, size)) if isinstance(size, tuple) else exact_text(size)
 
 
-def _supercell_orerror_line(text):
+def _swept_supercell(text):
+    """One size of ``--sweep-supercell``, as ``--supercell`` reads it, or one error line."""
     try:
-        return supercell_size(text)
+        return supercell_flag(text)
     except argparse.ArgumentTypeError as exc:
         raise InputError(f"--sweep-supercell: {exc}") from None
 

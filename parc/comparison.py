@@ -75,14 +75,15 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
         the `image_error` fields (depths in cells of the first volume's smallest spacing, the
         strictest reading of "a cell"), ``cells_visited``, ``cubic_solves``,
         ``samples``, ``shadow_cells``, ``shadow_solves``, ``shadow_samples``, ``shadow_rays``, ``hits``,
-        ``polygons``, ``supercell`` (for a scene of several volumes the size they
-        share, else None, and ``supercells`` each's), ``pixels``, ``opengl_share`` (the
+        ``polygons``, ``supercell`` (where `render` gives its volumes' sizes under ``volumes``,
+        the size they share, else None, and ``supercells`` each's), ``pixels``, ``opengl_share`` (the
         median run's share of time in `OPENGL_PHASES`), ``speedup_low`` and
         ``speedup_high`` (the lowest and highest of the rounds' own ratios,
         each round timing every method once), ``parameters`` (what was rendered, as `render`'s
-        stats give it: size and camera, and the volume's own fields for a scene of one volume
-        (with ``lights`` and ``shadows`` where a translucent one has them), else ``volumes``,
-        ``lights`` and ``shadows``) and ``repeats``.
+        stats give it: size and camera, and the volume's own fields where one volume is cast
+        alone (with ``lights`` and ``shadows`` where a translucent one has them), else
+        ``volumes``, ``lights`` and ``shadows``: for several volumes, an isosurface with lights,
+        or shaded samples with shadows, as `parc.render`'s ``stats`` says) and ``repeats``.
     """
     _check_runs("compare", scene, repeats, warmup)
     names = method_names(methods)
@@ -257,14 +258,17 @@ def check_options(scene, options):
 
 #: What each phase of a frame holds, for the legend under `format_table`.
 PHASE_NOTES = {
-    "cast": "the ray walks with their cubics or samples (a lone isosurface shades each hit as it finds it)",
+    "cast": "the ray walks with their cubics or samples (an isosurface without lights shades each hit "
+            "as it finds it)",
     "classify": "supercells labelled possibly contributing (cell ranges are computed once per volume)",
     "proxy": "the outer faces of those supercells (0 when reused)",
     "raster": "OpenGL near/far pass and read-back",
     "raster_bits": "OpenGL bit-plane pass and read-back",
     "raster_lights": "OpenGL light buffers for shadow rays",
-    "setup": "camera, work arrays, skip tables (built once, then kept with the volume)",
-    "shade": "lighting the hits of several surfaces, and translucent samples with shadows",
+    "setup": "camera, work arrays, and a volume cast alone its skip tables (built once, then kept with "
+             "the volume; among several volumes, under cast and shadow)",
+    "shade": "lighting the hits of surfaces under lights or among other volumes, and translucent samples "
+             "with shadows",
     "shadow": "shadow rays",
     "total": "the whole frame",
 }
