@@ -28,9 +28,13 @@ class Camera:
 
     Parameters
     ----------
-    eye, look_at, up : (x, y, z)
+    eye, look_at, up : (x, y, z), default (0, 0, 1), (0, 0, 0), (0, 1, 0)
         Position, point looked at, and the up hint (need not be orthogonal
-        to the view direction, but must not be parallel to it).
+        to the view direction, but must not be parallel to it). The defaults
+        are OpenGL's: down -z with +y up. `framing`, scene files and the
+        command line take +z up instead (``--up``'s default, (0, 0, 1)), so
+        a camera given an eye and a point to look at, and no ``up``, is
+        turned from the command line's with the same two.
     fov : float, default 30
         Vertical field of view in degrees, in (0, 180); perspective only.
     parallel_scale : float or None
