@@ -35,8 +35,8 @@ __all__ = sorted(_WHERE, key=str.lower)
 def __getattr__(name):
     if name == "__version__":
         # The installed distribution's, as `parc --version` says.
-        from .arguments import _version
-        return _version()
+        from .arguments import package_version
+        return package_version()
     where = _WHERE.get(name)
     if where is None:
         raise AttributeError(f"module 'parc' has no attribute {name!r}")

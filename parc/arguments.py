@@ -249,7 +249,7 @@ def _add_common_options(p):
     _add_volume_options(p)
 
 
-def _version():
+def package_version():
     """The installed package's version (`parc --version`)."""
     from importlib.metadata import PackageNotFoundError, version
     try:
@@ -261,7 +261,7 @@ def _version():
 def build_parser():
     p = _Parser(prog="parc", description="Ray cast 3D scalar volumes, exactly, with OpenGL-assisted acceleration.",
                 epilog=EPILOG, formatter_class=_Formatter)
-    p.add_argument("--version", action="version", version=f"parc {_version()}")
+    p.add_argument("--version", action="version", version=f"parc {package_version()}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
 
     r = sub.add_parser("render", help="render a volume to an image",

@@ -484,7 +484,7 @@ def _face_records(proxy, halo):
     supercells: 14.9k faces -> 11.3k); faces parallel to the axis merge
     within their plane whatever their orientation.
     """
-    from .proxy import _merge_grouped
+    from .proxy import merge_grouped
     uf = proxy.unit_faces()
     up = proxy.unit_planes()
     a, p, u, v = (uf[:, k] for k in range(4))
@@ -497,7 +497,7 @@ def _face_records(proxy, halo):
         mask = np.where(perp, 3, mask)
     if not len(a):
         return np.zeros((0, 8), np.int32)
-    faces, (base1, mask) = _merge_grouped(a, p, u, v, (base + 1, mask))
+    faces, (base1, mask) = merge_grouped(a, p, u, v, (base + 1, mask))
     return np.ascontiguousarray(np.column_stack([faces, base1 - 1, mask]), dtype=np.int32)
 
 

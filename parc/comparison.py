@@ -239,8 +239,8 @@ def check_opengl(scene, names):
     their own refusals neither wait on making the context nor hide behind its absence."""
     if any(str(name).split(":")[0] == "parc" for name in names):
         from .gl import check_viewport, release_context
-        from .renderer import _ONE_AT_A_TIME
-        with _ONE_AT_A_TIME:
+        from .renderer import RENDER_LOCK
+        with RENDER_LOCK:
             try:
                 check_viewport(*scene.size)
             finally:

@@ -166,7 +166,7 @@ def build_proxy(grid, pc, world_edges, *, merge=True):
             rows.append((np.full(len(plane), a), plane, u, v, np.full(len(plane), sign, np.int8)))
     axis, plane, u, v, sign = (np.concatenate(c) for c in zip(*rows))
     if merge and len(axis):
-        faces, (outward,) = _merge_grouped(axis, plane, u, v, (sign + 1,))
+        faces, (outward,) = merge_grouped(axis, plane, u, v, (sign + 1,))
         outward = outward - 1
     else:
         faces = np.stack([axis, plane, u, u + 1, v, v + 1], axis=1).astype(np.int32)
@@ -318,7 +318,7 @@ def build_plane_proxy(grid, pc, world_edges, axis, *, merge=True):
         rows.append((np.full(len(plane), a), plane, u, v, sign, p0, p1))
     a_, plane, u, v, sign, p0, p1 = (np.concatenate(c).astype(np.int64) for c in zip(*rows))
     if merge and len(a_):
-        faces, (sign, p0, p1) = _merge_grouped(a_, plane, u, v, (sign + 1, p0 + 1, p1 + 1))
+        faces, (sign, p0, p1) = merge_grouped(a_, plane, u, v, (sign + 1, p0 + 1, p1 + 1))
         sign, p0, p1 = sign - 1, p0 - 1, p1 - 1
     else:
         faces = np.stack([a_, plane, u, u + 1, v, v + 1], axis=1).astype(np.int32)
@@ -327,7 +327,7 @@ def build_plane_proxy(grid, pc, world_edges, axis, *, merge=True):
                       plane_axis=axis, planes=np.stack([p0, p1], axis=1).astype(np.int32))
 
 
-def _merge_grouped(axis, plane, u, v, groups):
+def merge_grouped(axis, plane, u, v, groups):
     """Merge unit faces with equal ``groups`` columns (small non-negative ints) into rectangles.
 
     Runs along u into strips, then strips with the same extent along v;

@@ -35,7 +35,7 @@ from .workspace import check_scene_memory, shadowed_samples, work_array
 METHODS = ("brute", "parc")
 #: Held by every render. Re-entrant, so that a render asked for inside a render's
 #: progress callback is refused (`_RENDERING`) rather than left waiting for ever.
-_ONE_AT_A_TIME = threading.RLock()
+RENDER_LOCK = threading.RLock()
 #: Whether a render is under way: one inside it would overwrite its work arrays and buffers.
 _RENDERING = [False]
 
@@ -178,7 +178,7 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
     Sobierajski & Avila 1995, §3 (depth-buffer PARC), §4 (color-buffer PARC) and §5 (shadow rays).
     """
     # Renders share work arrays, Numba's thread pool and one OpenGL context: one at a time.
-    with _ONE_AT_A_TIME:
+    with RENDER_LOCK:
         if _RENDERING[0]:
             raise InputError("render was called while a render is under way (from its progress callback); "
                              "renders share their work arrays: render once it has returned")
