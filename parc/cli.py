@@ -416,29 +416,11 @@ def cmd_compare(args):
     if not 1 <= args.repeats <= MAX_REPEATS:
         raise InputError(f"--repeats must be from 1 to {MAX_REPEATS}, got {args.repeats}")
     _check_sweep_flags(args)
-    steps = None
-    if args.sweep_step is not None:
-        try:
-            steps = [float(v) for v in args.sweep_step.split(",")]
-        except ValueError:
-            steps = []
-        if not steps or not all(np.isfinite(steps)) or min(steps) <= 0:
-            raise InputError(f"--sweep-step must be comma-separated positive numbers, got {args.sweep_step!r}")
-        twice = sorted({v for v in steps if steps.count(v) > 1})
-        if twice:
-            raise InputError(f"--sweep-step gives {twice[0]:g} twice")
+    # Parsed before the volume is read: refused before any work.
+    steps = _swept_steps(args.sweep_step) if args.sweep_step is not None else None
     if args.sweep_supercell is not None:
-        # Parsed before the volume is read, as the other sweep's steps: refused before any work.
-        given = args.sweep_supercell.strip()
-        # One size of M,N,P cells is swept alone as "2,2,4;" (a trailing ';').
-        entries = given.removesuffix(";").split(";") if ";" in given else given.split(",")
-        sizes = [_swept_supercell(v) for v in entries]
+        sizes = _swept_supercells(args.sweep_supercell)
         labels = [f"parc:{_size_label(s)}" for s in sizes]
-        twice = sorted({label for label in labels if labels.count(label) > 1})
-        if twice:
-            raise InputError(f"--sweep-supercell gives {twice[0][5:]} twice"
-                             + ("" if ";" in given else "; sizes of M,N,P cells are apart by ';', "
-                                "as in '2,2,4;4,4,8' (one alone: '2,2,4;')"))
     with _reading(args, say):
         scene, said = scene_and_notes(args)
     notes.extend(said)
@@ -541,6 +523,35 @@ def _size_label(size):
     if isinstance(size, tuple) and len(set(size)) == 1:
         size = size[0]              # 2,2,2 is the size 2: one label, so that a sweep takes it once
     return "x".join(map(exact_text, size)) if isinstance(size, tuple) else exact_text(size)
+
+
+def _swept_steps(given):
+    """``--sweep-step``'s steps, or one error line."""
+    try:
+        steps = [float(v) for v in given.split(",")]
+    except ValueError:
+        steps = []
+    if not steps or not all(np.isfinite(steps)) or min(steps) <= 0:
+        raise InputError(f"--sweep-step must be comma-separated positive numbers, got {given!r}")
+    twice = sorted({v for v in steps if steps.count(v) > 1})
+    if twice:
+        raise InputError(f"--sweep-step gives {twice[0]:g} twice")
+    return steps
+
+
+def _swept_supercells(given):
+    """``--sweep-supercell``'s sizes, or one error line: numbers apart by ',', or sizes of M,N,P
+    cells apart by ';' (one alone as ``2,2,4;``)."""
+    given = given.strip()
+    entries = given.removesuffix(";").split(";") if ";" in given else given.split(",")
+    sizes = [_swept_supercell(v) for v in entries]
+    labels = [_size_label(s) for s in sizes]
+    twice = sorted({label for label in labels if labels.count(label) > 1})
+    if twice:
+        raise InputError(f"--sweep-supercell gives {twice[0]} twice"
+                         + ("" if ";" in given else "; sizes of M,N,P cells are apart by ';', "
+                            "as in '2,2,4;4,4,8' (one alone: '2,2,4;')"))
+    return sizes
 
 
 def _swept_supercell(text):
