@@ -231,12 +231,12 @@ def _light_hits(frame, depth, winner, cell, uvw):
         colors[a:b] = iso.color
         materials[a:b] = iso.material
     lights = light_array(frame.scene.lights)
-    diffuse, specular, vis = _light_terms(points, normals, views, materials, lights)
+    diffuse, specular, visible = _light_terms(points, normals, views, materials, lights)
     timings["shade"] = time.perf_counter() - t0
     if frame.scene.shadows and frame.scene.lights:
-        _shadows(frame, lights, points, groups, vis)
+        _shadows(frame, lights, points, groups, visible)
     t0 = time.perf_counter()
-    combine_lights(colors, materials, lights, diffuse, specular, vis, hit, image.reshape(npx, 4))
+    combine_lights(colors, materials, lights, diffuse, specular, visible, hit, image.reshape(npx, 4))
     timings["shade"] += time.perf_counter() - t0
     return image
 
@@ -348,8 +348,9 @@ def _light_terms(points, normals, views, materials, lights):
     return diffuse, specular, ((diffuse > 0.0) | (specular > 0.0)).astype(np.float64)
 
 
-def _shadows(frame, lights, points, groups, vis):
-    """Shadow rays from every hit to every light, volume by volume; ``vis`` scaled in place.
+def _shadows(frame, lights, points, groups, visible):
+    """Shadow rays from every hit to every light, volume by volume; ``visible`` (each light's
+    visibility at each point) scaled in place.
 
     ``groups``: ``(first, end, volume, n)``, the hits ``points[first:end]`` on the surface of
     ``volume`` (the scene's volume ``n``), or its translucent samples. A shadow ray starts and
@@ -367,7 +368,7 @@ def _shadows(frame, lights, points, groups, vis):
     cnt = np.zeros((nh, 3), np.int64)
     for l, light in enumerate(scene.lights):
         row = lights[l]
-        v_l = vis[l]
+        v_l = visible[l]
         counts["shadow_rays"] += int(np.count_nonzero(v_l))
         for n, v in enumerate(scene.volumes):
             vol = v.volume
@@ -439,7 +440,7 @@ def _light_samples(frame, comp, per_pixel, merged, front):
         timings["cast"] += time.perf_counter() - t0
         t0 = time.perf_counter()
         materials = materials_of[record.volumes]
-        diffuse, specular, vis = _light_terms(record.points, record.normals, record.views, materials, lights)
+        diffuse, specular, visible = _light_terms(record.points, record.normals, record.views, materials, lights)
         timings["shade"] += time.perf_counter() - t0
         # Grouped by volume for their shadow rays' offsets, then put back in pixel order.
         order = np.argsort(record.volumes, kind="stable")
@@ -449,12 +450,12 @@ def _light_samples(frame, comp, per_pixel, merged, front):
             a, b = np.searchsorted(owner, q, "left"), np.searchsorted(owner, q, "right")
             if a < b:
                 groups.append((a, b, v.volume, m))
-        grouped = np.ascontiguousarray(vis[:, order])
+        grouped = np.ascontiguousarray(visible[:, order])
         _shadows(frame, lights, record.points[order], groups, grouped)
-        vis[:, order] = grouped
+        visible[:, order] = grouped
         t0 = time.perf_counter()
         combine_samples(record.slots, record.counts, record.colors, record.weights, materials, lights, diffuse,
-                        specular, vis, y0 * w, y1 * w, front)
+                        specular, visible, y0 * w, y1 * w, front)
         timings["shade"] += time.perf_counter() - t0
         done += y1 - y0
         frame.report.part("sample shadows", done / h)
