@@ -331,7 +331,7 @@ def build_parser():
                                    "full suite takes about 2 minutes on 2 cores (the phantom, 910 MB, is written "
                                    "to the cache folder on the first run, a minute more); exits 1 if a consistency "
                                    "check fails.")
-    b.add_argument("--out", default="bench-report", metavar="DIR", help="output folder (default bench-report)")
+    b.add_argument("--out", default="bench-report", metavar="DIR", help="output folder: new, empty, or an earlier report's (default bench-report)")
     size = b.add_mutually_exclusive_group()
     size.add_argument("--quick", action="store_true",
                       help="a reduced suite, under a minute on 2 cores: half-size images, 2 repeats, a 256x256x867 phantom")

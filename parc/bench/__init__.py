@@ -22,6 +22,7 @@ consistency, not speed).
 from __future__ import annotations
 
 import contextlib
+import json
 import os
 import platform
 import shutil
@@ -193,7 +194,7 @@ def run_bench(out, suite=None, *, progress=None, command=None):
     """
     suite = suite or Suite.full()
     out = Path(out)
-    _check_places(out, REPORT_FILES, ["images"])
+    _check_out(out)
     stage = _stage_for(out)
     try:
         try:
@@ -213,6 +214,29 @@ def run_bench(out, suite=None, *, progress=None, command=None):
 
 #: What every report holds, beside its charts and pictures.
 REPORT_FILES = ("report.md", "results.json")
+
+
+def _check_out(out):
+    """Refuse, before any work, an ``out`` the report cannot go into whole, or a folder that
+    holds other files and no earlier report: the report would be mixed into it (the data
+    folder, say), and a ``results.json`` there written over."""
+    _check_places(out, REPORT_FILES, ["images"])
+    if not out.is_dir() or _holds_a_report(out):
+        return
+    others = sorted(p.name for p in out.iterdir() if not p.name.startswith("."))
+    if others:
+        shown = ", ".join(others[:3]) + (f" and {len(others) - 3} more" if len(others) > 3 else "")
+        raise InputError(f"{out}: holds {shown}, and no earlier report; give a new or empty folder, "
+                         "or one an earlier parc bench wrote")
+
+
+def _holds_a_report(out):
+    """Whether ``out`` holds an earlier report: a ``results.json`` with what every report's holds."""
+    try:
+        res = json.loads((out / "results.json").read_text())
+    except (OSError, ValueError):
+        return False
+    return isinstance(res, dict) and {"suite", "machine", "checks"} <= set(res)
 
 
 def _check_places(out, files, folders):
@@ -433,7 +457,7 @@ def main(args):
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise InputError(f"{out}: exists and is not a folder")
-    _check_places(out, REPORT_FILES, ["images"])            # before the compile notice, too
+    _check_out(out)             # before the compile notice, too
     t0 = time.perf_counter()
 
     def say(msg):

@@ -221,6 +221,10 @@ def test_consistency_catches_a_broken_claim(bench):
     assert [c for c in consistency(broken) if not c["ok"]]
 
 
+#: What an earlier report's results.json holds that marks the folder as the reports' (`parc.bench._check_out`).
+EARLIER_RESULTS = '{"suite": {}, "machine": {}, "checks": [], "seconds": 1.0}'
+
+
 def _fake_run(fail):
     """A stand-in for the suite: writes a report into the folder it is given, then fails if asked."""
     def run(out, suite, say, command):
@@ -242,6 +246,7 @@ def test_an_interrupted_bench_leaves_no_folder_or_the_earlier_report_whole(tmp_p
     if earlier:
         (out / "images").mkdir(parents=True)
         (out / "report.md").write_text("old report")
+        (out / "results.json").write_text(EARLIER_RESULTS)
         (out / "images" / "table1.png").write_text("old picture")
     before = sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*"))
     with pytest.raises(KeyboardInterrupt):
@@ -292,6 +297,38 @@ def test_a_report_place_taken_the_other_way_is_refused_before_any_work(tmp_path,
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and f"{out / taken.rstrip('/')}: {words}" in err[0] and ran == []
     assert sorted(p.name for p in tmp_path.iterdir()) == ["r"]
+
+
+@pytest.mark.parametrize("held", [["results.json"], ["CThead.nrrd", "README.md", "neghip.slc", "x.raw"]])
+def test_a_folder_of_other_files_is_refused_before_any_work(tmp_path, monkeypatch, capsys, held):
+    # A user's own results.json was written over, and a data folder got the report mixed in.
+    import parc.bench
+    monkeypatch.setattr(parc.bench, "_run", lambda *a: pytest.fail("the suite ran"))
+    out = tmp_path / "mine"
+    out.mkdir()
+    for name in held:
+        (out / name).write_text('{"my": 1}')
+    assert main(["bench", "--tiny", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    shown = ", ".join(held[:3]) + (" and 1 more" if len(held) > 3 else "")
+    assert err == [f"parc: error: {out}: holds {shown}, and no earlier report; give a new or empty folder, "
+                   "or one an earlier parc bench wrote"]
+    assert sorted(p.name for p in out.iterdir()) == sorted(held) and (out / held[0]).read_text() == '{"my": 1}'
+
+
+def test_an_empty_folder_or_one_with_an_earlier_report_and_more_takes_the_report(tmp_path, monkeypatch):
+    import parc.bench
+    monkeypatch.setattr(parc.bench, "_run", _fake_run(fail=False))
+    empty, earlier = tmp_path / "empty", tmp_path / "earlier"
+    empty.mkdir()
+    (empty / ".hidden").write_text("x")          # hidden files do not count
+    earlier.mkdir()
+    (earlier / "results.json").write_text(EARLIER_RESULTS)
+    (earlier / "notes.txt").write_text("mine")
+    for out in (empty, earlier):
+        run_bench(out, Suite.tiny())
+        assert (out / "report.md").read_text() == "new report"
+    assert (earlier / "notes.txt").read_text() == "mine"
 
 
 def test_cli_refuses_an_output_that_is_a_file(tmp_path, capsys):
@@ -402,7 +439,7 @@ def test_the_report_is_staged_inside_an_existing_out_and_moved_in_whole_despite_
     out = tmp_path / "out"
     (out / "images").mkdir(parents=True)
     for name in ("report.md", "results.json", "images/table1.png"):
-        (out / name).write_text("old")
+        (out / name).write_text(EARLIER_RESULTS if name == "results.json" else "old")
     staged_in = []
 
     def run(stage, suite, say, command):
