@@ -18,7 +18,8 @@ from data_tools.info import exact_text
 
 from .camera import check_fov, check_parallel_scale, unit_vector
 from .outputs import note
-from .scene import DEFAULT_THRESHOLD, ShowsNothingWarning, check_eye_resolves, check_step, check_threshold
+from .scene import (DEFAULT_THRESHOLD, HEADLIGHT_SHADOWS, ShowsNothingWarning, check_eye_resolves, check_step,
+                    check_threshold)
 
 
 def load_volume_flags(args):
@@ -59,8 +60,9 @@ def scene_from_flags(args, say):
     said = set()
     for w in caught:
         if issubclass(w.category, ShowsNothingWarning):
-            # Each dataclasses.replace of the scene (--background, --light) checks it again.
-            if str(w.message) not in said:
+            # Each dataclasses.replace of the scene (--background, --light) checks it again; the
+            # headlight's shadows are said below, with the flags that give lights.
+            if str(w.message) not in said and not str(w.message).startswith(HEADLIGHT_SHADOWS):
                 said.add(str(w.message))
                 say(str(w.message))
         else:
@@ -131,7 +133,7 @@ def _add_flag_lights(scene, args, say):
             raise InputError(f"--{flag}: {exc}") from None
     lit = any(isinstance(v, parc.Isosurface) or (v.shade and v.mode == "composite") for v in scene.volumes)
     if scene.shadows and not scene.lights and lit:
-        say("shadows with only the headlight show nothing (the light sits at the eye); add --light or --sun"
+        say(f"{HEADLIGHT_SHADOWS}; add --light or --sun"
             + (", or a [[light]] table to the scene file" if _is_scene_file(args) else ""))
     return scene
 

@@ -74,6 +74,9 @@ class ShowsNothingWarning(UserWarning):
     translucent volume, or shadows in one with neither (`parc render` says so in a note)."""
 
 
+#: What a scene of shadows and no lights but the headlight is told (the command line names its flags).
+HEADLIGHT_SHADOWS = "shadows with only the headlight show nothing (the light sits at the eye)"
+
 #: The composite mode's early-termination opacity, unless another is given.
 DEFAULT_THRESHOLD = 0.99
 
@@ -347,8 +350,8 @@ class Scene:
                               "file's shade = true), and this scene has neither: the image is the same without them",
                               ShowsNothingWarning, stacklevel=_callers_level())
         if self.shadows and not self.lights and lit:
-            warnings.warn("shadows with only the headlight show nothing (the light sits at the eye): give the "
-                          "scene lights", ShowsNothingWarning, stacklevel=_callers_level())
+            warnings.warn(f"{HEADLIGHT_SHADOWS}: give the scene lights", ShowsNothingWarning,
+                          stacklevel=_callers_level())
 
     @property
     def width(self):
