@@ -3,6 +3,7 @@ numbers reach them (`parc.cli` runs the commands)."""
 from __future__ import annotations
 
 import argparse
+import difflib
 import re
 import sys
 import textwrap
@@ -83,10 +84,35 @@ class _Parser(argparse.ArgumentParser):
         if message.startswith("unrecognized arguments: "):
             # "--light x,y,z ..." reads as one flag taking several lights.
             given = getattr(self, "_given", [])
+            unknown = message.partition(": ")[2].split()
             flag = next((f for f in ("--light", "--sun") if f in given), None)
-            if flag and any(TRIPLE.fullmatch(w) for w in message.partition(": ")[2].split()):
+            if flag and any(TRIPLE.fullmatch(w) for w in unknown):
                 message += one_flag_a_light(flag)
+            else:
+                message += self._hint(unknown)
+        elif re.fullmatch(r"argument --size: expected 2 arguments", message):
+            message += " (width and height, apart: --size 640 480)"
         raise InputError(message)
+
+    def _hint(self, unknown):
+        """What a user likely meant by the first of the ``unknown`` arguments: a flag spelt
+        otherwise (``--look_at``, ``--lookat``), or a second volume, which takes a scene file."""
+        first = unknown[0]
+        # The command's parser: argparse reports what it does not know from the top one.
+        given = getattr(self, "_given", [])
+        commands = next((a.choices for a in self._actions if isinstance(a, argparse._SubParsersAction)), {})
+        command = next((w for w in given if w in commands), None)
+        parser = commands.get(command, self)
+        if first.startswith("--"):
+            name = first.partition("=")[0].replace("_", "-")
+            flags = [f for action in parser._actions for f in action.option_strings if f.startswith("--")]
+            close = difflib.get_close_matches(name, flags, n=1, cutoff=0.75)
+            return f"; did you mean {close[0]}?" if close else ""
+        if not first.startswith("-") and any(a.dest == "volume" for a in parser._actions):
+            if command in ("render", "compare"):
+                return "; one volume a command: show several with a scene file's [[volume]] tables (README, Scene files)"
+            return f"; {command} takes one volume"
+        return ""
 
 
 def one_flag_a_light(flag):
@@ -144,7 +170,7 @@ def _ints(n):
         except ValueError:
             raise argparse.ArgumentTypeError(f"must be {n} integers like 64,64,32, got {text!r}")
         if len(vals) != n:
-            raise argparse.ArgumentTypeError(f"must be {n} integers, got {text!r}")
+            raise argparse.ArgumentTypeError(f"must be {n} integers apart by commas, like 64,64,32, got {text!r}")
         return vals
     return parse
 

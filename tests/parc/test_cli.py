@@ -737,6 +737,23 @@ def test_a_misspelt_flag_is_named_before_a_missing_output(vol_file, capsys):
     assert rc == 2 and "unrecognized arguments: -O x.png" in err, err
 
 
+@pytest.mark.parametrize("argv, hint", [
+    (["render", "V", "--look_at", "1,2,3"], "unrecognized arguments: --look_at 1,2,3; did you mean --look-at?"),
+    (["render", "V", "--lookat=1,2,3"], "unrecognized arguments: --lookat=1,2,3; did you mean --look-at?"),
+    (["compare", "V", "--metods", "brute"], "unrecognized arguments: --metods brute; did you mean --methods?"),
+    (["render", "V", "V"], "; one volume a command: show several with a scene file's [[volume]] tables"),
+    (["info", "V", "V"], "; info takes one volume"),
+    (["render", "V", "--size", "64,64"], "argument --size: expected 2 arguments (width and height, apart: "
+                                         "--size 640 480)"),
+    (["render", "V", "--shape", "60", "50", "40"], "--shape: must be 3 integers apart by commas, like 64,64,32"),
+])
+def test_a_mistaken_argument_gets_a_hint(vol_file, tmp_path, capsys, argv, hint):
+    argv = [vol_file if a == "V" else a for a in argv]
+    rc, _, err = _run([*argv, "-o", tmp_path / "x.png"] if argv[0] == "render" else argv, capsys)
+    assert rc == 2 and err.count("\n") == 1 and hint in err, err
+    assert not (tmp_path / "x.png").exists()
+
+
 def test_a_folder_given_for_a_file_is_called_a_folder(vol_file, tmp_path, capsys):
     # Three messages said "directory", and a transfer function's folder "unknown file type '(none)'".
     for name in ("v.nrrd", "tf", "tf.toml"):
