@@ -198,6 +198,7 @@ def read_raw(path, *, shape=None, dtype=None, byte_order=None, offset=0,
         raise InputError(f"mmap must be True or False, got {mmap!r}")
     path = Path(path)
     guess = guess_from_name(path)
+    shape_given, dtype_given = shape is not None, dtype is not None
     if shape is None and "shapes" in guess:
         raise InputError(f"{path}: the name gives the shapes {' and '.join(map(_shape_text, guess['shapes']))}; "
                          "give --shape NX,NY,NZ (shape in Python and scene files)")
@@ -233,11 +234,27 @@ def read_raw(path, *, shape=None, dtype=None, byte_order=None, offset=0,
         raise InputError(f"{path}: offset must be a byte count, got {offset!r}") from None
     if offset < 0:
         raise InputError(f"{path}: offset must not be negative, got {offset}")
-    with reading(path, "raw"):
-        data = read_samples(path, offset, dims, dtype, str(byte_order).lower() == "big", mmap=bool(mmap))
-    return Volume(data, spacing=spacing if spacing is not None else (1.0, 1.0, 1.0),
-                  origin=origin if origin is not None else (0.0, 0.0, 0.0),
-                  name=str(path), meta={"format": "raw", "byte_order": str(byte_order).lower()})
+    # What the file's name gave, for the errors of a file read otherwise than it was written.
+    named = [flag for flag, given, words in (("--shape", shape_given, ("shape",)),
+                                             ("--dtype", dtype_given, ("dtype", "dtypes")))
+             if not given and any(w in guess for w in words)]
+    try:
+        with reading(path, "raw"):
+            data = read_samples(path, offset, dims, dtype, str(byte_order).lower() == "big", mmap=bool(mmap))
+        return Volume(data, spacing=spacing if spacing is not None else (1.0, 1.0, 1.0),
+                      origin=origin if origin is not None else (0.0, 0.0, 0.0),
+                      name=str(path), meta={"format": "raw", "byte_order": str(byte_order).lower()})
+    except InputError as exc:
+        text = str(exc)
+        if named and (" data truncated: " in text or " data too long: " in text):
+            what = " and ".join({"--shape": "shape", "--dtype": "type"}[f] for f in named)
+            give = f"{named[0]} gives another" if len(named) == 1 else f"{' and '.join(named)} give others"
+            raise InputError(f"{text} ({what} from the file's name; {give})") from None
+        if "non-finite samples" in text:
+            # Floats read in the wrong byte order, or another type read as floats, come out so.
+            raise InputError(f"{text}, unless they are misread: check --byte-order, --dtype and --offset "
+                             "(byte_order, dtype, offset in Python and scene files)") from None
+        raise
 
 
 def write_raw(volume: Volume, path, *, byte_order: str | None = None) -> Path:

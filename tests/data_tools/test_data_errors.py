@@ -443,6 +443,26 @@ def test_nrrd_data_file_list_is_found_in_any_case(tmp_path):
     assert load_volume(p).data.ravel().tolist() == list(range(8))
 
 
+def test_raw_floats_read_in_the_wrong_byte_order_are_said_to_be_perhaps_misread(tmp_path):
+    # Little-endian floats from 0 to 1 read as big-endian: some come out NaN or inf.
+    p = tmp_path / "mine.raw"
+    np.linspace(0.0, 1.0, 60 * 50 * 40, dtype="<f4").tofile(p)
+    msg = fails(p, "non-finite samples (NaN or inf)", shape=(60, 50, 40), dtype="float32", byte_order="big")
+    assert msg.endswith("unless they are misread: check --byte-order, --dtype and --offset "
+                        "(byte_order, dtype, offset in Python and scene files)")
+    assert load_volume(p, shape=(60, 50, 40), dtype="float32").data.max() == 1.0
+
+
+@pytest.mark.parametrize("options, said", [({}, " (shape and type from the file's name; --shape and --dtype give others)"),
+                                           ({"shape": (64, 64, 64)}, " (type from the file's name; --dtype gives another)"),
+                                           ({"shape": (64, 64, 64), "dtype": "uint8"}, "")])
+def test_a_raw_file_of_another_size_than_its_name_says_is_said_to_be_read_by_its_name(tmp_path, options, said):
+    p = tmp_path / "bucky_64x64x64_uint8.raw"
+    p.write_bytes(bytes(32 ** 3))
+    msg = fails(p, "raw data truncated: 64x64x64 uint8 needs 262144 bytes, the file has 32768", **options)
+    assert msg.endswith("the file has 32768" + said)
+
+
 def test_nrrd_float_text_that_is_not_finite_is_refused_as_such(tmp_path):
     p = tmp_path / "f.nrrd"
     p.write_bytes(b"NRRD0004\ntype: float\ndimension: 3\nsizes: 2 2 2\nencoding: ascii\n\ninf -inf 1 2 3 4 5 nan\n")
