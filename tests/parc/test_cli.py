@@ -1459,8 +1459,8 @@ def test_outputs_are_ordinary_files(vol_file, tmp_path, capsys):
 
 
 def test_a_cache_folder_that_cannot_be_written_is_named(vol_file, tmp_path, capsys, monkeypatch):
-    import raycast.config
-    monkeypatch.setattr(raycast.config, "_REFUSED", str(tmp_path / "a file" / "cache"))
+    import raycast.kernel_cache
+    monkeypatch.setattr(raycast.kernel_cache, "_REFUSED", str(tmp_path / "a file" / "cache"))
     rc, _, err = _run(["render", vol_file, "--iso", 4, "--size", 8, 8, "-o", tmp_path / "a.png"], capsys)
     assert rc == 0 and "cannot be written, so every run compiles them again" in err, err
 
@@ -1469,7 +1469,7 @@ def test_a_first_run_says_the_casters_compile(vol_file, tmp_path, capsys, monkey
     """With no compiled kernel cached for these sources, render says why its progress is late; once one is, not."""
     import numba.core.config
 
-    import raycast.config       # noqa: F401 - first, or its import sets the folder patched here
+    import raycast.kernel_cache  # noqa: F401 - first, or its import sets the folder patched here
     from raycast.iso import cast_iso_image
     own = Path(cast_iso_image._cache._cache_file._index_path)        # as Numba reads it, in the folder given
     empty = tmp_path / "cache"
@@ -1514,8 +1514,8 @@ def test_a_render_that_compiles_says_how_much_of_its_time_compiling_took(vol_fil
                                           r"[0-9,]+ cells", err)), err
         assert ("of it compiling" in err) == compiles, err
     # Where the cache cannot be written, every run compiles again: not "once".
-    import raycast.config
-    monkeypatch.setattr(raycast.config, "_REFUSED", str(tmp_path / "a file" / "cache"))
+    import raycast.kernel_cache
+    monkeypatch.setattr(raycast.kernel_cache, "_REFUSED", str(tmp_path / "a file" / "cache"))
     fresh.clear()
     rc, _, err = _run(render + [tmp_path / "2.png"], capsys)
     assert rc == 0 and re.search(r" s \([0-9.]+ s of it compiling the casters\), [0-9,]+ cells", err), err

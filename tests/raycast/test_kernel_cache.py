@@ -198,7 +198,7 @@ def test_a_cache_write_that_fails_leaves_the_kernel_uncached(tmp_path, monkeypat
     # A full disk: the write's OSError ('No space left on device') ended every render.
     import errno
 
-    import raycast.config  # noqa: F401 - makes the cache forgiving
+    import raycast.kernel_cache  # noqa: F401 - makes the cache forgiving
     from numba.core.caching import IndexDataCacheFile
 
     def full(self, path):
@@ -404,7 +404,7 @@ def test_numba_copies_a_scope_once_for_the_pieces_a_pass_copies_and_never_uses_t
     from numba.core import inline_closurecall
     from numba.parfors import parfor
 
-    import raycast.config  # noqa: F401 - installs the copies, as every kernel's module does
+    import raycast.compiler  # noqa: F401 - installs the copies, as every kernel's module does (through raycast.config)
     reductions, inlined = [], []
     reduce_nodes, inline_ir = parfor.get_reduce_nodes, inline_closurecall.InlineWorker.inline_ir
 
@@ -455,7 +455,7 @@ def test_numba_copies_its_sets_of_names_as_deepcopy_would(monkeypatch):
 
     from numba.core import ir_utils
 
-    import raycast.config  # noqa: F401 - installs the copies, as every kernel's module does
+    import raycast.compiler  # noqa: F401 - installs the copies, as every kernel's module does (through raycast.config)
     assert ir_utils.copy is not copy and ir_utils.copy.copy is copy.copy
     removed = {("v%d" % i, "w%d" % i) for i in range(200)}
     for i in range(0, 200, 3):
