@@ -27,7 +27,8 @@ from data_tools.io.npy import save_array
 from .arguments import build_parser, join_signed_values, supercell_flag
 from .flagscene import load_volume_flags, scene_and_notes
 from .outputs import (Progress, atomic_write_all, check_distinct, check_not_sidecar, check_output, compile_notice,
-                      compiling_seconds, error_line, note, print_out, slow_note, stale_sidecars, to_json, write_png)
+                      compiling_seconds, error_line, late_compile_notice, note, print_out, slow_note, stale_sidecars,
+                      to_json, write_png)
 from .scene import ShowsNothingWarning
 from .stops import Stopped, restore_handlers, stop_on_signals
 
@@ -313,7 +314,7 @@ def cmd_render(args):
         say(line)
     compile_notice(say, kernel_samples(scene, (args.method,), kwargs.get("buffers", DEFAULT_BUFFERS)))
     progress = None if args.quiet else Progress(f"rendering {w}x{h}")
-    with compiling_seconds() as compiling:
+    with compiling_seconds() as compiling, late_compile_notice(say):
         result = parc.render(scene, method=args.method, progress=progress, work=work_out is not None, **kwargs)
     if progress is not None:
         progress.done()
@@ -438,7 +439,8 @@ def cmd_compare(args):
                                             repeated=True))
     if steps is not None:
         from .comparison import format_step_table, step_sweep
-        rows = step_sweep(scene, steps, repeats=args.repeats, progress=warming, options=common)
+        with late_compile_notice(say):
+            rows = step_sweep(scene, steps, repeats=args.repeats, progress=warming, options=common)
         if args.json:
             print_out(to_json(rows))
         else:
@@ -452,7 +454,8 @@ def cmd_compare(args):
         options = {label: {"supercell": s, **common} for label, s in zip(labels, sizes)}
     elif args.supercell is not None:
         options = {m: {"supercell": args.supercell, **opts} for m, opts in options.items()}
-    rows = compare(scene, methods=methods, repeats=args.repeats, options=options, progress=warming)
+    with late_compile_notice(say):
+        rows = compare(scene, methods=methods, repeats=args.repeats, options=options, progress=warming)
     if args.json:
         print_out(to_json(rows))
     else:

@@ -381,6 +381,7 @@ def compile_notice(say, kernels=()):
     from raycast.kernel_cache import cache_folder, cache_refused
 
     refused = cache_refused()
+    _NOTICE_SAID[0] = refused is not None       # for this run: `late_compile_notice` says it otherwise
     if refused is not None:
         say(f"compiling the ray casters; {refused} cannot be written, so every run compiles them again "
             "(set PARC_CACHE_DIR to a writable folder, or NUMBA_CACHE_DIR, which wins over it when set)")
@@ -391,8 +392,38 @@ def compile_notice(say, kernels=()):
     else:
         missing = next(folder.rglob("*.nbi"), None) is None
     if missing:
-        say(f"compiling the ray casters for this kind of render and sample type, once on this machine "
-            f"(kept in {folder})")
+        _NOTICE_SAID[0] = True
+        say(_compiling_once(folder))
+
+
+def _compiling_once(folder):
+    return f"compiling the ray casters for this kind of render and sample type, once on this machine (kept in {folder})"
+
+
+#: Whether `compile_notice` or `late_compile_notice` has spoken for the run under way.
+_NOTICE_SAID = [False]
+
+
+@contextlib.contextmanager
+def late_compile_notice(say):
+    """Say `compile_notice`'s line at the first compile the block starts, where it has not been
+    said: the kernels a run needs are foretold (`parc.renderer.kernel_samples`), and one missed
+    there (the cell ranges' passes and the shadow rays compile for each type of samples) compiled
+    for seconds without a word. Numba reports a compile, not a kernel loaded from its cache."""
+    import numba.core.event
+    from raycast.kernel_cache import cache_folder
+
+    class FirstCompile(numba.core.event.Listener):
+        def on_start(self, event):
+            if threading.current_thread() is threading.main_thread() and not _NOTICE_SAID[0]:
+                _NOTICE_SAID[0] = True
+                end_progress_line()
+                say(_compiling_once(cache_folder()))
+
+        def on_end(self, event):
+            pass
+    with numba.core.event.install_listener("numba:compile", FirstCompile()):
+        yield
 
 
 @contextlib.contextmanager

@@ -39,7 +39,7 @@ from data_tools.errors import os_reason
 from data_tools.io import written_path
 from data_tools.signals import building, signals_held
 
-from ..outputs import compile_notice, note, to_json
+from ..outputs import compile_notice, late_compile_notice, note, to_json
 from .scenes import default_data_dir
 
 
@@ -464,7 +464,8 @@ def main(args):
         note(f"{msg}  ({time.perf_counter() - t0:.0f} s)", "parc bench")
 
     compile_notice(say, _kernels_used())
-    res = run_bench(out, suite, progress=say, command="parc " + " ".join(args.argv))
+    with late_compile_notice(say):
+        res = run_bench(out, suite, progress=say, command="parc " + " ".join(args.argv))
     failed = [c for c in res["checks"] if not c["ok"]]
     print(f"{out / 'report.md'}: {len(res['checks']) - len(failed)} of {len(res['checks'])} checks pass "
           f"({res['seconds'] / 60:.1f} min)")

@@ -1567,6 +1567,40 @@ def test_samples_of_a_type_not_yet_compiled_are_said_to_compile(tmp_path, monkey
     assert said
 
 
+def test_a_compile_not_foretold_is_said_as_it_starts(monkeypatch, tmp_path):
+    # The cell ranges' passes and the shadow rays compiled for int16 after uint8 without a word.
+    import threading
+
+    import numba
+    from parc import outputs
+    monkeypatch.setattr(outputs, "_NOTICE_SAID", [False])
+    said = []
+
+    def fresh():
+        @numba.njit
+        def twice(x):
+            return 2 * x
+        return twice
+    with outputs.late_compile_notice(said.append):
+        assert not said                         # nothing compiled yet, nothing said
+        fresh()(1)
+        fresh()(2.0)                            # said once a run
+    assert len(said) == 1 and said[0].startswith("compiling the ray casters for this kind of render")
+    fresh()(3)                                  # after the block: not listened to
+    assert len(said) == 1
+    # Said before the work by compile_notice: not again. A thread's compile is not the run's.
+    monkeypatch.setattr(outputs, "_NOTICE_SAID", [False])
+    said.clear()
+    with outputs.late_compile_notice(said.append):
+        worker = threading.Thread(target=lambda: fresh()(4))
+        worker.start()
+        worker.join()
+        assert said == []
+        outputs._NOTICE_SAID[0] = True
+        fresh()(5)
+    assert said == []
+
+
 def test_each_kernel_is_checked_for_the_samples_it_is_given(gl):
     """A scene of an int16 isosurface and a uint8 translucent volume compiled nothing new on its
     second run, yet said it compiled: every kernel was asked for both types."""
