@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import os
 import warnings
+from pathlib import Path
 
 import numpy as np
 
@@ -34,6 +35,10 @@ def load_volume_flags(args):
     if _is_scene_file(args):
         raise InputError(f"{args.volume}: a scene file; parc {args.command} reads one volume file "
                          "(parc render and parc compare read scenes)")
+    if args.volume and Path(args.volume).suffix.lower() == ".json" and os.path.isfile(args.volume):
+        # A transfer function or a ParaView colour map: the only JSON parc reads.
+        raise InputError(f"{args.volume}: a volume file is not JSON; a transfer function (or ParaView "
+                         "colour map) is given with --tf")
     return load_volume(args.volume, **{name: getattr(args, name) for name in _READING_FLAGS})
 
 

@@ -142,6 +142,9 @@ def load_scene(path, *, view=None, size=None, progress=None, replaced_by="given 
             raise InputError(f"view: {key} must be three finite numbers, got {value!r}")
     where = Where(path, progress)
     doc = where.read()
+    if "volume" not in doc and {"opacity", "color"} & set(doc):
+        raise where.error("", "a transfer function, not a scene (it has no [[volume]] tables): give it with --tf, "
+                              "or as a [[volume]] table's tf in a scene file")
     top = Table(where, "", doc, TOP_KEYS)
 
     volumes = _load_volumes(where, doc.get("volume"))

@@ -160,6 +160,9 @@ def load_for_volume(spec, volume, mode="composite"):
 
 def _from_ours(doc, where, source, data_range):
     unknown = sorted(set(doc) - set(_OUR_KEYS))
+    if "volume" in unknown:
+        raise InputError(f"{where}: a scene file (it has [[volume]] tables), not a transfer function: give it "
+                         "as the volume, as in parc render SCENE.toml")
     if unknown:
         raise InputError(f"{where}: unknown key{'s' if len(unknown) > 1 else ''} "
                          f"{', '.join(repr(k) for k in unknown)}; known: {', '.join(_OUR_KEYS)}")

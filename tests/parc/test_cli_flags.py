@@ -275,3 +275,24 @@ def test_an_unknown_argument_without_lights_gets_no_advice_on_them(vol_file, tmp
     _refused(["render", vol_file, "1,2,3", "-o", tmp_path / "o.png"], "unrecognized arguments: 1,2,3", capsys)
     rc, _, err = _run(["render", "--light", "1,2,3", "nosuch.nrrd", "-o", tmp_path / "o.png"], capsys)
     assert rc == 2 and "no such file" in err and "once for each light" not in err
+
+
+def test_a_file_given_in_the_wrong_role_is_named_for_the_role_it_has(vol_file, tmp_path, capsys):
+    # A transfer function as the volume, or a scene file as the transfer function, was refused
+    # for its keys ("opacity: unknown key") or its extension, which said nothing of the mix-up.
+    tf_toml, tf_json, scene = tmp_path / "tf.toml", tmp_path / "tf.json", tmp_path / "scene.toml"
+    tf_toml.write_text("opacity = [[0, 0], [10, 1]]\n")
+    tf_json.write_text('{"opacity": [[0, 0], [10, 1]]}')
+    scene.write_text(f'[[volume]]\nfile = "{vol_file}"\niso = 3\n')
+    out = tmp_path / "o.png"
+    _refused(["render", tf_toml, "-o", out], f"{tf_toml}: a transfer function, not a scene (it has no [[volume]] "
+             "tables): give it with --tf", capsys)
+    for command in (["render", tf_json, "-o", out], ["info", tf_json]):
+        _refused(command, f"{tf_json}: a volume file is not JSON; a transfer function (or ParaView colour map) "
+                 "is given with --tf", capsys)
+    _refused(["render", vol_file, "--tf", scene, "-o", out], f"{scene}: a scene file (it has [[volume]] tables), "
+             "not a transfer function: give it as the volume", capsys)
+    assert not out.exists()
+    # Given as they should be, they are taken.
+    rc, _, err = _run(["render", vol_file, "--tf", tf_toml, "--size", 8, 8, "-o", out, "--quiet"], capsys)
+    assert rc == 0 and out.exists(), err
