@@ -22,6 +22,15 @@ from data_tools.memory import check_memory
 from data_tools.volume import text_or_flag, three_numbers
 
 
+def up_across(f):
+    """The axis least along the direction ``f``, as floats: an up a view along ``f`` can take
+    (of axes as little along it, +z, then +y: a view down z gets y up)."""
+    along = np.abs(np.asarray(f, dtype=np.float64))
+    up = [0.0, 0.0, 0.0]
+    up[min((2, 1, 0), key=lambda a: along[a])] = 1.0
+    return up
+
+
 @dataclass(frozen=True)
 class Camera:
     """A pinhole or parallel camera.
@@ -73,7 +82,8 @@ class Camera:
             raise InputError(f"camera up {self.up} is zero: give a direction")
         if np.linalg.norm(np.cross(f, up)) < 1e-9:
             raise InputError(f"camera up {self.up} is parallel to the view direction "
-                             f"{tuple(round(float(c), 6) for c in f)}")
+                             f"{tuple(round(float(c), 6) for c in f)}: give one across it, such as "
+                             f"{tuple(up_across(f))}")
         if self.parallel_scale is None:
             check_fov(self.fov)
             object.__setattr__(self, "fov", float(self.fov))

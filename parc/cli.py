@@ -287,14 +287,15 @@ def cmd_render(args):
     depth_out = check_output(args.depth, (".npy",)) if args.depth is not None else None
     stats_out = check_output(args.stats, (".json",)) if args.stats is not None else None
     work_out = check_output(args.work, (".png", ".npy")) if args.work is not None else None
-    check_distinct(args.volume, [out, depth_out, stats_out, work_out])
+    flags = ("-o", "--depth", "--stats", "--work")
+    check_distinct(args.volume, [out, depth_out, stats_out, work_out], flags=flags)
     # realpath, not Path.resolve: a sidecar may be a link in a loop, which resolve raises for.
     written = {os.path.realpath(p) for p in (out, depth_out, stats_out, work_out) if p is not None}
     stale = [side for side in stale_sidecars([out, depth_out, work_out]) if os.path.realpath(side) not in written]
     say = (lambda *a: None) if args.quiet else note
     with _reading(args, say):
         scene, notes = scene_and_notes(args)
-    check_distinct(args.volume, [out, depth_out, stats_out, work_out] + stale, read=_files_read(scene))
+    check_distinct(args.volume, [out, depth_out, stats_out, work_out] + stale, read=_files_read(scene), flags=flags)
     if stats_out is not None:
         check_not_sidecar(stats_out, [out, depth_out, work_out])   # a volume read is named above
     w, h = scene.size
@@ -472,7 +473,9 @@ def _heading(args, scene, sweeping_step=False):
     if len(scene.volumes) > 1:
         return f"{args.volume}: {len(scene.volumes)} volumes ({_describe_all(scene.volumes)}), {runs}"
     shown = f"{vis.mode} of {vis.tf.title}" if sweeping_step else _shown(vis)
-    return f"{vis.volume.name}: {'x'.join(map(str, vis.volume.dims))} {vis.volume.dtype}, {shown}, {runs}"
+    dims = "x".join(map(str, vis.volume.dims))
+    sized = f"{vis.volume.dtype}" if dims in vis.volume.name else f"{dims} {vis.volume.dtype}"    # "builtin 64x64x64"
+    return f"{vis.volume.name}: {sized}, {shown}, {runs}"
 
 
 def cmd_bench(args):

@@ -73,25 +73,29 @@ def _real(path):
     return Path(os.path.realpath(path))
 
 
-def check_distinct(source, outputs, read=()):
+def check_distinct(source, outputs, read=(), flags=()):
     """Refuse two outputs on one file, or an output on a file read: ``source`` (the volume or
     scene file named, or None) or one of ``read`` (a header's data file, a sidecar, a scene's
-    volumes and transfer functions)."""
+    volumes and transfer functions). ``flags`` name the first outputs, to say which two met."""
     seen = {}
     named = _real(source) if source is not None else None
     others = {_real(p) for p in read}
-    for path in outputs:
+    for n, path in enumerate(outputs):
         if path is None:
             continue
         key = _real(path)
         if key in seen:
-            raise InputError(f"{path}: given for two outputs ({seen[key]} and {path})")
+            first, was = seen[key]
+            if n < len(flags):
+                raise InputError(f"{path}: given to both {flags[first]} and {flags[n]}; each output needs a file "
+                                 "of its own")
+            raise InputError(f"{path}: given for two outputs ({was} and {path})")
         if key == named:
             raise InputError(f"{path}: is the input file; write the output elsewhere")
         if key in others:
             raise InputError(f"{path}: is read by this run (a volume, its data file or sidecar, or a "
                              "transfer function); write the output elsewhere")
-        seen[key] = path
+        seen[key] = (n, path)
 
 
 def stale_sidecars(paths):

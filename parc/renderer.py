@@ -198,7 +198,7 @@ def check_request(scene, buffers, work, names=("buffers", "work")):
     buffers = parse_buffers(buffers)
     if "depth" not in buffers and any(isinstance(v, Isosurface) for v in scene.volumes):
         raise InputError(f"{names[0]} {','.join(buffers)} leave out the depth buffers isosurfaces use; "
-                         "bit planes apply to translucent volumes")
+                         f"bit planes apply to translucent volumes: give {names[0]} depth,bits for both")
     # "depth,bits" for isosurfaces alone would otherwise leave the planes out without a word.
     if "bits" in buffers and (why := bits_refused(scene)):
         raise InputError(f"{names[0]} {','.join(buffers)}: {why}")

@@ -68,7 +68,7 @@ import numpy as np
 from data_tools import InputError, Volume
 from data_tools.volume import text_or_flag
 
-from .camera import Camera, check_fov, check_parallel_scale, unit_vector
+from .camera import Camera, check_fov, check_parallel_scale, unit_vector, up_across
 from .scene import DirectionalLight, Isosurface, PointLight, Scene, Translucent, check_eye_resolves
 from .tomltables import Table, Where, array_tables, construct
 
@@ -491,7 +491,8 @@ def _load_camera(where, t, volumes, view, aspect, replaced_by):
     if up is None:
         raise where.error(label("up"), f"up {list(cam['up'])} is zero: give a direction")
     if np.linalg.norm(np.cross(f, up)) < 1e-9:
-        raise where.error(label("up"), f"up {list(cam['up'])} is parallel to the view direction")
+        raise where.error(label("up"), f"up {list(cam['up'])} is parallel to the view direction: give one "
+                                       f"across it, such as {[int(c) for c in up_across(f)]}")
     with where.key("camera"):
         camera = Camera(**cam)
     # Checked by the scene too, here with the key that placed the eye.

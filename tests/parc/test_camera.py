@@ -4,6 +4,7 @@ Truth: the formula written out independently here, and geometric facts
 (the centre ray looks at look_at, parallel rays share one direction).
 """
 import math
+import re
 import warnings
 
 import numpy as np
@@ -322,3 +323,12 @@ def test_a_parallel_framing_looks_from_the_documented_angles_from_three_radii_ba
         par = Camera.framing((0, 0, 0), (10, 10, 10), parallel=True, zoom=zoom)
         np.testing.assert_allclose(par.eye, centre + back * 3.0 * radius, rtol=0, atol=1e-12)
         np.testing.assert_allclose(par.look_at, centre, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("eye, up, across", [((0.0, 0.0, 10.0), (0.0, 0.0, 1.0), (0.0, 1.0, 0.0)),
+                                             ((0.0, -10.0, 0.0), (0.0, 2.0, 0.0), (0.0, 0.0, 1.0)),
+                                             ((3.0, 0.0, 0.0), (-1.0, 0.0, 0.0), (0.0, 0.0, 1.0))])
+def test_an_up_along_the_view_is_refused_with_one_across_it(eye, up, across):
+    with pytest.raises(InputError, match=re.escape(f"give one across it, such as {across}")):
+        Camera(eye=eye, look_at=(0.0, 0.0, 0.0), up=up)
+    Camera(eye=eye, look_at=(0.0, 0.0, 0.0), up=across)

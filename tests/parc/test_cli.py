@@ -897,7 +897,7 @@ def test_a_vector_starting_with_a_minus_sign_is_a_value(vol_file, tmp_path, caps
     (["--origin", "1e20,0,0"], "2^32 cells"),             # the grid is below float64's resolution there
     (["--method", "brute", "--buffers", "bits"], "--buffers applies to --method parc"),
     (["--method", "parc", "--buffers", "bits"], "--buffers applies to translucent volumes"),
-    (["--output-twice"], "given for two outputs"),
+    (["--output-twice"], "out.npy: given to both -o and --depth; each output needs a file of its own"),
     (["--fov", "20", "--parallel", "40"], "not both"),
     (["--threshold", "0"], "--threshold applies to translucent volumes"),     # 0 is given, not absent
     (["--stats", ""], "the output path is empty"),                             # was ".: output must end in"
@@ -2624,3 +2624,11 @@ def test_average_mode_in_compare_gets_no_note_about_an_image(capsys):
     rc, out, err = _run(["compare", "--tf", "greyscale", "--mode", "average", "--size", 8, 8, "--repeats", 1,
                          "--json"], capsys)
     assert rc == 0 and out and "--background" not in err, err
+
+
+def test_compare_s_heading_names_the_volume_s_size_once(vol_file, capsys):
+    # The built-in volume's name holds its size: "builtin 64x64x64: 64x64x64 uint8" said it twice.
+    for argv, heading in ((["compare"], "builtin 64x64x64: uint8, isovalue 127.5, 8x8 pixels"),
+                          (["compare", vol_file, "--iso", 4], f"{vol_file}: 12x12x12 float32, isovalue 4, 8x8 pixels")):
+        rc, out, err = _run([*argv, "--size", 8, 8, "--repeats", 1, "--methods", "brute", "--quiet"], capsys)
+        assert rc == 0 and out.splitlines()[0].startswith(heading), out
