@@ -138,15 +138,16 @@ class _OneSurface(argparse.Action):
         setattr(namespace, self.dest, values)
 
 
-def _floats(n):
+def _floats(n, most=None):
     # argparse names the flag: "argument --eye: must be ..."
+    counts = f"{n}" if most is None else f"{n} or {most}"
     def parse(text):
         try:
             vals = tuple(float(v) for v in text.replace(" ", "").split(","))
         except ValueError:
-            raise argparse.ArgumentTypeError(f"must be {n} comma-separated numbers, got {text!r}")
-        if len(vals) != n or not all(np.isfinite(vals)):
-            raise argparse.ArgumentTypeError(f"must be {n} comma-separated finite numbers, got {text!r}")
+            raise argparse.ArgumentTypeError(f"must be {counts} comma-separated numbers, got {text!r}")
+        if len(vals) not in (n, most or n) or not all(np.isfinite(vals)):
+            raise argparse.ArgumentTypeError(f"must be {counts} comma-separated finite numbers, got {text!r}")
         return vals
     return parse
 
@@ -239,8 +240,8 @@ def _add_view_options(p):
                         "on the whole volume at 1)")
     g.add_argument("--size", type=int, nargs=2, metavar=("W", "H"),
                    help="image size in pixels (default 512 512)")
-    g.add_argument("--background", type=_floats(3), metavar="R,G,B",
-                   help="opaque background colour in [0,1] (default transparent)")
+    g.add_argument("--background", type=_floats(3, 4), metavar="R,G,B[,A]",
+                   help="background colour in [0,1], opaque unless an alpha A is given (default transparent)")
 
 
 def _add_light_options(p):

@@ -39,8 +39,7 @@ def _refused(argv, words, capsys):
     assert "Traceback" not in err
 
 
-@pytest.mark.parametrize("flag", ["--eye", "--look-at", "--up", "--light", "--sun", "--background", "--spacing",
-                                  "--origin"])
+@pytest.mark.parametrize("flag", ["--eye", "--look-at", "--up", "--light", "--sun", "--spacing", "--origin"])
 def test_a_vector_of_four_numbers_is_refused(flag, vol_file, tmp_path, capsys):
     _refused(["render", vol_file, "--iso", 3, "--size", 8, 8, flag, "0.5,0.5,0.5,0.5", "-o", tmp_path / "o.png"],
              f"argument {flag}: must be 3 comma-separated finite numbers, got '0.5,0.5,0.5,0.5'", capsys)
@@ -62,7 +61,7 @@ def test_a_raw_shape_of_four_numbers_is_refused(tmp_path, capsys):
     raw = tmp_path / "scan.raw"
     raw.write_bytes(bytes(2 * 3 * 4))
     _refused(["info", raw, "--shape", "2,3,4,1", "--dtype", "uint8"],
-             "argument --shape: must be 3 integers, got '2,3,4,1'", capsys)
+             "argument --shape: must be 3 integers apart by commas, like 64,64,32, got '2,3,4,1'", capsys)
 
 
 def test_an_offset_of_zero_reads_from_the_first_byte_and_a_word_is_refused(tmp_path, capsys):
@@ -296,3 +295,12 @@ def test_a_file_given_in_the_wrong_role_is_named_for_the_role_it_has(vol_file, t
     # Given as they should be, they are taken.
     rc, _, err = _run(["render", vol_file, "--tf", tf_toml, "--size", 8, 8, "-o", out, "--quiet"], capsys)
     assert rc == 0 and out.exists(), err
+
+
+def test_a_background_takes_an_alpha_as_a_scene_file_s_does(vol_file, tmp_path, capsys):
+    scene, _ = _scene("render", vol_file, "--iso", 3, "--background", "0.25,0.5,1,0.5", "-o", "o.png")
+    assert scene.background == (0.25, 0.5, 1.0, 0.5)
+    _refused(["render", vol_file, "--iso", 3, "--background", "0,0,0,0.5,1", "-o", tmp_path / "o.png"],
+             "argument --background: must be 3 or 4 comma-separated finite numbers, got '0,0,0,0.5,1'", capsys)
+    _refused(["render", vol_file, "--iso", 3, "--background", "0,0,0,2", "-o", tmp_path / "o.png"],
+             "background components must be in [0, 1]", capsys)
