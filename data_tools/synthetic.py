@@ -298,6 +298,13 @@ def making_note(name, size):
     return f"making {name} {'x'.join(map(str, dims))} ({samples:,} samples) ..."
 
 
+def default_size(name):
+    """The samples per axis `make_synthetic` gives the volume ``name`` without a size."""
+    import inspect
+    fn = SYNTHETIC[name]
+    return 16 if fn is trilinear_field else inspect.signature(fn).parameters["size"].default
+
+
 def make_synthetic(name, size=None, **kwargs) -> Volume:
     """Build the registry volume ``name``; ``size=None`` keeps the function's default (16 for
     `trilinear_field`, which has none).

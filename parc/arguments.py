@@ -388,15 +388,15 @@ def build_parser():
                    help="output file: .nrrd (gzip) .nhdr .npy .mhd .mha .vtk .raw")
     _add_volume_options(v, scenes=False)
 
-    from data_tools.synthetic import DESCRIPTIONS
+    from data_tools.synthetic import DESCRIPTIONS, default_size
     m = sub.add_parser("make", help="write a synthetic volume",
-                       description="Write a synthetic volume.\n\n" + "\n".join(
-                           f"  {k:16s} {v}" for k, v in DESCRIPTIONS.items()),
+                       description="Write a synthetic volume ([N]: its --size unless given).\n\n" + "\n".join(
+                           f"  {k:16s} [{default_size(k)}] {v}" for k, v in DESCRIPTIONS.items()),
                        formatter_class=_Formatter)
     m.add_argument("name", choices=sorted(DESCRIPTIONS), metavar="NAME", help="which volume (see above)")
     m.add_argument("-o", "--output", required=True, metavar="OUT",
                    help="output file: .nrrd (gzip) .nhdr .npy .mhd .mha .vtk .raw")
-    m.add_argument("--size", type=int, metavar="N", help="samples per axis (default depends on the volume)")
+    m.add_argument("--size", type=int, metavar="N", help="samples per axis (default: the volume's own, listed above)")
     m.add_argument("--seed", type=int, metavar="S", help="random seed, for the random volumes")
     return p
 

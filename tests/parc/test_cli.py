@@ -429,6 +429,18 @@ def test_a_header_never_writes_over_a_data_file_not_its_own(vol_file, tmp_path, 
         assert rc == 0 and f"wrote {tmp_path / 'scan.mhd'} and {tmp_path / 'scan.raw'} (" in out, err
 
 
+def test_make_s_help_gives_each_volume_s_size_as_made(capsys):
+    # "--size N: default depends on the volume" left it to be found by making one.
+    import re as regex
+    from data_tools.synthetic import SYNTHETIC, make_synthetic
+    with pytest.raises(SystemExit):
+        main(["make", "--help"])
+    listed = dict(regex.findall(r"^  (\w+) +\[(\d+)\] ", capsys.readouterr().out, regex.MULTILINE))
+    assert set(listed) == set(SYNTHETIC)
+    for name, size in listed.items():
+        assert make_synthetic(name).dims[0] == int(size), name
+
+
 @pytest.mark.parametrize("name, out", [("sphere", "s.nrrd"), ("ct_phantom", "my ct.mha"), ("marschner_lobb", "ml.raw"),
                                        ("trilinear_field", "t.npy")])
 def test_make_says_how_to_render_what_it_wrote(tmp_path, capsys, monkeypatch, name, out):
