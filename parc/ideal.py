@@ -30,8 +30,8 @@ from data_tools import InputError
 from raycast.ideal import ideal_samples_image
 
 from .scene import Translucent
+from .workspace import NO_STOP
 
-_NO_STOP = np.empty((1, 1))
 
 
 def contributing_cells(vis: Translucent) -> np.ndarray:
@@ -55,7 +55,7 @@ def ideal_sample_counts(scene, vis: Translucent, stop=None) -> np.ndarray:
         if stop.shape != (h, w):
             raise InputError(f"stop must be ({h}, {w}) (the image's rows and columns), got {stop.shape}")
     else:
-        stop = _NO_STOP
+        stop = NO_STOP
     vol = vis.volume
     op_x, op_y, _, _ = vis.tf.arrays()
     counts = np.empty(w * h, np.int64)

@@ -47,7 +47,7 @@ from raycast.shadow import (combine_lights, combine_samples, light_terms, shadow
 from .lights import (LIGHT_BUFFER_CACHE_SIZE, LIGHT_BUFFER_SIZE, buffer_bytes, light_array, light_buffers,
                      light_cache_bytes, light_views, no_views)
 from .scene import DirectionalLight, Isosurface
-from .workspace import LIGHT_BYTES_PER_PIXEL, SAMPLE_BYTES, shadowed_samples, work_array
+from .workspace import LIGHT_BYTES_PER_PIXEL, NO_BITS, NO_SEGMENTS, SAMPLE_BYTES, shadowed_samples, work_array
 
 #: Shadow rays start this far (times the smallest spacing of the surface they leave) from their hit point.
 SHADOW_EPS = 1e-5
@@ -182,7 +182,7 @@ def _cast_surfaces(frame, segs):
         vol = iso.volume
         t = work_array("iso_t", (npx,))
         c, uv, cnt = iso_work(npx)
-        seg = segs.get(n, np.empty((1, 1, 2)))
+        seg = segs.get(n, NO_SEGMENTS)
         skip, jump_min = octant_skip_tables(iso, frame.parc and frame.blocks, frame.scene.camera, w, h)
         for b, (y0, y1) in enumerate(bands):
             _, cells, solves = cast_iso_image(vol.data, np.array(vol.origin), np.array(vol.spacing), frame.cam, w, h,
@@ -256,7 +256,6 @@ def _cast_translucent(frame, segs, planes, stop, image):
     layers = [(n, v) for n, v in trans if v.mode != "composite"]
     layer_t = np.empty((len(layers), h, w))
     layer_rgba = np.empty((len(layers), h, w, 4), np.float32)
-    nobits = np.zeros((1, 1, 1), np.uint32)
     for j, (n, v) in enumerate(layers):
         vol = v.volume
         op_x, op_y, col_x, col_rgb = v.tf.arrays()
@@ -267,8 +266,8 @@ def _cast_translucent(frame, segs, planes, stop, image):
         for b, (y0, y1) in enumerate(bands):
             cast_accumulate_image(vol.data, np.array(vol.origin), np.array(vol.spacing), cam, w, h,
                                   params, op_x, op_y, col_x, col_rgb,
-                                  segs.get(n, np.empty((1, 1, 2))), parc, stop, True,
-                                  planes[n].bits if n in planes else nobits, n in planes,
+                                  segs.get(n, NO_SEGMENTS), parc, stop, True,
+                                  planes[n].bits if n in planes else NO_BITS, n in planes,
                                   *skip_table(v, parc and blocks), layer_rgba[j], cnt, y0, y1)
             report.part("translucent", (j + (b + 1) / len(bands)) / len(trans))
         frame.counts["samples"] += int(cnt.sum())

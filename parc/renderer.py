@@ -30,7 +30,7 @@ from .lights import light_array
 from .scene import Isosurface, Scene, Translucent, describe_volume
 from .segments import cached_proxy, parc_segments
 from .skip import octant_skip_tables, skip_table
-from .workspace import check_scene_memory, shadowed_samples, work_array
+from .workspace import NO_BITS, NO_SEGMENTS, NO_STOP, check_scene_memory, shadowed_samples, work_array
 
 METHODS = ("brute", "parc")
 #: Held by every render. Re-entrant, so that a render asked for inside a render's
@@ -39,7 +39,6 @@ RENDER_LOCK = threading.RLock()
 #: Whether a render is under way: one inside it would overwrite its work arrays and buffers.
 _RENDERING = [False]
 
-_NO_STOP = np.empty((1, 1))
 
 _MODES = {"composite": MODE_COMPOSITE, "mip": MODE_MIP, "average": MODE_AVERAGE}
 
@@ -242,7 +241,7 @@ def _render(scene, method, supercell, buffers, progress, light_buffer, blocks, w
     vis = scene.volumes[0]
     timings = {}
     t0 = time.perf_counter()
-    seg = np.empty((1, 1, 2))
+    seg = NO_SEGMENTS
     use_seg = method == "parc"
     planes = None
     extra = {}
@@ -521,7 +520,7 @@ def _render_translucent(scene, vis, seg, use_seg, skip_blocks, timings, progress
     counts = work_array("samples", (w * h,), np.int64)
     use_bits = planes is not None
     skip, jump_min = skip_table(vis, skip_blocks)
-    bits = np.zeros((1, 1, 1), np.uint32)
+    bits = NO_BITS
     if use_bits:
         planes.set_params(params)
         bits = planes.bits
@@ -532,7 +531,7 @@ def _render_translucent(scene, vis, seg, use_seg, skip_blocks, timings, progress
     samples = 0
     for n, (y0, y1) in enumerate(bands):
         samples += cast_accumulate_image(vol.data, org, spc, cam, w, h, params, op_x, op_y, col_x, col_rgb,
-                                         seg, use_seg, _NO_STOP, False, bits, use_bits, skip, jump_min, image,
+                                         seg, use_seg, NO_STOP, False, bits, use_bits, skip, jump_min, image,
                                          counts, y0, y1)
         if progress is not None:
             progress((n + 1) / len(bands))

@@ -76,6 +76,13 @@ LIGHT_BYTES_PER_PIXEL = 32
 #: copies its shadow rays take), with room; and of its terms per light, as for a pixel.
 SAMPLE_BYTES = 192
 
+#: Stand-ins for a kernel's arguments that a render does not use (its flag says so): no segments
+#: (`brute`), no surface to stop at, no bit planes. Never written, and writable as the used ones
+#: are, so that the kernels compile once for both.
+NO_SEGMENTS = np.empty((1, 1, 2))
+NO_STOP = np.empty((1, 1))
+NO_BITS = np.zeros((1, 1, 1), np.uint32)
+
 
 def check_frame_memory(width, height, layers=1, kept_images=0, lights=0, samples=0, sample_lights=0):
     """Refuse, with one line, a frame whose per-pixel arrays would not fit in memory.
