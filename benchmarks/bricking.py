@@ -21,7 +21,8 @@ import numba
 import numpy as np
 
 from parc.camera import Camera
-from parc.renderer import _NO_STOP, accumulation_params
+from parc.renderer import accumulation_params
+from parc.workspace import NO_SEGMENTS, NO_STOP
 from parc.segments import parc_segments
 from parc.skip import skip_table
 from parc.scene import Isosurface, Scene, Translucent
@@ -40,7 +41,7 @@ def cast_iso(samples, vis, cam, w, h, seg, skip, jump_min):
     use_seg = seg is not None
     t0 = time.perf_counter()
     cast_iso_image(samples, np.array(vol.origin), np.array(vol.spacing), cam.as_array(), w, h, vis.value,
-                   seg if use_seg else np.empty((1, 1, 2)), use_seg, skip, jump_min, t, cell, uvw, counts,
+                   seg if use_seg else NO_SEGMENTS, use_seg, skip, jump_min, t, cell, uvw, counts,
                    0, h, True, np.ones(3), np.array([0.1, 0.7, 0.2, 20.0]), image)
     return time.perf_counter() - t0, (t, image)
 
@@ -55,7 +56,7 @@ def cast_translucent(samples, vis, cam, w, h, seg, skip, jump_min):
     t0 = time.perf_counter()
     cast_accumulate_image(samples, np.array(vol.origin), np.array(vol.spacing), cam.as_array(), w, h,
                           accumulation_params(vis), op_x, op_y, col_x, col_rgb,
-                          seg if use_seg else np.empty((1, 1, 2)), use_seg, _NO_STOP, False,
+                          seg if use_seg else NO_SEGMENTS, use_seg, NO_STOP, False,
                           np.zeros((1, 1, 1), np.uint32), False, skip, jump_min, image, counts, 0, h)
     return time.perf_counter() - t0, (image, counts)
 

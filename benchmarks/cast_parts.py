@@ -105,7 +105,8 @@ def iso_parts(vol, iso, size, repeats):
 
 def translucent_parts(vol, tf_name, size, repeats):
     from parc import Translucent, load_transfer_function
-    from parc.renderer import _NO_STOP, accumulation_params
+    from parc.renderer import accumulation_params
+    from parc.workspace import NO_STOP
     from raycast.composite import cast_accumulate_image
     from raycast.iso import NO_SKIP
 
@@ -120,7 +121,7 @@ def translucent_parts(vol, tf_name, size, repeats):
 
     def cast(use_seg, table, jm):
         return cast_accumulate_image(vol.data, org, spc, cam, size, size, params, op_x, op_y, col_x, col_rgb,
-                                     seg, use_seg, _NO_STOP, False, bits, False, table, jm, image, counts, 0, size)
+                                     seg, use_seg, NO_STOP, False, bits, False, table, jm, image, counts, 0, size)
 
     samples_brute = cast(False, NO_SKIP, -1)
     reference = image.copy()
