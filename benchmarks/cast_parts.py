@@ -61,7 +61,7 @@ def frame(vis, size):
 
 def iso_parts(vol, iso, size, repeats):
     from parc import Isosurface
-    from parc.renderer import iso_work
+    from parc.workspace import iso_work
     from raycast.iso import NO_SKIP_OCTANTS as NO_SKIP, cast_iso_image
 
     vis = Isosurface(vol, iso)

@@ -47,7 +47,8 @@ from raycast.shadow import (combine_lights, combine_samples, light_terms, shadow
 from .lights import (LIGHT_BUFFER_CACHE_SIZE, LIGHT_BUFFER_SIZE, buffer_bytes, light_array, light_buffers,
                      light_cache_bytes, light_views, no_views)
 from .scene import DirectionalLight, Isosurface
-from .workspace import LIGHT_BYTES_PER_PIXEL, NO_BITS, NO_SEGMENTS, SAMPLE_BYTES, shadowed_samples, work_array
+from .workspace import (LIGHT_BYTES_PER_PIXEL, NO_BITS, NO_SEGMENTS, SAMPLE_BYTES, column_totals, iso_work, row_bands,
+                        shadowed_samples, work_array)
 
 #: Shadow rays start this far (times the smallest spacing of the surface they leave) from their hit point.
 SHADOW_EPS = 1e-5
@@ -95,7 +96,6 @@ class _Frame:
     """What every step of one `render_scene` frame reads, and the counts and seconds they add to."""
 
     def __init__(self, scene, method, supercell, progress, light_buffer, blocks, work):
-        from .renderer import row_bands
 
         self.scene = scene
         self.parc = method == "parc"
@@ -168,7 +168,6 @@ def _cast_surfaces(frame, segs):
     the scene index of the volume hit (-1 for none), and the hit's cell and local coordinates,
     read only where ``winner >= 0``.
     """
-    from .renderer import iso_work
     from .skip import octant_skip_tables
 
     w, h, npx = frame.w, frame.h, frame.npx
@@ -397,7 +396,6 @@ def _shadows(frame, lights, points, groups, visible):
                                       points[a:b], row, eps, views, near, far, frame.parc, skip, jump_min,
                                       v_l[a:b], cnt[a:b], v.step if owner == n else 0.0)
             timings["shadow"] += time.perf_counter() - t0
-    from .renderer import column_totals
     cells, solves, samples = column_totals(cnt)[:3]
     counts["shadow_cells"] += cells
     counts["shadow_solves"] += solves

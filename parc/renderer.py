@@ -8,8 +8,9 @@ casting kernels are the same for both methods. Scenes of several volumes, of
 an isosurface with lights, or of shaded samples with shadows go to
 `_render_general` (`parc.multivolume`; `_casts_alone` decides).
 
-Also here, shared with `parc.multivolume` and the benchmarks: the kernels'
-arguments (`accumulation_params`, `iso_work`); the skip tables are `parc.skip`'s.
+Also here, shared with `parc.multivolume` and the benchmarks: a translucent volume's
+``params`` for the kernels (`accumulation_params`); their work arrays and the bands a frame is
+cast in are `parc.workspace`'s, the skip tables `parc.skip`'s.
 """
 from __future__ import annotations
 
@@ -30,7 +31,8 @@ from .lights import light_array
 from .scene import Isosurface, Scene, Translucent, describe_volume
 from .segments import cached_proxy, parc_segments
 from .skip import octant_skip_tables, skip_table
-from .workspace import NO_BITS, NO_SEGMENTS, NO_STOP, check_scene_memory, shadowed_samples, work_array
+from .workspace import (NO_BITS, NO_SEGMENTS, NO_STOP, check_scene_memory, iso_work, row_bands, shadowed_samples,
+                        work_array)
 
 METHODS = ("brute", "parc")
 #: Held by every render. Re-entrant, so that a render asked for inside a render's
@@ -481,13 +483,6 @@ def parse_buffers(buffers):
     return names
 
 
-def iso_work(n, slot=0):
-    """The isosurface caster's per-ray ``cell``, ``uvw`` and ``counts`` arrays for ``n`` rays,
-    reused from frame to frame (`parc.workspace`); ``slot`` tells apart sets alive at once."""
-    return (work_array(("iso_cell", slot), (n, 3), np.int32), work_array(("iso_uvw", slot), (n, 3)),
-            work_array(("iso_counts", slot), (n, 2), np.int64))
-
-
 def accumulation_params(vis, lights=()):
     """The ``params`` array of `raycast.composite` for a Translucent volume, its shaded samples
     lit by ``lights`` (a scene's; none: the headlight, `parc.lights.light_array`)."""
@@ -537,28 +532,3 @@ def _render_translucent(scene, vis, seg, use_seg, skip_blocks, timings, progress
             progress((n + 1) / len(bands))
     timings["cast"] = time.perf_counter() - t0
     return image, np.full((h, w), np.inf), {"hits": 0, "samples": int(samples), "per_pixel": counts}
-
-
-def column_totals(counts):
-    """Column sums of an ``(n, k)`` per-ray counter array, as Python ints.
-
-    Summed column by column: NumPy's axis-0 reduction over a narrow
-    C-ordered array is about ten times slower (6 ms at 600x600, per frame).
-    """
-    return tuple(int(counts[:, c].sum()) for c in range(counts.shape[1]))
-
-
-#: Most pixels a cast covers in one call: Ctrl-C (and SIGTERM) act between calls, not
-#: within a Numba kernel, so a large frame is cast in bands of about this many.
-BAND_PIXELS = 1 << 18
-
-
-def row_bands(h, w, progress):
-    """Row ranges cast one call at a time: bands of at most about `BAND_PIXELS` (one for a
-    frame up to 512 x 512), and ~16 when progress is reported (`parc.outputs.Progress`
-    shows it only for a render that takes a while). Whole tiles of 4 rows."""
-    step = max(4, BAND_PIXELS // max(w, 1))
-    if progress is not None:
-        step = min(step, max(4, -(-h // 16)))
-    step += (-step) % 4
-    return [(y, min(h, y + step)) for y in range(0, h, step)]

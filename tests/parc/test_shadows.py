@@ -362,7 +362,7 @@ def test_a_volume_stops_at_its_own_threshold_beside_others(gl, method, seed):
 def test_a_scene_cast_in_bands_is_the_scene_cast_whole_with_progress_through_each(gl, method, monkeypatch):
     """Large frames are cast a band of rows at a time (Ctrl-C acts between bands): the image is
     the same, and progress moves through every phase, the translucent one included."""
-    import parc.renderer as renderer
+    import parc.workspace as workspace
     rng = np.random.default_rng(11)
     a = _volume(rng, "blobs")
     b = Volume(a.data, spacing=a.spacing, origin=tuple(np.array(a.origin) + 2.0), name="b")
@@ -372,7 +372,7 @@ def test_a_scene_cast_in_bands_is_the_scene_cast_whole_with_progress_through_eac
                   lights=[_light(rng, "outside", lo, hi)], shadows=True)
     expect_frames(scene)            # both frames with the skip tables, so their counts agree
     whole = render(scene, method)
-    monkeypatch.setattr(renderer, "BAND_PIXELS", 4 * SIZE[0])
+    monkeypatch.setattr(workspace, "BAND_PIXELS", 4 * SIZE[0])
     seen = []
     banded = render(scene, method, progress=seen.append)
     assert np.array_equal(whole.image, banded.image) and np.array_equal(whole.depth, banded.depth)
