@@ -22,7 +22,7 @@ import numpy as np
 
 from parc.camera import Camera
 from parc.renderer import accumulation_params
-from parc.workspace import NO_SEGMENTS, NO_STOP
+from parc.workspace import NO_BITS, NO_SEGMENTS, NO_STOP
 from parc.segments import parc_segments
 from parc.skip import skip_table
 from parc.scene import Isosurface, Scene, Translucent
@@ -57,7 +57,7 @@ def cast_translucent(samples, vis, cam, w, h, seg, skip, jump_min):
     cast_accumulate_image(samples, np.array(vol.origin), np.array(vol.spacing), cam.as_array(), w, h,
                           accumulation_params(vis), op_x, op_y, col_x, col_rgb,
                           seg if use_seg else NO_SEGMENTS, use_seg, NO_STOP, False,
-                          np.zeros((1, 1, 1), np.uint32), False, skip, jump_min, image, counts, 0, h)
+                          NO_BITS, False, skip, jump_min, image, counts, 0, h)
     return time.perf_counter() - t0, (image, counts)
 
 

@@ -106,7 +106,7 @@ def iso_parts(vol, iso, size, repeats):
 def translucent_parts(vol, tf_name, size, repeats):
     from parc import Translucent, load_transfer_function
     from parc.renderer import accumulation_params
-    from parc.workspace import NO_STOP
+    from parc.workspace import NO_BITS, NO_STOP
     from raycast.composite import cast_accumulate_image
     from raycast.iso import NO_SKIP
 
@@ -117,7 +117,7 @@ def translucent_parts(vol, tf_name, size, repeats):
     op_x, op_y, col_x, col_rgb = tf.arrays()
     image = np.empty((size, size, 4), np.float32)
     counts = np.empty(size * size, np.int64)
-    bits = np.zeros((1, 1, 1), np.uint32)
+    bits = NO_BITS
 
     def cast(use_seg, table, jm):
         return cast_accumulate_image(vol.data, org, spc, cam, size, size, params, op_x, op_y, col_x, col_rgb,

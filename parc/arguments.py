@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import difflib
+import os
 import re
 import sys
 import textwrap
@@ -97,6 +98,8 @@ class _Parser(argparse.ArgumentParser):
     def _hint(self, unknown):
         """What a user likely meant by the first of the ``unknown`` arguments: a flag spelt
         otherwise (``--look_at``, ``--lookat``), or a second volume, which takes a scene file."""
+        if not unknown:             # an empty argument ("") is unknown as no word
+            return ""
         first = unknown[0]
         # The command's parser: argparse reports what it does not know from the top one.
         given = getattr(self, "_given", [])
@@ -108,11 +111,18 @@ class _Parser(argparse.ArgumentParser):
             flags = [f for action in parser._actions for f in action.option_strings if f.startswith("--")]
             close = difflib.get_close_matches(name, flags, n=1, cutoff=0.75)
             return f"; did you mean {close[0]}?" if close else ""
-        if not first.startswith("-") and any(a.dest == "volume" for a in parser._actions):
+        if (any(a.dest == "volume" for a in parser._actions) and not first.startswith("-")
+                and (os.path.exists(first) or _looks_like_a_file(first))):
             if command in ("render", "compare"):
                 return "; one volume a command: show several with a scene file's [[volume]] tables (README, Scene files)"
             return f"; {command} takes one volume"
         return ""
+
+
+def _looks_like_a_file(word):
+    """Whether ``word`` is named as a volume or scene file is (``b.nrrd``), not a number or a vector."""
+    from data_tools.io import READ_EXTENSIONS
+    return word.lower().endswith(tuple(READ_EXTENSIONS) + (".toml",))
 
 
 def one_flag_a_light(flag):

@@ -41,9 +41,10 @@ class Camera:
         Position, point looked at, and the up hint (need not be orthogonal
         to the view direction, but must not be parallel to it). The defaults
         are OpenGL's: down -z with +y up. `framing`, scene files and the
-        command line take +z up instead (``--up``'s default, (0, 0, 1)), so
-        a camera given an eye and a point to look at, and no ``up``, is
-        turned from the command line's with the same two.
+        command line take +z up instead (``--up``'s default: (0, 0, 1), or
+        (0, 1, 0) for a view along z), so a camera given an eye and a point
+        to look at, and no ``up``, is turned from the command line's with
+        the same two, and one looking along y needs an ``up``.
     fov : float, default 30
         Vertical field of view in degrees, in (0, 180); perspective only.
     parallel_scale : float or None

@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import os
+import re
 import shlex
 import signal
 import sys
@@ -474,7 +475,8 @@ def _heading(args, scene, sweeping_step=False):
         return f"{args.volume}: {len(scene.volumes)} volumes ({_describe_all(scene.volumes)}), {runs}"
     shown = f"{vis.mode} of {vis.tf.title}" if sweeping_step else _shown(vis)
     dims = "x".join(map(str, vis.volume.dims))
-    sized = f"{vis.volume.dtype}" if dims in vis.volume.name else f"{dims} {vis.volume.dtype}"    # "builtin 64x64x64"
+    named = re.search(rf"(?<!\d){dims}(?!\d)", vis.volume.name)         # "builtin 64x64x64"
+    sized = f"{vis.volume.dtype}" if named else f"{dims} {vis.volume.dtype}"
     return f"{vis.volume.name}: {sized}, {shown}, {runs}"
 
 

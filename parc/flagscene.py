@@ -32,14 +32,34 @@ def load_volume_flags(args):
     if flag and args.volume and TRIPLE.fullmatch(args.volume) and not os.path.exists(args.volume):
         # "--light x,y,z x,y,z" with no volume before it: argparse takes the second light for one.
         raise InputError(f"{args.volume}: no such file{one_flag_a_light(flag)}")
+    if args.volume and (role := _not_a_volume(args.volume)):
+        raise InputError(f"{args.volume}: {role}")
     if _is_scene_file(args):
         raise InputError(f"{args.volume}: a scene file; parc {args.command} reads one volume file "
                          "(parc render and parc compare read scenes)")
-    if args.volume and Path(args.volume).suffix.lower() == ".json" and os.path.isfile(args.volume):
-        # A transfer function or a ParaView colour map: the only JSON parc reads.
-        raise InputError(f"{args.volume}: a volume file is not JSON; a transfer function (or ParaView "
-                         "colour map) is given with --tf")
     return load_volume(args.volume, **{name: getattr(args, name) for name in _READING_FLAGS})
+
+
+def _not_a_volume(name):
+    """What the file ``name`` is, where it is a file parc reads in another role than a volume's:
+    a volume's sidecar, or a transfer function (TOML, JSON, ParaView's colour maps); else None."""
+    lower = name.lower()
+    if not lower.endswith((".json", ".toml")) or not os.path.isfile(name):
+        return None
+    if lower.endswith(".npy.json"):
+        return f"the spacing and origin of {name[:-5]} (its sidecar): give {name[:-5]}"
+    import json
+
+    from .tomltables import tomllib
+    try:
+        doc = (json.loads if lower.endswith(".json") else tomllib.loads)(Path(name).read_text())
+    except (OSError, ValueError):       # the reader's own error says more
+        return None
+    tables = doc if isinstance(doc, list) else [doc]
+    if all(isinstance(t, dict) for t in tables) and any(
+            "volume" not in t and {"opacity", "color", "RGBPoints"} & set(t) for t in tables):
+        return "a transfer function, not a volume: parc render and parc compare take it with --tf"
+    return None
 
 
 #: Flags that say how to read the volume file: `load_volume`'s options, under the same names.

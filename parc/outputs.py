@@ -197,9 +197,10 @@ def write_png(image, path):
 def time_left(seconds):
     """``about 40 s left``, ``about 3 min left``, ``about 2 h 5 min left``: a progress line's
     estimate, rounded as coarsely as an estimate of the rest of the work deserves."""
-    if seconds < 60:
-        return f"about {max(1, round(seconds / 5) * 5 if seconds >= 10 else round(seconds))} s left"
-    minutes = round(seconds / 60)
+    said = max(1, round(seconds / 5) * 5 if seconds >= 10 else round(seconds))
+    if said < 60:
+        return f"about {said} s left"
+    minutes = max(1, round(seconds / 60))
     if minutes < 60:
         return f"about {minutes} min left"
     return f"about {minutes // 60} h {minutes % 60} min left"

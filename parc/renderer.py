@@ -198,8 +198,10 @@ def check_request(scene, buffers, work, names=("buffers", "work")):
     names them by its flags (``names``)."""
     buffers = parse_buffers(buffers)
     if "depth" not in buffers and any(isinstance(v, Isosurface) for v in scene.volumes):
+        both = any(isinstance(v, Translucent) for v in scene.volumes) and not bits_refused(scene)
         raise InputError(f"{names[0]} {','.join(buffers)} leave out the depth buffers isosurfaces use; "
-                         f"bit planes apply to translucent volumes: give {names[0]} depth,bits for both")
+                         f"bit planes apply to translucent volumes: give {names[0]} "
+                         + ("depth,bits for both" if both else "depth"))
     # "depth,bits" for isosurfaces alone would otherwise leave the planes out without a word.
     if "bits" in buffers and (why := bits_refused(scene)):
         raise InputError(f"{names[0]} {','.join(buffers)}: {why}")

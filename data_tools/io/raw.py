@@ -249,7 +249,9 @@ def read_raw(path, *, shape=None, dtype=None, byte_order=None, offset=0,
         if named and (" data truncated: " in text or " data too long: " in text):
             what = " and ".join({"--shape": "shape", "--dtype": "type"}[f] for f in named)
             give = f"{named[0]} gives another" if len(named) == 1 else f"{' and '.join(named)} give others"
-            raise InputError(f"{text} ({what} from the file's name; {give})") from None
+            keys = ", ".join(f[2:] for f in named)
+            raise InputError(f"{text} ({what} from the file's name; {give}, {keys} in Python and scene "
+                             "files)") from None
         if "non-finite samples" in text:
             # Floats read in the wrong byte order, or another type read as floats, come out so.
             raise InputError(f"{text}, unless they are misread: check --byte-order, --dtype and --offset "

@@ -453,8 +453,10 @@ def test_raw_floats_read_in_the_wrong_byte_order_are_said_to_be_perhaps_misread(
     assert load_volume(p, shape=(60, 50, 40), dtype="float32").data.max() == 1.0
 
 
-@pytest.mark.parametrize("options, said", [({}, " (shape and type from the file's name; --shape and --dtype give others)"),
-                                           ({"shape": (64, 64, 64)}, " (type from the file's name; --dtype gives another)"),
+@pytest.mark.parametrize("options, said", [({}, " (shape and type from the file's name; --shape and --dtype give "
+                                                "others, shape, dtype in Python and scene files)"),
+                                           ({"shape": (64, 64, 64)}, " (type from the file's name; --dtype gives "
+                                                                     "another, dtype in Python and scene files)"),
                                            ({"shape": (64, 64, 64), "dtype": "uint8"}, "")])
 def test_a_raw_file_of_another_size_than_its_name_says_is_said_to_be_read_by_its_name(tmp_path, options, said):
     p = tmp_path / "bucky_64x64x64_uint8.raw"

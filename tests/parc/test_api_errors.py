@@ -126,7 +126,9 @@ CASES = {
         "this scene has isosurfaces alone"),
     "bit planes alone beside an isosurface": (
         lambda: parc.render(_scene(volumes=[parc.Isosurface(VOL, ISO), parc.Translucent(VOL, "greyscale")]),
-                            method="parc", buffers="bits"), "leave out the depth buffers isosurfaces use"),
+                            method="parc", buffers="bits"),
+        "leave out the depth buffers isosurfaces use; bit planes apply to translucent volumes: give buffers "
+        "depth,bits for both"),
     "supercell as text for brute": (lambda: parc.render(_scene(), supercell="a"), "supercell"),
     "shade with mip": (lambda: parc.Translucent(VOL, "greyscale", mode="mip", shade=True), "mode composite"),
     # Refused as the command line and scene files refuse it, not taken and ignored.
@@ -261,7 +263,9 @@ def test_methods_may_be_named_in_one_string_each_once():
 
 
 @pytest.mark.parametrize("options, words", [
-    ({"parc": {"buffers": "bits"}}, "buffers bits leave out the depth buffers isosurfaces use"),
+    # An isosurface alone: the planes apply to nothing, and depth,bits would be refused in turn.
+    ({"parc": {"buffers": "bits"}}, "buffers bits leave out the depth buffers isosurfaces use; bit planes apply to "
+                                    "translucent volumes: give buffers depth"),
     ({"parc": {"buffers": "bogus"}}, "PARC buffers must be depth, bits or both"),
     ({"parc": {"blocks": "yes"}}, "blocks must be True or False, got 'yes'"),
     ({"parc:a": {"light_buffer": 1}}, "light buffers take a whole number of pixels from 2"),

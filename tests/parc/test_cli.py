@@ -100,7 +100,8 @@ def test_the_time_left_ignores_a_slow_start(monkeypatch, capsys):
 
 
 @pytest.mark.parametrize("seconds, said", [(0.3, "about 1 s left"), (7.4, "about 7 s left"),
-                                           (42.0, "about 40 s left"), (185.0, "about 3 min left"),
+                                           (42.0, "about 40 s left"), (59.0, "about 1 min left"),
+                                           (185.0, "about 3 min left"),
                                            (3599.0, "about 1 h 0 min left"), (7500.0, "about 2 h 5 min left")])
 def test_the_time_left_is_rounded_as_an_estimate(seconds, said):
     from parc.outputs import time_left
@@ -2638,9 +2639,13 @@ def test_average_mode_in_compare_gets_no_note_about_an_image(capsys):
     assert rc == 0 and out and "--background" not in err, err
 
 
-def test_compare_s_heading_names_the_volume_s_size_once(vol_file, capsys):
+def test_compare_s_heading_names_the_volume_s_size_once(vol_file, tmp_path, capsys):
     # The built-in volume's name holds its size: "builtin 64x64x64: 64x64x64 uint8" said it twice.
+    # A name holding another size only ending in it is no such name.
+    raw = tmp_path / "x_112x12x12_float32.raw"
+    np.zeros(12 ** 3, np.float32).tofile(raw)
     for argv, heading in ((["compare"], "builtin 64x64x64: uint8, isovalue 127.5, 8x8 pixels"),
-                          (["compare", vol_file, "--iso", 4], f"{vol_file}: 12x12x12 float32, isovalue 4, 8x8 pixels")):
+                          (["compare", vol_file, "--iso", 4], f"{vol_file}: 12x12x12 float32, isovalue 4, 8x8 pixels"),
+                          (["compare", raw, "--shape", "12,12,12", "--iso", 0], f"{raw}: 12x12x12 float32, ")):
         rc, out, err = _run([*argv, "--size", 8, 8, "--repeats", 1, "--methods", "brute", "--quiet"], capsys)
         assert rc == 0 and out.splitlines()[0].startswith(heading), out

@@ -286,9 +286,19 @@ def test_a_file_given_in_the_wrong_role_is_named_for_the_role_it_has(vol_file, t
     out = tmp_path / "o.png"
     _refused(["render", tf_toml, "-o", out], f"{tf_toml}: a transfer function, not a scene (it has no [[volume]] "
              "tables): give it with --tf", capsys)
-    for command in (["render", tf_json, "-o", out], ["info", tf_json]):
-        _refused(command, f"{tf_json}: a volume file is not JSON; a transfer function (or ParaView colour map) "
-                 "is given with --tf", capsys)
+    for tf in (tf_json, tf_toml):
+        for command in (["render", tf, "-o", out], ["info", tf], ["convert", tf, "-o", tmp_path / "v.nrrd"]):
+            if command[0] == "render" and tf == tf_toml:
+                continue                        # a scene file's place: said above
+            _refused(command, f"{tf}: a transfer function, not a volume: parc render and parc compare take it "
+                     "with --tf", capsys)
+    # A volume's sidecar, or JSON of neither kind, is not called a transfer function.
+    np.save(tmp_path / "v.npy", np.zeros((2, 2, 2), np.float32))
+    (tmp_path / "v.npy.json").write_text('{"spacing": [1, 1, 1], "origin": [0, 0, 0]}')
+    _refused(["info", tmp_path / "v.npy.json"], f"{tmp_path / 'v.npy.json'}: the spacing and origin of "
+             f"{tmp_path / 'v.npy'} (its sidecar): give {tmp_path / 'v.npy'}", capsys)
+    (tmp_path / "other.json").write_text('{"a": 1}')
+    _refused(["info", tmp_path / "other.json"], "unknown volume file type '.json'", capsys)
     _refused(["render", vol_file, "--tf", scene, "-o", out], f"{scene}: a scene file (it has [[volume]] tables), "
              "not a transfer function: give it as the volume", capsys)
     assert not out.exists()

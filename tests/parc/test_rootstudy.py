@@ -370,3 +370,30 @@ def test_the_project_walk_is_the_casters_over_a_whole_category():
         np.testing.assert_array_equal(t, ref_t)
         np.testing.assert_array_equal(cell[hit], ref_cell[hit])
         np.testing.assert_array_equal(uvw[hit], ref_uvw[hit])
+
+
+@pytest.mark.parametrize("big", [2.0 ** 60, 1e28])
+@pytest.mark.parametrize("side", [1.0, -1.0], ids=["above", "below"])
+def test_the_study_s_walk_hits_a_root_within_rounding_of_a_face_as_the_caster_does(side, big):
+    """The case of `tests/raycast/test_iso_exact.py`'s test of that name, walked by the study
+    with the project's finder: two cells along y, samples -big on the face y = 0 and 1 elsewhere,
+    so that the surface lies on the face y = 1, where the first cell's value rounds to either
+    sign. Without the caster's rule for a rounded sign carried into a one-signed cell, a third
+    of these rays missed it, and the study's check against the caster could fail."""
+    from parc.rootstudy import PROJECT, walk_rays
+    data = np.ones((2, 3, 2))
+    data[:, 0, :] = -big
+    data *= side
+    rng = np.random.default_rng(3)
+    n = 400
+    o = np.stack([rng.uniform(0.05, 0.95, n), np.full(n, -0.5), rng.uniform(0.05, 0.95, n)], 1)
+    d = np.stack([rng.uniform(-0.02, 0.02, n), np.ones(n), rng.uniform(-0.02, 0.02, n)], 1)
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    t, cell, uvw = np.empty(n), np.empty((n, 3), np.int64), np.empty((n, 3))
+    solves, offsets = np.empty(n, np.int64), np.zeros(n, np.int64)
+    walk_rays(data, np.zeros(3), np.ones(3), o, d, np.zeros(n), PROJECT, t, cell, uvw, solves, np.empty((0, 5)),
+              offsets)
+    face = (1.0 - o[:, 1]) / d[:, 1]
+    assert np.all(np.isfinite(t)), f"{np.sum(~np.isfinite(t))} of {n} rays miss the surface"
+    assert np.max(np.abs(t - face)) <= 1e-9
+    assert np.max(np.abs(cell + uvw - (o + t[:, None] * d))) <= 1e-9
