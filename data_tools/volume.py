@@ -84,7 +84,9 @@ class Volume:
     ------
     InputError
         Not 3-D, a dimension below 2, an unsupported dtype, non-finite
-        float samples, or a spacing that is not positive and finite.
+        float samples or samples beyond ±1e200 (`MAX_SAMPLE`: a cell's cubic
+        would overflow), or a spacing outside 1e-30 to 1e30 (`MIN_SPACING`,
+        `MAX_SPACING`).
     """
 
     data: np.ndarray

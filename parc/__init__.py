@@ -26,6 +26,7 @@ _WHERE = {
     "load_transfer_function": ".transfer",
     "load_volume": "data_tools.io",
     "render": ".renderer",
+    "save_transfer_function": ".transfer",
     "save_volume": "data_tools.io",
 }
 

@@ -114,7 +114,8 @@ class _Parser(argparse.ArgumentParser):
         if (any(a.dest == "volume" for a in parser._actions) and not first.startswith("-")
                 and (os.path.exists(first) or _looks_like_a_file(first))):
             if command in ("render", "compare"):
-                return "; one volume a command: show several with a scene file's [[volume]] tables (README, Scene files)"
+                return ("; one volume a command: show several with a scene file's [[volume]] tables "
+                        "(README, Scene files)")
             return f"; {command} takes one volume"
         return ""
 
@@ -368,7 +369,8 @@ def build_parser():
                                    "full suite takes about 2 minutes on 2 cores (the phantom, 910 MB, is written "
                                    "to the cache folder on the first run, a minute more); exits 1 if a consistency "
                                    "check fails.")
-    b.add_argument("--out", default="bench-report", metavar="DIR", help="output folder: new, empty, or an earlier report's (default bench-report)")
+    b.add_argument("--out", default="bench-report", metavar="DIR",
+                   help="output folder: new, empty, or an earlier report's (default bench-report)")
     size = b.add_mutually_exclusive_group()
     size.add_argument("--quick", action="store_true",
                       help="a reduced suite, under a minute on 2 cores: half-size images, 2 repeats, a 256x256x867 phantom")

@@ -52,7 +52,7 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
     methods : sequence of str
         Methods to run; ``"brute"`` is always run (first) as the reference.
     repeats : int, default 3
-        Timed renders per method (at most `MAX_REPEATS`), taken in rounds of one render per method
+        Timed renders per method (at most `MAX_REPEATS`, 10,000), taken in rounds of one render per method
         (so that a drift in the machine's speed reaches every method
         alike); the median wall time of a whole `render` call is reported.
     warmup : int, default 1
@@ -63,7 +63,7 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
         a colon (``"parc:4"``) so one method appears with several options.
     progress : callable(str) or None
         Told, as a line of text, which method warms up and, when a round
-        lasts a while (`SLOW_ROUND` seconds), which round is timed.
+        lasts a while (`SLOW_ROUND`, 2 seconds), which round is timed.
 
     Returns
     -------
@@ -73,8 +73,9 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
         for a small image can be as long as the frame), ``phases`` (seconds per phase of
         the median run), ``speedup`` against brute (brute's ``seconds`` over the method's),
         the `image_error` fields (depths in cells of the first volume's smallest spacing, the
-        strictest reading of "a cell"), ``cells_visited``, ``cubic_solves``,
-        ``samples``, ``shadow_cells``, ``shadow_solves``, ``shadow_samples``, ``shadow_rays``, ``hits``,
+        strictest reading of "a cell"; ``psnr`` is ``inf`` for an image identical to brute's,
+        which strict JSON lacks: `parc.outputs.to_json` writes it as null, as ``--json`` does),
+        ``cells_visited``, ``cubic_solves``, ``samples``, ``shadow_cells``, ``shadow_solves``, ``shadow_samples``, ``shadow_rays``, ``hits``,
         ``polygons``, ``supercell`` (where `render` gives its volumes' sizes under ``volumes``,
         the size they share, else None, and ``supercells`` each's), ``pixels``, ``opengl_share`` (the
         median run's share of time in `OPENGL_PHASES`), ``speedup_low`` and

@@ -233,7 +233,7 @@ def _light_hits(frame, depth, winner, cell, uvw):
     diffuse, specular, visible = _light_terms(points, normals, views, materials, lights)
     timings["shade"] = time.perf_counter() - t0
     if frame.scene.shadows and frame.scene.lights:
-        _shadows(frame, lights, points, groups, visible)
+        _shadows(frame, lights, points, groups, visible, lambda f: frame.report.part("lighting", f))
     t0 = time.perf_counter()
     combine_lights(colors, materials, lights, diffuse, specular, visible, hit, image.reshape(npx, 4))
     timings["shade"] += time.perf_counter() - t0
@@ -314,6 +314,7 @@ class _Report:
 
     def __init__(self, progress, n_iso, n_trans, shadows, sample_shadows=False):
         self.progress = progress
+        self.said = 0.0
         self.sample_shadows = sample_shadows
         # Shadow rays from a translucent volume's samples outnumber its samples that add colour.
         weights = {"buffers": 0.3 * (n_iso + n_trans), "surfaces": n_iso,
@@ -330,7 +331,10 @@ class _Report:
     def part(self, phase, fraction):
         if self.progress is not None:
             a, b = self.spans[phase]
-            self.progress(b if fraction >= 1.0 else min(b, a + (b - a) * fraction))
+            value = b if fraction >= 1.0 else min(b, a + (b - a) * fraction)
+            if value > self.said:           # each fraction once, rising: a phase of no weight adds none
+                self.said = value
+                self.progress(value)
 
     def done(self, phase):
         self.part(phase, 1.0)
@@ -346,9 +350,9 @@ def _light_terms(points, normals, views, materials, lights):
     return diffuse, specular, ((diffuse > 0.0) | (specular > 0.0)).astype(np.float64)
 
 
-def _shadows(frame, lights, points, groups, visible):
+def _shadows(frame, lights, points, groups, visible, report=None):
     """Shadow rays from every hit to every light, volume by volume; ``visible`` (each light's
-    visibility at each point) scaled in place.
+    visibility at each point) scaled in place; ``report(fraction)``, if given, told how far.
 
     ``groups``: ``(first, end, volume, n)``, the hits ``points[first:end]`` on the surface of
     ``volume`` (the scene's volume ``n``), or its translucent samples. A shadow ray starts and
@@ -364,6 +368,9 @@ def _shadows(frame, lights, points, groups, visible):
     scene, sizes, timings, counts = frame.scene, frame.sizes, frame.timings, frame.counts
     nh = len(points)
     cnt = np.zeros((nh, 3), np.int64)
+    # The rays in about 16 runs a light and volume, for progress between them (and a Ctrl-C).
+    run = max(SHADOW_RUN, -(-nh // 16))
+    passes, done = len(scene.lights) * len(scene.volumes) * max(nh, 1), 0
     for l, light in enumerate(scene.lights):
         row = lights[l]
         v_l = visible[l]
@@ -385,22 +392,30 @@ def _shadows(frame, lights, points, groups, visible):
             org = np.array(vol.origin)
             spc = np.array(vol.spacing)
             skip, jump_min = skip_table(v, frame.parc and frame.blocks)
-            for a, b, surface, owner in groups:
+            for first, end, surface, owner in groups:
                 eps = SHADOW_EPS * min(surface.spacing)
-                if isinstance(v, Isosurface):
-                    shadow_iso(vol.data, org, spc, v.value, points[a:b], row, eps, views, near, far,
-                               frame.parc, skip, jump_min, v_l[a:b], cnt[a:b])
-                else:
-                    op_x, op_y, col_x, col_rgb = v.tf.arrays()
-                    shadow_accumulate(vol.data, org, spc, accumulation_params(v), op_x, op_y, col_x, col_rgb,
-                                      points[a:b], row, eps, views, near, far, frame.parc, skip, jump_min,
-                                      v_l[a:b], cnt[a:b], v.step if owner == n else 0.0)
+                for a in range(first, end, run):
+                    b = min(end, a + run)
+                    if isinstance(v, Isosurface):
+                        shadow_iso(vol.data, org, spc, v.value, points[a:b], row, eps, views, near, far,
+                                   frame.parc, skip, jump_min, v_l[a:b], cnt[a:b])
+                    else:
+                        op_x, op_y, col_x, col_rgb = v.tf.arrays()
+                        shadow_accumulate(vol.data, org, spc, accumulation_params(v), op_x, op_y, col_x, col_rgb,
+                                          points[a:b], row, eps, views, near, far, frame.parc, skip, jump_min,
+                                          v_l[a:b], cnt[a:b], v.step if owner == n else 0.0)
+                    done += b - a
+                    if report is not None:
+                        report(done / passes)
             timings["shadow"] += time.perf_counter() - t0
     cells, solves, samples = column_totals(cnt)[:3]
     counts["shadow_cells"] += cells
     counts["shadow_solves"] += solves
     counts["shadow_samples"] += samples
 
+
+#: Fewest shadow rays cast in one call (`_shadows`): a call costs little beside this many rays.
+SHADOW_RUN = 4096
 
 #: Most translucent samples lit at once (`_light_samples`), each taking `parc.workspace.SAMPLE_BYTES`
 #: and `parc.workspace.LIGHT_BYTES_PER_PIXEL` a light.
@@ -448,7 +463,8 @@ def _light_samples(frame, comp, per_pixel, merged, front):
             if a < b:
                 groups.append((a, b, v.volume, m))
         grouped = np.ascontiguousarray(visible[:, order])
-        _shadows(frame, lights, record.points[order], groups, grouped)
+        _shadows(frame, lights, record.points[order], groups, grouped,
+                 lambda f, rows=y1 - y0: frame.report.part("sample shadows", (done + rows * f) / h))
         visible[:, order] = grouped
         t0 = time.perf_counter()
         combine_samples(record.slots, record.counts, record.colors, record.weights, materials, lights, diffuse,

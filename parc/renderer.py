@@ -64,7 +64,9 @@ class RenderResult:
         with bit planes, their ``plane_polygons``; with shadows, the light buffers' faces drawn
         this frame, ``light_polygons``) and the parameters used. Cells and cubics count
         isosurfaces' work, samples translucent volumes'; a process's first ``seconds["total"]``
-        also holds loading the casters and making OpenGL's context, beyond the phases listed.
+        also holds loading the casters and making OpenGL's context, beyond the phases listed,
+        and the phases of a first render of its kind hold compiling the kernels they call (10 to
+        60 s in all, once on a machine: `compile_notice` in `parc.outputs`).
         A scene of several volumes, of an isosurface with lights or of shaded samples with
         shadows also gives ``shadow_rays``, ``shadow_cells``,
         ``shadow_solves`` and ``shadow_samples``, and each volume's ``polygons``,
@@ -81,6 +83,19 @@ class RenderResult:
     depth: np.ndarray
     stats: dict
     work: np.ndarray | None = None
+
+    def save(self, path):
+        """Write the image to ``path``: a ``.png`` of 8-bit straight (not premultiplied) RGBA, or
+        a ``.npy`` of the float32 premultiplied array as it is. Returns the path."""
+        from data_tools.io.npy import save_array
+
+        from .outputs import atomic_write_all, check_output, write_png
+        path = check_output(path, (".png", ".npy"))
+        png = path.suffix.lower() == ".png"
+        # Whole or not at all, as the command line writes it.
+        atomic_write_all([(path, (lambda tmp: write_png(self.image, tmp)) if png
+                           else (lambda tmp: save_array(tmp, self.image)))])
+        return path
 
     def __repr__(self):
         # The arrays and the stats' nested parameters made the default several kilobytes.
@@ -128,10 +143,14 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
         isosurfaces alone asked for bit planes, or one with isosurfaces
         asked for ``"bits"`` without ``"depth"``, is an error).
     progress : callable(done_fraction) or None
-        Called as bands of image rows finish, for long renders.
+        Called with 0.0 as the render starts, then with the fraction done, rising to 1.0
+        (said once), as bands of image rows and runs of shadow rays finish. Raising in it
+        stops the render. A first render of a kind (an isosurface, a translucent volume,
+        shadows, a new type of samples) compiles its kernels once on a machine, 10 to 60 s
+        between the start and the first fraction; the command line says so.
     light_buffer : int, optional
         Side in pixels of PARC's light buffers for shadow rays, a whole number from 2 to
-        `MAX_LIGHT_BUFFER` (default `parc.lights.LIGHT_BUFFER_SIZE`). Any size gives the same image;
+        `MAX_LIGHT_BUFFER`, 8192 (default 256, `parc.lights.LIGHT_BUFFER_SIZE`). Any size gives the same image;
         finer buffers give shorter shadow-ray segments for more raster time.
     blocks : bool, default True
         PARC only: inside its segments the caster also jumps across cubes
@@ -155,6 +174,8 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
     Returns
     -------
     RenderResult
+        ``image`` (H, W, 4) float32, premultiplied RGBA (`RenderResult.save` writes it as a
+        PNG), ``depth``, ``stats`` and, asked for, ``work``.
 
     Raises
     ------
@@ -240,6 +261,8 @@ def _render(scene, method, supercell, buffers, progress, light_buffer, blocks, w
                                             light_buffer=light_buffer, blocks=blocks, work=work)
     skip_blocks = method == "parc" and bool(blocks)
     check_scene_memory(scene)
+    if progress is not None:
+        progress(0.0)           # begun: a first render may compile for a minute before its first band
     if not _casts_alone(scene):
         return _render_general(scene, method, supercell, buffers, progress, light_buffer, skip_blocks, work)
     vis = scene.volumes[0]

@@ -206,7 +206,7 @@ class PointLight:
         World position; may lie inside a volume, or on a surface (its shadow
         rays stop just short of it); coordinates up to 1e150.
     color : (r, g, b) in [0, 1]
-    intensity : float, 0 to `MAX_SHADING_FACTOR`
+    intensity : float, 0 to `MAX_SHADING_FACTOR` (1e6)
         Scales the colour.
     """
 
@@ -241,7 +241,7 @@ class DirectionalLight:
         The direction the light travels in (from the light into the scene);
         normalized here, must not be zero.
     color : (r, g, b) in [0, 1]
-    intensity : float, 0 to `MAX_SHADING_FACTOR`
+    intensity : float, 0 to `MAX_SHADING_FACTOR` (1e6)
     """
 
     direction: tuple

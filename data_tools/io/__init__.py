@@ -51,10 +51,13 @@ def load_volume(path, **options) -> Volume:
         tifffile), a folder of single-slice ``.tif`` files (an image
         sequence, in natural order), or headerless ``.raw``/``.bin``/``.dat``.
         Or samples already in memory, an array ``(nz, ny, nx)``: a `Volume` of
-        it with the ``spacing`` and ``origin`` given (else 1 and 0).
+        it with the ``spacing`` and ``origin`` given (else 1 and 0). The array
+        is not copied: the Volume views it read-only, and changing it in place
+        afterwards leaves what was worked out from it (the value range, PARC's
+        cell ranges) stale; give a copy, or a new Volume, for new samples.
     **options
         For raw files: ``shape=(nx, ny, nz)``, ``dtype``, ``byte_order``,
-        ``offset``, ``mmap`` (see :func:`data_tools.io.raw.read_raw`). ``spacing`` and
+        ``offset``, ``mmap`` (see `data_tools.io.raw.read_raw`). ``spacing`` and
         ``origin`` apply to every format and replace what the file says.
         Options that are ``None`` are ignored.
 
@@ -83,7 +86,7 @@ def load_volume(path, **options) -> Volume:
     try:
         path = Path(path)
     except TypeError:
-        raise InputError(f"load_volume takes a file's path, got {type(path).__name__}") from None
+        raise InputError(f"load_volume takes a file's path or a NumPy array, got {type(path).__name__}") from None
     options = {k: v for k, v in options.items() if v is not None and not (k == "mmap" and not v)}
     _check_nameable(path)
     if path.is_dir():

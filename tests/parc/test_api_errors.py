@@ -457,7 +457,7 @@ def test_a_step_sweep_counts_the_images_it_holds_at_once(monkeypatch):
 
 
 def test_load_volume_of_something_not_a_path_says_what_to_do():
-    with pytest.raises(InputError, match=re.escape("takes a file's path, got float")):
+    with pytest.raises(InputError, match=re.escape("takes a file's path or a NumPy array, got float")):
         parc.load_volume(3.5, spacing=(1, 2, 3))
 
 

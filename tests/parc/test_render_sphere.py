@@ -160,3 +160,37 @@ def test_stats_hold_the_documented_keys(lit):
                 "polygons", "parameters"):
         assert key in stats, key
     assert stats["polygons"] == 0 and stats["cells_visited"] > 0
+
+
+def test_a_result_saves_its_image_as_png_or_npy(tmp_path):
+    # The PNG holds straight colour (the image is premultiplied), the .npy the array as it is.
+    from PIL import Image
+
+    from data_tools import InputError
+    from parc import Translucent
+    vol, c, r = _sphere(16, (1, 1, 1), (0, 0, 0), radius_cells=5.0)
+    res = render(Scene(camera=Camera.framing(*vol.bounds), size=(24, 20), volumes=[Translucent(vol, "greyscale")]))
+    assert res.save(tmp_path / "a.png") == tmp_path / "a.png"
+    res.save(tmp_path / "a.npy")
+    assert np.array_equal(np.load(tmp_path / "a.npy"), res.image)
+    png = np.asarray(Image.open(tmp_path / "a.png")).astype(np.float64) / 255.0
+    a = res.image[..., 3].astype(np.float64)
+    faint = a > 0.2                                         # where straight colour is rounded finely
+    assert png.shape == (20, 24, 4) and faint.any() and np.abs(png[..., 3] - a).max() <= 0.5 / 255 + 1e-9
+    straight = res.image[..., :3][faint] / a[faint][:, None]
+    assert np.abs(png[..., :3][faint] - straight).max() <= 0.5 / 255 + 1e-6
+    for bad in ("a.jpg", "nofolder/a.png"):
+        with pytest.raises(InputError):
+            res.save(tmp_path / bad)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.npy", "a.png"]
+
+
+@pytest.mark.parametrize("lit", [False, True])
+def test_progress_starts_at_zero_and_rises_to_one_once(lit):
+    from parc import DirectionalLight
+    vol, c, r = _sphere(16, (1, 1, 1), (0, 0, 0), radius_cells=5.0)
+    seen = []
+    render(Scene(camera=Camera.framing(*vol.bounds), size=(24, 24), volumes=[Isosurface(vol, 0.0)],
+                 lights=[DirectionalLight((1.0, 0.0, 0.0))] if lit else [], shadows=lit), progress=seen.append)
+    assert seen[0] == 0.0 and seen[-1] == 1.0 and seen.count(1.0) == 1
+    assert all(a < b for a, b in zip(seen, seen[1:]))

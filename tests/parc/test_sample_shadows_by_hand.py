@@ -134,7 +134,23 @@ def test_samples_lit_a_few_rows_at_a_time_are_those_lit_at_once(gl, method, monk
     assert np.array_equal(whole, parts)
     assert seen == sorted(seen) and seen[-1] == 1.0
     # The bar moves on as each of the three bands is lit, not only once all are.
-    assert len(set(seen)) == len(set(at_once)) + 2
+    start = mv._Report(None, 0, 2, True, True).spans["sample shadows"][0]
+    assert len([f for f in seen if f > start]) >= len([f for f in at_once if f > start]) + 2
+
+
+@pytest.mark.parametrize("method", ["brute", "parc"])
+def test_progress_rises_through_the_shadow_rays_and_ends_once(gl, method, monkeypatch):
+    # The shadow rays, most of such a frame, sent no report until the end, which came twice.
+    import parc.multivolume as mv
+    sun = [DirectionalLight((-1.0, 0.3, -1.0))]
+    whole = _render([_slab(), _wall()], sun, method).image
+    monkeypatch.setattr(mv, "SHADOW_RUN", 8)
+    seen = []
+    parts = _render([_slab(), _wall()], sun, method, progress=seen.append).image
+    assert np.array_equal(whole, parts)                     # the rays cast in runs are the same rays
+    assert all(a < b for a, b in zip(seen, seen[1:])) and seen[-1] == 1.0
+    start = mv._Report(None, 0, 2, True, True).spans["sample shadows"][0]
+    assert len([f for f in seen if f > start]) >= 8          # runs of shadow rays report as they go
 
 
 def test_sample_bands_hold_at_most_so_many_samples_unless_one_row_holds_more():
