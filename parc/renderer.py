@@ -14,6 +14,8 @@ cast in are `parc.workspace`'s, the skip tables `parc.skip`'s.
 """
 from __future__ import annotations
 
+import contextlib
+import logging
 import threading
 import time
 from dataclasses import dataclass
@@ -200,7 +202,7 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
     Sobierajski & Avila 1995, §3 (depth-buffer PARC), §4 (color-buffer PARC) and §5 (shadow rays).
     """
     # Renders share work arrays, Numba's thread pool and one OpenGL context: one at a time.
-    with RENDER_LOCK:
+    with RENDER_LOCK, _logging_compiles():
         if _RENDERING[0]:
             raise InputError("render was called while a render is under way (from its progress callback); "
                              "renders share their work arrays: render once it has returned")
@@ -211,6 +213,34 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
             _RENDERING[0] = False
             # Let go, so that the context can move to another thread once this one ends.
             release_context()
+
+
+#: The library's log: a render's first compile is told at INFO (the command line says it itself).
+LOG = logging.getLogger("parc")
+
+
+@contextlib.contextmanager
+def _logging_compiles():
+    """Log at INFO, once a render, that the render compiles kernels, as it starts to: a first
+    render of a kind waits 10 to 60 s for them, silent otherwise. Nothing is installed
+    where INFO is not logged. Numba reports a compile, not a kernel loaded from its cache."""
+    if not LOG.isEnabledFor(logging.INFO):
+        yield
+        return
+    import numba.core.event
+    said, rendering = [], threading.get_ident()
+
+    class FirstCompile(numba.core.event.Listener):
+        def on_start(self, event):
+            if not said and threading.get_ident() == rendering:
+                said.append(True)
+                LOG.info("compiling the ray casters for this kind of render and sample type, once on this "
+                         "machine (10 to 60 s)")
+
+        def on_end(self, event):
+            pass
+    with numba.core.event.install_listener("numba:compile", FirstCompile()):
+        yield
 
 
 def check_request(scene, buffers, work, names=("buffers", "work")):

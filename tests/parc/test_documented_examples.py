@@ -48,6 +48,11 @@ def test_the_readme_python_block_runs_and_keeps_its_promises(tmp_path, monkeypat
     # "or 'brute': the same image, unaccelerated"; compare's rows say it too.
     assert np.isfinite(names["result"].depth).any()                    # the skin is in view
     _same_images(scene)
+    # "as parc render writes it": 8-bit RGBA, opaque where the skin is hit.
+    from PIL import Image
+    with Image.open(tmp_path / "head.png") as png:
+        saved = np.asarray(png)
+    assert saved.shape == (32, 40, 4) and np.array_equal(saved[..., 3] == 255, np.isfinite(names["result"].depth))
     assert [r["method"] for r in rows] == ["brute", "parc"] and rows[1]["hit_mismatches"] == 0
     # "this head's top is at -z": the lamp "above the head" has the smaller z.
     lamp = lit.lights[0]

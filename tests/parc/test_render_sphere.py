@@ -194,3 +194,29 @@ def test_progress_starts_at_zero_and_rises_to_one_once(lit):
                  lights=[DirectionalLight((1.0, 0.0, 0.0))] if lit else [], shadows=lit), progress=seen.append)
     assert seen[0] == 0.0 and seen[-1] == 1.0 and seen.count(1.0) == 1
     assert all(a < b for a, b in zip(seen, seen[1:]))
+
+
+def test_a_render_that_compiles_logs_it_once_at_info(caplog, monkeypatch):
+    # A first render of a kind compiled for up to a minute with no word to a library user.
+    import logging
+
+    import numba
+    import parc.renderer as renderer
+    vol, c, r = _sphere(8, (1, 1, 1), (0, 0, 0), radius_cells=2.0)
+    scene = Scene(camera=Camera.framing(*vol.bounds), size=(8, 8), volumes=[Isosurface(vol, 0.0)])
+    real = renderer._render
+
+    def compiling(*args):
+        for x in (1, 2.0):                  # two compiles, one line
+            numba.njit(lambda v: 2 * v)(x)
+        return real(*args)
+    monkeypatch.setattr(renderer, "_render", compiling)
+    with caplog.at_level(logging.INFO, logger="parc"):
+        render(scene)
+    said = [rec.getMessage() for rec in caplog.records if rec.name == "parc"]
+    assert len(said) == 1 and said[0].startswith("compiling the ray casters for this kind of render")
+    caplog.clear()
+    monkeypatch.setattr(renderer, "_render", real)
+    with caplog.at_level(logging.INFO, logger="parc"):
+        render(scene)                       # cached: nothing compiles, nothing is said
+    assert [rec for rec in caplog.records if rec.name == "parc"] == []
