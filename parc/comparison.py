@@ -75,7 +75,8 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
         the `image_error` fields (depths in cells of the first volume's smallest spacing, the
         strictest reading of "a cell"; ``psnr`` is ``inf`` for an image identical to brute's,
         which strict JSON lacks: `parc.outputs.to_json` writes it as null, as ``--json`` does),
-        ``cells_visited``, ``cubic_solves``, ``samples``, ``shadow_cells``, ``shadow_solves``, ``shadow_samples``, ``shadow_rays``, ``hits``,
+        ``cells_visited``, ``cubic_solves``, ``samples``, ``shadow_cells``, ``shadow_solves``,
+        ``shadow_samples``, ``shadow_rays``, ``hits``,
         ``polygons``, ``supercell`` (where `render` gives its volumes' sizes under ``volumes``,
         the size they share, else None, and ``supercells`` each's), ``pixels``, ``opengl_share`` (the
         median run's share of time in `OPENGL_PHASES`), ``speedup_low`` and

@@ -149,11 +149,12 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
         (said once), as bands of image rows and runs of shadow rays finish. Raising in it
         stops the render. A first render of a kind (an isosurface, a translucent volume,
         shadows, a new type of samples) compiles its kernels once on a machine, 10 to 60 s
-        between the start and the first fraction; the command line says so.
+        between the start and the first fraction; the command line says so, and the logger
+        ``parc`` at INFO.
     light_buffer : int, optional
         Side in pixels of PARC's light buffers for shadow rays, a whole number from 2 to
-        `MAX_LIGHT_BUFFER`, 8192 (default 256, `parc.lights.LIGHT_BUFFER_SIZE`). Any size gives the same image;
-        finer buffers give shorter shadow-ray segments for more raster time.
+        `MAX_LIGHT_BUFFER`, 8192 (default 256, `parc.lights.LIGHT_BUFFER_SIZE`). Any size gives
+        the same image; finer buffers give shorter shadow-ray segments for more raster time.
     blocks : bool, default True
         PARC only: inside its segments the caster also jumps across cubes
         of cells that cannot contribute (all above or all below the
