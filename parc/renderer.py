@@ -69,10 +69,11 @@ class RenderResult:
         also holds loading the casters and making OpenGL's context, beyond the phases listed,
         and the phases of a first render of its kind hold compiling the kernels they call (10 to
         60 s in all, once on a machine: `compile_notice` in `parc.outputs`).
-        A scene of several volumes, of an isosurface with lights or of shaded samples with
-        shadows also gives ``shadow_rays``, ``shadow_cells``,
-        ``shadow_solves`` and ``shadow_samples``, and each volume's ``polygons``,
-        ``segment_pixels`` and ``supercell`` under ``volumes`` (with PARC), not at the top.
+        Every render gives ``shadow_rays``, ``shadow_cells``, ``shadow_solves``,
+        ``shadow_samples`` and ``light_polygons`` (0 without shadow rays). A scene of several
+        volumes, of an isosurface with lights or of shaded samples with shadows gives each
+        volume's ``polygons``, ``segment_pixels`` and ``supercell`` under ``volumes`` (with
+        PARC), not at the top.
     work : ndarray (H, W) int64 or None
         With ``render(..., work=True)``: per pixel, the cells its ray visited
         (isosurfaces) or the samples it took (translucent volumes), so
@@ -335,6 +336,8 @@ def _render(scene, method, supercell, buffers, progress, light_buffer, blocks, w
         "cubic_solves": counts.get("solves", 0),
         "samples": counts.get("samples", 0),
         "polygons": 0,              # brute draws none; parc's count comes with `extra`
+        # A volume cast alone casts no shadow rays; the keys are there, as in every render's stats.
+        "shadow_rays": 0, "shadow_cells": 0, "shadow_solves": 0, "shadow_samples": 0, "light_polygons": 0,
         "parameters": {"size": [w, h], "camera": scene.camera.settings(), **describe_volume(vis)},
     }
     if scene.lights or scene.shadows:

@@ -157,9 +157,12 @@ def test_stats_hold_the_documented_keys(lit):
                   lights=[PointLight(position=(30.0, 30.0, 30.0))] if lit else [])
     stats = render(scene, method="brute").stats
     for key in ("method", "seconds", "pixels", "rays", "cells_visited", "cubic_solves", "samples", "hits",
-                "polygons", "parameters"):
+                "polygons", "parameters", "shadow_rays", "shadow_cells", "shadow_solves", "shadow_samples",
+                "light_polygons"):
         assert key in stats, key
     assert stats["polygons"] == 0 and stats["cells_visited"] > 0
+    # The same keys however the scene is cast: alone (unlit) or with the others (lit).
+    assert all(stats[k] == 0 for k in ("shadow_rays", "shadow_cells", "shadow_solves", "shadow_samples"))
 
 
 def test_a_result_saves_its_image_as_png_or_npy(tmp_path):
