@@ -150,10 +150,11 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
         s = res.stats
         row = {"method": name, "seconds": med, "phases": phases,
                "cells_visited": s["cells_visited"], "cubic_solves": s["cubic_solves"],
-               "samples": s["samples"], "shadow_cells": s["shadow_cells"], "shadow_solves": s["shadow_solves"],
+               "samples": s.get("samples", 0),
+               "shadow_cells": s.get("shadow_cells", 0), "shadow_solves": s.get("shadow_solves", 0),
                # A translucent volume dims shadow rays by sampling: that work too, as render's stats give it.
-               "shadow_samples": s["shadow_samples"], "shadow_rays": s["shadow_rays"],
-               "hits": s["hits"], "pixels": s["pixels"], "polygons": s["polygons"],
+               "shadow_samples": s.get("shadow_samples", 0), "shadow_rays": s.get("shadow_rays", 0),
+               "hits": s["hits"], "pixels": s["pixels"], "polygons": s.get("polygons", 0),
                "supercell": s.get("supercell"),
                # What was compared, in every row: rows saved from several runs tell which is which.
                "parameters": s["parameters"], "repeats": repeats}
