@@ -414,7 +414,9 @@ def _shadows(frame, lights, points, groups, visible, report=None):
     counts["shadow_samples"] += samples
 
 
-#: Fewest shadow rays cast in one call (`_shadows`): a call costs little beside this many rays.
+#: Shadow rays are cast in runs of this many, or a sixteenth of the points if more (`_shadows`):
+#: a call costs little beside so many rays. A run holds one volume's points, so the last of each
+#: volume's, and a volume with fewer points, is shorter.
 SHADOW_RUN = 4096
 
 #: Most translucent samples lit at once (`_light_samples`), each taking `parc.workspace.SAMPLE_BYTES`

@@ -69,8 +69,10 @@ class RenderResult:
         also holds loading the casters and making OpenGL's context, beyond the phases listed,
         and the phases of a first render of its kind hold compiling the kernels they call (10 to
         60 s in all, once on a machine: `compile_notice` in `parc.outputs`).
-        Every render gives ``shadow_rays``, ``shadow_cells``, ``shadow_solves``,
-        ``shadow_samples`` and ``light_polygons`` (0 without shadow rays). A scene of several
+        Every render gives ``shadow_rays``, ``shadow_cells``, ``shadow_solves`` and
+        ``shadow_samples`` (0 without shadow rays), and ``light_polygons``, the light
+        buffers' faces PARC drew this frame (0 with brute, without shadows, or with the
+        buffers kept from an earlier frame). A scene of several
         volumes, of an isosurface with lights or of shaded samples with shadows gives each
         volume's ``polygons``, ``segment_pixels`` and ``supercell`` under ``volumes`` (with
         PARC), not at the top.
@@ -90,9 +92,13 @@ class RenderResult:
     def save(self, path):
         """Write the image to ``path``: a ``.png`` of 8-bit straight (not premultiplied) RGBA, or
         a ``.npy`` of the float32 premultiplied array as it is. Returns the path."""
+        import os
+
         from data_tools.io.npy import save_array
 
         from .outputs import atomic_write_all, check_output, write_png
+        if not isinstance(path, (str, os.PathLike)) or not isinstance(os.fspath(path), str):
+            raise InputError(f"RenderResult.save takes a file's path, got {type(path).__name__}")
         path = check_output(path, (".png", ".npy"))
         png = path.suffix.lower() == ".png"
         # Whole or not at all, as the command line writes it.
@@ -149,9 +155,9 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
         Called with 0.0 as the render starts, then with the fraction done, rising to 1.0
         (said once), as bands of image rows and runs of shadow rays finish. Raising in it
         stops the render. A first render of a kind (an isosurface, a translucent volume,
-        shadows, a new type of samples) compiles its kernels once on a machine, 10 to 60 s
-        between the start and the first fraction; the command line says so, and the logger
-        ``parc`` at INFO.
+        shadows, a new type of samples) compiles its kernels once on a machine, 10 to 60 s,
+        most of it before the first fraction (a scene's lighting and shadow kernels compile
+        as it reaches them); the command line says so, and the logger ``parc`` at INFO.
     light_buffer : int, optional
         Side in pixels of PARC's light buffers for shadow rays, a whole number from 2 to
         `MAX_LIGHT_BUFFER`, 8192 (default 256, `parc.lights.LIGHT_BUFFER_SIZE`). Any size gives
@@ -236,8 +242,10 @@ def _logging_compiles():
         def on_start(self, event):
             if not said and threading.get_ident() == rendering:
                 said.append(True)
-                LOG.info("compiling the ray casters for this kind of render and sample type, once on this "
-                         "machine (10 to 60 s)")
+                from raycast.kernel_cache import cache_refused
+                refused = cache_refused()
+                LOG.info("compiling the ray casters for this kind of render and sample type (10 to 60 s), "
+                         + (f"in every run: {refused} cannot be written" if refused else "once on this machine"))
 
         def on_end(self, event):
             pass

@@ -185,6 +185,9 @@ def test_a_result_saves_its_image_as_png_or_npy(tmp_path):
     for bad in ("a.jpg", "nofolder/a.png"):
         with pytest.raises(InputError):
             res.save(tmp_path / bad)
+    for bad in (None, b"a.png"):
+        with pytest.raises(InputError, match="RenderResult.save takes a file's path, got "):
+            res.save(bad)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.npy", "a.png"]
 
 
@@ -218,6 +221,15 @@ def test_a_render_that_compiles_logs_it_once_at_info(caplog, monkeypatch):
         render(scene)
     said = [rec.getMessage() for rec in caplog.records if rec.name == "parc"]
     assert len(said) == 1 and said[0].startswith("compiling the ray casters for this kind of render")
+    assert said[0].endswith("once on this machine")
+    # Where the cache folder cannot be written, every run compiles: not "once".
+    import raycast.kernel_cache
+    monkeypatch.setattr(raycast.kernel_cache, "_REFUSED", "/nowhere/cache")
+    caplog.clear()
+    with caplog.at_level(logging.INFO, logger="parc"):
+        render(scene)
+    said = [rec.getMessage() for rec in caplog.records if rec.name == "parc"]
+    assert len(said) == 1 and said[0].endswith("in every run: /nowhere/cache cannot be written")
     caplog.clear()
     monkeypatch.setattr(renderer, "_render", real)
     with caplog.at_level(logging.INFO, logger="parc"):
