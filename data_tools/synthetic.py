@@ -8,6 +8,7 @@ import math
 import numpy as np
 
 from .errors import InputError
+from . import memory
 from .memory import check_memory
 from .grids import grid_axes, grid_dims, soft_inside, volume_label
 from .neuron import floor, floor_height, neuron
@@ -276,7 +277,24 @@ def check_synthetic_size(size, what, name=None):
     if name == "floor" and np.ndim(size) == 0 and np.isfinite(dims).all():
         dims[2] = floor_height(int(size))
     per_sample = SLAB_BYTES_PER_SAMPLE.get(name, SYNTHETIC_BYTES_PER_SAMPLE)
-    check_memory(per_sample * float(np.prod(dims)), what)
+    have = memory.available_memory()
+    need = per_sample * float(np.prod(dims))
+    if have is None or need <= have:
+        return
+    hint = ""
+    if np.ndim(size) == 0:
+        # The largest size that fits, for one number a side (a floor's height follows its side).
+        def fits(n):
+            return per_sample * n * n * (floor_height(n) if name == "floor" else n) <= have
+        lo, hi = 1, 2
+        while fits(hi):
+            lo, hi = hi, hi * 2
+        while hi - lo > 1:
+            mid = (lo + hi) // 2
+            lo, hi = (mid, hi) if fits(mid) else (lo, mid)
+        if lo >= 2:
+            hint = f": give a size of at most {lo} here"
+    check_memory(need, what, hint)
 
 
 #: Synthetic volumes from this many samples up take seconds to make (neuron at 300: 4 s, at 600:

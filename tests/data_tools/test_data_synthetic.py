@@ -231,6 +231,20 @@ def test_make_refuses_by_what_the_volume_needs_while_made(name, fits, monkeypatc
             check_synthetic_size(800, "--size 800", name)
 
 
+# By hand: 48 bytes a sample, 4 GiB: 447^3 (sphere), 895^2 x 111 (a floor 895 wide is 895 // 8 high); the
+# phantom, made in slabs, 6 bytes a sample: 894^3.
+@pytest.mark.parametrize("name, most", [("sphere", 447), ("floor", 895), ("ct_phantom", 894)])
+def test_a_size_too_large_to_make_is_told_the_largest_that_fits(name, most, monkeypatch):
+    from data_tools import memory
+    from data_tools.synthetic import check_synthetic_size
+    monkeypatch.setattr(memory, "available_memory", lambda: 4 * 2**30)
+    with pytest.raises(InputError, match=f"4.0 GB is available: give a size of at most {most} here$"):
+        check_synthetic_size(10**5, "--size 100000", name)
+    check_synthetic_size(most, f"--size {most}", name)            # it fits
+    with pytest.raises(InputError):
+        check_synthetic_size(most + 1, f"--size {most + 1}", name)
+
+
 def test_a_need_past_all_memory_reads_as_a_power_of_ten(monkeypatch):
     # 99999999^3 samples (a header's claim) needed a 32-digit number of GB.
     from data_tools import memory
