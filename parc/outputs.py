@@ -194,6 +194,20 @@ def write_png(image, path):
     Image.fromarray(rgba, "RGBA").save(path, format="PNG")
 
 
+def save_image(image, path, who="save_image"):
+    """Write a render's premultiplied RGBA float image to ``path``, whole or not at all, as the
+    command line writes it: a ``.png`` of 8-bit straight RGBA (`write_png`), or a ``.npy`` of the
+    array as it is. ``who`` names the caller in the error for a path that is not text. Returns
+    the path."""
+    from data_tools.io.npy import save_array
+    if not isinstance(path, (str, os.PathLike)) or not isinstance(os.fspath(path), str):
+        raise InputError(f"{who} takes a file's path, got {type(path).__name__}")
+    path = check_output(path, (".png", ".npy"))
+    png = path.suffix.lower() == ".png"
+    atomic_write_all([(path, (lambda tmp: write_png(image, tmp)) if png else (lambda tmp: save_array(tmp, image)))])
+    return path
+
+
 def time_left(seconds):
     """``about 40 s left``, ``about 3 min left``, ``about 2 h 5 min left``: a progress line's
     estimate, rounded as coarsely as an estimate of the rest of the work deserves."""

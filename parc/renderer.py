@@ -91,20 +91,9 @@ class RenderResult:
 
     def save(self, path):
         """Write the image to ``path``: a ``.png`` of 8-bit straight (not premultiplied) RGBA, or
-        a ``.npy`` of the float32 premultiplied array as it is. Returns the path."""
-        import os
-
-        from data_tools.io.npy import save_array
-
-        from .outputs import atomic_write_all, check_output, write_png
-        if not isinstance(path, (str, os.PathLike)) or not isinstance(os.fspath(path), str):
-            raise InputError(f"RenderResult.save takes a file's path, got {type(path).__name__}")
-        path = check_output(path, (".png", ".npy"))
-        png = path.suffix.lower() == ".png"
-        # Whole or not at all, as the command line writes it.
-        atomic_write_all([(path, (lambda tmp: write_png(self.image, tmp)) if png
-                           else (lambda tmp: save_array(tmp, self.image)))])
-        return path
+        a ``.npy`` of the float32 premultiplied array as it is (`parc.outputs.save_image`)."""
+        from .outputs import save_image
+        return save_image(self.image, path, "RenderResult.save")
 
     def __repr__(self):
         # The arrays and the stats' nested parameters made the default several kilobytes.
