@@ -392,6 +392,8 @@ def _shadows(frame, lights, points, groups, visible, report=None):
             org = np.array(vol.origin)
             spc = np.array(vol.spacing)
             skip, jump_min = skip_table(v, frame.parc and frame.blocks)
+            if not isinstance(v, Isosurface):
+                params, (op_x, op_y, col_x, col_rgb) = accumulation_params(v), v.tf.arrays()
             for first, end, surface, owner in groups:
                 eps = SHADOW_EPS * min(surface.spacing)
                 for a in range(first, end, run):
@@ -400,8 +402,7 @@ def _shadows(frame, lights, points, groups, visible, report=None):
                         shadow_iso(vol.data, org, spc, v.value, points[a:b], row, eps, views, near, far,
                                    frame.parc, skip, jump_min, v_l[a:b], cnt[a:b])
                     else:
-                        op_x, op_y, col_x, col_rgb = v.tf.arrays()
-                        shadow_accumulate(vol.data, org, spc, accumulation_params(v), op_x, op_y, col_x, col_rgb,
+                        shadow_accumulate(vol.data, org, spc, params, op_x, op_y, col_x, col_rgb,
                                           points[a:b], row, eps, views, near, far, frame.parc, skip, jump_min,
                                           v_l[a:b], cnt[a:b], v.step if owner == n else 0.0)
                     done += b - a
