@@ -424,25 +424,37 @@ _NOTICE_SAID = [False]
 
 
 @contextlib.contextmanager
+def on_first_compile(act):
+    """Call ``act()`` as the first Numba compile the thread running the block starts, once.
+    Numba reports a compile, not a kernel loaded from its cache."""
+    import numba.core.event
+    thread, done = threading.get_ident(), []
+
+    class FirstCompile(numba.core.event.Listener):
+        def on_start(self, event):
+            if not done and threading.get_ident() == thread:
+                done.append(True)
+                act()
+
+        def on_end(self, event):
+            pass                # a Listener must have one; the start is all that is told
+    with numba.core.event.install_listener("numba:compile", FirstCompile()):
+        yield
+
+
 def late_compile_notice(say):
     """Say `compile_notice`'s line at the first compile the block starts, where it has not been
     said: the kernels a run needs are foretold (`parc.renderer.kernel_samples`), and one missed
     there (the cell ranges' passes and the shadow rays compile for each type of samples) compiled
-    for seconds without a word. Numba reports a compile, not a kernel loaded from its cache."""
-    import numba.core.event
+    for seconds without a word."""
     from raycast.kernel_cache import cache_folder
 
-    class FirstCompile(numba.core.event.Listener):
-        def on_start(self, event):
-            if threading.current_thread() is threading.main_thread() and not _NOTICE_SAID[0]:
-                _NOTICE_SAID[0] = True
-                end_progress_line()
-                say(_compiling_once(cache_folder()))
-
-        def on_end(self, event):
-            pass
-    with numba.core.event.install_listener("numba:compile", FirstCompile()):
-        yield
+    def notice():
+        if not _NOTICE_SAID[0]:
+            _NOTICE_SAID[0] = True
+            end_progress_line()
+            say(_compiling_once(cache_folder()))
+    return on_first_compile(notice)
 
 
 @contextlib.contextmanager

@@ -216,30 +216,21 @@ def render(scene: Scene, method: str = "brute", *, supercell=None, buffers=DEFAU
 LOG = logging.getLogger("parc")
 
 
-@contextlib.contextmanager
 def _logging_compiles():
     """Log at INFO, once a render, that the render compiles kernels, as it starts to: a first
     render of a kind waits 10 to 60 s for them, silent otherwise. Nothing is installed
-    where INFO is not logged. Numba reports a compile, not a kernel loaded from its cache."""
+    where INFO is not logged."""
     if not LOG.isEnabledFor(logging.INFO):
-        yield
-        return
-    import numba.core.event
-    said, rendering = [], threading.get_ident()
+        return contextlib.nullcontext()
+    from raycast.kernel_cache import cache_refused
 
-    class FirstCompile(numba.core.event.Listener):
-        def on_start(self, event):
-            if not said and threading.get_ident() == rendering:
-                said.append(True)
-                from raycast.kernel_cache import cache_refused
-                refused = cache_refused()
-                LOG.info("compiling the ray casters for this kind of render and sample type (10 to 60 s), "
-                         + (f"in every run: {refused} cannot be written" if refused else "once on this machine"))
+    from .outputs import on_first_compile
 
-        def on_end(self, event):
-            pass
-    with numba.core.event.install_listener("numba:compile", FirstCompile()):
-        yield
+    def log():
+        refused = cache_refused()
+        LOG.info("compiling the ray casters for this kind of render and sample type (10 to 60 s), "
+                 + (f"in every run: {refused} cannot be written" if refused else "once on this machine"))
+    return on_first_compile(log)
 
 
 def check_request(scene, buffers, work, names=("buffers", "work")):
