@@ -51,13 +51,12 @@ def _not_a_volume(name):
     import json
 
     from .tomltables import tomllib
+    from .transfer.files import holds_a_transfer_function
     try:
         doc = (json.loads if lower.endswith(".json") else tomllib.loads)(Path(name).read_text())
     except (OSError, ValueError):       # the reader's own error says more
         return None
-    tables = doc if isinstance(doc, list) else [doc]
-    if all(isinstance(t, dict) for t in tables) and any(
-            "volume" not in t and {"opacity", "color", "RGBPoints"} & set(t) for t in tables):
+    if holds_a_transfer_function(doc):
         return "a transfer function, not a volume: parc render and parc compare take it with --tf"
     return None
 

@@ -71,6 +71,7 @@ from data_tools.volume import text_or_flag
 from .camera import Camera, check_fov, check_parallel_scale, unit_vector, up_across
 from .scene import DirectionalLight, Isosurface, PointLight, Scene, Translucent, check_eye_resolves
 from .tomltables import Table, Where, array_tables, construct
+from .transfer.files import holds_a_transfer_function
 
 TOP_KEYS = ("size", "background", "shadows", "camera", "volume", "light")
 CAMERA_KEYS = ("eye", "look_at", "up", "fov", "parallel", "zoom")
@@ -142,7 +143,7 @@ def load_scene(path, *, view=None, size=None, progress=None, replaced_by="given 
             raise InputError(f"view: {key} must be three finite numbers, got {value!r}")
     where = Where(path, progress)
     doc = where.read()
-    if "volume" not in doc and {"opacity", "color"} & set(doc):
+    if holds_a_transfer_function(doc):
         raise where.error("", "a transfer function, not a scene (it has no [[volume]] tables): give it with --tf, "
                               "or as a [[volume]] table's tf in a scene file")
     top = Table(where, "", doc, TOP_KEYS)

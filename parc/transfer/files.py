@@ -145,6 +145,15 @@ def load_transfer_function(spec, data_range=None, mode="composite"):
         raise InputError(f"{where}: expected an object with 'opacity' and 'color' keys, got {kind}")
     return _from_ours(doc, where, text, data_range)
 
+def holds_a_transfer_function(doc):
+    """Whether a parsed TOML or JSON document is a transfer function (ours: ``opacity`` or
+    ``color``; ParaView's: ``RGBPoints``) and not a scene file (``[[volume]]`` tables): to name a
+    file given in the wrong role for the role it has."""
+    tables = doc if isinstance(doc, list) else [doc]
+    return all(isinstance(t, dict) for t in tables) and any(
+        "volume" not in t and {"opacity", "color", "RGBPoints"} & set(t) for t in tables)
+
+
 def load_for_volume(spec, volume, mode="composite"):
     """`load_transfer_function` for ``volume``'s own value range, as `parc.Translucent` and scene
     files resolve a name: one made from a name is marked ``made_from = (name, data_range, mode)``
