@@ -96,7 +96,6 @@ class _Frame:
     """What every step of one `render_scene` frame reads, and the counts and seconds they add to."""
 
     def __init__(self, scene, method, supercell, progress, light_buffer, blocks, work):
-
         self.scene = scene
         self.parc = method == "parc"
         self.supercell = supercell
