@@ -2,25 +2,31 @@
 
 About this technique
 --------------------
-The ideal caster spends work only in *contributing* cells (DESIGN, "Speed:
-what is measured"); a benchmark lists its count next to what each method
-took.
+Sobierajski & Avila's ideal caster looks only at the *contributing* cells
+of each ray (DESIGN, "Speed: what is measured"): those where the ray meets
+the surface, or a value of non-zero opacity. Which cells those are depends
+on the ray, so no caster can know them in advance; what it can know is the
+*possibly contributing* cells, whose value range holds the isovalue or
+meets the non-zero opacity. A benchmark lists two counts next to what each
+method took: the bound a caster that classifies whole cells, as PARC does,
+can reach, and the paper's contributing work inside it.
 
-- Translucent volumes (`ideal_samples`): the samples of the unaccelerated
-  caster's lattice that lie in cells whose value range (min/max of the
-  eight corners) meets the transfer function's non-zero opacity, walked
-  with the same stopping rules (``t >= stop``, early ray termination in
-  composite mode), so the count is exactly a subset of ``brute``'s
-  ``samples`` and PARC, with supercells of a cell or more, never takes fewer. The
-  definition and the per-ray kernel are in `raycast.ideal`.
-- Isosurfaces: nothing new to count. The ideal caster
-  solves the cubic in exactly the cells whose range holds the isovalue, up
-  to the first hit, and that is the unaccelerated caster's own
+- Translucent volumes (`ideal_samples`, `contributing_samples`): the samples of
+  the unaccelerated caster's lattice that lie in possibly contributing
+  cells (the bound), and those of non-zero opacity, which every caster of
+  that lattice must take. Both are walked with the same stopping rules
+  (``t >= stop``, early ray termination in composite mode), so each count
+  is exactly a subset of ``brute``'s ``samples``, and PARC, with
+  supercells of a cell or more, never takes fewer than the bound. The
+  definitions and the per-ray kernel are in `raycast.ideal`.
+- Isosurfaces: nothing new to count. The bound is the cells whose range
+  holds the isovalue, up to the first hit: the unaccelerated caster's own
   ``cubic_solves`` statistic (it solves only in such cells, and stops at
-  the hit). It bounds casters that classify whole cells: PARC with
-  supercells smaller than a cell bounds parts of cells, skips a cell whose
-  range holds the isovalue where the ray crosses only a part that cannot,
-  and can solve fewer cubics for the same image.
+  the hit). PARC with supercells smaller than a cell bounds parts of
+  cells, skips a cell whose range holds the isovalue where the ray crosses
+  only a part that cannot, and can solve fewer cubics for the same image.
+  A ray that hits has one contributing cell, the surface's (the first along
+  the ray ends it), and a ray that misses none: the ``hits`` statistic.
 """
 from __future__ import annotations
 
@@ -33,8 +39,7 @@ from .scene import Translucent
 from .workspace import NO_STOP
 
 
-
-def contributing_cells(vis: Translucent) -> np.ndarray:
+def possibly_contributing_cells(vis: Translucent) -> np.ndarray:
     """uint8 ``(nz-1, ny-1, nx-1)``: 1 where a cell's corner range meets ``vis``'s non-zero opacity
     (each range widened by `raycast.composite.INTERP_ROUNDING`, as `parc.classify.classify_tf` does)."""
     from .classify import VolumeIndex, classify_tf
@@ -42,8 +47,8 @@ def contributing_cells(vis: Translucent) -> np.ndarray:
     return np.ascontiguousarray(classify_tf(mn, mx, vis.tf), dtype=np.uint8)
 
 
-def ideal_sample_counts(scene, vis: Translucent, stop=None) -> np.ndarray:
-    """Per-pixel ideal sample counts, int64 ``(H, W)``; see `ideal_samples`."""
+def _counts(scene, vis, stop):
+    """int64 ``(H, W, 2)``: per pixel, the bound and the contributing samples (`raycast.ideal`)."""
     from .renderer import accumulation_params
 
     if not isinstance(vis, Translucent):
@@ -58,15 +63,27 @@ def ideal_sample_counts(scene, vis: Translucent, stop=None) -> np.ndarray:
         stop = NO_STOP
     vol = vis.volume
     op_x, op_y, _, _ = vis.tf.arrays()
-    counts = np.empty(w * h, np.int64)
+    counts = np.empty((w * h, 2), np.int64)
     ideal_samples_image(vol.data, np.array(vol.origin, dtype=np.float64),
                         np.array(vol.spacing, dtype=np.float64), scene.camera.as_array(), w, h,
-                        accumulation_params(vis), op_x, op_y, contributing_cells(vis), stop, use_stop, counts)
-    return counts.reshape(h, w)
+                        accumulation_params(vis), op_x, op_y, possibly_contributing_cells(vis), stop, use_stop,
+                        counts)
+    return counts.reshape(h, w, 2)
+
+
+def ideal_sample_counts(scene, vis: Translucent, stop=None) -> np.ndarray:
+    """Per-pixel ideal sample counts, int64 ``(H, W)``; see `ideal_samples`."""
+    return _counts(scene, vis, stop)[..., 0]
+
+
+def contributing_sample_counts(scene, vis: Translucent, stop=None) -> np.ndarray:
+    """Per-pixel counts of samples of non-zero opacity, int64 ``(H, W)``; see `contributing_samples`."""
+    return _counts(scene, vis, stop)[..., 1]
 
 
 def ideal_samples(scene, vis: Translucent, stop=None) -> int:
-    """Samples the ideal caster takes for one translucent volume over the scene's camera.
+    """Samples a caster that classifies whole cells takes at least, for one translucent volume over
+    the scene's camera.
 
     Parameters
     ----------
@@ -82,8 +99,8 @@ def ideal_samples(scene, vis: Translucent, stop=None) -> int:
     -------
     int
         The number of the unaccelerated caster's samples that lie in
-        contributing cells (see `raycast.ideal`): at most ``brute``'s
-        ``stats["samples"]``, at least every sample of non-zero opacity, and
+        possibly contributing cells (see `raycast.ideal`): at most
+        ``brute``'s ``stats["samples"]``, at least `contributing_samples`, and
         never more than ``parc``'s with supercells of a cell or more.
 
     Raises
@@ -92,3 +109,10 @@ def ideal_samples(scene, vis: Translucent, stop=None) -> int:
         ``vis`` is not a Translucent, or ``stop`` has the wrong shape.
     """
     return int(ideal_sample_counts(scene, vis, stop).sum())
+
+
+def contributing_samples(scene, vis: Translucent, stop=None) -> int:
+    """Samples of non-zero opacity on the unaccelerated caster's lattice: those every caster of it
+    must take to make the same image. Parameters and errors as `ideal_samples`; at most
+    `ideal_samples`."""
+    return int(contributing_sample_counts(scene, vis, stop).sum())

@@ -72,7 +72,8 @@ def paper_tables(res, out):
           "total. In Table 1, `parc (depth, no blocks)` is the paper's depth-buffer PARC; `parc (depth)` "
           "adds jumps over empty cells inside the segments, which neither of the paper's methods has, and "
           "`parc (depth+bits)` adds to that the bit planes of its Color-buffer PARC. "
-          "*Ideal* is what a caster touching contributing cells only would take (§5). "
+          "*Ideal* is the least a caster that classifies whole cells, as PARC does, can take: the cells or "
+          "samples in possibly contributing cells (section 5, with the contributing ones among them). "
           "*Exact* means identical hit masks and |Δcolour| ≤ 1e-6 against `brute` on every pixel.", "",
           "### Table 1: CT, translucent (Fig. 11)", "", f"Volume: {t1['source']}; transfer function "
           "`ct_skin_bone`, composite, step a quarter of the smallest spacing.", ""]
@@ -260,27 +261,37 @@ def scale(res, out):
 def ideal(res):
     rows = []
     for r in res["table1"]["rows"]:
-        rows.append(("Table 1 CT translucent", r["size"], "samples", r["method"], r["ideal_samples"], r["samples"]))
+        rows.append(("Table 1 CT translucent", r["size"], "samples", r["method"], r["ideal_samples"],
+                     r.get("contributing_samples"), r["samples"]))
     for r in res["table2"]["rows"]:
-        rows.append(("Table 2 protein isosurface", r["size"], "cells", r["method"], r["ideal_cells"], r["cells"]))
+        rows.append(("Table 2 protein isosurface", r["size"], "cells", r["method"], r["ideal_cells"],
+                     r.get("contributing_cells"), r["cells"]))
         rows.append(("Table 2 protein translucent", r["size"], "samples", r["method"], r["ideal_samples"],
-                     r["samples"]))
+                     r.get("contributing_samples"), r["samples"]))
     for r in res["table3"]["rows"]:
         rows.append(("Table 3 primary rays", r["size"], "cells", r["method"], r["ideal_primary_cells"],
-                     r["primary_cells"]))
-        rows.append(("Table 3 shadow rays", r["size"], "cells", r["method"], r["ideal_shadow_cells"], r["shadow_cells"]))
+                     r.get("contributing_primary_cells"), r["primary_cells"]))
+        rows.append(("Table 3 shadow rays", r["size"], "cells", r["method"], r["ideal_shadow_cells"], None,
+                     r["shadow_cells"]))
     for r in res["visible_woman"]["surfaces"]:
         for m in ("brute", "parc"):
             rows.append((f"Visible Woman {r['surface']}", res["visible_woman"]["size"], "cells", m, r["ideal_cells"],
-                         r[f"{m}_cells"]))
+                         r.get("contributing_cells"), r[f"{m}_cells"]))
     md = ["## 5. Ideal bound", "",
-          "What the ideal caster (contributing cells only) would touch, against what each method touched. "
-          "For isosurfaces the ideal is the cells whose range holds the isovalue before the hit: exactly the "
-          "cubics `brute` solves, and `parc` too with supercells of a cell or more (sub-cell supercells bound "
-          "parts of cells, and can skip a cell whose range holds the isovalue where the ray misses that "
-          "part). For translucent volumes it is the samples inside cells whose value range "
-          "has non-zero opacity, before the ray terminates (`parc.ideal`).", ""]
-    md.append(_table(("scene", "image (px²)", "unit", "method", "ideal (×10³)", "touched (×10³)", "touched / ideal"),
-                     [(s, n, u, m, _k(i), _k(t), f"{t / i:.1f}" if i else "–") for s, n, u, m, i, t in rows]))
+          "Sobierajski & Avila's ideal caster looks only at the *contributing* cells of each ray, those where "
+          "the ray meets the surface or a value of non-zero opacity. Which they are depends on the ray; what "
+          "a caster can know before casting is the *possibly contributing* cells, whose value range holds "
+          "the isovalue or meets the non-zero opacity. *Ideal* is what a caster that classifies whole cells, "
+          "as PARC does, touches at least: for isosurfaces the cells whose range holds the isovalue before "
+          "the hit, exactly the cubics `brute` solves, and `parc` too with supercells of a cell or more "
+          "(sub-cell supercells bound parts of cells, and can skip a cell whose range holds the isovalue "
+          "where the ray misses that part); for translucent volumes the samples inside cells whose value "
+          "range has non-zero opacity, before the ray terminates (`parc.ideal`). *Contributing* is the "
+          "paper's ideal within it: the surface's cell of each ray that hits (a shadow ray's is not "
+          "counted: –), and the samples of non-zero opacity, which every caster of the lattice takes.", ""]
+    md.append(_table(("scene", "image (px²)", "unit", "method", "ideal (×10³)", "contributing (×10³)",
+                      "touched (×10³)", "touched / ideal"),
+                     [(s, n, u, m, _k(i), "–" if c is None else _k(c), _k(t), f"{t / i:.1f}" if i else "–")
+                      for s, n, u, m, i, c, t in rows]))
     md.append("")
     return md, rows

@@ -125,7 +125,7 @@ def measure(path, size, repeats, say):
             "raster_seconds": parc["phases"].get("raster", 0.0),
             "polygons": parc["polygons"], "supercell": parc["supercell"],
             "brute_cells": brute["cells_visited"], "parc_cells": parc["cells_visited"],
-            "ideal_cells": brute["cubic_solves"],
+            "ideal_cells": brute["cubic_solves"], "contributing_cells": brute["hits"],
             "hit_mismatches": parc["hit_mismatches"], "max_depth_cells": parc["max_depth_cells"],
             "max_color": parc["max_color"]})
     # Changing the isovalue: the proxy for a new level, from the cached min/max,

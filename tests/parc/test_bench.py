@@ -11,6 +11,7 @@ from types import SimpleNamespace
 import pytest
 from PIL import Image
 
+from bench_rows import table_cells
 from data_tools import InputError
 from parc.bench import Suite, consistency, run_bench
 from parc.cli import main
@@ -542,6 +543,13 @@ def test_a_zero_ideal_count_fails_its_check():
     assert len(_failed(_hand_results(ideal_rows=[{**row, "ideal": 0}]))) == 1
 
 
+def test_more_contributing_than_ideal_fails_its_check():
+    row = {"scene": "s", "size": 8, "method": "parc", "unit": "cells", "ideal": 3, "contributing": 3, "touched": 5}
+    assert _failed(_hand_results(ideal_rows=[row, {**row, "contributing": None}])) == []
+    assert [c for c in _failed(_hand_results(ideal_rows=[{**row, "contributing": 4}])) if "≤ ideal" in c]
+    assert [c for c in _failed(_hand_results(ideal_rows=[{**row, "contributing": 0}])) if "contributing" in c]
+
+
 def test_parc_taking_more_samples_than_brute_fails_its_check():
     assert _failed(_hand_results(t1_rows=[_t1("brute", 100), _t1("parc", 60)])) == []
     assert [c for c in _failed(_hand_results(t1_rows=[_t1("brute", 100), _t1("parc", 150)])) if "≤ brute" in c]
@@ -549,13 +557,17 @@ def test_parc_taking_more_samples_than_brute_fails_its_check():
 
 def test_the_ideal_tables_ratio_is_touched_over_ideal():
     from parc.bench.report import ideal
-    md, _ = ideal(_hand_results(t1_rows=[_t1("parc", 125)]))          # ideal 50, touched 125
-    assert next(line for line in md if "Table 1 CT translucent" in line).split("|")[-2].strip() == "2.5"
+    md, _ = ideal(_hand_results(t1_rows=[{**_t1("parc", 125_000), "ideal_samples": 50_000,
+                                          "contributing_samples": 20_000}]))
+    row = table_cells(md, "## 5. Ideal bound")[0]
+    assert (row["ideal (×10³)"], row["contributing (×10³)"], row["touched (×10³)"]) == ("50.0", "20.0", "125.0")
+    assert row["touched / ideal"] == "2.5"
 
 
 def _t3_run(method, phases, seconds, cells, solves, shadow_cells, shadow_solves, speedup):
-    """A `parc.compare` row as `parc.bench.tables.table3` reads it."""
+    """A `parc.compare` row as `parc.bench.tables.table3` reads it (hits: a tenth of the cells)."""
     return {"method": method, "phases": phases, "seconds": seconds, "cells_visited": cells, "cubic_solves": solves,
+            "hits": cells // 10,
             "shadow_cells": shadow_cells, "shadow_solves": shadow_solves, "speedup": speedup,
             "hit_mismatches": 0, "max_depth_cells": 0.0, "max_color": 0.0, "psnr": float("inf")}
 
@@ -591,6 +603,7 @@ def test_table3_splits_primary_and_shadow_time_and_divides_by_brute_at_the_same_
         assert (r["primary_speedup"], r["primary_total_speedup"], r["shadow_speedup"]) == \
             pytest.approx((primary_x, primary_total_x, shadow_x)), key
         assert (r["ideal_primary_cells"], r["ideal_shadow_cells"]) == ((40, 20) if key[1] == 8 else (160, 35))
+        assert r["contributing_primary_cells"] == (10 if key[1] == 8 else 40)     # brute's hits
     assert got[("parc", 16)]["primary_cells"] == 200 and got[("parc", 16)]["shadow_cells"] == 70
     from parc.bench.report import paper_tables
     md = paper_tables({"table1": {"rows": [], "source": "-", "work_size": 8}, "table2": {"rows": [], "source": "-"},

@@ -38,6 +38,7 @@ def test_table1_compares_the_papers_methods_with_their_own_buffers(monkeypatch):
     monkeypatch.setattr(tables.scenes, "ct_translucent",
                         lambda size, *a: (SimpleNamespace(size=(size, size), volumes=[None]), "stand-in"))
     monkeypatch.setattr(tables, "ideal_samples", lambda *a, **kw: 5)
+    monkeypatch.setattr(tables, "contributing_samples", lambda *a, **kw: 2)
     monkeypatch.setattr(tables, "work_maps", lambda *a: None)
     suite = SimpleNamespace(sizes=(8,), data_dir=None, small_volumes=True, repeats=1)
     got = tables.table1(suite, lambda m: None, {})["rows"]
@@ -55,6 +56,7 @@ def test_table1_work_maps_are_of_the_size_the_report_names(monkeypatch):
                         lambda size, *a: (SimpleNamespace(size=(size, size), volumes=[None]), "stand-in"))
     monkeypatch.setattr(tables, "_rows", lambda *a: [compare_row("brute", 1.0, samples=10)])
     monkeypatch.setattr(tables, "ideal_samples", lambda *a, **kw: 5)
+    monkeypatch.setattr(tables, "contributing_samples", lambda *a, **kw: 2)
     monkeypatch.setattr(tables, "work_maps", lambda scene, count: drawn.append(scene.size) or {"checks": {}})
     suite = SimpleNamespace(sizes=(8, 16), data_dir=None, small_volumes=True, repeats=1)
     got = tables.table1(suite, lambda m: None, {})
@@ -326,12 +328,13 @@ def test_visible_woman_text_gives_the_fastest_surfaces_rate(tmp_path, size, word
 
 
 def test_ideal_table_bounds_each_unit_by_its_own_ideal():
-    t2 = [{"method": "parc", "size": 8, "cells": 7000, "ideal_cells": 2000, "samples": 5000, "ideal_samples": 4000}]
+    t2 = [{"method": "parc", "size": 8, "cells": 7000, "ideal_cells": 2000, "contributing_cells": 300,
+           "samples": 5000, "ideal_samples": 4000, "contributing_samples": 1000}]
     res = {"table1": {"rows": []}, "table2": {"rows": t2}, "table3": {"rows": []},
            "visible_woman": {"surfaces": [], "size": 8}}
     _, rows = report.ideal(res)
-    assert rows == [("Table 2 protein isosurface", 8, "cells", "parc", 2000, 7000),
-                    ("Table 2 protein translucent", 8, "samples", "parc", 4000, 5000)]
+    assert rows == [("Table 2 protein isosurface", 8, "cells", "parc", 2000, 300, 7000),
+                    ("Table 2 protein translucent", 8, "samples", "parc", 4000, 1000, 5000)]
 
 
 def test_the_consistency_section_counts_and_names_the_failed_checks():

@@ -1,10 +1,10 @@
-"""The ideal caster's sample count (`raycast.ideal`, `parc.ideal`).
+"""The ideal caster's sample counts (`raycast.ideal`, `parc.ideal`).
 
 Truth: a slow plain-Python walk of the unaccelerated caster's lattice,
-written from the definition (its own ray, clipping, lattice, cell walk
-and cell ranges), which must give the kernel's per-pixel counts exactly;
-and the order ``ideal <= parc <= brute`` of ``stats["samples"]`` on
-random scenes, which must hold without tolerance. The reference repeats
+written from the definition (its own ray, clipping, lattice, cell walk,
+cell ranges and opacities), which must give the kernel's per-pixel counts
+exactly; and the order ``contributing <= ideal <= parc <= brute`` of
+``stats["samples"]`` on random scenes, which must hold without tolerance. The reference repeats
 the kernels' floating-point operations in the same order (Python floats
 are IEEE doubles, and the kernels run without fastmath), because samples
 on cell faces, which the axis-aligned view produces on purpose, belong
@@ -19,7 +19,8 @@ import pytest
 from data_tools import Volume
 from data_tools.synthetic import blobs, trilinear_field
 from parc import Camera, Scene, TransferFunction, Translucent, render
-from parc.ideal import contributing_cells, ideal_sample_counts, ideal_samples
+from parc.ideal import (contributing_sample_counts, contributing_samples, ideal_sample_counts, ideal_samples,
+                        possibly_contributing_cells)
 from parc.renderer import accumulation_params
 from raycast.composite import MODE_COMPOSITE, P_MODE, P_THRESHOLD, cast_accumulate_image
 from raycast.iso import NO_SKIP
@@ -116,7 +117,7 @@ def _lattice_cells(O, D, dims, t_in, t_out, step):
         t1[a] = ((idx[a] + 1.0 - O[a]) if steps[a] > 0 else (idx[a] - O[a])) * inv[a]
 
 
-def _contributing(data, tf):
+def _possibly_contributing(data, tf):
     """Cells whose 8-corner range has non-zero opacity somewhere, one cell at a time."""
     nz, ny, nx = data.shape
     out = np.zeros((nz - 1, ny - 1, nx - 1), bool)
@@ -128,12 +129,13 @@ def _contributing(data, tf):
     return out
 
 
-def _slow_counts(vis, cam, width, height, stop=None, every=False):
-    """Per-pixel ideal counts: brute's lattice walked in plain Python, counting contributing cells
-    (``every``: counting every sample, as the unaccelerated caster's ``samples``)."""
+def _slow_counts(vis, cam, width, height, stop=None, every=False, contributing=False):
+    """Per-pixel ideal counts: brute's lattice walked in plain Python, counting the samples in
+    possibly contributing cells (``every``: every sample, as the unaccelerated caster's
+    ``samples``; ``contributing``: the samples of non-zero opacity)."""
     vol, tf = vis.volume, vis.tf
     data = vol.data
-    contrib = _contributing(data, tf)
+    contrib = _possibly_contributing(data, tf)
     org, spc = vol.origin, vol.spacing
     dims = vol.dims
     # Opacities refer to a slab a quarter of the smallest spacing thick (`parc.transfer`),
@@ -156,10 +158,10 @@ def _slow_counts(vis, cam, width, height, stop=None, every=False):
                 if t >= t_stop:
                     break
                 v = _value(data, O, D, t, (i, j, k))
-                out[y, x] += 1 if every else contrib[k, j, i]
+                a = float(tf.opacity(np.array([v]))[0])
+                out[y, x] += 1 if every else (a > 0.0) if contributing else contrib[k, j, i]
                 if vis.mode != "composite":
                     continue
-                a = float(tf.opacity(np.array([v]))[0])
                 if a > 0.0:
                     a = a if a >= 1.0 or ratio == 1.0 else -math.expm1(ratio * math.log1p(-a))
                     acc += (1.0 - acc) * a
@@ -227,9 +229,14 @@ def test_kernel_matches_slow_reference(dtype, view, mode, threshold):
     got = _kernel_counts(vis, cam, SIZE)
     want = _slow_counts(vis, cam.as_array(), w, h)
     np.testing.assert_array_equal(got, want)
-    # Not vacuous: some samples are counted and some are not.
+    scene = Scene(camera=cam, size=SIZE, volumes=[vis])
+    seen = contributing_sample_counts(scene, vis)
+    np.testing.assert_array_equal(seen, _slow_counts(vis, cam.as_array(), w, h, contributing=True))
+    # Not vacuous: some samples are counted and some are not, and some in
+    # possibly contributing cells have zero opacity.
     assert 0 < want.sum()
-    assert (contributing_cells(vis) == 0).any()
+    assert (possibly_contributing_cells(vis) == 0).any()
+    assert 0 < seen.sum() < want.sum() and (seen <= got).all()
 
     # Per pixel against the unaccelerated caster itself: a subset of its
     # samples, and no pixel with opacity lacks counted samples.
@@ -243,6 +250,8 @@ def test_kernel_matches_slow_reference(dtype, view, mode, threshold):
     brute = brute.reshape(h, w)
     assert (got <= brute).all()
     assert (got[image[..., 3] > 0] > 0).all()
+    # The pixels with colour are exactly those with samples of non-zero opacity.
+    np.testing.assert_array_equal(image[..., 3] > 0, seen > 0)
 
 
 def test_composite_with_stop_matches_slow_reference():
@@ -255,6 +264,8 @@ def test_composite_with_stop_matches_slow_reference():
     np.testing.assert_array_equal(_kernel_counts(vis, cam, SIZE, stop), want)
     scene = Scene(camera=cam, size=SIZE, volumes=[vis])
     assert ideal_samples(scene, vis, stop) == want.sum() < ideal_samples(scene, vis)
+    seen = _slow_counts(vis, cam.as_array(), w, h, stop, contributing=True).sum()
+    assert contributing_samples(scene, vis, stop) == seen < contributing_samples(scene, vis)
 
 
 @pytest.mark.parametrize("view", ["perspective", "parallel-z"])
@@ -364,9 +375,10 @@ def test_ideal_at_most_parc_at_most_brute(seed, gl):
     brute = render(scene, method="brute")
     parc = render(scene, method="parc", supercell=1)
     ideal = ideal_samples(scene, vis)
-    assert ideal <= parc.stats["samples"] <= brute.stats["samples"], seed
+    seen = contributing_samples(scene, vis)
+    assert seen <= ideal <= parc.stats["samples"] <= brute.stats["samples"], seed
     if (brute.image[..., 3] > 0).any():
-        assert ideal > 0, seed
+        assert seen > 0, seed
 
 
 @pytest.mark.parametrize("seed", range(3))
