@@ -100,7 +100,8 @@ class Translucent:
     mode : {"composite", "mip", "average"}, default "composite"
     step : float or None
         World distance between samples; default a quarter of the smallest
-        spacing (Sobierajski & Avila 1995, §6), worked out again for another
+        spacing (Sobierajski & Avila 1995, §6, took 0.25 world units, on
+        volumes of spacing near 1), worked out again for another
         volume (``dataclasses.replace(tr, volume=finer)``). Refused below 1e-4
         of the smallest spacing, and where it would put more than
         `MAX_RAY_SAMPLES` (1e8) samples on a ray across the volume's box

@@ -4,8 +4,9 @@ About this technique
 --------------------
 Each ray is sampled every ``step`` world units on a lattice anchored where
 it enters the volume: ``t_n = t_in + n step`` for ``n = 0 .. N-1``,
-``N = floor((t_out - t_in) / step) + 1`` (Sobierajski & Avila 1995, §6:
-samples every quarter of a unit by default). A sample interpolates the
+``N = floor((t_out - t_in) / step) + 1``; by default a quarter of the
+smallest spacing (Sobierajski & Avila 1995, §6, took samples every 0.25
+world units, on volumes of spacing near 1). A sample interpolates the
 data trilinearly (post-classification: interpolate the value, then look it
 up in the transfer function).
 

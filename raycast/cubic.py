@@ -11,7 +11,10 @@ write the interpolant in its monomial form
 which expands to the same cubic as Parker's ``sum u_i v_j w_k rho_ijk`` form
 but is cheaper to set up, and measure ``s`` from the ray's entry into the
 cell so the coefficients stay small (no ``t^3`` with ``t`` in the hundreds)
-whatever the cell's distance from the eye or the origin.
+whatever the cell's distance from the eye or the origin. (The appendix as
+printed indexes its sums ``u_i v_i w_i``, and gives ``b_0`` and ``b_1`` each
+other's sign: ``u_0 = (x_1 - x) / (x_1 - x_0)`` falls as the ray moves along
++x, so ``b_0 = -x_b / (x_1 - x_0)``.)
 
 The first root in ``[0, L]`` is found robustly rather than in closed form.
 The cubic's Bernstein coefficients on the interval come first: when their

@@ -37,7 +37,9 @@ def test_one_brick_is_contiguous():
 def test_offsets_are_appendix_bs_expression():
     """Parker et al.'s example: a 40 x 20 x 19 volume in 2^3-brick macrobricks of 5^3-sample bricks,
     padded to 40 x 20 x 20. Their x runs slowest; here the array's last axis runs fastest, so the
-    expression is theirs with x and z exchanged."""
+    expression is theirs with x and z exchanged, and with two misprints mended: the sample's own
+    term is ``(x mod n) n^2``, not ``(x mod n × n) n^2``, and the macrobrick counts
+    ``(N ÷ n) ÷ m`` are of the padded sizes (rounded down, they make offsets collide)."""
     n, m = 5, 2
     shape = (40, 20, 19)
     fz, fy, fx, total = brick_tables(shape, n, m)
