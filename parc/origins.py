@@ -13,11 +13,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import prange
 
 from raycast.config import kernel
-
-#: Pixels per band when parallel-view ray origins are tested on the CPU.
-_BAND_PIXELS = 1 << 18
+from raycast.rays import camera_ray
 
 
 def open_faces(proxy):
@@ -195,7 +194,7 @@ def _nearest_box_sq(pc, ex, ey, ez, px, py, pz):
 def parallel_inside(camera, width, height, proxy):
     """Pixels of a parallel view whose ray starts inside, on or next to a PC supercell, (H, W) bool.
 
-    Ray origins by the caster's formula, a band of rows at a time (memory).
+    Ray origins by the caster's own formula (`raycast.rays.camera_ray`).
     "Next to": within `origin_slab` (a rounding at the scene's scale), as
     the caster converts the origin to index space, where one a rounding
     outside a face in world coordinates can land exactly on it and walk
@@ -213,33 +212,52 @@ def parallel_inside(camera, width, height, proxy):
     slab = origin_slab(camera, width, height, eye, lo, hi)
     if (dist > slab).all() or (dist < -slab).all():
         return inside
-    band = max(1, _BAND_PIXELS // width)
-    for y0 in range(0, height, band):
-        o = camera.rays(width, height, rows=(y0, min(height, y0 + band)))[0].reshape(-1, 3)
-        cand = np.flatnonzero(np.all((o >= lo - slab) & (o <= hi + slab), axis=1))
-        if not len(cand):
-            continue
-        p = o[cand]
-        idx = []
-        for axis, e in enumerate(proxy.world_edges):
-            n = len(e) - 1
-            # Closed boxes grown by the slab: a point on or next to a boundary
-            # belongs to both neighbours.
-            right = np.clip(np.searchsorted(e, p[:, axis] + slab, "right") - 1, 0, n - 1)
-            left = np.clip(np.searchsorted(e, p[:, axis] - slab, "left") - 1, 0, n - 1)
-            idx.append((left, right))
-        (x0, x1), (y0_, y1_), (z0, z1) = idx
-        hit = np.zeros(len(cand), dtype=bool)
-        # Every box from the first to the last, not these two alone: supercells thinner than
-        # the slab (a thousandth of a cell in a volume 2^32 cells from 0) lie between them,
-        # the one holding the origin among them.
-        for dz in range(int((z1 - z0).max()) + 1):
-            zz = np.minimum(z0 + dz, z1)
-            for dy in range(int((y1_ - y0_).max()) + 1):
-                yy = np.minimum(y0_ + dy, y1_)
-                for dx in range(int((x1 - x0).max()) + 1):
-                    hit |= proxy.pc[zz, yy, np.minimum(x0 + dx, x1)]
-        flat = inside[y0:y0 + band].reshape(-1)
-        flat[cand] = hit
+    ex, ey, ez = (np.ascontiguousarray(e, dtype=np.float64) for e in proxy.world_edges)
+    _parallel_inside(camera.as_array(), width, height, np.asarray(lo, dtype=np.float64),
+                     np.asarray(hi, dtype=np.float64), float(slab), ex, ey, ez,
+                     np.ascontiguousarray(proxy.pc, dtype=np.bool_), inside)
     return inside
 
+
+@kernel
+def _boxes_along(e, v, slab):
+    """The first and last boxes along one axis (edges ``e``, sorted) whose closed interval, grown
+    by ``slab``, holds ``v``: a point on or next to a boundary belongs to both neighbours."""
+    n = len(e) - 1
+    # The first edge at v - slab or beyond, by bisection; the slab is a rounding, so the last
+    # box is found by stepping on from there.
+    a, b = 0, n + 1
+    while a < b:
+        m = (a + b) // 2
+        if e[m] >= v - slab:
+            b = m
+        else:
+            a = m + 1
+    last = a - 1
+    while last < n and e[last + 1] <= v + slab:
+        last += 1
+    return min(max(a - 1, 0), n - 1), min(max(last, 0), n - 1)
+
+
+@kernel(parallel=True)
+def _parallel_inside(cam, width, height, lo, hi, slab, ex, ey, ez, pc, inside):
+    """`parallel_inside`'s test of each pixel's ray origin against the PC boxes, a row a thread."""
+    for y in prange(height):
+        for x in range(width):
+            ox, oy, oz, _, _, _ = camera_ray(cam, width, height, x, y)
+            if not (lo[0] - slab <= ox <= hi[0] + slab and lo[1] - slab <= oy <= hi[1] + slab
+                    and lo[2] - slab <= oz <= hi[2] + slab):
+                continue
+            x0, x1 = _boxes_along(ex, ox, slab)
+            y0, y1 = _boxes_along(ey, oy, slab)
+            z0, z1 = _boxes_along(ez, oz, slab)
+            # Every box from the first to the last, not these two alone: supercells thinner than
+            # the slab (a thousandth of a cell in a volume 2^32 cells from 0) lie between them,
+            # the one holding the origin among them.
+            hit = False
+            for k in range(z0, z1 + 1):
+                for j in range(y0, y1 + 1):
+                    for i in range(x0, x1 + 1):
+                        if pc[k, j, i]:
+                            hit = True
+            inside[y, x] = hit

@@ -181,6 +181,51 @@ def test_parallel_ray_origins_inside_pc_boxes(shape, seed):
     assert got[inside].all() and not got[outside].any()
 
 
+def _parallel_inside_numpy(cam, width, height, proxy):
+    """`origins.parallel_inside` by NumPy's searchsorted over every pixel at once: origins in a box
+    grown by `origins.origin_slab`, each axis's first and last such box, any PC box between."""
+    lo, hi = proxy.bounds
+    eye = np.asarray(cam.eye, dtype=np.float64)
+    slab = origins.origin_slab(cam, width, height, eye, lo, hi)
+    o = caster_rays(cam, width, height)[0].reshape(-1, 3)
+    ranges = []
+    for axis, e in enumerate(proxy.world_edges):
+        n = len(e) - 1
+        ranges.append((np.clip(np.searchsorted(e, o[:, axis] - slab, "left") - 1, 0, n - 1),
+                       np.clip(np.searchsorted(e, o[:, axis] + slab, "right") - 1, 0, n - 1)))
+    (x0, x1), (y0, y1), (z0, z1) = ranges
+    hit = np.array([proxy.pc[z0[p]:z1[p] + 1, y0[p]:y1[p] + 1, x0[p]:x1[p] + 1].any() for p in range(len(o))])
+    near = np.all((o >= lo - slab) & (o <= hi + slab), axis=1)
+    return (hit & near).reshape(height, width)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_parallel_ray_origins_next_to_pc_boxes_by_the_slab(seed):
+    """Pixel for pixel the NumPy rule, the slab's band included, on views whose plane lies on grid
+    planes (origins on faces and edges) and in volumes far from the origin (a wide slab)."""
+    rng = np.random.default_rng(seed)
+    pc = _random_pc((4, 5, 6), seed, fill=0.3)
+    nz, ny, nx = pc.shape
+    grid = supercell_grid((nx + 1, ny + 1, nz + 1), 1)
+    far = (2.0 ** 30 if seed % 2 else 0.0) * np.ones(3)
+    vol = Volume(np.zeros((nz + 1, ny + 1, nx + 1), np.float32), origin=tuple(far))
+    proxy = build_proxy(grid, pc, grid.world_edges(vol))
+    axis = seed % 3
+    f = np.zeros(3)
+    f[axis] = 1.0 if seed < 3 else -1.0
+    if seed >= 4:
+        f = f + rng.normal(scale=0.2, size=3)      # a slanted view plane
+    up = np.zeros(3)
+    up[(axis + 1) % 3] = 1.0
+    eye = far + np.array([3.125, 2.625, 2.125])
+    eye[axis] = far[axis] + 2.0
+    cam = Camera(eye=tuple(eye), look_at=tuple(eye + f), up=tuple(up), parallel_scale=4.0)
+    got = origins.parallel_inside(cam, 32, 32, proxy)
+    want = _parallel_inside_numpy(cam, 32, 32, proxy)
+    assert want.any() and not want.all()
+    np.testing.assert_array_equal(got, want)
+
+
 @pytest.mark.parametrize("plane", ["within", "on the volume's face"])
 @pytest.mark.parametrize("axis", [0, 1, 2])
 @pytest.mark.parametrize("side", [-1.0, 1.0])

@@ -481,20 +481,6 @@ def test_extreme_image_shapes(gl, looseness, w, h):
     assert (seg.near[meet] <= near_ref[meet]).all() and (seg.far[meet] >= far_ref[meet]).all()
 
 
-def test_parallel_inside_in_bands(gl, monkeypatch):
-    """The CPU test of parallel ray origins gives the same answer band by band."""
-    from parc import origins
-    vol = smooth_volume(6)
-    proxy = _proxy(vol, 1.5, frac=0.5)
-    c = vol.center
-    cam = Camera(eye=tuple(c), look_at=tuple(c + np.array([0.3, -0.5, 0.8])), up=(0, 1, 0),
-                 parallel_scale=6.0)
-    whole = origins.parallel_inside(cam, 37, 29, proxy)
-    monkeypatch.setattr(origins, "_BAND_PIXELS", 40)
-    banded = origins.parallel_inside(cam, 37, 29, proxy)
-    assert whole.any() and np.array_equal(whole, banded)
-
-
 def _one_box_proxy():
     """A proxy of one PC supercell, the box [0, 4]^3."""
     from parc.ranges import supercell_grid
