@@ -141,9 +141,8 @@ class Camera:
     def rays(self, width, height, rows=None):
         """World rays through every pixel centre: origins, directions, each ``(H, W, 3)``.
 
-        Vectorized NumPy version of `raycast.rays.camera_ray`: the parallel origins PARC
-        tests (`parc.origins`), the Parker bench, and tests. ``rows=(y0, y1)``: only those
-        rows, ``(y1 - y0, W, 3)``.
+        Vectorized NumPy version of `raycast.rays.camera_ray`, for the Parker bench and
+        tests. ``rows=(y0, y1)``: only those rows, ``(y1 - y0, W, 3)``.
         """
         width, height = _image_size(width, height)
         f, r, u = self.basis()
