@@ -13,7 +13,7 @@ import numpy as np
 
 from .errors import InputError
 from .grids import grid_axes, grid_dims, soft_inside, volume_label
-from .volume import Volume
+from .volume import Volume, hand_over
 
 
 def _blur(field, sigmas):
@@ -192,7 +192,7 @@ def neuron(size=128, *, seed=0, noise=True) -> Volume:
     if noise:
         photons = rng.poisson(photons).astype(np.float32)
     data = np.clip(np.rint(photons), 0, 255).astype(np.uint8)
-    return Volume(data, name=volume_label("neuron", dims),
+    return Volume(hand_over(data), name=volume_label("neuron", dims),
                   meta={"iso": 80.5, "soma": tuple(float(v) for v in soma), "seed": seed,
                         "synthetic": "neuron"})
 
@@ -265,7 +265,7 @@ def floor(size=128, *, height=None, thickness=None, tile=None, relief=None) -> V
     dist = np.maximum(np.maximum(np.abs(x - cx) - hx, np.abs(y - cy) - hy),
                       np.maximum(bottom - z, z - top_xy))
     data = np.clip(np.rint(255.0 * soft_inside(dist, 0.5)), 0, 255).astype(np.uint8)
-    return Volume(data, name=volume_label("floor", dims),
+    return Volume(hand_over(data), name=volume_label("floor", dims),
                   meta={"iso": 127.5, "bottom": float(bottom), "top": float(top), "tile": float(tile),
                         "relief": float(relief),
                         "synthetic": "floor"})

@@ -11,7 +11,7 @@ import numpy as np
 
 from .errors import InputError, os_reason
 from .grids import grid_dims, soft_inside, volume_label
-from .volume import Volume, _triple
+from .volume import Volume, _triple, hand_over
 
 
 #: Voxels per slab when phantoms are built slab by slab (bounds temporary memory).
@@ -127,7 +127,7 @@ def ct_phantom(size=128, *, seed=0, dtype="int16", spacing=(1.0, 1.0, 1.0), nois
     data = np.empty((nz, ny, nx), dtype=dt)
     for k0, k1, slab in _ct_slabs(dims, spacing, seed, noise, dt):
         data[k0:k1] = slab
-    return Volume(data, spacing=spacing, name=volume_label("ct_phantom", dims),
+    return Volume(hand_over(data), spacing=spacing, name=volume_label("ct_phantom", dims),
                   meta={"iso": 600.5, "bone_iso": 1500.5, "seed": seed, "synthetic": "ct_phantom"})
 
 

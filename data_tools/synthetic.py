@@ -13,7 +13,7 @@ from .memory import check_memory
 from .grids import grid_axes, grid_dims, soft_inside, volume_label
 from .neuron import floor, floor_height, neuron
 from .phantom import ct_phantom, ct_phantom_to_disk
-from .volume import Volume
+from .volume import Volume, hand_over
 
 __all__ = ["DESCRIPTIONS", "ISOVALUES", "SYNTHETIC", "blobs", "builtin_volume", "ct_phantom", "ct_phantom_to_disk", "floor",
            "make_synthetic", "marschner_lobb", "neuron", "sphere", "torus", "trilinear_field"]
@@ -37,7 +37,7 @@ def sphere(size=64, *, radius_fraction=0.35) -> Volume:
     radius = radius_fraction * (min(dims) - 1)
     x, y, z = grid_axes(dims)
     dist = np.sqrt((x - center[0]) ** 2 + (y - center[1]) ** 2 + (z - center[2]) ** 2) - radius
-    return Volume(dist.astype(np.float32), name=volume_label("sphere", dims),
+    return Volume(hand_over(dist.astype(np.float32)), name=volume_label("sphere", dims),
                   meta={"center": center, "radius": radius, "iso": 0.0, "synthetic": "sphere"})
 
 
@@ -63,7 +63,7 @@ def torus(size=64, *, major_fraction=0.3, minor_fraction=0.12) -> Volume:
     x, y, z = grid_axes(dims)
     ring = np.sqrt((x - center[0]) ** 2 + (y - center[1]) ** 2) - big_r
     dist = np.sqrt(ring ** 2 + (z - center[2]) ** 2) - small_r
-    return Volume(dist.astype(np.float32), name=volume_label("torus", dims),
+    return Volume(hand_over(dist.astype(np.float32)), name=volume_label("torus", dims),
                   meta={"center": center, "major_radius": big_r, "minor_radius": small_r,
                         "iso": 0.0, "synthetic": "torus"})
 
@@ -91,7 +91,7 @@ def marschner_lobb(size=64, *, alpha=0.25, f_m=6.0) -> Volume:
     r = np.sqrt(x ** 2 + y ** 2)
     rho_r = np.cos(2 * np.pi * f_m * np.cos(np.pi * r / 2))
     rho = (1 - np.sin(np.pi * z / 2) + alpha * (1 + rho_r)) / (2 * (1 + alpha))
-    return Volume(rho.astype(np.float32), spacing=spacing, origin=(-1.0, -1.0, -1.0),
+    return Volume(hand_over(rho.astype(np.float32)), spacing=spacing, origin=(-1.0, -1.0, -1.0),
                   name=volume_label("marschner_lobb", dims),
                   meta={"alpha": alpha, "f_m": f_m, "iso": 0.5, "synthetic": "marschner_lobb"})
 
@@ -137,7 +137,7 @@ def blobs(size=64, *, seed=0, count=12, noise=0.04) -> Volume:
     field += rng.normal(0.0, noise, size=field.shape).astype(np.float32)
     # A dim constant offset, as in real stacks: the background is not exactly zero.
     data = np.clip(np.rint(20.0 + 215.0 * field), 0, 255).astype(np.uint8)
-    return Volume(data, name=volume_label("blobs", dims),
+    return Volume(hand_over(data), name=volume_label("blobs", dims),
                   meta={"iso": 100.5, "seed": seed, "synthetic": "blobs"})
 
 
@@ -197,7 +197,7 @@ def trilinear_field(size, coeffs=None, *, seed=0, dtype="float64",
     exact = bool(np.array_equal(data.astype(f.dtype), f))
     lo, hi = float(f.min()), float(f.max())
     iso = lo + 0.5 * (hi - lo) + (0.25 if hi - lo > 1 else 0.0)
-    return Volume(data, spacing=spacing, origin=origin, name=volume_label("trilinear_field", dims),
+    return Volume(hand_over(data), spacing=spacing, origin=origin, name=volume_label("trilinear_field", dims),
                   meta={"coeffs": tuple(c), "exact": exact, "iso": iso, "synthetic": "trilinear_field"})
 
 
@@ -223,7 +223,7 @@ def builtin_volume(size=64) -> Volume:
     lumps = _gaussians(dims, centers, [0.09 * ext, 0.06 * ext, 0.06 * ext, 0.06 * ext, 0.06 * ext],
                        [1.0, 0.9, 0.9, 0.9, 0.9])
     data = np.clip(np.rint(255.0 * np.maximum(density, lumps)), 0, 255).astype(np.uint8)
-    return Volume(data, name=volume_label("builtin", dims), meta={"iso": 127.5, "synthetic": "builtin"})
+    return Volume(hand_over(data), name=volume_label("builtin", dims), meta={"iso": 127.5, "synthetic": "builtin"})
 
 
 #: Peak memory of a generator per sample, with room (measured 13-34 bytes at

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import InputError
+from .memory import check_memory
 
 #: Sample types the kernels read natively.
 SUPPORTED_DTYPES = tuple(np.dtype(t) for t in (
@@ -75,10 +76,14 @@ class Volume:
 
     Notes
     -----
-    A volume is fixed once built (`settled`): its samples are a read-only
-    view, and its fields cannot be reassigned. Rendering caches cell ranges,
-    proxies and skip tables on it. Changing the array it was built from in
-    place leaves them stale: build a new Volume for new samples.
+    A volume is fixed once built (`settled`): its samples are read-only,
+    and its fields cannot be reassigned. Rendering caches cell ranges,
+    proxies and skip tables on it, so it keeps its own copy of an array
+    that could still be written (``data``, or an array it views), and
+    changing that array later changes nothing here. An array read-only all
+    the way down is used in place, without a copy; so is a memory map
+    (`numpy.memmap`), whose file must then not change while the volume is
+    in use.
 
     Raises
     ------
@@ -107,6 +112,7 @@ class Volume:
                 raise InputError(f"{self.name}: a masked array with {int(np.ma.getmaskarray(self.data).sum())} "
                                  "masked samples; fill them with values to draw (np.ma.filled) first")
             self.data = np.ma.getdata(self.data)
+        given = self.data
         try:
             data = np.asarray(self.data) if not isinstance(self.data, np.memmap) else self.data
         except ValueError:
@@ -131,9 +137,19 @@ class Volume:
             if top > MAX_SAMPLE:
                 raise InputError(f"{self.name}: samples reach {top:.3g}, beyond the {MAX_SAMPLE:g} a cell's cubic "
                                  "holds without overflow (a fill value?); replace them before rendering")
-        if data.flags.writeable:
-            data = data.view()
-            data.flags.writeable = False
+        if isinstance(data, np.memmap):
+            if data.flags.writeable:
+                data = data.view()
+                data.flags.writeable = False
+        elif data is given or data.base is not None:
+            if _writeable_below(data):
+                # The caller's samples could change under the caches: keep a copy of them.
+                check_memory(data.nbytes, f"{self.name}: a copy of the samples",
+                             " (an array made read-only, a.flags.writeable = False, is used without one)")
+                data = data.copy()
+                data.flags.writeable = False
+        else:
+            data.flags.writeable = False        # made here, from a list or by a conversion
         self.data = data
         if self.meta is not None and not isinstance(self.meta, Mapping):
             raise InputError(f"{self.name}: meta must be a dict, got {type(self.meta).__name__}")
@@ -205,6 +221,25 @@ class Volume:
 #: world units, its coefficients up to 8 samples over spacing^3) stays within float64:
 #: 8e200 x 1e90 is far from overflow, and real data (float32 at most 3.4e38) far inside.
 MAX_SAMPLE = 1e200
+
+
+def _writeable_below(a):
+    """Whether ``a``, or an array it is a view of, can be written."""
+    while isinstance(a, np.ndarray):
+        if a.flags.writeable:
+            return True
+        a = a.base
+    return False
+
+
+def hand_over(data):
+    """``data``, made read-only with every array it views: for code that builds samples only to
+    give them to a `Volume` and keeps no other reference, so that the volume need not copy them."""
+    a = data
+    while isinstance(a, np.ndarray) and not isinstance(a, np.memmap):
+        a.flags.writeable = False
+        a = a.base
+    return data
 MIN_SPACING, MAX_SPACING = 1e-30, 1e30
 
 

@@ -51,12 +51,12 @@ def load_volume(path, **options) -> Volume:
         tifffile), a folder of single-slice ``.tif`` files (an image
         sequence, in natural order), or headerless ``.raw``/``.bin``/``.dat``.
         Or samples already in memory, an array ``(nz, ny, nx)``: a `Volume` of
-        it with the ``spacing`` and ``origin`` given (else 1 and 0). An array of
-        a supported type, in C order and the machine's byte order, is not
-        copied: the Volume views it read-only, and changing it in place
-        afterwards leaves what was worked out from it (the value range, PARC's
-        cell ranges) stale; give a copy, or a new Volume, for new samples.
-        Other arrays are converted into a copy.
+        it with the ``spacing`` and ``origin`` given (else 1 and 0). The
+        Volume keeps a copy of an array that could still be written, so a
+        change to it afterwards reaches neither the samples nor what was
+        worked out from them (the value range, PARC's cell ranges); one
+        read-only all the way down, of a supported type in C order and the
+        machine's byte order, is used in place.
     **options
         For raw files: ``shape=(nx, ny, nz)``, ``dtype``, ``byte_order``,
         ``offset``, ``mmap`` (see `data_tools.io.raw.read_raw`). ``spacing`` and

@@ -17,7 +17,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..memory import check_memory
-from ..volume import Volume
+from ..volume import Volume, hand_over
 
 #: Exceptions a reader may meet on bad input; all become one-line InputErrors.
 READ_ERRORS = (OSError, ValueError, TypeError, KeyError, IndexError, EOFError,
@@ -91,7 +91,7 @@ def file_volume(data, spacing, origin, path, meta, place):
         meta["note"] = f"{meta['note']}; {said}" if meta.get("note") else said
     if place.get("origin") is not None:
         origin = place["origin"]
-    return Volume(data, spacing=spacing, origin=origin, name=str(path), meta=meta)
+    return Volume(hand_over(data), spacing=spacing, origin=origin, name=str(path), meta=meta)
 
 
 #: What a rotated or mirrored file's spacing note still says once a spacing is given.

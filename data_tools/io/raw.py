@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..volume import Volume
+from ..volume import Volume, hand_over
 from ._common import read_samples, reading
 
 EXTENSIONS = (".raw", ".bin", ".dat")
@@ -241,7 +241,7 @@ def read_raw(path, *, shape=None, dtype=None, byte_order=None, offset=0,
     try:
         with reading(path, "raw"):
             data = read_samples(path, offset, dims, dtype, str(byte_order).lower() == "big", mmap=bool(mmap))
-        return Volume(data, spacing=spacing if spacing is not None else (1.0, 1.0, 1.0),
+        return Volume(hand_over(data), spacing=spacing if spacing is not None else (1.0, 1.0, 1.0),
                       origin=origin if origin is not None else (0.0, 0.0, 0.0),
                       name=str(path), meta={"format": "raw", "byte_order": str(byte_order).lower()})
     except InputError as exc:

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from data_tools import Volume, load_volume
+from data_tools.volume import hand_over
 from data_tools.synthetic import blobs, ct_phantom, floor, neuron
 
 from ..camera import Camera
@@ -112,7 +113,7 @@ def iron_protein(size, data_dir=None, tiny=False):
 def _to_uint8(vol):
     d = vol.data.astype(np.float64)
     d = np.clip(np.rint(255.0 * (d - d.min()) / max(float(d.max() - d.min()), 1e-12)), 0, 255).astype(np.uint8)
-    return Volume(d, spacing=vol.spacing, origin=vol.origin, name=vol.name)
+    return Volume(hand_over(d), spacing=vol.spacing, origin=vol.origin, name=vol.name)
 
 
 def neuron_floor(size, data_dir=None, tiny=False):

@@ -20,6 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from data_tools import Volume
+from data_tools.volume import hand_over
 from data_tools.synthetic import trilinear_field
 
 from ..camera import Camera
@@ -72,7 +73,7 @@ def root_finders(suite, progress):
 
 
 def _as(vol, dtype):
-    return Volume(vol.data.astype(dtype), spacing=vol.spacing, origin=vol.origin, name=f"{vol.name} as {dtype}")
+    return Volume(hand_over(vol.data.astype(dtype)), spacing=vol.spacing, origin=vol.origin, name=f"{vol.name} as {dtype}")
 
 
 def precision(suite, progress):

@@ -1,5 +1,6 @@
 """The Volume: samples kept as the kernels read them and checked slab by slab, spacing and origin
-checked, its bounds, and new volumes made from it (replace, copies, pickles)."""
+checked, its bounds, new volumes made from it (replace, copies, pickles), and samples a caller
+can no longer change under it."""
 from __future__ import annotations
 
 import dataclasses
@@ -8,6 +9,7 @@ import numpy as np
 import pytest
 
 from data_tools import InputError, Volume
+from data_tools.volume import hand_over
 
 
 @pytest.mark.parametrize("data", [np.arange(4 * 5 * 12, dtype=np.int16).reshape(4, 5, 12)[:, :, ::2],
@@ -85,3 +87,59 @@ def test_copies_and_pickles_keep_the_name_placement_and_meta():
     for other in (copy.copy(vol), copy.deepcopy(vol), pickle.loads(pickle.dumps(vol))):
         assert (other.name, other.spacing, other.origin) == ("v", (1, 2, 3), (4, 5, 6))
         assert other.meta == {"note": "oblique directions reduced", "iso": 3.5}
+
+
+def _layouts():
+    base = np.arange(1000, dtype=np.float32).reshape(10, 10, 10)
+    read_only_view = base.view()
+    read_only_view.flags.writeable = False
+    return {"C order": base, "Fortran order": np.asfortranarray(base),
+            "strided": np.arange(2000, dtype=np.float32).reshape(10, 10, 20)[:, :, ::2],
+            "big-endian": base.astype(">f4"), "int64": base.astype(np.int64),
+            "a read-only view of a writeable array": read_only_view}
+
+
+@pytest.mark.parametrize("layout", list(_layouts()))
+def test_a_change_to_the_callers_array_never_reaches_the_volume(layout):
+    # Rendering caches ranges, proxies and skip tables on a volume: samples that changed under
+    # them would be drawn from stale caches, with no error.
+    given = _layouts()[layout]
+    vol = Volume(given)
+    before = vol.data.copy()
+    writeable = given if given.flags.writeable else given.base
+    writeable[...] = -7
+    np.testing.assert_array_equal(vol.data, before)
+    assert not vol.data.flags.writeable
+    with pytest.raises(ValueError, match="read-only"):
+        vol.data[0, 0, 0] = 1
+
+
+def test_samples_read_only_all_the_way_down_are_used_without_a_copy():
+    owned = np.arange(27, dtype=np.int16).reshape(3, 3, 3).copy()      # not a view: no base
+    owned.flags.writeable = False
+    assert np.shares_memory(Volume(owned).data, owned)
+    made = np.arange(27, dtype=np.int16).reshape(3, 3, 3).copy()
+    view = made.view()
+    assert hand_over(view) is view and not made.flags.writeable
+    assert np.shares_memory(Volume(view).data, made)
+    # A volume made anew from another's samples shares them too.
+    vol = Volume(made)
+    assert np.shares_memory(Volume(vol.data, spacing=(2, 2, 2)).data, made)
+
+
+def test_a_memory_map_is_used_in_place(tmp_path):
+    path = tmp_path / "samples.npy"
+    np.save(path, np.arange(64, dtype=np.uint8).reshape(4, 4, 4))
+    mapped = np.load(path, mmap_mode="r+")
+    vol = Volume(mapped)
+    assert np.shares_memory(vol.data, mapped) and not vol.data.flags.writeable
+
+
+def test_a_copy_too_large_for_the_memory_is_refused_with_the_way_around_it(monkeypatch):
+    import data_tools.memory
+    monkeypatch.setattr(data_tools.memory, "available_memory", lambda: 100)
+    with pytest.raises(InputError, match=r"scan: a copy of the samples needs about .*a.flags.writeable = False"):
+        Volume(np.zeros((4, 5, 6), np.float32), name="scan")
+    kept = np.zeros((4, 5, 6), np.float32)
+    kept.flags.writeable = False
+    assert np.shares_memory(Volume(kept).data, kept)

@@ -405,6 +405,24 @@ def test_a_string_is_not_taken_for_a_sequence_of_digits():
         dataclasses.replace(VOL, spacing="123")
 
 
+def test_changing_the_array_a_volume_was_built_from_leaves_its_renders_as_they_were(gl):
+    # PARC's cell ranges, proxy and skip tables are kept on the volume from its first frame: had
+    # the volume kept the caller's array, the blob moved here would be drawn from stale caches.
+    a = np.zeros((12, 12, 12), np.float32)
+    a[4:8, 4:8, 4:8] = 1.0
+    vol = parc.Volume(a)
+    scene = parc.Scene(camera=parc.Camera.framing(*vol.bounds), size=(48, 48), volumes=[parc.Isosurface(vol, 0.5)])
+    first = parc.render(scene, method="parc")
+    parc.render(scene, method="parc")
+    a[:] = 0.0
+    a[1:4, 1:4, 1:4] = 1.0
+    for method in ("brute", "parc"):
+        again = parc.render(scene, method=method)
+        np.testing.assert_array_equal(again.depth, first.depth)
+        np.testing.assert_array_equal(again.image, first.image)
+    assert np.isfinite(first.depth).sum() > 50 and vol.value_range() == (0.0, 1.0)
+
+
 def test_copies_and_pickles_are_new_volumes_without_caches():
     import copy
     import pickle
