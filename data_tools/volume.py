@@ -12,7 +12,7 @@ from __future__ import annotations
 import functools
 import numbers
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, is_dataclass
 
 import numpy as np
 
@@ -31,7 +31,7 @@ def settled(cls):
     proxies, skip tables) on the object; a field changed afterwards would
     skip the checks and leave those caches describing another object, so
     PARC and the unaccelerated caster would disagree. A changed object is a
-    new one: ``dataclasses.replace(obj, field=...)``.
+    new one: ``dataclasses.replace(obj, field=...)`` for a dataclass.
     """
     init = cls.__init__
 
@@ -43,8 +43,9 @@ def settled(cls):
 
     def __setattr__(self, name, value):
         if self.__dict__.get("_settled"):
-            raise AttributeError(f"{type(self).__name__}.{name} cannot change once built; make a new "
-                                 f"{type(self).__name__}: dataclasses.replace(obj, {name}=...)")
+            kind = type(self).__name__
+            how = f": dataclasses.replace(obj, {name}=...)" if is_dataclass(self) else ""
+            raise AttributeError(f"{kind}.{name} cannot change once built; make a new {kind}{how}")
         object.__setattr__(self, name, value)
 
     cls.__init__ = __init__

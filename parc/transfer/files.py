@@ -163,7 +163,8 @@ def load_for_volume(spec, volume, mode="composite"):
     tf = load_transfer_function(spec, data_range=data_range, mode=mode)
     if tf is not spec:
         text = os.fspath(spec)
-        tf.made_from = (text if text in PRESETS else os.path.abspath(text), data_range, mode)
+        # Marked as it is made, before anything else holds it; a TransferFunction is fixed after.
+        object.__setattr__(tf, "made_from", (text if text in PRESETS else os.path.abspath(text), data_range, mode))
     return tf
 
 

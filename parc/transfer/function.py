@@ -59,7 +59,7 @@ import numpy as np
 from numba import prange
 
 from data_tools import InputError
-from data_tools.volume import is_number, three_numbers
+from data_tools.volume import is_number, settled, three_numbers
 from raycast.config import RANGE_CHUNK, kernel
 from raycast.rays import chunk_count, chunk_run
 
@@ -104,6 +104,7 @@ def _interp(x, y, v):
     out[np.isnan(v)] = 0.0
     return out
 
+@settled
 class TransferFunction:
     """Piecewise-linear opacity and colour over data values.
 

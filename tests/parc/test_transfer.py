@@ -443,8 +443,8 @@ def test_ramps_end_opaque_for_maximum_and_average_intensity(tmp_path, mode):
 def test_round_trip(tmp_path, ext):
     rng = np.random.default_rng(8)
     for k in range(20):
-        tf = random_tf(rng)
-        tf.name = f"random \"{k}\" é"
+        made = random_tf(rng)
+        tf = TransferFunction(made.opacity_points, made.color_points, name=f"random \"{k}\" é")
         path = tmp_path / f"tf{k}{ext}"
         save_transfer_function(tf, path)
         back = load_transfer_function(path)
@@ -1053,3 +1053,14 @@ def test_a_point_with_a_number_too_many_is_refused():
 def test_a_preset_name_that_is_none_of_them_is_refused_with_the_list(name):
     with pytest.raises(InputError, match="unknown transfer function preset .*known: ct_skin, ct_bone"):
         preset(name)
+
+
+def test_a_transfer_function_is_fixed_once_built():
+    # Renderers key their caches (skip tables, classifications) on it, as on volumes and scenes.
+    tf = TransferFunction([[0.0, 0.0], [1.0, 0.5]], name="ramp")
+    for name, value in (("name", "other"), ("made_from", ("ct_bone", (0.0, 1.0), "composite")),
+                        ("_op_y", np.zeros(2))):
+        with pytest.raises(AttributeError, match=rf"^TransferFunction\.{name} cannot change once built; "
+                                                 r"make a new TransferFunction$"):
+            setattr(tf, name, value)
+    assert tf.name == "ramp" and tf.made_from is None and tf.opacity(np.array([1.0]))[0] == 0.5
