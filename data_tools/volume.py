@@ -222,6 +222,7 @@ class Volume:
 #: world units, its coefficients up to 8 samples over spacing^3) stays within float64:
 #: 8e200 x 1e90 is far from overflow, and real data (float32 at most 3.4e38) far inside.
 MAX_SAMPLE = 1e200
+MIN_SPACING, MAX_SPACING = 1e-30, 1e30
 
 
 def _writeable_below(a):
@@ -241,7 +242,6 @@ def hand_over(data):
         a.flags.writeable = False
         a = a.base
     return data
-MIN_SPACING, MAX_SPACING = 1e-30, 1e30
 
 
 def _count_non_finite(data, slab_bytes=64 << 20):
