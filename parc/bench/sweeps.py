@@ -73,7 +73,8 @@ def root_finders(suite, progress):
 
 
 def _as(vol, dtype):
-    return Volume(hand_over(vol.data.astype(dtype)), spacing=vol.spacing, origin=vol.origin, name=f"{vol.name} as {dtype}")
+    return Volume(hand_over(vol.data.astype(dtype)), spacing=vol.spacing, origin=vol.origin,
+                  name=f"{vol.name} as {dtype}")
 
 
 def precision(suite, progress):
