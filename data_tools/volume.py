@@ -82,9 +82,10 @@ class Volume:
     proxies and skip tables on it, so it keeps its own copy of an array
     that could still be written (``data``, or an array it views), and
     changing that array later changes nothing here. An array read-only all
-    the way down is used in place, without a copy; so is a memory map
-    (`numpy.memmap`), whose file must then not change while the volume is
-    in use.
+    the way down is used in place, without a copy (then keep no writeable
+    view of it: NumPy cannot tell), and so is a memory map
+    (`numpy.memmap`): neither it nor its file may change while the volume
+    is in use.
 
     Raises
     ------
@@ -113,7 +114,10 @@ class Volume:
                 raise InputError(f"{self.name}: a masked array with {int(np.ma.getmaskarray(self.data).sum())} "
                                  "masked samples; fill them with values to draw (np.ma.filled) first")
             self.data = np.ma.getdata(self.data)
-        given = self.data
+        # Whether the samples are already an array of this volume's own, made here: from a list,
+        # or by a conversion below. Any other array may be the caller's (np.asarray hands back
+        # an object's own buffer), and is copied if it could still be written.
+        converted = isinstance(self.data, (list, tuple))
         try:
             data = np.asarray(self.data) if not isinstance(self.data, np.memmap) else self.data
         except ValueError:
@@ -125,11 +129,11 @@ class Volume:
             raise InputError(f"{self.name}: every dimension must be at least 2 samples, got {nx}x{ny}x{nz} (x×y×z)")
         dt = data.dtype
         if dt.byteorder not in ("=", "|") and dt.newbyteorder("=") in SUPPORTED_DTYPES:
-            data = data.astype(dt.newbyteorder("="))
+            data, converted = data.astype(dt.newbyteorder("=")), True
         if data.dtype not in SUPPORTED_DTYPES:
-            data = _narrowed(data, self.name)
+            data, converted = _narrowed(data, self.name), True
         if not data.flags.c_contiguous:
-            data = np.ascontiguousarray(data)
+            data, converted = np.ascontiguousarray(data), True
         if data.dtype.kind == "f":
             # Policy: non-finite samples have no isosurface or colour; refuse them.
             bad, top = _count_non_finite(data)
@@ -142,15 +146,15 @@ class Volume:
             if data.flags.writeable:
                 data = data.view()
                 data.flags.writeable = False
-        elif data is given or data.base is not None:
-            if _writeable_below(data):
-                # The caller's samples could change under the caches: keep a copy of them.
-                check_memory(data.nbytes, f"{self.name}: a copy of the samples",
-                             " (an array made read-only, a.flags.writeable = False, is used without one)")
-                data = data.copy()
-                data.flags.writeable = False
-        else:
-            data.flags.writeable = False        # made here, from a list or by a conversion
+        elif converted:
+            data.flags.writeable = False
+        elif _writeable_below(data):
+            # The caller's samples could change under the caches: keep a copy of them.
+            check_memory(data.nbytes, f"{self.name}: a copy of the samples",
+                         " (an array that owns its samples, made read-only with a.flags.writeable = False "
+                         "and with no writeable view kept, is used without one)")
+            data = data.copy()
+            data.flags.writeable = False
         self.data = data
         if self.meta is not None and not isinstance(self.meta, Mapping):
             raise InputError(f"{self.name}: meta must be a dict, got {type(self.meta).__name__}")
@@ -172,7 +176,7 @@ class Volume:
         # Copies and pickles are built anew, through the checks: read-only
         # samples, and none of the caches (they would outlive a change to the copy).
         meta = {k: v for k, v in self.meta.items() if not str(k).startswith("_")}
-        return (type(self), (self.data, self.spacing, self.origin, self.name, meta))
+        return (_rebuilt, (type(self), self.data, self.spacing, self.origin, self.name, meta))
 
     def __repr__(self):
         # Short whatever the size: the default printed the samples, and the caches kept in meta.
@@ -226,12 +230,24 @@ MIN_SPACING, MAX_SPACING = 1e-30, 1e30
 
 
 def _writeable_below(a):
-    """Whether ``a``, or an array it is a view of, can be written."""
+    """Whether ``a``, an array it is a view of, or the buffer beneath them (a ``bytearray``) can be
+    written. NumPy records only the array that owns the memory: a view of it kept writeable
+    elsewhere is not seen."""
     while isinstance(a, np.ndarray):
         if a.flags.writeable:
             return True
         a = a.base
-    return False
+    if a is None:
+        return False
+    try:
+        return not memoryview(a).readonly
+    except TypeError:
+        return False
+
+
+def _rebuilt(cls, data, *fields):
+    """A copied or unpickled volume: its samples are the copy's own, so they are not copied again."""
+    return cls(hand_over(data), *fields)
 
 
 def hand_over(data):

@@ -56,7 +56,8 @@ def load_volume(path, **options) -> Volume:
         change to it afterwards reaches neither the samples nor what was
         worked out from them (the value range, PARC's cell ranges); one
         read-only all the way down, of a supported type in C order and the
-        machine's byte order, is used in place.
+        machine's byte order, is used in place, and so is a memory map,
+        which must then not change (see `Volume`).
     **options
         For raw files: ``shape=(nx, ny, nz)``, ``dtype``, ``byte_order``,
         ``offset``, ``mmap`` (see `data_tools.io.raw.read_raw`). ``spacing`` and

@@ -143,3 +143,40 @@ def test_a_copy_too_large_for_the_memory_is_refused_with_the_way_around_it(monke
     kept = np.zeros((4, 5, 6), np.float32)
     kept.flags.writeable = False
     assert np.shares_memory(Volume(kept).data, kept)
+
+
+def test_an_objects_own_buffer_is_copied_and_left_writeable():
+    # np.asarray hands back an object's own array (as xarray's DataArray does): it is the caller's.
+    class Box:
+        def __init__(self):
+            self.samples = np.zeros((4, 4, 4), np.float32)
+
+        def __array__(self, dtype=None, copy=None):
+            return self.samples
+
+    box = Box()
+    vol = Volume(box)
+    box.samples[0, 0, 0] = 5.0
+    assert vol.data[0, 0, 0] == 0.0 and box.samples.flags.writeable
+
+
+def test_a_read_only_array_over_a_writeable_buffer_is_copied():
+    buf = bytearray(np.arange(60, dtype=np.float32).tobytes())
+    a = np.frombuffer(buf, np.float32).reshape(3, 4, 5)
+    a.flags.writeable = False
+    vol = Volume(a)
+    buf[:4] = np.float32(9.0).tobytes()
+    assert a[0, 0, 0] == 9.0 and vol.data[0, 0, 0] == 0.0
+
+
+def test_copies_and_pickles_of_a_volume_do_not_copy_its_samples_again(monkeypatch):
+    import copy
+    import pickle
+
+    import data_tools.memory
+    vol = Volume(np.arange(120, dtype=np.float32).reshape(4, 5, 6))
+    # No memory left: a copy of the samples by the Volume would be refused.
+    monkeypatch.setattr(data_tools.memory, "available_memory", lambda: 0)
+    for other in (copy.copy(vol), copy.deepcopy(vol), pickle.loads(pickle.dumps(vol))):
+        np.testing.assert_array_equal(other.data, vol.data)
+        assert not other.data.flags.writeable
