@@ -116,3 +116,9 @@ def contributing_samples(scene, vis: Translucent, stop=None) -> int:
     must take to make the same image. Parameters and errors as `ideal_samples`; at most
     `ideal_samples`."""
     return int(contributing_sample_counts(scene, vis, stop).sum())
+
+
+def ideal_and_contributing_samples(scene, vis: Translucent, stop=None) -> tuple[int, int]:
+    """`ideal_samples` and `contributing_samples` from one walk of the lattice."""
+    bound, contributing = _counts(scene, vis, stop).sum(axis=(0, 1))
+    return int(bound), int(contributing)

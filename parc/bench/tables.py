@@ -20,7 +20,7 @@ against `brute`'s (zero is what exactness means).
 from __future__ import annotations
 
 from ..comparison import compare
-from ..ideal import contributing_samples, ideal_samples
+from ..ideal import ideal_and_contributing_samples
 from ..renderer import render
 from ..scene import Translucent
 from . import scenes
@@ -78,8 +78,7 @@ def table1(suite, progress, images):
         rows = _rows(scene, ["brute", "parc:segments", "parc", "parc:bits"], options, suite, progress,
                      f"Table 1, {size}²")
         progress(f"Table 1, {size}²: ideal samples")
-        ideal = ideal_samples(scene, scene.volumes[0])
-        seen = contributing_samples(scene, scene.volumes[0])
+        ideal, seen = ideal_and_contributing_samples(scene, scene.volumes[0])
         for r in rows:
             out.append({"method": {"brute": "brute", "parc:segments": "parc (depth, no blocks)",
                                    "parc": "parc (depth)", "parc:bits": "parc (depth+bits)"}[r["method"]],
@@ -100,8 +99,8 @@ def table2(suite, progress, images):
         progress(f"Table 2, {size}²: ideal samples")
         depth = render(scene, method="brute").depth
         trans = [v for v in scene.volumes if isinstance(v, Translucent)]
-        ideal_s = sum(ideal_samples(scene, v, stop=depth) for v in trans)
-        seen_s = sum(contributing_samples(scene, v, stop=depth) for v in trans)
+        counted = [ideal_and_contributing_samples(scene, v, stop=depth) for v in trans]
+        ideal_s, seen_s = sum(c[0] for c in counted), sum(c[1] for c in counted)
         brute = next(r for r in rows if r["method"] == "brute")
         for r in rows:
             out.append({"method": r["method"], "size": size, "cells": r["cells_visited"],

@@ -71,8 +71,8 @@ def test_table1_casting_includes_each_raster_pass_and_the_ideal_is_its_scenes(mo
                         lambda size, *a: (SimpleNamespace(size=size, volumes=[None]), "stand-in"))
     monkeypatch.setattr(tables, "work_maps", lambda *a: None)
     monkeypatch.setattr(tables, "_rows", lambda *a: [dict(r) for r in runs])
-    monkeypatch.setattr(tables, "ideal_samples", lambda scene, vis, stop=None: 7 * scene.size)
-    monkeypatch.setattr(tables, "contributing_samples", lambda scene, vis, stop=None: 3 * scene.size)
+    monkeypatch.setattr(tables, "ideal_and_contributing_samples",
+                        lambda scene, vis, stop=None: (7 * scene.size, 3 * scene.size))
     suite = SimpleNamespace(sizes=(8, 16), data_dir=None, small_volumes=True, repeats=1)
     got = tables.table1(suite, lambda m: None, {})["rows"]
     assert [r["cast_seconds"] for r in got[:4]] == pytest.approx([0.9, 0.4, 0.3, 0.3])
@@ -124,8 +124,8 @@ def test_table2_ideal_is_brutes_cubics_and_samples_stopped_at_brutes_surface(mon
     depth = np.full((4, 4), 3.0)
     monkeypatch.setattr(tables, "render", lambda scene, method: SimpleNamespace(depth=depth))
     # 5 samples when stopped at brute's depth, 9 without a stop.
-    monkeypatch.setattr(tables, "ideal_samples", lambda scene, vis, stop=None: 5 if stop is depth else 9)
-    monkeypatch.setattr(tables, "contributing_samples", lambda scene, vis, stop=None: 2 if stop is depth else 4)
+    monkeypatch.setattr(tables, "ideal_and_contributing_samples",
+                        lambda scene, vis, stop=None: (5, 2) if stop is depth else (9, 4))
     monkeypatch.setattr(tables, "_rows", lambda *a: [
         compare_row("brute", 1.0, {"cast": 0.9}, cubic_solves=40, hits=12),
         compare_row("parc", 0.5, {"cast": 0.4}, cubic_solves=39, hits=11)])

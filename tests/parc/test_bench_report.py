@@ -37,8 +37,7 @@ def test_table1_compares_the_papers_methods_with_their_own_buffers(monkeypatch):
     monkeypatch.setattr(tables, "compare", compare)
     monkeypatch.setattr(tables.scenes, "ct_translucent",
                         lambda size, *a: (SimpleNamespace(size=(size, size), volumes=[None]), "stand-in"))
-    monkeypatch.setattr(tables, "ideal_samples", lambda *a, **kw: 5)
-    monkeypatch.setattr(tables, "contributing_samples", lambda *a, **kw: 2)
+    monkeypatch.setattr(tables, "ideal_and_contributing_samples", lambda *a, **kw: (5, 2))
     monkeypatch.setattr(tables, "work_maps", lambda *a: None)
     suite = SimpleNamespace(sizes=(8,), data_dir=None, small_volumes=True, repeats=1)
     got = tables.table1(suite, lambda m: None, {})["rows"]
@@ -55,8 +54,7 @@ def test_table1_work_maps_are_of_the_size_the_report_names(monkeypatch):
     monkeypatch.setattr(tables.scenes, "ct_translucent",
                         lambda size, *a: (SimpleNamespace(size=(size, size), volumes=[None]), "stand-in"))
     monkeypatch.setattr(tables, "_rows", lambda *a: [compare_row("brute", 1.0, samples=10)])
-    monkeypatch.setattr(tables, "ideal_samples", lambda *a, **kw: 5)
-    monkeypatch.setattr(tables, "contributing_samples", lambda *a, **kw: 2)
+    monkeypatch.setattr(tables, "ideal_and_contributing_samples", lambda *a, **kw: (5, 2))
     monkeypatch.setattr(tables, "work_maps", lambda scene, count: drawn.append(scene.size) or {"checks": {}})
     suite = SimpleNamespace(sizes=(8, 16), data_dir=None, small_volumes=True, repeats=1)
     got = tables.table1(suite, lambda m: None, {})

@@ -19,8 +19,8 @@ import pytest
 from data_tools import Volume
 from data_tools.synthetic import blobs, trilinear_field
 from parc import Camera, Scene, TransferFunction, Translucent, render
-from parc.ideal import (contributing_sample_counts, contributing_samples, ideal_sample_counts, ideal_samples,
-                        possibly_contributing_cells)
+from parc.ideal import (contributing_sample_counts, contributing_samples, ideal_and_contributing_samples,
+                        ideal_sample_counts, ideal_samples, possibly_contributing_cells)
 from parc.renderer import accumulation_params
 from raycast.composite import MODE_COMPOSITE, P_MODE, P_THRESHOLD, cast_accumulate_image
 from raycast.iso import NO_SKIP
@@ -266,6 +266,7 @@ def test_composite_with_stop_matches_slow_reference():
     assert ideal_samples(scene, vis, stop) == want.sum() < ideal_samples(scene, vis)
     seen = _slow_counts(vis, cam.as_array(), w, h, stop, contributing=True).sum()
     assert contributing_samples(scene, vis, stop) == seen < contributing_samples(scene, vis)
+    assert ideal_and_contributing_samples(scene, vis, stop) == (want.sum(), seen)
 
 
 @pytest.mark.parametrize("view", ["perspective", "parallel-z"])
