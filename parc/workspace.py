@@ -134,7 +134,7 @@ def shadowed_samples(scene):
 
 def iso_work(n, slot=0):
     """The isosurface caster's per-ray ``cell``, ``uvw`` and ``counts`` arrays for ``n`` rays,
-    reused from frame to frame (`parc.workspace`); ``slot`` tells apart sets alive at once."""
+    reused from frame to frame; ``slot`` tells apart sets alive at once."""
     return (work_array(("iso_cell", slot), (n, 3), np.int32), work_array(("iso_uvw", slot), (n, 3)),
             work_array(("iso_counts", slot), (n, 2), np.int64))
 

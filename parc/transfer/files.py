@@ -145,6 +145,7 @@ def load_transfer_function(spec, data_range=None, mode="composite"):
         raise InputError(f"{where}: expected an object with 'opacity' and 'color' keys, got {kind}")
     return _from_ours(doc, where, text, data_range)
 
+
 def holds_a_transfer_function(doc):
     """Whether a parsed TOML or JSON document is a transfer function (ours: ``opacity`` or
     ``color``; ParaView's: ``RGBPoints``) and not a scene file (``[[volume]]`` tables): to name a
