@@ -23,8 +23,15 @@ if [ ! -x "$venv/bin/python" ] || [ ! -f "$stamp" ] || [ "$root/pyproject.toml" 
         clear=(--clear)
     fi
     "$python" -m venv ${clear[@]+"${clear[@]}"} "$venv"
-    "$venv/bin/python" -m pip install --quiet --upgrade pip >&2
-    "$venv/bin/python" -m pip install --quiet -e "$root[test]" >&2
+    # pip's notes (the build backend's warnings, a machine's index settings) go to a log,
+    # shown only when the install fails.
+    log="$venv/install.log"
+    if ! { "$venv/bin/python" -m pip install --quiet --upgrade pip \
+           && "$venv/bin/python" -m pip install --quiet -e "$root[test]"; } >"$log" 2>&1; then
+        cat "$log" >&2
+        echo "dev.sh: installing into $venv failed (the log above is kept in $log)" >&2
+        exit 1
+    fi
     touch "$stamp"
 fi
 
