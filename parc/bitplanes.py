@@ -35,8 +35,8 @@ for this project's caster:
   the pixel indices) tested against the face's rectangle grown by the
   float32 error bound of the crossing point; borderline fragments are
   kept. No ``t`` is needed: a crossing behind the ray start can only add
-  bits, and the clipping loses none at ``t >= 0`` (those before the clip
-  distance are the eye rule's, below).
+  bits, and the crossings the clipping cuts (nearer than the clip
+  distance) are the eye rule's, below.
 - **Clipping.** Perspective, eye outside the PC region: faces are clipped
   below ``d_min cos(theta_max) / 2`` (`parc.raster.perspective_clip`, shared
   with the depth pass); every face lies at least ``d_min`` from the eye, so
@@ -58,11 +58,11 @@ grid's snapping, ``BOUNDARY_SNAP`` cells: large against planes of 1e-4 cells) it
 the bit of the plane across as well. For that caster
 the strict bits suffice (``halo=False``, the default): the planes
 whose PC boxes the ray meets (closed boxes, ``t >= 0``), plus the float32
-margins. Some pixels get more, never fewer: those within the bounding box
-drawn for a face cut by the near clip (the eye inside the volume), whose
-ray's line may cross that face behind the eye, and those near a face seen
-so nearly edge-on that the crossing's error bound is void and the fragment
-is kept untested. (An independent check, 2026-11-30, 340 random scenes:
+margins, which grow as a face is seen more nearly edge-on (past a limit
+its fragments are kept untested). Some pixels get more,
+never fewer: those within the bounding box drawn for a face cut by the
+near clip (the eye inside the volume), whose ray's line may cross that
+face behind the eye. (An independent check, 2026-11-30, 340 random scenes:
 3.7% more bits than a plain ray-box reference, none missing.) Halo mode
 (``halo=True``) serves a caster that tests only ``floor(pos / m_a)``, and
 is kept, tested, for one. The grid's boundaries
