@@ -22,6 +22,7 @@ examples:
   parc render CThead.nrrd --iso 1500 --up 0,0,-1 --method parc -o bone.png   same image by PARC
   parc render CThead.nrrd --tf ct_skin_bone --up 0,0,-1 -o ct.png   translucent
   parc compare neghip.slc --iso 80 --sweep-supercell 1,2,4,8      speed against error
+  parc compare neghip.slc --iso 80 --work work.png   and each method's cells per pixel, drawn
   parc render head.nrrd --iso 600 --sun -1,1,-1 --shadows -o lit.png   sunlight and shadows
   parc render head.nrrd --iso 600 --light 0,-300,200 --light 300,0,0 -o two.png   two point lights
   parc render scene.toml -o scene.png         a scene file: several volumes, camera, lights
@@ -357,6 +358,11 @@ def build_parser():
                    help="timed renders per method (1 to 10000), after one to warm up; the median is reported (default 3)")
     c.add_argument("--json", action="store_true",
                    help="print the rows as JSON instead of a table (strict JSON: psnr null means identical images)")
+    c.add_argument("--work", metavar="W.png",
+                   help="also draw each method's work per pixel side by side, on one log scale: cells visited "
+                        "(isosurfaces) or samples taken (translucent volumes), from one more render of each "
+                        "after the timing; not with --sweep-step, nor for a scene with both isosurfaces and "
+                        "translucent volumes")
     _add_common_options(c)
 
     b = sub.add_parser("bench", help="run the benchmark suite: the papers' tables, sweeps, Visible Woman scale",

@@ -367,12 +367,17 @@ def _write_work(result, scene, method, path):
     """The work per pixel of a render: an int64 array (.npy) or a heat map (.png)."""
     if path.suffix.lower() == ".npy":
         save_array(path, result.work)
-        return
+    else:
+        _work_png(path, {method: result.work}, scene)
+
+
+def _work_png(path, maps, scene):
+    """Heat maps of the work per pixel of each of ``maps`` (method -> (H, W) counts), side by side."""
     from .bench.heatmaps import work_heat_maps
     from .scene import Isosurface
     w, h = scene.size
     what = "cells visited" if isinstance(scene.volumes[0], Isosurface) else "samples taken"
-    work_heat_maps(path, {method: result.work}, what, f"{w}x{h}")
+    work_heat_maps(path, maps, what, f"{w}x{h}")
 
 
 def _shown(vis):
@@ -399,8 +404,8 @@ def _describe_all(volumes):
 
 
 def cmd_compare(args):
-    from .comparison import MAX_REPEATS, SUPERCELL_SWEEP_NOTE, compare, format_table, method_names
-    from .renderer import kernel_samples
+    from .comparison import MAX_REPEATS, SUPERCELL_SWEEP_NOTE, compare, format_table, method_names, work_per_pixel
+    from .renderer import check_request, kernel_samples
 
     say = (lambda *a: None) if args.quiet else note
     notes = []
@@ -419,6 +424,9 @@ def cmd_compare(args):
     if not 1 <= args.repeats <= MAX_REPEATS:
         raise InputError(f"--repeats must be from 1 to {MAX_REPEATS}, got {args.repeats}")
     _check_sweep_flags(args)
+    work_out = check_output(args.work, (".png",)) if args.work is not None else None
+    if work_out is not None and args.sweep_step is not None:
+        raise InputError("--work draws the work of compare's methods side by side; it is not for --sweep-step")
     # Parsed before the volume is read: refused before any work.
     steps = _swept_steps(args.sweep_step) if args.sweep_step is not None else None
     if args.sweep_supercell is not None:
@@ -434,6 +442,9 @@ def cmd_compare(args):
             if hasattr(vis, "tf") and vis.step != reference_step(vis.volume.spacing):
                 notes.append(f"the step sweep replaces volume[{n}]'s step {vis.step:g} from {args.volume}")
     common = {"buffers": _buffers(args, scene), "blocks": not args.no_blocks}
+    if work_out is not None:
+        check_distinct(args.volume, [work_out], read=_files_read(scene), flags=("--work",))
+        check_request(scene, common["buffers"], True, ("--buffers", "--work"))
     if steps is not None and args.supercell is not None:
         common["supercell"] = args.supercell
     if warming is not None:
@@ -463,6 +474,11 @@ def cmd_compare(args):
     else:
         print_out(_heading(args, scene))
         print_out(format_table(rows, notes=[SUPERCELL_SWEEP_NOTE] if args.sweep_supercell is not None else []))
+    if work_out is not None:
+        with slow_note(f"rendering {', '.join(methods)} once more for --work", say):
+            maps = work_per_pixel(scene, methods, options=options)
+        atomic_write_all([(work_out, lambda tmp: _work_png(tmp, maps, scene))])
+        say(f"wrote {work_out}: the work per pixel of {', '.join(maps)}")
     return 0
 
 

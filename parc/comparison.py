@@ -89,16 +89,7 @@ def compare(scene, methods=("brute", "parc"), *, repeats=3, warmup=1, options=No
     """
     _check_runs("compare", scene, repeats, warmup)
     names = method_names(methods)
-    if options is None:
-        options = {}
-    if not isinstance(options, dict) or not all(isinstance(o, dict) for o in options.values()):
-        raise InputError(f"options must map method names to dicts of render() arguments, got {options!r}")
-    options = dict(options)
-    unused = sorted(set(options) - set(names))
-    if unused:
-        raise InputError(f"options for {', '.join(map(repr, unused))}, which is not among the methods run")
-    for name, opts in options.items():
-        _check_render_options(name, opts)
+    options = _method_options(names, options)
     _check_progress(progress, "a line of text")
     check_scene_memory(scene, kept_images=len(names))
     check_options(scene, options)
@@ -224,6 +215,33 @@ def method_names(methods, what="methods"):
         raise InputError(f"{what} names {twice[0]!r} twice; to time a method twice, label each run "
                          "after a colon, as in 'parc:a,parc:b'")
     return ["brute"] + [m for m in dict.fromkeys(names) if m != "brute"]
+
+
+def work_per_pixel(scene, methods=("brute", "parc"), *, options=None):
+    """Each method's work per pixel, from one more render of ``scene`` each, untimed: a dict of
+    method name to (H, W) int64, cells visited for isosurfaces and samples taken for translucent
+    volumes (`RenderResult.work`), as the heat maps beside `compare`'s table draw them
+    (``parc compare --work``). ``methods`` and ``options`` as `compare` takes them."""
+    names = method_names(methods)
+    options = _method_options(names, options)
+    check_options(scene, options)
+    return {name: render(scene, method=name.split(":")[0], work=True, **options.get(name, {})).work
+            for name in names}
+
+
+def _method_options(names, options):
+    """``options`` checked against the methods ``names`` run: a dict of method -> dict of render() arguments."""
+    if options is None:
+        options = {}
+    if not isinstance(options, dict) or not all(isinstance(o, dict) for o in options.values()):
+        raise InputError(f"options must map method names to dicts of render() arguments, got {options!r}")
+    options = dict(options)
+    unused = sorted(set(options) - set(names))
+    if unused:
+        raise InputError(f"options for {', '.join(map(repr, unused))}, which is not among the methods run")
+    for name, opts in options.items():
+        _check_render_options(name, opts)
+    return options
 
 
 def _check_render_options(name, opts):

@@ -1155,6 +1155,55 @@ def test_compare_json_rows_say_what_was_compared(vol_file, tmp_path, capsys):
         assert row["parameters"]["volume"] == str(vol_file)
 
 
+@pytest.mark.parametrize("look, count", [(["--iso", 4.0], "cells_visited"), (["--tf", "greyscale"], "samples")])
+def test_compare_draws_the_work_of_each_method_it_timed(look, count, vol_file, tmp_path, capsys, monkeypatch, gl):
+    # Each map is a render's with the options compare timed it with: the sweep's two sizes walk
+    # different cells, and each map's sum is its own row's count.
+    heatmaps = importlib.import_module("parc.bench.heatmaps")
+    draw = heatmaps.work_heat_maps
+    drawn = {}
+
+    def recording(path, maps, what, where):
+        drawn.update(maps)
+        return draw(path, maps, what, where)
+    monkeypatch.setattr(heatmaps, "work_heat_maps", recording)
+    pic = tmp_path / "w.png"
+    rc, out, err = _run(["compare", vol_file, *look, "--size", 20, 16, "--repeats", 1, "--json",
+                         "--sweep-supercell", "1,3", "--work", pic], capsys)
+    assert rc == 0, err
+    rows = {row["method"]: row for row in json.loads(out)}
+    assert list(drawn) == ["brute", "parc:1", "parc:3"]
+    for name, work in drawn.items():
+        assert work.shape == (16, 20) and work.sum() == rows[name][count] > 0, name
+    assert f"wrote {pic}: the work per pixel of brute, parc:1, parc:3" in err
+    with Image.open(pic) as im:
+        assert im.format == "PNG" and im.size[0] > 2 * im.size[1]       # three panels side by side
+
+
+@pytest.mark.parametrize("extra, words", [
+    (["--tf", "greyscale", "--sweep-step", "1,0.5"], "--work draws the work of compare's methods side by side; "
+                                                     "it is not for --sweep-step"),
+    (["--iso", 4.0, "--work", "w.npy"], "w.npy"),
+    (["--scene"], "--work: per-pixel work counts cells visited for isosurfaces and samples taken for "
+                  "translucent volumes, and this scene has both"),
+])
+def test_compare_refuses_work_it_cannot_draw_before_any_render(extra, words, vol_file, tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    source = vol_file
+    if extra == ["--scene"]:
+        source = tmp_path / "scene.toml"
+        source.write_text(f"size = [8, 8]\n[[volume]]\nfile = '{vol_file.name}'\niso = 4.0\n"
+                          f"[[volume]]\nfile = '{vol_file.name}'\ntf = 'greyscale'\n")
+        extra = []
+    monkeypatch.setattr(importlib.import_module("parc.comparison"), "render", lambda *a, **k: pytest.fail("rendered"))
+    argv = ["compare", source, "--size", 8, 8, "--repeats", 1, *extra]
+    if "--work" not in argv:
+        argv += ["--work", "w.png"]
+    rc, out, err = _run(argv, capsys)
+    assert rc == 2 and err.count("\n") == 1 and words in err, err
+    assert not out and sorted(p.name for p in tmp_path.iterdir() if p.suffix in (".png", ".npy")) == []
+
+
 def test_compare_quiet_keeps_stderr_empty(vol_file, capsys):
     base = ["compare", vol_file, "--iso", 4, "--size", 12, 12, "--repeats", 1]
     rc, out, err = _run(base, capsys)
