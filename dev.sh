@@ -24,10 +24,11 @@ if [ ! -x "$venv/bin/python" ] || [ ! -f "$stamp" ] || [ "$root/pyproject.toml" 
     fi
     "$python" -m venv ${clear[@]+"${clear[@]}"} "$venv"
     # pip's notes (the build backend's warnings, a machine's index settings) go to a log,
-    # shown only when the install fails.
+    # shown only when the install fails; --no-input, so that a question pip would ask
+    # (an index's password) fails there rather than waiting unseen.
     log="$venv/install.log"
-    if ! { "$venv/bin/python" -m pip install --quiet --upgrade pip \
-           && "$venv/bin/python" -m pip install --quiet -e "$root[test]"; } >"$log" 2>&1; then
+    if ! { "$venv/bin/python" -m pip install --quiet --no-input --upgrade pip \
+           && "$venv/bin/python" -m pip install --quiet --no-input -e "$root[test]"; } >"$log" 2>&1; then
         cat "$log" >&2
         echo "dev.sh: installing into $venv failed (the log above is kept in $log)" >&2
         exit 1

@@ -35,8 +35,8 @@ for this project's caster:
   the pixel indices) tested against the face's rectangle grown by the
   float32 error bound of the crossing point; borderline fragments are
   kept. No ``t`` is needed: a crossing behind the ray start can only add
-  bits, and the crossings the clipping cuts (nearer than the clip
-  distance) are the eye rule's, below.
+  bits, and the crossings the clipping cuts are out of view or, with the
+  eye inside a PC supercell, the eye rule's (below).
 - **Clipping.** Perspective, eye outside the PC region: faces are clipped
   below ``d_min cos(theta_max) / 2`` (`parc.raster.perspective_clip`, shared
   with the depth pass); every face lies at least ``d_min`` from the eye, so
@@ -60,8 +60,8 @@ the strict bits suffice (``halo=False``, the default): the planes
 whose PC boxes the ray meets (closed boxes, ``t >= 0``), plus the float32
 margins, which grow as a face is seen more nearly edge-on (past a limit
 its fragments are kept untested). Some pixels get more,
-never fewer: those within the bounding box drawn for a face cut by the
-near clip (the eye inside the volume), whose ray's line may cross that
+never fewer: those within the bounding box drawn for a face reaching past
+the near clip (beside or behind the eye), whose ray's line may cross that
 face behind the eye. (An independent check, 2026-11-30, 340 random scenes:
 3.7% more bits than a plain ray-box reference, none missing.) Halo mode
 (``halo=True``) serves a caster that tests only ``floor(pos / m_a)``, and

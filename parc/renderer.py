@@ -249,7 +249,7 @@ def check_request(scene, buffers, work, names=("buffers", "work")):
     if work and len({isinstance(v, Isosurface) for v in scene.volumes}) > 1:
         # Cells and samples cost unlike amounts: a sum of the two would map neither.
         raise InputError(f"{names[1]}: per-pixel work counts cells visited for isosurfaces and samples taken "
-                         "for translucent volumes, and this scene has both; render them apart")
+                         "for translucent volumes, and this scene has both; give each kind a scene of its own")
     return buffers
 
 
