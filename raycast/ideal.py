@@ -131,6 +131,6 @@ def ideal_samples_image(data, org, spc, cam, width, height, params, op_x, op_y,
                 ox, oy, oz, dx, dy, dz = camera_ray(cam, width, height, x, y)
                 Ox, Oy, Oz, Dx, Dy, Dz = to_index_space(ox, oy, oz, dx, dy, dz, org, spc)
                 bound, contributing = ideal_ray_samples(data, contrib, Ox, Oy, Oz, Dx, Dy, Dz,
-                                                  stop[y, x] if use_stop else math.inf, params, op_x, op_y)
+                                                        stop[y, x] if use_stop else math.inf, params, op_x, op_y)
                 counts[y * width + x, 0] = bound
                 counts[y * width + x, 1] = contributing

@@ -104,6 +104,7 @@ def _interp(x, y, v):
     out[np.isnan(v)] = 0.0
     return out
 
+
 @settled
 class TransferFunction:
     """Piecewise-linear opacity and colour over data values.
