@@ -3,10 +3,12 @@
 It imports the command line (`parc.cli`, and with it NumPy and the
 volume readers; Numba and OpenGL come with the first render) inside the run, so that a Ctrl-C while they load
 ends in one line and status 130, as it does once the command runs,
-instead of a traceback from the import machinery; and it checks, before
-Numba reads it, the thread count a user may set for Numba.
+instead of a traceback from the import machinery; it checks, before
+Numba reads it, the thread count a user may set for Numba; and once the
+command has ended it ignores Ctrl-C through the interpreter's exit.
 """
 import os
+import signal
 import sys
 
 #: More threads than this is a mistake (libgomp fails to start 40,000, and Numba crashed at 100,000).
@@ -27,7 +29,19 @@ def main():
     except KeyboardInterrupt:
         _say("interrupted")
         return 130
-    return run()
+    status = run()
+    _ignore_ctrl_c()
+    return status
+
+
+def _ignore_ctrl_c():
+    """The command has ended and its files are in place: a Ctrl-C in the interpreter's exit
+    (`atexit` callbacks, finalizers: about 0.3 s after a render) could only print a
+    traceback after its last line."""
+    try:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+    except ValueError:          # not the main thread: not ours to change
+        pass
 
 
 def _say(text):

@@ -2344,6 +2344,25 @@ def test_a_working_folder_deleted_under_the_run_is_named(tmp_path):
     assert "the working folder no longer exists" in p.stderr
 
 
+def test_ctrl_c_while_the_interpreter_exits_after_a_run_prints_nothing(tmp_path):
+    # The image written, Python's exit still runs finalizers for about 0.3 s; a Ctrl-C there
+    # printed "Exception ignored in atexit callback" and a traceback after the run's last line.
+    # The Ctrl-C comes from an exit callback registered first, so that it runs last.
+    script = ("import atexit, os, signal, sys\n"
+              "signal.signal(signal.SIGINT, signal.default_int_handler)   # ignored where tests run in the background\n"
+              "def ctrl_c():\n"
+              "    os.kill(os.getpid(), signal.SIGINT)\n"
+              "    sum(range(1000))     # Python code, where a handler would raise\n"
+              "atexit.register(ctrl_c)\n"
+              "from parc.console import main\n"
+              "sys.exit(main())\n")
+    out = tmp_path / "o.png"
+    p = subprocess.run([sys.executable, "-c", script, "render", "-o", str(out), "--size", "8", "8"],
+                       capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0 and "Traceback" not in p.stderr and "KeyboardInterrupt" not in p.stderr, p.stderr
+    assert p.stderr.splitlines()[-1].startswith(f"parc: wrote {out}:") and out.exists(), p.stderr
+
+
 def test_no_blocks_reaches_the_render(tmp_path, capsys, gl):
     # The image is the same either way (test_translucent), so only the stats can tell the flag was heard.
     for flags, blocks in (([], True), (["--no-blocks"], False)):
@@ -2561,8 +2580,16 @@ def test_a_vector_of_infinities_is_refused_by_its_flag(flag, vol_file, tmp_path,
     assert f"argument {flag}: must be 3 comma-separated finite numbers, got 'inf,0,1'" in err, err
 
 
+@pytest.fixture
+def ctrl_c_handler_kept():
+    """`parc.console.main` leaves Ctrl-C ignored for its process's exit; this process goes on."""
+    was = signal.getsignal(signal.SIGINT)
+    yield
+    signal.signal(signal.SIGINT, was)
+
+
 @pytest.mark.parametrize("threads, ok", [("1", True), ("1024", True), ("1025", False), (" 4 ", True)])
-def test_numba_thread_counts_at_the_bounds(threads, ok, monkeypatch, capsys):
+def test_numba_thread_counts_at_the_bounds(threads, ok, monkeypatch, capsys, ctrl_c_handler_kept):
     import parc.cli
     from parc.console import main as console_main
     monkeypatch.setenv("NUMBA_NUM_THREADS", threads)
@@ -2572,7 +2599,8 @@ def test_numba_thread_counts_at_the_bounds(threads, ok, monkeypatch, capsys):
 
 
 @pytest.mark.parametrize("threads", ["", "  "])
-def test_an_empty_numba_thread_count_is_unset_before_numba_reads_it(threads, monkeypatch, capsys):
+def test_an_empty_numba_thread_count_is_unset_before_numba_reads_it(threads, monkeypatch, capsys,
+                                                                   ctrl_c_handler_kept):
     # Numba reads "" with a warning that prints a traceback; unset, it takes its default quietly.
     import parc.cli
     from parc.console import main as console_main
