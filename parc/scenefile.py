@@ -97,7 +97,8 @@ def load_scene(path, *, view=None, size=None, progress=None, replaced_by="given 
     ----------
     path : str or Path
         The TOML file. Volume and transfer-function files named in it are
-        found relative to its folder.
+        found relative to its folder (the folder of ``path`` as given, also
+        when ``path`` is a link).
     view : dict, optional
         Camera settings that replace the file's, keyed as in ``[camera]``
         (``eye``, ``look_at``, ``up``, ``fov``, ``parallel``, ``zoom``); None values

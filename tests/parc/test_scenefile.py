@@ -92,6 +92,22 @@ def test_two_volumes_lights_and_camera(folder, tmp_path_factory, monkeypatch):
     assert isinstance(sun, parc.DirectionalLight) and sun.direction == (0.0, 0.0, -1.0) and sun.intensity == 1.0
 
 
+def test_names_in_a_scene_reached_through_a_link_are_relative_to_the_link(folder, tmp_path_factory):
+    # As a shell or a build tool names files: from the scene file as given, whose folder the
+    # user sees, not from wherever the link points.
+    elsewhere = tmp_path_factory.mktemp("elsewhere")
+    target = write(elsewhere, """\
+        [[volume]]
+        file = "data/ball.nrrd"
+        iso = 0
+    """)
+    link = folder / "linked.toml"
+    link.symlink_to(target)
+    assert load_scene(link).volumes[0].volume.dims == (16, 16, 16)
+    with pytest.raises(InputError, match="data/ball.nrrd"):
+        load_scene(target)          # beside the target there is no data/ball.nrrd
+
+
 def test_public_api_and_defaults(folder):
     path = write(folder, """\
         [[volume]]
