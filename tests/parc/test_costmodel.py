@@ -3,6 +3,7 @@
 Truth: slow loops over every supercell boundary, and the proxy itself
 (`parc.proxy.build_proxy` merges the faces the counts count).
 """
+import math
 from pathlib import Path
 
 import numpy as np
@@ -223,7 +224,9 @@ def _model_expected(index, iso, m, *, pixels, rays, cores, renderer):
     share = projected_share(pc, index.grid(m).world_edges(index.volume))
     fixed, per_strip = costmodel.raster_costs(renderer)
     rays_pc = (costmodel.RAY_COVER * pixels if rays is None else rays) * share
-    cells = rays_pc * costmodel.WALK_CELLS * (1.0 - 2.0 ** -m)
+    cells_pc = sum(bool(index.classify(iso, 1)[k, j, i]) for k, j, i in np.ndindex(index.grid(1).shape))
+    free = index.grid(1).shape[0] * index.grid(1).shape[1] * index.grid(1).shape[2] / cells_pc if cells_pc else math.inf
+    cells = rays_pc * min(costmodel.WALK_CELLS * (1.0 - 2.0 ** -m), free)
     return {"faces": len(_faces_loop(pc)), "strips": _strips_loop(pc), "share": share, "rays": rays_pc,
             "raster_s": fixed * pixels / 512 ** 2 + per_strip * _strips_loop(pc), "cells": cells,
             "cast_s": (rays_pc * costmodel.CAST_PER_RAY_S + cells * costmodel.CAST_PER_CELL_S) / cores,
@@ -325,17 +328,63 @@ def test_a_grid_of_possibly_contributing_supercells_costs_what_the_constants_giv
     make one strip per row (6 n of them for n supercells a side), so each row follows
     from the measured constants alone: 13 (1 - 2^-m) cells walked per ray through m-cell
     supercells, at 14.4 ns a cell and 0.22 us a ray; 2.6 ms a 512^2 frame and 0.325 us a
-    strip (llvmpipe)."""
+    strip (llvmpipe). One cell in 13,824 is possibly contributing, so the walk is the
+    measured one; with every cell so, a ray meets one at once."""
     from data_tools import Volume
     index = VolumeIndex.of(Volume(np.zeros((25, 25, 25), np.float32)))
-    size, table = choose_supercell(index, classify=lambda m: np.ones(index.grid(m).shape, bool), rays=1000,
-                                   cores=1, candidates=(1, 2, 4), renderer="llvmpipe")
-    # 24 cells a side: 24, 12 and 6 supercells; 144, 72 and 36 strips.
-    by_hand = [(1.0, 144, 6500.0, 3.136e-4, 2.6468e-3), (2.0, 72, 9750.0, 3.604e-4, 2.6234e-3),
-               (4.0, 36, 12187.5, 3.955e-4, 2.6117e-3)]
-    for r, (m, strips, cells, cast_s, raster_s) in zip(table, by_hand):
+
+    def one_cell(m):
+        pc = np.ones(index.grid(m).shape, bool)
+        if m == 1:
+            pc[:] = False
+            pc[3, 4, 5] = True          # a free path of 13,824 cells
+        return pc
+    size, table = choose_supercell(index, classify=one_cell, rays=1000, cores=1, candidates=(2, 4, 8),
+                                   renderer="llvmpipe")
+    # 24 cells a side: 12, 6 and 3 supercells; 72, 36 and 18 strips.
+    by_hand = [(2.0, 72, 9750.0, 3.604e-4, 2.6234e-3), (4.0, 36, 12187.5, 3.955e-4, 2.6117e-3),
+               (8.0, 18, 12949.21875, 4.0646875e-4, 2.60585e-3)]
+    for r, (m, strips, cells, cast_s, raster_s) in zip(table, by_hand, strict=True):
         assert (r["size"], r["strips"], r["share"], r["rays"]) == (m, strips, 1.0, 1000.0)
         assert r["cells"] == pytest.approx(cells, rel=1e-12)
         assert r["cast_s"] == pytest.approx(cast_s, rel=1e-12)
         assert r["raster_s"] == pytest.approx(raster_s, rel=1e-12)
-    assert size == 1.0                              # 2.9604 ms against 2.9838 and 3.0072
+    assert size == 2.0                              # 2.9838 ms against 3.0072 and 3.01232
+
+    size, table = choose_supercell(index, classify=lambda m: np.ones(index.grid(m).shape, bool), rays=1000,
+                                   cores=1, candidates=(1, 2, 4), renderer="llvmpipe")
+    assert [r["strips"] for r in table] == [144, 72, 36]
+    for r in table:                                 # one cell a ray: 0.2344 ms each
+        assert r["cells"] == pytest.approx(1000.0, rel=1e-12)
+        assert r["cast_s"] == pytest.approx(2.344e-4, rel=1e-12)
+    assert size == 4.0                              # the fewest strips: 2.8461 ms against 2.8578 and 2.8812
+
+
+def test_free_path_is_one_over_the_share_of_possibly_contributing_cells():
+    pc = np.zeros((4, 5, 6), bool)
+    assert costmodel.free_path(pc) == math.inf
+    pc.flat[[0, 7, 30]] = True
+    assert costmodel.free_path(pc) == pytest.approx(120 / 3, rel=1e-15)
+    assert costmodel.free_path(np.ones((2, 2, 2), bool)) == 1.0
+    assert costmodel.free_path(np.zeros((0, 3, 3), bool)) == math.inf
+
+
+def test_a_level_in_noise_walks_its_free_path_and_a_surface_the_measured_walk():
+    """Noise at its median: half the samples above, so nearly every cell holds the level, and
+    a ray meets a PC cell within a cell or two whatever the size; the walk is then the free
+    path, the same for every size, and only the strips tell them apart. A sphere's surface
+    gathers its cells, and keeps the measured walk, growing with the size."""
+    from data_tools import Volume
+    from data_tools.synthetic import sphere
+    rng = np.random.default_rng(3)
+    noise = VolumeIndex.of(Volume(rng.integers(0, 256, (33, 33, 33)).astype(np.uint8)))
+    pc1 = noise.classify(127.5, 1)
+    assert pc1.mean() > 0.9
+    size, table = choose_supercell(noise, 127.5, rays=1000, cores=1, candidates=(1, 2, 4, 8), renderer="llvmpipe")
+    for r in table:
+        assert r["cells"] == pytest.approx(r["rays"] * pc1.size / np.count_nonzero(pc1), rel=1e-12)
+    assert size == 8.0
+    ball = VolumeIndex.of(sphere(40))
+    _, table = choose_supercell(ball, 0.0, rays=1000, cores=1, candidates=(1, 2, 4, 8), renderer="llvmpipe")
+    for r in table:
+        assert r["cells"] == pytest.approx(r["rays"] * costmodel.WALK_CELLS * (1 - 2 ** -r["size"]), rel=1e-12)
