@@ -224,8 +224,9 @@ def _model_expected(index, iso, m, *, pixels, rays, cores, renderer):
     share = projected_share(pc, index.grid(m).world_edges(index.volume))
     fixed, per_strip = costmodel.raster_costs(renderer)
     rays_pc = (costmodel.RAY_COVER * pixels if rays is None else rays) * share
-    cells_pc = sum(bool(index.classify(iso, 1)[k, j, i]) for k, j, i in np.ndindex(index.grid(1).shape))
-    free = index.grid(1).shape[0] * index.grid(1).shape[1] * index.grid(1).shape[2] / cells_pc if cells_pc else math.inf
+    pc1 = index.classify(iso, 1)
+    cells_pc = sum(1 for k, j, i in np.ndindex(pc1.shape) if pc1[k, j, i])
+    free = pc1.size / cells_pc if cells_pc else math.inf
     cells = rays_pc * min(costmodel.WALK_CELLS * (1.0 - 2.0 ** -m), free)
     return {"faces": len(_faces_loop(pc)), "strips": _strips_loop(pc), "share": share, "rays": rays_pc,
             "raster_s": fixed * pixels / 512 ** 2 + per_strip * _strips_loop(pc), "cells": cells,
@@ -373,7 +374,8 @@ def test_a_level_in_noise_walks_its_free_path_and_a_surface_the_measured_walk():
     """Noise at its median: half the samples above, so nearly every cell holds the level, and
     a ray meets a PC cell within a cell or two whatever the size; the walk is then the free
     path, the same for every size, and only the strips tell them apart. A sphere's surface
-    gathers its cells, and keeps the measured walk, growing with the size."""
+    in 40^3 samples gathers its cells (6% of them: a free path of 17 cells, above every
+    measured walk), and keeps the measured walk, growing with the size."""
     from data_tools import Volume
     from data_tools.synthetic import sphere
     rng = np.random.default_rng(3)
