@@ -228,9 +228,9 @@ def _exists(path):
 def _refuse_overwriting_input(out, inputs):
     """Refuse an output whose samples file (a ``.raw`` output itself; ``STEM.raw`` for a
     ``.mhd`` or ``.nhdr``) is a file the volume was read from (the header and its samples, or a
-    raw file itself), or the data file of a header beside it (``STEM.nhdr`` for ``STEM.mhd``,
-    either for ``STEM.raw``): writing it would change what that header reads."""
-    from data_tools.io import data_file_written, written_path
+    raw file itself), or the data file of another header beside it: writing it would change
+    what that header reads."""
+    from data_tools.io import data_file_written, headers_reading, written_path
     out = written_path(out)        # through a link, the files written are beside the file it leads to
     samples = out if out.suffix.lower() == ".raw" else data_file_written(out)
     if samples is None:
@@ -239,11 +239,14 @@ def _refuse_overwriting_input(out, inputs):
         if source is not None and os.path.realpath(source) == os.path.realpath(samples):
             raise InputError(f"{out}: would write its samples to {samples}, which the volume is read from; "
                              "write the output elsewhere or under another name")
-    for other in (out.with_suffix(".mhd"), out.with_suffix(".nhdr")):
-        if other.suffix != out.suffix.lower() and _exists(other) and _exists(samples):
-            raise InputError(f"{out}: {samples.name} holds {other.name}'s samples, which writing it would "
-                             "replace; write the output under another name")
-    if samples != out and samples.exists() and not _exists(out):
+    if not _exists(samples):
+        return
+    readers = headers_reading(samples)
+    others = [h for h in readers if os.path.realpath(h) != os.path.realpath(out)]
+    if others:
+        raise InputError(f"{out}: {samples.name} holds {others[0].name}'s samples, which writing it would "
+                         "replace; write the output under another name")
+    if samples != out and not readers:
         # Rewriting an earlier output replaces its data file too; any other file of that name is not ours.
         raise InputError(f"{out}: would write its samples to {samples}, which exists and is no earlier "
                          f"{out.name}'s; remove it or write the output under another name")

@@ -145,6 +145,12 @@ def _file_reader(path):
     return reader, "raw" if reader is raw.read_raw else ext.split(".")[1].upper()
 
 
+def headers_reading(path):
+    """The MetaImage and NRRD headers beside ``path``, of its stem, that read their samples
+    from it."""
+    return raw.headers_reading(path)
+
+
 def data_file_written(path):
     """The detached data file `save_volume` writes beside ``path`` (``.mhd``, ``.nhdr``: the
     same name with ``.raw``), or None."""
@@ -330,5 +336,5 @@ def written_path(path) -> Path:
     return target
 
 
-__all__ = ["load_volume", "save_volume", "written_path", "data_file_written", "volume_extension",
+__all__ = ["load_volume", "save_volume", "written_path", "data_file_written", "headers_reading", "volume_extension",
            "READ_EXTENSIONS", "WRITE_EXTENSIONS"]

@@ -137,19 +137,25 @@ def parse_dtype(dtype, path):
     return name
 
 
-def _header_beside(path):
-    """A MetaImage or detached NRRD header beside ``path`` whose data file is ``path``, as its
-    own reader reads it, or None: the samples of such a pair are often opened instead of
-    its header."""
+#: Headers that may keep their samples in a file beside them, of another name.
+_DETACHED_HEADERS = (".mhd", ".mha", ".nhdr", ".nrrd")
+
+
+def headers_reading(path):
+    """The MetaImage and NRRD headers of ``path``'s stem beside it whose data file is ``path``,
+    as their own readers read it, sorted: the samples of such a pair are often opened instead of
+    its header, and writing them changes what the header reads."""
     from . import metaimage, nrrd_format
+    path = Path(path)
     try:
         siblings = [p for p in path.parent.iterdir()
-                    if p.stem == path.stem and p.suffix.lower() in (".mhd", ".nhdr") and p.is_file()]
+                    if p.stem == path.stem and p.suffix.lower() in _DETACHED_HEADERS and p.is_file()]
     except OSError:
-        return None
+        return []
+    found = []
     for header in sorted(siblings):
         try:
-            if header.suffix.lower() == ".mhd":
+            if header.suffix.lower() in (".mhd", ".mha"):
                 named = metaimage._parse_header(header)[0].get("ElementDataFile")
                 data = header.parent / named if named else None
             else:
@@ -157,8 +163,8 @@ def _header_beside(path):
         except (InputError, OSError):
             continue
         if data is not None and os.path.realpath(data) == os.path.realpath(path):     # never raises, for loops too
-            return header
-    return None
+            found.append(header)
+    return found
 
 
 def read_raw(path, *, shape=None, dtype=None, byte_order=None, offset=0,
@@ -212,8 +218,9 @@ def read_raw(path, *, shape=None, dtype=None, byte_order=None, offset=0,
     if missing:
         # One message for the command line, Python and scene files, which name the options alike.
         flags = {"shape": "--shape NX,NY,NZ", "dtype": "--dtype TYPE"}
-        header = _header_beside(path)
-        if header is not None:
+        headers = headers_reading(path)
+        if headers:
+            header = headers[0]
             raise InputError(f"{path}: a raw file has no header; {header.name} beside it names this file "
                              f"as its data: open {header.name} instead")
         raise InputError(

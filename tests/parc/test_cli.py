@@ -430,6 +430,39 @@ def test_a_header_never_writes_over_a_data_file_not_its_own(vol_file, tmp_path, 
         assert rc == 0 and f"wrote {tmp_path / 'scan.mhd'} and {tmp_path / 'scan.raw'} (" in out, err
 
 
+
+
+@pytest.mark.parametrize("command", ["make", "convert"])
+@pytest.mark.parametrize("header", ["ElementDataFile = LOCAL\n", "ElementDataFile = elsewhere.bin\n"])
+def test_a_header_of_that_name_reading_other_samples_does_not_make_the_raw_file_ours(
+        vol_file, tmp_path, command, header, capsys):
+    # A scan.mhd that keeps its samples within itself, or in another file, never wrote scan.raw.
+    argv = ["make", "sphere", "--size", 5] if command == "make" else ["convert", vol_file]
+    (tmp_path / "elsewhere.bin").write_bytes(bytes(range(8)))
+    (tmp_path / "scan.mhd").write_bytes(b"ObjectType = Image\nNDims = 3\nDimSize = 2 2 2\n"
+                                        b"ElementType = MET_UCHAR\n" + header.encode()
+                                        + (bytes(range(8)) if "LOCAL" in header else b""))
+    (tmp_path / "scan.raw").write_bytes(b"someone else's samples")
+    before = {f.name: f.read_bytes() for f in tmp_path.iterdir()}
+    rc, _, err = _run(argv + ["-o", tmp_path / "scan.mhd"], capsys)
+    assert rc == 2 and err.count("\n") == 1 and "scan.raw, which exists" in err, err
+    assert {f.name: f.read_bytes() for f in tmp_path.iterdir()} == before
+
+
+def test_a_raw_output_keeps_the_samples_of_any_header_beside_it_that_reads_them(tmp_path, capsys):
+    # A detached NRRD header may end in .nrrd, in any case; one that reads other samples does not count.
+    save_volume(Volume(np.arange(27, dtype=np.uint8).reshape(3, 3, 3)), tmp_path / "scan.nhdr")
+    (tmp_path / "scan.nhdr").rename(tmp_path / "scan.NRRD")
+    before = {f.name: f.read_bytes() for f in tmp_path.iterdir()}
+    for out in ("scan.raw", "scan.mhd"):
+        rc, _, err = _run(["make", "torus", "--size", 8, "-o", tmp_path / out], capsys)
+        assert rc == 2 and err.count("\n") == 1 and "scan.raw holds scan.NRRD's samples" in err, err
+        assert {f.name: f.read_bytes() for f in tmp_path.iterdir()} == before
+    save_volume(Volume(np.zeros((2, 2, 2), np.uint8)), tmp_path / "other.nrrd")
+    (tmp_path / "other.nrrd").rename(tmp_path / "loose.nrrd")
+    (tmp_path / "loose.raw").write_bytes(b"mine")
+    rc, _, err = _run(["make", "torus", "--size", 8, "-o", tmp_path / "loose.raw"], capsys)
+    assert rc == 0 and (tmp_path / "loose.raw").stat().st_size == 8 ** 3 * 4, err
 def test_make_s_help_gives_each_volume_s_size_as_made(capsys):
     # "--size N: default depends on the volume" left it to be found by making one.
     import re as regex
