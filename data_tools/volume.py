@@ -230,19 +230,30 @@ MIN_SPACING, MAX_SPACING = 1e-30, 1e30
 
 
 def _writeable_below(a):
-    """Whether ``a``, an array it is a view of, or the buffer beneath them (a ``bytearray``) can be
-    written. NumPy records only the array that owns the memory: a view of it kept writeable
-    elsewhere is not seen."""
-    while isinstance(a, np.ndarray):
-        if a.flags.writeable:
-            return True
-        a = a.base
-    if a is None:
-        return False
-    try:
-        return not memoryview(a).readonly
-    except TypeError:
-        return False
+    """Whether ``a``, an array it is a view of, or the buffer beneath them can be written.
+    NumPy records only the array that owns the memory: a view of it kept writeable elsewhere is
+    not seen. A read-only memoryview may show a ``bytearray``, and numpy's ``as_strided`` keeps
+    its array in an object of its own: both are followed down. What cannot be shown read-only
+    counts as writeable: a copy costs memory, samples changed under the caches a wrong image."""
+    for _ in range(1000):          # a chain of bases ends; a loop of them would not
+        if a is None:
+            return False
+        if isinstance(a, np.ndarray):
+            if a.flags.writeable:
+                return True
+            a = a.base
+        elif isinstance(a, memoryview):
+            if not a.readonly:
+                return True
+            a = a.obj
+        else:
+            try:
+                return not memoryview(a).readonly      # bytes, an mmap opened to read: read-only
+            except TypeError:
+                if not hasattr(a, "base"):
+                    return True
+                a = a.base
+    return True
 
 
 def _rebuilt(cls, data, *fields):

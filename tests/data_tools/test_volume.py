@@ -90,23 +90,31 @@ def test_copies_and_pickles_keep_the_name_placement_and_meta():
 
 
 def _layouts():
+    """Each layout's samples, and the array through which the caller can still write them."""
     base = np.arange(1000, dtype=np.float32).reshape(10, 10, 10)
     read_only_view = base.view()
     read_only_view.flags.writeable = False
-    return {"C order": base, "Fortran order": np.asfortranarray(base),
-            "strided": np.arange(2000, dtype=np.float32).reshape(10, 10, 20)[:, :, ::2],
-            "big-endian": base.astype(">f4"), "int64": base.astype(np.int64),
-            "a read-only view of a writeable array": read_only_view}
+    strided = np.arange(2000, dtype=np.float32).reshape(10, 10, 20)[:, :, ::2]
+    fortran, big, wide = np.asfortranarray(base), base.astype(">f4"), base.astype(np.int64)
+    # Beneath a read-only array: numpy's object for as_strided, a read-only memoryview of a bytearray.
+    behind = base.copy()
+    buffer = bytearray(base.tobytes())
+    in_buffer = np.frombuffer(buffer, np.float32).reshape(10, 10, 10)
+    return {"C order": (base, base), "Fortran order": (fortran, fortran), "strided": (strided, strided),
+            "big-endian": (big, big), "int64": (wide, wide),
+            "a read-only view of a writeable array": (read_only_view, base),
+            "a read-only strided view": (np.lib.stride_tricks.as_strided(behind, writeable=False), behind),
+            "a read-only memoryview of a bytearray": (
+                np.frombuffer(memoryview(buffer).toreadonly(), np.float32).reshape(10, 10, 10), in_buffer)}
 
 
 @pytest.mark.parametrize("layout", list(_layouts()))
 def test_a_change_to_the_callers_array_never_reaches_the_volume(layout):
     # Rendering caches ranges, proxies and skip tables on a volume: samples that changed under
     # them would be drawn from stale caches, with no error.
-    given = _layouts()[layout]
+    given, writeable = _layouts()[layout]
     vol = Volume(given)
     before = vol.data.copy()
-    writeable = given if given.flags.writeable else given.base
     writeable[...] = -7
     np.testing.assert_array_equal(vol.data, before)
     assert not vol.data.flags.writeable
