@@ -417,11 +417,14 @@ def step_sweep(scene, steps, *, repeats=3, warmup=1, progress=None, options=None
     # Held at once: the reference and the step's image from each method; earlier steps' are let go.
     check_scene_memory(scene, kept_images=3)
 
+    # The lights shine, and shadows fall, on shaded samples alone; given to another volume they
+    # would be said to change nothing again at every step.
+    lit = vis.shade and vis.mode == "composite"
+
     def at(step):
-        # The lights shine on shaded samples alone; given to another volume they would be said
-        # to change nothing again at every step.
         return Scene(camera=scene.camera, size=scene.size, background=scene.background,
-                     volumes=[replace(vis, step=step, tf=vis.tf)], lights=scene.lights if vis.shade else ())
+                     volumes=[replace(vis, step=step, tf=vis.tf)], lights=scene.lights if lit else (),
+                     shadows=scene.shadows and lit and bool(scene.lights))
 
     # Refuse a step the volume cannot take before any work, the reference's too.
     for step in steps:

@@ -107,3 +107,24 @@ def test_a_data_folder_named_by_the_environment_must_be_one(kind, tmp_path, monk
     with pytest.raises(InputError, match=f"^PARC_DATA_DIR={place}: {words}$"):
         bench.main(args)
     assert not (tmp_path / "out").exists()
+
+
+def test_a_step_sweep_renders_the_scenes_shadows():
+    # Truth: brute's own renders of the shadowed scene, at the step and at a quarter of it.
+    vol = blobs(12, seed=3)
+    lit = parc.Translucent(vol, "viridis", shade=True)
+    light = [parc.DirectionalLight(direction=(0.3, 0.2, -1.0))]
+    kw = dict(camera=parc.Camera.framing(*vol.bounds), size=(16, 16), volumes=[lit], lights=light)
+    scene = parc.Scene(**kw, shadows=True)
+
+    def brute(step, shadows):
+        at = parc.Scene(**{**kw, "volumes": [parc.Translucent(vol, "viridis", shade=True, step=step)]},
+                        shadows=shadows)
+        return parc.render(at, method="brute").image
+
+    (row,) = step_sweep(scene, [1.0], repeats=1, warmup=0)
+    shadowed, reference = brute(1.0, True), brute(0.25, True)
+    assert np.abs(shadowed - brute(1.0, False)).max() > 0.01       # the shadows show here
+    assert row["parameters"]["shadows"] is True
+    assert row["max_color"] == pytest.approx(float(np.abs(shadowed - reference).max()), abs=1e-6)
+    assert row["parc_vs_brute"] == 0
