@@ -445,9 +445,9 @@ def cmd_compare(args):
             if hasattr(vis, "tf") and vis.step != reference_step(vis.volume.spacing):
                 notes.append(f"the step sweep replaces volume[{n}]'s step {vis.step:g} from {args.volume}")
     common = {"buffers": _buffers(args, scene), "blocks": not args.no_blocks}
+    check_request(scene, common["buffers"], work_out is not None, ("--buffers", "--work"))
     if work_out is not None:
         check_distinct(args.volume, [work_out], read=_files_read(scene), flags=("--work",))
-        check_request(scene, common["buffers"], True, ("--buffers", "--work"))
     if steps is not None and args.supercell is not None:
         common["supercell"] = args.supercell
     if warming is not None:
@@ -472,15 +472,20 @@ def cmd_compare(args):
         options = {m: {"supercell": args.supercell, **opts} for m, opts in options.items()}
     with late_compile_notice(say):
         rows = compare(scene, methods=methods, repeats=args.repeats, options=options, progress=warming)
-    if args.json:
-        print_out(to_json(rows))
-    else:
-        print_out(_heading(args, scene))
-        print_out(format_table(rows, notes=[SUPERCELL_SWEEP_NOTE] if args.sweep_supercell is not None else []))
+    done = None
     if work_out is not None:
+        # Written before the table: a closed or full standard output must not cost the picture.
         with slow_note(f"rendering {', '.join(methods)} once more for --work", say):
             maps = work_per_pixel(scene, methods, options=options)
         atomic_write_all([(work_out, lambda tmp: _work_png(tmp, maps, scene))])
+        done = f"wrote {work_out}"
+    if args.json:
+        print_out(to_json(rows), done=done)
+    else:
+        print_out(_heading(args, scene), done=done)
+        print_out(format_table(rows, notes=[SUPERCELL_SWEEP_NOTE] if args.sweep_supercell is not None else []),
+                  done=done)
+    if work_out is not None:
         say(f"wrote {work_out}: the work per pixel of {', '.join(maps)}")
     return 0
 

@@ -679,7 +679,9 @@ def test_odd_output_streams(vol_file, tmp_path, how):
 @pytest.mark.parametrize("command", [["info", "{vol}"], ["convert", "{vol}", "-o", "{tmp}/c.nrrd"],
                                      ["make", "sphere", "--size", "4", "-o", "{tmp}/m.nrrd"],
                                      ["compare", "{vol}", "--iso", "4", "--size", "8", "8", "--repeats", "1",
-                                      "--quiet", "--json"], ["--version"], ["render", "--help"]])
+                                      "--quiet", "--json"],
+                                     ["compare", "{vol}", "--iso", "4", "--size", "8", "8", "--repeats", "1",
+                                      "--quiet", "--work", "{tmp}/w.png"], ["--version"], ["render", "--help"]])
 def test_a_full_standard_output_is_named(vol_file, tmp_path, command, buffered):
     # `> /dev/full` ended in "No space left on device" alone, with convert's file written;
     # buffered, the text left behind failed again at exit: a second complaint, status 120.
@@ -692,8 +694,9 @@ def test_a_full_standard_output_is_named(vol_file, tmp_path, command, buffered):
     assert p.returncode == 2
     # (A loaded machine's slow read adds a "reading ... done" line, which is not the point here.)
     err = "".join(line for line in p.stderr.decode().splitlines(keepends=True) if not PROGRESS_LINE.match(line))
-    # What convert and make wrote is whole and stays: their line says so.
-    written = argv[argv.index("-o") + 1] if "-o" in argv else None
+    # What convert and make wrote, and compare's work map, is whole and stays: their line says so.
+    flag = next((f for f in ("-o", "--work") if f in argv), None)
+    written = argv[argv.index(flag) + 1] if flag else None
     done = f"wrote {written}, but " if written else ""
     assert err == f"parc: error: {done}cannot write to standard output: No space left on device\n"
     assert written is None or Path(written).is_file()
@@ -1243,6 +1246,16 @@ def test_compare_refuses_work_it_cannot_draw_before_any_render(extra, words, vol
     assert rc == 2 and err.count("\n") == 1 and words in err, err
     assert not out and sorted(p.name for p in tmp_path.iterdir() if p.suffix in (".png", ".npy")) == ["link.png"]
     assert (tmp_path / "link.png").resolve() == vol_file.resolve() and load_volume(vol_file).data.shape == (12, 12, 12)
+
+
+@pytest.mark.parametrize("extra", [[], ["--sweep-supercell", "2,4"], ["--work", "w.png"]])
+def test_compare_names_its_buffers_flag_when_a_scene_refuses_it(extra, vol_file, tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "scene.toml").write_text(f"size = [8, 8]\n[[volume]]\nfile = '{vol_file}'\niso = 4.0\n"
+                                         f"[[volume]]\nfile = '{vol_file}'\ntf = 'greyscale'\n")
+    rc, _, err = _run(["compare", "scene.toml", "--repeats", 1, "--buffers", "bits", *extra], capsys)
+    assert rc == 2 and err.count("\n") == 1, err
+    assert err.startswith("parc: error: --buffers bits leave out the depth buffers") and "give --buffers" in err, err
 
 
 def test_compare_quiet_keeps_stderr_empty(vol_file, capsys):
