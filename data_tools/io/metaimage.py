@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import os
+import re
 from pathlib import Path
 
 import numpy as np
@@ -13,10 +14,17 @@ from ._common import (check_inflatable, file_volume, data_file_block, decompress
 
 EXTENSIONS = (".mhd", ".mha")
 
+#: The sample types written, and read.
 ELEMENT_TYPES = {
     "MET_UCHAR": "uint8", "MET_CHAR": "int8", "MET_USHORT": "uint16", "MET_SHORT": "int16",
     "MET_UINT": "uint32", "MET_INT": "int32", "MET_FLOAT": "float32", "MET_DOUBLE": "float64",
 }
+#: Read as well, at MetaIO's sizes (a LONG is 4 bytes on every system): ITK writes an image of
+#: ``long`` as LONG_LONG on Linux, LONG on Windows. 64-bit samples are narrowed as a Volume takes them.
+_READ_TYPES = {**ELEMENT_TYPES, "MET_LONG": "int32", "MET_ULONG": "uint32",
+               "MET_LONG_LONG": "int64", "MET_ULONG_LONG": "uint64"}
+#: Bytes no text line holds: a header line with one is the data, or no header.
+_CONTROL = re.compile(rb"[\x00-\x08\x0b\x0c\x0e-\x1f\x7f]")
 #: Headers are read up to this many bytes (as NRRD's), comments and all.
 _MAX_HEADER = 1 << 26
 
@@ -78,10 +86,11 @@ def _parse_header(path: Path):
                 raise InputError(f"{path}: MetaImage header has no ElementDataFile line")
             if first and raw.startswith(b"\xef\xbb\xbf"):
                 raw = raw[3:]   # a UTF-8 byte-order mark, as some editors write: not part of the first key
-            try:
-                line = raw.decode("ascii").strip()
-            except UnicodeDecodeError:
-                raise InputError(f"{path}: not a MetaImage header (binary bytes before ElementDataFile)") from None
+            if _CONTROL.search(raw):
+                raise InputError(f"{path}: not a MetaImage header (binary bytes before ElementDataFile)")
+            # Values are text in any language (ITK writes them as given: a comment, a name, the data
+            # file's); bytes not in UTF-8 stay as they are, so a data file's name still finds its file.
+            line = raw.decode("utf-8", "surrogateescape").strip()
             if line and not line.startswith("#"):
                 key, eq, value = (part.strip() for part in line.partition("="))
                 if not eq:
@@ -102,7 +111,7 @@ def _parse_header(path: Path):
 def read_metaimage(path, *, spacing=None, origin=None) -> Volume:
     """Read a 3-D scalar MetaImage volume.
 
-    Handles ``DimSize``, ``ElementType`` (MET_UCHAR ... MET_DOUBLE),
+    Handles ``DimSize``, ``ElementType`` (MET_UCHAR ... MET_ULONG_LONG, MET_FLOAT, MET_DOUBLE),
     ``ElementSpacing`` (or ``ElementSize``), ``Offset``/``Origin``/``Position``,
     ``BinaryDataByteOrderMSB``/``ElementByteOrderMSB``, ``HeaderSize``,
     zlib ``CompressedData`` and text samples (``BinaryData = False``).
@@ -151,9 +160,9 @@ def _build(path, fields, data_start, given):
     no_extra_values(sizes, axes, path, "DimSize")
     dims = parse_dims(sizes, path, "DimSize")
     etype = get("ElementType").upper()
-    if etype not in ELEMENT_TYPES:
-        raise InputError(f"{path}: unsupported ElementType {etype} (supported: {', '.join(ELEMENT_TYPES)})")
-    dtype = ELEMENT_TYPES[etype]
+    if etype not in _READ_TYPES:
+        raise InputError(f"{path}: unsupported ElementType {etype} (supported: {', '.join(_READ_TYPES)})")
+    dtype = _READ_TYPES[etype]
     channels = get("ElementNumberOfChannels")
     if channels is not None and channels.strip() != "1":
         raise InputError(f"{path}: {channels} channels per sample; only scalar volumes are supported")

@@ -592,7 +592,7 @@ def test_mha_compressed_truncated_or_corrupt(tmp_path, writers, cut):
     fails(p)
 
 
-@pytest.mark.parametrize("line,match", [("NDims = 2", "NDims"), ("ElementType = MET_LONG_LONG", "ElementType"),
+@pytest.mark.parametrize("line,match", [("NDims = 2", "NDims"), ("ElementType = MET_STRING", "ElementType"),
                                         ("DimSize = 6 5", "DimSize"), ("ElementSpacing = 1 x 1", "ElementSpacing"),
                                         ("ElementNumberOfChannels = 3", "channels")])
 def test_mhd_bad_fields(tmp_path, writers, line, match):
@@ -661,6 +661,14 @@ def test_mhd_without_data_file_line(tmp_path):
     p = tmp_path / "n.mhd"
     p.write_text("NDims = 3\nDimSize = 2 2 2\nElementType = MET_UCHAR\n")
     fails(p, "ElementDataFile")
+
+
+@pytest.mark.parametrize("head", [b"\x89PNG\r\n\x1a\n\x00\x00", b"NDims = 3\nDimSize = 2 2 2\x00\x01\n"])
+def test_a_file_of_binary_bytes_is_no_mhd_header(tmp_path, head):
+    # Text beyond ASCII is a header's; control bytes are not text.
+    p = tmp_path / "b.mha"
+    p.write_bytes(head + b"ElementDataFile = LOCAL\n" + bytes(8))
+    fails(p, "not a MetaImage header")
 
 
 def test_mhd_data_file_key_in_another_case_is_named(tmp_path):

@@ -585,6 +585,38 @@ def test_metaimage_writer_roundtrip(tmp_path, suffix, order):
     check(load_volume(p), arr, (1, 2, 3), (0.5, 0, -1))
 
 
+@pytest.mark.parametrize("etype, stored", [("MET_LONG", "<i4"), ("MET_ULONG", "<u4"), ("MET_LONG_LONG", "<i8"),
+                                           ("MET_ULONG_LONG", "<u8"), ("MET_LONG_LONG", ">i8")])
+def test_metaimage_long_types_read_at_metaios_sizes(tmp_path, etype, stored):
+    # MetaIO's LONG is 4 bytes on every system, LONG_LONG 8; 64-bit samples that fit 32 bits are narrowed.
+    values = (np.arange(60).reshape(5, 4, 3) * (-3 if "U" not in etype else 3)).astype(stored)
+    (tmp_path / "d.raw").write_bytes(values.tobytes())
+    (tmp_path / "l.mhd").write_text(f"NDims = 3\nDimSize = 3 4 5\nElementType = {etype}\n"
+                                    f"BinaryDataByteOrderMSB = {stored[0] == '>'}\nElementDataFile = d.raw\n")
+    vol = load_volume(tmp_path / "l.mhd")
+    np.testing.assert_array_equal(vol.data, values)
+    assert vol.dtype.itemsize == 4
+
+
+def test_metaimage_long_long_samples_beyond_32_bits_are_refused(tmp_path):
+    (tmp_path / "d.raw").write_bytes(np.full(8, 1 << 40, "<i8").tobytes())
+    (tmp_path / "l.mhd").write_text("NDims = 3\nDimSize = 2 2 2\nElementType = MET_LONG_LONG\nElementDataFile = d.raw\n")
+    with pytest.raises(InputError, match="beyond 32 bits"):
+        load_volume(tmp_path / "l.mhd")
+
+
+@pytest.mark.parametrize("encoding", ["utf-8", "latin-1"])
+def test_metaimage_header_text_beyond_ascii(tmp_path, encoding):
+    # ITK writes its strings as given: a comment, a name, the data file's name, in the system's encoding.
+    values = np.arange(8, dtype=np.uint8).reshape(2, 2, 2)
+    data_name = "Schädel 1.raw"
+    (tmp_path / data_name.encode(encoding).decode("utf-8", "surrogateescape")).write_bytes(values.tobytes())
+    header = ("Comment = Patient Müller, 5 µm\nNDims = 3\nDimSize = 2 2 2\nElementType = MET_UCHAR\n"
+              f"ElementDataFile = {data_name}\n")
+    (tmp_path / "s.mhd").write_bytes(header.encode(encoding))
+    np.testing.assert_array_equal(load_volume(tmp_path / "s.mhd").data, values)
+
+
 # --- VTK legacy ------------------------------------------------------------
 
 @pytest.mark.parametrize("dtype", DTYPES)
