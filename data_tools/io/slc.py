@@ -104,6 +104,8 @@ def read_slc(path, *, spacing=None, origin=None) -> Volume:
     if compression not in (0, 1):
         raise InputError(f"{path}: unknown SLC compression {compression} (0 raw, 1 run-length)")
     icon_w, icon_h = cur.number(int, "icon width"), cur.number(int, "icon height", b"X")
+    if min(icon_w, icon_h) < 0:
+        raise InputError(f"{path}: bad SLC icon size {icon_w}x{icon_h} (0 or more each)")
     cur.marker("the icon")
     cur.take(3 * icon_w * icon_h, "the icon")
     plane = nx * ny
@@ -115,6 +117,8 @@ def read_slc(path, *, spacing=None, origin=None) -> Volume:
         what = f"slice {k}"
         if compression:
             size = cur.number(int, f"the size of {what}", b"X")
+            if size < 0:
+                raise InputError(f"{path}: bad SLC header: {what} has {size} bytes")
             cur.marker(what)
             flat[k] = np.frombuffer(_rle_decode(cur.take(size, what), plane, path, k), dtype=np.uint8)
         else:

@@ -817,6 +817,23 @@ def test_slc_bad_magic_and_bits(tmp_path, writers):
     fails(p, "unknown SLC compression 2 (0 raw, 1 run-length)")
 
 
+@pytest.mark.parametrize("icon", [(-1, 3), (-1, -1), (4, -3)])
+def test_slc_negative_icon_size_is_named(tmp_path, writers, icon):
+    # -1 x -1 had skipped 3 bytes without a word; -1 x 3 was "truncated: -9 bytes needed".
+    p = writers.slc(tmp_path / "i.slc", SMALL)
+    p.write_bytes(p.read_bytes().replace(b"\n4 3 X", f"\n{icon[0]} {icon[1]} X".encode(), 1))
+    fails(p, f"bad SLC icon size {icon[0]}x{icon[1]}")
+
+
+def test_slc_negative_slice_size_is_named(tmp_path, writers):
+    p = writers.slc(tmp_path / "s.slc", SMALL)
+    code = writers.rle(SMALL[0].tobytes())
+    head = f"{len(code)} X".encode() + code
+    assert head in p.read_bytes()
+    p.write_bytes(p.read_bytes().replace(head, b"-5 X" + code, 1))
+    fails(p, "slice 0 has -5 bytes")
+
+
 def test_slc_claiming_more_samples_than_memory_holds(tmp_path, writers):
     # Run-length samples need not be in the file: numpy's "array is too big" was the message.
     p = writers.slc(tmp_path / "h.slc", SMALL)
