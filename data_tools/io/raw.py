@@ -22,7 +22,9 @@ DTYPE_WORDS = {
     "float": "float32", "double": "float64",
 }
 
-_SHAPE_RE = re.compile(r"(?<![0-9])(\d+)x(\d+)x(\d+)(?![0-9])", re.IGNORECASE)
+#: Three sizes, not three of four or more (4x5x6x2 is no 4x5x6 volume).
+_SHAPE_RE = re.compile(r"(?<![0-9])(?<![0-9]x)(\d+)x(\d+)x(\d+)(?!x?[0-9])", re.IGNORECASE)
+_SIZES_RE = re.compile(r"(?<![0-9])\d+(?:x\d+){3,}(?![0-9])", re.IGNORECASE)
 _ENDIAN_WORDS = {"be": "big", "bigendian": "big", "msb": "big",
                  "le": "little", "littleendian": "little", "lsb": "little"}
 
@@ -46,11 +48,14 @@ def guess_from_name(path) -> dict:
         in the name; with more than one type named, ``dtypes``, all of them
         in that order (`read_raw` takes the one the file's size fits). A
         name giving two shapes or both byte orders also has ``shapes`` or
-        ``byte_orders``, in its order (`read_raw` then asks which).
+        ``byte_orders``, in its order (`read_raw` then asks which), and one
+        giving four sizes or more, ``sizes``, their text (``4x5x6x2``).
         Empty when the name says nothing.
     """
     stem = Path(path).stem
     found = {}
+    if (many := _SIZES_RE.search(stem)) is not None:
+        found["sizes"] = many.group()
     shapes = list(dict.fromkeys(tuple(int(g) for g in m.groups()) for m in _SHAPE_RE.finditer(stem)))
     orders = list(dict.fromkeys(_ENDIAN_WORDS[word] for word in re.split(r"[^A-Za-z0-9]+", stem.lower())
                                 if word in _ENDIAN_WORDS))
@@ -205,6 +210,9 @@ def read_raw(path, *, shape=None, dtype=None, byte_order=None, offset=0,
     path = Path(path)
     guess = guess_from_name(path)
     shape_given, dtype_given = shape is not None, dtype is not None
+    if shape is None and "sizes" in guess and "shape" not in guess:
+        raise InputError(f"{path}: the name gives {guess['sizes'].lower().count('x') + 1} sizes ({guess['sizes']}), "
+                         "where a volume has three; give --shape NX,NY,NZ (shape in Python and scene files)")
     if shape is None and "shapes" in guess:
         raise InputError(f"{path}: the name gives the shapes {' and '.join(map(_shape_text, guess['shapes']))}; "
                          "give --shape NX,NY,NZ (shape in Python and scene files)")
@@ -289,6 +297,8 @@ def check_name(volume: Volume, path, byte_order: str | None = None) -> None:
     # only with the flag that settles it, so it is refused as one that states another.
     if "shapes" in guess:
         said.append(" and ".join(map(_shape_text, guess["shapes"])))
+    elif "sizes" in guess and "shape" not in guess:
+        said.append(guess["sizes"])
     elif "shape" in guess and tuple(guess["shape"]) != tuple(volume.dims):
         said.append(_shape_text(guess["shape"]))
     named = guess.get("dtypes") or ([guess["dtype"]] if "dtype" in guess else [])

@@ -119,8 +119,23 @@ def test_raw_name_giving_two_shapes_is_refused_unless_one_is_given(tmp_path, wri
     assert "shapes" not in guess_from_name("x_5x4x3_5x4x3_uint8.raw")
 
 
+@pytest.mark.parametrize("name", ["x_5x4x3x2_uint8.raw", "x_5x4x3x1_uint8.raw", "x_1X5x4x3_uint8.raw"])
+def test_raw_name_giving_four_sizes_is_refused_unless_a_shape_is_given(tmp_path, writers, name):
+    # Its first three had been read as the shape: 5x4x3 of a 5x4x3x2 file's samples, silently.
+    arr = make_array("uint8")
+    p = writers.raw(tmp_path / name, np.concatenate([arr, arr]) if "x2_" in name else arr)
+    sizes = name.split("_")[1]
+    with pytest.raises(InputError, match=f"the name gives 4 sizes \\({sizes}\\), where a volume has three; "
+                                         "give --shape"):
+        load_volume(p)
+    assert "shape" not in guess_from_name(p)
+    if "x2_" not in name:
+        check(load_volume(p, shape=(5, 4, 3)), arr)
+
+
 @pytest.mark.parametrize("name, said", [("ct_4x3x2_int16_le_be.raw", "both little- and big-endian"),
-                                        ("ct_4x3x2_or_2x3x4_int16.raw", "4x3x2 and 2x3x4")])
+                                        ("ct_4x3x2_or_2x3x4_int16.raw", "4x3x2 and 2x3x4"),
+                                        ("ct_4x3x2x1_int16.raw", "4x3x2x1")])
 def test_a_raw_name_read_back_only_with_a_flag_is_not_written(tmp_path, name, said):
     arr = np.zeros((2, 3, 4), np.int16)
     with pytest.raises(InputError, match=f"the name says {said}"):
