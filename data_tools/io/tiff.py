@@ -435,7 +435,9 @@ def _spacing(tif, path):
         if all(found.get(a) for a in "XYZ"):
             return (found["X"], found["Y"], found["Z"]), None, meta
         return _partial(found, meta)
-    return (1.0, 1.0, 1.0), "the TIFF gives no voxel size: spacing 1, 1, 1 (give --spacing SX,SY,SZ)", {}
+    # A plain TIFF's resolution tags are a print size (72 dots an inch), with no slice distance.
+    return (1.0, 1.0, 1.0), ("the TIFF gives no voxel size (no ImageJ or OME metadata): spacing 1, 1, 1 "
+                             "(give --spacing SX,SY,SZ)"), {}
 
 
 #: TIFF ResolutionUnit inch (2) or cm (3), with ImageJ's unit: that unit's lengths per

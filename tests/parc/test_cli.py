@@ -364,7 +364,7 @@ def test_convert_a_tiff_stack_says_when_its_spacing_is_unknown(tmp_path, capsys)
     tif = tmp_path / "stack.tif"
     tifffile.imwrite(tif, data, photometric="minisblack")
     rc, _, err = _run(["convert", tif, "-o", tmp_path / "a.npy"], capsys)
-    assert rc == 0 and "no voxel size" in err
+    assert rc == 0 and "no voxel size (no ImageJ or OME metadata)" in err
     rc, _, err = _run(["convert", tif, "--spacing", "0.2,0.2,1", "-o", tmp_path / "b.mha"], capsys)
     assert rc == 0 and err == ""
     vol = load_volume(tmp_path / "b.mha")
