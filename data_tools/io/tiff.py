@@ -482,7 +482,10 @@ def read_tiff_folder(path, *, spacing=None, origin=None) -> Volume:
     """
     given = {"spacing": spacing, "origin": origin}     # the names are the file's own below
     path = Path(path)
-    files = sorted((f for f in path.iterdir() if f.suffix.lower() in EXTENSIONS and f.is_file()),
+    # Hidden files are no slices: macOS leaves "._slice001.tif" beside each slice copied to a
+    # disk of another kind (its own attributes, not a TIFF).
+    files = sorted((f for f in path.iterdir()
+                    if f.suffix.lower() in EXTENSIONS and not f.name.startswith(".") and f.is_file()),
                    key=lambda f: _natural_key(f.name))
     if not files:
         if any(f.suffix.lower() in _DICOM for f in path.iterdir()):

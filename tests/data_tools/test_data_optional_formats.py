@@ -300,6 +300,7 @@ def test_folder_of_slices_in_natural_order(tmp_path):
     a = RNG.integers(0, 4000, (12, 5, 6)).astype(np.uint16)      # 12 slices: slice10 sorts after slice9
     folder = _slices(tmp_path / "seq", a, imagej=True, resolution=(1 / 0.25, 1 / 0.5), metadata={"unit": "um"})
     (folder / "notes.txt").write_text("not a slice")
+    (folder / "._slice0.tif").write_bytes(b"\x00\x05\x16\x07" + bytes(4092))     # macOS's attributes
     vol = load_volume(folder)
     assert np.array_equal(vol.data, a) and vol.spacing == (0.25, 0.5, 1.0)
     assert "12 slices" in vol.meta["note"] and "--spacing" in vol.meta["note"]
