@@ -241,7 +241,8 @@ def _add_view_options(p):
                              "file, these replace the file's camera settings and size.")
     g.add_argument("--eye", type=_floats(3), metavar="X,Y,Z", help="camera position")
     g.add_argument("--look-at", type=_floats(3), metavar="X,Y,Z",
-                   help="point looked at (default: the centre of the volume, or of all a scene file's)")
+                   help="point looked at (default: the centre of the volume, or of all a scene file's); "
+                        "without --eye, the default eye moves with it, as a pan")
     g.add_argument("--up", type=_floats(3), metavar="X,Y,Z", help="up direction (default 0,0,1, or 0,1,0 when the view is along z)")
     g.add_argument("--fov", type=float, metavar="DEG",
                    help="vertical field of view in degrees (default 30)")
