@@ -139,8 +139,8 @@ class Volume:
             bad, top = _count_non_finite(data)
             if bad:
                 raise InputError(f"{self.name}: {bad} non-finite samples (NaN or inf); replace them before rendering")
-            if top > MAX_SAMPLE:
-                raise InputError(f"{self.name}: samples reach {top:.3g}, beyond the {MAX_SAMPLE:g} a cell's cubic "
+            if abs(top) > MAX_SAMPLE:
+                raise InputError(f"{self.name}: samples reach {top:.3g}, beyond the ±{MAX_SAMPLE:g} a cell's cubic "
                                  "holds without overflow (a fill value?); replace them before rendering")
         if isinstance(data, np.memmap):
             if data.flags.writeable:
@@ -272,9 +272,9 @@ def hand_over(data):
 
 
 def _count_non_finite(data, slab_bytes=64 << 20):
-    """NaN and inf samples in float ``data``, and the largest finite magnitude (float64 only:
-    float32 cannot pass `MAX_SAMPLE`), a slab of z-slices at a time: a memory-mapped file is
-    read through once, and no mask as large as the volume is made."""
+    """NaN and inf samples in float ``data``, and the finite sample of largest magnitude, with
+    its sign (float64 only: float32 cannot pass `MAX_SAMPLE`), a slab of z-slices at a time: a
+    memory-mapped file is read through once, and no mask as large as the volume is made."""
     per = max(1, slab_bytes // max(data[0].nbytes, 1))
     bad, top = 0, 0.0
     for z in range(0, data.shape[0], per):
@@ -282,7 +282,7 @@ def _count_non_finite(data, slab_bytes=64 << 20):
         finite = np.isfinite(slab)
         bad += int(slab.size - np.count_nonzero(finite))
         if data.dtype.itemsize == 8 and not bad:
-            top = max(top, float(np.abs(slab).max()))
+            top = max(top, float(slab.min()), float(slab.max()), key=abs)
     return bad, top
 
 

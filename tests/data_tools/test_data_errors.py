@@ -939,7 +939,8 @@ def test_samples_a_cubic_cannot_hold_are_refused(fill, ok):
     if ok:
         assert fill in Volume(data).value_range()
     else:
-        with pytest.raises(InputError, match="beyond the 1e\\+200 a cell's cubic holds without overflow"):
+        with pytest.raises(InputError, match=re.escape(f"samples reach {fill:.3g}, beyond the ±1e+200 a cell's cubic "
+                                                       "holds without overflow")):
             Volume(data)
 
 
