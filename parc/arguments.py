@@ -400,7 +400,8 @@ def build_parser():
     v = sub.add_parser("convert", help="write a volume in another format",
                        description="Read a volume (any format render reads, with the same reading flags) and write "
                                    "it in the format OUT's extension names. Samples keep their type; spacing and "
-                                   "origin go into the header (.npy: a .npy.json sidecar, unless they are 1 and 0; .raw: samples only). "
+                                   "origin go into the header (.npy: a .npy.json sidecar, unless they are 1 and 0; "
+                                   ".raw: samples only). "
                                    "Use it to give a raw file or a TIFF stack its shape and spacing once.")
     v.add_argument("volume", metavar="VOLUME", help="volume file to read (the formats render reads)")
     v.add_argument("-o", "--output", required=True, metavar="OUT",

@@ -615,7 +615,8 @@ def test_metaimage_long_types_read_at_metaios_sizes(tmp_path, etype, stored):
 
 def test_metaimage_long_long_samples_beyond_32_bits_are_refused(tmp_path):
     (tmp_path / "d.raw").write_bytes(np.full(8, 1 << 40, "<i8").tobytes())
-    (tmp_path / "l.mhd").write_text("NDims = 3\nDimSize = 2 2 2\nElementType = MET_LONG_LONG\nElementDataFile = d.raw\n")
+    (tmp_path / "l.mhd").write_text("NDims = 3\nDimSize = 2 2 2\nElementType = MET_LONG_LONG\n"
+                                    "ElementDataFile = d.raw\n")
     with pytest.raises(InputError, match="beyond 32 bits"):
         load_volume(tmp_path / "l.mhd")
 
