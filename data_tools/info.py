@@ -12,16 +12,21 @@ PERCENTILES = (1, 5, 25, 50, 75, 95, 99)
 HISTOGRAM_BINS = 16
 #: Characters of the longest histogram bar.
 BAR_WIDTH = 40
-#: Statistics beyond min/max and zeros use a strided subsample of at most this many samples.
+#: Statistics beyond min/max and zeros use a subsample of at most this many samples.
 SAMPLE_LIMIT = 1 << 21
 
 
 def _subsample(data: np.ndarray, limit: int = SAMPLE_LIMIT) -> np.ndarray:
-    """A regular strided view with at most about ``limit`` samples (the data itself when small)."""
-    if data.size <= limit:
-        return data
-    step = math.ceil((data.size / limit) ** (1.0 / 3.0))
-    return data[::step, ::step, ::step]
+    """At most ``limit`` samples of ``data``, flattened: one at a random place in each of
+    ``limit`` equal runs of the samples in memory order, the same places every time (all of
+    them when they are few). A regular stride along each axis missed whole slices: those of a
+    volume two slices thick, or every other one, where a scan's content was interleaved."""
+    flat = data.reshape(-1)
+    if flat.size <= limit:
+        return flat
+    run = flat.size / limit
+    picks = ((np.arange(limit) + np.random.default_rng(0).random(limit)) * run).astype(np.int64)
+    return flat[np.minimum(picks, flat.size - 1)]
 
 
 def volume_info(vol: Volume) -> dict:
@@ -88,6 +93,9 @@ def exact_text(value) -> str:
 
 
 def _fmt(v) -> str:
+    """Six digits, but every digit of a whole number (a percentile of 30000002 is no 3e+07)."""
+    if isinstance(v, float) and v.is_integer() and abs(v) < 1e16:
+        return str(int(v))
     return f"{v:.6g}" if isinstance(v, float) else str(v)
 
 
@@ -136,8 +144,9 @@ def format_info(info: dict) -> str:
     ]
     if info.get("histogram"):
         lines += _histogram_lines(info["histogram"], info["sampled"])
-    lines.append("suggested isovalues: "
-                 + (", ".join(exact_text(v) for v in info["suggested_isovalues"]) or "none (constant volume)"))
+    none = ("none (constant volume)" if info["min"] == info["max"]
+            else "none (no level lies strictly between the samples' values)")
+    lines.append("suggested isovalues: " + (", ".join(exact_text(v) for v in info["suggested_isovalues"]) or none))
     if info["sampled"] < nx * ny * nz:
         lines.append(f"(mean, percentiles and histogram from a subsample of {info['sampled']} samples)")
     if "note" in info:
@@ -251,7 +260,11 @@ def suggest_isovalues(vol: Volume, k: int = 3, *, bins: int = 256) -> list:
         nonempty = int(np.count_nonzero(counts))
     k = min(k, nonempty - 1)
     if k < 1:
-        return []
+        # The subsample holds one level, and the range more (a lone voxel the subsample missed):
+        # the range's middle shows what is there.
+        mid = float(0.5 * float(lo) + 0.5 * float(hi))
+        mid = math.floor(mid) + 0.5 if whole else mid
+        return [mid] if lo < mid < hi else []
     centers = 0.5 * (edges[:-1] + edges[1:])
     # Scaled to at most 1: the class sums are squared, and values past 1e154
     # overflowed (the cut fell to the first bin). Otsu's cuts do not change

@@ -215,7 +215,9 @@ def _volume_scene(args, say):
         levels = suggest_isovalues(vol)
         if not levels:
             lo, hi = vol.value_range()
-            raise InputError(f"{vol.name}: every sample is {lo:g}; there is no isosurface to show")
+            raise InputError(f"{vol.name}: every sample is {lo:g}; there is no isosurface to show" if lo == hi else
+                             f"{vol.name}: no level lies strictly between its samples' values, "
+                             f"{exact_text(lo)} and {exact_text(hi)}; there is no isosurface to show")
         iso = default_isovalue(levels)
         say(f"no --iso given; using {exact_text(iso)}, suggested from the histogram "
             f"(others: {', '.join(exact_text(v) for v in levels if v != iso) or 'none'})")

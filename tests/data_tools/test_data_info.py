@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from data_tools import Volume
-from data_tools.info import PERCENTILES, format_info, suggest_isovalues, volume_info
+from data_tools.info import PERCENTILES, SAMPLE_LIMIT, format_info, suggest_isovalues, volume_info
 from data_tools.synthetic import blobs, ct_phantom, sphere
 
 
@@ -307,15 +307,56 @@ def test_a_small_volume_has_a_size_above_zero(shape, dtype, nbytes, size):
     assert f"type:        {np.dtype(dtype).name}, {size}" in format_info(volume_info(Volume(data)))
 
 
-def test_the_subsample_takes_the_smallest_stride_that_fits():
-    # 160 x 256 x 256 samples are 5 times SAMPLE_LIMIT: every second sample along each axis
-    # (a stride of 3 would leave about a fifth as many).
+def _thin():
+    data = np.zeros((2, 1100, 1100), np.uint8)       # past SAMPLE_LIMIT in two slices
+    data[1, 300:800, 300:800] = 200
+    return data
+
+
+def _odd_slices():
+    data = np.zeros((40, 600, 600), np.uint8)        # content in every other slice only
+    data[1::2, 100:500, 100:500] = 200
+    return data
+
+
+def _every_third_column():
     data = np.zeros((160, 256, 256), np.uint8)
     data[:, :, 1::3] = 1
+    return data
+
+
+@pytest.mark.parametrize("make", [_thin, _odd_slices, _every_third_column])
+def test_the_subsample_reaches_every_slice(make):
+    # A stride of 2 along each axis read slice 0 of the thin volume alone, and only the even
+    # slices of the other: "mean 0", and no isovalue at all (a constant volume, it said).
+    data = make()
     info = volume_info(Volume(data))
-    sub = data[::2, ::2, ::2]
-    assert info["sampled"] == sub.size
-    assert info["mean"] == sub.mean()
+    assert info["sampled"] <= SAMPLE_LIMIT < data.size
+    assert info["mean"] == pytest.approx(data.mean(), rel=0.02)
+    top = float(data.max())
+    assert [v for v in info["suggested_isovalues"] if 0 < v < top]
+    counts = info["histogram"]["counts"]
+    assert counts[-1] / info["sampled"] == pytest.approx(np.count_nonzero(data) / data.size, rel=0.02)
+
+
+def test_a_lone_voxel_the_subsample_misses_still_gets_an_isovalue():
+    data = np.zeros((140, 140, 140), np.int16)
+    data[70, 70, 71] = 1000
+    assert suggest_isovalues(Volume(data)) == [499.5]
+
+
+def test_two_adjacent_doubles_are_not_called_constant():
+    data = np.ones((6, 6, 6))
+    data[2:4, 2:4, 2:4] = np.nextafter(1.0, 2.0)
+    text = format_info(volume_info(Volume(data)))
+    assert "suggested isovalues: none (no level lies strictly between the samples' values)" in text
+    assert "constant" not in text
+
+
+def test_whole_percentiles_keep_every_digit():
+    data = np.full((4, 4, 4), 30000000.0, np.float32)
+    data[2:] = 30000002.0
+    assert "95%: 30000002," in format_info(volume_info(Volume(data)))
 
 
 def test_a_saturated_top_level_next_to_the_data_keeps_its_surface():

@@ -357,6 +357,18 @@ def test_a_raw_file_behind_a_vendor_header_is_read_with_offset(tmp_path, capsys)
     assert rc == 2 and "--offset applies to a volume file; the built-in volume takes none" in err, err
 
 
+@pytest.mark.parametrize("second, words", [(1.0, "every sample is 1; there is no isosurface to show"),
+                                           (np.nextafter(1.0, 2.0), "no level lies strictly between its samples' "
+                                                                    "values, 1 and 1.0000000000000002;")])
+def test_render_without_iso_says_why_no_level_is_suggested(tmp_path, capsys, second, words):
+    data = np.ones((6, 6, 6))
+    data[2:4, 2:4, 2:4] = second
+    np.save(tmp_path / "v.npy", data)
+    rc, _, err = _run(["render", tmp_path / "v.npy", "--size", 8, 8, "-o", tmp_path / "v.png"], capsys)
+    assert rc == 2 and err.count("\n") == 1 and words in err, err
+    assert not (tmp_path / "v.png").exists()
+
+
 def test_convert_a_tiff_stack_says_when_its_spacing_is_unknown(tmp_path, capsys):
     import tifffile
     from data_tools.io import load_volume
