@@ -270,15 +270,47 @@ def _stage_for(out):
 
 
 def _publish(stage, out):
-    """Move the staged report into ``out``, file by file, once each place has been checked:
-    an interrupted or failed run leaves the old report whole, and no new folder."""
+    """Move the staged report into ``out``, file by file, once each place has been checked. The
+    files it replaces are moved aside into the stage first, and back if a move fails: an
+    interrupted or failed run leaves the old report whole, and no new folder."""
     files = sorted(p for p in stage.rglob("*") if p.is_file())
     names = [p.relative_to(stage) for p in files]
     _check_places(out, names, {str(n.parent) for n in names if n.parent != Path(".")})
+    replaced = stage / ".replaced"
+    done, made = [], []
     with signals_held():         # the report's files move in all together or not at all
-        for path, name in zip(files, names):
-            (out / name).parent.mkdir(parents=True, exist_ok=True)
-            shutil.move(path, out / name)           # a rename; a copy where a folder in out is a mount
+        try:
+            for path, name in zip(files, names):
+                place = out / name
+                _make_folders(place.parent, made)
+                aside = None
+                if place.exists() or place.is_symlink():
+                    aside = replaced / name
+                    aside.parent.mkdir(parents=True, exist_ok=True)
+                    shutil.move(place, aside)
+                done.append((place, aside))
+                shutil.move(path, place)            # a rename; a copy where a folder in out is a mount
+        except BaseException:
+            for place, aside in reversed(done):
+                with contextlib.suppress(OSError):
+                    place.unlink(missing_ok=True)
+                    if aside is not None:
+                        shutil.move(aside, place)
+            for folder in reversed(made):
+                with contextlib.suppress(OSError):
+                    folder.rmdir()
+            raise
+
+
+def _make_folders(folder, made):
+    """Make ``folder`` and those above it that are missing, adding each made to ``made``."""
+    missing = []
+    while not folder.exists():
+        missing.append(folder)
+        folder = folder.parent
+    for folder in reversed(missing):
+        folder.mkdir()
+        made.append(folder)
 
 
 def _run(out, suite, say, command):

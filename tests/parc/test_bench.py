@@ -465,6 +465,29 @@ def test_the_report_is_staged_inside_an_existing_out_and_moved_in_whole_despite_
     assert sorted(p.name for p in out.iterdir()) == ["images", "report.md", "results.json"]
 
 
+@pytest.mark.parametrize("earlier", [False, True])
+def test_a_move_that_fails_midway_puts_the_earlier_report_back(tmp_path, monkeypatch, earlier):
+    # The files moved one by one: a failure at the second left a new picture beside the old report.
+    import parc.bench
+    monkeypatch.setattr(parc.bench, "_run", _fake_run(fail=False))
+    out = tmp_path / "a" / "report"
+    if earlier:
+        (out / "images").mkdir(parents=True)
+        for name in ("report.md", "results.json", "images/table1.png"):
+            (out / name).write_text(EARLIER_RESULTS if name == "results.json" else "old")
+    before = {p.relative_to(tmp_path): p.is_file() and p.read_text() for p in tmp_path.rglob("*")}
+    move = parc.bench.shutil.move
+
+    def move_or_fail(src, dst):
+        if Path(src).name == "report.md" and Path(src).read_text() == "new report":
+            raise PermissionError(1, "Operation not permitted", str(dst))
+        return move(src, dst)
+    monkeypatch.setattr(parc.bench.shutil, "move", move_or_fail)
+    with pytest.raises(PermissionError):
+        run_bench(out, Suite.tiny())
+    assert {p.relative_to(tmp_path): p.is_file() and p.read_text() for p in tmp_path.rglob("*")} == before
+
+
 def test_a_link_to_nothing_as_out_is_refused_before_any_work(tmp_path, monkeypatch):
     import parc.bench
     from data_tools import InputError
