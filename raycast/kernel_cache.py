@@ -28,13 +28,30 @@ def _source_digest():
     return h.hexdigest()[:12]
 
 
+#: What `choose_cache_folder` says cannot be written where there is no home folder to cache in.
+NO_HOME = "~/.cache/parc (there is no home folder: HOME is unset, empty or relative, and the account has none)"
+
+
 def cache_base(environ):
     """The folder PARC caches in, the kernels' folders among what it holds: ``PARC_CACHE_DIR``,
-    or ``parc`` in ``XDG_CACHE_HOME`` (``~/.cache``)."""
+    or ``parc`` in ``XDG_CACHE_HOME`` (``~/.cache``); None where there is no home folder. A
+    relative ``XDG_CACHE_HOME`` or home is ignored, as the XDG specification has it: the cache
+    would be made anew in each folder a command runs in (a folder named ``~`` for an account
+    without a home, ``--user 12345`` in a container)."""
     given = environ.get("PARC_CACHE_DIR")
     if given:
         return given
-    return os.path.join(environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache"), "parc")
+    xdg = environ.get("XDG_CACHE_HOME")
+    if xdg and os.path.isabs(xdg):
+        return os.path.join(xdg, "parc")
+    home = environ.get("HOME")
+    if not home or not os.path.isabs(home):
+        try:
+            import pwd
+            home = pwd.getpwuid(os.getuid()).pw_dir
+        except (ImportError, KeyError):
+            return None
+    return os.path.join(home, ".cache", "parc") if os.path.isabs(home) else None
 
 
 def choose_cache_folder(environ, name):
@@ -53,17 +70,20 @@ def choose_cache_folder(environ, name):
     if given and Path(given).name == name:
         folder = given
     else:
-        folder = os.path.join(given or cache_base(environ), name)
-    try:
-        os.makedirs(folder, exist_ok=True)
-        writable = os.access(folder, os.W_OK)
-    except OSError:
-        writable = False
+        base = given or cache_base(environ)
+        folder = os.path.join(base, name) if base is not None else None
+    writable = False
+    if folder is not None:
+        try:
+            os.makedirs(folder, exist_ok=True)
+            writable = os.access(folder, os.W_OK)
+        except OSError:
+            pass
     if writable:
         return folder, None
     temporary = tempfile.mkdtemp(prefix="parc-kernels-")
     at_exit(shutil.rmtree, temporary, ignore_errors=True)
-    return temporary, folder
+    return temporary, folder if folder is not None else NO_HOME
 
 
 #: Versions of the kernels whose folders `forget_old_versions` keeps, the one in use among them:
@@ -78,12 +98,18 @@ def forget_old_versions(folder, keep=KEPT_VERSIONS):
     kernels, or thread counts) but the ``keep - 1`` used last.
 
     A process still using a folder removed under it compiles what it lacks, and caches no more.
+    Nothing is removed for a folder still empty, and an empty sibling does not count: a command
+    that compiles nothing (one mistyped, or run with another thread count) must not cost a
+    version the minute its kernels take to compile.
     """
     folder = Path(folder)
     try:
+        if next(folder.iterdir(), None) is None:
+            return
         os.utime(folder)
         siblings = [(f.stat().st_mtime, f) for f in folder.parent.iterdir()
-                    if f != folder and _VERSION_FOLDER.fullmatch(f.name) and f.is_dir()]
+                    if f != folder and _VERSION_FOLDER.fullmatch(f.name) and f.is_dir()
+                    and next(f.iterdir(), None) is not None]
     except OSError:
         return
     for _, old in sorted(siblings, reverse=True)[max(keep - 1, 0):]:

@@ -45,10 +45,12 @@ from .scenes import default_data_dir
 
 
 def default_cache_dir():
-    """Where the Visible Woman phantom is kept between runs: ``bench`` in `raycast.kernel_cache.cache_base`."""
+    """Where the Visible Woman phantom is kept between runs: ``bench`` in `raycast.kernel_cache.cache_base`;
+    None where there is no home folder (each run then makes its own)."""
     from raycast.kernel_cache import cache_base
 
-    return Path(cache_base(os.environ)) / "bench"
+    base = cache_base(os.environ)
+    return Path(base) / "bench" if base is not None else None
 
 
 @dataclass(frozen=True)
@@ -79,7 +81,8 @@ class Suite:
     small_volumes : bool
         Small synthetic volumes everywhere (the tests' suite).
     data_dir, cache_dir : Path or None
-        Real volumes (absent: synthetic analogues); where the phantom is kept.
+        Real volumes (absent: synthetic analogues); where the phantom is kept (None: made
+        anew in a temporary folder).
     """
 
     name: str = "full"
@@ -94,7 +97,7 @@ class Suite:
     vw_size: int = 512
     small_volumes: bool = False
     data_dir: Path | None = field(default_factory=default_data_dir)
-    cache_dir: Path = field(default_factory=default_cache_dir)
+    cache_dir: Path | None = field(default_factory=default_cache_dir)
 
     @classmethod
     def full(cls, **kw):

@@ -36,9 +36,16 @@ def phantom_path(cache_dir, shape):
 
 def visible_woman(suite, progress):
     """Generate (once) and render the phantom in a child process; returns its measurements."""
+    if suite.cache_dir is not None:
+        return _visible_woman(suite, progress, suite.cache_dir)
+    with tempfile.TemporaryDirectory(prefix="parc-vw-") as folder:     # no home folder to keep it in
+        return _visible_woman(suite, progress, folder)
+
+
+def _visible_woman(suite, progress, cache_dir):
     from data_tools.synthetic import ct_phantom_to_disk
 
-    path = phantom_path(suite.cache_dir, suite.vw_shape)
+    path = phantom_path(cache_dir, suite.vw_shape)
     generated = None
     if not path.is_file():
         path.parent.mkdir(parents=True, exist_ok=True)

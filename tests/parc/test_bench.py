@@ -510,6 +510,25 @@ def test_an_interrupted_phantom_write_leaves_nothing_in_the_cache(tmp_path, monk
     assert [p for p in tmp_path.rglob("*") if p.is_file()] == []
 
 
+def test_without_a_cache_folder_the_phantom_is_made_in_a_temporary_one_and_removed(monkeypatch):
+    # No home folder to keep it in (`raycast.kernel_cache.cache_base` is None): Path(None) had failed.
+    import data_tools.synthetic
+    from parc.bench.scale import visible_woman
+    made = []
+
+    def record_then_ctrl_c(path, shape):
+        made.append(Path(path))
+        Path(path).write_bytes(b"a phantom")
+        raise KeyboardInterrupt
+    monkeypatch.setattr(data_tools.synthetic, "ct_phantom_to_disk", record_then_ctrl_c)
+    monkeypatch.setattr("raycast.kernel_cache.cache_base", lambda environ: None)
+    suite = Suite.tiny()
+    assert suite.cache_dir is None
+    with pytest.raises(KeyboardInterrupt):
+        visible_woman(suite, lambda m: None)
+    assert made and made[0].parent.name.startswith("parc-vw-") and not made[0].parent.exists()
+
+
 _GRANDCHILD = """
 import os, subprocess, sys
 child = subprocess.Popen([sys.executable, "-c", "import time; from parc.bench.scale import _end_with_parent; "

@@ -21,6 +21,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 from numba.core.dispatcher import Dispatcher
 
 import parc
@@ -253,14 +254,37 @@ def test_numba_s_own_folder_wins_over_parc_s(tmp_path):
     assert choose_cache_folder(env, name) == (str(tmp_path / "n" / name), None)
 
 
-def test_the_default_cache_is_in_the_user_s_cache_folder_not_the_package(tmp_path, monkeypatch):
+def test_the_default_cache_is_in_the_user_s_cache_folder_not_the_package(tmp_path):
     from raycast.kernel_cache import choose_cache_folder
-    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    home = {"HOME": str(tmp_path / "home")}
     name = "numba-0123abcd-2t"
-    assert choose_cache_folder({}, name) == (str(tmp_path / "home" / ".cache" / "parc" / name), None)
+    assert choose_cache_folder(home, name) == (str(tmp_path / "home" / ".cache" / "parc" / name), None)
     assert (tmp_path / "home" / ".cache" / "parc" / name).is_dir()
     xdg = {"XDG_CACHE_HOME": str(tmp_path / "xdg")}
     assert choose_cache_folder(xdg, name) == (str(tmp_path / "xdg" / "parc" / name), None)
+    # A relative XDG_CACHE_HOME is ignored, as the XDG specification says: it would be another
+    # folder in every folder a command runs in.
+    assert choose_cache_folder({**home, "XDG_CACHE_HOME": "xdg"}, name)[0] == str(
+        tmp_path / "home" / ".cache" / "parc" / name)
+
+
+@pytest.mark.parametrize("home", [None, "", "relative"])
+def test_without_a_home_folder_the_kernels_compile_in_a_temporary_folder_said_as_such(tmp_path, monkeypatch, home):
+    # An account with no home (a container's --user 12345): "~" was taken as a folder's name, and
+    # the cache made anew in each working folder; HOME="" put it at /.cache.
+    import pwd
+
+    from raycast.kernel_cache import NO_HOME, cache_base, choose_cache_folder
+
+    def no_entry(uid):
+        raise KeyError(uid)
+    monkeypatch.setattr(pwd, "getpwuid", no_entry)
+    monkeypatch.chdir(tmp_path)
+    environ = {} if home is None else {"HOME": home}
+    assert cache_base(environ) is None
+    folder, refused = choose_cache_folder(environ, "numba-0123abcd-2t")
+    assert refused == NO_HOME and Path(folder).is_absolute() and Path(folder).is_dir()
+    assert list(tmp_path.iterdir()) == []
 
 
 # Which checkout a process imported, and whether it compiled or loaded a kernel of each package.
@@ -331,6 +355,25 @@ def test_the_cache_keeps_the_kernels_of_the_versions_used_last(tmp_path):
     # The one in use, whatever its age, and the two used last; nothing that is not a version's folder.
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["bench", "numba-not-ours", *names[:2], names[-1]])
     assert (tmp_path / names[-1]).stat().st_mtime > 1e9
+
+
+def test_a_run_that_caches_nothing_removes_no_version(tmp_path):
+    # A mistyped command (or one with another thread count) made its empty folder and removed
+    # the version used longest ago: a minute of compiling, for nothing.
+    from raycast.kernel_cache import forget_old_versions
+    names = [f"numba-{n:012x}-2t" for n in range(3)]
+    for age, name in enumerate(names):
+        (tmp_path / name / "raycast").mkdir(parents=True)
+        os.utime(tmp_path / name, (1e9 - age, 1e9 - age))
+    (tmp_path / "numba-00000000000e-1t").mkdir()
+    forget_old_versions(tmp_path / "numba-00000000000e-1t", keep=3)
+    assert len(list(tmp_path.iterdir())) == 4
+    # Once it holds kernels, the empty folder of another run does not count either.
+    (tmp_path / "numba-00000000000e-1t" / "raycast").mkdir()
+    (tmp_path / "numba-00000000000f-9t").mkdir()
+    forget_old_versions(tmp_path / "numba-00000000000e-1t", keep=3)
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
+        [*names[:2], "numba-00000000000e-1t", "numba-00000000000f-9t"])
 
 
 def test_the_folder_name_changes_with_any_kernel_source(tmp_path, monkeypatch):
