@@ -1,11 +1,12 @@
 """The `parc` console script's entry point.
 
 It imports the command line (`parc.cli`, and with it NumPy and the
-volume readers; Numba and OpenGL come with the first render) inside the run, so that a Ctrl-C while they load
-ends in one line and status 130, as it does once the command runs,
-instead of a traceback from the import machinery; it checks, before
-Numba reads it, the thread count a user may set for Numba; and once the
-command has ended it ignores Ctrl-C through the interpreter's exit.
+volume readers; Numba and OpenGL come with the first render) inside the
+run, so that a Ctrl-C while they load ends in one line and status 130, as
+it does once the command runs, instead of a traceback from the import
+machinery; it checks, before Numba reads them, the thread count and
+threading layer a user may set for Numba; and once the command has ended
+it ignores Ctrl-C through the interpreter's exit.
 """
 import os
 import signal
@@ -24,7 +25,13 @@ def main():
         # Checked before Numba is imported: it fails on 0 with a traceback, and warns on the others.
         _say(f"error: NUMBA_NUM_THREADS must be a whole number from 1 to {MAX_THREADS}, got {threads!r}")
         return 2
+    if os.environ.get("NUMBA_THREADING_LAYER", "x").strip() == "":
+        del os.environ["NUMBA_THREADING_LAYER"]       # set but empty: Numba's default, not "unknown ''"
     try:
+        if os.environ.get("NUMBA_THREADING_LAYER") and (why := _threading_layer_refused()):
+            _say(f"error: NUMBA_THREADING_LAYER={os.environ['NUMBA_THREADING_LAYER']!r}: {why} "
+                 "(unset it, or give omp or workqueue)")
+            return 2
         from .cli import main as run
     except KeyboardInterrupt:
         _say("interrupted")
@@ -42,6 +49,20 @@ def _ignore_ctrl_c():
         signal.signal(signal.SIGINT, signal.SIG_IGN)
     except ValueError:          # not the main thread: not ours to change
         pass
+
+
+def _threading_layer_refused():
+    """Why Numba cannot start its threads with the layer asked for, or None. It reads the layer
+    at the first parallel kernel, after a minute's compile, and fails with a traceback."""
+    try:
+        from numba.np.ufunc.parallel import _launch_threads
+    except ImportError:         # a Numba that starts them otherwise: left to it
+        return None
+    try:
+        _launch_threads()
+    except ValueError as exc:
+        return " ".join(str(exc).split("HINT:")[0].split())
+    return None
 
 
 def _say(text):

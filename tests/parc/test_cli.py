@@ -2392,6 +2392,23 @@ def test_numba_thread_count_from_the_environment_is_checked_first(vol_file, thre
                                                f"from 1 to 1024, got {threads!r}\n")
 
 
+@pytest.mark.parametrize("layer, words", [("bogus", "The threading layer requested 'bogus' is unknown to Numba."),
+                                          ("", None), ("workqueue", None)])
+def test_numba_threading_layer_from_the_environment_is_checked_first(vol_file, tmp_path, layer, words):
+    # Numba reads it at the first parallel kernel, after the compile, and failed with a traceback.
+    import os
+    env = dict(os.environ, NUMBA_THREADING_LAYER=layer)
+    p = subprocess.run([sys.executable, "-c", "import sys; from parc.console import main; sys.exit(main())",
+                        "render", str(vol_file), "--iso", "4", "--size", "8", "8", "--quiet", "-o",
+                        str(tmp_path / "v.png")], capture_output=True, text=True, timeout=300, env=env)
+    if words is None:
+        assert p.returncode == 0 and p.stderr == "" and (tmp_path / "v.png").is_file(), p.stderr
+    else:
+        assert (p.returncode, p.stderr) == (2, f"parc: error: NUMBA_THREADING_LAYER={layer!r}: {words} "
+                                               "(unset it, or give omp or workqueue)\n")
+        assert not (tmp_path / "v.png").exists()
+
+
 def test_a_working_folder_deleted_under_the_run_is_named(tmp_path):
     gone = tmp_path / "gone"
     gone.mkdir()
