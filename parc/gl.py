@@ -85,8 +85,11 @@ def get_context():
     # Mesa's EGL prints its warnings ("failed to create dri2 screen", one per device tried)
     # on stderr, ahead of the one line a failure is; a user who sets the level sees them.
     quiet = "EGL_LOG_LEVEL" not in os.environ
+    uncached = _shader_cache_unwritable(os.environ)
     if quiet:
         os.environ["EGL_LOG_LEVEL"] = "fatal"
+    if uncached:
+        os.environ["MESA_SHADER_CACHE_DISABLE"] = "true"
     try:
         ctx = moderngl.create_standalone_context(backend="egl", require=430)
     except Exception as exc:  # moderngl raises plain Exceptions from the driver
@@ -97,6 +100,8 @@ def get_context():
     finally:
         if quiet:
             del os.environ["EGL_LOG_LEVEL"]
+        if uncached:
+            del os.environ["MESA_SHADER_CACHE_DISABLE"]
     # Buffers uploaded for a proxy are released when the proxy goes away; kept until the context
     # is current again, not released at once: a proxy dropped between renders (the context let
     # go) would have its buffers deleted in no context, which does nothing, and kept them for good.
@@ -104,6 +109,21 @@ def get_context():
     spread_rasterizer_threads(wait=rasterizer_start_wait(ctx.info.get("GL_RENDERER", ""), os.environ))
     _CONTEXT, _OWNER, _CURRENT = ctx, threading.current_thread(), True
     return ctx
+
+
+def _shader_cache_unwritable(environ):
+    """Whether Mesa would fail to make its shader cache, and say so on every run: it keeps it in
+    the account's home folder from the password file, not HOME (``nobody``'s is ``/nonexistent``),
+    where no folder of its own nor XDG_CACHE_HOME is given. PARC's few shaders compile at once."""
+    if any(key in environ for key in ("MESA_SHADER_CACHE_DIR", "MESA_SHADER_CACHE_DISABLE", "XDG_CACHE_HOME")):
+        return False
+    try:
+        import pwd
+        home = Path(pwd.getpwuid(os.getuid()).pw_dir)
+    except (ImportError, KeyError):
+        return True
+    cache = home / ".cache"
+    return not os.access(cache if cache.exists() else home, os.W_OK)
 
 
 def release_context():

@@ -309,3 +309,19 @@ def test_an_image_past_the_viewport_limit_on_either_side_is_refused(gl, over):
     with pytest.raises(InputError, match="exceeds this OpenGL's limit"):
         raster_segments(Camera.framing(*proxy.bounds), *size, proxy)
     assert max(size) > 1000
+
+
+@pytest.mark.parametrize("home, environ, unwritable", [
+    ("{tmp}/nonexistent", {}, True),            # as nobody's: Mesa warned "Failed to create ..." every run
+    ("{tmp}", {}, False),
+    ("/nonexistent", {"XDG_CACHE_HOME": "/tmp"}, False),
+    ("/nonexistent", {"MESA_SHADER_CACHE_DIR": "/tmp/m"}, False),
+])
+def test_mesas_shader_cache_is_turned_off_only_where_it_cannot_be_made(monkeypatch, tmp_path, home, environ,
+                                                                       unwritable):
+    import pwd
+    from types import SimpleNamespace
+
+    from parc.gl import _shader_cache_unwritable
+    monkeypatch.setattr(pwd, "getpwuid", lambda uid: SimpleNamespace(pw_dir=home.format(tmp=tmp_path)))
+    assert _shader_cache_unwritable(environ) is unwritable
