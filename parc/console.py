@@ -17,6 +17,7 @@ MAX_THREADS = 1024
 
 
 def main():
+    _open_closed_standard_descriptors()
     threads = os.environ.get("NUMBA_NUM_THREADS")
     count = threads.strip() if threads is not None else ""
     if threads is not None and not count:
@@ -49,6 +50,20 @@ def _ignore_ctrl_c():
         signal.signal(signal.SIGINT, signal.SIG_IGN)
     except ValueError:          # not the main thread: not ours to change
         pass
+
+
+def _open_closed_standard_descriptors():
+    """Give a standard descriptor closed at the start (``2>&-``) the null device: the next file
+    opened would take its number, and what the C libraries print to stderr (Mesa's warnings) would
+    go into it, an image being written, say."""
+    for fd in (0, 1, 2):
+        try:
+            os.fstat(fd)
+        except OSError:
+            null = os.open(os.devnull, os.O_RDWR)
+            if null != fd:
+                os.dup2(null, fd)
+                os.close(null)
 
 
 def _threading_layer_refused():

@@ -686,6 +686,18 @@ def test_odd_output_streams(vol_file, tmp_path, how):
         assert p.returncode == 0 and b"\\u0394" in p.stdout and b"Traceback" not in p.stderr, p.stderr
 
 
+def test_standard_descriptors_closed_at_the_start_are_not_given_to_files(tmp_path):
+    # With 2>&- the first file opened took descriptor 2: what Mesa printed to stderr went into it.
+    import os
+    script = ("import os; from parc.console import _open_closed_standard_descriptors as fill; fill(); "
+              f"fd = os.open({str(tmp_path / 'f')!r}, os.O_WRONLY | os.O_CREAT); "
+              f"open({str(tmp_path / 'fd')!r}, 'w').write(str(fd))")
+    p = subprocess.run([sys.executable, "-c", script], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                       stderr=subprocess.DEVNULL, close_fds=True, preexec_fn=lambda: [os.close(fd) for fd in (0, 1, 2)],
+                       timeout=300)
+    assert p.returncode == 0 and int((tmp_path / "fd").read_text()) > 2
+
+
 @pytest.mark.skipif(not os.path.exists("/dev/full"), reason="needs /dev/full")
 @pytest.mark.parametrize("buffered", [True, False])
 @pytest.mark.parametrize("command", [["info", "{vol}"], ["convert", "{vol}", "-o", "{tmp}/c.nrrd"],
