@@ -239,16 +239,21 @@ def _fake_run(fail):
     return run
 
 
+def _earlier_report(out):
+    """An earlier report's files in ``out``."""
+    (out / "images").mkdir(parents=True)
+    (out / "report.md").write_text("old report")
+    (out / "results.json").write_text(EARLIER_RESULTS)
+    (out / "images" / "table1.png").write_text("old picture")
+
+
 @pytest.mark.parametrize("earlier", [False, True])
 def test_an_interrupted_bench_leaves_no_folder_or_the_earlier_report_whole(tmp_path, monkeypatch, earlier):
     import parc.bench
     monkeypatch.setattr(parc.bench, "_run", _fake_run(fail=True))
     out = tmp_path / "a" / "report"
     if earlier:
-        (out / "images").mkdir(parents=True)
-        (out / "report.md").write_text("old report")
-        (out / "results.json").write_text(EARLIER_RESULTS)
-        (out / "images" / "table1.png").write_text("old picture")
+        _earlier_report(out)
     before = sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*"))
     with pytest.raises(KeyboardInterrupt):
         run_bench(out, Suite.tiny())
@@ -438,9 +443,7 @@ def test_the_report_is_staged_inside_an_existing_out_and_moved_in_whole_despite_
 
     import parc.bench
     out = tmp_path / "out"
-    (out / "images").mkdir(parents=True)
-    for name in ("report.md", "results.json", "images/table1.png"):
-        (out / name).write_text(EARLIER_RESULTS if name == "results.json" else "old")
+    _earlier_report(out)
     staged_in = []
 
     def run(stage, suite, say, command):
@@ -472,9 +475,7 @@ def test_a_move_that_fails_midway_puts_the_earlier_report_back(tmp_path, monkeyp
     monkeypatch.setattr(parc.bench, "_run", _fake_run(fail=False))
     out = tmp_path / "a" / "report"
     if earlier:
-        (out / "images").mkdir(parents=True)
-        for name in ("report.md", "results.json", "images/table1.png"):
-            (out / name).write_text(EARLIER_RESULTS if name == "results.json" else "old")
+        _earlier_report(out)
     before = {p.relative_to(tmp_path): p.is_file() and p.read_text() for p in tmp_path.rglob("*")}
     move = parc.bench.shutil.move
 

@@ -343,12 +343,19 @@ def test_only_the_kernels_of_parc_and_raycast_are_filed_by_package():
     assert locator.from_function(plus_one, __file__) is None
 
 
+def _versions(folder, count):
+    """The names of ``count`` kernel folders made in ``folder``, each holding kernels, the first
+    used last."""
+    names = [f"numba-{n:012x}-2t" for n in range(count)]
+    for age, name in enumerate(names):
+        (folder / name / "raycast").mkdir(parents=True)
+        os.utime(folder / name, (1e9 - age, 1e9 - age))
+    return names
+
+
 def test_the_cache_keeps_the_kernels_of_the_versions_used_last(tmp_path):
     from raycast.kernel_cache import forget_old_versions
-    names = [f"numba-{n:012x}-2t" for n in range(8)]
-    for age, name in enumerate(names):
-        (tmp_path / name / "raycast").mkdir(parents=True)
-        os.utime(tmp_path / name, (1e9 - age, 1e9 - age))
+    names = _versions(tmp_path, 8)
     (tmp_path / "bench").mkdir()
     (tmp_path / "numba-not-ours").mkdir()
     forget_old_versions(tmp_path / names[-1], keep=3)
@@ -361,10 +368,7 @@ def test_a_run_that_caches_nothing_removes_no_version(tmp_path):
     # A mistyped command (or one with another thread count) made its empty folder and removed
     # the version used longest ago: a minute of compiling, for nothing.
     from raycast.kernel_cache import forget_old_versions
-    names = [f"numba-{n:012x}-2t" for n in range(3)]
-    for age, name in enumerate(names):
-        (tmp_path / name / "raycast").mkdir(parents=True)
-        os.utime(tmp_path / name, (1e9 - age, 1e9 - age))
+    names = _versions(tmp_path, 3)
     (tmp_path / "numba-00000000000e-1t").mkdir()
     forget_old_versions(tmp_path / "numba-00000000000e-1t", keep=3)
     assert len(list(tmp_path.iterdir())) == 4
