@@ -59,6 +59,7 @@ import numpy as np
 from numba import prange
 
 from data_tools import InputError
+from data_tools.info import exact_text
 from data_tools.volume import is_number, settled, three_numbers
 from raycast.config import RANGE_CHUNK, kernel
 from raycast.rays import chunk_count, chunk_run
@@ -306,14 +307,17 @@ class TransferFunction:
                              f"and a source span of two, got {short_repr((lo, hi))} and {short_repr(src)}")
         (s0, s1), (lo, hi) = spans
         if hi < lo or not math.isfinite(hi - lo):
-            raise InputError(f"transfer function {self.name or self.source}: cannot map onto [{lo:g}, {hi:g}]: "
+            raise InputError(f"transfer function {self.name or self.source}: cannot map onto [{exact_text(lo)}, {exact_text(hi)}]: "
                              "reversed, or a span beyond float64's range")
         if not s1 > s0:
             raise InputError(f"transfer function {self.name or self.source}: cannot map from "
-                             f"an empty value span [{s0:g}, {s1:g}]")
+                             f"an empty value span [{exact_text(s0)}, {exact_text(s1)}]")
 
         def f(x):
             y = lo + (x - s0) / (s1 - s0) * (hi - lo)
+            # Rounding may carry a point just below s1 past hi, and one past s1 short of it: each is
+            # held to its side, or s1's own point, set to hi, would lie below its neighbour.
+            y = np.where(x <= s1, np.minimum(y, hi), np.maximum(y, hi))
             y[x == s1] = hi               # land on hi exactly despite rounding
             return y
 
@@ -403,19 +407,19 @@ def control_points(raw, key, fields, where, label=None):
             if not math.isfinite(x):
                 raise InputError(f"{where}: {label(i, j)}: {name} must be finite, got {x}")
             if j > 0 and not 0.0 <= x <= 1.0:
-                raise InputError(f"{where}: {label(i, j)}: {name} {x:g} is outside [0, 1]")
+                raise InputError(f"{where}: {label(i, j)}: {name} {exact_text(x)} is outside [0, 1]")
             out[i, j] = x
         if i > 0:
             v, prev = float(out[i, 0]), float(out[i - 1, 0])
             if v < prev:
-                raise InputError(f"{where}: {label(i, 0)}: value {v:g} is below the previous "
-                                 f"value {prev:g}; values must ascend")
+                raise InputError(f"{where}: {label(i, 0)}: value {exact_text(v)} is below the previous "
+                                 f"value {exact_text(prev)}; values must ascend")
             if i > 1 and v == prev == out[i - 2, 0]:
-                raise InputError(f"{where}: {label(i, 0)}: value {v:g} appears a third time; "
+                raise InputError(f"{where}: {label(i, 0)}: value {exact_text(v)} appears a third time; "
                                  "a value may repeat once (a jump)")
             if not math.isfinite(v - prev):
-                raise InputError(f"{where}: {label(i, 0)}: value {v:g} is too far from the previous "
-                                 f"value {prev:g} (their difference overflows)")
+                raise InputError(f"{where}: {label(i, 0)}: value {exact_text(v)} is too far from the previous "
+                                 f"value {exact_text(prev)} (their difference overflows)")
     return out
 
 def _support(x, y):

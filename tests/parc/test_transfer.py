@@ -554,6 +554,32 @@ def test_a_preset_mapped_onto_any_range_ends_exactly_at_its_top():
     np.testing.assert_array_equal(tf.color(np.array([hi]))[0], tf.color_points[-1, 1:])
 
 
+def test_a_point_an_ulp_below_the_top_of_its_span_stays_below_the_top_when_mapped():
+    # (x - s0) / (s1 - s0) * (hi - lo) carried the point just below s1 past hi, and s1's own point,
+    # set to hi, then lay below it: a valid ParaView map over [-1, 1] was refused as descending.
+    points = [(-1.0, 0.0), (0.0, 0.5), (0.9999999999999999, 0.5), (1.0, 1.0)]
+    lo, hi = -0.0009486494471372439, 2.7770479061531086e-05
+    mapped = TransferFunction(points).mapped(lo, hi, src=(-1.0, 1.0))
+    xs = mapped.opacity_points[:, 0]
+    assert np.all(np.diff(xs) >= 0) and xs[0] == lo and xs[-1] == hi
+    # Ranges at random: every mapped function ascends and ends on hi.
+    rng = np.random.default_rng(5)
+    for lo, hi in np.sort(rng.normal(0, 10.0 ** rng.integers(-6, 6, (200, 1)), (200, 2)), axis=1):
+        xs = TransferFunction(points).mapped(lo, hi, src=(-1.0, 1.0)).opacity_points[:, 0]
+        assert np.all(np.diff(xs) >= 0) and xs[-1] == hi
+
+
+@pytest.mark.parametrize("points, words", [
+    ([(0.0, 1.000001)], "alpha 1.000001 is outside [0, 1]"),
+    ([(1.0000001, 0.0), (1.00000001, 0.5)], "value 1.00000001 is below the previous value 1.0000001"),
+])
+def test_a_control_points_error_gives_its_numbers_exactly(points, words):
+    # Six digits made a refused value look legal, or equal to its neighbour.
+    with pytest.raises(InputError) as exc:
+        TransferFunction(points)
+    _check_error(exc, words)
+
+
 def _check_error(exc, *parts):
     msg = str(exc.value)
     assert "\n" not in msg, msg
