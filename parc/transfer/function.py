@@ -307,8 +307,8 @@ class TransferFunction:
                              f"and a source span of two, got {short_repr((lo, hi))} and {short_repr(src)}")
         (s0, s1), (lo, hi) = spans
         if hi < lo or not math.isfinite(hi - lo):
-            raise InputError(f"transfer function {self.name or self.source}: cannot map onto [{exact_text(lo)}, {exact_text(hi)}]: "
-                             "reversed, or a span beyond float64's range")
+            raise InputError(f"transfer function {self.name or self.source}: cannot map onto "
+                             f"[{exact_text(lo)}, {exact_text(hi)}]: reversed, or a span beyond float64's range")
         if not s1 > s0:
             raise InputError(f"transfer function {self.name or self.source}: cannot map from "
                              f"an empty value span [{exact_text(s0)}, {exact_text(s1)}]")
@@ -418,8 +418,8 @@ def control_points(raw, key, fields, where, label=None):
                 raise InputError(f"{where}: {label(i, 0)}: value {exact_text(v)} appears a third time; "
                                  "a value may repeat once (a jump)")
             if not math.isfinite(v - prev):
-                raise InputError(f"{where}: {label(i, 0)}: value {exact_text(v)} is too far from the previous "
-                                 f"value {exact_text(prev)} (their difference overflows)")
+                raise InputError(f"{where}: {label(i, 0)}: value {exact_text(v)} is too far from the "
+                                 f"previous value {exact_text(prev)} (their difference overflows)")
     return out
 
 def _support(x, y):
