@@ -36,6 +36,11 @@ def pick_volume(args, need_iso=True):
     iso = args.iso if args.iso is not None else default
     if iso is None and need_iso:
         raise ValueError("--volume needs --iso")
+    if iso is not None and need_iso:
+        # Refused as `parc` refuses it (outside the data, not finite): scripts that call the kernels
+        # directly would otherwise time an empty scene and call it the same as brute's.
+        from parc import Isosurface
+        Isosurface(vol, iso)
     return vol, iso
 
 
@@ -58,4 +63,8 @@ def run(main):
     except (ValueError, OSError) as exc:         # InputError is a ValueError
         print(f"{Path(sys.argv[0]).name}: error: {exc}", file=sys.stderr)
         sys.exit(2)
+    except MemoryError as exc:
+        print(f"{Path(sys.argv[0]).name}: error: out of memory{f': {exc}' if str(exc) else ''}; "
+              "try smaller sizes", file=sys.stderr)
+        sys.exit(1)
     sys.exit(status)

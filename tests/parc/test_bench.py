@@ -400,6 +400,8 @@ def test_benchmark_script_runs_on_a_tiny_volume(script, gl_context):
     ("raster_speed.py", ["--volume", "nope.nrrd", "--iso", "3"], "nope.nrrd: no such file"),
     ("cast_parts.py", ["--synthetic", "sphere", "--n", "8", "--tf", "nosuch"], "unknown transfer function preset"),
     ("bricking.py", ["--synthetic", "sphere", "--n", "8", "--iso", "1e9"], "outside"),
+    ("raster_speed.py", ["--synthetic", "sphere", "--n", "8", "--iso", "1e9"], "outside"),
+    ("raster_speed.py", ["--synthetic", "sphere", "--n", "8", "--iso", "nan"], "must be finite"),
     ("context_settings.py", ["--volume", "nope.nrrd", "--iso", "3"], "nope.nrrd: no such file"),
     ("caster_speed.py", ["--size", "0"], "must be a whole number of at least 1, got '0'"),
     ("cast_parts.py", ["--repeats", "-2"], "must be a whole number of at least 1, got '-2'"),
