@@ -372,8 +372,9 @@ def describe_volume(vis):
         d["isovalue"] = vis.value
     else:
         d.update({"mode": vis.mode, "step": vis.step, "transfer_function": vis.tf.name or "custom"})
-        if vis.mode == "composite":         # the others take every sample: no threshold applies
+        if vis.mode == "composite":         # the others take every sample, unshaded: neither applies
             d["threshold"] = vis.threshold
+            d["shade"] = vis.shade
     return d
 
 

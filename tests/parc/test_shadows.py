@@ -580,13 +580,14 @@ def test_stats_parameters_describe_the_volume_as_the_scene_states_it():
     placed = {"volume": "fog", "dims": [10, 10, 10], "dtype": "float32", "spacing": [1.0, 1.0, 0.5],
               "origin": [0.0, -2.0, 1.0]}
     tf = TransferFunction([(0.0, 0.0), (1.0, 0.5)])                        # unnamed: "custom"
-    for mode in ("mip", "average", "composite"):
-        # Only compositing stops at a threshold (the others refuse one): the others take every sample.
-        stops = {"threshold": 0.9} if mode == "composite" else {}
+    for mode, shade in (("mip", False), ("average", False), ("composite", False), ("composite", True)):
+        # Only compositing stops at a threshold, and is shaded (the others refuse both): the others
+        # take every sample, unlit.
+        stops = {"threshold": 0.9, "shade": shade} if mode == "composite" else {}
         fog = Translucent(vol, tf=tf, mode=mode, step=0.25, **stops)
         p = render(Scene(camera=cam, size=(8, 6), volumes=[fog]), "brute").stats["parameters"]
-        assert p == {"size": [8, 6], **placed, "mode": mode, "step": 0.25, **stops, "transfer_function": "custom",
-                     "camera": camera}
+        assert p == {"size": [8, 6], **placed, "mode": mode, "step": 0.25, "transfer_function": "custom",
+                     "camera": camera, **stops}
     p = render(Scene(camera=cam, size=(8, 6), volumes=[Isosurface(vol, value=0.3)]), "brute").stats["parameters"]
     assert p == {"size": [8, 6], **placed, "isovalue": 0.3, "camera": camera}
 
