@@ -40,7 +40,8 @@ one of ``file`` and ``synthetic``, and one of ``iso`` and ``tf``::
     mode = "composite"              # composite | mip | average
     step = 0.25                     # world distance between samples (default: spacing / 4)
     threshold = 0.99                # early ray termination opacity (composite)
-    shade = false                   # gradient shading of composite samples
+    shade = false                   # gradient shading of composite samples; with true,
+                                    #   material as for an isosurface
 
     [[light]]                       # none: a headlight at the eye; lights shine on isosurfaces and shaded samples
     position = [0, -200, 150]       # a point light; or
@@ -283,6 +284,9 @@ def _load_volume(where, t, cache):
     step, threshold, shade = t.number("step"), t.number("threshold"), t.boolean("shade")
     if threshold is not None and mode not in (None, "composite"):
         raise t.error("threshold", f"applies to mode composite; {mode} does not stop rays early")
+    if material is not None and not shade:
+        # Lit or not, an unshaded volume's samples take their transfer function's colours alone.
+        raise t.error("material", "applies to an isosurface, or to a translucent volume with shade = true")
     vol = _volume_data(where, t, cache)
     with where.key(t.key("tf")):
         if spec not in PRESETS:
