@@ -14,6 +14,7 @@ from ..signals import signals_held
 from ..volume import Volume
 from . import metaimage, nifti, npy, nrrd_format, raw, slc, tiff, vtk_legacy
 from ._common import check_file, reading
+from .raw import headers_reading
 
 _READERS = {}
 for _mod, _fn in ((nrrd_format, nrrd_format.read_nrrd), (metaimage, metaimage.read_metaimage),
@@ -143,12 +144,6 @@ def _file_reader(path):
         raise InputError(f"{path}: file is empty")
     reader = _READERS[ext]
     return reader, "raw" if reader is raw.read_raw else ext.split(".")[1].upper()
-
-
-def headers_reading(path):
-    """The MetaImage and NRRD headers beside ``path``, of its stem, that read their samples
-    from it."""
-    return raw.headers_reading(path)
 
 
 def data_file_written(path):
