@@ -252,8 +252,7 @@ def suggest_isovalues(vol: Volume, k: int = 3, *, bins: int = 256) -> list:
     counts, edges = _histogram(fg, float(fg.min()), float(fg.max()), integer, bins)
     if counts is None:
         # A float range too narrow (or too wide) to split into bins: offer its middle.
-        mid = float(0.5 * float(fg.min()) + 0.5 * float(fg.max()))
-        return [mid] if lo < mid < hi else []
+        return _middle(fg.min(), fg.max(), lo, hi, whole)
     nonempty = int(np.count_nonzero(counts))
     if nonempty < 2:
         counts, edges = _histogram(values, lo, hi, integer, bins)
@@ -262,9 +261,7 @@ def suggest_isovalues(vol: Volume, k: int = 3, *, bins: int = 256) -> list:
     if k < 1:
         # The subsample holds one level, and the range more (a lone voxel the subsample missed):
         # the range's middle shows what is there.
-        mid = float(0.5 * float(lo) + 0.5 * float(hi))
-        mid = math.floor(mid) + 0.5 if whole else mid
-        return [mid] if lo < mid < hi else []
+        return _middle(lo, hi, lo, hi, whole)
     centers = 0.5 * (edges[:-1] + edges[1:])
     # Scaled to at most 1: the class sums are squared, and values past 1e154
     # overflowed (the cut fell to the first bin). Otsu's cuts do not change
@@ -294,6 +291,14 @@ def suggest_isovalues(vol: Volume, k: int = 3, *, bins: int = 256) -> list:
         if lo < v < hi:
             result.append(v)
     return sorted(set(result))
+
+
+def _middle(a, b, lo, hi, whole):
+    """The middle of ``a`` and ``b`` (at x.5 for ``whole`` samples) as the one level suggested,
+    where it lies strictly inside the data's range ``(lo, hi)``."""
+    mid = float(0.5 * float(a) + 0.5 * float(b))
+    mid = math.floor(mid) + 0.5 if whole else mid
+    return [mid] if lo < mid < hi else []
 
 
 def _shortest(v, a, b, lo, hi, seen=()):
