@@ -9,13 +9,16 @@ CTHEAD = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "CThea
 #: The CT volumes' default level: skin.
 CT_SKIN = 600.5
 
+#: A synthetic volume's side where ``--n`` does not give one.
+SYNTHETIC_SIZE = 256
+
 
 def add_volume_flags(ap):
     """The flags `pick_volume` reads, on an argparse parser."""
     ap.add_argument("--volume")
     ap.add_argument("--iso", type=float)
     ap.add_argument("--synthetic", help="a data_tools synthetic volume name (sphere, torus, ...)")
-    ap.add_argument("--n", type=count, default=256, help="synthetic volume size")
+    ap.add_argument("--n", type=count, help=f"synthetic volume size (default {SYNTHETIC_SIZE})")
 
 
 def pick_volume(args, need_iso=True):
@@ -24,8 +27,16 @@ def pick_volume(args, need_iso=True):
     replaces the default level, and a file's has none (None where not ``need_iso``)."""
     from data_tools.io import load_volume
     from data_tools.synthetic import ct_phantom, make_synthetic
+    # A flag that would change nothing is refused: a measurement taken believing it applied
+    # would be of another scene than the one named.
+    if args.synthetic and args.volume:
+        raise ValueError("give --synthetic or --volume, not both")
+    if args.n is not None and not args.synthetic:
+        raise ValueError("--n sizes a --synthetic volume; it does not apply here")
+    if args.iso is not None and not need_iso:
+        raise ValueError("--iso applies to an isosurface; this run casts a translucent volume (--tf)")
     if args.synthetic:
-        vol = make_synthetic(args.synthetic, args.n)
+        vol = make_synthetic(args.synthetic, args.n or SYNTHETIC_SIZE)
         default = vol.meta.get("iso", 0.0)
     elif args.volume:
         vol, default = load_volume(args.volume), None

@@ -374,6 +374,8 @@ BENCH_SCRIPTS = {
     "cast_parts.py --tf": (["--synthetic", "sphere", "--n", "16", "--size", "32", "--repeats", "1",
                             "--tf", "greyscale"], ["ns a sample", "same as brute: True"]),
     "caster_speed.py": (["--size", "16"], ["M cells/s", "skin iso 600", "bone iso 1500"]),
+    # Too small for bone: the skin frame is still timed, and bone said to be left out.
+    "caster_speed.py --size 8": (["--size", "8"], ["skin iso 600,", "bone iso 1500: not timed"]),
     "raster_speed.py": (["--synthetic", "sphere", "--n", "16", "--size", "64"], ["same as brute: True", "fit: draw"]),
     "context_settings.py": (["--synthetic", "sphere", "--n", "16", "--size", "32", "--repeats", "1",
                              "--rounds", "1"], ["pinned ", "unpinned ", "same as brute: True"]),
@@ -405,6 +407,10 @@ def test_benchmark_script_runs_on_a_tiny_volume(script, gl_context):
     ("context_settings.py", ["--volume", "nope.nrrd", "--iso", "3"], "nope.nrrd: no such file"),
     ("caster_speed.py", ["--size", "0"], "must be a whole number of at least 1, got '0'"),
     ("cast_parts.py", ["--repeats", "-2"], "must be a whole number of at least 1, got '-2'"),
+    # Flags that would change nothing: the figures would be of another scene than the one named.
+    ("cast_parts.py", ["--synthetic", "sphere", "--n", "8", "--tf", "greyscale", "--iso", "3"], "--iso applies"),
+    ("bricking.py", ["--volume", "v.nrrd", "--iso", "3", "--n", "8"], "--n sizes a --synthetic volume"),
+    ("raster_speed.py", ["--synthetic", "sphere", "--volume", "v.nrrd"], "not both"),
 ])
 def test_benchmark_script_refuses_bad_input_in_one_line(script, args, words):
     # A missing file or a transfer function misspelt ended in a traceback.
