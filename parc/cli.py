@@ -28,7 +28,7 @@ from data_tools.io.npy import save_array
 from .arguments import build_parser, join_signed_values, supercell_flag
 from .flagscene import load_volume_flags, scene_and_notes
 from .outputs import (Progress, atomic_write_all, check_distinct, check_not_sidecar, check_output, compile_notice,
-                      compiling_seconds, error_line, late_compile_notice, note, print_out, slow_note, stale_sidecars,
+                      compile_took, compiling_seconds, error_line, late_compile_notice, note, print_out, slow_note, stale_sidecars,
                       to_json, write_png)
 from .scene import ShowsNothingWarning
 from .stops import Stopped, restore_handlers, stop_on_signals
@@ -340,9 +340,7 @@ def cmd_render(args):
     out = ", ".join(str(path) for path, _ in writes)        # every file written, the image first
     took = f"{s['seconds']['total']:.3f} s"
     if compiling[0] >= COMPILE_SAID:
-        # Not "once" where the cache folder was refused: then every run compiles them again.
-        from raycast.kernel_cache import cache_refused
-        took += f" ({compiling[0]:.1f} s of it compiling the casters{'' if cache_refused() else ', once'})"
+        took += compile_took(compiling[0])
     if len(scene.volumes) > 1:
         say(f"wrote {out}: {len(scene.volumes)} volumes ({_describe_all(scene.volumes)}); {took}")
     elif isinstance(vis, parc.Isosurface):

@@ -415,6 +415,18 @@ def compile_notice(say, kernels=()):
         say(_compiling_once(folder))
 
 
+def compile_took(seconds):
+    """The words after a render's time for the part of it spent compiling: "once" only where the
+    kernels were kept, as every run compiles them again otherwise."""
+    from raycast.kernel_cache import cache_refused, cache_unsaved
+
+    if cache_refused():
+        return f" ({seconds:.1f} s of it compiling the casters)"
+    if cache_unsaved():
+        return f" ({seconds:.1f} s of it compiling the casters, not kept: {cache_unsaved()})"
+    return f" ({seconds:.1f} s of it compiling the casters, once)"
+
+
 def _compiling_once(folder):
     return f"compiling the ray casters for this kind of render and sample type, once on this machine (kept in {folder})"
 

@@ -201,15 +201,24 @@ def _cache_is_only_a_shortcut():
     def _save(self, key, data):
         try:
             save(self, key, data)
-        except OSError:
-            pass
+        except OSError as exc:
+            _UNSAVED.append(exc.strerror or str(exc))
 
     IndexDataCacheFile._load_index = _load_index
     IndexDataCacheFile._load_data = _load_data
     IndexDataCacheFile.save = _save
 
 
+#: Why kernels compiled in this process could not be kept (a full disk), in the order it happened.
+_UNSAVED = []
+
 _cache_is_only_a_shortcut()
+
+
+def cache_unsaved():
+    """Why a kernel compiled in this process was not kept in the cache folder (``No space left
+    on device``), or None when every one was: the next run then compiles it again."""
+    return _UNSAVED[0] if _UNSAVED else None
 
 
 def cache_folder():

@@ -1660,6 +1660,31 @@ def test_a_render_that_compiles_says_how_much_of_its_time_compiling_took(vol_fil
     rc, _, err = _run(render + [tmp_path / "2.png"], capsys)
     assert rc == 0 and re.search(r" s \([0-9.]+ s of it compiling the casters\), [0-9,]+ cells", err), err
 
+    # A full disk kept the kernel out of the cache: not "once" either, and the reason given.
+    import errno
+
+    from numba.core.caching import IndexDataCacheFile
+
+    def full(self, *args):
+        raise OSError(errno.ENOSPC, "No space left on device")
+    monkeypatch.setattr(raycast.kernel_cache, "_REFUSED", None)
+    monkeypatch.setattr(raycast.kernel_cache, "_UNSAVED", [])
+    monkeypatch.setattr(IndexDataCacheFile, "_save_index", full)
+    monkeypatch.setattr(IndexDataCacheFile, "_save_data", full)
+
+    def render_compiling_a_cached_kernel(*args, **kwargs):
+        numba.njit(cache=True)(_add_one)(1.5)
+        return real(*args, **kwargs)
+    monkeypatch.setattr(parc, "render", render_compiling_a_cached_kernel)
+    rc, _, err = _run(render + [tmp_path / "3.png"], capsys)
+    assert rc == 0 and re.search(r" s \([0-9.]+ s of it compiling the casters, not kept: No space left on device\), "
+                                 r"[0-9,]+ cells", err), err
+
+
+def _add_one(x):
+    """A kernel cached as the casters are, compiled afresh for a type no test gives it elsewhere."""
+    return x + 1
+
 
 def test_samples_of_a_type_not_yet_compiled_are_said_to_compile(tmp_path, monkeypatch):
     """Numba compiles a kernel for each type of samples it is given: the CT head's int16 after
