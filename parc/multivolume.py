@@ -52,6 +52,16 @@ from .workspace import (LIGHT_BYTES_PER_PIXEL, NO_BITS, NO_SEGMENTS, SAMPLE_BYTE
 
 #: Shadow rays start this far (times the smallest spacing of the surface they leave) from their hit point.
 SHADOW_EPS = 1e-5
+#: ... or this far times the largest coordinate of that volume, where that is more: a hit point far
+#: from the world's origin is only known to its coordinates' rounding (4.8e-7 at 4e9).
+SHADOW_EPS_OF_COORDINATES = 2.0 ** -40
+
+
+def shadow_eps(volume):
+    """How far from a hit point on ``volume`` its shadow rays start, and end short of a point light."""
+    lo, hi = volume.bounds
+    return max(SHADOW_EPS * min(volume.spacing),
+               SHADOW_EPS_OF_COORDINATES * float(np.max(np.maximum(np.abs(lo), np.abs(hi)))))
 
 
 
@@ -224,8 +234,8 @@ def _light_hits(frame, depth, winner, cell, uvw):
         if a == b:
             continue
         groups.append((a, b, iso.volume, n))
-        surface_frames(iso.volume.data, np.array(iso.volume.spacing), frame.cam, w, h, hit[a:b], depth, cell, uvw,
-                       points[a:b], normals[a:b], views[a:b])
+        surface_frames(iso.volume.data, np.array(iso.volume.origin), np.array(iso.volume.spacing), frame.cam, w, h,
+                       hit[a:b], cell, uvw, points[a:b], normals[a:b], views[a:b])
         colors[a:b] = iso.color
         materials[a:b] = iso.material
     lights = light_array(frame.scene.lights)
@@ -355,8 +365,8 @@ def _shadows(frame, lights, points, groups, visible, report=None):
 
     ``groups``: ``(first, end, volume, n)``, the hits ``points[first:end]`` on the surface of
     ``volume`` (the scene's volume ``n``), or its translucent samples. A shadow ray starts and
-    ends `SHADOW_EPS` of its own surface's smallest spacing off (the smallest in the scene let a
-    tiny volume anywhere make surfaces shadow themselves).
+    ends `shadow_eps` of its own surface off, from its spacing (the smallest in the scene let a
+    tiny volume anywhere make surfaces shadow themselves) and the size of its coordinates.
     A translucent sample's shadow ray takes its own volume's lattice from one step along
     (`raycast.shadow.shadow_accumulate`); other volumes it crosses, it samples as a hit's does.
     """
@@ -394,7 +404,7 @@ def _shadows(frame, lights, points, groups, visible, report=None):
             if not isinstance(v, Isosurface):
                 params, (op_x, op_y, col_x, col_rgb) = accumulation_params(v), v.tf.arrays()
             for first, end, surface, owner in groups:
-                eps = SHADOW_EPS * min(surface.spacing)
+                eps = shadow_eps(surface)
                 for a in range(first, end, run):
                     b = min(end, a + run)
                     if isinstance(v, Isosurface):

@@ -200,9 +200,13 @@ def shadow_accumulate(data, org, spc, params, op_x, op_y, col_x, col_rgb, points
 
 
 @kernel(parallel=True)
-def surface_frames(data, spc, cam, width, height, pix, t, cell, uvw, points, normals, views):
+def surface_frames(data, org, spc, cam, width, height, pix, cell, uvw, points, normals, views):
     """Hit point, unit normal and unit direction to the eye of each hit pixel ``pix[m]``.
 
+    The point is its cell's corner plus its place in the cell, as a
+    translucent sample's is (`raycast.merged`), not ``eye + t d``: from a
+    far eye that sum rounds off more than a shadow ray's ``eps`` lifts it,
+    and the surface shadowed itself.
     A flat cell (all corners at the isovalue) has no gradient: its normal
     faces the viewer.
     """
@@ -210,10 +214,10 @@ def surface_frames(data, spc, cam, width, height, pix, t, cell, uvw, points, nor
         n = pix[m]
         y = n // width
         x = n - y * width
-        ox, oy, oz, dx, dy, dz = camera_ray(cam, width, height, x, y)
-        points[m, 0] = ox + t[n] * dx
-        points[m, 1] = oy + t[n] * dy
-        points[m, 2] = oz + t[n] * dz
+        dx, dy, dz = camera_ray(cam, width, height, x, y)[3:]
+        points[m, 0] = org[0] + spc[0] * (cell[n, 0] + uvw[n, 0])
+        points[m, 1] = org[1] + spc[1] * (cell[n, 1] + uvw[n, 1])
+        points[m, 2] = org[2] + spc[2] * (cell[n, 2] + uvw[n, 2])
         gx, gy, gz = trilinear_gradient(data, cell[n, 0], cell[n, 1], cell[n, 2],
                                         uvw[n, 0], uvw[n, 1], uvw[n, 2], spc)
         gx, gy, gz = unit_normal(gx, gy, gz, dx, dy, dz)

@@ -433,6 +433,27 @@ def test_a_tiny_volume_elsewhere_changes_no_shadow(gl, method):
     assert np.array_equal(images[0], images[1])
 
 
+@pytest.mark.parametrize("method", ["brute", "parc"])
+@pytest.mark.parametrize("eye_away, origin, elevation", [(1e10, 0.0, 5.0), (20.0, 4e9, 1.0)])
+def test_a_plane_lit_at_a_low_angle_does_not_shadow_itself_far_from_the_origin(gl, method, eye_away, origin,
+                                                                                elevation):
+    """Nothing stands between a flat isosurface and the sun, so shadows change no pixel. The hit
+    point was the far eye plus ``t d``, rounded below the plane by more than its shadow ray's
+    start lifted it (148 of 454 pixels darkened); at coordinates of 4e9 the start's lift was
+    below their rounding (all 693)."""
+    z = np.broadcast_to(np.arange(6.0)[:, None, None], (6, 9, 9))
+    plane = Isosurface(Volume(np.ascontiguousarray(z), origin=(origin,) * 3), 2.5)
+    centre = np.array([origin + 4.0, origin + 4.0, origin + 2.5])
+    way = np.array([3.0, -14.0, 12.0]) / np.linalg.norm([3.0, -14.0, 12.0])
+    cam = Camera(eye=tuple(centre + eye_away * way), look_at=tuple(centre), up=(0, 0, 1), parallel_scale=6.0)
+    e = np.radians(elevation)
+    sun = DirectionalLight(direction=(np.cos(e), 0.0, -np.sin(e)))
+    lit, shadowed = (render(Scene(camera=cam, size=(40, 40), volumes=[plane], lights=[sun], shadows=on), method)
+                     for on in (False, True))
+    assert np.isfinite(lit.depth).sum() > 400
+    assert np.array_equal(lit.image, shadowed.image)
+
+
 def _shadow_kernel_args(kernel, views, near, far, use_seg):
     """Arguments of `raycast.shadow`'s ``kernel`` for three shadow rays through a small field."""
     from parc.lights import KIND_DIRECTIONAL
