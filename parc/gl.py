@@ -38,7 +38,8 @@ def check_viewport(width, height):
     so that `render` and `compare` refuse it before any note, warm-up or frame."""
     max_w, max_h = get_context().info["GL_MAX_VIEWPORT_DIMS"]
     if int(width) > max_w or int(height) > max_h:
-        raise InputError(f"image {int(width)}x{int(height)} exceeds this OpenGL's limit {max_w}x{max_h}")
+        raise InputError(f"image {int(width)}x{int(height)} exceeds this OpenGL's limit {max_w}x{max_h} for parc's "
+                         "buffers; --method brute has no such limit")
 
 
 def get_context():
