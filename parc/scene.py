@@ -431,6 +431,9 @@ def check_threshold(threshold, what="opacity threshold"):
 #: How many times the volumes' size the eye's coordinates may reach: as `Camera.framing`'s
 #: narrowest field of view, float64's resolution at the eye stays below 2^-20 of the volumes' size.
 EYE_RANGE = 2.0 ** 32
+#: ... and how many times each volume's thinnest extent: beyond, float64 places at most 256
+#: rays' worth of points across it, and a volume of spacing 1e-16 along x lost 2/3 of its hits.
+THIN_RANGE = 2.0 ** 44
 
 
 def check_eye_resolves(camera, volumes):
@@ -447,6 +450,17 @@ def check_eye_resolves(camera, volumes):
                          "eye closer" + (" (a parallel view's picture does not change with the eye's distance)"
                                          if camera.parallel else ": give it nearer, or frame with a wider field of "
                                                                  "view or a larger zoom"))
+    for v in volumes:
+        thin = min(v.extent)
+        axis = "xyz"[int(np.argmin(v.extent))]
+        reach = max(far, float(np.max(np.abs(v.bounds))))
+        if not reach <= THIN_RANGE * thin:
+            # Seen from a few times its own size (a default eye), is it the eye that is too far?
+            own = 16.0 * max(float(np.max(np.abs(v.bounds))), max(v.extent))
+            fix = "bring the eye closer" if own <= THIN_RANGE * thin else f"check its spacing along {axis}"
+            raise InputError(f"a volume {thin:.6g} thick along {axis} is over 2^44 times thinner than the scene's "
+                             f"coordinates reach ({reach:.6g}, the eye's or its own), where float64 cannot place "
+                             f"rays across it (most of its surface would be lost); {fix}")
 
 
 def _finite_triple(v, what):
