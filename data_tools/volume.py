@@ -92,8 +92,9 @@ class Volume:
     InputError
         Not 3-D, a dimension below 2, an unsupported dtype, non-finite
         float samples or samples beyond ±1e200 (`MAX_SAMPLE`: a cell's cubic
-        would overflow), or a spacing outside 1e-30 to 1e30 (`MIN_SPACING`,
-        `MAX_SPACING`).
+        would overflow), float samples none of which reaches 1e-200 in
+        magnitude (`MIN_SAMPLE`: its normals would underflow), or a spacing
+        outside 1e-30 to 1e30 (`MIN_SPACING`, `MAX_SPACING`).
     """
 
     data: np.ndarray
@@ -142,6 +143,10 @@ class Volume:
             if abs(top) > MAX_SAMPLE:
                 raise InputError(f"{self.name}: samples reach {top:.3g}, beyond the ±{MAX_SAMPLE:g} a cell's cubic "
                                  "holds without overflow (a fill value?); replace them before rendering")
+            if 0.0 < abs(top) < MIN_SAMPLE:
+                raise InputError(f"{self.name}: samples reach only {abs(top):.3g} in magnitude, below the "
+                                 f"{MIN_SAMPLE:g} under which a cell's normals and cubic underflow; scale them up "
+                                 "before rendering")
         if isinstance(data, np.memmap):
             if data.flags.writeable:
                 data = data.view()
@@ -226,6 +231,9 @@ class Volume:
 #: world units, its coefficients up to 8 samples over spacing^3) stays within float64:
 #: 8e200 x 1e90 is far from overflow, and real data (float32 at most 3.4e38) far inside.
 MAX_SAMPLE = 1e200
+#: ... and the largest sample magnitude may not be below this: divided by a spacing of 1e30, the
+#: gradient of samples of 1e-300 underflowed to zero, and every normal faced the eye.
+MIN_SAMPLE = 1e-200
 MIN_SPACING, MAX_SPACING = 1e-30, 1e30
 
 
@@ -273,7 +281,7 @@ def hand_over(data):
 
 def _count_non_finite(data, slab_bytes=64 << 20):
     """NaN and inf samples in float ``data``, and the finite sample of largest magnitude, with
-    its sign (float64 only: float32 cannot pass `MAX_SAMPLE`), a slab of z-slices at a time: a
+    its sign (float64 only: float32 cannot pass `MAX_SAMPLE` or `MIN_SAMPLE`), a slab of z-slices at a time: a
     memory-mapped file is read through once, and no mask as large as the volume is made."""
     per = max(1, slab_bytes // max(data[0].nbytes, 1))
     bad, top = 0, 0.0

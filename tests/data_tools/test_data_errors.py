@@ -944,6 +944,19 @@ def test_samples_a_cubic_cannot_hold_are_refused(fill, ok):
             Volume(data)
 
 
+@pytest.mark.parametrize("top, ok", [(1e-300, False), (5e-324, False), (1e-200, True), (0.0, True)])
+def test_samples_too_small_for_a_normal_are_refused(top, ok):
+    # Over a spacing of 1e30, the gradient of samples of 1e-300 underflowed to zero: every hit was
+    # lit as if it faced the eye. A volume of zeros holds no surface to shade, and is kept.
+    data = np.linspace(0.0, top, 64).reshape(4, 4, 4)
+    if ok:
+        assert Volume(data).value_range() == (0.0, top)
+    else:
+        with pytest.raises(InputError, match=re.escape(f"samples reach only {top:.3g} in magnitude, below the "
+                                                       "1e-200 under which")):
+            Volume(data)
+
+
 @pytest.mark.parametrize("spacing, ok", [((1e-30, 1, 1), True), ((1, 1e30, 1), True), ((1, 1, 1e-31), False),
                                          ((2.0 ** 400, 1, 1), False)])
 def test_spacings_a_cubic_cannot_hold_are_refused(spacing, ok):

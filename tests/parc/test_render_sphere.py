@@ -235,3 +235,22 @@ def test_a_render_that_compiles_logs_it_once_at_info(caplog, monkeypatch):
     with caplog.at_level(logging.INFO, logger="parc"):
         render(scene)                       # cached: nothing compiles, nothing is said
     assert [rec for rec in caplog.records if rec.name == "parc"] == []
+
+
+@pytest.mark.parametrize("spacing", [1e30, 1e-30])
+def test_the_smallest_samples_a_volume_takes_shade_as_the_same_samples_scaled_up(spacing):
+    """Samples and isovalue times 2^600 (exact) have the same surface, normals and shadows. Below
+    `MIN_SAMPLE`, the gradient underflowed over a spacing of 1e30 and every normal faced the eye."""
+    from parc import DirectionalLight
+    z, y, x = np.meshgrid(*[np.linspace(-1, 1, 10)] * 3, indexing="ij")
+    small = (x * x + y * y + z * z) * 1e-200
+    images = []
+    for k in (0, 600):
+        vol = Volume(np.ldexp(small, k), spacing=(spacing,) * 3)
+        scene = Scene(camera=Camera.framing(*vol.bounds), size=(32, 32), shadows=True,
+                      volumes=[Isosurface(vol, float(np.ldexp(0.5e-200, k)))],
+                      lights=[DirectionalLight(direction=(1.0, -0.5, -2.0))])
+        images.append(render(scene, "brute"))
+    assert np.isfinite(images[0].depth).sum() > 100
+    assert np.array_equal(images[0].depth, images[1].depth)
+    assert np.array_equal(images[0].image, images[1].image)
