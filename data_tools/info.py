@@ -51,7 +51,9 @@ def volume_info(vol: Volume) -> dict:
     lo, hi = vol.value_range()
     sample = _subsample(vol.data)
     flat = sample.reshape(-1)
-    pct = np.percentile(flat, PERCENTILES)
+    # In float64: NumPy interpolates integer samples in their own type, and a 32-bit range wrapped
+    # (int32 data from -2^31 to 2^31-1 gave a 5th percentile of -2.9e9).
+    pct = np.percentile(flat.astype(np.float64) if flat.dtype.kind in "iu" else flat, PERCENTILES)
     info = {
         "name": vol.name,
         "dims": vol.dims,
@@ -89,7 +91,11 @@ def exact_text(value) -> str:
     back as an isovalue it must give the same surface (``:g`` wrote 1073741823.5 as
     1.07374e+09, and 0.9999994 as 0.999999, below the data's minimum)."""
     short = f"{value:g}"
-    return short if float(short) == value else repr(float(value))
+    if float(short) == value:
+        return short
+    if float(value).is_integer() and abs(value) < 2.0 ** 53:
+        return str(int(value))              # an int32 range: 2147483647, not 2147483647.0
+    return repr(float(value))
 
 
 def _fmt(v) -> str:
