@@ -339,9 +339,14 @@ def text_values(words, dtype, path, type_name: str):
     dtype = np.dtype(dtype)
     if dtype.kind in "iu":
         info = np.iinfo(dtype)
-        wrong = np.flatnonzero(~((exact >= info.min) & (exact <= info.max) & (exact == np.round(exact))))
+        inside = (exact >= info.min) & (exact <= info.max)
+        wrong = np.flatnonzero(~(inside & (exact == np.round(exact))))
         if wrong.size:
-            raise InputError(f"{path}: the text sample {exact[wrong[0]]:.17g} is outside {type_name} "
+            n = wrong[0]
+            if inside[n]:       # in range: "outside" a type that holds 4 and 5 misled about 4.5
+                raise InputError(f"{path}: the text sample {exact[n]:.17g} is not a whole number, as {type_name} "
+                                 f"holds (integers {info.min} to {info.max})")
+            raise InputError(f"{path}: the text sample {exact[n]:.17g} is outside {type_name} "
                              f"(integers {info.min} to {info.max})")
     if dtype == np.float32:
         return float32_from_text(words, exact)

@@ -1355,7 +1355,9 @@ def test_nrrd_text_fractions_are_refused_for_integer_types(tmp_path, sample):
     # An int16 sample must be an integer: 1.5 would otherwise be truncated to 1 unnoticed.
     p = tmp_path / "t.nrrd"
     p.write_text(_NRRD_2X2X2.format(type="int16", enc="ascii") + "\n" + f"0 1 2 3 4 5 6 {sample}\n")
-    with pytest.raises(InputError, match=f"the text sample {sample} is outside the header's type int16"):
+    # ... and called what it is: a fraction, not a value outside the type's range.
+    with pytest.raises(InputError, match=f"the text sample {sample} is not a whole number, as the header's type "
+                                         "int16 holds"):
         load_volume(p)
 
 
