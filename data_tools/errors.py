@@ -34,5 +34,6 @@ def os_reason(exc: OSError) -> str:
     text = str(exc)
     m = re.fullmatch(r"(\d+) requested and (\d+) written", text)
     if m:
-        return f"only {int(m.group(2)):,} of {int(m.group(1)):,} bytes were written; is the disk full?"
+        # NumPy counts the array's values, not bytes: "of 1,600 bytes" was a 12,800-byte depth map.
+        return f"only {int(m.group(2)):,} of {int(m.group(1)):,} values were written; is the disk full?"
     return text or type(exc).__name__

@@ -916,7 +916,7 @@ def test_saving_an_array_asks_for_a_volume(tmp_path):
 
 
 def test_a_short_write_names_the_full_disk(tmp_path, monkeypatch):
-    # NumPy reports a write cut short (a full disk) with byte counts and no reason.
+    # NumPy reports a write cut short (a full disk) with counts of values, not bytes, and no reason.
     from data_tools.io import raw
 
     def short(volume, path, **k):
@@ -924,7 +924,7 @@ def test_a_short_write_names_the_full_disk(tmp_path, monkeypatch):
     monkeypatch.setattr(raw, "write_raw", short)
     with pytest.raises(InputError) as exc:
         save_volume(Volume(np.zeros((4, 4, 4), np.uint8)), tmp_path / "v.raw")
-    assert str(exc.value).endswith("v.raw: cannot write: only 153,568 of 1,440,000 bytes were written; "
+    assert str(exc.value).endswith("v.raw: cannot write: only 153,568 of 1,440,000 values were written; "
                                    "is the disk full?")
     assert not any(tmp_path.iterdir())
 
