@@ -32,6 +32,10 @@ def _log_ticks(vmax):
     return ticks
 
 
+#: The colour bar's least height, in pixels, where the panels allow it (beside a map of a wide image).
+MIN_BAR = 120
+
+
 def heat_maps(path, maps, *, title, label, panel=300) -> Path:
     """Count maps side by side on one logarithmic colour scale: e.g. cells visited per pixel, per method.
 
@@ -50,7 +54,8 @@ def heat_maps(path, maps, *, title, label, panel=300) -> Path:
     label : str
         What is counted, under the colour bar (e.g. "cells per pixel").
     panel : int
-        Width of a panel in pixels (maps are scaled to it, nearest neighbour).
+        Side of a panel in pixels: each map is scaled to fit it, nearest
+        neighbour, its shape kept.
 
     Returns
     -------
@@ -63,7 +68,11 @@ def heat_maps(path, maps, *, title, label, panel=300) -> Path:
     arrays = {str(k): np.nan_to_num(np.asarray(v, np.float64), nan=0.0, posinf=0.0).clip(min=0.0)
               for k, v in maps.items()}
     h0, w0 = next(iter(arrays.values())).shape
-    ph = max(1, int(round(panel * h0 / max(w0, 1))))
+    # Each map fits a panel x panel box, its shape kept: scaled to the width alone, a 1x512 image's
+    # map was 153,706 pixels tall. The colour bar keeps a legible height beside a flat map.
+    fit = panel / max(w0, h0, 1)
+    pw, ph = max(1, int(round(w0 * fit))), max(1, int(round(h0 * fit)))
+    bh = max(ph, min(panel, MIN_BAR))
     vmax = max(float(a.max()) if a.size else 0.0 for a in arrays.values())
     scale = math.log1p(vmax) if vmax > 0 else 1.0
     lut = _viridis_lut()
@@ -74,26 +83,27 @@ def heat_maps(path, maps, *, title, label, panel=300) -> Path:
     top = 16 + th + 14 + lh + 8
     bar_x = 16 + len(arrays) * (panel + 16) + 8
     w = bar_x + 18 + 8 + tick_w + 16
-    h = top + ph + 16 + lh + 12
+    h = top + bh + 16 + lh + 12
     img = Image.new("RGB", (w, h), "white")
     d = ImageDraw.Draw(img)
     _put(d, w / 2, 12, title, tfont, va=0)
     for i, (name, a) in enumerate(arrays.items()):
-        x = 16 + i * (panel + 16)
+        slot = 16 + i * (panel + 16)
+        x = slot + (panel - pw) // 2
         rgb = lut[np.rint(255.0 * np.log1p(a) / scale).astype(np.int64).clip(0, 255)]
         rgb[a == 0] = 255
-        img.paste(Image.fromarray(np.ascontiguousarray(rgb, np.uint8), "RGB").resize((panel, ph), Image.NEAREST),
+        img.paste(Image.fromarray(np.ascontiguousarray(rgb, np.uint8), "RGB").resize((pw, ph), Image.NEAREST),
                   (x, top))
-        d.rectangle((x - 1, top - 1, x + panel, top + ph), outline=_INK)
-        _put(d, x + panel / 2, top - 8, f"{name}: {fmt_number(a.mean())} a pixel", font, va=1)
+        d.rectangle((x - 1, top - 1, x + pw, top + ph), outline=_INK)
+        _put(d, slot + panel / 2, top - 8, f"{name}: {fmt_number(a.mean())} a pixel", font, va=1)
     # The colour bar: 0 (white) at the bottom, then log(1 + count) upward.
-    for y in range(ph):
-        f = 1.0 - y / max(ph - 1, 1)
+    for y in range(bh):
+        f = 1.0 - y / max(bh - 1, 1)
         d.line((bar_x, top + y, bar_x + 18, top + y), fill=tuple(int(c) for c in lut[int(round(255 * f))]))
-    d.rectangle((bar_x, top + ph - 6, bar_x + 18, top + ph), fill="white")
-    d.rectangle((bar_x - 1, top - 1, bar_x + 18, top + ph), outline=_INK)
+    d.rectangle((bar_x, top + bh - 6, bar_x + 18, top + bh), fill="white")
+    d.rectangle((bar_x - 1, top - 1, bar_x + 18, top + bh), outline=_INK)
     for v in ticks:
-        y = top + ph - 3 if v == 0 else top + (ph - 1) * (1.0 - math.log1p(v) / scale)
+        y = top + bh - 3 if v == 0 else top + (bh - 1) * (1.0 - math.log1p(v) / scale)
         d.line((bar_x + 18, y, bar_x + 22, y), fill=_INK)
         _put(d, bar_x + 26, y, fmt_number(v), font, ha=0)
     _put(d, w / 2, h - 8, label, font, va=1, fill=_MUTED)

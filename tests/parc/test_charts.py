@@ -335,6 +335,23 @@ def test_heat_map_panels_keep_the_maps_shape_cell_for_cell(tmp_path):
     assert (img[top + 50, 16:116] == _INK).all()                    # the frame: the panel is 50 rows tall
 
 
+@pytest.mark.parametrize("shape, map_size", [((512, 1), (1, 300)), ((2, 96), (300, 6)), ((3, 3), (300, 300))])
+def test_a_heat_map_fits_its_panel_whatever_the_images_shape(tmp_path, shape, map_size):
+    # Scaled to the panel's width alone, a 1x512 image's map was 300x153,600 pixels (half a GB
+    # drawn), and a 96x2 one's colour bar 6 pixels tall, its tick labels on top of each other.
+    counts = np.arange(1, shape[0] * shape[1] + 1).reshape(shape)
+    out = heat_maps(tmp_path / "h.png", {"brute": counts, "parc": counts}, title="t", label="cells")
+    img = _rgb_of(out)
+    assert img.shape[0] < 600 and img.shape[1] < 1000
+    lut = {tuple(c) for c in _viridis_lut()}
+    coloured = np.array([[tuple(p) in lut for p in row] for row in img[:, :16 + 300]])   # the first panel's map
+    rows, cols = np.flatnonzero(coloured.any(axis=1)), np.flatnonzero(coloured.any(axis=0))
+    assert (cols[-1] - cols[0] + 1, rows[-1] - rows[0] + 1) == map_size
+    bar_x = 16 + 2 * (300 + 16) + 8
+    bar = np.flatnonzero(np.all(img[:, bar_x - 1] == np.array(_INK, np.uint8), axis=1))
+    assert bar[-1] - bar[0] - 1 == max(map_size[1], 120)
+
+
 def test_heat_map_colour_bar_runs_up_the_log_scale_with_its_ticks(tmp_path):
     img = _rgb_of(heat_maps(tmp_path / "h.png", {"m": np.array([[0, 50], [3, 7]])}, title="t", label="cells",
                             panel=100))
