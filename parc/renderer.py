@@ -30,7 +30,7 @@ from raycast.iso import cast_iso_image
 
 from .gl import release_context
 from .lights import light_array
-from .scene import Isosurface, Scene, Translucent, describe_volume
+from .scene import Isosurface, Scene, Translucent, describe_view, describe_volume
 from .segments import cached_proxy, parc_segments
 from .skip import octant_skip_tables, skip_table
 from .workspace import (NO_BITS, NO_SEGMENTS, NO_STOP, check_scene_memory, iso_work, row_bands, shadowed_samples,
@@ -64,8 +64,16 @@ class RenderResult:
         ``segment_pixels`` are those whose ray is walked), ``cells_visited``,
         ``cubic_solves``, ``samples``, ``hits``, ``polygons`` (all PARC drew: its proxy's and,
         with bit planes, their ``plane_polygons``; with shadows, the light buffers' faces drawn
-        this frame, ``light_polygons``) and the parameters used. Cells and cubics count
-        isosurfaces' work, samples translucent volumes'; a process's first ``seconds["total"]``
+        this frame, ``light_polygons``) and the ``parameters`` used: ``size``, ``camera``,
+        ``background`` where given, ``lights`` (each one's position or direction, colour and
+        intensity) and ``shadows`` where either is given (always, for a scene cast as several
+        volumes are, below), and the volume as `parc.scene.describe_volume` gives it (several
+        volumes: a list of them, under ``volumes``). With PARC, also ``supercell`` (its size in
+        cells, per axis), ``supercells`` and ``pc_supercells`` (those that may contribute),
+        ``raster_seconds`` (the OpenGL pass's parts), ``buffers`` and ``blocks`` (as asked),
+        with bit planes ``planes`` and ``plane_axis``, and on a volume's first frame without a
+        ``supercell`` given, ``supercell_model`` (the cost model's estimate at each size it
+        weighed). Cells and cubics count isosurfaces' work, samples translucent volumes'; a process's first ``seconds["total"]``
         also holds loading the casters and making OpenGL's context, beyond the phases listed,
         and the phases of a first render of its kind hold compiling the kernels they call (10 to
         60 s in all, once on a machine: `compile_notice` in `parc.outputs`).
@@ -326,10 +334,8 @@ def _render(scene, method, supercell, buffers, progress, light_buffer, blocks, w
         "polygons": 0,              # brute draws none; parc's count comes with `extra`
         # A volume cast alone casts no shadow rays; the keys are there, as in every render's stats.
         "shadow_rays": 0, "shadow_cells": 0, "shadow_solves": 0, "shadow_samples": 0, "light_polygons": 0,
-        "parameters": {"size": [w, h], "camera": scene.camera.settings(), **describe_volume(vis)},
+        "parameters": {**describe_view(scene), **describe_volume(vis)},
     }
-    if scene.lights or scene.shadows:
-        stats["parameters"].update(lights=len(scene.lights), shadows=scene.shadows)
     stats.update(extra)
     stats["polygons"] = extra.get("polygons", 0) + extra.get("plane_polygons", 0)
     per_pixel = counts["per_pixel"].reshape(h, w).copy() if work else None
@@ -365,8 +371,7 @@ def _render_general(scene, method, supercell, buffers, progress, light_buffer, s
         "shadow_solves": counts["shadow_solves"],
         "shadow_samples": counts["shadow_samples"],
         "light_polygons": counts["light_polygons"],
-        "parameters": {"size": [w, h], "camera": scene.camera.settings(), "shadows": scene.shadows,
-                       "lights": len(scene.lights),
+        "parameters": {"lights": [], **describe_view(scene), "shadows": scene.shadows,
                        "volumes": [describe_volume(v) for v in scene.volumes]},
     }
     stats["polygons"] = (sum(v.get("polygons", 0) for v in extra["volumes"]) + counts["light_polygons"]

@@ -369,12 +369,29 @@ def describe_volume(vis):
     d = {"volume": vol.name, "dims": list(vol.dims), "dtype": str(vol.dtype),
          "spacing": list(vol.spacing), "origin": list(vol.origin)}
     if isinstance(vis, Isosurface):
-        d["isovalue"] = vis.value
+        d.update({"isovalue": vis.value, "color": list(vis.color), "material": list(vis.material)})
     else:
         d.update({"mode": vis.mode, "step": vis.step, "transfer_function": vis.tf.name or "custom"})
         if vis.mode == "composite":         # the others take every sample, unshaded: neither applies
             d["threshold"] = vis.threshold
             d["shade"] = vis.shade
+            if vis.shade:
+                d["material"] = list(vis.material)
+    return d
+
+
+def describe_view(scene):
+    """What a render's stats give of a scene beside its volumes: size, camera, and the background,
+    lights and shadows where it has them (two renders that differ in any of them must not read
+    alike)."""
+    d = {"size": list(scene.size), "camera": scene.camera.settings()}
+    if scene.background is not None:
+        d["background"] = list(scene.background)
+    if scene.lights or scene.shadows:
+        d["lights"] = [{**({"position": list(light.position)} if isinstance(light, PointLight)
+                           else {"direction": list(light.direction)}),
+                        "color": list(light.color), "intensity": light.intensity} for light in scene.lights]
+        d["shadows"] = scene.shadows
     return d
 
 

@@ -19,6 +19,7 @@ import pytest
 from data_tools import InputError, Volume
 from data_tools.synthetic import blobs, trilinear_field
 from parc import Camera, DirectionalLight, Isosurface, PointLight, Scene, TransferFunction, Translucent, render
+from parc.scene import DEFAULT_MATERIAL, DEFAULT_SURFACE
 from parc.skip import expect_frames
 
 SIZE = (28, 24)
@@ -607,10 +608,33 @@ def test_stats_parameters_describe_the_volume_as_the_scene_states_it():
         stops = {"threshold": 0.9, "shade": shade} if mode == "composite" else {}
         fog = Translucent(vol, tf=tf, mode=mode, step=0.25, **stops)
         p = render(Scene(camera=cam, size=(8, 6), volumes=[fog]), "brute").stats["parameters"]
+        lit = {"material": list(DEFAULT_MATERIAL)} if shade else {}
         assert p == {"size": [8, 6], **placed, "mode": mode, "step": 0.25, "transfer_function": "custom",
-                     "camera": camera, **stops}
+                     "camera": camera, **stops, **lit}
     p = render(Scene(camera=cam, size=(8, 6), volumes=[Isosurface(vol, value=0.3)]), "brute").stats["parameters"]
-    assert p == {"size": [8, 6], **placed, "isovalue": 0.3, "camera": camera}
+    assert p == {"size": [8, 6], **placed, "isovalue": 0.3, "color": list(DEFAULT_SURFACE),
+                 "material": list(DEFAULT_MATERIAL), "camera": camera}
+
+
+def test_stats_parameters_tell_apart_renders_that_differ_in_background_lights_or_material():
+    """A red background and a sun, and a point light without a background, gave the same
+    parameters (a count of lights) and different pictures; so did two surface colours."""
+    vol = Volume(np.linspace(0.0, 1.0, 1000, dtype=np.float32).reshape(10, 10, 10))
+    cam = Camera(eye=(5.0, 5.0, 60.0), look_at=(5.0, 5.0, 5.0), up=(0, 1, 0), fov=20)
+    surface = Isosurface(vol, 0.5)
+    scenes = [Scene(camera=cam, size=(8, 6), volumes=[surface], background=(1, 0, 0),
+                    lights=[DirectionalLight(direction=(1, 0, 0))]),
+              Scene(camera=cam, size=(8, 6), volumes=[surface], lights=[PointLight(position=(100, 0, 0))]),
+              Scene(camera=cam, size=(8, 6), volumes=[Isosurface(vol, 0.5, color=(0, 1, 0))],
+                    lights=[PointLight(position=(100, 0, 0))]),
+              Scene(camera=cam, size=(8, 6), volumes=[surface, Translucent(vol, "greyscale", shade=True)],
+                    lights=[PointLight(position=(100, 0, 0), intensity=0.5)])]
+    p = [render(scene, "brute").stats["parameters"] for scene in scenes]
+    assert p[0]["background"] == [1.0, 0.0, 0.0, 1.0] and "background" not in p[1]
+    assert p[0]["lights"] == [{"direction": [1.0, 0.0, 0.0], "color": [1.0, 1.0, 1.0], "intensity": 1.0}]
+    assert p[1]["lights"] == [{"position": [100.0, 0.0, 0.0], "color": [1.0, 1.0, 1.0], "intensity": 1.0}]
+    assert p[1] != p[2] and p[2]["volumes"][0]["color"] == [0.0, 1.0, 0.0]
+    assert p[3]["lights"][0]["intensity"] == 0.5 and p[3]["volumes"][1]["material"] == list(DEFAULT_MATERIAL)
 
 
 @pytest.mark.parametrize("method", ["brute", "parc"])
