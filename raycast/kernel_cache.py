@@ -2,6 +2,7 @@
 count, shared by every checkout and install of those sources, the six versions used last kept;
 a cache that takes a damaged entry as a miss and a failed write as none; and a temporary folder,
 said as such, where the folder asked for cannot be written."""
+import contextlib
 import hashlib
 import os
 import re
@@ -11,6 +12,11 @@ from pathlib import Path
 
 import numba
 import numba.core.config
+
+try:
+    import fcntl
+except ImportError:         # not on Windows
+    fcntl = None
 
 from .config import SPREAD_WAYS, at_exit
 
@@ -171,6 +177,24 @@ def _cache_shared_by_checkouts():
 _cache_shared_by_checkouts()
 
 
+@contextlib.contextmanager
+def _saving_alone(folder):
+    """Hold the cache folder's lock file while Numba saves an entry. Its save reads the index,
+    takes the first free data file's number and writes both: two processes compiling a kernel
+    for two sample types at once took the same number, and the index could name one type's
+    code for the other (an empty image, or a crash, on every later run). ``flock`` locks are
+    released by the system when a process dies; where there are none, saves go unlocked."""
+    if fcntl is None:
+        yield
+        return
+    with open(os.path.join(folder, ".save-lock"), "a") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(lock, fcntl.LOCK_UN)
+
+
 def _cache_is_only_a_shortcut():
     """Make Numba's cache files treat a damaged entry as a miss and a failed write as none.
 
@@ -200,7 +224,8 @@ def _cache_is_only_a_shortcut():
 
     def _save(self, key, data):
         try:
-            save(self, key, data)
+            with _saving_alone(self._cache_path):
+                save(self, key, data)
         except OSError as exc:
             _UNSAVED.append(exc.strerror or str(exc))
 

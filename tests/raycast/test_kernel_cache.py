@@ -195,6 +195,37 @@ def test_a_damaged_cache_entry_is_compiled_again(tmp_path):
         assert run() == ["2.0", "1"]
 
 
+def test_two_saves_at_once_keep_each_kernel_under_its_own_key(tmp_path, monkeypatch):
+    # Numba's save reads the index, takes the first free data file and writes both. Two
+    # processes compiling for two sample types at once both took file 1: the index named the
+    # int32 code for float32 samples, and every later float32 render drew nothing. Each save here
+    # waits (up to a second) for the other to have read the index too, as they can.
+    import threading
+
+    import raycast.kernel_cache  # noqa: F401 - locks each save
+    from numba.core.caching import IndexDataCacheFile
+    both_read = threading.Barrier(2, timeout=1.0)
+    load_index = IndexDataCacheFile._load_index
+
+    def load_then_wait(self):
+        overloads = load_index(self)
+        if threading.current_thread().name.startswith("save"):
+            try:
+                both_read.wait()
+            except threading.BrokenBarrierError:     # the other waits on the lock: saves in turn
+                pass
+        return overloads
+    monkeypatch.setattr(IndexDataCacheFile, "_load_index", load_then_wait)
+    saves = [threading.Thread(target=IndexDataCacheFile(str(tmp_path), "kernel", "stamp").save, name=f"save {t}",
+                              args=((t,), f"code for {t}")) for t in ("int32", "float32")]
+    for t in saves:
+        t.start()
+    for t in saves:
+        t.join()
+    cache = IndexDataCacheFile(str(tmp_path), "kernel", "stamp")
+    assert cache.load(("int32",)) == "code for int32" and cache.load(("float32",)) == "code for float32"
+
+
 def test_a_cache_write_that_fails_leaves_the_kernel_uncached(tmp_path, monkeypatch):
     # A full disk: the write's OSError ('No space left on device') ended every render.
     import errno
