@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import os
 import re
+import sys
 import threading
 import time
 from pathlib import Path
@@ -69,7 +70,7 @@ def get_context():
         # and the context is not current in it.
         here = threading.current_thread()
         if here is not _OWNER:
-            if _OWNER.is_alive():
+            if _running(_OWNER):
                 raise InputError(f"OpenGL work runs on the thread that first did it ({_OWNER.name}), and this is "
                                  f"{here.name}; render with method='parc' from that thread "
                                  "(method='brute' renders on any)")
@@ -110,6 +111,15 @@ def get_context():
     spread_rasterizer_threads(wait=rasterizer_start_wait(ctx.info.get("GL_RENDERER", ""), os.environ))
     _CONTEXT, _OWNER, _CURRENT = ctx, threading.current_thread(), True
     return ctx
+
+
+def _running(thread):
+    """Whether ``thread`` still runs. Python keeps a thread it did not start (``_thread``'s, a Qt
+    thread or a C library's callback) as a dummy that reads as alive for good: the first to render
+    would have kept every other thread from it after it ended."""
+    if isinstance(thread, threading._DummyThread):
+        return thread.ident in sys._current_frames()
+    return thread.is_alive()
 
 
 def _shader_cache_unwritable(environ):

@@ -1,6 +1,8 @@
 """The OpenGL context's set-up: llvmpipe's rasterizer threads spread over the CPUs."""
 import gc
 import os
+import subprocess
+import sys
 import threading
 import types
 
@@ -182,6 +184,30 @@ def test_the_thread_that_takes_the_context_over_keeps_it_while_it_runs(monkeypat
         hold.set()
         t.join()
     assert glmod.get_context() is ctx and entered == ["taker", threading.current_thread().name]
+
+
+def test_a_thread_python_did_not_start_lets_the_context_go_when_it_ends():
+    """A thread started outside `threading` (``_thread``, a Qt thread, a C library's callback) is
+    kept as a dummy whose ``is_alive()`` stays true: once it had made the context, every other
+    thread was refused for good. In a process of its own: here the context is this thread's."""
+    script = """if True:
+        import _thread, time
+        import numpy as np
+        from data_tools.synthetic import blobs
+        from parc import Camera, Isosurface, Scene, render
+        vol = blobs(12, seed=1)
+        scene = Scene(camera=Camera.framing(*vol.bounds), size=(16, 16), volumes=[Isosurface(vol, 100.0)])
+        done = []
+        _thread.start_new_thread(lambda: done.append(render(scene, "parc").image), ())
+        while not done:
+            time.sleep(0.01)
+        time.sleep(0.5)                                         # the thread has returned
+        print(np.array_equal(render(scene, "parc").image, done[0]), np.count_nonzero(done[0][..., 3]))
+    """
+    run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr[-2000:]
+    same, hits = run.stdout.split()
+    assert same == "True" and int(hits) > 0
 
 
 @pytest.mark.parametrize("ask", ["cost model", "bench machine"])
