@@ -220,6 +220,37 @@ def time_left(seconds):
     return f"about {minutes // 60} h {minutes % 60} min left"
 
 
+def _compile_clock():
+    """A clock of the seconds Numba spends compiling from now on (``seconds(now)``, a compile
+    under way counted to ``now``), until ``stop()``."""
+    from numba.core import event
+
+    class Clock(event.Listener):
+        def __init__(self):
+            self.total, self.began, self.depth = 0.0, 0.0, 0
+
+        def on_start(self, ev):
+            if self.depth == 0:
+                self.began = time.perf_counter()
+            self.depth += 1         # a kernel compiles the functions it calls inside its own compile
+
+        def on_end(self, ev):
+            self.depth -= 1
+            if self.depth == 0:
+                self.total += time.perf_counter() - self.began
+
+        def seconds(self, now):
+            return self.total + (now - self.began if self.depth else 0.0)
+
+        def stop(self):
+            if self in event._registered["numba:compile"]:
+                event.unregister("numba:compile", self)
+
+    clock = Clock()
+    event.register("numba:compile", clock)
+    return clock
+
+
 class Progress:
     """Progress on stderr: a live percentage on a terminal, a few lines otherwise.
 
@@ -241,7 +272,8 @@ class Progress:
         self.delay = delay
         self.last = -1
         self.mute = False
-        self.first = None           # (time, fraction) of the first report of work done
+        self.first = None           # (time, fraction, compiling) at the first report of work done
+        self.compiling = _compile_clock()
         self.width = 0              # of the terminal line last written, to write it over whole
         self.lock = threading.Lock()        # the first report may come from the timer's thread
         # Work before the first report (cell ranges of a large volume, the OpenGL pass)
@@ -259,19 +291,21 @@ class Progress:
         with self.lock:
             now = time.perf_counter()
             if self.first is None and fraction > 0:
-                self.first = (now, fraction)
+                self.first = (now, fraction, self.compiling.seconds(now))
             self._report(int(100 * fraction), self._left(now, fraction))
 
     def _left(self, now, fraction):
         """Seconds the work has left at the pace since its first report, or None before two.
-        Not from the start: the first part pays for what the rest reuses (compiling the
-        casters, 10 to 60 s, the OpenGL pass), and an estimate from it would be far too long."""
+        Not from the start, and less the time spent compiling since: the first part pays for
+        what the rest reuses (the OpenGL pass), and compiling the casters (10 to 60 s, some of
+        them after the first report: a lit scene's) would make an estimate far too long."""
         if self.first is None or fraction >= 1.0:
             return None
-        t0, f0 = self.first
+        t0, f0, c0 = self.first
         if fraction <= f0 or now - t0 < self.delay:
             return None
-        return (now - t0) / (fraction - f0) * (1.0 - fraction)
+        working = (now - t0) - (self.compiling.seconds(now) - c0)
+        return max(working, 0.0) / (fraction - f0) * (1.0 - fraction)
 
     def _report(self, pct, left=None):
         if self.mute or time.perf_counter() - self.start < self.delay:
@@ -289,6 +323,7 @@ class Progress:
 
     def done(self):
         self.pending.cancel()
+        self.compiling.stop()
         if self.last >= 0:
             # Off a terminal too: the lines stopped at 75%, and the work looked cut short.
             over = "\r" if self.tty else ""       # a terminal's live line is written over

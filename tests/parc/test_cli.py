@@ -99,6 +99,33 @@ def test_the_time_left_ignores_a_slow_start(monkeypatch, capsys):
         "parc: work: 25%, about 10 s left", "parc: work: 50%, about 8 s left", "parc: work: 75%, about 4 s left"]
 
 
+def test_the_time_left_leaves_out_compiling_after_the_first_report(monkeypatch, capsys):
+    # A lit scene reported 2% before its first caster call compiled for 22 s: "27%, about 2 min
+    # left" with 4 s to go. Here: 1 s of work a sixteenth, the second sixteenth 20 s compiling.
+    from numba.core import event
+
+    from parc import outputs
+    now = [100.0]
+    monkeypatch.setattr(outputs.time, "perf_counter", lambda: now[0])
+    work = outputs.Progress("work")
+    work.pending.cancel()
+    for n in range(1, 17):
+        if n == 2:
+            event.start_event("numba:compile")
+            event.start_event("numba:compile")          # a callee, inside its caller's compile
+            now[0] += 20.0
+            event.end_event("numba:compile")
+            event.end_event("numba:compile")
+        now[0] += 1.0
+        work(n / 16)
+    work.done()
+    assert capsys.readouterr().err.splitlines()[1:4] == [
+        "parc: work: 25%, about 10 s left", "parc: work: 50%, about 8 s left", "parc: work: 75%, about 4 s left"]
+    event.start_event("numba:compile")                  # done: no longer listening
+    event.end_event("numba:compile")
+    assert work.compiling.seconds(now[0]) == 20.0
+
+
 @pytest.mark.parametrize("seconds, said", [(0.3, "about 1 s left"), (7.4, "about 7 s left"),
                                            (42.0, "about 40 s left"), (59.0, "about 1 min left"),
                                            (185.0, "about 3 min left"),
