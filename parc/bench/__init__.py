@@ -40,7 +40,7 @@ from data_tools.errors import os_reason
 from data_tools.io import written_path
 from data_tools.signals import building, signals_held
 
-from ..outputs import compile_notice, late_compile_notice, note, to_json
+from ..outputs import compile_notice, late_compile_notice, note, print_out, to_json
 from .scenes import default_data_dir
 
 
@@ -508,6 +508,6 @@ def main(args):
     with late_compile_notice(say):
         res = run_bench(out, suite, progress=say, command="parc " + " ".join(args.argv))
     failed = [c for c in res["checks"] if not c["ok"]]
-    print(f"{out / 'report.md'}: {len(res['checks']) - len(failed)} of {len(res['checks'])} checks pass "
-          f"({res['seconds'] / 60:.1f} min)")
+    print_out(f"{out / 'report.md'}: {len(res['checks']) - len(failed)} of {len(res['checks'])} checks pass "
+              f"({res['seconds'] / 60:.1f} min)", done=f"wrote {out / 'report.md'}")
     return 1 if failed else 0

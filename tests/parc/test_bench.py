@@ -354,6 +354,20 @@ def test_cli_refuses_an_empty_folder_name(flag, tmp_path, monkeypatch, capsys):
     assert len(err) == 1 and f"{flag}: the folder is empty" in err[0] and list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="needs /dev/full")
+def test_a_full_standard_output_after_the_report_says_it_was_written(tmp_path, monkeypatch, capsys):
+    # `parc bench > /dev/full` ended in "No space left on device" alone, the report written.
+    import parc.bench
+    monkeypatch.setattr(parc.bench, "run_bench", lambda out, *a, **k: {"checks": [{"ok": True}], "seconds": 60.0})
+    monkeypatch.setattr(parc.bench, "compile_notice", lambda *a, **k: None)
+    with open("/dev/full", "w") as full:
+        monkeypatch.setattr(sys, "stdout", full)
+        assert main(["bench", "--tiny", "--out", str(tmp_path / "rep")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"parc: error: wrote {tmp_path / 'rep' / 'report.md'}, but cannot write to standard output: "
+                   "No space left on device"]
+
+
 def test_cli_help_explains_the_report(capsys):
     with pytest.raises(SystemExit):
         main(["bench", "--help"])
