@@ -15,20 +15,38 @@ STOPS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") 
 
 
 @contextlib.contextmanager
-def signals_held(signums=STOPS):
-    """Hold ``signums`` until the block ends, then act on them as they would have."""
+def signals_held(signums=STOPS, done=None):
+    """Hold ``signums`` until the block ends, then act on them as they would have. ``done`` says
+    what the block puts in place (``a.png, d.npy``): where it ends whole with a signal held, the
+    run stops with its work in place, and its last line says so (`done_before_stop`)."""
     held, was = [], {}
     with contextlib.suppress(ValueError):           # not the main thread: nothing to hold
         for signum in signums:
             was[signum] = signal.signal(signum, lambda n, frame: held.append(n))
+    whole = False
     try:
         yield
+        whole = True
     finally:
         for signum, handler in was.items():
             # None: a handler set outside Python, which cannot be put back; the default then.
             signal.signal(signum, signal.SIG_DFL if handler is None else handler)
+        if held and whole and done:
+            _DONE_BEFORE_STOP[0] = done
         for signum in dict.fromkeys(held):
             signal.raise_signal(signum)
+
+
+#: What a block of `signals_held` put in place before acting on a signal held through it.
+_DONE_BEFORE_STOP = [None]
+
+
+def done_before_stop():
+    """``"; a.png, d.npy had been written whole"`` where a stop signal came while outputs were put
+    in place, and they were (the stop is acted on once they all are), else ``""``: "interrupted"
+    alone read as if the earlier outputs had been kept."""
+    done, _DONE_BEFORE_STOP[0] = _DONE_BEFORE_STOP[0], None
+    return f"; {done} had been written whole" if done else ""
 
 
 #: Temporary files and folders a run is filling (`building`).

@@ -24,6 +24,7 @@ from data_tools import InputError
 from data_tools.errors import os_reason
 from data_tools.info import exact_text
 from data_tools.io.npy import save_array
+from data_tools.signals import done_before_stop
 
 from .arguments import build_parser, join_signed_values, supercell_flag
 from .flagscene import load_volume_flags, scene_and_notes
@@ -81,10 +82,10 @@ def main(argv=None):
         error_line(f"error: out of memory{detail}; try a smaller --size{supercell}")
         return 1
     except KeyboardInterrupt:
-        error_line("interrupted")
+        error_line(f"interrupted{done_before_stop()}")
         return 130
     except Stopped as exc:
-        error_line(f"stopped by {signal.Signals(exc.signum).name}")
+        error_line(f"stopped by {signal.Signals(exc.signum).name}{done_before_stop()}")
         return 128 + exc.signum
     finally:
         restore_handlers(stops)

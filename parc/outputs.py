@@ -166,7 +166,8 @@ def atomic_write_all(writes, remove=()):
             except FileNotFoundError:
                 mode = 0o666 & ~umask
             os.chmod(tmp, mode)
-        with signals_held():        # a Ctrl-C between two renames would leave a mixed set
+        # A Ctrl-C between two renames would leave a mixed set.
+        with signals_held(done=", ".join(str(path) for _, _, path in done)):
             for path in remove:
                 path.unlink(missing_ok=True)
             for tmp, target, path in done:

@@ -270,7 +270,7 @@ def save_volume(volume: Volume, path, **options) -> Path:
             if (path.parent / f.name).is_dir():
                 # Before any is moved: a header refused after its data file was would leave that behind.
                 raise InputError(f"{path.parent / f.name}: is a folder; {given} cannot be written")
-        with signals_held():        # a header and its data file are replaced together
+        with signals_held(done=str(given)):        # a header and its data file are replaced together
             for f in sorted(tmpdir.iterdir()):
                 if f.name != path.name:
                     failed = path.parent / f.name       # a companion: name it, not the header

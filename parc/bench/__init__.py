@@ -281,7 +281,7 @@ def _publish(stage, out):
     _check_places(out, names, {str(n.parent) for n in names if n.parent != Path(".")})
     replaced = stage / ".replaced"
     done, made = [], []
-    with signals_held():         # the report's files move in all together or not at all
+    with signals_held(done=f"the report in {out}"):      # its files move in all together or not at all
         try:
             for path, name in zip(files, names):
                 place = out / name

@@ -1359,7 +1359,29 @@ def test_compare_refuses_a_supercell_before_warming_up(extra, vol_file, capsys):
     assert rc == 2 and err.count("\n") == 1 and "supercell size 0.001" in err, err
 
 
-def test_notes_are_held_back_when_the_render_refuses(vol_file, tmp_path, capsys):
+def test_a_ctrl_c_while_the_outputs_move_in_says_they_were_written(vol_file, tmp_path, monkeypatch, capsys):
+    # The Ctrl-C is held until every output is in place, then acted on: "interrupted" alone, with
+    # status 130, read as if the earlier image and stats had been kept.
+    import signal
+    out, stats = tmp_path / "a.png", tmp_path / "a.json"
+    render = ["render", vol_file, "--iso", 4, "-o", out, "--stats", stats, "--quiet", "--size"]
+    assert _run(render + [8, 8], capsys)[0] == 0
+    earlier = out.read_bytes()
+    replace = os.replace
+
+    def ctrl_c_at_the_first(a, b):
+        monkeypatch.setattr(os, "replace", replace)
+        os.kill(os.getpid(), signal.SIGINT)
+        replace(a, b)
+    monkeypatch.setattr(os, "replace", ctrl_c_at_the_first)
+    rc, _, err = _run(render + [12, 12], capsys)
+    assert rc == 130 and err == f"parc: interrupted; {out}, {stats} had been written whole\n"
+    assert out.read_bytes() != earlier and json.loads(stats.read_text())["parameters"]["size"] == [12, 12]
+    from data_tools.signals import done_before_stop
+    assert done_before_stop() == ""             # said once: a later interruption is its own
+
+
+
     # The note on the chosen level waits for the render: a supercell refused there is the only line.
     rc, _, err = _run(["render", vol_file, "--size", 8, 8, "--method", "parc", "--supercell", "0.001",
                        "-o", tmp_path / "o.png"], capsys)
