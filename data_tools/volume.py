@@ -129,7 +129,11 @@ class Volume:
             nz, ny, nx = data.shape
             raise InputError(f"{self.name}: every dimension must be at least 2 samples, got {nx}x{ny}x{nz} (x×y×z)")
         dt = data.dtype
-        if dt.byteorder not in ("=", "|") and dt.newbyteorder("=") in SUPPORTED_DTYPES:
+        if dt.isnative and dt.byteorder not in ("=", "|"):
+            # '<i2' on a little-endian machine (a reader's file order): the same bytes, named
+            # natively without a copy, which had doubled every little-endian raw and MetaImage load.
+            data = data.view(dt.newbyteorder("="))
+        elif not dt.isnative and dt.newbyteorder("=") in SUPPORTED_DTYPES:
             data, converted = data.astype(dt.newbyteorder("=")), True
         if data.dtype not in SUPPORTED_DTYPES:
             data, converted = _narrowed(data, self.name), True

@@ -22,6 +22,29 @@ def test_samples_are_kept_c_contiguous_in_native_byte_order(data):
     assert vol.dtype == data.dtype.newbyteorder("=") and np.array_equal(vol.data, data)
 
 
+def test_samples_in_the_machines_byte_order_spelt_out_are_not_copied(tmp_path):
+    # A reader gives '<i2' (the file's order): on a little-endian machine those are int16's own
+    # bytes, yet they were copied, and a raw or MetaImage volume took twice its size to load.
+    import sys
+    import tracemalloc
+
+    from data_tools.io import load_volume
+    order = "<" if sys.byteorder == "little" else ">"
+    owned = np.arange(64, dtype=np.int16).reshape(4, 4, 4).astype(np.dtype(np.int16).newbyteorder(order))
+    owned.flags.writeable = False
+    vol = Volume(owned)
+    assert np.shares_memory(vol.data, owned) and vol.data.dtype == np.int16 and vol.data.dtype.byteorder == "="
+    path = tmp_path / f"v_64x64x256_int16_{'le' if order == '<' else 'be'}.raw"
+    np.arange(64 * 64 * 256, dtype=np.int16).astype(owned.dtype).tofile(path)
+    tracemalloc.start()
+    try:
+        vol = load_volume(path)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert vol.data[1, 2, 3] == 64 * 64 + 2 * 64 + 3 and peak < 1.5 * vol.data.nbytes
+
+
 def test_non_finite_samples_and_the_largest_are_found_in_every_slab():
     # A volume is checked some z-slices at a time: a NaN in its last slices, or a fill value
     # in its first, counts however the slabs fall.
