@@ -79,7 +79,10 @@ def main(argv=None):
         detail = f": {exc}" if str(exc) else ""
         supercell = (" (or a larger --supercell)"
                      if any(str(a).startswith(("--supercell", "--sweep-supercell")) for a in argv) else "")
-        error_line(f"error: out of memory{detail}; try a smaller --size{supercell}")
+        # parc's tables (cell ranges, skip tables) grow with the volume, not the image.
+        parc_ran = argv[:1] == ["compare"] or any(str(a) in ("parc", "--method=parc") for a in argv)
+        tables = ", or --method brute, which keeps no tables of the volume" if parc_ran else ""
+        error_line(f"error: out of memory{detail}; try a smaller --size{supercell}{tables}")
         return 1
     except KeyboardInterrupt:
         error_line(f"interrupted{done_before_stop()}")

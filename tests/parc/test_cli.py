@@ -972,7 +972,14 @@ def test_running_out_of_memory_gets_one_line(vol_file, tmp_path, capsys, monkeyp
     monkeypatch.setattr(parc, "render", too_big)
     rc, _, err = _run(["render", vol_file, "--iso", 4, "--size", 8, 8, "--method", "parc", "--supercell", "0.5",
                        "-o", tmp_path / "o.png"], capsys)
-    assert rc == 1 and err.endswith("try a smaller --size (or a larger --supercell)\n"), err
+    assert rc == 1 and err.endswith("try a smaller --size (or a larger --supercell), or --method brute, which keeps "
+                                    "no tables of the volume\n"), err
+    # parc's tables grow with the volume: a 1300^3 volume ran out at a 128x128 image, told to shrink it.
+    rc, _, err = _run(["render", vol_file, "--iso", 4, "--size", 8, 8, "--method", "parc", "-o", tmp_path / "o.png"],
+                      capsys)
+    assert rc == 1 and err.endswith("try a smaller --size, or --method brute, which keeps no tables of the volume\n")
+    rc, _, err = _run(["render", vol_file, "--iso", 4, "--size", 8, 8, "-o", tmp_path / "o.png"], capsys)
+    assert rc == 1 and err.endswith("try a smaller --size\n")              # brute keeps none
 
 
 def test_a_speedup_below_a_hundredth_keeps_two_digits():
