@@ -296,19 +296,23 @@ def _decode(blob, encoding, path, limit):
             why = f"{bad!r} is not a hex digit" if bad is not None else f"an odd number of digits ({len(digits)})"
             raise InputError(f"{path}: hex data: {why}") from None
     gz = encoding in ("gzip", "gz")
-    raw = bytearray()
+    # Each member's bytes, joined only where there are several: gathered in one bytearray, the
+    # samples were held twice over as they inflated, and copied again to be read.
+    parts, size = [], 0
     while True:
         # At most ``limit`` bytes in all (and one more, to tell that there are more).
         member = zlib.decompressobj(zlib.MAX_WBITS | 16) if gz else bz2.BZ2Decompressor()
-        room = limit + 1 - len(raw)
-        raw += member.decompress(blob, room) if gz else member.decompress(blob, max_length=room)
-        if len(raw) > limit:
-            return raw
+        room = limit + 1 - size
+        parts.append(member.decompress(blob, room) if gz else member.decompress(blob, max_length=room))
+        size += len(parts[-1])
+        if size > limit:
+            break
         if not gz and not member.eof:
             raise InputError(f"{path}: bzip2 data truncated (the stream ends early)")
         blob = member.unused_data
         if not (member.eof and blob.startswith(_GZIP_MAGIC if gz else b"BZh")):
-            return raw
+            break
+    return parts[0] if len(parts) == 1 else b"".join(parts)
 
 
 #: Per-axis header fields: an axis dropped takes its entry in each.
