@@ -26,6 +26,10 @@ KEEP_BYTES = 256 << 20
 #: per pixel: isosurface 90 (brute) and 105 bytes (PARC), CT head
 #: translucent with depth buffers and bit planes 170 bytes.
 FRAME_BYTES_PER_PIXEL = 200
+#: ... and each volume beyond the first: its segments, their stacked copy, a MIP or average
+#: layer's depth and colour (measured 20 to 48 bytes a pixel, 2026-12-01), with room. Charged the
+#: first volume's whole, 20 isosurfaces at 3000x3000 were refused as needing 33 GB; they took 0.9.
+EXTRA_VOLUME_BYTES_PER_PIXEL = 96
 
 _ARRAYS: dict = {}
 
@@ -88,8 +92,7 @@ NO_BITS = np.zeros((1, 1, 1), np.uint32)
 def check_frame_memory(width, height, layers=1, kept_images=0, lights=0, samples=0, sample_lights=0):
     """Refuse, with one line, a frame whose per-pixel arrays would not fit in memory.
 
-    ``layers`` counts the per-pixel array sets alive at once (several
-    volumes); ``lights`` the scene's light sources, whose shading terms take
+    ``layers`` counts the volumes whose per-pixel arrays are alive at once; ``lights`` the scene's light sources, whose shading terms take
     `LIGHT_BYTES_PER_PIXEL` each; ``kept_images`` the finished images held
     meanwhile (a comparison keeps one per method); ``samples`` the
     translucent samples recorded at once, each `SAMPLE_BYTES` and
@@ -100,11 +103,12 @@ def check_frame_memory(width, height, layers=1, kept_images=0, lights=0, samples
     Raises
     ------
     InputError
-        The estimate (`FRAME_BYTES_PER_PIXEL` per pixel and layer,
+        The estimate (`FRAME_BYTES_PER_PIXEL` per pixel, and
+        `EXTRA_VOLUME_BYTES_PER_PIXEL` for each further layer,
         `LIGHT_BYTES_PER_PIXEL` per pixel and light) exceeds the memory
         available.
     """
-    need = int(width) * int(height) * (FRAME_BYTES_PER_PIXEL * max(1, int(layers))
+    need = int(width) * int(height) * (FRAME_BYTES_PER_PIXEL + EXTRA_VOLUME_BYTES_PER_PIXEL * max(0, int(layers) - 1)
                                        + LIGHT_BYTES_PER_PIXEL * int(lights)
                                        + KEPT_IMAGE_BYTES_PER_PIXEL * int(kept_images))
     need += int(samples) * (SAMPLE_BYTES + LIGHT_BYTES_PER_PIXEL * int(sample_lights))

@@ -300,11 +300,12 @@ def test_a_name_given_a_new_shape_gives_up_its_old_array_before_others_go(monkey
 
 
 def test_the_frame_memory_check_counts_every_layer_and_kept_image(monkeypatch):
-    # Documented: FRAME_BYTES_PER_PIXEL per pixel and layer (at least one), and each kept image at
-    # least its float32 RGBA and float64 depth, 4 * 4 + 8 = 24 bytes a pixel.
+    # Documented: FRAME_BYTES_PER_PIXEL per pixel, EXTRA_VOLUME_BYTES_PER_PIXEL for each layer past
+    # the first, and each kept image at least its float32 RGBA and float64 depth, 4 * 4 + 8 = 24
+    # bytes a pixel.
     per = workspace.FRAME_BYTES_PER_PIXEL
     for layers in (0, 1, 3):
-        need = 64 * 48 * per * max(1, layers)
+        need = 64 * 48 * (per + workspace.EXTRA_VOLUME_BYTES_PER_PIXEL * max(0, layers - 1))
         monkeypatch.setattr(memory, "available_memory", lambda: need - 1)
         with pytest.raises(InputError, match="64x48 image needs about"):
             workspace.check_frame_memory(64, 48, layers=layers)
@@ -313,6 +314,30 @@ def test_the_frame_memory_check_counts_every_layer_and_kept_image(monkeypatch):
     monkeypatch.setattr(memory, "available_memory", lambda: 64 * 48 * (per + 3 * 24) - 1)
     with pytest.raises(InputError, match="64x48 image needs about"):
         workspace.check_frame_memory(64, 48, kept_images=3)
+
+
+@pytest.mark.parametrize("mode", ["composite", "mip"])
+@pytest.mark.parametrize("method", ["brute", "parc"])
+def test_each_further_volume_takes_less_than_the_check_charges_it(method, mode):
+    """Truth for EXTRA_VOLUME_BYTES_PER_PIXEL: what NumPy allocates for six volumes against two, over
+    a frame with no work arrays kept, per pixel and further volume (MIP's layers are the most)."""
+    import tracemalloc
+    vol = blobs(12, seed=1)
+    peaks = []
+    for n in (2, 6):
+        scene = Scene(camera=Camera.framing((0, 0, 0), (14, 11, 11)), size=(128, 128),
+                      volumes=[Translucent(Volume(vol.data, origin=(0.5 * k, 0, 0)), "greyscale", mode=mode)
+                               for k in range(n)])
+        render(scene, method)               # compiled, the tables built
+        release()
+        tracemalloc.start()
+        try:
+            render(scene, method)
+            peaks.append(tracemalloc.get_traced_memory()[1])
+        finally:
+            tracemalloc.stop()
+    per_volume = (peaks[1] - peaks[0]) / 4 / (128 * 128)
+    assert per_volume <= workspace.EXTRA_VOLUME_BYTES_PER_PIXEL / 1.5, per_volume
 
 
 def test_memory_below_a_translucent_frames_measured_need_is_refused(monkeypatch):
