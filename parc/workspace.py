@@ -74,8 +74,9 @@ KEPT_IMAGE_BYTES_PER_PIXEL = 32
 
 
 #: Memory a frame takes per pixel and light source: the diffuse, specular and visibility terms of
-#: every lit pixel (float64 each, `parc.multivolume`), with room.
-LIGHT_BYTES_PER_PIXEL = 32
+#: every lit pixel (float64 each, `parc.multivolume`), the visibility's copy in the samples' order
+#: and a mask, with room (32 fell short: 100 suns on shadowed samples took over 40 a sample).
+LIGHT_BYTES_PER_PIXEL = 56
 
 #: Memory of a recorded translucent sample (`raycast.merged.SampleRecord`, its material and the
 #: copies its shadow rays take), with room; and of its terms per light, as for a pixel.
@@ -112,7 +113,8 @@ def check_frame_memory(width, height, layers=1, kept_images=0, lights=0, samples
                                        + LIGHT_BYTES_PER_PIXEL * int(lights)
                                        + KEPT_IMAGE_BYTES_PER_PIXEL * int(kept_images))
     need += int(samples) * (SAMPLE_BYTES + LIGHT_BYTES_PER_PIXEL * int(sample_lights))
-    check_memory(need, f"a {width}x{height} image", ": render a smaller image (--size, or size in a scene file)")
+    fewer = " or with fewer lights" if lights or sample_lights else ""
+    check_memory(need, f"a {width}x{height} image", f": render a smaller image (--size, or size in a scene file){fewer}")
 
 
 def check_scene_memory(scene, kept_images=0):
