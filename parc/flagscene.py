@@ -268,7 +268,7 @@ def _camera(args, vol, size):
                          "where the camera looks by default: move it or give --look-at")
     camera = parc.Camera(**view)
     try:
-        check_eye_resolves(camera, [vol])
+        check_eye_resolves(camera, [vol], [vol] if args.iso is not None else ())
     except InputError as exc:
         raise InputError(f"--eye: {exc}" if args.eye is not None else str(exc)) from None
     return camera
