@@ -85,13 +85,19 @@ def test_progress_shows_only_for_work_that_takes_a_while(monkeypatch, capsys):
         "parc: slow: 75%, about 4 s left", "parc: slow: done in 16.0 s"]         # not left at 75%
 
 
-def test_the_time_left_ignores_a_slow_start(monkeypatch, capsys):
-    # A first band that compiled the casters for 30 s, then 15 bands of a second each.
+def _progress_on_a_clock_of_our_own(monkeypatch):
+    """A Progress ("work") whose clock is ``now[0]``, its pending 0% report cancelled."""
     from parc import outputs
     now = [100.0]
     monkeypatch.setattr(outputs.time, "perf_counter", lambda: now[0])
     work = outputs.Progress("work")
     work.pending.cancel()
+    return work, now
+
+
+def test_the_time_left_ignores_a_slow_start(monkeypatch, capsys):
+    # A first band that compiled the casters for 30 s, then 15 bands of a second each.
+    work, now = _progress_on_a_clock_of_our_own(monkeypatch)
     for n in range(1, 17):
         now[0] += 30.0 if n == 1 else 1.0
         work(n / 16)
@@ -103,12 +109,7 @@ def test_the_time_left_leaves_out_compiling_after_the_first_report(monkeypatch, 
     # A lit scene reported 2% before its first caster call compiled for 22 s: "27%, about 2 min
     # left" with 4 s to go. Here: 1 s of work a sixteenth, the second sixteenth 20 s compiling.
     from numba.core import event
-
-    from parc import outputs
-    now = [100.0]
-    monkeypatch.setattr(outputs.time, "perf_counter", lambda: now[0])
-    work = outputs.Progress("work")
-    work.pending.cancel()
+    work, now = _progress_on_a_clock_of_our_own(monkeypatch)
     for n in range(1, 17):
         if n == 2:
             event.start_event("numba:compile")
