@@ -29,8 +29,8 @@ from data_tools.signals import done_before_stop
 from .arguments import build_parser, join_signed_values, supercell_flag
 from .flagscene import load_volume_flags, scene_and_notes
 from .outputs import (Progress, atomic_write_all, check_distinct, check_not_sidecar, check_output, compile_notice,
-                      compile_took, compiling_seconds, error_line, late_compile_notice, note, print_out, slow_note, stale_sidecars,
-                      to_json, write_png)
+                      compile_took, compiling_seconds, error_line, late_compile_notice, note, print_out, slow_note,
+                      stale_sidecars, to_json, write_png)
 from .scene import ShowsNothingWarning
 from .stops import Stopped, restore_handlers, stop_on_signals
 

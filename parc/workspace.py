@@ -93,7 +93,8 @@ NO_BITS = np.zeros((1, 1, 1), np.uint32)
 def check_frame_memory(width, height, layers=1, kept_images=0, lights=0, samples=0, sample_lights=0):
     """Refuse, with one line, a frame whose per-pixel arrays would not fit in memory.
 
-    ``layers`` counts the volumes whose per-pixel arrays are alive at once; ``lights`` the scene's light sources, whose shading terms take
+    ``layers`` counts the volumes whose per-pixel arrays are alive at once;
+    ``lights`` the scene's light sources, whose shading terms take
     `LIGHT_BYTES_PER_PIXEL` each; ``kept_images`` the finished images held
     meanwhile (a comparison keeps one per method); ``samples`` the
     translucent samples recorded at once, each `SAMPLE_BYTES` and
@@ -114,7 +115,8 @@ def check_frame_memory(width, height, layers=1, kept_images=0, lights=0, samples
                                        + KEPT_IMAGE_BYTES_PER_PIXEL * int(kept_images))
     need += int(samples) * (SAMPLE_BYTES + LIGHT_BYTES_PER_PIXEL * int(sample_lights))
     fewer = " or with fewer lights" if lights or sample_lights else ""
-    check_memory(need, f"a {width}x{height} image", f": render a smaller image (--size, or size in a scene file){fewer}")
+    check_memory(need, f"a {width}x{height} image",
+                 f": render a smaller image (--size, or size in a scene file){fewer}")
 
 
 def check_scene_memory(scene, kept_images=0):
