@@ -217,7 +217,9 @@ def resolve_view(lo, hi, *, eye=None, look_at=None, up=None, fov=None, parallel=
                 "parallel_scale": parallel}
     look_at = tuple(look_at) if look_at is not None else tuple(0.5 * (np.asarray(lo) + np.asarray(hi)))
     if eye is None:
-        framed = Camera.framing(lo, hi, fov=fov, up=up, aspect=aspect, zoom=zoom)
+        # The default eye's offset, as the view without look_at has it (a parallel view's is its own):
+        # naming the default centre must change nothing, the depths included.
+        framed = Camera.framing(lo, hi, fov=fov, up=up, parallel=parallel is not None, aspect=aspect, zoom=zoom)
         eye = tuple(np.asarray(look_at) + np.subtract(framed.eye, framed.look_at))
     if not explicit_up:
         # The default up must not be parallel to the view: fall back to +y.

@@ -552,6 +552,16 @@ def test_resolve_view_matches_framing():
     assert math.isclose(parc.Camera(**down).basis()[0][2], -1.0)
 
 
+@pytest.mark.parametrize("parallel", [None, 10.0])
+def test_naming_the_default_look_at_changes_nothing(parallel):
+    # A parallel view's eye moved back to the perspective distance when look_at was given: the
+    # same picture, every depth 25 units longer.
+    lo, hi = (0, 0, 0), (31, 31, 31)
+    plain = resolve_view(lo, hi, parallel=parallel)
+    named = resolve_view(lo, hi, look_at=(15.5, 15.5, 15.5), parallel=parallel)
+    assert np.allclose(named["eye"], plain["eye"], rtol=0, atol=1e-12) and named["look_at"] == plain["look_at"]
+
+
 def test_volume_placement_keeps_native_samples(folder):
     path = write(folder, "[[volume]]\nfile = 'data/blobs.nrrd'\niso = 100\nspacing = [0.5, 0.5, 1]\n")
     vol = load_scene(path).volumes[0].volume
