@@ -377,6 +377,9 @@ def _render_general(scene, method, supercell, buffers, progress, light_buffer, s
     }
     stats["polygons"] = (sum(v.get("polygons", 0) for v in extra["volumes"]) + counts["light_polygons"]
                          if method == "parc" else 0)
+    if method == "parc":            # as asked, as a volume cast alone records them
+        translucent = any(isinstance(v, Translucent) for v in scene.volumes)
+        stats.update(buffers=list(buffers) if translucent else ["depth"], blocks=skip_blocks)
     stats.update(extra)
     per_pixel = counts["per_pixel"].reshape(h, w) if work else None
     return RenderResult(image=image, depth=depth, stats=stats, work=per_pixel)

@@ -616,6 +616,21 @@ def test_stats_parameters_describe_the_volume_as_the_scene_states_it():
                  "material": list(DEFAULT_MATERIAL), "camera": camera}
 
 
+def test_a_scene_cast_as_several_volumes_records_the_buffers_and_blocks_asked(gl):
+    # Lit, or of several volumes, a render's stats had no "buffers" or "blocks": a run with
+    # --no-blocks or bit planes read as one without.
+    vol = blobs(12, seed=1)
+    sun = [DirectionalLight(direction=(0, 0, -1))]
+    cam = Camera.framing(*vol.bounds)
+    lit = render(Scene(camera=cam, size=(16, 16), volumes=[Isosurface(vol, 100.0)], lights=sun), "parc",
+                 blocks=False).stats
+    assert lit["buffers"] == ["depth"] and lit["blocks"] is False
+    both = [Isosurface(vol, 100.0), Translucent(Volume(vol.data, origin=(3.0, 0, 0)), "greyscale")]
+    mixed = render(Scene(camera=cam, size=(16, 16), volumes=both), "parc", buffers=("depth", "bits")).stats
+    assert mixed["buffers"] == ["depth", "bits"] and mixed["blocks"] is True
+    assert "buffers" not in render(Scene(camera=cam, size=(16, 16), volumes=both), "brute").stats
+
+
 def test_stats_parameters_tell_apart_renders_that_differ_in_background_lights_or_material():
     """A red background and a sun, and a point light without a background, gave the same
     parameters (a count of lights) and different pictures; so did two surface colours."""
