@@ -59,6 +59,9 @@ def main():
     ap.add_argument("--supercell", type=float,
                     help="with --stages: this size instead of the renderer's choice")
     args = ap.parse_args()
+    if args.supercell is not None and not args.stages:
+        # The full run times every size the renderer weighs: one size would be ignored there.
+        raise ValueError("--supercell applies with --stages")
     vol, iso = pick_volume(args)
     w = h = args.size
     ctx = get_context()

@@ -425,6 +425,7 @@ def test_benchmark_script_runs_on_a_tiny_volume(script, gl_context):
     ("cast_parts.py", ["--synthetic", "sphere", "--n", "8", "--tf", "greyscale", "--iso", "3"], "--iso applies"),
     ("bricking.py", ["--volume", "v.nrrd", "--iso", "3", "--n", "8"], "--n sizes a --synthetic volume"),
     ("raster_speed.py", ["--synthetic", "sphere", "--volume", "v.nrrd"], "not both"),
+    ("raster_speed.py", ["--synthetic", "sphere", "--n", "8", "--supercell", "2"], "--supercell applies with --stages"),
 ])
 def test_benchmark_script_refuses_bad_input_in_one_line(script, args, words):
     # A missing file or a transfer function misspelt ended in a traceback.
