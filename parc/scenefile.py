@@ -278,6 +278,7 @@ def _load_volume(where, t, cache):
         raise t.error("color", "applies to an isosurface (iso); a translucent volume's colours "
                                "come from its transfer function (tf)")
     from .transfer import PRESETS, load_for_volume
+    from .transfer.files import unknown_preset
     from .transfer.presets import MODES
     spec = t.string("tf")
     mode = t.string("mode")
@@ -297,6 +298,8 @@ def _load_volume(where, t, cache):
             # (exists() raises for a name too long: named with the file and key, as the loader's.)
             if path.exists() or Path(spec).suffix or os.sep in spec or "/" in spec:
                 spec = os.fspath(path)
+            else:           # not the working folder's file of that name, which the loader would read
+                raise unknown_preset(spec)
         tf = load_for_volume(spec, vol, mode or "composite")
     given = {"mode": mode, "step": step, "threshold": threshold, "shade": shade, "material": material}
     keyed = [(name, name, value) for name, value in given.items() if value is not None]

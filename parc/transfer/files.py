@@ -62,6 +62,12 @@ def parse_text(loads, text, where, kind):
         raise InputError(f"{where}: malformed {kind}: arrays or tables nested too deeply") from None
 
 
+def unknown_preset(name):
+    """The error for a bare name that is neither a preset nor a file."""
+    return InputError(f"unknown transfer function preset {name!r}; known: {', '.join(PRESETS)}; "
+                      "or give a .toml or .json file")
+
+
 def load_transfer_function(spec, data_range=None, mode="composite"):
     """A transfer function from a preset name or a file.
 
@@ -113,8 +119,7 @@ def load_transfer_function(spec, data_range=None, mode="composite"):
             raise InputError(f"transfer function {text}: a link that leads nowhere (or in a loop)")
         if ext in (".toml", ".json") or os.sep in text or "/" in text:
             raise InputError(f"transfer function file not found: {text}")
-        raise InputError(f"unknown transfer function preset {text!r}; known: {', '.join(PRESETS)}; "
-                         "or give a .toml or .json file")
+        raise unknown_preset(text)
     where = f"transfer function {text}"
     if path.is_dir():
         raise InputError(f"{where}: is a folder, not a file")

@@ -562,6 +562,18 @@ def test_naming_the_default_look_at_changes_nothing(parallel):
     assert np.allclose(named["eye"], plain["eye"], rtol=0, atol=1e-12) and named["look_at"] == plain["look_at"]
 
 
+def test_a_bare_tf_name_not_beside_the_scene_is_an_unknown_preset_wherever_it_runs(folder, monkeypatch):
+    # A file of that name in the working folder, never loaded from there, gave its own error instead:
+    # "transfer function mytf: unknown file type '(none)'".
+    (folder / "sub").mkdir()
+    path = write(folder / "sub", "[[volume]]\nfile = '../data/ball.nrrd'\ntf = 'mytf'\n")
+    (folder / "mytf").write_text("opacity = [[0, 0.0], [1, 0.5]]\n")
+    for where in (folder, folder / "sub"):
+        monkeypatch.chdir(where)
+        with pytest.raises(InputError, match="volume\\[1\\].tf.*unknown transfer function preset 'mytf'"):
+            load_scene(path)
+
+
 def test_volume_placement_keeps_native_samples(folder):
     path = write(folder, "[[volume]]\nfile = 'data/blobs.nrrd'\niso = 100\nspacing = [0.5, 0.5, 1]\n")
     vol = load_scene(path).volumes[0].volume
