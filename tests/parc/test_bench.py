@@ -247,13 +247,21 @@ def _earlier_report(out):
     (out / "images" / "table1.png").write_text("old picture")
 
 
-@pytest.mark.parametrize("earlier", [False, True])
-def test_an_interrupted_bench_leaves_no_folder_or_the_earlier_report_whole(tmp_path, monkeypatch, earlier):
+def _report_place(tmp_path, monkeypatch, fail, earlier):
+    """``tmp_path/a/report`` for a bench whose suite is faked (failing midway where ``fail``),
+    holding an earlier report where ``earlier``."""
     import parc.bench
-    monkeypatch.setattr(parc.bench, "_run", _fake_run(fail=True))
+    monkeypatch.setattr(parc.bench, "_run", _fake_run(fail=fail))
     out = tmp_path / "a" / "report"
     if earlier:
         _earlier_report(out)
+    return out
+
+
+@pytest.mark.parametrize("earlier", [False, True])
+def test_an_interrupted_bench_leaves_no_folder_or_the_earlier_report_whole(tmp_path, monkeypatch, earlier):
+    import parc.bench
+    out = _report_place(tmp_path, monkeypatch, fail=True, earlier=earlier)
     before = sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*"))
     with pytest.raises(KeyboardInterrupt):
         run_bench(out, Suite.tiny())
@@ -495,10 +503,7 @@ def test_the_report_is_staged_inside_an_existing_out_and_moved_in_whole_despite_
 def test_a_move_that_fails_midway_puts_the_earlier_report_back(tmp_path, monkeypatch, earlier):
     # The files moved one by one: a failure at the second left a new picture beside the old report.
     import parc.bench
-    monkeypatch.setattr(parc.bench, "_run", _fake_run(fail=False))
-    out = tmp_path / "a" / "report"
-    if earlier:
-        _earlier_report(out)
+    out = _report_place(tmp_path, monkeypatch, fail=False, earlier=earlier)
     before = {p.relative_to(tmp_path): p.is_file() and p.read_text() for p in tmp_path.rglob("*")}
     move = parc.bench.shutil.move
 
