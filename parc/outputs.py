@@ -456,11 +456,8 @@ def compile_took(seconds):
     kernels were kept, as every run compiles them again otherwise."""
     from raycast.kernel_cache import cache_refused, cache_unsaved
 
-    if cache_refused():
-        return f" ({seconds:.1f} s of it compiling the casters)"
-    if cache_unsaved():
-        return f" ({seconds:.1f} s of it compiling the casters, not kept: {cache_unsaved()})"
-    return f" ({seconds:.1f} s of it compiling the casters, once)"
+    kept = "" if cache_refused() else f", not kept: {cache_unsaved()}" if cache_unsaved() else ", once"
+    return f" ({seconds:.1f} s of it compiling the casters{kept})"
 
 
 def _compiling_once(folder):
