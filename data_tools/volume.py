@@ -41,15 +41,24 @@ def settled(cls):
         init(self, *args, **kwargs)
         object.__setattr__(self, "_settled", True)
 
-    def __setattr__(self, name, value):
+    def refuse_change(self, name):
         if self.__dict__.get("_settled"):
             kind = type(self).__name__
             how = f": dataclasses.replace(obj, {name}=...)" if is_dataclass(self) else ""
             raise AttributeError(f"{kind}.{name} cannot change once built; make a new {kind}{how}")
+
+    def __setattr__(self, name, value):
+        refuse_change(self, name)
         object.__setattr__(self, name, value)
+
+    # Deleting a dataclass field would show its class default, under caches made from the value.
+    def __delattr__(self, name):
+        refuse_change(self, name)
+        object.__delattr__(self, name)
 
     cls.__init__ = __init__
     cls.__setattr__ = __setattr__
+    cls.__delattr__ = __delattr__
     return cls
 
 
@@ -163,6 +172,10 @@ class Volume:
                          " (an array that owns its samples, made read-only with a.flags.writeable = False "
                          "and with no writeable view kept, is used without one)")
             data = data.copy()
+            data.flags.writeable = False
+        if data.flags.owndata:
+            # A read-only array owning its memory may be made writeable again; a view of it may not.
+            data = data.view()
             data.flags.writeable = False
         self.data = data
         if self.meta is not None and not isinstance(self.meta, Mapping):
