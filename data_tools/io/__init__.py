@@ -102,7 +102,8 @@ def load_volume(path, **options) -> Volume:
             return _read_from(raw.read_raw(path, **options), path)
     extra = sorted(set(options) - {"spacing", "origin"})
     if extra:
-        flags = ", ".join("--" + k.replace("_", "-") for k in extra)
+        # mmap is load_volume's alone: the others are also parc's flags, and are named as such.
+        flags = ", ".join(k if k == "mmap" else "--" + k.replace("_", "-") for k in extra)
         verb = "applies" if len(extra) == 1 else "apply"
         raise InputError(f"{path}: {flags} {verb} only to headerless raw files; this file has a header")
     with reading(path, kind):

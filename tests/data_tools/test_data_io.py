@@ -997,8 +997,11 @@ def test_raw_mmap_refuses_the_other_byte_order(tmp_path):
 
 def test_mmap_is_for_raw_files_only(tmp_path):
     path = save_volume(Volume(np.zeros((3, 4, 5), np.uint8)), tmp_path / "v.nrrd")
-    with pytest.raises(InputError, match="--mmap applies only to headerless raw"):
+    # mmap is no flag of parc's: named as load_volume's keyword, where the others are parc's flags.
+    with pytest.raises(InputError, match=r"v\.nrrd: mmap applies only to headerless raw"):
         load_volume(path, mmap=True)
+    with pytest.raises(InputError, match=r"v\.nrrd: mmap, --shape apply only to headerless raw"):
+        load_volume(path, mmap=True, shape=(5, 4, 3))
 
 
 # --- fields read as the formats define them -----------------------------------
