@@ -71,9 +71,9 @@ class RenderResult:
         volumes: a list of them, under ``volumes``). With PARC, also ``supercell`` (its size in
         cells, per axis), ``supercells`` and ``pc_supercells`` (those that may contribute),
         ``raster_seconds`` (the OpenGL pass's parts), ``buffers`` and ``blocks`` (as asked),
-        with bit planes ``planes`` and ``plane_axis``, and on a volume's first frame without a
-        ``supercell`` given, ``supercell_model`` (the cost model's estimate at each size it
-        weighed). Cells and cubics count isosurfaces' work, samples translucent volumes'; a
+        with bit planes ``planes`` and ``plane_axis``, and without a ``supercell`` given,
+        ``supercell_model`` (the cost model's estimate at each size it weighed, made on the
+        first frame of a classification and image size and kept for the next). Cells and cubics count isosurfaces' work, samples translucent volumes'; a
         process's first ``seconds["total"]`` also holds loading the casters and making OpenGL's
         context, beyond the phases listed, and the phases of a first render of its kind hold
         compiling the kernels they call (10 to 60 s in all, once on a machine: `compile_notice`
