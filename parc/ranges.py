@@ -276,21 +276,22 @@ def supercell_ranges(data, grid, *, cell_ranges=None):
     out_dtype = np.float64 if fractional else data.dtype
     mn = np.empty((az, ay, axn), out_dtype)
     mx = np.empty_like(mn)
-    # Chunk over supercell slabs in z; each needs the refined z-points of
-    # its closed boxes, so neighbouring chunks share one boundary plane.
-    plane = len(ax_y.pos) * len(ax_x.pos)
-    qz = ax_z.q
-    c0 = 0
-    while c0 < az:
-        c1 = c0 + 1
-        while c1 < az and (qz[c1 + 1] - qz[c0] + 1) * plane <= CHUNK_VALUES:
-            c1 += 1
-        r = _refined_block(data, ax_x, ax_y, ax_z, qz[c0], qz[c1] + 1)
-        for out, op in ((mn, np.minimum), (mx, np.maximum)):
-            v = _closed_reduce(r, ax_x.q, 2, op)
-            v = _closed_reduce(v, ax_y.q, 1, op)
-            out[c0:c1] = _closed_reduce(v, qz[c0:c1 + 1] - qz[c0], 0, op)
-        c0 = c1
+    # Chunk over slabs of supercells in z, each one split along y, then x, where a single
+    # supercell's slab would not fit: a supercell 0.0001 cells wide in x and 64 in y and z
+    # refines into billions of points per slab. Each chunk needs the refined points of its
+    # closed boxes, so neighbouring chunks share one boundary plane.
+    qz, qy, qx = ax_z.q, ax_y.q, ax_x.q
+    for c0, c1 in _spans(qz, len(ax_y.pos) * len(ax_x.pos)):
+        pz = qz[c1] - qz[c0] + 1
+        for b0, b1 in _spans(qy, pz * len(ax_x.pos)):
+            py = qy[b1] - qy[b0] + 1
+            for a0, a1 in _spans(qx, pz * py):
+                r = _refined_block(data, (ax_z, ax_y, ax_x),
+                                   ((qz[c0], qz[c1] + 1), (qy[b0], qy[b1] + 1), (qx[a0], qx[a1] + 1)))
+                for out, op in ((mn, np.minimum), (mx, np.maximum)):
+                    v = _closed_reduce(r, qx[a0:a1 + 1] - qx[a0], 2, op)
+                    v = _closed_reduce(v, qy[b0:b1 + 1] - qy[b0], 1, op)
+                    out[c0:c1, b0:b1, a0:a1] = _closed_reduce(v, qz[c0:c1 + 1] - qz[c0], 0, op)
     if fractional:
         lo, hi = float(data.min()), float(data.max())
         pad = (RANGE_PAD * max(1.0, max(nx, ny, nz) / RANGE_PAD_CELLS)
@@ -335,14 +336,30 @@ def _lerp_axis(a, ax, axis, lo, hi):
     return (1.0 - w) * a0 + w * a1
 
 
-def _refined_block(data, ax_x, ax_y, ax_z, z_lo, z_hi):
-    """The interpolant on the refined lattice, z-points ``z_lo:z_hi``, all y and x."""
-    k0 = int(ax_z.i[z_lo]) if not ax_z.integral else z_lo
-    k1 = int(ax_z.i[z_hi - 1]) + 2 if not ax_z.integral else z_hi
-    slab = data[k0:min(k1, data.shape[0])]
-    r = _lerp_axis(slab, ax_z, 0, z_lo, z_hi)
-    r = _lerp_axis(r, ax_y, 1, 0, len(ax_y.pos))
-    r = _lerp_axis(r, ax_x, 2, 0, len(ax_x.pos))
+def _spans(q, per):
+    """Runs ``(b0, b1)`` of the blocks between boundaries ``q`` (indices of refined points)
+    whose points, ``q[b1] - q[b0] + 1``, times ``per`` fit `CHUNK_VALUES`; one block at least."""
+    fit = max(CHUNK_VALUES // max(per, 1), 2)
+    count = len(q) - 1
+    b0 = 0
+    while b0 < count:
+        b1 = int(np.searchsorted(q, q[b0] + fit - 1, side="right")) - 1
+        b1 = min(max(b1, b0 + 1), count)
+        yield b0, b1
+        b0 = b1
+
+
+def _refined_block(data, axes, bounds):
+    """The interpolant on the refined lattice at points ``lo:hi`` of each axis, ``axes`` and
+    ``bounds`` given in the order z, y, x."""
+    rows = []
+    for n, ax, (lo, hi) in zip(data.shape, axes, bounds):
+        k0 = int(ax.i[lo]) if not ax.integral else lo
+        k1 = int(ax.i[hi - 1]) + 2 if not ax.integral else hi
+        rows.append(slice(k0, min(k1, n)))
+    r = data[tuple(rows)]
+    for axis, (ax, (lo, hi)) in enumerate(zip(axes, bounds)):
+        r = _lerp_axis(r, ax, axis, lo, hi)
     return r
 
 

@@ -195,6 +195,35 @@ def test_fractional_ranges_in_slabs(monkeypatch):
         np.testing.assert_array_equal(a, b)
 
 
+def test_a_thin_supercell_refined_beyond_a_chunk_splits_along_y_and_x(monkeypatch):
+    # One z-slab of supercells 0.0001 cells wide in x and 64 in y and z had refined into
+    # billions of points at once: 23 GB, and the process killed. Chunks now split along y
+    # and x too; here a slab of 9 x 9 x 801 points, in chunks of at most 4096.
+    import tracemalloc
+
+    import parc.ranges as cl
+    data = _random((9, 9, 9), "float32", seed=6)
+    grid = supercell_grid((9, 9, 9), (0.01, 8, 8))
+    whole = supercell_ranges(data, grid)
+    monkeypatch.setattr(cl, "CHUNK_VALUES", 1 << 12)
+    tracemalloc.start()
+    try:
+        sliced = supercell_ranges(data, grid)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    for a, b in zip(whole, sliced):
+        np.testing.assert_array_equal(a, b)
+    assert peak < 12 * 8 * (1 << 12) + 4 * whole[0].nbytes + (64 << 10), peak
+    for size in ((8, 0.01, 8), (1.5, 0.25, 2.5)):
+        grid = supercell_grid((9, 9, 9), size)
+        monkeypatch.setattr(cl, "CHUNK_VALUES", 1 << 22)
+        whole = supercell_ranges(data, grid)
+        monkeypatch.setattr(cl, "CHUNK_VALUES", 1 << 6)
+        for a, b in zip(whole, supercell_ranges(data, grid)):
+            np.testing.assert_array_equal(a, b)
+
+
 def test_subcell_ranges_tighter_than_cells():
     """Sub-cells of a linear ramp: each half-cell sees half the cell's range."""
     x = np.arange(5, dtype=np.float64)
