@@ -120,6 +120,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from data_tools import InputError
+from data_tools.memory import check_memory
+
 from .gl import check_viewport, get_context, moderngl_module, program, set_uniform
 from .raster import (ABS_TOL, COVERAGE_PAD_PX, FLOAT32_REACH, GUARD_PX, PASS_PHASES, TOL_REL, perspective_clip,
                      scene_scale, set_view_uniforms, view_reach)
@@ -131,6 +134,9 @@ from .segments import PROXY_CACHE_SIZE
 #: grid's boundaries (`parc.ranges.SNAP` = 1e-9 cells, plus roundings),
 #: far below a sample step.
 BAND_CELLS = 1e-7
+
+#: Largest bits buffer, in bytes: Mesa's llvmpipe cannot map one of 4 GiB or more.
+MAX_BITS_BYTES = (1 << 32) - 4
 
 
 _UPLOADS = weakref.WeakKeyDictionary()
@@ -356,6 +362,7 @@ def raster_bits(camera, width, height, plane_proxy, *, first, count, halo=False,
     t0 = time.perf_counter()
     proxy = plane_proxy
     axis = int(proxy.plane_axis)
+    _check_bits_size(width, height, count, nwords, axis)
     lo, hi = proxy.bounds
     eye = np.asarray(camera.eye, dtype=np.float64)
     f = camera.basis()[0]
@@ -522,6 +529,16 @@ def _upload(ctx, proxy, halo):
     up = _Upload(faces=vbo, edges=ssbo, offsets=(0, n[0], n[0] + n[1]), count=len(recs))
     ups[bool(halo)] = up
     return up, True
+
+
+def _check_bits_size(width, height, count, nwords, axis):
+    """Refuse a bits buffer OpenGL cannot map, or memory cannot hold with its read-back copy."""
+    need = width * height * nwords * 4
+    what = f"a bits buffer of {count} planes along {'xyz'[axis]} at {width}x{height}"
+    hint = f"; use larger supercells along {'xyz'[axis]}, a smaller image, or --buffers depth"
+    if need > MAX_BITS_BYTES:
+        raise InputError(f"{what} needs {need / 2**30:.1f} GB in one OpenGL buffer, over the 4 GB it can map{hint}")
+    check_memory(2 * need, what, hint)
 
 
 def _sized(ctx, width, height, nwords):

@@ -957,6 +957,25 @@ def test_an_image_too_large_for_memory_gets_one_line(vol_file, tmp_path, capsys)
     assert not out.exists()
 
 
+def test_a_bits_buffer_past_what_opengl_maps_is_refused_in_one_line(vol_file, tmp_path, capsys, monkeypatch):
+    # 8,630 planes along x at 2048x2048 (4.5 GB of bits) ended in moderngl's "cannot map the
+    # buffer" and a traceback. The limit is lowered here to what this small render needs.
+    import parc.bitplanes
+    out = tmp_path / "o.png"
+    argv = ["render", vol_file, "--tf", "viridis", "--buffers", "bits", "--supercell", "0.25,8,8",
+            "--eye", "40,5.5,5.5", "--look-at", "5.5,5.5,5.5", "--size", 48, 32, "--method", "parc", "-o", out]
+    monkeypatch.setattr(parc.bitplanes, "MAX_BITS_BYTES", 48 * 32 * 8)        # 44 planes: two words
+    rc, _, err = _run(argv, capsys)
+    assert rc == 0 and out.exists(), err
+    out.unlink()
+    monkeypatch.setattr(parc.bitplanes, "MAX_BITS_BYTES", 48 * 32 * 8 - 1)
+    rc, _, err = _run(argv, capsys)
+    assert rc == 2 and err.count("\n") == 1 and not out.exists(), err
+    assert re.match(r"parc: error: a bits buffer of 44 planes along x at 48x32 needs 0\.0 GB in one OpenGL buffer, "
+                    r"over the 4 GB it can map; use larger supercells along x, a smaller image, or --buffers depth",
+                    err), err
+
+
 def test_running_out_of_memory_gets_one_line(vol_file, tmp_path, capsys, monkeypatch):
     # Whatever allocation fails (a volume, a table), the user sees one line.
     import data_tools.synthetic
