@@ -40,8 +40,11 @@ def test_the_readme_python_block_runs_and_keeps_its_promises(tmp_path, monkeypat
     code = _block("python", "## Python")
     small = re.sub(r"size=\(\d+, \d+\)", "size=(40, 32)", code)
     assert small.count("size=(40, 32)") == 3, "the README's scenes changed: update this test"
-    os.symlink(CTHEAD, tmp_path / "CThead.nrrd")
-    monkeypatch.chdir(tmp_path)
+    # The README loads ../shared/data/CThead.nrrd, as from a clone beside the shared folder.
+    (tmp_path / "shared" / "data").mkdir(parents=True)
+    os.symlink(CTHEAD, tmp_path / "shared" / "data" / "CThead.nrrd")
+    (tmp_path / "repo").mkdir()
+    monkeypatch.chdir(tmp_path / "repo")
     names = {}
     exec(compile(small, "README.md (Python)", "exec"), names)
     scene, lit, tl, rows = names["scene"], names["lit"], names["tl"], names["rows"]
@@ -50,7 +53,7 @@ def test_the_readme_python_block_runs_and_keeps_its_promises(tmp_path, monkeypat
     _same_images(scene)
     # "as parc render writes it": 8-bit RGBA, opaque where the skin is hit.
     from PIL import Image
-    with Image.open(tmp_path / "head.png") as png:
+    with Image.open(tmp_path / "repo" / "head.png") as png:
         saved = np.asarray(png)
     assert saved.shape == (32, 40, 4) and np.array_equal(saved[..., 3] == 255, np.isfinite(names["result"].depth))
     assert [r["method"] for r in rows] == ["brute", "parc"] and rows[1]["hit_mismatches"] == 0
