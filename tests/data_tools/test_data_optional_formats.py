@@ -372,6 +372,17 @@ def test_imagej_tiff_in_centimetres(tmp_path, unit, xy):
     assert vol.spacing == pytest.approx((xy, xy, 0.2)) and vol.meta["unit"] == unit
 
 
+@pytest.mark.parametrize("unit, per_inch, xy", [("inch", 200.0, 1 / 200), ("cm", 100.0, 2.54 / 100)])
+def test_imagej_tiff_calibrated_per_inch(tmp_path, unit, per_inch, xy):
+    # ResolutionUnit 2: pixels per inch, whatever ImageJ's unit; an inch is 2.54 cm.
+    data = np.arange(60, dtype=np.uint16).reshape(3, 4, 5)
+    tifffile.imwrite(tmp_path / "in.tif", data, imagej=True, resolution=(per_inch, per_inch),
+                     resolutionunit="INCH", metadata={"spacing": 0.2, "unit": unit, "axes": "ZYX"})
+    vol = load_volume(tmp_path / "in.tif")
+    assert np.array_equal(vol.data, data) and "note" not in vol.meta
+    assert vol.spacing == pytest.approx((xy, xy, 0.2)) and vol.meta["unit"] == unit
+
+
 def test_nibabel_writes_nothing_of_its_own_on_stderr(tmp_path, caplog):
     # Its header checks log "pixdim[1,2,3] should be positive": a line before or beside ours.
     img = nib.Nifti1Image(np.zeros((5, 4, 3), np.uint8), None)
