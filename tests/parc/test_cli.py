@@ -1401,14 +1401,20 @@ def test_a_ctrl_c_while_the_outputs_move_in_says_they_were_written(vol_file, tmp
         os.kill(os.getpid(), signal.SIGINT)
         replace(a, b)
     monkeypatch.setattr(os, "replace", ctrl_c_at_the_first)
-    rc, _, err = _run(render + [12, 12], capsys)
+    # Python's own handler, as at a terminal: a suite started in the background ignores SIGINT,
+    # and so, rightly, would parc.
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        rc, _, err = _run(render + [12, 12], capsys)
+    finally:
+        signal.signal(signal.SIGINT, before)
     assert rc == 130 and err == f"parc: interrupted; {out}, {stats} had been written whole\n"
     assert out.read_bytes() != earlier and json.loads(stats.read_text())["parameters"]["size"] == [12, 12]
     from data_tools.signals import done_before_stop
     assert done_before_stop() == ""             # said once: a later interruption is its own
 
 
-
+def test_notes_are_held_back_when_the_render_refuses(vol_file, tmp_path, capsys):
     # The note on the chosen level waits for the render: a supercell refused there is the only line.
     rc, _, err = _run(["render", vol_file, "--size", 8, 8, "--method", "parc", "--supercell", "0.001",
                        "-o", tmp_path / "o.png"], capsys)
