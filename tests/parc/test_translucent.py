@@ -16,6 +16,7 @@ from data_tools import InputError, Volume
 from data_tools.synthetic import blobs, ct_phantom, trilinear_field
 from parc import (Camera, DirectionalLight, PointLight, Scene, ShowsNothingWarning, TransferFunction, Translucent,
                   load_transfer_function, render)
+from parc.classify import VolumeIndex, classify_tf
 
 MODES = ("composite", "mip", "average")
 SUPERCELLS = (0.5, 1, 2, 3, 4.5, 8, (2, 3, 1.5))
@@ -23,7 +24,7 @@ SIZE = (36, 28)
 BUFFERS = (("depth",), ("bits",), ("depth", "bits"))
 #: Each random scene shows at least MIN_VISIBLE pixels of alpha above VISIBLE_ALPHA (drawn
 #: up to MAX_DRAWS times).
-MIN_VISIBLE = 1
+MIN_VISIBLE = 10
 VISIBLE_ALPHA = 0.01
 MAX_DRAWS = 20
 
@@ -52,6 +53,8 @@ def _volume(rng, seed):
         data = blobs(dims, seed=seed).data
     elif kind == 1:
         data = ct_phantom(dims, seed=seed, dtype=str(rng.choice(["uint16", "int16"]))).data
+        if data.dtype == np.int16:
+            data = data - np.int16(1024)          # as Hounsfield units: negative samples too
     elif kind == 2:
         data = rng.normal(size=dims[::-1]).astype(np.float32)
     else:
@@ -59,7 +62,14 @@ def _volume(rng, seed):
     return Volume(data, spacing=spacing, origin=origin)
 
 
-def _camera(rng, vol, seed):
+def _size(seed):
+    """Odd for the views along an axis (`_camera`'s view 2): the middle pixel's ray is exactly along it."""
+    return (37, 29) if seed % 5 == 2 else SIZE
+
+
+def _camera(rng, vol, seed, vis=None, supercell=None):
+    """View ``seed % 5``; an eye inside the volume is, half the time with ``vis`` and ``supercell``
+    given, inside one of the supercells that may contribute."""
     lo, hi = vol.bounds
     view = seed % 5
     if view == 0:
@@ -73,8 +83,24 @@ def _camera(rng, vol, seed):
         e[axis] = 3.0 * np.linalg.norm(hi - lo)
         up = np.zeros(3)
         up[(axis + 1) % 3] = 1.0
-        return Camera(eye=tuple(vol.center + e), look_at=tuple(vol.center), up=tuple(up), fov=30.0)
+        c = vol.center
+        if rng.random() < 0.5:
+            # On a line of samples: the middle ray runs along cell edges.
+            c = lo + np.round((c - lo) / vol.spacing) * vol.spacing
+        if rng.random() < 0.5:
+            return Camera(eye=tuple(c + e), look_at=tuple(c), up=tuple(up),
+                          parallel_scale=0.6 * float(np.linalg.norm(hi - lo)))
+        return Camera(eye=tuple(c + e), look_at=tuple(c), up=tuple(up), fov=30.0)
     eye = lo + rng.uniform(0.2, 0.8, 3) * (hi - lo)       # inside the volume
+    if vis is not None and rng.random() < 0.5:
+        index = VolumeIndex.of(vol)
+        pc = np.argwhere(classify_tf(*index.ranges(supercell), vis.tf))
+        if len(pc):
+            edges = index.grid(supercell).world_edges(vol)
+            k, j, i = pc[rng.integers(len(pc))]
+            cell_lo = np.array([edges[0][i], edges[1][j], edges[2][k]])
+            cell_hi = np.array([edges[0][i + 1], edges[1][j + 1], edges[2][k + 1]])
+            eye = cell_lo + rng.uniform(0.2, 0.8, 3) * (cell_hi - cell_lo)
     look = eye + rng.normal(size=3)
     if view == 3:
         return Camera(eye=tuple(eye), look_at=tuple(look), up=(0.2, 0.3, 1.0), fov=70.0)
@@ -120,14 +146,14 @@ def test_parc_equals_brute_translucent(seed, gl):
     # Half the shaded scenes are lit by lights of their own, drawn apart so that the
     # volume, transfer function and view stay the seed's.
     lights = _random_lights(np.random.default_rng(5000 + seed), vol) if shade and seed % 4 < 2 else []
+    supercell = SUPERCELLS[seed % len(SUPERCELLS)]
     for _ in range(MAX_DRAWS):
         vis = Translucent(vol, _random_tf(rng, lo, hi), mode=mode, shade=shade, step=step)
-        scene = Scene(camera=_camera(rng, vol, seed), size=SIZE, volumes=[vis], lights=lights)
+        scene = Scene(camera=_camera(rng, vol, seed, vis, supercell), size=_size(seed), volumes=[vis], lights=lights)
         ref = render(scene, method="brute", work=True)
         if (ref.image[..., 3] > VISIBLE_ALPHA).sum() >= MIN_VISIBLE:
             break
     assert (ref.image[..., 3] > VISIBLE_ALPHA).sum() >= MIN_VISIBLE, f"no scene of {MAX_DRAWS} shows anything"
-    supercell = SUPERCELLS[seed % len(SUPERCELLS)]
     buffers = BUFFERS[(seed // 3) % len(BUFFERS)]
     res = render(scene, method="parc", supercell=supercell, buffers=buffers, work=True)
     where = f"{mode} supercell={supercell} buffers={buffers} lights={len(lights)} seed={seed}"
@@ -148,11 +174,11 @@ def test_parc_equals_brute_with_shadows_on_shaded_samples(seed, gl):
     lights = _random_lights(np.random.default_rng(9000 + seed), vol)
     for _ in range(MAX_DRAWS):
         vis = Translucent(vol, _random_tf(rng, lo, hi), shade=True, step=step)
-        scene = Scene(camera=_camera(rng, vol, seed), size=SIZE, volumes=[vis], lights=lights, shadows=True)
+        scene = Scene(camera=_camera(rng, vol, seed), size=_size(seed), volumes=[vis], lights=lights, shadows=True)
         ref = render(scene, method="brute", work=True)
         if (ref.image[..., 3] > VISIBLE_ALPHA).sum() >= MIN_VISIBLE:
             break
-    unshadowed = render(Scene(camera=scene.camera, size=SIZE, volumes=[vis], lights=lights), method="brute",
+    unshadowed = render(Scene(camera=scene.camera, size=scene.size, volumes=[vis], lights=lights), method="brute",
                         work=True)
     assert np.array_equal(ref.image[..., 3], unshadowed.image[..., 3])
     assert (ref.image[..., :3] <= unshadowed.image[..., :3] + 1e-6).all()
