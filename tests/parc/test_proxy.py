@@ -206,3 +206,4 @@ def test_a_render_draws_exactly_the_supercells_holding_the_isovalue(iso, gl):
     scene = Scene(camera=Camera.framing(*vol.bounds), size=(16, 16), volumes=[Isosurface(vol, iso)])
     stats = render(scene, method="parc", supercell=2).stats
     assert stats["pc_supercells"] == want
+    assert stats["supercells"] == len(range(0, nx - 1, 2)) * len(range(0, ny - 1, 2)) * len(range(0, nz - 1, 2))
