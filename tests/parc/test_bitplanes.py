@@ -889,3 +889,25 @@ def test_halo_bits_cover_the_snapped_boundarys_sliver(gl, planes_report, side):
     cam = Camera(eye=(x, -10.0, 2.0), look_at=(x, 0.0, 2.0), up=(1, 0, 0), parallel_scale=0.15)
     res = _check_bits(cam, vol, grid, pc, 12, 1, f"snapped boundary sliver {side:+d}", planes_report, axis=0)
     assert res[True].count == 3
+
+
+def test_the_plane_proxys_build_is_booked_once_and_not_as_opengl(gl, monkeypatch):
+    # frame_planes books the plane proxy's build as "proxy" and the pass alone as "raster_bits"
+    # (one of compare's OpenGL phases). A build made to take 0.5 s shows where it went.
+    import time
+
+    import parc.bitplanes
+    import parc.proxy
+    from parc import Scene, Translucent, render
+    build = parc.proxy.build_plane_proxy
+
+    def slow_build(*args, **kwargs):
+        time.sleep(0.5)
+        return build(*args, **kwargs)
+    monkeypatch.setattr(parc.proxy, "build_plane_proxy", slow_build)
+    monkeypatch.setattr(parc.bitplanes, "_PROXIES", [])
+    vol = smooth_volume(3)
+    scene = Scene(camera=Camera.framing(*vol.bounds), size=(16, 12), volumes=[Translucent(vol, "viridis")])
+    seconds = render(scene, method="parc", buffers="depth,bits").stats["seconds"]
+    assert seconds["proxy"] >= 0.5 and seconds["raster_bits"] < 0.5, seconds
+    assert sum(v for k, v in seconds.items() if k != "total") <= seconds["total"], seconds
