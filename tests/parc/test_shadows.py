@@ -773,15 +773,20 @@ def test_polygons_count_the_light_buffers_drawn_this_frame(gl, monkeypatch, lamp
     def counted(light, proxy, size):
         buf = draw(light, proxy, size=size)
         assert len(buf.views) == views
+        # Faces of one supercell each, never merged: a buffer's range stays within a supercell.
+        f = proxy.faces
+        assert len(f) and (f[:, 3] - f[:, 2] == 1).all() and (f[:, 5] - f[:, 4] == 1).all()
         drawn.append(proxy.n_polygons * views)
         return buf
     monkeypatch.setattr(parc.multivolume, "light_buffers", counted)
     vol, scene = _lit_blob(lamp)
-    first = render(scene, method="parc").stats
+    # The camera's merged proxy first, kept; supercells of 2 cells, where faces merge.
+    render(replace(scene, lights=(), shadows=False), method="parc", supercell=2)
+    first = render(scene, method="parc", supercell=2).stats
     own = sum(v["polygons"] for v in first["volumes"])
     assert len(drawn) == 1 and drawn[0] > 0
     assert first["light_polygons"] == drawn[0] and first["polygons"] == own + drawn[0]
-    moved = render(replace(scene, camera=Camera.framing(*vol.bounds, azimuth=-50)), method="parc").stats
+    moved = render(replace(scene, camera=Camera.framing(*vol.bounds, azimuth=-50)), method="parc", supercell=2).stats
     assert len(drawn) == 1 and moved["light_polygons"] == 0         # kept, not drawn again
     assert moved["polygons"] == sum(v["polygons"] for v in moved["volumes"])
     assert render(scene, method="brute").stats["polygons"] == 0
