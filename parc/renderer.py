@@ -73,11 +73,12 @@ class RenderResult:
         ``raster_seconds`` (the OpenGL pass's parts), ``buffers`` and ``blocks`` (as asked),
         with bit planes ``planes`` and ``plane_axis``, and without a ``supercell`` given,
         ``supercell_model`` (the cost model's estimate at each size it weighed, made on the
-        first frame of a classification and image size and kept for the next). Cells and cubics count isosurfaces' work, samples translucent volumes'; a
-        process's first ``seconds["total"]`` also holds loading the casters and making OpenGL's
-        context, beyond the phases listed, and the phases of a first render of its kind hold
-        compiling the kernels they call (10 to 60 s in all, once on a machine: `compile_notice`
-        in `parc.outputs`).
+        first frame of a classification and image size and kept for the next). Cells and
+        cubics count isosurfaces' work, samples translucent volumes'; a process's first
+        ``seconds["total"]`` also holds loading the casters and making OpenGL's context, beyond
+        the phases listed, and the phases of a first render of its kind hold compiling the
+        kernels they call (10 to 60 s in all, once on a machine: `compile_notice` in
+        `parc.outputs`).
         Every render gives ``shadow_rays``, ``shadow_cells``, ``shadow_solves`` and
         ``shadow_samples`` (0 without shadow rays), and ``light_polygons``, the light
         buffers' faces PARC drew this frame (0 with brute, without shadows, or with the
