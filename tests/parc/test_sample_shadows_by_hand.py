@@ -240,3 +240,25 @@ def test_a_lamp_inside_the_slab_shadows_each_sample_by_the_lattice_points_short_
                 want[r, c, :3] += (1.0 - a) ** s * a * np.minimum(1.0, C * (ka + lit))
     want[..., 3] = 1.0 - (1.0 - a) ** SAMPLES
     assert np.abs(res.image - want).max() <= 1e-6
+
+
+@pytest.mark.parametrize("method", ["brute", "parc"])
+def test_a_sheet_on_a_grid_of_unequal_spacings_is_lit_from_each_samples_own_point(method):
+    # A thin sheet (field = world z, opacity only near 5) in a volume of spacing (1, 2, 1),
+    # seen straight down, under a point lamp above, shadows on. Each ray takes one sample, at
+    # z = 5 (lattice from the top face, step 0.25), of opacity 0.5, whose shadow ray leaves the
+    # sheet at once: rgb = 0.5 (0.2 + 0.8 l_z), with l from the sample's own point to the lamp.
+    # A recorded sample placed with x's spacing along y passed every other test.
+    cam = Camera(eye=(10.0, 10.0, 100.0), look_at=(10.0, 10.0, 0.0), up=(0, 1, 0), parallel_scale=3.0)
+    z = np.arange(11, dtype=np.float64)[:, None, None]
+    vol = Volume(np.broadcast_to(z, (11, 11, 21)).copy(), spacing=(1.0, 2.0, 1.0))
+    tf = TransferFunction(opacity=[[4.95, 0.0], [5.0, 0.5], [5.05, 0.0]], color=[[0.0, 1.0, 1.0, 1.0]])
+    sheet = Translucent(vol, tf, shade=True, material=(0.2, 0.8, 0.0, 1.0), step=0.25, threshold=1.0)
+    lamp = PointLight((10.0, 4.0, 9.0))
+    o, d = cam.rays(6, 6)
+    p = o + ((5.0 - o[..., 2]) / d[..., 2])[..., None] * d
+    v = np.asarray(lamp.position) - p
+    want = 0.5 * (0.2 + 0.8 * v[..., 2] / np.linalg.norm(v, axis=-1))
+    img = render(Scene(camera=cam, size=(6, 6), volumes=[sheet], lights=[lamp], shadows=True), method).image
+    np.testing.assert_allclose(img[..., 3], 0.5, atol=1e-6)
+    np.testing.assert_allclose(img[..., 0], want, atol=2e-6)
