@@ -960,6 +960,11 @@ def test_rounding_widens_a_range_by_its_largest_magnitude():
     tf = TransferFunction([(100.00005, 0.0), (101.0, 0.5)])
     assert not tf.nonzero_in(0.0, 100.0)
     assert tf.nonzero_in(0.0, 100.0, rounding=1e-6)
+    # Mirrored: the largest magnitude at the bottom widens the top too (a range from -888 to
+    # 0.001 lost samples an interpolation rounded past its top: parc 0.0 where brute drew 0.8).
+    tf = TransferFunction([(0.00005, 0.0), (1.0, 0.5)])
+    assert not tf.nonzero_in(-100.0, 0.0)
+    assert tf.nonzero_in(-100.0, 0.0, rounding=1e-6)
 
 
 def test_rounding_of_16_bit_ranges_is_a_fraction_of_the_types_largest_magnitude():
