@@ -456,7 +456,13 @@ def compile_took(seconds):
     kernels were kept, as every run compiles them again otherwise."""
     from raycast.kernel_cache import cache_refused, cache_unsaved
 
-    kept = "" if cache_refused() else f", not kept: {cache_unsaved()}" if cache_unsaved() else ", once"
+    unsaved = cache_unsaved()
+    if cache_refused():
+        kept = ""
+    elif unsaved:
+        kept = f", not kept: {unsaved}"
+    else:
+        kept = ", once"
     return f" ({seconds:.1f} s of it compiling the casters{kept})"
 
 
