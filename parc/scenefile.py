@@ -294,11 +294,12 @@ def _load_volume(where, t, cache):
     with where.key(t.key("tf")):
         if spec not in PRESETS:
             path = where.resolve(spec)
-            # A bare word that is no file is meant as a preset: let the loader list the presets.
+            # A bare word that is no file beside the scene is meant as a preset, and refused as an
+            # unknown one here: the loader would read a working folder's file of that name.
             # (exists() raises for a name too long: named with the file and key, as the loader's.)
             if path.exists() or Path(spec).suffix or os.sep in spec or "/" in spec:
                 spec = os.fspath(path)
-            else:           # not the working folder's file of that name, which the loader would read
+            else:
                 raise unknown_preset(spec)
         tf = load_for_volume(spec, vol, mode or "composite")
     given = {"mode": mode, "step": step, "threshold": threshold, "shade": shade, "material": material}
