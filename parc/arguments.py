@@ -164,6 +164,14 @@ def _floats(n, most=None):
     return parse
 
 
+def _colour(text):
+    # Scene checks the range too, but a flag's error should name the flag.
+    vals = _floats(3, 4)(text)
+    if not all(0.0 <= v <= 1.0 for v in vals):
+        raise argparse.ArgumentTypeError(f"components must be in [0, 1], got {text!r}")
+    return vals
+
+
 def supercell_flag(text):
     """``--supercell``'s ``M`` or ``M,N,P``: a number, or three (`parc.ranges.supercell_size`
     checks either as a size)."""
@@ -253,7 +261,7 @@ def _add_view_options(p):
                         "on the whole volume at 1)")
     g.add_argument("--size", type=int, nargs=2, metavar=("W", "H"),
                    help="image size in pixels (default 512 512)")
-    g.add_argument("--background", type=_floats(3, 4), metavar="R,G,B[,A]",
+    g.add_argument("--background", type=_colour, metavar="R,G,B[,A]",
                    help="background colour in [0,1], opaque unless an alpha A is given (default transparent)")
 
 

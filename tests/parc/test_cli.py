@@ -1056,7 +1056,7 @@ def test_more_bad_arguments(extra, words, vol_file, tmp_path, capsys):
                                 "diagonal (15.5563), more than 1e+08: give a step of at least 1.56e-07"),
     (["--spacing", "1e-7,1,1", "--step", "1e-8"], "--step 1e-08 puts"),
     (["--eye", "1e20,0,0", "--parallel", "5"], "--eye: the eye (1e+20, 0.0, 0.0) is over 2^32 times"),
-    (["--background", "2,0,0"], "background components must be in [0, 1]"),
+    (["--background", "2,0,0"], "argument --background: components must be in [0, 1], got '2,0,0'"),
 ])
 def test_translucent_flags_that_cannot_apply_are_refused(extra, words, vol_file, tmp_path, capsys):
     out = tmp_path / "o.png"

@@ -313,4 +313,4 @@ def test_a_background_takes_an_alpha_as_a_scene_file_s_does(vol_file, tmp_path, 
     _refused(["render", vol_file, "--iso", 3, "--background", "0,0,0,0.5,1", "-o", tmp_path / "o.png"],
              "argument --background: must be 3 or 4 comma-separated finite numbers, got '0,0,0,0.5,1'", capsys)
     _refused(["render", vol_file, "--iso", 3, "--background", "0,0,0,2", "-o", tmp_path / "o.png"],
-             "background components must be in [0, 1]", capsys)
+             "argument --background: components must be in [0, 1], got '0,0,0,2'", capsys)
