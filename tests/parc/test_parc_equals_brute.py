@@ -200,24 +200,36 @@ def _same_hits(scene, supercell):
     assert np.abs(res.depth[hit] - ref.depth[hit]).max() == 0.0
 
 
+def _turned(v, k):
+    """``v`` (x, y, z) with its components moved ``k`` axes on: x to y to z to x. A cyclic turn
+    keeps cross products, so a camera and grid turned together round every coordinate as before."""
+    return tuple(v[(i - k) % 3] for i in range(3))
+
+
 @pytest.mark.parametrize("supercell", [1, 2, 0.5])
-def test_parallel_origins_a_rounding_outside_a_face(supercell, gl):
+@pytest.mark.parametrize("face", ["y", "z", "x"])
+def test_parallel_origins_a_rounding_outside_a_face(face, supercell, gl):
     """A parallel view whose view plane is the volume's top face: some ray origins lie an ulp
     above the face in world coordinates but exactly on it in index space, where the caster
-    walks along the face and hits; PARC must start them at 0 too."""
+    walks along the face and hits; PARC must start them at 0 too. The scene is turned so that
+    the face is each axis's in turn: each axis has its own test of the origins against the PC
+    boxes."""
+    k = "yzx".index(face)
     spacing = (0.2732131732465832, 0.1507867643309695, 0.09822305326164066)
     origin = (0.009136035710226587, -1.3579376261686327, -1.2224217394590022)
     nx, ny, nz = 19, 12, 27
-    data = np.zeros((nz, ny, nx), np.uint8)
-    data[:, ny - 2, :] = 255                  # every top cell holds the level
-    data[:, ny - 1, :6] = 255                 # and the face itself, for x index <= 5
-    vol = Volume(data, spacing=spacing, origin=origin)
-    top = vol.bounds[1][1]
-    cam = Camera(eye=(3.9858175543691035, top, -0.8885672103796098),
-                 look_at=(-1.798484276041866, top, -0.8885672103796098), up=(0.3, 1.0, -0.2),
-                 parallel_scale=2.99080141420043)
+    xyz = np.zeros((nx, ny, nz), np.uint8)    # indexed (x, y, z) until turned
+    xyz[:, ny - 2, :] = 255                   # every top cell holds the level
+    xyz[:6, ny - 1, :] = 255                  # and the face itself, for x index <= 5
+    xyz = np.transpose(xyz, [(a - k) % 3 for a in range(3)])
+    vol = Volume(np.ascontiguousarray(xyz.transpose(2, 1, 0)), spacing=_turned(spacing, k),
+                 origin=_turned(origin, k))
+    top = vol.bounds[1][(1 + k) % 3]
+    cam = Camera(eye=_turned((3.9858175543691035, top, -0.8885672103796098), k),
+                 look_at=_turned((-1.798484276041866, top, -0.8885672103796098), k),
+                 up=_turned((0.3, 1.0, -0.2), k), parallel_scale=2.99080141420043)
     o, _ = cam.rays(14, 44)
-    assert (o[..., 1] > top).any()             # the case: origins outside by a rounding
+    assert (o[..., (1 + k) % 3] > top).any()   # the case: origins outside by a rounding
     _same_hits(Scene(camera=cam, size=(14, 44), volumes=[Isosurface(vol, 128.0)]), supercell)
 
 
