@@ -245,6 +245,39 @@ def test_wide_fov_eye_inside_volume(gl, looseness):
     _check(cam, proxy, 64, 24, "wide fov 160 inside volume", looseness)
 
 
+# (volume seed, supercell size, eye, axis, offset, view direction, up, fov): the eye's
+# coordinate on `axis` is moved onto the nearest supercell boundary plane, then `offset` off
+# it. From the first three the PC region is seen from outside (near is at stake), from the
+# last two from inside it (far is).
+HAIR_OFF_A_PLANE = [
+    (0, 1.5, (6.9, 3.3, 6.35), 2, -1e-4, (0.3, 0.7, -0.1), (0, 1, 0), 120.0),
+    (0, 1, (3.4, 4.6, 5.3), 1, 1e-3, (0.7, 0.8, -0.6), (0, 0, 1), 130.0),
+    (2, 1, (3.0, 3.8, 4.5), 1, -1e-4, (-0.1, 0.5, 0.7), (1, 0, 0), 140.0),
+    (2, 1, (6.9, 1.7, 0.5), 2, 1e-4, (-0.1, -0.9, -0.7), (0, 1, 0), 130.0),
+    (0, 1.5, (9.0, 0.8, 2.45), 2, -1e-4, (0.4, -0.3, 0.7), (1, 0, 0), 150.0),
+]
+
+
+@pytest.mark.parametrize("seed, size, eye, axis, offset, direction, up, fov", HAIR_OFF_A_PLANE,
+                         ids=["near-z", "near-y", "near-xy", "far-z", "far-z2"])
+def test_wide_oblique_views_from_a_hair_off_a_grid_plane(gl, looseness, seed, size, eye, axis, offset, direction,
+                                                         up, fov):
+    """A face whose plane passes a hair from the eye is crossed at ever shallower angles the
+    farther out along it: a ray meeting it at distance t has |d_a| / |d| = |w| / t (w the
+    eye's distance to the plane), down to |w| over the face's farthest distance. The error
+    bound on the float32 direction's component along the face's axis, and so on the
+    crossing's t, must be taken at that smallest ratio, from the larger depth: taken from the
+    face's nearest distance it is too small, and in these wide views near lands millionths
+    past the ray's entry (or, with the eye inside the PC region, far short of its exit)."""
+    vol = smooth_volume(seed, spacing=(1.0, 0.8, 1.3), origin=(2.0, -1.0, 0.5))
+    proxy = _proxy(vol, size)
+    eye = np.array(eye)
+    edges = np.asarray(proxy.world_edges[axis])
+    eye[axis] = edges[np.argmin(np.abs(edges - eye[axis]))] + offset
+    cam = Camera(eye=tuple(eye), look_at=tuple(eye + np.array(direction)), up=up, fov=fov)
+    _check(cam, proxy, 48, 36, f"wide fov {fov:g} eye {offset:g} off a plane", looseness)
+
+
 def _shell_proxy(size):
     """A hollow ball: the PC supercells form a closed shell around empty cavity supercells."""
     n = 14
